@@ -1,0 +1,365 @@
+"""The robot: a pinocchio model with declared contact surfaces.
+
+A :class:`Robot` bundles what the posture solver needs to know about a
+humanoid: its kinematic and inertial model, its collision geometry with the
+self-collision pairs its SRDF allows, its joint and torque limits, a reference
+posture, and the planar surfaces it may put in contact (soles, palm plates).
+
+Contact-frame convention (used everywhere in :mod:`stances`): each robot
+surface has a frame whose origin lies on the surface and whose z axis points
+*into* the link, i.e. opposite to the surface's outward normal. A contact is
+then simply "the robot surface frame coincides with the print frame", whose z
+axis is the environment surface's outward normal.
+
+Talos (the paper's HRP-2 is not public) is loaded from the files installed by
+the ``example-robot-data`` package; no path of one machine is hard-coded.
+"""
+
+from __future__ import annotations
+
+import importlib.metadata
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pinocchio as pin
+
+from .errors import FrameNotFound, RobotNotFound
+
+
+@dataclass(frozen=True)
+class RobotSurface:
+    """A planar contact surface attached to a link.
+
+    Parameters
+    ----------
+    name : str
+        Name used in stances, e.g. ``"left_sole"``.
+    frame : str
+        Pinocchio frame name of the contact frame (added to the model). Its z
+        axis points into the link; its origin is on the surface.
+    polygon : (k, 2) float
+        Vertices of the surface, metres, in the contact frame's xy plane,
+        counter-clockwise seen from outside the link.
+    """
+
+    name: str
+    frame: str
+    polygon: np.ndarray
+
+    def __post_init__(self) -> None:
+        polygon = np.array(self.polygon, dtype=float)
+        if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3:
+            raise ValueError(
+                f"robot surface {self.name!r}: polygon must be (k, 2) with k >= 3, "
+                f"got shape {polygon.shape}"
+            )
+        polygon.setflags(write=False)
+        object.__setattr__(self, "polygon", polygon)
+
+    @property
+    def vertices_in_frame(self) -> np.ndarray:
+        """(k, 3) float: the polygon's vertices in the contact frame (z = 0)."""
+        return np.column_stack([self.polygon, np.zeros(len(self.polygon))])
+
+    @property
+    def area(self) -> float:
+        """Area of the polygon, square metres (shoelace formula)."""
+        x, y = self.polygon.T
+        return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
+
+
+@dataclass(frozen=True)
+class SurfaceDeclaration:
+    """Where a robot surface sits on a link, before it is added to a model.
+
+    Parameters
+    ----------
+    name : str
+        Robot surface name.
+    parent_frame : str
+        Existing pinocchio frame the surface is attached to.
+    placement : pin.SE3
+        Transform from the contact frame to ``parent_frame``.
+    polygon : (k, 2) float
+        Vertices in the contact frame, metres.
+    """
+
+    name: str
+    parent_frame: str
+    placement: pin.SE3
+    polygon: np.ndarray
+
+
+def _rotation_about_x(angle: float) -> np.ndarray:
+    return pin.utils.rotate("x", angle)
+
+
+def _rectangle(x_min: float, x_max: float, y_min: float, y_max: float) -> np.ndarray:
+    return np.array([[x_min, y_min], [x_max, y_min], [x_max, y_max], [x_min, y_max]])
+
+
+# Talos's feet: the sole frames already have z up (into the foot) at ground
+# level; the rectangle is the bottom of the foot's collision mesh, slightly
+# shrunk so that contact-point forces stay inside the real sole.
+_TALOS_SOLE = _rectangle(-0.10, 0.11, -0.065, 0.065)
+# The paper's "modified hand link": a flat plate on the wrist flange replacing
+# the gripper. The wrist tool frame's z axis already points back into the
+# forearm, which is the contact-frame convention.
+_TALOS_PALM = _rectangle(-0.05, 0.05, -0.035, 0.035)
+
+TALOS_SURFACES = (
+    SurfaceDeclaration("left_sole", "left_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
+    SurfaceDeclaration("right_sole", "right_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
+    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", pin.SE3.Identity(), _TALOS_PALM),
+    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", pin.SE3.Identity(), _TALOS_PALM),
+)
+# The grippers are replaced by the palm plates, and the head does not take part
+# in static postures: locking them keeps the problem small (nv = 34).
+TALOS_LOCKED_JOINTS = ("gripper_left_joint", "gripper_right_joint", "head_1_joint", "head_2_joint")
+TALOS_REMOVED_GEOMETRY = ("gripper_",)
+
+
+def example_robot_data_share() -> Path:
+    """Directory holding example-robot-data's ``robots/`` folder.
+
+    Returns
+    -------
+    Path
+        The ``share`` directory usable as a pinocchio package directory, so that
+        ``package://example-robot-data/...`` mesh URIs resolve.
+
+    Raises
+    ------
+    RobotNotFound
+        If example-robot-data is not installed.
+    """
+    try:
+        distribution = importlib.metadata.distribution("example-robot-data")
+    except importlib.metadata.PackageNotFoundError as error:
+        raise RobotNotFound(
+            "example-robot-data is not installed; `pip install example-robot-data`"
+        ) from error
+    share = Path(distribution.locate_file("cmeel.prefix/share"))
+    if not (share / "example-robot-data" / "robots").is_dir():
+        raise RobotNotFound(f"example-robot-data's robots folder is missing under {share}")
+    return share
+
+
+def _reference_configurations(model) -> dict:
+    # pinocchio's map iterates as (name, configuration) pairs.
+    return {entry.key(): np.array(entry.data()) for entry in model.referenceConfigurations}
+
+
+class Robot:
+    """A humanoid model ready for posture problems.
+
+    Build one with :meth:`Robot.load` (built-in robots) or
+    :meth:`Robot.from_urdf` (any URDF/SRDF with declared contact surfaces).
+
+    Attributes
+    ----------
+    name : str
+        Robot name.
+    model : pinocchio.Model
+        Kinematic and inertial model with a free-flyer root and one extra
+        frame per contact surface.
+    collision_model : pinocchio.GeometryModel
+        Collision geometry, with the self-collision pairs the SRDF allows.
+    surfaces : dict of str to RobotSurface
+        Contact surfaces by name.
+    reference_configuration : (nq,) float
+        Reference posture (read-only), the objective's target.
+    """
+
+    def __init__(self, name, model, collision_model, surfaces, reference_configuration):
+        self.name = name
+        self.model = model
+        self.collision_model = collision_model
+        self.surfaces = dict(surfaces)
+        reference_configuration = np.array(reference_configuration, dtype=float)
+        reference_configuration.setflags(write=False)
+        self.reference_configuration = reference_configuration
+
+    @classmethod
+    def load(cls, name: str = "talos") -> "Robot":
+        """Load a built-in robot.
+
+        Parameters
+        ----------
+        name : str
+            ``"talos"`` (the only built-in robot so far).
+
+        Returns
+        -------
+        Robot
+
+        Raises
+        ------
+        RobotNotFound
+            For an unknown name.
+
+        Examples
+        --------
+        >>> robot = Robot.load("talos")
+        >>> sorted(robot.surfaces)
+        ['left_palm', 'left_sole', 'right_palm', 'right_sole']
+        >>> robot.model.nv
+        34
+        """
+        if name != "talos":
+            raise RobotNotFound(f"unknown robot {name!r}; built-in robots: talos")
+        share = example_robot_data_share()
+        talos = share / "example-robot-data" / "robots" / "talos_data"
+        return cls.from_urdf(
+            name="talos",
+            urdf=talos / "robots" / "talos_reduced.urdf",
+            srdf=talos / "srdf" / "talos.srdf",
+            package_dirs=[share],
+            surfaces=TALOS_SURFACES,
+            locked_joints=TALOS_LOCKED_JOINTS,
+            removed_geometry_prefixes=TALOS_REMOVED_GEOMETRY,
+            reference_posture="half_sitting",
+        )
+
+    @classmethod
+    def from_urdf(
+        cls,
+        name,
+        urdf,
+        srdf,
+        package_dirs,
+        surfaces,
+        locked_joints=(),
+        removed_geometry_prefixes=(),
+        reference_posture="half_sitting",
+    ) -> "Robot":
+        """Build a robot from URDF and SRDF files with declared contact surfaces.
+
+        Parameters
+        ----------
+        name : str
+            Robot name.
+        urdf, srdf : path-like
+            Model files. The SRDF provides the reference posture and the
+            self-collision exclusions.
+        package_dirs : list of path-like
+            Where ``package://`` mesh URIs resolve.
+        surfaces : iterable of SurfaceDeclaration
+            Contact surfaces to add as frames.
+        locked_joints : iterable of str
+            Joints fixed at their reference value and removed from the model.
+        removed_geometry_prefixes : iterable of str
+            Collision geometries whose name starts with one of these are
+            dropped (e.g. a gripper replaced by a palm plate).
+        reference_posture : str
+            Name of the SRDF group state used as reference configuration.
+
+        Returns
+        -------
+        Robot
+        """
+        dirs = [str(d) for d in package_dirs]
+        model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
+        collision_model = pin.buildGeomFromUrdf(
+            model, str(urdf), pin.GeometryType.COLLISION, package_dirs=dirs
+        )
+        pin.loadReferenceConfigurations(model, str(srdf), False)
+        references = _reference_configurations(model)
+        if reference_posture not in references:
+            raise FrameNotFound("reference posture", reference_posture, references)
+        q_reference = references[reference_posture]
+
+        lock_ids = []
+        for joint in locked_joints:
+            if not model.existJointName(joint):
+                raise FrameNotFound("joint", joint, list(model.names))
+            lock_ids.append(model.getJointId(joint))
+        if lock_ids:
+            model, (collision_model,) = pin.buildReducedModel(
+                model, [collision_model], lock_ids, q_reference
+            )
+            pin.loadReferenceConfigurations(model, str(srdf), False)
+            q_reference = _reference_configurations(model)[reference_posture]
+
+        # Names first: removing objects invalidates the python views on them.
+        names = [geometry.name for geometry in collision_model.geometryObjects]
+        for geometry_name in names:
+            if geometry_name.startswith(tuple(removed_geometry_prefixes)):
+                collision_model.removeGeometryObject(geometry_name)
+        collision_model.addAllCollisionPairs()
+        pin.removeCollisionPairs(model, collision_model, str(srdf), False)
+
+        robot_surfaces = {}
+        for declaration in surfaces:
+            if not model.existFrame(declaration.parent_frame):
+                raise FrameNotFound("frame", declaration.parent_frame, [f.name for f in model.frames])
+            parent_id = model.getFrameId(declaration.parent_frame)
+            parent = model.frames[parent_id]
+            frame_name = f"{declaration.name}_contact"
+            model.addFrame(
+                pin.Frame(
+                    frame_name,
+                    parent.parentJoint,
+                    parent_id,
+                    parent.placement * declaration.placement,
+                    pin.FrameType.OP_FRAME,
+                )
+            )
+            robot_surfaces[declaration.name] = RobotSurface(
+                declaration.name, frame_name, declaration.polygon
+            )
+        return cls(name, model, collision_model, robot_surfaces, q_reference)
+
+    @property
+    def nq(self) -> int:
+        """Size of a configuration vector (free-flyer quaternion included)."""
+        return self.model.nq
+
+    @property
+    def nv(self) -> int:
+        """Size of a velocity / tangent vector."""
+        return self.model.nv
+
+    @property
+    def actuated_joint_names(self) -> list[str]:
+        """Names of the actuated joints, in tangent-vector order after the free flyer."""
+        return [name for name in self.model.names[2:]]
+
+    @property
+    def effort_limits(self) -> np.ndarray:
+        """(nv - 6,) float: torque limit of each actuated joint, N m."""
+        return np.asarray(self.model.effortLimit[6:], dtype=float)
+
+    @property
+    def mass(self) -> float:
+        """Total mass, kilograms."""
+        return float(pin.computeTotalMass(self.model))
+
+    def surface(self, name: str) -> RobotSurface:
+        """The robot contact surface called ``name``.
+
+        Raises
+        ------
+        FrameNotFound
+            Listing the declared surfaces.
+        """
+        try:
+            return self.surfaces[name]
+        except KeyError:
+            raise FrameNotFound("robot surface", name, self.surfaces) from None
+
+    def frame_id(self, name: str) -> int:
+        """Pinocchio frame index of ``name``, with a helpful error."""
+        if not self.model.existFrame(name):
+            raise FrameNotFound("frame", name, [f.name for f in self.model.frames])
+        return self.model.getFrameId(name)
+
+    def __repr__(self) -> str:
+        return (
+            f"Robot({self.name!r}, nq={self.nq}, nv={self.nv}, "
+            f"surfaces={sorted(self.surfaces)})"
+        )
+
+
+__all__ = ["Robot", "RobotSurface", "SurfaceDeclaration", "example_robot_data_share"]
