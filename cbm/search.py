@@ -1,0 +1,356 @@
+"""Best-first search over a lazily checked graph (generic: no robot inside).
+
+The nodes are any hashable values (the planner uses stances). A node is
+*reached* only if a feasibility oracle accepts it. The oracle is called lazily,
+when a node is popped from the open list rather than when it is generated, so a
+search that goes straight to the goal pays one solve per stance of the path,
+not one per neighbour. Every answer is cached: no node is ever given to the
+oracle twice.
+"""
+
+from __future__ import annotations
+
+import heapq
+import itertools
+import logging
+import random
+import time
+from dataclasses import dataclass, field
+from typing import Any, Callable, Hashable, Iterable
+
+import networkx as nx
+
+from .errors import CbmError
+
+__all__ = [
+    "SearchLimits",
+    "SearchStatistics",
+    "SearchResult",
+    "best_first_search",
+    "NO_FEASIBLE_NEIGHBOUR",
+]
+
+logger = logging.getLogger(__name__)
+
+#: Reason given when the open list empties before a goal is reached.
+NO_FEASIBLE_NEIGHBOUR = "no feasible neighbour"
+
+
+@dataclass(frozen=True)
+class SearchLimits:
+    """Budgets of one search; ``None`` means unlimited.
+
+    Parameters
+    ----------
+    max_expansions : int or None
+        Nodes whose neighbours may be generated.
+    max_solver_calls : int or None
+        Calls to the feasibility oracle (the start node included).
+    time_limit : float or None
+        Wall time, seconds. Checked between oracle calls: one call that runs
+        long is not interrupted.
+    """
+
+    max_expansions: int | None = 200
+    max_solver_calls: int | None = 2000
+    time_limit: float | None = 120.0
+
+    def __post_init__(self):
+        for name in ("max_expansions", "max_solver_calls"):
+            value = getattr(self, name)
+            if value is not None and (int(value) != value or value < 0):
+                raise CbmError(f"{name} must be a non-negative integer or None, got {value!r}")
+        if self.time_limit is not None and not self.time_limit > 0:
+            raise CbmError(f"time_limit must be positive seconds or None, got {self.time_limit!r}")
+
+
+@dataclass(frozen=True)
+class SearchStatistics:
+    """Counters of one search.
+
+    Parameters
+    ----------
+    expanded : int
+        Nodes whose neighbours were generated.
+    generated : int
+        Neighbours generated (before any oracle call).
+    solver_calls : int
+        Calls to the feasibility oracle.
+    cache_hits : int
+        Oracle requests answered from the cache instead.
+    time : float
+        Wall time of the search, seconds.
+    """
+
+    expanded: int = 0
+    generated: int = 0
+    solver_calls: int = 0
+    cache_hits: int = 0
+    time: float = 0.0
+
+    def to_dict(self):
+        """Return the counters as a plain dict."""
+        return {
+            "expanded": self.expanded,
+            "generated": self.generated,
+            "solver_calls": self.solver_calls,
+            "cache_hits": self.cache_hits,
+            "time": self.time,
+        }
+
+
+@dataclass(frozen=True)
+class SearchResult:
+    """Outcome of :func:`best_first_search`.
+
+    Parameters
+    ----------
+    success : bool
+        True if ``path`` ends on a goal node.
+    reason : str
+        ``"goal reached"``, ``"no feasible neighbour"`` (search space
+        exhausted), ``"budget exhausted: <limit>"`` or ``"start infeasible: ..."``.
+    path : tuple
+        Nodes from the start to the goal; on failure, the best partial path
+        (to the feasible node of smallest heuristic), possibly empty if the
+        start itself is infeasible.
+    results : tuple
+        Oracle answers of the nodes of ``path``, same length.
+    statistics : SearchStatistics
+        Counters.
+    graph : networkx.DiGraph
+        Explored graph. Node attributes: ``status`` (``"open"``,
+        ``"feasible"``, ``"infeasible"``), ``result`` (oracle answer or
+        None), ``h`` (heuristic); edge attribute ``move``.
+    """
+
+    success: bool
+    reason: str
+    path: tuple
+    results: tuple
+    statistics: SearchStatistics
+    graph: nx.DiGraph = field(compare=False, repr=False)
+
+
+def best_first_search(
+    start: Hashable,
+    *,
+    neighbours: Callable[[Any], Iterable[tuple[Any, Any]]],
+    oracle: Callable[[Any, Any, Any], Any],
+    heuristic: Callable[[Any], float],
+    is_goal: Callable[[Any], bool],
+    step_cost: Callable[[Any, Any, Any], float] | None = None,
+    path_cost_weight: float = 0.0,
+    limits: SearchLimits = SearchLimits(),
+    eager: bool = False,
+    shuffle_neighbours: bool = False,
+    seed: int = 0,
+    on_expand: Callable[[SearchStatistics], None] | None = None,
+) -> SearchResult:
+    """Search from ``start`` to a goal node through feasible nodes only.
+
+    Nodes are popped in increasing order of
+    ``heuristic(node) + path_cost_weight * cost_from_start``, ties broken by
+    insertion order. A popped node is given to the oracle (warm start: its
+    parent and the parent's answer) unless the cache already knows it;
+    infeasible nodes are dropped, feasible ones are goal-tested then expanded.
+
+    Parameters
+    ----------
+    start : hashable
+        First node; it is checked by the oracle too.
+    neighbours : callable
+        ``neighbours(node)`` yields ``(child, move)`` pairs; ``move`` is any
+        label stored on the graph edge.
+    oracle : callable
+        ``oracle(node, parent, parent_result)`` returns an answer with a bool
+        attribute ``feasible``; ``parent`` is None for the start.
+    heuristic : callable
+        ``heuristic(node)``, non-negative estimate of the distance to a goal.
+    is_goal : callable
+        ``is_goal(node)`` for a feasible node.
+    step_cost : callable, optional
+        ``step_cost(parent, child, move)``; 1 per move by default.
+    path_cost_weight : float
+        Weight of the cost from the start in the priority; 0 is greedy.
+    limits : SearchLimits
+        Budgets.
+    eager : bool
+        Baseline mode: call the oracle on every neighbour when generated
+        (still cached). The default lazy mode calls it when popped.
+    shuffle_neighbours : bool
+        Shuffle each node's neighbours with a generator seeded by ``seed``
+        before queuing them, so equal priorities are not always resolved in
+        generation order. Off: the order is generation order.
+    seed : int
+        Seed of the shuffling generator.
+    on_expand : callable, optional
+        Called with the current statistics after each expansion (progress).
+
+    Returns
+    -------
+    SearchResult
+
+    Examples
+    --------
+    >>> from types import SimpleNamespace
+    >>> edges = {0: [1, 2], 1: [3], 2: [3], 3: []}
+    >>> result = best_first_search(
+    ...     0,
+    ...     neighbours=lambda n: [(m, (n, m)) for m in edges[n]],
+    ...     oracle=lambda n, p, r: SimpleNamespace(feasible=n != 1),
+    ...     heuristic=lambda n: 3 - n,
+    ...     is_goal=lambda n: n == 3,
+    ... )
+    >>> result.success, result.path
+    (True, (0, 2, 3))
+    """
+    if path_cost_weight < 0:
+        raise CbmError(f"path_cost_weight must be >= 0, got {path_cost_weight!r}")
+    if step_cost is None:
+        step_cost = _unit_step_cost
+    started = time.perf_counter()
+    rng = random.Random(seed)
+    # The counter makes every heap entry unique before its node, so the heap
+    # never compares two nodes (stances need not be orderable) and equal
+    # priorities pop in insertion order: a deterministic tie-break.
+    counter = itertools.count()
+    heap: list = []
+    cache: dict = {}
+    came_from: dict = {}
+    closed: set = set()
+    h_of: dict = {}
+    graph = nx.DiGraph()
+    counts = {"expanded": 0, "generated": 0, "solver_calls": 0, "cache_hits": 0}
+    best = None  # (h, order, node) of the feasible node closest to the goal
+
+    def statistics():
+        return SearchStatistics(time=time.perf_counter() - started, **counts)
+
+    def heuristic_of(node):
+        if node not in h_of:
+            h_of[node] = float(heuristic(node))
+        return h_of[node]
+
+    def budget_exceeded(before_solve):
+        if limits.time_limit is not None and time.perf_counter() - started > limits.time_limit:
+            return "time_limit"
+        if (
+            before_solve
+            and limits.max_solver_calls is not None
+            and counts["solver_calls"] >= limits.max_solver_calls
+        ):
+            return "max_solver_calls"
+        return None
+
+    def evaluate(node, parent):
+        """Oracle answer of ``node``, from the cache if known; None if out of budget."""
+        if node in cache:
+            counts["cache_hits"] += 1
+            return cache[node]
+        exceeded = budget_exceeded(before_solve=True)
+        if exceeded is not None:
+            raise _BudgetExhausted(exceeded)
+        parent_result = cache.get(parent) if parent is not None else None
+        answer = oracle(node, parent, parent_result)
+        counts["solver_calls"] += 1
+        cache[node] = answer
+        feasible = bool(answer.feasible)
+        graph.add_node(node, status="feasible" if feasible else "infeasible", result=answer)
+        logger.debug("oracle: %s -> %s", node, "feasible" if feasible else "infeasible")
+        return answer
+
+    def finish(success, reason, last):
+        path = _path_to(last, came_from) if last is not None else ()
+        stats = statistics()
+        logger.info(
+            "search %s (%s): %d expanded, %d solver calls, %d cache hits, %.2f s",
+            "succeeded" if success else "failed",
+            reason,
+            stats.expanded,
+            stats.solver_calls,
+            stats.cache_hits,
+            stats.time,
+        )
+        return SearchResult(
+            success=success,
+            reason=reason,
+            path=path,
+            results=tuple(cache[n] for n in path),
+            statistics=stats,
+            graph=graph,
+        )
+
+    graph.add_node(start, status="open", result=None, h=heuristic_of(start))
+    heapq.heappush(heap, (heuristic_of(start), next(counter), start, None, 0.0))
+    try:
+        while heap:
+            exceeded = budget_exceeded(before_solve=False)
+            if exceeded is not None:
+                raise _BudgetExhausted(exceeded)
+            _, order, node, parent, cost = heapq.heappop(heap)
+            if node in closed:
+                continue
+            if eager and node in cache:
+                answer = cache[node]  # checked when generated; not a cache hit
+            else:
+                answer = evaluate(node, parent)
+            if not answer.feasible:
+                if parent is None:
+                    reason = getattr(answer, "reason", "") or "rejected by the oracle"
+                    return finish(False, f"start infeasible: {reason}", None)
+                continue
+            came_from.setdefault(node, parent)
+            h = heuristic_of(node)
+            if best is None or (h, order) < best[:2]:
+                best = (h, order, node)
+            if is_goal(node):
+                return finish(True, "goal reached", node)
+            if limits.max_expansions is not None and counts["expanded"] >= limits.max_expansions:
+                raise _BudgetExhausted("max_expansions")
+            closed.add(node)
+            counts["expanded"] += 1
+            children = list(neighbours(node))
+            counts["generated"] += len(children)
+            if shuffle_neighbours:
+                rng.shuffle(children)
+            for child, move in children:
+                if child in closed:
+                    continue
+                if child in cache and not cache[child].feasible:
+                    counts["cache_hits"] += 1
+                    continue
+                if child not in graph:
+                    graph.add_node(child, status="open", result=None)
+                graph.nodes[child]["h"] = heuristic_of(child)
+                graph.add_edge(node, child, move=move)
+                if eager and child not in cache:
+                    if not evaluate(child, node).feasible:
+                        continue
+                child_cost = cost + float(step_cost(node, child, move))
+                priority = heuristic_of(child) + path_cost_weight * child_cost
+                heapq.heappush(heap, (priority, next(counter), child, node, child_cost))
+            if on_expand is not None:
+                on_expand(statistics())
+    except _BudgetExhausted as exhausted:
+        return finish(False, f"budget exhausted: {exhausted.limit}", best[2] if best else None)
+    return finish(False, NO_FEASIBLE_NEIGHBOUR, best[2] if best else None)
+
+
+class _BudgetExhausted(Exception):
+    """Internal: unwinds the search loop when a limit is hit."""
+
+    def __init__(self, limit):
+        super().__init__(limit)
+        self.limit = limit
+
+
+def _unit_step_cost(parent, child, move):
+    return 1.0
+
+
+def _path_to(node, came_from):
+    path = [node]
+    while came_from.get(path[-1]) is not None:
+        path.append(came_from[path[-1]])
+    return tuple(reversed(path))

@@ -1,0 +1,225 @@
+"""Best-first search on tiny hand-made graphs with synthetic feasibility oracles."""
+
+import collections
+import time
+from dataclasses import dataclass
+
+import networkx as nx
+import pytest
+
+from cbm.search import NO_FEASIBLE_NEIGHBOUR, SearchLimits, best_first_search
+
+
+@dataclass(frozen=True)
+class Answer:
+    feasible: bool
+    reason: str = ""
+    warm_start: object = None
+
+
+class CountingOracle:
+    """Feasible unless listed; records every call and the warm start it got."""
+
+    def __init__(self, infeasible=(), delay=0.0):
+        self.infeasible = set(infeasible)
+        self.calls = collections.Counter()
+        self.parents = {}
+        self.delay = delay
+
+    def __call__(self, node, parent, parent_result):
+        self.calls[node] += 1
+        self.parents[node] = (parent, parent_result)
+        if self.delay:
+            time.sleep(self.delay)
+        feasible = node not in self.infeasible
+        return Answer(feasible, "" if feasible else f"{node} rejected", warm_start=node)
+
+
+def search_graph(graph, start, goal, oracle, heuristic=None, **kwargs):
+    if heuristic is None:
+        heuristic = lambda n: float(graph.nodes[n].get("h", 0.0))  # noqa: E731
+    return best_first_search(
+        start,
+        neighbours=lambda n: [(m, (n, m)) for m in graph.successors(n)],
+        oracle=oracle,
+        heuristic=heuristic,
+        is_goal=lambda n: n == goal,
+        **kwargs,
+    )
+
+
+def diamond():
+    #      a(h=1) -> goal
+    # s -<
+    #      b(h=2) -> c(h=1) -> goal
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 3}), ("a", {"h": 1}), ("b", {"h": 2}), ("c", {"h": 1}), ("goal", {"h": 0})])
+    g.add_edges_from([("s", "a"), ("s", "b"), ("a", "goal"), ("b", "c"), ("c", "goal")])
+    return g
+
+
+def test_search_follows_the_heuristic_to_the_exact_path():
+    result = search_graph(diamond(), "s", "goal", CountingOracle())
+    assert result.success and result.reason == "goal reached"
+    assert result.path == ("s", "a", "goal")
+    assert [r.warm_start for r in result.results] == ["s", "a", "goal"]
+
+
+def test_search_detours_around_an_infeasible_node():
+    oracle = CountingOracle(infeasible={"a"})
+    result = search_graph(diamond(), "s", "goal", oracle)
+    assert result.path == ("s", "b", "c", "goal")
+    assert result.graph.nodes["a"]["status"] == "infeasible"
+    assert result.graph.has_edge("s", "a")
+
+
+def test_oracle_is_warm_started_from_the_parent_answer():
+    oracle = CountingOracle()
+    search_graph(diamond(), "s", "goal", oracle)
+    assert oracle.parents["s"] == (None, None)
+    parent, parent_result = oracle.parents["a"]
+    assert parent == "s" and parent_result.warm_start == "s"
+
+
+def test_oracle_is_called_lazily_only_on_popped_nodes():
+    # A star: the start has 50 neighbours, one of them the goal.
+    g = nx.DiGraph()
+    g.add_node(0, h=1.0)
+    for i in range(1, 51):
+        g.add_node(i, h=0.0 if i == 37 else 1.0)
+        g.add_edge(0, i)
+    lazy = CountingOracle()
+    result = search_graph(g, 0, 37, lazy)
+    assert result.path == (0, 37)
+    assert sum(lazy.calls.values()) == 2
+    eager = CountingOracle()
+    result = search_graph(g, 0, 37, eager, eager=True)
+    assert result.path == (0, 37)
+    assert sum(eager.calls.values()) == 51
+
+
+def test_ties_break_in_generation_order_and_repeat_exactly():
+    # Two symmetric branches with equal priorities: the first generated wins.
+    g = nx.DiGraph()
+    g.add_edges_from([("s", "x"), ("s", "y"), ("x", "goal"), ("y", "goal")])
+    runs = [search_graph(g, "s", "goal", CountingOracle()) for _ in range(3)]
+    assert all(r.path == ("s", "x", "goal") for r in runs)
+    assert len({r.statistics.solver_calls for r in runs}) == 1
+    g2 = nx.DiGraph()
+    g2.add_edges_from([("s", "y"), ("s", "x"), ("x", "goal"), ("y", "goal")])
+    assert search_graph(g2, "s", "goal", CountingOracle()).path == ("s", "y", "goal")
+
+
+def test_unorderable_nodes_with_equal_priority_do_not_break_the_heap():
+    class Opaque:
+        def __init__(self, name):
+            self.name = name
+
+    s, a, b, goal = (Opaque(n) for n in "s a b goal".split())
+    edges = {s: [a, b], a: [goal], b: [goal], goal: []}
+    result = best_first_search(
+        s,
+        neighbours=lambda n: [(m, None) for m in edges[n]],
+        oracle=lambda n, p, r: Answer(True),
+        heuristic=lambda n: 1.0,
+        is_goal=lambda n: n is goal,
+    )
+    assert [n.name for n in result.path] == ["s", "a", "goal"]
+
+
+def wide_graph(width=8, depth=4):
+    # Layers fully connected to the next one: many equal-priority choices.
+    g = nx.DiGraph()
+    layers = [["s"]] + [[(d, i) for i in range(width)] for d in range(1, depth)] + [["goal"]]
+    for upper, lower in zip(layers, layers[1:]):
+        g.add_edges_from((u, v) for u in upper for v in lower)
+    return g
+
+
+def test_same_seed_gives_the_same_path_and_seeds_change_the_tie_break():
+    g = wide_graph()
+    paths = {}
+    for seed in range(6):
+        first = search_graph(g, "s", "goal", CountingOracle(), shuffle_neighbours=True, seed=seed)
+        again = search_graph(g, "s", "goal", CountingOracle(), shuffle_neighbours=True, seed=seed)
+        assert first.path == again.path
+        assert first.statistics.solver_calls == again.statistics.solver_calls
+        paths[seed] = first.path
+    assert len(set(paths.values())) > 1
+
+
+def test_unreachable_goal_ends_with_no_feasible_neighbour_and_the_best_partial_path():
+    g = diamond()
+    g.add_edge("a", "d")
+    g.nodes["d"]["h"] = 0.5
+    oracle = CountingOracle(infeasible={"goal"})
+    result = search_graph(g, "s", "goal", oracle, limits=SearchLimits(max_expansions=100))
+    assert not result.success
+    assert result.reason == NO_FEASIBLE_NEIGHBOUR
+    assert result.path == ("s", "a", "d")
+    assert result.statistics.expanded <= 100
+
+
+def test_infeasible_start_is_reported():
+    result = search_graph(diamond(), "s", "goal", CountingOracle(infeasible={"s"}))
+    assert not result.success
+    assert result.reason == "start infeasible: s rejected"
+    assert result.path == ()
+
+
+def test_no_node_is_given_to_the_oracle_twice():
+    # Converging paths in a grid: every node is reachable many ways.
+    grid = nx.grid_2d_graph(5, 5).to_directed()
+    goal = (4, 4)
+    oracle = CountingOracle(infeasible={(1, 1), (2, 3), (3, 2), (4, 3)})
+    result = search_graph(
+        grid,
+        (0, 0),
+        goal,
+        oracle,
+        heuristic=lambda n: 0.0,  # uniform cost: explores widely
+        path_cost_weight=1.0,
+    )
+    assert result.success
+    assert max(oracle.calls.values()) == 1
+    assert result.statistics.solver_calls == sum(oracle.calls.values())
+    assert result.statistics.cache_hits > 0
+    assert len(result.path) == 9  # a shortest path in a 5 x 5 grid
+
+
+@pytest.mark.parametrize(
+    "limits, reason",
+    [
+        (SearchLimits(max_expansions=3, max_solver_calls=None), "budget exhausted: max_expansions"),
+        (SearchLimits(max_expansions=None, max_solver_calls=5), "budget exhausted: max_solver_calls"),
+    ],
+    ids=["expansions", "solver-calls"],
+)
+def test_counting_limits_are_respected(limits, reason):
+    g = nx.grid_2d_graph(6, 6).to_directed()
+    oracle = CountingOracle()
+    result = search_graph(g, (0, 0), "nowhere", oracle, heuristic=lambda n: 0.0, limits=limits)
+    assert result.reason == reason
+    if limits.max_expansions is not None:
+        assert result.statistics.expanded == limits.max_expansions
+    if limits.max_solver_calls is not None:
+        assert sum(oracle.calls.values()) == limits.max_solver_calls
+    assert result.path and result.path[0] == (0, 0)
+
+
+def test_time_limit_is_respected():
+    g = nx.grid_2d_graph(6, 6).to_directed()
+    oracle = CountingOracle(delay=0.02)
+    result = search_graph(
+        g, (0, 0), "nowhere", oracle, heuristic=lambda n: 0.0, limits=SearchLimits(time_limit=0.15)
+    )
+    assert result.reason == "budget exhausted: time_limit"
+    # One oracle call may overrun the limit, not more.
+    assert result.statistics.time < 0.15 + 0.1
+    assert sum(oracle.calls.values()) < 36
+
+
+def test_expand_callback_sees_growing_counts():
+    seen = []
+    search_graph(diamond(), "s", "goal", CountingOracle(infeasible={"a"}), on_expand=seen.append)
+    assert [s.expanded for s in seen] == [1, 2, 3]
