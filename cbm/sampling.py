@@ -1,0 +1,392 @@
+"""Contact-print sampling on the scene's surfaces, and cheap reach pruning.
+
+The paper's Sec. V explains why prints on a deformable support must be fixed
+beforehand: the FEM print (the set of surface nodes under the link) changes
+discontinuously with the print pose. So the planner searches over a finite
+grid of prints ``(x, y, theta)`` sampled on every contact surface, rigid or
+deformable, and prunes by simple distances before any posture solve.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Mapping
+
+import numpy as np
+
+from environments.stance import ContactPrint
+
+from .errors import CbmError
+
+__all__ = [
+    "SamplingOptions",
+    "ReachLimits",
+    "PrintSet",
+    "surface_kind",
+    "surface_side",
+    "grid_values",
+    "sample_prints",
+    "shoulders_in_world",
+    "reachable_mask",
+]
+
+
+@dataclass(frozen=True)
+class SamplingOptions:
+    """How prints are sampled.
+
+    Parameters
+    ----------
+    spacing : float
+        Grid step in x and y, metres, surface frame.
+    theta_values : tuple of float
+        Print rotations about the surface normal, radians.
+    margin : float
+        Distance every print vertex keeps inside the surface polygon, metres.
+    max_sole_tilt : float
+        Soles only go on surfaces whose outward normal is within this angle of
+        world +z, radians (floors and box tops, not walls).
+    """
+
+    spacing: float = 0.1
+    theta_values: tuple = (0.0,)
+    margin: float = 0.0
+    max_sole_tilt: float = math.radians(20.0)
+
+    def __post_init__(self):
+        if not (math.isfinite(self.spacing) and self.spacing > 0):
+            raise CbmError(f"print spacing must be a positive number of metres, got {self.spacing!r}")
+        thetas = tuple(float(t) for t in self.theta_values)
+        if not thetas or not all(math.isfinite(t) for t in thetas):
+            raise CbmError(f"theta_values must be a non-empty list of finite radians, got {self.theta_values!r}")
+        object.__setattr__(self, "theta_values", thetas)
+        if self.margin < 0:
+            raise CbmError(f"margin must be >= 0 metres, got {self.margin!r}")
+
+
+@dataclass(frozen=True)
+class ReachLimits:
+    """Geometric limits of a humanoid's reach, defaults suited to Talos.
+
+    All distances are metres, between print origins, world frame.
+
+    Parameters
+    ----------
+    max_step_length : float
+        Largest horizontal distance between the two sole prints (leg ~0.9 m).
+    min_sole_separation : float
+        Smallest lateral offset of one sole from the other, measured along the
+        other sole's y axis, with the left sole on the left: keeps the feet
+        from overlapping or crossing.
+    max_step_height : float
+        Largest height difference between the two sole prints.
+    max_sole_yaw_difference : float
+        Largest angle between the soles' x axes, radians.
+    shoulder_height : float
+        Height of the shoulders above the mid-point of the soles.
+    shoulder_half_width : float
+        Lateral offset of each shoulder from the body's mid-plane.
+    arm_reach : float
+        Largest distance from a shoulder to the print of its palm.
+    """
+
+    max_step_length: float = 0.4
+    min_sole_separation: float = 0.14
+    max_step_height: float = 0.3
+    max_sole_yaw_difference: float = math.radians(45.0)
+    shoulder_height: float = 1.35
+    shoulder_half_width: float = 0.2
+    arm_reach: float = 0.65
+
+    def __post_init__(self):
+        for name, value in self.__dict__.items():
+            if not (math.isfinite(value) and value >= 0):
+                raise CbmError(f"ReachLimits.{name} must be a finite non-negative number, got {value!r}")
+
+
+def surface_kind(robot_surface):
+    """Kind of a robot contact surface from its name: ``"sole"`` or ``"palm"``.
+
+    Names containing ``sole`` or ``foot`` are soles; everything else is
+    treated like a palm (it may touch any surface).
+    """
+    name = robot_surface.lower()
+    return "sole" if ("sole" in name or "foot" in name) else "palm"
+
+
+def surface_side(robot_surface):
+    """Side of a robot contact surface from its name: ``"left"``, ``"right"`` or ``""``."""
+    name = robot_surface.lower()
+    if "left" in name or name.startswith("l_"):
+        return "left"
+    if "right" in name or name.startswith("r_"):
+        return "right"
+    return ""
+
+
+@dataclass(frozen=True, eq=False)
+class PrintSet:
+    """Candidate prints of one robot surface, with their world placement.
+
+    Parameters
+    ----------
+    robot_surface : str
+        Robot contact surface they are for.
+    prints : tuple of ContactPrint
+        The prints, n of them.
+    origins_in_world : (n, 3) float
+        Print origins, metres, world frame.
+    x_axes_in_world : (n, 3) float
+        Print x axes (the robot surface's forward direction), world frame.
+    """
+
+    robot_surface: str
+    prints: tuple
+    origins_in_world: np.ndarray = field(repr=False)
+    x_axes_in_world: np.ndarray = field(repr=False)
+
+    def __len__(self):
+        return len(self.prints)
+
+
+def grid_values(lower, upper, spacing):
+    """Grid coordinates covering ``[lower, upper]`` with a given step, centred.
+
+    Parameters
+    ----------
+    lower, upper : float
+        Interval bounds, metres.
+    spacing : float
+        Step, metres.
+
+    Returns
+    -------
+    (m,) float
+        ``m = floor((upper - lower) / spacing) + 1`` values ``spacing`` apart,
+        the leftover split evenly at both ends.
+
+    Examples
+    --------
+    >>> grid_values(-0.25, 0.25, 0.2).round(6).tolist()
+    [-0.2, 0.0, 0.2]
+    """
+    count = int(math.floor((upper - lower) / spacing + 1e-9)) + 1
+    start = lower + 0.5 * ((upper - lower) - (count - 1) * spacing)
+    return start + spacing * np.arange(count)
+
+
+def _rotations_2d(thetas):
+    c, s = np.cos(thetas), np.sin(thetas)
+    return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (t, 2, 2)
+
+
+def sample_prints(surfaces, robot_polygons, options=SamplingOptions()):
+    """Sample the prints of every robot surface on every scene surface.
+
+    Parameters
+    ----------
+    surfaces : mapping of str to environments ContactSurface
+        The scene's contact surfaces (rigid and deformable).
+    robot_polygons : mapping of str to (k, 2) float
+        Each robot contact surface's polygon, metres, its contact frame.
+    options : SamplingOptions
+        Grid step, rotations, margin, sole tilt.
+
+    Returns
+    -------
+    dict of str to PrintSet
+        For each robot surface, every print whose robot polygon lies inside
+        the surface polygon (shrunk by the margin). Soles only on surfaces
+        facing up; palms on any surface. Surfaces in name order, then x, y,
+        theta: the order is deterministic.
+    """
+    thetas = np.asarray(options.theta_values, dtype=float)
+    rotations = _rotations_2d(thetas)
+    cos_tilt = math.cos(options.max_sole_tilt)
+    sets = {}
+    for robot_surface, robot_polygon in robot_polygons.items():
+        robot_polygon = np.asarray(robot_polygon, dtype=float)
+        kind = surface_kind(robot_surface)
+        prints, origins, x_axes = [], [], []
+        for name in sorted(surfaces):
+            surface = surfaces[name]
+            transform = np.asarray(surface.transform_surface_to_world, dtype=float)
+            if kind == "sole" and transform[2, 2] < cos_tilt:
+                continue
+            polygon = np.asarray(surface.polygon, dtype=float)
+            xs = grid_values(polygon[:, 0].min(), polygon[:, 0].max(), options.spacing)
+            ys = grid_values(polygon[:, 1].min(), polygon[:, 1].max(), options.spacing)
+            gx, gy = np.meshgrid(xs, ys, indexing="ij")
+            centres = np.column_stack([gx.ravel(), gy.ravel()])  # (c, 2)
+            # Vertices of every (centre, theta) print, surface frame: (c, t, k, 2).
+            turned = np.einsum("tij,kj->tki", rotations, robot_polygon)
+            vertices = centres[:, None, None, :] + turned[None]
+            # The surface polygon is convex, so vertices inside <=> print inside.
+            inside = surface.contains(vertices.reshape(-1, 2), options.margin)
+            inside = np.asarray(inside).reshape(vertices.shape[:3]).all(axis=2)  # (c, t)
+            rotation, translation = transform[:3, :3], transform[:3, 3]
+            for c, t in zip(*np.nonzero(inside)):
+                x, y = centres[c]
+                prints.append(ContactPrint(name, float(x), float(y), float(thetas[t])))
+                origins.append(rotation @ np.array([x, y, 0.0]) + translation)
+                x_axes.append(rotation @ np.array([math.cos(thetas[t]), math.sin(thetas[t]), 0.0]))
+        origins = np.array(origins, dtype=float).reshape(-1, 3)
+        x_axes = np.array(x_axes, dtype=float).reshape(-1, 3)
+        origins.setflags(write=False)
+        x_axes.setflags(write=False)
+        sets[robot_surface] = PrintSet(robot_surface, tuple(prints), origins, x_axes)
+    return sets
+
+
+def shoulders_in_world(sole_origins, sole_x_axes, limits=ReachLimits()):
+    """Estimated shoulder positions above the soles.
+
+    Parameters
+    ----------
+    sole_origins : (s, 3) or (n, s, 3) float
+        Sole print origins, metres, world frame (s = 1 or 2 soles).
+    sole_x_axes : same shape float
+        Sole print x axes, world frame.
+    limits : ReachLimits
+        Shoulder height and half width.
+
+    Returns
+    -------
+    left, right : (3,) or (n, 3) float
+        Shoulder positions, metres, world frame: ``shoulder_height`` above the
+        soles' mid-point, ``shoulder_half_width`` to each side of the mean
+        heading.
+    """
+    middle = np.mean(sole_origins, axis=-2)
+    heading = np.mean(sole_x_axes, axis=-2)
+    heading = heading * np.array([1.0, 1.0, 0.0])
+    norm = np.linalg.norm(heading, axis=-1, keepdims=True)
+    heading = np.where(norm > 1e-9, heading / np.maximum(norm, 1e-9), np.array([1.0, 0.0, 0.0]))
+    leftward = np.stack([-heading[..., 1], heading[..., 0], np.zeros_like(heading[..., 0])], axis=-1)
+    up = np.array([0.0, 0.0, limits.shoulder_height])
+    left = middle + up + limits.shoulder_half_width * leftward
+    right = middle + up - limits.shoulder_half_width * leftward
+    return left, right
+
+
+def reachable_mask(print_set, contacts_in_world, limits=ReachLimits()):
+    """Which candidate prints of one robot surface the current contacts can reach.
+
+    Parameters
+    ----------
+    print_set : PrintSet
+        Candidates for the robot surface being added (n prints).
+    contacts_in_world : mapping of str to tuple ((3,) float, (3,) float)
+        The other contacts of the stance: robot surface -> (print origin,
+        print x axis), metres, world frame.
+    limits : ReachLimits
+        Thresholds.
+
+    Returns
+    -------
+    (n,) bool
+        For a sole: within a step of the other sole (length, height, yaw, on
+        its own side), and every palm in contact still within arm reach of the
+        shoulders above the new pair of soles. For a palm: within arm reach of
+        its shoulder above the soles. Without any sole in contact, nothing is
+        reachable.
+    """
+    origins, x_axes = print_set.origins_in_world, print_set.x_axes_in_world
+    n = len(print_set)
+    adding = print_set.robot_surface
+    side = surface_side(adding)
+    soles = {rs: v for rs, v in contacts_in_world.items() if surface_kind(rs) == "sole"}
+    palms = {rs: v for rs, v in contacts_in_world.items() if surface_kind(rs) == "palm"}
+    if not soles or n == 0:
+        return np.zeros(n, dtype=bool)
+    mask = np.ones(n, dtype=bool)
+    if surface_kind(adding) == "sole":
+        other_origin, other_x = next(iter(soles.values()))
+        delta = origins - other_origin
+        mask &= np.hypot(delta[:, 0], delta[:, 1]) <= limits.max_step_length
+        mask &= np.abs(delta[:, 2]) <= limits.max_step_height
+        cos_yaw = _horizontal_cosine(x_axes, other_x)
+        mask &= cos_yaw >= math.cos(limits.max_sole_yaw_difference)
+        other_left = np.array([-other_x[1], other_x[0], 0.0])
+        other_left /= max(np.linalg.norm(other_left), 1e-9)
+        lateral = delta @ other_left
+        if side == "left":
+            mask &= lateral >= limits.min_sole_separation
+        elif side == "right":
+            mask &= lateral <= -limits.min_sole_separation
+        sole_origins = np.stack([origins, np.broadcast_to(other_origin, origins.shape)], axis=1)
+        sole_x_axes = np.stack([x_axes, np.broadcast_to(other_x, x_axes.shape)], axis=1)
+        left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
+        for palm, (palm_origin, _) in palms.items():
+            shoulder = right if surface_side(palm) == "right" else left
+            mask &= np.linalg.norm(shoulder - palm_origin, axis=1) <= limits.arm_reach
+    else:
+        sole_origins = np.array([v[0] for v in soles.values()])
+        sole_x_axes = np.array([v[1] for v in soles.values()])
+        left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
+        shoulder = right if side == "right" else left
+        mask &= np.linalg.norm(origins - shoulder, axis=1) <= limits.arm_reach
+    return mask
+
+
+def _horizontal_cosine(vectors, reference):
+    """Cosine of the angle between horizontal projections, (n,)."""
+    a = np.asarray(vectors, dtype=float)[:, :2]
+    b = np.asarray(reference, dtype=float)[:2]
+    norms = np.linalg.norm(a, axis=1) * max(np.linalg.norm(b), 1e-12)
+    return (a @ b) / np.maximum(norms, 1e-12)
+
+
+def contacts_in_world(stance, surfaces):
+    """World placement of a stance's prints.
+
+    Parameters
+    ----------
+    stance : environments Stance
+        Its contacts.
+    surfaces : mapping of str to ContactSurface
+        The scene's surfaces.
+
+    Returns
+    -------
+    dict of str to tuple ((3,) float, (3,) float)
+        Robot surface -> (print origin, print x axis), metres, world frame.
+    """
+    placed = {}
+    for contact in stance:
+        p = contact.contact_print
+        transform = surfaces[p.surface].transform_print_to_world(p.x, p.y, p.theta)
+        placed[contact.robot_surface] = (np.asarray(transform[:3, 3]), np.asarray(transform[:3, 0]))
+    return placed
+
+
+def options_from_scenario(scenario_options: Mapping | None, spacing=None):
+    """Sampling options from a scenario's ``options`` and a user override.
+
+    Parameters
+    ----------
+    scenario_options : mapping or None
+        May hold ``print_spacing`` (metres), ``theta_values_deg`` (degrees)
+        and ``print_margin`` (metres).
+    spacing : float, optional
+        User's spacing, metres; wins over the scenario's.
+
+    Returns
+    -------
+    SamplingOptions
+    """
+    scenario_options = dict(scenario_options or {})
+    kwargs = {}
+    if spacing is not None:
+        kwargs["spacing"] = float(spacing)
+    elif scenario_options.get("print_spacing") is not None:
+        kwargs["spacing"] = float(scenario_options["print_spacing"])
+    if scenario_options.get("theta_values_deg") is not None:
+        kwargs["theta_values"] = tuple(math.radians(float(t)) for t in scenario_options["theta_values_deg"])
+    if scenario_options.get("print_margin") is not None:
+        kwargs["margin"] = float(scenario_options["print_margin"])
+    return SamplingOptions(**kwargs)
+
+
+__all__ += ["contacts_in_world", "options_from_scenario"]

@@ -1,0 +1,104 @@
+"""Neighbours of a stance: add one contact or remove one, keeping a sole down."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from environments.stance import Contact, ContactPrint
+
+from .sampling import ReachLimits, contacts_in_world, reachable_mask, surface_kind
+
+__all__ = ["Move", "StanceNeighbours", "differ_by_one_contact"]
+
+
+@dataclass(frozen=True)
+class Move:
+    """A transition between two stances.
+
+    Parameters
+    ----------
+    kind : str
+        ``"add"`` or ``"remove"``.
+    robot_surface : str
+        Robot surface that makes or breaks contact.
+    contact_print : ContactPrint or None
+        Print reached, for an ``"add"``.
+    """
+
+    kind: str
+    robot_surface: str
+    contact_print: ContactPrint | None = None
+
+    def __str__(self):
+        if self.kind == "remove":
+            return f"lift {self.robot_surface}"
+        p = self.contact_print
+        return f"place {self.robot_surface} on {p.surface} at ({p.x:.3f}, {p.y:.3f}, {p.theta:.3f})"
+
+
+class StanceNeighbours:
+    """Callable giving the candidate neighbours of a stance (no solve).
+
+    Parameters
+    ----------
+    print_sets : dict of str to sampling.PrintSet
+        Candidate prints per robot surface.
+    surfaces : mapping of str to ContactSurface
+        The scene's surfaces (to place the stance's prints in the world).
+    limits : ReachLimits
+        Reach pruning thresholds.
+
+    Notes
+    -----
+    A stance keeps at least one sole in contact: lifting the last sole is not
+    a neighbour. Added prints must pass :func:`sampling.reachable_mask`.
+    """
+
+    def __init__(self, print_sets, surfaces, limits=ReachLimits()):
+        self.print_sets = dict(print_sets)
+        self.surfaces = surfaces
+        self.limits = limits
+        self.pruned = 0  # candidate prints removed by reach pruning so far
+
+    def __call__(self, stance):
+        """List ``(neighbour stance, Move)`` pairs: removals first, then additions."""
+        result = []
+        in_contact = stance.robot_surfaces
+        soles = [rs for rs in in_contact if surface_kind(rs) == "sole"]
+        for robot_surface in in_contact:
+            if surface_kind(robot_surface) == "sole" and len(soles) == 1:
+                continue
+            result.append((stance.without(robot_surface), Move("remove", robot_surface)))
+        placed = contacts_in_world(stance, self.surfaces)
+        for robot_surface in sorted(self.print_sets):
+            if robot_surface in in_contact:
+                continue
+            print_set = self.print_sets[robot_surface]
+            mask = reachable_mask(print_set, placed, self.limits)
+            self.pruned += int(len(mask) - np.count_nonzero(mask))
+            for index in np.flatnonzero(mask):
+                contact_print = print_set.prints[index]
+                result.append(
+                    (
+                        stance.with_contact(Contact(robot_surface, contact_print)),
+                        Move("add", robot_surface, contact_print),
+                    )
+                )
+        return result
+
+
+def differ_by_one_contact(first, second):
+    """Whether two stances differ by exactly one contact added or removed.
+
+    Parameters
+    ----------
+    first, second : environments Stance
+
+    Returns
+    -------
+    bool
+    """
+    a, b = set(first.contacts), set(second.contacts)
+    return len(a ^ b) == 1

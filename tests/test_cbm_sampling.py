@@ -1,0 +1,134 @@
+"""Print sampling on contact surfaces and reach pruning."""
+
+import math
+
+import numpy as np
+import pytest
+
+from environments.geometry import pose_from_center_yaw, transform_from_rotation_translation
+from environments.stance import Contact, ContactPrint, Stance
+from environments.surfaces import ContactSurface, rectangle
+
+from cbm.sampling import (
+    ReachLimits,
+    SamplingOptions,
+    contacts_in_world,
+    reachable_mask,
+    sample_prints,
+)
+from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
+
+SOLE = np.array([[-0.10, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.10, 0.065]])
+PALM = np.array([[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]])
+ROBOT = {"left_sole": SOLE, "right_sole": SOLE, "left_palm": PALM, "right_palm": PALM}
+
+
+def wall_transform():
+    # A vertical wall at x = 0.6 facing -x: surface z axis = world -x.
+    rotation = np.array([[0.0, 0.0, -1.0], [0.0, 1.0, 0.0], [1.0, 0.0, 0.0]])
+    return transform_from_rotation_translation(rotation, [0.6, 0.0, 1.2])
+
+
+@pytest.fixture
+def surfaces():
+    return {
+        "floor": ContactSurface("floor", "floor", rectangle(2.0, 1.2), np.eye(4)),
+        "block_top": ContactSurface(
+            "block_top", "block", rectangle(0.5, 0.4), pose_from_center_yaw([1.3, 0.0, 0.2], 0.3), deformable=True
+        ),
+        "wall": ContactSurface("wall", "wall", rectangle(0.6, 0.6), wall_transform()),
+    }
+
+
+def test_every_sampled_print_lies_inside_its_surface(surfaces):
+    options = SamplingOptions(spacing=0.07, theta_values=(0.0, 0.5, -1.0), margin=0.01)
+    sets = sample_prints(surfaces, ROBOT, options)
+    for robot_surface, print_set in sets.items():
+        assert len(print_set) > 0
+        for p, origin in zip(print_set.prints, print_set.origins_in_world):
+            surface = surfaces[p.surface]
+            vertices = surface.print_polygon_in_surface(ROBOT[robot_surface], p.x, p.y, p.theta)
+            assert surface.contains(vertices, margin=0.01 - 1e-9).all()
+            np.testing.assert_allclose(origin, surface.transform_print_to_world(p.x, p.y, p.theta)[:3, 3])
+
+
+def test_a_print_near_the_edge_is_rejected(surfaces):
+    sets = sample_prints({"block_top": surfaces["block_top"]}, {"left_sole": SOLE}, SamplingOptions(spacing=0.01))
+    xs = np.array([p.x for p in sets["left_sole"].prints])
+    # The block is 0.5 m long and the sole reaches 0.11 m forward, 0.10 back.
+    assert xs.max() <= 0.25 - 0.11 + 1e-9 and xs.min() >= -0.25 + 0.10 - 1e-9
+    assert xs.max() > 0.25 - 0.11 - 0.011
+
+
+def test_spacing_and_theta_values_are_respected(surfaces):
+    thetas = (0.0, math.radians(30.0))
+    sets = sample_prints({"floor": surfaces["floor"]}, {"right_sole": SOLE}, SamplingOptions(0.25, thetas))
+    prints = sets["right_sole"].prints
+    assert sorted({p.theta for p in prints}) == pytest.approx(sorted(thetas))
+    xs = np.unique(np.round([p.x for p in prints], 9))
+    ys = np.unique(np.round([p.y for p in prints], 9))
+    np.testing.assert_allclose(np.diff(xs), 0.25)
+    np.testing.assert_allclose(np.diff(ys), 0.25)
+    # Grid centred on the surface: symmetric about its centre.
+    np.testing.assert_allclose(xs, -xs[::-1])
+
+
+def test_soles_go_only_on_surfaces_facing_up_and_palms_anywhere(surfaces):
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
+    assert {p.surface for p in sets["left_sole"].prints} == {"floor", "block_top"}
+    assert {p.surface for p in sets["left_palm"].prints} == {"floor", "block_top", "wall"}
+
+
+def feet_together():
+    return Stance(
+        (
+            Contact("left_sole", ContactPrint("floor", 0.0, 0.1)),
+            Contact("right_sole", ContactPrint("floor", 0.0, -0.1)),
+        )
+    )
+
+
+def test_pruning_keeps_a_sole_within_a_step_on_its_own_side(surfaces):
+    limits = ReachLimits()
+    sets = sample_prints({"floor": surfaces["floor"]}, ROBOT, SamplingOptions(spacing=0.05))
+    placed = contacts_in_world(feet_together().without("left_sole"), surfaces)
+    candidates = sets["left_sole"]
+    mask = reachable_mask(candidates, placed, limits)
+    assert 0 < mask.sum() < len(mask)
+    right = placed["right_sole"][0]
+    kept = candidates.origins_in_world[mask]
+    dropped = candidates.origins_in_world[~mask]
+    assert np.all(np.linalg.norm((kept - right)[:, :2], axis=1) <= limits.max_step_length + 1e-12)
+    assert np.all(kept[:, 1] - right[1] >= limits.min_sole_separation - 1e-12)
+    # Everything dropped breaks one of the two rules.
+    far = np.linalg.norm((dropped - right)[:, :2], axis=1) > limits.max_step_length
+    wrong_side = dropped[:, 1] - right[1] < limits.min_sole_separation
+    assert np.all(far | wrong_side)
+
+
+def test_pruning_keeps_palms_within_arm_reach_of_the_shoulder(surfaces):
+    limits = ReachLimits()
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.05))
+    placed = contacts_in_world(feet_together(), surfaces)
+    mask = reachable_mask(sets["left_palm"], placed, limits)
+    kept = sets["left_palm"].origins_in_world[mask]
+    # The floor is out of reach (1.35 m below the shoulders, 0.65 m arms);
+    # part of the wall in front at 0.6 m is reachable.
+    assert {sets["left_palm"].prints[i].surface for i in np.flatnonzero(mask)} == {"wall"}
+    shoulder = np.array([0.0, 0.2, 1.35])
+    assert np.all(np.linalg.norm(kept - shoulder, axis=1) <= limits.arm_reach + 1e-12)
+    assert mask.sum() < sum(p.surface == "wall" for p in sets["left_palm"].prints)
+
+
+def test_neighbours_add_or_remove_one_contact_and_keep_a_sole(surfaces):
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
+    neighbours = StanceNeighbours(sets, surfaces)
+    start = feet_together()
+    pairs = neighbours(start)
+    assert pairs and all(differ_by_one_contact(start, child) for child, _ in pairs)
+    removals = [m for _, m in pairs if m.kind == "remove"]
+    assert sorted(m.robot_surface for m in removals) == ["left_sole", "right_sole"]
+    one_sole = start.without("left_sole")
+    children = neighbours(one_sole)
+    assert all("right_sole" in child.robot_surfaces for child, _ in children)
+    assert neighbours.pruned > 0
