@@ -1,0 +1,351 @@
+"""A plan: the sequence of verified stances, saved to and read from JSON."""
+
+from __future__ import annotations
+
+import json
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from environments.stance import Stance
+
+from .errors import PlanFileError
+from .stance_graph import differ_by_one_contact
+
+__all__ = ["PointForceRecord", "PlannedStance", "PlanStatistics", "Plan", "PlanCheck"]
+
+logger = logging.getLogger(__name__)
+
+PLAN_FORMAT = "softcbm-plan"
+PLAN_VERSION = 1
+
+
+def _readonly(array, shape_tail=None):
+    array = np.array(array, dtype=float)
+    if shape_tail is not None:
+        array = array.reshape((-1,) + tuple(shape_tail))
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class PointForceRecord:
+    """A contact force at a point, as stored in a plan file.
+
+    Parameters
+    ----------
+    frame : str
+        Robot contact frame the point belongs to.
+    point : (3,) float
+        Application point, metres, world frame.
+    force : (3,) float
+        Force exerted by the environment on the robot, newtons, world frame.
+    """
+
+    frame: str
+    point: np.ndarray
+    force: np.ndarray
+
+    def __post_init__(self):
+        object.__setattr__(self, "point", _readonly(self.point).reshape(3))
+        object.__setattr__(self, "force", _readonly(self.force).reshape(3))
+
+    @classmethod
+    def from_any(cls, value):
+        """Build from a stances PointForce, a mapping, or a record."""
+        if isinstance(value, cls):
+            return value
+        if isinstance(value, dict):
+            return cls(value["frame"], value["point"], value["force"])
+        return cls(str(value.frame), value.point, value.force)
+
+    def to_dict(self):
+        """Plain data: ``{"frame", "point", "force"}`` with lists."""
+        return {"frame": self.frame, "point": self.point.tolist(), "force": self.force.tolist()}
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedStance:
+    """One stance of a plan with its posture, forces and deformations.
+
+    Parameters
+    ----------
+    stance : environments Stance
+        The contacts.
+    q : (nq,) float
+        Configuration (pinocchio, free flyer first), read-only.
+    point_forces : tuple of PointForceRecord
+        Contact forces on the robot, world frame.
+    deformations : dict of str to (N, 3) float
+        Node displacements of each deformable object, metres, body frame.
+    result : stances PostureResult or dict
+        The solver's result; after :meth:`Plan.load`, its ``to_dict`` form
+        unless stances can rebuild it.
+    move : str
+        How this stance was reached from the previous one ("" for the start).
+    """
+
+    stance: Any
+    q: np.ndarray
+    point_forces: tuple = ()
+    deformations: dict = field(default_factory=dict)
+    result: Any = None
+    move: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "q", _readonly(self.q))
+        object.__setattr__(
+            self, "point_forces", tuple(PointForceRecord.from_any(f) for f in self.point_forces)
+        )
+        object.__setattr__(
+            self,
+            "deformations",
+            {str(k): _readonly(v, (3,)) for k, v in dict(self.deformations or {}).items()},
+        )
+
+    @property
+    def contact_forces(self):
+        """(n, 3) float: every point force, newtons, world frame."""
+        return np.array([f.force for f in self.point_forces]).reshape(-1, 3)
+
+    def to_dict(self):
+        """Plain JSON-ready data."""
+        result = self.result
+        if result is not None and not isinstance(result, dict):
+            result = result.to_dict() if hasattr(result, "to_dict") else None
+        return {
+            "stance": self.stance.to_dict(),
+            "move": self.move,
+            "q": self.q.tolist(),
+            "point_forces": [f.to_dict() for f in self.point_forces],
+            "deformations": {k: v.tolist() for k, v in self.deformations.items()},
+            "result": _jsonable(result),
+        }
+
+    @classmethod
+    def from_dict(cls, data):
+        """Inverse of :meth:`to_dict`."""
+        return cls(
+            stance=Stance.from_dict(data["stance"]),
+            q=data["q"],
+            point_forces=tuple(PointForceRecord.from_any(f) for f in data["point_forces"]),
+            deformations=data.get("deformations", {}),
+            result=_rebuild_result(data.get("result")),
+            move=data.get("move", ""),
+        )
+
+
+@dataclass(frozen=True)
+class PlanStatistics:
+    """Effort spent on a plan.
+
+    Parameters
+    ----------
+    expanded : int
+        Stances whose neighbours were generated.
+    generated : int
+        Neighbours generated.
+    solver_calls : int
+        Posture solves.
+    cache_hits : int
+        Solves avoided by the cache.
+    prints : int
+        Prints sampled (all robot surfaces).
+    time : float
+        Wall time of the search, seconds.
+    """
+
+    expanded: int = 0
+    generated: int = 0
+    solver_calls: int = 0
+    cache_hits: int = 0
+    prints: int = 0
+    time: float = 0.0
+
+    def to_dict(self):
+        """Plain data."""
+        return dict(self.__dict__)
+
+
+@dataclass(frozen=True)
+class PlanCheck:
+    """Outcome of :meth:`Plan.check`.
+
+    Parameters
+    ----------
+    ok : bool
+        True if every stance verifies and every transition changes one contact.
+    problems : tuple of str
+        What failed, one line each.
+    """
+
+    ok: bool
+    problems: tuple = ()
+
+
+@dataclass(frozen=True, eq=False)
+class Plan:
+    """A sequence of stances from the start towards the goal.
+
+    Parameters
+    ----------
+    success : bool
+        True if the last stance satisfies the goal.
+    reason : str
+        ``"goal reached"`` or why the search stopped.
+    stances : tuple of PlannedStance
+        The sequence; on failure, the best partial sequence found.
+    statistics : PlanStatistics
+        Effort counters.
+    scenario_name : str
+        Scenario planned for.
+    """
+
+    success: bool
+    reason: str
+    stances: tuple
+    statistics: PlanStatistics
+    scenario_name: str = ""
+
+    def __post_init__(self):
+        object.__setattr__(self, "stances", tuple(self.stances))
+
+    def __len__(self):
+        return len(self.stances)
+
+    def to_dict(self):
+        """Plain JSON-ready data."""
+        return {
+            "format": PLAN_FORMAT,
+            "version": PLAN_VERSION,
+            "scenario": self.scenario_name,
+            "success": self.success,
+            "reason": self.reason,
+            "statistics": self.statistics.to_dict(),
+            "stances": [s.to_dict() for s in self.stances],
+        }
+
+    @classmethod
+    def from_dict(cls, data):
+        """Inverse of :meth:`to_dict`.
+
+        Raises
+        ------
+        PlanFileError
+            If the data is not a plan of a known version.
+        """
+        if not isinstance(data, dict) or data.get("format") != PLAN_FORMAT:
+            raise PlanFileError(f"not a plan: expected format {PLAN_FORMAT!r}")
+        if data.get("version") != PLAN_VERSION:
+            raise PlanFileError(f"plan version {data.get('version')!r} is not supported (expected {PLAN_VERSION})")
+        try:
+            return cls(
+                success=bool(data["success"]),
+                reason=str(data["reason"]),
+                stances=tuple(PlannedStance.from_dict(s) for s in data["stances"]),
+                statistics=PlanStatistics(**data["statistics"]),
+                scenario_name=str(data.get("scenario", "")),
+            )
+        except (KeyError, TypeError) as error:
+            raise PlanFileError(f"malformed plan: {error}") from None
+
+    def save(self, path):
+        """Write the plan as JSON (arrays as lists).
+
+        Parameters
+        ----------
+        path : path-like
+            Output file.
+        """
+        path = Path(path)
+        path.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=True))
+        logger.info("plan written to %s", path)
+        return path
+
+    @classmethod
+    def load(cls, path):
+        """Read a plan written by :meth:`save`.
+
+        Raises
+        ------
+        PlanFileError
+            If the file is not valid JSON or not a plan.
+        """
+        try:
+            data = json.loads(Path(path).read_text())
+        except (OSError, json.JSONDecodeError) as error:
+            raise PlanFileError(f"cannot read plan {path}: {error}") from None
+        return cls.from_dict(data)
+
+    def check(self, scenario=None, robot=None):
+        """Re-verify every stance and every transition.
+
+        Each stance is checked by ``stances.verify`` (independent of the
+        solver) and consecutive stances must differ by exactly one contact.
+
+        Parameters
+        ----------
+        scenario : environments Scenario, optional
+            Loaded from ``scenario_name`` if not given.
+        robot : stances Robot, optional
+            Loaded from the scenario's robot name if not given.
+
+        Returns
+        -------
+        PlanCheck
+        """
+        import environments
+        import stances
+
+        if scenario is None:
+            scenario = environments.load(self.scenario_name)
+        if robot is None:
+            robot = stances.Robot.load(scenario.robot)
+        problems = []
+        for index, planned in enumerate(self.stances):
+            result = planned.result
+            if result is None or isinstance(result, dict):
+                problems.append(f"stance {index}: no solver result to verify")
+                continue
+            verification = stances.verify(robot, scenario.scene, planned.stance, result)
+            if not verification.ok:
+                problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
+        for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):
+            if not differ_by_one_contact(before.stance, after.stance):
+                problems.append(f"stances {index} -> {index + 1} do not differ by exactly one contact")
+        return PlanCheck(not problems, tuple(problems))
+
+
+def _jsonable(value):
+    """Numpy arrays and scalars inside nested data to lists and floats."""
+    if isinstance(value, dict):
+        return {str(k): _jsonable(v) for k, v in value.items()}
+    if isinstance(value, (list, tuple)):
+        return [_jsonable(v) for v in value]
+    if isinstance(value, np.ndarray):
+        return value.tolist()
+    if isinstance(value, np.generic):
+        return value.item()
+    return value
+
+
+def _rebuild_result(data):
+    """A stances PostureResult from its dict if stances can, else the dict."""
+    if data is None:
+        return None
+    try:
+        import stances
+
+        rebuild = getattr(getattr(stances, "PostureResult", None), "from_dict", None)
+    except ImportError:  # pragma: no cover - stances is part of the project
+        rebuild = None
+    if rebuild is None:
+        return data
+    try:
+        return rebuild(data)
+    except (KeyError, TypeError, ValueError) as error:
+        logger.warning("could not rebuild the solver result (%s); kept as a dict", error)
+        return data

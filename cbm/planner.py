@@ -1,0 +1,270 @@
+"""``cbm.plan``: contact-before-motion planning for one scenario.
+
+Wires the pieces: prints sampled on the scene (:mod:`cbm.sampling`),
+neighbours of a stance (:mod:`cbm.stance_graph`), the posture solver of
+:mod:`stances` as the feasibility oracle, and the lazy best-first search
+(:mod:`cbm.search`) guided by the goal's distance.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+from typing import Any
+
+from .errors import CbmError, UnknownScenario
+from .plan import Plan, PlannedStance, PlanStatistics
+from .sampling import ReachLimits, options_from_scenario, sample_prints
+from .search import SearchLimits, best_first_search
+from .stance_graph import StanceNeighbours
+
+__all__ = ["plan", "load_scenario", "StanceCheck", "PostureOracle", "DEFAULT_PATH_COST"]
+
+logger = logging.getLogger(__name__)
+
+#: Path cost per move, metres of goal distance: small, so the search stays
+#: greedy towards the goal but prefers fewer moves among equally close stances.
+DEFAULT_PATH_COST = 0.02
+
+
+def load_scenario(scenario):
+    """A scenario from a name, a path, or a Scenario (returned as is).
+
+    Raises
+    ------
+    UnknownScenario
+        Listing the built-in names when ``scenario`` is neither.
+    """
+    import environments
+
+    if not isinstance(scenario, (str, bytes)) and not hasattr(scenario, "__fspath__"):
+        return scenario
+    try:
+        return environments.load(scenario)
+    except FileNotFoundError:
+        raise UnknownScenario(str(scenario), environments.scenario_names()) from None
+    except ValueError as error:
+        if "unknown" in str(error).lower() or "not found" in str(error).lower():
+            raise UnknownScenario(str(scenario), environments.scenario_names()) from error
+        raise
+
+
+@dataclass(frozen=True)
+class StanceCheck:
+    """Answer of the feasibility oracle for one stance.
+
+    Parameters
+    ----------
+    feasible : bool
+        Solved and independently verified.
+    reason : str
+        Why not, if infeasible.
+    result : stances PostureResult or None
+        The solver's result (None if the solver raised).
+    """
+
+    feasible: bool
+    reason: str
+    result: Any = None
+
+
+class PostureOracle:
+    """Feasibility oracle: posture solve warm-started from the parent, then verify.
+
+    Parameters
+    ----------
+    robot : stances Robot
+    scene : environments Scene
+    solver_options : dict, optional
+        Keyword arguments of ``stances.solve``.
+    """
+
+    def __init__(self, robot, scene, solver_options=None):
+        self.robot = robot
+        self.scene = scene
+        self.solver_options = dict(solver_options or {})
+
+    def __call__(self, stance, parent=None, parent_check=None):
+        """Check one stance; ``parent_check`` gives the warm start."""
+        import stances
+
+        q_init = None
+        if parent_check is not None and parent_check.result is not None:
+            q_init = parent_check.result.q
+        try:
+            result = stances.solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
+        except ValueError as error:
+            # Bad stance for this scene (e.g. a print covering too few FEM
+            # nodes): an infeasible stance for the search, not a crash.
+            logger.debug("solve raised on %s: %s", stance, error)
+            return StanceCheck(False, f"{type(error).__name__}: {error}")
+        if not result.feasible:
+            return StanceCheck(False, str(result.reason), result)
+        verification = stances.verify(self.robot, self.scene, stance, result)
+        if not verification.ok:
+            return StanceCheck(False, "verification failed: " + "; ".join(map(str, verification.reasons)), result)
+        return StanceCheck(True, "", result)
+
+
+def _resolve_stance(value, scenario, what):
+    if value is None:
+        return None
+    if isinstance(value, str):
+        if value not in scenario.stances:
+            names = ", ".join(sorted(scenario.stances)) or "(none)"
+            raise CbmError(f"unknown {what} stance {value!r} in scenario {scenario.name!r}; stances: {names}")
+        return scenario.stances[value]
+    return value
+
+
+def plan(
+    scenario,
+    *,
+    goal=None,
+    start=None,
+    robot=None,
+    print_spacing=None,
+    max_expansions=200,
+    max_solver_calls=None,
+    time_limit=120.0,
+    seed=0,
+    progress=False,
+    solver_options=None,
+    reach=ReachLimits(),
+    path_cost=DEFAULT_PATH_COST,
+    eager=False,
+    oracle=None,
+):
+    """Plan a sequence of stances from the scenario's start to its goal.
+
+    Parameters
+    ----------
+    scenario : environments Scenario, str or path
+        A scenario, a built-in scenario name or a scenario file.
+    goal : environments Goal, optional
+        Overrides the scenario's goal.
+    start : environments Stance or str, optional
+        Start stance, or a stance name of the scenario; default the
+        scenario's start.
+    robot : stances Robot, optional
+        Default: ``stances.Robot.load(scenario.robot)``.
+    print_spacing : float, optional
+        Print grid step, metres; default the scenario's ``print_spacing``
+        option, else 0.1 m.
+    max_expansions, max_solver_calls : int or None
+        Search budgets (None: unlimited).
+    time_limit : float or None
+        Wall-time budget, seconds.
+    seed : int
+        Seed of the neighbour shuffling that breaks ties between equally
+        promising prints; the same seed gives the same plan.
+    progress : bool
+        Show a tqdm progress bar (stderr) during the search.
+    solver_options : dict, optional
+        Keyword arguments of ``stances.solve``.
+    reach : ReachLimits
+        Geometric pruning thresholds.
+    path_cost : float
+        Priority added per move, metres of goal distance.
+    eager : bool
+        Baseline: solve every neighbour when generated (for benchmarks).
+    oracle : callable, optional
+        Replaces the posture oracle (tests): ``oracle(stance, parent,
+        parent_check) -> StanceCheck``.
+
+    Returns
+    -------
+    Plan
+        ``success`` False with the reason and the best partial sequence if no
+        goal stance was reached.
+
+    Raises
+    ------
+    CbmError
+        If the scenario has no start or no goal and none is given.
+    """
+    import environments  # noqa: F401 - scenarios come from there
+
+    scenario = load_scenario(scenario)
+    scene = scenario.scene
+    goal = goal if goal is not None else scenario.goal
+    if goal is None:
+        raise CbmError(f"scenario {scenario.name!r} has no goal; pass goal=")
+    start = _resolve_stance(start if start is not None else scenario.start, scenario, "start")
+    if start is None:
+        raise CbmError(f"scenario {scenario.name!r} has no start stance; pass start=")
+    if robot is None:
+        import stances
+
+        robot = stances.Robot.load(scenario.robot)
+    sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
+    polygons = {name: surface.polygon for name, surface in robot.surfaces.items()}
+    print_sets = sample_prints(scene.surfaces, polygons, sampling)
+    prints = sum(len(s) for s in print_sets.values())
+    logger.info(
+        "%s: %d prints sampled (spacing %.3f m, %d angles)",
+        scenario.name,
+        prints,
+        sampling.spacing,
+        len(sampling.theta_values),
+    )
+    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach)
+    if oracle is None:
+        oracle = PostureOracle(robot, scene, solver_options)
+
+    bar = None
+    on_expand = None
+    if progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=max_expansions, desc=f"planning {scenario.name}", unit="stance", leave=False)
+
+        def on_expand(statistics):
+            bar.update(statistics.expanded - bar.n)
+            bar.set_postfix(solves=statistics.solver_calls, cached=statistics.cache_hits)
+
+    limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
+    try:
+        searched = best_first_search(
+            start,
+            neighbours=neighbours,
+            oracle=oracle,
+            heuristic=lambda stance: goal.distance(stance, scene),
+            is_goal=lambda stance: goal.is_satisfied(stance, scene),
+            path_cost_weight=path_cost,
+            limits=limits,
+            eager=eager,
+            shuffle_neighbours=True,
+            seed=seed,
+            on_expand=on_expand,
+        )
+    finally:
+        if bar is not None:
+            bar.close()
+
+    planned = []
+    for index, (stance, check) in enumerate(zip(searched.path, searched.results)):
+        move = ""
+        if index > 0:
+            move = str(searched.graph.edges[searched.path[index - 1], stance]["move"])
+        result = check.result
+        planned.append(
+            PlannedStance(
+                stance=stance,
+                q=result.q,
+                point_forces=tuple(result.point_forces),
+                deformations=dict(getattr(result, "deformations", {}) or {}),
+                result=result,
+                move=move,
+            )
+        )
+    s = searched.statistics
+    statistics = PlanStatistics(
+        expanded=s.expanded,
+        generated=s.generated,
+        solver_calls=s.solver_calls,
+        cache_hits=s.cache_hits,
+        prints=prints,
+        time=s.time,
+    )
+    return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name)

@@ -1,0 +1,179 @@
+"""cbm.plan wired to a synthetic feasibility oracle, and the plan file round trip."""
+
+import json
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from environments.goal import Goal, GoalRegion
+from environments.objects import box, box_surfaces, floor
+from environments.scene import Scene
+from environments.stance import Contact, ContactPrint, Stance
+
+from cbm.errors import CbmError, PlanFileError
+from cbm.plan import Plan, PlannedStance, PlanStatistics
+from cbm.planner import StanceCheck, plan
+from cbm.stance_graph import differ_by_one_contact
+
+SOLE = np.array([[-0.10, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.10, 0.065]])
+PALM = np.array([[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]])
+
+
+@dataclass(frozen=True)
+class FakeResult:
+    """Stands for a stances PostureResult."""
+
+    q: np.ndarray
+    point_forces: tuple = ()
+    deformations: dict = field(default_factory=dict)
+    feasible: bool = True
+    reason: str = ""
+
+    def to_dict(self):
+        return {"q": list(self.q), "feasible": self.feasible, "reason": self.reason}
+
+
+class SyntheticOracle:
+    """Feasible iff no print lies in the forbidden x band; q encodes the call order."""
+
+    def __init__(self, forbidden_x=None):
+        self.forbidden_x = forbidden_x
+        self.calls = []
+
+    def __call__(self, stance, parent, parent_check):
+        self.calls.append(stance)
+        xs = [c.contact_print.x for c in stance]
+        if self.forbidden_x is not None and any(self.forbidden_x[0] < x < self.forbidden_x[1] for x in xs):
+            return StanceCheck(False, "forbidden band", None)
+        forces = tuple(
+            SimpleNamespace(frame=f"{c.robot_surface}_contact", point=[c.contact_print.x, c.contact_print.y, 0.0],
+                            force=[0.0, 0.0, 450.0 / len(stance)])
+            for c in stance
+        )
+        result = FakeResult(np.arange(5.0) + len(self.calls), forces, {"cube": np.full((4, 3), 0.001)})
+        return StanceCheck(True, "", result)
+
+
+@pytest.fixture
+def scenario():
+    ground = floor(size=(3.0, 1.0))
+    step = box("step", (0.6, 0.8, 0.1), center=(0.9, 0.0, 0.05))
+    scene = Scene("walk", [ground, step], [], box_surfaces(ground, top_name="floor") + box_surfaces(step))
+    start = Stance(
+        (
+            Contact("left_sole", ContactPrint("floor", -0.5, 0.1)),
+            Contact("right_sole", ContactPrint("floor", -0.5, -0.1)),
+        )
+    )
+    goal = Goal(
+        regions=(
+            GoalRegion("left_sole", (0.7, -0.4), (1.2, 0.4)),
+            GoalRegion("right_sole", (0.7, -0.4), (1.2, 0.4)),
+        )
+    )
+    return SimpleNamespace(
+        name="walk", scene=scene, robot="fake", stances={"start": start}, start="start", goal=goal,
+        description="walk onto a step", options={"print_spacing": 0.1},
+    )
+
+
+@pytest.fixture
+def robot():
+    surfaces = {
+        name: SimpleNamespace(name=name, frame=f"{name}_contact", polygon=poly)
+        for name, poly in [("left_sole", SOLE), ("right_sole", SOLE), ("left_palm", PALM), ("right_palm", PALM)]
+    }
+    return SimpleNamespace(surfaces=surfaces)
+
+
+def test_plan_walks_to_the_goal_one_contact_at_a_time(scenario, robot):
+    result = plan(scenario, robot=robot, oracle=SyntheticOracle(), max_expansions=100)
+    assert result.success, result.reason
+    assert len(result.stances) >= 4
+    assert result.stances[0].stance == scenario.stances["start"]
+    assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
+    for before, after in zip(result.stances, result.stances[1:]):
+        assert differ_by_one_contact(before.stance, after.stance)
+        assert any("sole" in rs for rs in after.stance.robot_surfaces)
+        assert after.move
+    assert result.statistics.solver_calls >= len(result.stances)
+
+
+def test_plan_avoids_infeasible_prints(scenario, robot):
+    oracle = SyntheticOracle(forbidden_x=(-0.25, -0.05))
+    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=200)
+    assert result.success, result.reason
+    for planned in result.stances:
+        assert not any(-0.25 < c.contact_print.x < -0.05 for c in planned.stance)
+    # Lazy and cached: never solved twice.
+    assert len(oracle.calls) == len(set(oracle.calls))
+
+
+def test_same_seed_gives_the_same_plan(scenario, robot):
+    first = plan(scenario, robot=robot, oracle=SyntheticOracle(), seed=3)
+    again = plan(scenario, robot=robot, oracle=SyntheticOracle(), seed=3)
+    assert [s.stance for s in first.stances] == [s.stance for s in again.stances]
+    assert first.statistics.solver_calls == again.statistics.solver_calls
+
+
+def test_unreachable_goal_fails_within_budget_with_a_partial_plan(scenario, robot):
+    oracle = SyntheticOracle(forbidden_x=(0.0, 10.0))  # nothing past x = 0 is feasible
+    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=15)
+    assert not result.success
+    assert result.reason in ("budget exhausted: max_expansions", "no feasible neighbour")
+    assert result.statistics.expanded <= 15
+    assert result.stances and result.stances[0].stance == scenario.stances["start"]
+
+
+def test_missing_goal_is_a_clear_error(scenario, robot):
+    scenario.goal = None
+    with pytest.raises(CbmError, match="has no goal"):
+        plan(scenario, robot=robot, oracle=SyntheticOracle())
+
+
+def test_unknown_start_stance_names_the_valid_ones(scenario, robot):
+    with pytest.raises(CbmError, match="stances: start"):
+        plan(scenario, robot=robot, start="sit", oracle=SyntheticOracle())
+
+
+def test_plan_json_round_trip_preserves_everything(scenario, robot, tmp_path):
+    original = plan(scenario, robot=robot, oracle=SyntheticOracle(), max_expansions=100)
+    path = original.save(tmp_path / "plan.json")
+    loaded = Plan.load(path)
+    assert loaded.to_dict() == json.loads(path.read_text())
+    assert loaded.to_dict() == original.to_dict()
+    assert (loaded.success, loaded.reason, loaded.scenario_name) == (
+        original.success, original.reason, original.scenario_name
+    )
+    assert loaded.statistics == original.statistics
+    for a, b in zip(original.stances, loaded.stances):
+        assert a.stance == b.stance
+        np.testing.assert_array_equal(a.q, b.q)
+        assert a.move == b.move
+        assert [f.frame for f in a.point_forces] == [f.frame for f in b.point_forces]
+        np.testing.assert_array_equal(a.contact_forces, b.contact_forces)
+        assert a.deformations.keys() == b.deformations.keys()
+        for name in a.deformations:
+            np.testing.assert_array_equal(a.deformations[name], b.deformations[name])
+
+
+def test_loading_something_else_than_a_plan_is_a_clear_error(tmp_path):
+    path = tmp_path / "x.json"
+    path.write_text('{"hello": 1}')
+    with pytest.raises(PlanFileError, match="not a plan"):
+        Plan.load(path)
+    path.write_text("{")
+    with pytest.raises(PlanFileError, match="cannot read plan"):
+        Plan.load(path)
+
+
+def test_check_flags_a_transition_changing_two_contacts():
+    a = Stance((Contact("left_sole", ContactPrint("floor", 0.0, 0.1)),))
+    b = Stance((Contact("right_sole", ContactPrint("floor", 0.0, -0.1)),))
+    planned = [PlannedStance(s, np.zeros(3)) for s in (a, b)]
+    broken = Plan(False, "test", planned, PlanStatistics(), "none")
+    report = broken.check(scenario=SimpleNamespace(scene=None, robot="fake"), robot=object())
+    assert not report.ok
+    assert any("differ by exactly one contact" in p for p in report.problems)
