@@ -1,0 +1,39 @@
+"""Scenes for contact-before-motion planning on rigid and deformable supports.
+
+Rigid objects, deformable (FEM) objects, the contact surfaces on them, stances
+(sets of contact prints), goals, and scenario files that put them together.
+"""
+
+from .deformable import DeformableObject, soft_box
+from .errors import ScenarioError, SceneError
+from .goal import Goal, GoalRegion
+from .objects import RigidObject, box, box_surfaces, floor, mesh_object
+from .scenario import Scenario, builtin_scenario_path, load, load_string, scenario_names
+from .scene import Scene
+from .stance import Contact, ContactPrint, Stance
+from .surfaces import ContactSurface, rectangle
+
+__all__ = [
+    "Contact",
+    "ContactPrint",
+    "ContactSurface",
+    "DeformableObject",
+    "Goal",
+    "GoalRegion",
+    "RigidObject",
+    "Scenario",
+    "ScenarioError",
+    "Scene",
+    "SceneError",
+    "Stance",
+    "box",
+    "box_surfaces",
+    "builtin_scenario_path",
+    "floor",
+    "load",
+    "load_string",
+    "mesh_object",
+    "rectangle",
+    "scenario_names",
+    "soft_box",
+]

@@ -1,0 +1,295 @@
+"""Deformable scene objects: a linear-elastic FEM body placed in the world.
+
+The fem body is meshed in its own frame (``body``); displacements computed by
+``fem`` are in that frame. ``soft_box`` builds the common case: a box resting on
+the floor, its base fixed, its top face a deformable contact surface.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from .errors import SceneError
+from .geometry import (
+    pose_from_center_yaw,
+    readonly_array,
+    transform_from_rotation_translation,
+    validate_rigid_transform,
+)
+from .objects import DEFAULT_FRICTION
+from .surfaces import ContactSurface, rectangle
+
+__all__ = ["DeformableObject", "soft_box", "RESOLUTIONS", "soft_box_coordinates"]
+
+RESOLUTIONS = {"coarse": 0.05, "default": 0.0225}
+"""Node spacing on the refined part of a soft box's top face, metres.
+
+``default`` is chosen so that a Talos palm print (0.10 m x 0.07 m) placed anywhere,
+at any angle, on the refined region covers at least 9 surface nodes (a grid of
+spacing h, sampled over offsets and angles, leaves at least 10 under such a
+rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m) covers about 30.
+``coarse`` is for fast tests: a sole print still covers several nodes, a palm
+print may cover fewer than 9.
+"""
+
+# Outside the refined region, cells grow by this ratio up to this many times the
+# fine spacing: enough to keep the node count modest without abrupt size jumps.
+_GROWTH_RATIO = 1.5
+_COARSE_FACTOR = 4.0
+# Number of element layers through the height, and the thickness of the top one in
+# fine spacings: thin near the prints, thick near the fixed base where little happens.
+_LAYERS = {"coarse": 2, "default": 3}
+_TOP_LAYER_SPACINGS = 2.0
+
+
+def _fem():
+    """Import fem lazily: scenes with only rigid objects must not need it."""
+    try:
+        import fem
+    except ImportError as error:  # pragma: no cover - fem is part of the project
+        raise SceneError(f"deformable objects need the fem package: {error}") from None
+    missing = [name for name in ("tensor_mesh", "LinearElasticMaterial", "DeformableBody") if not hasattr(fem, name)]
+    if missing:
+        raise SceneError(f"deformable objects need fem.{', fem.'.join(missing)}, which fem does not provide")
+    return fem
+
+
+@dataclass(frozen=True, eq=False)
+class DeformableObject:
+    """A linear-elastic body in the scene.
+
+    Parameters
+    ----------
+    name : str
+        Unique object name in the scene.
+    body : fem.DeformableBody
+        The FEM body, meshed in the body frame (metres), with its fixed nodes.
+    transform_body_to_world : (4, 4) float
+        Rigid placement of the body frame.
+    fixed_description : str
+        Human-readable description of the fixed set F, e.g. ``"base on the floor"``.
+    """
+
+    name: str
+    body: Any
+    transform_body_to_world: np.ndarray
+    fixed_description: str = ""
+
+    def __post_init__(self) -> None:
+        if not isinstance(self.name, str) or not self.name:
+            raise SceneError(f"DeformableObject.name must be a non-empty string, got {self.name!r}")
+        if not hasattr(self.body, "mesh"):
+            raise SceneError(f"object {self.name!r}: body must be a fem.DeformableBody (with a .mesh)")
+        object.__setattr__(
+            self,
+            "transform_body_to_world",
+            validate_rigid_transform(self.transform_body_to_world, f"object {self.name!r} transform"),
+        )
+
+    @property
+    def deformable(self) -> bool:
+        """True: a deformable object."""
+        return True
+
+    @property
+    def mesh(self):
+        """The fem ``TetMesh``, body frame."""
+        return self.body.mesh
+
+    def points_in_world(self, points_in_body) -> np.ndarray:
+        """Map points from the body frame to the world, ``(n, 3)`` metres."""
+        points = np.asarray(points_in_body, dtype=float)
+        transform = self.transform_body_to_world
+        return points @ transform[:3, :3].T + transform[:3, 3]
+
+    def rest_surface(self) -> np.ndarray:
+        """Boundary triangles at rest, ``(T, 3, 3)`` metres, world frame."""
+        return self.deformed_surface(np.zeros_like(self.mesh.nodes))
+
+    def deformed_surface(self, displacements) -> np.ndarray:
+        """Boundary triangles of the deformed body, for pictures.
+
+        Parameters
+        ----------
+        displacements : (N, 3) float
+            Nodal displacements, metres, body frame (as ``fem`` computes them).
+
+        Returns
+        -------
+        (T, 3, 3) float
+            Vertices of each surface triangle, metres, world frame.
+
+        Raises
+        ------
+        SceneError
+            If the displacement array does not match the mesh.
+        """
+        nodes = np.asarray(self.mesh.nodes, dtype=float)
+        displacements = np.asarray(displacements, dtype=float)
+        if displacements.shape != nodes.shape:
+            raise SceneError(
+                f"object {self.name!r}: displacements must have shape {nodes.shape}, got {displacements.shape}"
+            )
+        moved = self.points_in_world(nodes + displacements)
+        return moved[np.asarray(self.mesh.surface_triangles)]
+
+
+def _graded_side(length: float, fine: float) -> np.ndarray:
+    """Cell sizes over ``length`` starting at ``fine`` and growing away from it."""
+    if length <= 1e-12:
+        return np.zeros(0)
+    sizes, total, size = [], 0.0, fine
+    while total < length - 1e-9:
+        size = min(size * _GROWTH_RATIO, _COARSE_FACTOR * fine)
+        sizes.append(size)
+        total += size
+    # Scale so they sum to length exactly (shrinks them by less than one cell).
+    return np.array(sizes) * (length / total)
+
+
+def _axis_coordinates(low: float, high: float, refine_low: float, refine_high: float, fine: float) -> np.ndarray:
+    """Coordinates on [low, high], spacing <= fine on [refine_low, refine_high], coarser outside."""
+    refine_low, refine_high = max(low, refine_low), min(high, refine_high)
+    cells = max(1, math.ceil((refine_high - refine_low) / fine - 1e-9))
+    middle = np.linspace(refine_low, refine_high, cells + 1)
+    below = refine_low - np.cumsum(_graded_side(refine_low - low, fine))
+    above = refine_high + np.cumsum(_graded_side(high - refine_high, fine))
+    coordinates = np.concatenate([below[::-1], middle, above])
+    coordinates[0], coordinates[-1] = low, high
+    return coordinates
+
+
+def _height_coordinates(height: float, top_cell: float, layers: int) -> np.ndarray:
+    """Coordinates on [0, height] with ``layers`` cells thinning geometrically toward the top."""
+    if top_cell * layers >= height:
+        return np.linspace(0.0, height, layers + 1)
+    # Solve top_cell * (r^layers - 1) / (r - 1) = height for r > 1 by bisection.
+    low, high = 1.0, 2.0
+    while top_cell * (high**layers - 1.0) / (high - 1.0) < height:
+        high *= 2.0
+    for _ in range(100):
+        ratio = 0.5 * (low + high)
+        if top_cell * (ratio**layers - 1.0) / (ratio - 1.0) < height:
+            low = ratio
+        else:
+            high = ratio
+    cells = top_cell * ratio ** np.arange(layers)  # top first
+    cells *= height / cells.sum()
+    return np.concatenate([[0.0], np.cumsum(cells[::-1])])
+
+
+def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
+
+    Parameters
+    ----------
+    size : (3,) float
+        Side lengths, metres.
+    resolution : {"coarse", "default"} or float
+        Fine node spacing on the refined top region, metres, or a named preset.
+    refine : (2, 2) float, optional
+        ``[[x_min, y_min], [x_max, y_max]]`` of the top-face region where prints
+        land, metres, top-surface frame (origin at the top-face centre). Default:
+        the whole top face.
+
+    Returns
+    -------
+    xs, ys, zs : 1-D float arrays
+        Strictly increasing coordinates, metres.
+    """
+    size = readonly_array(size, (3,), "soft box size")
+    if np.any(size <= 0.0):
+        raise SceneError(f"soft box size must be > 0 on every axis, got {size.tolist()}")
+    if isinstance(resolution, str):
+        if resolution not in RESOLUTIONS:
+            raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
+        fine, layers = RESOLUTIONS[resolution], _LAYERS[resolution]
+    else:
+        fine, layers = float(resolution), _LAYERS["default"]
+        if not (math.isfinite(fine) and fine > 0.0):
+            raise SceneError(f"resolution spacing must be > 0 metres, got {resolution!r}")
+    half = 0.5 * size[:2]
+    if refine is None:
+        region = np.array([-half, half])
+    else:
+        region = readonly_array(refine, (2, 2), "refine")
+        if np.any(region[1] <= region[0]):
+            raise SceneError(f"refine must be [[x_min, y_min], [x_max, y_max]] with min < max, got {region.tolist()}")
+        if np.any(region[1] <= -half) or np.any(region[0] >= half):
+            raise SceneError(f"refine region {region.tolist()} does not overlap the top face {(-half).tolist()}..{half.tolist()}")
+    xs = _axis_coordinates(-half[0], half[0], region[0, 0], region[1, 0], fine)
+    ys = _axis_coordinates(-half[1], half[1], region[0, 1], region[1, 1], fine)
+    zs = _height_coordinates(float(size[2]), _TOP_LAYER_SPACINGS * fine, layers)
+    return xs, ys, zs
+
+
+def soft_box(
+    name: str,
+    size,
+    center,
+    material,
+    resolution="default",
+    refine=None,
+    yaw: float = 0.0,
+    friction: float = DEFAULT_FRICTION,
+) -> tuple[DeformableObject, ContactSurface]:
+    """A deformable box standing on the floor, base fixed, top face a contact surface.
+
+    The body frame is at the centre of the base, with the box's axes. The tensor
+    mesh is refined on the top face where prints land and graded in z toward the
+    top (see :func:`soft_box_coordinates`). Nodes of the base (z = 0 in the body
+    frame) are fixed. The top surface is named ``<name>_top``; its frame is at the
+    top-face centre, z up.
+
+    Parameters
+    ----------
+    name : str
+        Object name.
+    size : (3,) float
+        Side lengths, metres.
+    center : (3,) float
+        Centre of the box, metres, world frame.
+    material : fem.LinearElasticMaterial
+        The material.
+    resolution : {"coarse", "default"} or float
+        Mesh spacing preset or fine spacing in metres.
+    refine : (2, 2) float, optional
+        Region of the top face to refine, metres, top-surface frame.
+    yaw : float
+        Rotation about world z, radians.
+    friction : float
+        Friction coefficient of the top surface.
+
+    Returns
+    -------
+    (DeformableObject, ContactSurface)
+        The object and its top surface.
+
+    Raises
+    ------
+    SceneError
+        On bad sizes or options, or when fem is not available.
+    """
+    fem = _fem()
+    size = readonly_array(size, (3,), f"object {name!r} size")
+    xs, ys, zs = soft_box_coordinates(size, resolution, refine)
+    mesh = fem.tensor_mesh(xs, ys, zs)
+    fixed_nodes = np.flatnonzero(np.asarray(mesh.nodes)[:, 2] <= 1e-9 * float(size[2]))
+    body = fem.DeformableBody(mesh, material, fixed_nodes)
+    center = readonly_array(center, (3,), f"object {name!r} center")
+    transform_body_to_world = pose_from_center_yaw(center - [0.0, 0.0, 0.5 * size[2]], yaw)
+    obj = DeformableObject(name, body, transform_body_to_world, "base (z = 0 in the body frame) fixed")
+    transform_top_to_body = transform_from_rotation_translation(np.eye(3), [0.0, 0.0, size[2]])
+    top = ContactSurface(
+        f"{name}_top",
+        name,
+        rectangle(size[0], size[1]),
+        transform_body_to_world @ transform_top_to_body,
+        friction,
+        deformable=True,
+    )
+    return obj, top

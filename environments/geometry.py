@@ -1,0 +1,245 @@
+"""Small rigid-body and planar-polygon helpers shared by the scene types.
+
+Transforms are ``(4, 4)`` homogeneous matrices named ``transform_a_to_b``: they
+map coordinates of a point in frame a to frame b. Polygons are ``(k, 2)`` rows
+of vertices, convex and counter-clockwise.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .errors import SceneError
+
+__all__ = [
+    "readonly_array",
+    "rotation_about_z",
+    "transform_from_rotation_translation",
+    "pose_from_center_yaw",
+    "validate_rigid_transform",
+    "validate_convex_polygon",
+    "polygon_area",
+    "polygon_centroid",
+    "points_in_convex_polygon",
+    "wrap_angle",
+]
+
+# Orthonormality tolerance: transforms typed by hand in a YAML file (cos/sin to a
+# few digits) are still accepted, while a shear or a scale of 1e-6 is refused.
+_ROTATION_TOLERANCE = 1e-6
+
+
+def readonly_array(value, shape: tuple, name: str, dtype=float) -> np.ndarray:
+    """Convert to a finite read-only array of a given shape.
+
+    Parameters
+    ----------
+    value : array_like
+        The data.
+    shape : tuple
+        Expected shape; ``None`` entries match any length.
+    name : str
+        Name used in the error message.
+    dtype : numpy dtype
+        Target dtype.
+
+    Returns
+    -------
+    numpy.ndarray
+        A new read-only array.
+
+    Raises
+    ------
+    SceneError
+        If the data cannot be converted, has the wrong shape or is not finite.
+    """
+    try:
+        array = np.array(value, dtype=dtype)
+    except (TypeError, ValueError) as error:
+        raise SceneError(f"{name} must be numeric with shape {shape}: {error}") from None
+    if array.ndim != len(shape) or any(
+        want is not None and have != want for have, want in zip(array.shape, shape)
+    ):
+        raise SceneError(f"{name} must have shape {shape}, got {array.shape}")
+    if not np.all(np.isfinite(array)):
+        raise SceneError(f"{name} must be finite")
+    array.setflags(write=False)
+    return array
+
+
+def rotation_about_z(theta: float) -> np.ndarray:
+    """Rotation matrix about z.
+
+    Parameters
+    ----------
+    theta : float
+        Angle, radians, counter-clockwise seen from +z.
+
+    Returns
+    -------
+    (3, 3) float
+        The rotation matrix.
+    """
+    c, s = math.cos(theta), math.sin(theta)
+    return np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+
+
+def transform_from_rotation_translation(rotation, translation) -> np.ndarray:
+    """Homogeneous transform from a rotation and a translation.
+
+    Parameters
+    ----------
+    rotation : (3, 3) float
+        Rotation matrix.
+    translation : (3,) float
+        Translation, metres.
+
+    Returns
+    -------
+    (4, 4) float
+        The transform.
+    """
+    transform = np.eye(4)
+    transform[:3, :3] = rotation
+    transform[:3, 3] = translation
+    return transform
+
+
+def pose_from_center_yaw(center, yaw: float = 0.0) -> np.ndarray:
+    """Transform placing an object frame at ``center`` rotated ``yaw`` about world z.
+
+    Parameters
+    ----------
+    center : (3,) float
+        Origin of the object frame, metres, world frame.
+    yaw : float
+        Rotation about world z, radians.
+
+    Returns
+    -------
+    (4, 4) float
+        ``transform_object_to_world``.
+    """
+    center = readonly_array(center, (3,), "center")
+    return transform_from_rotation_translation(rotation_about_z(yaw), center)
+
+
+def validate_rigid_transform(transform, name: str) -> np.ndarray:
+    """Check a homogeneous transform is rigid and right-handed.
+
+    Parameters
+    ----------
+    transform : (4, 4) array_like
+        Candidate transform.
+    name : str
+        Name used in the error message.
+
+    Returns
+    -------
+    (4, 4) float
+        A read-only copy.
+
+    Raises
+    ------
+    SceneError
+        If the rotation block is not orthonormal with determinant +1 or the last
+        row is not ``[0, 0, 0, 1]``.
+    """
+    transform = readonly_array(transform, (4, 4), name)
+    rotation = transform[:3, :3]
+    if not np.allclose(transform[3], [0.0, 0.0, 0.0, 1.0]):
+        raise SceneError(f"{name} must have last row [0, 0, 0, 1], got {transform[3]}")
+    if not np.allclose(rotation.T @ rotation, np.eye(3), atol=_ROTATION_TOLERANCE):
+        raise SceneError(f"{name} rotation block is not orthonormal")
+    if np.linalg.det(rotation) < 0.0:
+        raise SceneError(f"{name} rotation block is a reflection (determinant -1)")
+    return transform
+
+
+def _cross_2d(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    return a[..., 0] * b[..., 1] - a[..., 1] * b[..., 0]
+
+
+def validate_convex_polygon(polygon, name: str) -> np.ndarray:
+    """Check a planar polygon is convex, counter-clockwise and not degenerate.
+
+    Parameters
+    ----------
+    polygon : (k, 2) array_like
+        Vertices, metres; k >= 3.
+    name : str
+        Name used in the error message.
+
+    Returns
+    -------
+    (k, 2) float
+        A read-only copy.
+
+    Raises
+    ------
+    SceneError
+        If it has fewer than 3 vertices, repeated vertices, is clockwise, or has a
+        reflex (or flat) corner.
+    """
+    polygon = readonly_array(polygon, (None, 2), name)
+    if polygon.shape[0] < 3:
+        raise SceneError(f"{name} needs at least 3 vertices, got {polygon.shape[0]}")
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    lengths = np.linalg.norm(edges, axis=1)
+    if np.any(lengths <= 1e-12):
+        raise SceneError(f"{name} has repeated consecutive vertices")
+    turns = _cross_2d(edges, np.roll(edges, -1, axis=0))
+    if polygon_area(polygon) <= 0.0:
+        raise SceneError(f"{name} must be counter-clockwise (its signed area is <= 0)")
+    if np.any(turns <= 1e-12 * lengths * np.roll(lengths, -1)):
+        raise SceneError(f"{name} must be strictly convex and counter-clockwise")
+    return polygon
+
+
+def polygon_area(polygon: np.ndarray) -> float:
+    """Signed area of a planar polygon (positive when counter-clockwise), m^2."""
+    return 0.5 * float(np.sum(_cross_2d(polygon, np.roll(polygon, -1, axis=0))))
+
+
+def polygon_centroid(polygon: np.ndarray) -> np.ndarray:
+    """Area centroid of a planar polygon, ``(2,)`` metres, polygon frame."""
+    following = np.roll(polygon, -1, axis=0)
+    cross = _cross_2d(polygon, following)
+    centroid = ((polygon + following) * cross[:, None]).sum(axis=0) / (3.0 * cross.sum())
+    centroid.setflags(write=False)
+    return centroid
+
+
+def points_in_convex_polygon(polygon: np.ndarray, points, margin: float = 0.0) -> np.ndarray:
+    """Which points lie in a convex counter-clockwise polygon shrunk by a margin.
+
+    Parameters
+    ----------
+    polygon : (k, 2) float
+        Convex counter-clockwise vertices, metres.
+    points : (n, 2) or (2,) float
+        Query points, metres, polygon frame.
+    margin : float
+        Required distance to every edge line, metres (negative grows the polygon).
+
+    Returns
+    -------
+    (n,) bool, or bool for a single point
+        True where inside (boundary included).
+    """
+    points = np.asarray(points, dtype=float)
+    single = points.ndim == 1
+    points = np.atleast_2d(points)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    lengths = np.linalg.norm(edges, axis=1)
+    # Signed distance of every point to every edge line, positive inside.
+    distances = _cross_2d(edges[None, :, :], points[:, None, :] - polygon[None, :, :]) / lengths
+    inside = np.all(distances >= margin - 1e-12, axis=1)
+    return bool(inside[0]) if single else inside
+
+
+def wrap_angle(theta: float) -> float:
+    """Angle wrapped to [-pi, pi], radians."""
+    return math.remainder(float(theta), 2.0 * math.pi)
