@@ -1,0 +1,98 @@
+"""Linearised constraint rows, the common currency between contacts, problem and solver.
+
+Every constraint of the posture problem reduces to a :class:`ConstraintBlock`:
+rows ``lower <= value + jacobian @ step <= upper`` valid to first order around
+the current iterate, where ``step`` stacks the tangent configuration step ``dq``
+(nv,) and the force-variable step ``dlambda`` (m,). Equalities have
+``lower == upper``. Each row has a label a user can read ("torque limit of
+leg_right_4_joint"), so the solver can say *which* constraint makes a stance
+infeasible.
+
+Rows carry a ``scale``: the size of a violation that matters (metres for
+placement, newtons for equilibrium, the effort limit for a torque). The solver
+compares violations divided by their scale, so one elastic variable can relax
+rows of different units fairly.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class ConstraintBlock:
+    """Linearised rows ``lower <= value + jacobian @ step <= upper``.
+
+    Parameters
+    ----------
+    name : str
+        Family of the rows ("placement", "equilibrium", "torque limit", ...).
+    value : (r,) float
+        Constraint function at the current iterate.
+    jacobian : (r, n) float
+        Derivative with respect to the step (dq, dlambda).
+    lower, upper : (r,) float
+        Bounds; ``-inf`` / ``inf`` where one-sided; equal for equalities.
+    scale : (r,) float
+        Violation size that matters, in the rows' units (> 0).
+    labels : tuple of str
+        One readable label per row.
+    """
+
+    name: str
+    value: np.ndarray
+    jacobian: np.ndarray
+    lower: np.ndarray
+    upper: np.ndarray
+    scale: np.ndarray
+    labels: tuple
+
+    def __post_init__(self) -> None:
+        rows = len(self.value)
+        for attribute in ("lower", "upper", "scale"):
+            array = np.broadcast_to(np.asarray(getattr(self, attribute), dtype=float), (rows,))
+            object.__setattr__(self, attribute, array)
+        if self.jacobian.shape[0] != rows or len(self.labels) != rows:
+            raise ValueError(
+                f"block {self.name!r}: {rows} values, jacobian {self.jacobian.shape}, "
+                f"{len(self.labels)} labels"
+            )
+
+    def __len__(self) -> int:
+        return len(self.value)
+
+    def violation(self) -> np.ndarray:
+        """(r,) float: how far each row is outside its bounds, in units of ``scale``."""
+        below = np.maximum(self.lower - self.value, 0.0)
+        above = np.maximum(self.value - self.upper, 0.0)
+        return (below + above) / self.scale
+
+
+def equality(name, value, jacobian, scale, labels) -> ConstraintBlock:
+    """Rows ``value + jacobian @ step = 0``."""
+    zeros = np.zeros(len(value))
+    return ConstraintBlock(name, np.asarray(value, float), jacobian, zeros, zeros, scale, tuple(labels))
+
+
+def stack(blocks):
+    """Stack blocks into arrays.
+
+    Returns
+    -------
+    value, jacobian, lower, upper, scale : arrays
+        Row-stacked.
+    labels : list of str
+    """
+    blocks = [block for block in blocks if len(block)]
+    if not blocks:
+        return (np.zeros(0), None, np.zeros(0), np.zeros(0), np.zeros(0), [])
+    return (
+        np.concatenate([b.value for b in blocks]),
+        np.vstack([b.jacobian for b in blocks]),
+        np.concatenate([b.lower for b in blocks]),
+        np.concatenate([b.upper for b in blocks]),
+        np.concatenate([b.scale for b in blocks]),
+        [label for b in blocks for label in b.labels],
+    )

@@ -1,0 +1,173 @@
+"""Rigid contacts: a robot surface held on a print, pushed by friction-cone forces.
+
+A rigid contact fixes the robot surface frame onto the print frame (6
+equalities) and applies, at each vertex of the robot surface polygon, a force
+that is a non-negative combination of the edges of a linearised friction cone
+(paper ref. [1]): the unknowns ``lambda`` of eq. (45). The force directions
+are fixed in the world (they belong to the print); the application points move
+with the link.
+
+Every contact model (this one and :mod:`stances.deformable`) offers the same
+small interface to the problem builder:
+
+- ``loads``: a :class:`~stances.statics.PointLoads` (where forces act);
+- ``n_variables``: how many force variables it owns;
+- ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
+- ``force_jacobians(model, data, lam)``: their derivatives in q and lambda;
+- ``blocks(model, data, lam, columns)``: its own constraint rows;
+- ``cost(...)``: its objective terms.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+from .blocks import equality
+from .statics import PointLoads
+
+
+def friction_cone_generators(friction: float, n_edges: int = 4) -> np.ndarray:
+    """Edges of a friction pyramid inscribed in the Coulomb cone.
+
+    Parameters
+    ----------
+    friction : float
+        Coefficient mu.
+    n_edges : int
+        Number of edges (4 gives the usual pyramid).
+
+    Returns
+    -------
+    (n_edges, 3) float
+        Unit edge directions in the contact frame (z = surface normal). Any
+        non-negative combination lies inside the cone |f_t| <= mu f_n.
+    """
+    angles = 2.0 * np.pi * np.arange(n_edges) / n_edges
+    edges = np.column_stack([friction * np.cos(angles), friction * np.sin(angles), np.ones(n_edges)])
+    return edges / np.linalg.norm(edges, axis=1, keepdims=True)
+
+
+def placement_residual(data, frame_id: int, transform_print_to_world: pin.SE3):
+    """Placement error of a contact frame relative to its print.
+
+    Returns
+    -------
+    residual : (6,) float
+        ``log6(print^-1 * frame)``: (translation in metres, rotation in
+        radians), print frame. Zero when the frames coincide.
+    jacobian : (6, nv) float
+        Its derivative for a tangent step (requires frame Jacobians computed).
+    """
+    error = transform_print_to_world.actInv(data.oMf[frame_id])
+    residual = pin.log6(error).vector
+    return residual, pin.Jlog6(error)
+
+
+class RigidContact:
+    """A robot surface on a rigid print.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    robot_surface : str
+        Name of the robot contact surface.
+    transform_print_to_world : (4, 4) float
+        Print frame (z = outward normal of the environment surface).
+    friction : float
+        Friction coefficient of the environment surface.
+    label : str
+        Readable name used in constraint labels, e.g. ``"right_palm on table_top"``.
+    """
+
+    kind = "rigid"
+
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
+        surface = robot.surface(robot_surface)
+        self.robot_surface = robot_surface
+        self.label = label
+        self.frame_id = robot.frame_id(surface.frame)
+        frame = robot.model.frames[self.frame_id]
+        self.print_placement = pin.SE3(np.asarray(transform_print_to_world, dtype=float))
+        self.friction = float(friction)
+        vertices = surface.vertices_in_frame
+        self.loads = PointLoads(
+            np.full(len(vertices), frame.parentJoint),
+            np.array([frame.placement.act(v) for v in vertices]),
+        )
+        edges_in_print = friction_cone_generators(self.friction)
+        edges_in_world = edges_in_print @ self.print_placement.rotation.T
+        n_vertices, n_edges = len(vertices), len(edges_in_world)
+        # generators: stacked forces (3k,) = generators @ lambda (k * n_edges,)
+        self.generators = np.zeros((3 * n_vertices, n_vertices * n_edges))
+        for i in range(n_vertices):
+            self.generators[3 * i : 3 * i + 3, i * n_edges : (i + 1) * n_edges] = edges_in_world.T
+        self.n_variables = n_vertices * n_edges
+
+    def forces(self, model, data, lam) -> np.ndarray:
+        """(k, 3) world forces on the robot at the polygon vertices, newtons."""
+        return (self.generators @ lam).reshape(-1, 3)
+
+    def force_jacobians(self, model, data, lam):
+        """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
+        return np.zeros((self.generators.shape[0], model.nv)), self.generators
+
+    def blocks(self, model, data, lam, columns):
+        """Placement equalities (6 rows), print frame.
+
+        Parameters
+        ----------
+        columns : int
+            Width of the step vector (nv + m).
+        """
+        residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
+        frame_jacobian = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
+        jacobian = np.zeros((6, columns))
+        jacobian[:, : model.nv] = jlog @ frame_jacobian
+        labels = [
+            f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
+        ]
+        # 1 mm / 1 mrad: a placement error that matters for a stance.
+        return [equality("placement", residual, jacobian, 1e-3, labels)]
+
+    def normal_forces(self, lam) -> np.ndarray:
+        """(k,) float: normal component of each vertex force, newtons (>= 0 by construction)."""
+        forces = self.forces(None, None, lam)
+        return forces @ self.print_placement.rotation[:, 2]
+
+    def verify(self, model, data, points, forces, tolerances, measures) -> list:
+        """Independent checks of this contact at a posture (see :mod:`stances.verify`).
+
+        Parameters
+        ----------
+        points, forces : (k, 3) float
+            Reported application points and forces, world frame.
+
+        Returns
+        -------
+        list of str
+            Failed checks, empty when all pass.
+        """
+        reasons = []
+        error = self.print_placement.actInv(data.oMf[self.frame_id])
+        residual = pin.log6(error).vector
+        translation, rotation = np.abs(residual[:3]).max(), np.abs(residual[3:]).max()
+        measures[f"placement error of {self.label}"] = float(max(translation, rotation))
+        if max(translation, rotation) > tolerances.placement:
+            reasons.append(
+                f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"
+            )
+        # The forces must act at the robot surface's vertices...
+        expected = np.array([data.oMi[j].act(p) for j, p in zip(self.loads.joints.tolist(), self.loads.points_in_joint)])
+        if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
+            reasons.append(f"forces of {self.label} are not applied at its surface's vertices")
+        # ... and lie in the exact Coulomb cone of the print.
+        rotation_print = self.print_placement.rotation
+        local = forces @ rotation_print
+        normal = local[:, 2]
+        tangential = np.linalg.norm(local[:, :2], axis=1)
+        margin = np.minimum(normal, self.friction * normal - tangential)
+        measures[f"cone margin of {self.label}"] = float(margin.min())
+        if margin.min() < -tolerances.cone:
+            reasons.append(f"a force of {self.label} leaves its friction cone by {-margin.min():.3g} N")
+        return reasons

@@ -1,0 +1,413 @@
+"""The posture problem (45)-(49): build it, then linearise it around an iterate.
+
+Building (:func:`build_problem`) turns a stance into contact models and fixes
+everything that does not change during a solve; linearising
+(:meth:`PostureProblem.linearize`) evaluates the objective and every
+constraint with its exact Jacobian at ``(q, lambda)``. The SQP in
+:mod:`stances.sqp` only stacks what this returns, so the problem can be
+inspected, tested and handed to another solver (the benchmark uses SLSQP).
+
+Unknowns: a tangent step ``dq`` (nv,) applied with ``pin.integrate`` and the
+force variables ``lambda`` (m,) of the rigid contacts (friction-cone
+coefficients, >= 0). Deformable contacts own no variables: their forces are
+functions of q (eq. 29, 44).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import pinocchio as pin
+
+from .blocks import ConstraintBlock, equality
+from .contacts import RigidContact
+from .errors import ConfigurationError, StanceError
+from .statics import PointLoads, static_torque_derivatives
+
+
+@dataclass(frozen=True)
+class PostureOptions:
+    """Weights, limits and tolerances of a posture solve.
+
+    Parameters
+    ----------
+    posture_weight : float
+        Weight of the squared distance of the joints to the reference posture.
+    base_orientation_weight : float
+        Weight of the free flyer's orientation error to the reference, per rad^2.
+    force_weight : float
+        Weight of sum lambda^2 (spreads rigid-contact forces), per N^2.
+    deformation_weight : float
+        Weight of the squared norm of the deformable reaction forces (paper
+        note 2), per N^2.
+    reaction_model : {"consistent", "traction"}
+        How deformable supports react (see :mod:`fem`).
+    max_iterations : int
+        SQP iteration limit.
+    trust_region : float
+        Bound on each component of a step, rad or m.
+    feasibility_tolerance : float
+        Accepted violation, in units of each row's scale (see
+        :mod:`stances.blocks`): 1e-4 means 1e-7 m placement, 1e-6 N equilibrium.
+    collision_distance : float
+        Minimum distance kept between the robot and the scene or itself, m.
+    collision_activation : float
+        Pairs farther than this are not linearised this iteration, m.
+    max_collision_rows : int
+        At most this many closest pairs enter a QP.
+    self_collision : bool
+        Whether the SRDF self-collision pairs are checked.
+    max_indentation : float
+        Deformable supports: bound on each print node's displacement, m
+        (keeps the small-deformation hypothesis of linear elasticity).
+    elastic_penalty : float
+        Initial weight of the elastic variable that lets the QP relax
+        constraints it cannot meet (it grows when needed).
+    """
+
+    posture_weight: float = 1.0
+    base_orientation_weight: float = 1.0
+    force_weight: float = 1e-5
+    deformation_weight: float = 1e-5
+    reaction_model: str = "consistent"
+    max_iterations: int = 100
+    trust_region: float = 0.3
+    feasibility_tolerance: float = 1e-4
+    collision_distance: float = 0.005
+    collision_activation: float = 0.05
+    max_collision_rows: int = 16
+    self_collision: bool = True
+    max_indentation: float = 0.05
+    elastic_penalty: float = 1e2
+
+    def __post_init__(self) -> None:
+        if self.reaction_model not in ("consistent", "traction"):
+            raise StanceError(
+                f"reaction_model must be 'consistent' or 'traction', got {self.reaction_model!r}"
+            )
+        for name in ("max_iterations", "max_collision_rows"):
+            if int(getattr(self, name)) < 0:
+                raise StanceError(f"{name} must be >= 0")
+        for name in ("trust_region", "feasibility_tolerance", "max_indentation", "elastic_penalty"):
+            if not getattr(self, name) > 0:
+                raise StanceError(f"{name} must be > 0, got {getattr(self, name)}")
+
+
+@dataclass
+class Linearization:
+    """Everything the SQP needs at one iterate.
+
+    Attributes
+    ----------
+    objective : float
+        Objective value.
+    gradient : (n,) float
+        Objective gradient in the step (dq, dlambda).
+    hessian : (n, n) float
+        Gauss-Newton Hessian of the objective.
+    blocks : list of ConstraintBlock
+        Linearised constraints.
+    step_lower, step_upper : (n,) float
+        Bounds on the step (joint limits, lambda >= 0, trust region).
+    forces : (k, 3) float
+        Contact forces on the robot at the iterate, world, newtons.
+    torques : (nv,) float
+        ``g(q) - sum J^T f`` at the iterate.
+    """
+
+    objective: float
+    gradient: np.ndarray
+    hessian: np.ndarray
+    blocks: list
+    step_lower: np.ndarray
+    step_upper: np.ndarray
+    forces: np.ndarray
+    torques: np.ndarray
+    extras: dict = field(default_factory=dict)
+
+    def max_violation(self) -> tuple[float, str]:
+        """Largest scaled violation and the label of its row."""
+        worst, label = 0.0, ""
+        for block in self.blocks:
+            if len(block):
+                violation = block.violation()
+                i = int(np.argmax(violation))
+                if violation[i] > worst:
+                    worst, label = float(violation[i]), block.labels[i]
+        return worst, label
+
+
+class PostureProblem:
+    """A stance's posture problem, ready to be linearised.
+
+    Build it with :func:`build_problem`.
+
+    Attributes
+    ----------
+    robot : stances.Robot
+    contacts : list
+        Contact models (rigid and deformable), in stance order.
+    options : PostureOptions
+    n_variables : int
+        Size of lambda.
+    """
+
+    def __init__(self, robot, scene, stance, contacts, options, collision_checker=None):
+        self.robot = robot
+        self.scene = scene
+        self.stance = stance
+        self.contacts = contacts
+        self.options = options
+        self.collision_checker = collision_checker
+        self.data = robot.model.createData()
+        self.loads = PointLoads.concatenate(c.loads for c in contacts)
+        self.variable_slices = []
+        start = 0
+        for contact in contacts:
+            self.variable_slices.append(slice(start, start + contact.n_variables))
+            start += contact.n_variables
+        self.n_variables = start
+        model = robot.model
+        self.posture_weights = np.full(model.nv, options.posture_weight)
+        self.posture_weights[:3] = 0.0  # the base may go anywhere
+        self.posture_weights[3:6] = options.base_orientation_weight
+        self.reference = robot.reference_configuration
+        self.q_lower = model.lowerPositionLimit[7:]
+        self.q_upper = model.upperPositionLimit[7:]
+        self.effort = robot.effort_limits
+
+    @property
+    def n_step(self) -> int:
+        """Size of the step vector (nv + m)."""
+        return self.robot.model.nv + self.n_variables
+
+    def initial_variables(self) -> np.ndarray:
+        """Force variables sharing the robot's weight evenly among rigid contacts."""
+        lam = np.zeros(self.n_variables)
+        if self.n_variables:
+            weight = self.robot.mass * 9.81
+            lam[:] = weight / self.n_variables
+        return lam
+
+    def check_configuration(self, q) -> np.ndarray:
+        """A validated copy of ``q`` (size, finite, unit quaternion renormalised)."""
+        q = np.array(q, dtype=float).reshape(-1)
+        if q.shape != (self.robot.nq,):
+            raise ConfigurationError(
+                f"q must have shape ({self.robot.nq},) for robot {self.robot.name!r}, got {q.shape}"
+            )
+        if not np.all(np.isfinite(q)):
+            raise ConfigurationError(f"q has non-finite entries at indices {np.flatnonzero(~np.isfinite(q)).tolist()}")
+        norm = np.linalg.norm(q[3:7])
+        if not 0.5 < norm < 2.0:
+            raise ConfigurationError(f"q[3:7] must be a unit quaternion (x, y, z, w), its norm is {norm:.3g}")
+        q[3:7] /= norm
+        # Start inside the joint limits: the QP keeps iterates there.
+        q[7:] = np.clip(q[7:], self.q_lower, self.q_upper)
+        return q
+
+    def contact_forces(self, lam) -> np.ndarray:
+        """(k, 3) world forces of all contacts at the current kinematics (after linearize)."""
+        model, data = self.robot.model, self.data
+        return np.vstack(
+            [c.forces(model, data, lam[s]) for c, s in zip(self.contacts, self.variable_slices)]
+            or [np.zeros((0, 3))]
+        )
+
+    def linearize(self, q, lam, jacobians: bool = True) -> Linearization:
+        """Evaluate objective and constraints, with Jacobians, at ``(q, lam)``.
+
+        Parameters
+        ----------
+        q : (nq,) float
+            Configuration.
+        lam : (m,) float
+            Rigid-contact force variables, newtons.
+        jacobians : bool
+            False skips what only the QP needs (faster, for line searches).
+
+        Returns
+        -------
+        Linearization
+        """
+        model, data, options = self.robot.model, self.data, self.options
+        nv, n = model.nv, self.n_step
+        pin.framesForwardKinematics(model, data, q)
+        pin.computeJointJacobians(model, data, q)
+        pin.updateFramePlacements(model, data)
+
+        # Contact forces and their derivatives (deformable ones depend on q).
+        forces, force_dq, force_dlam = [], [], []
+        for contact, s in zip(self.contacts, self.variable_slices):
+            forces.append(contact.forces(model, data, lam[s]))
+            dq_part, dlam_part = contact.force_jacobians(model, data, lam[s])
+            force_dq.append(dq_part)
+            full = np.zeros((dlam_part.shape[0], self.n_variables))
+            full[:, s] = dlam_part
+            force_dlam.append(full)
+        forces = np.vstack(forces) if forces else np.zeros((0, 3))
+        force_dq = np.vstack(force_dq) if force_dq else np.zeros((0, nv))
+        force_dlam = np.vstack(force_dlam) if force_dlam else np.zeros((0, self.n_variables))
+
+        tau, dtau_dq, dtau_dforces = static_torque_derivatives(model, data, q, self.loads, forces)
+        # The static-torque routine reruns kinematics; frames need refreshing.
+        pin.updateFramePlacements(model, data)
+        tau_jacobian = np.hstack([dtau_dq + dtau_dforces @ force_dq, dtau_dforces @ force_dlam])
+
+        blocks = []
+        joint_names = self.robot.actuated_joint_names
+        # Static equilibrium of the free flyer (49): 1e-2 N is the scale that matters.
+        blocks.append(
+            equality(
+                "equilibrium",
+                tau[:6],
+                tau_jacobian[:6],
+                1e-2,
+                [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")],
+            )
+        )
+        # Torque limits (47).
+        blocks.append(
+            ConstraintBlock(
+                "torque limit",
+                tau[6:],
+                tau_jacobian[6:],
+                -self.effort,
+                self.effort,
+                1e-2,
+                tuple(f"torque limit of {name}" for name in joint_names),
+            )
+        )
+        for contact, s in zip(self.contacts, self.variable_slices):
+            blocks.extend(contact.blocks(model, data, lam[s], n))
+        if self.collision_checker is not None:
+            blocks.append(self._collision_block(q))
+
+        # Objective: posture (Gauss-Newton through pin.difference) + forces.
+        error = pin.difference(model, self.reference, q)
+        d_error = pin.dDifference(model, self.reference, q, pin.ARG1)
+        weights = self.posture_weights
+        objective = 0.5 * float(error @ (weights * error))
+        gradient = np.zeros(n)
+        hessian = np.zeros((n, n))
+        gradient[:nv] = d_error.T @ (weights * error)
+        hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
+        if self.n_variables:
+            objective += 0.5 * options.force_weight * float(lam @ lam)
+            gradient[nv:] += options.force_weight * lam
+            hessian[nv:, nv:] += options.force_weight * np.eye(self.n_variables)
+        for contact in self.contacts:
+            term = contact.cost(model, data, options, n) if hasattr(contact, "cost") else None
+            if term is not None:
+                value, grad, hess = term
+                objective += value
+                gradient += grad
+                hessian += hess
+
+        # Bounds on the step: trust region, joint limits, lambda >= 0.
+        step_lower = np.full(n, -options.trust_region)
+        step_upper = np.full(n, options.trust_region)
+        step_lower[6:nv] = np.maximum(step_lower[6:nv], self.q_lower - q[7:])
+        step_upper[6:nv] = np.minimum(step_upper[6:nv], self.q_upper - q[7:])
+        step_lower[nv:] = -lam
+        step_upper[nv:] = np.inf
+        return Linearization(
+            objective, gradient, hessian, blocks, step_lower, step_upper, forces, tau
+        )
+
+    def _collision_block(self, q) -> ConstraintBlock:
+        """Distances of the closest pairs, padded to a fixed number of rows."""
+        model, data, options = self.robot.model, self.data, self.options
+        rows = options.max_collision_rows
+        pairs = self.collision_checker.pairs(model, data)
+        pairs = sorted(pairs, key=lambda p: p.distance)[:rows]
+        value = np.zeros(rows)
+        jacobian = np.zeros((rows, self.n_step))
+        lower = np.full(rows, -np.inf)
+        labels = ["(inactive collision row)"] * rows
+        if pairs:
+            jacobian[: len(pairs), : model.nv] = self.collision_checker.jacobian_rows(model, data, pairs)
+            for i, pair in enumerate(pairs):
+                value[i] = pair.distance
+                lower[i] = options.collision_distance
+                labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
+        return ConstraintBlock("collision", value, jacobian, lower, np.full(rows, np.inf), 1e-3, tuple(labels))
+
+
+def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:
+    """Turn a stance into a posture problem.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+        Contacts to hold. Each robot surface must exist on ``robot`` and each
+        print's surface in ``scene``.
+    options : PostureOptions, optional
+
+    Returns
+    -------
+    PostureProblem
+
+    Raises
+    ------
+    StanceError
+        For an empty stance, an unknown robot surface or scene surface, or a
+        print whose origin lies off its surface.
+    """
+    options = options or PostureOptions()
+    if len(stance) == 0:
+        raise StanceError("the stance has no contact; a robot cannot stand on nothing")
+    contacts = []
+    exclusions = []
+    for contact in stance:
+        robot.surface(contact.robot_surface)  # raises FrameNotFound with the known names
+        contact_print = contact.contact_print
+        try:
+            surface = scene.surface(contact_print.surface)
+        except ValueError as error:
+            raise StanceError(str(error)) from None
+        if not surface.contains(np.array([[contact_print.x, contact_print.y]]))[0]:
+            raise StanceError(
+                f"the print of {contact.robot_surface} at ({contact_print.x:.3f}, {contact_print.y:.3f}) "
+                f"lies off surface {surface.name!r}; pick x, y inside its polygon "
+                f"{np.round(surface.polygon, 3).tolist()}"
+            )
+        transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
+        label = f"{contact.robot_surface} on {surface.name}"
+        if surface.deformable:
+            from .deformable import DeformableContact  # FEM machinery only when needed
+
+            deformable_object = scene.deformable_of_surface(surface.name)
+            contacts.append(
+                DeformableContact(robot, contact.robot_surface, deformable_object, surface, transform, label, options)
+            )
+        else:
+            contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label))
+        exclusions.append((robot.surface(contact.robot_surface).frame, surface.object_name))
+    checker = _collision_checker(robot, scene, exclusions, options)
+    return PostureProblem(robot, scene, stance, contacts, options, checker)
+
+
+def _collision_checker(robot, scene, exclusions, options):
+    """A collision checker for the stance, ignoring each contact link vs its support.
+
+    Parameters
+    ----------
+    exclusions : list of (str, str)
+        (robot contact frame, scene object name) pairs in contact by design.
+    """
+    from .collision import CollisionChecker, contact_exclusions
+
+    excluded = []
+    for frame, object_name in exclusions:
+        excluded.extend(contact_exclusions(robot, frame, object_name))
+    return CollisionChecker(
+        robot,
+        scene.collision_objects(),
+        margin=options.collision_activation,
+        exclude=excluded,
+        self_collision=options.self_collision,
+    )

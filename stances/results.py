@@ -1,0 +1,134 @@
+"""What a posture solve returns: values that can check themselves."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+def _readonly(array) -> np.ndarray:
+    array = np.array(array, dtype=float)
+    array.setflags(write=False)
+    return array
+
+
+@dataclass(frozen=True)
+class PointForce:
+    """A force applied ON the robot at a point of one of its links.
+
+    Parameters
+    ----------
+    frame : str
+        Pinocchio frame (of ``robot.model``) attached to the link the force acts on.
+    point : (3,) float
+        Application point, metres, world frame.
+    force : (3,) float
+        Force, newtons, world frame.
+    """
+
+    frame: str
+    point: np.ndarray
+    force: np.ndarray
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "point", _readonly(self.point))
+        object.__setattr__(self, "force", _readonly(self.force))
+
+    def to_dict(self) -> dict:
+        """JSON-ready representation."""
+        return {"frame": self.frame, "point": self.point.tolist(), "force": self.force.tolist()}
+
+    @classmethod
+    def from_dict(cls, data) -> "PointForce":
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["frame"], data["point"], data["force"])
+
+
+@dataclass(frozen=True)
+class Verification:
+    """Outcome of :func:`stances.verify`: independent checks of a posture.
+
+    Attributes
+    ----------
+    ok : bool
+        True when every check passed.
+    reasons : tuple of str
+        One line per failed check, empty when ``ok``.
+    measures : dict
+        The measured quantities (residuals, margins), for reports.
+    """
+
+    ok: bool
+    reasons: tuple = ()
+    measures: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class PostureResult:
+    """A posture solve's answer.
+
+    Attributes
+    ----------
+    feasible : bool
+        True only when the solver converged and :func:`stances.verify` passed.
+    q : (nq,) float
+        Final configuration of ``robot.model`` (read-only).
+    point_forces : tuple of PointForce
+        Contact forces on the robot (rigid vertices and deformable print nodes).
+    torques : (nv - 6,) float
+        Actuated joint torques, N m.
+    iterations : int
+        SQP iterations.
+    solve_time : float
+        Seconds.
+    reason : str
+        Why the stance is infeasible; empty when feasible.
+    stance : environments.Stance
+    deformations : dict of str to (N, 3) float
+        Node displacements of each deformable object touched, metres, body frame.
+    verification : Verification or None
+    statistics : dict
+        Per-solve counters (time spent in FEM terms, QP time, ...).
+    """
+
+    feasible: bool
+    q: np.ndarray
+    point_forces: tuple
+    torques: np.ndarray
+    iterations: int
+    solve_time: float
+    reason: str
+    stance: object
+    deformations: dict = field(default_factory=dict)
+    verification: Verification | None = None
+    statistics: dict = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "q", _readonly(self.q))
+        object.__setattr__(self, "torques", _readonly(self.torques))
+
+    def total_force(self) -> np.ndarray:
+        """(3,) float: sum of the contact forces, newtons, world frame."""
+        if not self.point_forces:
+            return np.zeros(3)
+        return np.sum([p.force for p in self.point_forces], axis=0)
+
+    def forces_on(self, frame: str) -> tuple:
+        """The point forces acting through ``frame``."""
+        return tuple(p for p in self.point_forces if p.frame == frame)
+
+    def to_dict(self) -> dict:
+        """JSON-ready representation (arrays as lists)."""
+        return {
+            "feasible": self.feasible,
+            "q": self.q.tolist(),
+            "point_forces": [p.to_dict() for p in self.point_forces],
+            "torques": self.torques.tolist(),
+            "iterations": self.iterations,
+            "solve_time": self.solve_time,
+            "reason": self.reason,
+            "stance": self.stance.to_dict() if hasattr(self.stance, "to_dict") else None,
+            "deformations": {k: np.asarray(v).tolist() for k, v in self.deformations.items()},
+            "statistics": dict(self.statistics),
+        }

@@ -1,0 +1,271 @@
+"""SQP for the posture problem, one proxsuite QP per iteration.
+
+Each iteration linearises the problem (:mod:`stances.problem`), solves
+
+    min_x  1/2 x^T H x + g^T x + rho t
+    s.t.   lower - t s <= value + J x <= upper + t s     (every constraint row)
+           step bounds on x,  t >= 0
+
+for the step ``x = (dq, dlambda)`` and one elastic variable ``t``: the QP is
+always feasible, and ``t > 0`` says by how much (in units of each row's scale
+``s``) the linearised constraints cannot be met. A backtracking line search on
+the exact-penalty merit ``f + rho * max violation`` makes the iteration
+globally convergent; ``rho`` grows when the QP prefers to stay infeasible.
+
+A stance is declared infeasible, with the label of the worst constraint, when
+the iterates stop moving while still violating constraints, or when the
+iteration limit is reached. Feasible answers are re-checked by
+:func:`stances.verify`.
+"""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+import pinocchio as pin
+import proxsuite
+
+from .blocks import stack
+from .problem import PostureOptions, build_problem
+from .results import PointForce, PostureResult
+
+_INFINITY = 1e20  # proxsuite's stand-in for an absent bound
+_MAX_PENALTY = 1e8
+
+
+class _QPWorkspace:
+    """A proxsuite dense QP reused (and warm-started) across iterations."""
+
+    def __init__(self):
+        self.qp = None
+        self.shape = None
+
+    def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper):
+        shape = (len(gradient), inequality.shape[0])
+        if self.qp is None or self.shape != shape:
+            self.qp = proxsuite.proxqp.dense.QP(shape[0], 0, shape[1], True)
+            self.qp.settings.eps_abs = 1e-9
+            self.qp.settings.eps_rel = 0.0
+            self.qp.settings.max_iter = 2000
+            self.qp.settings.verbose = False
+            self.qp.init(hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
+            self.shape = shape
+        else:
+            self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
+            self.qp.update(hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
+        self.qp.solve()
+        return np.array(self.qp.results.x)
+
+
+def _qp_matrices(linearization, penalty):
+    """Elastic QP data from a linearisation (see the module docstring)."""
+    value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
+    n = len(linearization.gradient)
+    hessian = np.zeros((n + 1, n + 1))
+    # A small regularisation keeps the QP strictly convex in directions the
+    # objective ignores (base translation, unconstrained lambdas).
+    hessian[:n, :n] = linearization.hessian + 1e-8 * np.eye(n)
+    hessian[n, n] = 1e-8
+    gradient = np.append(linearization.gradient, penalty)
+    rows = len(value)
+    inequality = np.zeros((2 * rows, n + 1))
+    inequality[:rows, :n] = jacobian
+    inequality[:rows, n] = -scale
+    inequality[rows:, :n] = jacobian
+    inequality[rows:, n] = scale
+    qp_lower = np.concatenate([np.full(rows, -_INFINITY), np.maximum(lower - value, -_INFINITY)])
+    qp_upper = np.concatenate([np.minimum(upper - value, _INFINITY), np.full(rows, _INFINITY)])
+    box_lower = np.append(np.maximum(linearization.step_lower, -_INFINITY), 0.0)
+    box_upper = np.append(np.minimum(linearization.step_upper, _INFINITY), _INFINITY)
+    return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
+
+
+def _unit(label: str) -> str:
+    if label.startswith("placement"):
+        return "m or rad"
+    if label.startswith("static equilibrium"):
+        return "N or N m"
+    if label.startswith("torque"):
+        return "N m"
+    if label.startswith("collision") or "indentation" in label:
+        return "m"
+    return "N"
+
+
+def _reason(linearization, iterations, why) -> str:
+    worst, label = linearization.max_violation()
+    scale = 1.0
+    for block in linearization.blocks:
+        if label in block.labels:
+            scale = float(block.scale[block.labels.index(label)])
+    amount = worst * scale
+    prefix = "print unreachable: " if label.startswith("placement") else ""
+    return f"{prefix}{label} violated by {amount:.3g} {_unit(label)} ({why} after {iterations} iterations)"
+
+
+def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
+    """Run the SQP on a built :class:`~stances.problem.PostureProblem`.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+    q_init : (nq,) float, optional
+        Warm start; the robot's reference posture by default.
+    lam_init : (m,) float, optional
+        Initial force variables.
+
+    Returns
+    -------
+    PostureResult
+        Feasible or not; never raises for an infeasible stance.
+    """
+    from .verify import verify_problem
+
+    start = time.perf_counter()
+    options = problem.options
+    model = problem.robot.model
+    nv = model.nv
+    q = problem.check_configuration(problem.robot.reference_configuration if q_init is None else q_init)
+    lam = problem.initial_variables() if lam_init is None else np.maximum(np.asarray(lam_init, float), 0.0)
+    penalty = options.elastic_penalty
+    workspace = _QPWorkspace()
+    tolerance = options.feasibility_tolerance
+    stalled = 0
+    status = "iteration limit"
+    linearization = problem.linearize(q, lam)
+    iteration = 0
+    qp_time = 0.0
+    for iteration in range(1, options.max_iterations + 1):
+        violation, _ = linearization.max_violation()
+        merit = linearization.objective + penalty * violation
+        matrices = _qp_matrices(linearization, penalty)
+        tic = time.perf_counter()
+        x = workspace.solve(*matrices)
+        qp_time += time.perf_counter() - tic
+        step, elastic = x[:-1], max(x[-1], 0.0)
+        predicted = (
+            linearization.objective
+            + penalty * violation
+            - (
+                linearization.objective
+                + linearization.gradient @ step
+                + 0.5 * step @ linearization.hessian @ step
+                + penalty * elastic
+            )
+        )
+        if violation <= tolerance and (
+            np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
+        ):
+            status = "converged"
+            break
+        # Backtracking line search on the exact-penalty merit function.
+        alpha, accepted = 1.0, None
+        while alpha >= 1e-4:
+            q_try = pin.integrate(model, q, alpha * step[:nv])
+            lam_try = np.maximum(lam + alpha * step[nv:], 0.0)
+            trial = problem.linearize(q_try, lam_try)
+            trial_violation, _ = trial.max_violation()
+            trial_merit = trial.objective + penalty * trial_violation
+            if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0):
+                accepted = (q_try, lam_try, trial)
+                break
+            alpha *= 0.5
+        if accepted is None:
+            stalled += 1
+            if violation > tolerance and penalty < _MAX_PENALTY:
+                penalty *= 10.0
+            if stalled >= 4:
+                status = "stalled"
+                break
+            continue
+        q, lam, linearization = accepted
+        stalled = 0
+        new_violation, _ = linearization.max_violation()
+        # The QP kept some violation although the merit could trade it: raise rho.
+        if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY:
+            penalty *= 10.0
+        if new_violation <= tolerance and (
+            alpha * np.max(np.abs(step[:nv])) < 1e-6
+            or abs(merit - (linearization.objective + penalty * new_violation)) < 1e-7 * (1.0 + abs(merit))
+        ):
+            status = "converged"
+            break
+    violation, _ = linearization.max_violation()
+    feasible = violation <= tolerance
+    reason = "" if feasible else _reason(linearization, iteration, status)
+    elapsed = time.perf_counter() - start
+    point_forces = problem_point_forces(problem, linearization)
+    deformations = {
+        c.deformable_object.name: c.displacement_field(model, problem.data)
+        for c in problem.contacts
+        if c.kind == "deformable"
+    } if feasible else {}
+    result = PostureResult(
+        feasible=feasible,
+        q=q,
+        point_forces=point_forces,
+        torques=linearization.torques[6:],
+        iterations=iteration,
+        solve_time=elapsed,
+        reason=reason,
+        stance=problem.stance,
+        deformations=deformations,
+        statistics={"status": status, "qp_time": qp_time, "penalty": penalty, "lambda": lam.tolist()},
+    )
+    if feasible:
+        verification = verify_problem(problem, result)
+        result = _with(result, verification=verification, feasible=verification.ok,
+                       reason="" if verification.ok else "verification failed: " + "; ".join(verification.reasons))
+    return result
+
+
+def _with(result, **changes) -> PostureResult:
+    values = {name: getattr(result, name) for name in result.__dataclass_fields__}
+    values.update(changes)
+    return PostureResult(**values)
+
+
+def problem_point_forces(problem, linearization) -> tuple:
+    """Point forces of a linearised problem's contacts, in the world frame."""
+    from .statics import points_in_world
+
+    model, data = problem.robot.model, problem.data
+    points = points_in_world(data, problem.loads)
+    frames = []
+    for contact in problem.contacts:
+        frame = model.frames[contact.frame_id].name
+        frames.extend([frame] * len(contact.loads))
+    return tuple(
+        PointForce(frame, point, force)
+        for frame, point, force in zip(frames, points, linearization.forces)
+    )
+
+
+def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
+    """Find a statically feasible posture holding a stance.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+    q_init : (nq,) float, optional
+        Warm start (e.g. the parent stance's posture in a search).
+    **options
+        Fields of :class:`~stances.problem.PostureOptions`.
+
+    Returns
+    -------
+    PostureResult
+        ``feasible`` is True only when the SQP converged and the independent
+        :func:`stances.verify` passed; otherwise ``reason`` says why.
+
+    Raises
+    ------
+    StanceError
+        For bad input (unknown surfaces, a print off its surface, a malformed
+        q); an infeasible stance is an answer, not an exception.
+    """
+    problem = build_problem(robot, scene, stance, PostureOptions(**options))
+    return solve_problem(problem, q_init)

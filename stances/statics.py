@@ -1,0 +1,193 @@
+"""Joint torques of a robot holding still under point forces, and their derivatives.
+
+A posture problem's forces are *point forces*: a force vector given in the
+world frame, applied at a point rigidly attached to a link. Rigid-contact forces
+keep a world-fixed direction (the print's friction-cone generators); the
+application point moves with the link. The static joint torques are
+
+    tau(q, f) = g(q) - sum_k J_k(q)^T f_k                                (47, 49)
+
+where ``J_k`` is the translational world-aligned Jacobian of point ``k``. The
+first six rows (free flyer) must vanish for static equilibrium (49); the other
+rows must stay within the torque limits (47).
+
+Pinocchio's ``computeStaticTorqueDerivatives`` differentiates ``tau`` with the
+external forces held fixed *in the joint frames*. A world-fixed force rotates
+in its joint frame when the joint rotates; :func:`static_torque_derivatives`
+adds that term, so the result is the exact derivative for world-fixed forces.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+
+@dataclass(frozen=True)
+class PointLoads:
+    """Where point forces act on the robot, independent of their values.
+
+    Parameters
+    ----------
+    joints : (k,) int
+        Pinocchio joint index carrying each point.
+    points_in_joint : (k, 3) float
+        Application points, metres, in their joint's frame.
+    """
+
+    joints: np.ndarray
+    points_in_joint: np.ndarray
+
+    def __post_init__(self) -> None:
+        joints = np.asarray(self.joints, dtype=int).reshape(-1)
+        points = np.asarray(self.points_in_joint, dtype=float).reshape(-1, 3)
+        if len(joints) != len(points):
+            raise ValueError(f"{len(joints)} joints for {len(points)} points")
+        for array in (joints, points):
+            array.setflags(write=False)
+        object.__setattr__(self, "joints", joints)
+        object.__setattr__(self, "points_in_joint", points)
+
+    def __len__(self) -> int:
+        return len(self.joints)
+
+    @staticmethod
+    def concatenate(loads) -> "PointLoads":
+        """Stack several :class:`PointLoads` into one, in order."""
+        loads = list(loads)
+        if not loads:
+            return PointLoads(np.zeros(0, dtype=int), np.zeros((0, 3)))
+        return PointLoads(
+            np.concatenate([load.joints for load in loads]),
+            np.concatenate([load.points_in_joint for load in loads]),
+        )
+
+
+def points_in_world(data: pin.Data, loads: PointLoads) -> np.ndarray:
+    """World positions of the application points.
+
+    Parameters
+    ----------
+    data : pinocchio.Data
+        After forward kinematics at the configuration of interest.
+    loads : PointLoads
+
+    Returns
+    -------
+    (k, 3) float
+        Points, metres, world frame.
+    """
+    out = np.empty((len(loads), 3))
+    for i, (joint, point) in enumerate(zip(loads.joints.tolist(), loads.points_in_joint)):
+        placement = data.oMi[joint]
+        out[i] = placement.rotation @ point + placement.translation
+    return out
+
+
+def _external_forces(model, data, loads: PointLoads, forces_in_world: np.ndarray):
+    """Per-joint spatial forces (local frames) and the local force vectors."""
+    fext = pin.StdVec_Force()
+    for _ in range(model.njoints):
+        fext.append(pin.Force.Zero())
+    forces_local = np.empty_like(forces_in_world)
+    for i, (joint, point) in enumerate(zip(loads.joints.tolist(), loads.points_in_joint)):
+        force_local = data.oMi[joint].rotation.T @ forces_in_world[i]
+        forces_local[i] = force_local
+        fext[joint] = fext[joint] + pin.Force(force_local, np.cross(point, force_local))
+    return fext, forces_local
+
+
+def static_torques(model, data, q, loads: PointLoads, forces_in_world) -> np.ndarray:
+    """Generalised torques holding the robot still at ``q`` under the point forces.
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+    data : pinocchio.Data
+    q : (nq,) float
+        Configuration.
+    loads : PointLoads
+        Application points.
+    forces_in_world : (k, 3) float
+        Forces applied ON the robot, newtons, world frame.
+
+    Returns
+    -------
+    (nv,) float
+        ``g(q) - sum_k J_k^T f_k`` (eqs. 47, 49): free-flyer rows are the
+        unbalanced wrench, the rest are the joint torques, N m.
+    """
+    pin.forwardKinematics(model, data, q)
+    fext, _ = _external_forces(model, data, loads, np.asarray(forces_in_world).reshape(-1, 3))
+    return pin.computeStaticTorque(model, data, q, fext).copy()
+
+
+def static_torque_derivatives(model, data, q, loads: PointLoads, forces_in_world):
+    """Torques and their exact derivatives for world-fixed point forces.
+
+    Parameters
+    ----------
+    model, data : pinocchio Model and Data
+    q : (nq,) float
+        Configuration.
+    loads : PointLoads
+        Application points (fixed on their links).
+    forces_in_world : (k, 3) float
+        Forces ON the robot, newtons, world frame, held fixed in the world.
+
+    Returns
+    -------
+    tau : (nv,) float
+        Same as :func:`static_torques`.
+    dtau_dq : (nv, nv) float
+        Derivative with respect to a tangent step ``dq`` (``q (+) dq``).
+    dtau_dforces : (nv, 3k) float
+        Derivative with respect to the stacked world forces (``-J_k^T``).
+    """
+    forces_in_world = np.asarray(forces_in_world, dtype=float).reshape(-1, 3)
+    pin.computeJointJacobians(model, data, q)
+    fext, forces_local = _external_forces(model, data, loads, forces_in_world)
+    tau = pin.computeStaticTorque(model, data, q, fext).copy()
+    dtau_dq = pin.computeStaticTorqueDerivatives(model, data, q, fext).copy()
+
+    nv = model.nv
+    dtau_dforces = np.zeros((nv, 3 * len(loads)))
+    # Group forces by joint: the rotation term involves each joint's Jacobian once.
+    for joint in np.unique(loads.joints):
+        rows = np.flatnonzero(loads.joints == joint)
+        jacobian_local = pin.getJointJacobian(model, data, int(joint), pin.LOCAL)
+        rotation = data.oMi[int(joint)].rotation
+        # d(R^T f) = [R^T f]x omega_local; d(p x R^T f) = [p]x [R^T f]x omega_local.
+        d_linear = np.zeros((3, 3))
+        d_angular = np.zeros((3, 3))
+        for k in rows:
+            skew_force = pin.skew(forces_local[k])
+            d_linear += skew_force
+            d_angular += pin.skew(loads.points_in_joint[k]) @ skew_force
+            # tau = ... - J^T [R^T f; p x R^T f]
+            spatial = np.vstack([rotation.T, pin.skew(loads.points_in_joint[k]) @ rotation.T])
+            dtau_dforces[:, 3 * k : 3 * k + 3] = -jacobian_local.T @ spatial
+        d_wrench = np.vstack([d_linear, d_angular]) @ jacobian_local[3:]
+        dtau_dq -= jacobian_local.T @ d_wrench
+    return tau, dtau_dq, dtau_dforces
+
+
+def point_jacobians(model, data, loads: PointLoads) -> np.ndarray:
+    """Translational world-aligned Jacobians of the application points.
+
+    Requires ``pin.computeJointJacobians`` (or ``static_torque_derivatives``)
+    to have run at the current configuration.
+
+    Returns
+    -------
+    (k, 3, nv) float
+        ``d p_k / d q`` for a tangent step, world frame.
+    """
+    out = np.empty((len(loads), 3, model.nv))
+    for i, (joint, point) in enumerate(zip(loads.joints.tolist(), loads.points_in_joint)):
+        jacobian = pin.getJointJacobian(model, data, int(joint), pin.LOCAL_WORLD_ALIGNED)
+        lever = data.oMi[int(joint)].rotation @ point
+        out[i] = jacobian[:3] - pin.skew(lever) @ jacobian[3:]
+    return out

@@ -1,0 +1,139 @@
+"""Independent verification of a posture: is it what the solver claims?
+
+Verification shares nothing with the solver's linearisation but the model: it
+recomputes placements from forward kinematics, the free-flyer wrench balance
+and the joint torques with pinocchio's RNEA (with the reported point forces as
+external forces), friction-cone margins, joint limits and collision distances,
+and, for deformable supports, the FEM reaction forces from the link placement.
+A stance is called feasible only when every check here passes.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .results import Verification
+
+
+@dataclass(frozen=True)
+class VerificationTolerances:
+    """Thresholds of :func:`verify` (SI units)."""
+
+    equilibrium: float = 1e-6  # N and N m
+    placement: float = 1e-6  # m and rad
+    torque: float = 1e-6  # N m beyond the limit
+    cone: float = 1e-6  # N outside the friction cone
+    joint_limit: float = 1e-9  # rad
+    penetration: float = 1e-4  # m of collision depth tolerated
+    deformable_force: float = 1e-6  # relative error of recomputed FEM forces
+
+
+def _external_forces(model, data, point_forces):
+    fext = pin.StdVec_Force()
+    for _ in range(model.njoints):
+        fext.append(pin.Force.Zero())
+    for point_force in point_forces:
+        joint = model.frames[model.getFrameId(point_force.frame)].parentJoint
+        placement = data.oMi[joint]
+        force_local = placement.rotation.T @ point_force.force
+        point_local = placement.actInv(point_force.point)
+        fext[joint] = fext[joint] + pin.Force(force_local, np.cross(point_local, force_local))
+    return fext
+
+
+def verify_problem(problem, result, tolerances: VerificationTolerances | None = None) -> Verification:
+    """Check a result against the problem it claims to solve.
+
+    Parameters
+    ----------
+    problem : stances.problem.PostureProblem
+    result : stances.PostureResult
+    tolerances : VerificationTolerances, optional
+
+    Returns
+    -------
+    Verification
+    """
+    tolerances = tolerances or VerificationTolerances()
+    robot = problem.robot
+    model = robot.model
+    data = model.createData()
+    q = np.asarray(result.q)
+    reasons = []
+    measures = {}
+
+    if not np.all(np.isfinite(q)):
+        return Verification(False, ("q has non-finite entries",), {})
+    pin.framesForwardKinematics(model, data, q)
+
+    # Joint limits.
+    below = model.lowerPositionLimit[7:] - q[7:]
+    above = q[7:] - model.upperPositionLimit[7:]
+    worst = float(max(below.max(initial=0.0), above.max(initial=0.0)))
+    measures["joint_limit_violation"] = worst
+    if worst > tolerances.joint_limit:
+        reasons.append(f"joint limit exceeded by {worst:.3g} rad")
+
+    # Equilibrium and torques with RNEA and the reported forces as external forces.
+    fext = _external_forces(model, data, result.point_forces)
+    tau = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv), fext)
+    residual = float(np.max(np.abs(tau[:6])))
+    measures["equilibrium_residual"] = residual
+    if residual > tolerances.equilibrium:
+        reasons.append(f"free-flyer wrench unbalanced by {residual:.3g} N (N m)")
+    excess = np.abs(tau[6:]) - robot.effort_limits
+    worst_joint = int(np.argmax(excess))
+    measures["torque_margin"] = float(-excess.max(initial=-np.inf))
+    if excess[worst_joint] > tolerances.torque:
+        reasons.append(
+            f"torque limit of {robot.actuated_joint_names[worst_joint]} exceeded by "
+            f"{excess[worst_joint]:.3g} N m"
+        )
+
+    # Each contact: placement, cones, and (deformable) the FEM forces themselves.
+    offset = 0
+    for contact in problem.contacts:
+        count = len(contact.loads)
+        forces = np.array([p.force for p in result.point_forces[offset : offset + count]])
+        points = np.array([p.point for p in result.point_forces[offset : offset + count]])
+        offset += count
+        reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
+
+    # Collisions, measured afresh.
+    if problem.collision_checker is not None:
+        pairs = problem.collision_checker.pairs(model, data)
+        closest = min((p.distance for p in pairs), default=np.inf)
+        measures["closest_distance"] = float(closest)
+        for pair in pairs:
+            if pair.distance < -tolerances.penetration:
+                reasons.append(
+                    f"collision between {pair.name_a} and {pair.name_b} (depth {-pair.distance:.3g} m)"
+                )
+    return Verification(not reasons, tuple(reasons), measures)
+
+
+def verify(robot, scene, stance, result, **options) -> Verification:
+    """Independently check that a posture result holds its stance.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+    result : stances.PostureResult
+        Its ``q`` and ``point_forces`` are checked; nothing else is trusted.
+    **options
+        Posture options (e.g. ``reaction_model``) the result was solved with.
+
+    Returns
+    -------
+    Verification
+        ``ok`` with the measured residuals, or the list of failed checks.
+    """
+    from .problem import PostureOptions, build_problem
+
+    problem = build_problem(robot, scene, stance, PostureOptions(**options))
+    return verify_problem(problem, result)
