@@ -1,0 +1,45 @@
+"""Linear elasticity on linear tetrahedra for deformable contact supports.
+
+Implements section II and eqs. (22)-(44) of Bouyarmane & Kheddar, "FEM-based static
+posture planning for a humanoid robot on deformable contact support": a body is a
+tetrahedral mesh, a material and a fixed base; a contact print is a set of surface
+nodes displaced by a robot link; the forces pushing back on the robot are linear in
+the print displacements, with an exact, cached Jacobian.
+"""
+
+from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
+from .body import DeformableBody, von_mises
+from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
+from .io import read_mesh, write_mesh
+from .material import LinearElasticMaterial
+from .mesh import TetMesh
+from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
+from .patch import ContactPatch
+from .prints import nodes_in_polygon
+from .solvers import available_solvers
+
+__all__ = [
+    "FemError",
+    "MeshError",
+    "MaterialError",
+    "BoundaryError",
+    "PrintError",
+    "SolverError",
+    "FemWarning",
+    "TetMesh",
+    "box_mesh",
+    "tensor_mesh",
+    "graded_coordinates",
+    "mesh_from_surface",
+    "read_mesh",
+    "write_mesh",
+    "LinearElasticMaterial",
+    "element_strain_matrices",
+    "element_stiffness_matrices",
+    "assemble_stiffness",
+    "DeformableBody",
+    "ContactPatch",
+    "von_mises",
+    "nodes_in_polygon",
+    "available_solvers",
+]

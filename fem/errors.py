@@ -1,0 +1,47 @@
+"""Exceptions and warnings of the :mod:`fem` package.
+
+Every error a caller can provoke with a bad argument is a :class:`FemError`, a
+subclass of :class:`ValueError`, so ``except ValueError`` keeps working for code that
+does not know this package. Subclasses name the family of the problem; messages say
+what is wrong and what would be valid.
+"""
+
+from __future__ import annotations
+
+__all__ = [
+    "FemError",
+    "MeshError",
+    "MaterialError",
+    "BoundaryError",
+    "PrintError",
+    "SolverError",
+    "FemWarning",
+]
+
+
+class FemError(ValueError):
+    """Base class of every error raised by :mod:`fem`."""
+
+
+class MeshError(FemError):
+    """A mesh is invalid: inverted or flat tets, duplicate nodes, bad indices, NaN."""
+
+
+class MaterialError(FemError):
+    """Material constants are outside the range where linear elasticity is defined."""
+
+
+class BoundaryError(FemError):
+    """Boundary conditions are invalid, e.g. no fixed node (singular stiffness)."""
+
+
+class PrintError(FemError):
+    """A contact print or its displacements are invalid."""
+
+
+class SolverError(FemError):
+    """A sparse solver is unavailable or failed (e.g. matrix not positive definite)."""
+
+
+class FemWarning(UserWarning):
+    """Doubtful physics, e.g. strains beyond the small-deformation hypothesis."""

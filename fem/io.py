@@ -1,0 +1,109 @@
+"""Reading and writing tetrahedral meshes in any meshio format (.msh, .vtu, .xdmf, ...)."""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Mapping
+
+import numpy as np
+
+from .errors import MeshError
+from .mesh import TetMesh
+
+__all__ = ["read_mesh", "write_mesh"]
+
+
+def read_mesh(path: str | os.PathLike) -> TetMesh:
+    """Read the tetrahedra of a mesh file.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Any format meshio reads (``.msh``, ``.vtu``, ``.vtk``, ``.xdmf``, ``.med``, ...).
+
+    Returns
+    -------
+    TetMesh
+        All ``tetra`` cell blocks; nodes used by no tet (geometry points, surface-only
+        nodes) are dropped and ids renumbered; inverted tets are reoriented.
+
+    Raises
+    ------
+    MeshError
+        If the file cannot be read or holds no linear ``tetra`` cells.
+    """
+    import meshio
+
+    try:
+        raw = meshio.read(os.fspath(path))
+    except Exception as exc:
+        raise MeshError(f"cannot read mesh file {os.fspath(path)!r}: {exc}") from exc
+    blocks = [np.asarray(c.data) for c in raw.cells if c.type == "tetra"]
+    if not blocks:
+        kinds = sorted({c.type for c in raw.cells})
+        raise MeshError(
+            f"{os.fspath(path)!r} holds no linear 'tetra' cells (found {kinds}); "
+            "mesh the volume with 4-node tetrahedra"
+        )
+    tets = np.concatenate(blocks).astype(np.int64)
+    used, compact = np.unique(tets, return_inverse=True)
+    return TetMesh(np.asarray(raw.points, dtype=float)[used, :3], compact.reshape(-1, 4), fix_orientation=True)
+
+
+def write_mesh(
+    path: str | os.PathLike,
+    mesh: TetMesh,
+    point_data: Mapping[str, np.ndarray] | None = None,
+    cell_data: Mapping[str, np.ndarray] | None = None,
+    file_format: str | None = None,
+    points: np.ndarray | None = None,
+) -> None:
+    """Write a mesh and optional fields with meshio.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Output file; the format follows the extension unless ``file_format`` is given.
+    mesh : TetMesh
+        The mesh; node positions are written as they are (metres).
+    point_data : mapping of str to (N, ...) array, optional
+        Nodal fields, e.g. ``{"displacement": u}`` with u (N, 3) metres.
+    cell_data : mapping of str to (M, ...) array, optional
+        Per-tet fields, e.g. ``{"stress": s}`` with s (M, 6) pascals.
+    file_format : str, optional
+        meshio format name, e.g. ``"gmsh22"``.
+    points : (N, 3) float, optional
+        Node positions to write instead of ``mesh.nodes`` (e.g. deformed), metres.
+
+    Raises
+    ------
+    MeshError
+        If a field has the wrong length or meshio cannot write the format.
+    """
+    import meshio
+
+    point_fields = {}
+    for name, values in (point_data or {}).items():
+        values = np.asarray(values)
+        if values.shape[0] != mesh.n_nodes:
+            raise MeshError(f"point_data[{name!r}] has {values.shape[0]} rows, expected {mesh.n_nodes}")
+        point_fields[name] = values
+    cells = {}
+    for name, values in (cell_data or {}).items():
+        values = np.asarray(values)
+        if values.shape[0] != mesh.n_tets:
+            raise MeshError(f"cell_data[{name!r}] has {values.shape[0]} rows, expected {mesh.n_tets}")
+        cells[name] = [values]
+    if points is None:
+        points_out = np.asarray(mesh.nodes)
+    else:
+        points_out = np.asarray(points, dtype=float)
+        if points_out.shape != mesh.nodes.shape:
+            raise MeshError(f"points must have shape {mesh.nodes.shape}, got {points_out.shape}")
+    out = meshio.Mesh(
+        points_out, [("tetra", np.asarray(mesh.tets))], point_data=point_fields, cell_data=cells
+    )
+    try:
+        meshio.write(os.fspath(path), out, file_format=file_format)
+    except Exception as exc:
+        raise MeshError(f"meshio cannot write {os.fspath(path)!r}: {exc}") from exc

@@ -1,0 +1,93 @@
+"""Isotropic linear elastic material (paper eqs. 3, 25-26)."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from .errors import MaterialError
+
+__all__ = ["LinearElasticMaterial"]
+
+
+@dataclass(frozen=True, eq=False)
+class LinearElasticMaterial:
+    """Homogeneous isotropic linear elastic material.
+
+    Parameters
+    ----------
+    young_modulus : float
+        Young's modulus E, pascals, > 0.
+    poisson_ratio : float
+        Poisson's ratio nu, dimensionless, in (-1, 0.5).
+    density : float
+        Mass density rho, kg/m^3, >= 0 (not used by the static problem, kept for
+        the scene's gravity and mass properties).
+
+    Raises
+    ------
+    MaterialError
+        If a constant is NaN or outside its range.
+
+    Examples
+    --------
+    >>> m = LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
+    >>> round(m.lame_mu)
+    357143
+    """
+
+    young_modulus: float
+    poisson_ratio: float
+    density: float = 0.0
+
+    def __post_init__(self) -> None:
+        for name in ("young_modulus", "poisson_ratio", "density"):
+            value = getattr(self, name)
+            try:
+                value = float(value)
+            except (TypeError, ValueError) as exc:
+                raise MaterialError(f"{name} must be a real number, got {value!r}") from exc
+            if not math.isfinite(value):
+                raise MaterialError(f"{name} must be finite, got {value}")
+            object.__setattr__(self, name, value)
+        if self.young_modulus <= 0.0:
+            raise MaterialError(
+                f"young_modulus must be > 0 Pa, got {self.young_modulus:g}; "
+                "soft foams are around 1e4-1e6 Pa"
+            )
+        if not -1.0 < self.poisson_ratio < 0.5:
+            raise MaterialError(
+                f"poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio:g}; "
+                "0.5 is incompressible (the stiffness is singular there), use e.g. 0.49"
+            )
+        if self.density < 0.0:
+            raise MaterialError(f"density must be >= 0 kg/m^3, got {self.density:g}")
+
+    @property
+    def lame_lambda(self) -> float:
+        """First Lame parameter lambda = E nu / ((1 + nu)(1 - 2 nu)), pascals."""
+        e, nu = self.young_modulus, self.poisson_ratio
+        return e * nu / ((1.0 + nu) * (1.0 - 2.0 * nu))
+
+    @property
+    def lame_mu(self) -> float:
+        """Shear modulus mu = E / (2 (1 + nu)), pascals."""
+        return self.young_modulus / (2.0 * (1.0 + self.poisson_ratio))
+
+    @cached_property
+    def voigt_matrix(self) -> np.ndarray:
+        """Elasticity matrix A of eq. (26), (6, 6) float, pascals, read-only.
+
+        Voigt order of eqs. (22)-(23): 11, 22, 33, 12, 13, 23, engineering shear
+        strains (2 eps_12, ...), so that ``{sigma} = A {eps}`` (eq. 25).
+        """
+        lam, mu = self.lame_lambda, self.lame_mu
+        a = np.zeros((6, 6))
+        a[:3, :3] = lam
+        a[[0, 1, 2], [0, 1, 2]] += 2.0 * mu
+        a[[3, 4, 5], [3, 4, 5]] = mu
+        a.setflags(write=False)
+        return a

@@ -1,0 +1,358 @@
+"""Contact print: condensed stiffness and reaction forces on the robot (eqs. 27, 36-44)."""
+
+from __future__ import annotations
+
+from functools import cached_property
+from typing import TYPE_CHECKING
+
+import numpy as np
+import scipy.linalg as sla
+
+from .errors import FemError, PrintError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from .body import DeformableBody
+
+__all__ = ["ContactPatch", "check_node_ids", "VOIGT_TO_TENSOR"]
+
+METHODS = ("consistent", "traction")
+
+# VOIGT_TO_TENSOR[i, j, v]: sigma_ij = sum_v VOIGT_TO_TENSOR[i, j, v] {sigma}_v; the
+# duplication matrix D of eq. (51) reshaped to (3, 3, 6).
+VOIGT_TO_TENSOR = np.zeros((3, 3, 6))
+for _v, (_i, _j) in enumerate(((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))):
+    VOIGT_TO_TENSOR[_i, _j, _v] = VOIGT_TO_TENSOR[_j, _i, _v] = 1.0
+VOIGT_TO_TENSOR.setflags(write=False)
+
+
+def check_node_ids(node_ids, n_nodes: int, name: str, error: type[FemError], unique: bool = True) -> np.ndarray:
+    """Validate node ids: 1-D integers in ``[0, n_nodes)``, distinct if ``unique``.
+
+    Returns
+    -------
+    (k,) int64 copy.
+    """
+    ids = np.asarray(node_ids)
+    if ids.ndim != 1:
+        raise error(f"{name} must be a 1-D array of node ids, got shape {ids.shape}")
+    if ids.size and not np.issubdtype(ids.dtype, np.integer):
+        raise error(f"{name} must hold integer node ids, got dtype {ids.dtype}")
+    ids = ids.astype(np.int64)
+    out = np.flatnonzero((ids < 0) | (ids >= n_nodes))
+    if out.size:
+        raise error(f"{name} has node id {ids[out[0]]} outside [0, {n_nodes - 1}]")
+    if unique and np.unique(ids).size != ids.size:
+        values, counts = np.unique(ids, return_counts=True)
+        raise error(f"{name} has duplicate node ids {values[counts > 1].tolist()}")
+    return ids
+
+
+def _skew(v: np.ndarray) -> np.ndarray:
+    """(..., 3) vectors to (..., 3, 3) cross-product matrices: skew(a) @ b = a x b."""
+    s = np.zeros(v.shape[:-1] + (3, 3))
+    s[..., 0, 1], s[..., 0, 2] = -v[..., 2], v[..., 1]
+    s[..., 1, 0], s[..., 1, 2] = v[..., 2], -v[..., 0]
+    s[..., 2, 0], s[..., 2, 1] = -v[..., 1], v[..., 0]
+    return s
+
+
+class ContactPatch:
+    """The contact print P on a deformable body: a set of surface nodes (eq. 27).
+
+    Everything is linear in the print displacements U_P, so each method of computing
+    forces reduces to one dense (3p, 3p) matrix R, computed once and cached:
+    ``forces_on_robot.ravel() = R @ U_P.ravel()``, and R is the exact Jacobian.
+
+    Sign convention: forces are those each print node exerts ON THE ROBOT, the
+    opposite of the forces the robot applies to the body. Pressing a print down into
+    the top face gives forces along +z.
+
+    Build it with :meth:`DeformableBody.contact_patch`.
+
+    Parameters
+    ----------
+    body : DeformableBody
+    node_ids : (p,) int
+        Distinct, non-fixed surface nodes, p >= 3.
+    """
+
+    def __init__(self, body: DeformableBody, node_ids) -> None:
+        mesh = body.mesh
+        ids = check_node_ids(node_ids, mesh.n_nodes, "print node_ids", PrintError)
+        if ids.size < 3:
+            raise PrintError(
+                f"a print needs at least 3 nodes, got {ids.size}; enlarge the contact polygon "
+                "or refine the mesh under it"
+            )
+        off = ids[~mesh.is_surface_node[ids]]
+        if off.size:
+            raise PrintError(
+                f"print node {off[0]} (at {mesh.nodes[off[0]].tolist()}) is not on the body surface; "
+                "a print is made of surface nodes (see fem.nodes_in_polygon)"
+            )
+        fixed = ids[body.fixed_mask[ids]]
+        if fixed.size:
+            raise PrintError(f"print node {fixed[0]} is fixed; a print cannot overlap the fixed base")
+        ids.setflags(write=False)
+        self._body = body
+        self._ids = ids
+        local = np.full(mesh.n_nodes, -1, dtype=np.int64)
+        local[ids] = np.arange(ids.size)
+        self._local = local
+        # eqs. (38)-(39): surface triangles whose three nodes are all in P.
+        inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
+        self._tri_global = np.flatnonzero(inside)
+        self._cache: dict[str, np.ndarray] = {}
+
+    # ------------------------------------------------------------ geometry
+    @property
+    def body(self) -> DeformableBody:
+        """The body the print lies on."""
+        return self._body
+
+    @property
+    def node_ids(self) -> np.ndarray:
+        """(p,) int global node ids; row i of every (p, 3) array is node ``node_ids[i]``."""
+        return self._ids
+
+    @property
+    def n_nodes(self) -> int:
+        """Number of print nodes p."""
+        return self._ids.size
+
+    @property
+    def points(self) -> np.ndarray:
+        """(p, 3) float rest positions of the print nodes, metres, body frame."""
+        return self._body.mesh.nodes[self._ids]
+
+    @property
+    def triangles(self) -> np.ndarray:
+        """(T, 3) int LOCAL indices (into ``node_ids``) of the print triangles (eqs. 38-39)."""
+        return self._local[self._body.mesh.surface_triangles[self._tri_global]]
+
+    @property
+    def triangle_tets(self) -> np.ndarray:
+        """(T,) int the tet owning each print triangle."""
+        return self._body.mesh.surface_triangle_tets[self._tri_global]
+
+    @property
+    def triangle_normals(self) -> np.ndarray:
+        """(T, 3) float unit outward normals n_e at rest, body frame."""
+        return self._body.mesh.surface_normals[self._tri_global]
+
+    @property
+    def triangle_areas(self) -> np.ndarray:
+        """(T,) float areas alpha_e, square metres."""
+        return self._body.mesh.surface_areas[self._tri_global]
+
+    # ------------------------------------------------------------ matrices
+    @cached_property
+    def compliance(self) -> np.ndarray:
+        """Compliance block ``[K_NN^-1]_PP``, (3p, 3p) float, m/N."""
+        c = self._body.compliance(self._ids)
+        c = 0.5 * (c + c.T)
+        c.setflags(write=False)
+        return c
+
+    @cached_property
+    def condensed_stiffness(self) -> np.ndarray:
+        """Condensed stiffness ``S_P = K_PP - K_PF K_FF^-1 K_FP``, (3p, 3p) float, N/m.
+
+        Computed as the inverse of :attr:`compliance`: with N = P + F (F: free nodes
+        outside the print), the PP block of ``K_NN^-1`` is the inverse of the Schur
+        complement of K_FF. Symmetric positive definite. ``S_P @ U_P`` are the forces
+        the robot applies to the body to impose U_P.
+        """
+        try:
+            factor = sla.cho_factor(self.compliance, lower=True)
+        except np.linalg.LinAlgError as exc:
+            raise PrintError("the print compliance is not positive definite") from exc
+        s = sla.cho_solve(factor, np.eye(3 * self.n_nodes))
+        s = 0.5 * (s + s.T)
+        s.setflags(write=False)
+        return s
+
+    @cached_property
+    def _owner_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        """Nodes of the print triangles' tets and each tet's local row indices."""
+        tets = self._body.mesh.tets[self.triangle_tets]
+        nodes, inverse = np.unique(tets, return_inverse=True)
+        return nodes, inverse.reshape(tets.shape)
+
+    @cached_property
+    def stress_map(self) -> np.ndarray:
+        """Stress of each print triangle's tet per unit print displacement (eqs. 58-59).
+
+        Returns
+        -------
+        (T, 6, 3p) float, Pa/m
+            ``{sigma_e} = stress_map[t] @ U_P.ravel()``, with the tet displacements of
+            eq. (36) (``u = C[:, P] S_P U_P``, exactly U_P at P and 0 at fixed nodes).
+        """
+        if self._tri_global.size == 0:
+            raise PrintError(
+                "the print holds no complete surface triangle, so the traction method "
+                "(eqs. 41-44) has nothing to integrate; use method='consistent' or a larger print"
+            )
+        body = self._body
+        nodes, rows = self._owner_nodes
+        g = body.compliance_block(nodes, self._ids) @ self.condensed_stiffness  # (3q, 3p)
+        g = g.reshape(nodes.size, 3, -1)
+        in_print = self._local[nodes]
+        idx = np.flatnonzero(in_print >= 0)
+        g[idx, :, :] = 0.0
+        for axis in range(3):  # exact identity rows at the print nodes
+            g[idx, axis, 3 * in_print[idx] + axis] = 1.0
+        g[body.fixed_mask[nodes]] = 0.0
+        g_e = g[rows].reshape(rows.shape[0], 12, -1)  # (T, 12, 3p)
+        b = body._strain_matrices[self.triangle_tets]  # (T, 6, 12)
+        ab = np.einsum("ij,tjk->tik", body.material.voigt_matrix, b)
+        out = np.einsum("tik,tkp->tip", ab, g_e)
+        out.setflags(write=False)
+        return out
+
+    def reaction_matrix(self, method: str = "consistent") -> np.ndarray:
+        """Jacobian R of the forces on the robot with respect to U_P.
+
+        Parameters
+        ----------
+        method : {"consistent", "traction"}
+            ``"consistent"``: R = -S_P, the exact nodal forces of the discrete system.
+            ``"traction"``: eqs. (41)-(44) with the rest normals: each print triangle e
+            gives ``-alpha_e / 3 sigma_e n_e`` to each of its 3 vertices.
+
+        Returns
+        -------
+        (3p, 3p) float, N/m, read-only, cached
+            ``forces_on_robot.ravel() = R @ U_P.ravel()``.
+        """
+        self._check_method(method)
+        if method not in self._cache:
+            if method == "consistent":
+                r = -self.condensed_stiffness
+            else:
+                r = self._traction_matrix(self.triangle_normals)
+            r = np.array(r)
+            r.setflags(write=False)
+            self._cache[method] = r
+        return self._cache[method]
+
+    def _traction_matrix(self, normals: np.ndarray) -> np.ndarray:
+        # sigma_e n_e = (n^T (x) I) D {sigma_e} (eqs. 55-57), then eq. (43).
+        traction = np.einsum("ijv,tj,tvp->tip", VOIGT_TO_TENSOR, normals, self.stress_map)
+        per_vertex = -(self.triangle_areas / 3.0)[:, None, None] * traction  # (T, 3, 3p)
+        return self._scatter(per_vertex).reshape(3 * self.n_nodes, -1)
+
+    def _scatter(self, per_triangle: np.ndarray) -> np.ndarray:
+        """Add a per-triangle (T, ...) value to each of its 3 vertices -> (p, ...)."""
+        out = np.zeros((self.n_nodes,) + per_triangle.shape[1:])
+        triangles = self.triangles
+        for k in range(3):
+            np.add.at(out, triangles[:, k], per_triangle)
+        return out
+
+    # ------------------------------------------------------------ evaluation
+    def _check_method(self, method: str) -> None:
+        if method not in METHODS:
+            raise PrintError(f"unknown method {method!r}; choose one of {METHODS}")
+
+    def _check_displacements(self, displacements) -> np.ndarray:
+        u = np.asarray(displacements, dtype=float)
+        if u.shape != (self.n_nodes, 3):
+            raise PrintError(
+                f"displacements must have shape ({self.n_nodes}, 3) (one row per print node, "
+                f"metres, body frame), got {u.shape}"
+            )
+        if not np.all(np.isfinite(u)):
+            raise PrintError("displacements contain NaN or inf")
+        return u
+
+    def _check_normals(self, normals) -> np.ndarray:
+        n = np.asarray(normals, dtype=float)
+        t = self._tri_global.size
+        if n.shape != (t, 3):
+            raise PrintError(f"normals must have shape ({t}, 3), one per print triangle, got {n.shape}")
+        if not np.all(np.isfinite(n)):
+            raise PrintError("normals contain NaN or inf")
+        return n
+
+    def triangle_stresses(self, displacements) -> np.ndarray:
+        """Stress tensor of each print triangle's tet, (T, 3, 3) float, pascals (eq. 58)."""
+        u = self._check_displacements(displacements)
+        voigt = self.stress_map @ u.ravel()  # (T, 6)
+        return np.einsum("ijv,tv->tij", VOIGT_TO_TENSOR, voigt)
+
+    def reaction_forces(self, displacements, method: str = "consistent", normals=None) -> np.ndarray:
+        """Forces each print node exerts on the robot.
+
+        Parameters
+        ----------
+        displacements : (p, 3) float
+            U_P, metres, body frame, rows in :attr:`node_ids` order.
+        method : {"consistent", "traction"}
+            See :meth:`reaction_matrix`.
+        normals : (T, 3) float, optional
+            Traction method only: the triangle normals n_e to use in eq. (44), body
+            frame (the posture solver rotates the rest normals with the link);
+            default the rest normals.
+
+        Returns
+        -------
+        (p, 3) float, newtons, body frame.
+
+        Raises
+        ------
+        PrintError
+            Wrong shape, NaN/inf, unknown method, or normals with the consistent method.
+        """
+        self._check_method(method)
+        u = self._check_displacements(displacements)
+        if normals is None:
+            return (self.reaction_matrix(method) @ u.ravel()).reshape(-1, 3)
+        if method != "traction":
+            raise PrintError("normals are only used by method='traction'")
+        n = self._check_normals(normals)
+        per_vertex = -(self.triangle_areas / 3.0)[:, None] * np.einsum(
+            "tij,tj->ti", self.triangle_stresses(u), n
+        )
+        return self._scatter(per_vertex)
+
+    def traction_normal_derivative(self, displacements) -> np.ndarray:
+        """Derivative of the traction forces with respect to the triangle normals (eq. 63).
+
+        Parameters
+        ----------
+        displacements : (p, 3) float
+            U_P, metres, body frame.
+
+        Returns
+        -------
+        (T, 3, 3) float, newtons
+            ``-alpha_e / 3 sigma_e``: each of triangle e's 3 vertex forces changes by
+            ``result[e] @ dn_e`` when its normal changes by ``dn_e``.
+        """
+        return -(self.triangle_areas / 3.0)[:, None, None] * self.triangle_stresses(displacements)
+
+    def traction_rotation_jacobian(self, displacements) -> np.ndarray:
+        """Derivative of each node's traction force under a rotation of all normals.
+
+        The posture solver rotates the print normals with the link: ``dn_e = omega x n_e``
+        for a small rotation vector omega (radians, body frame).
+
+        Parameters
+        ----------
+        displacements : (p, 3) float
+            U_P, metres, body frame.
+
+        Returns
+        -------
+        (p, 3, 3) float, newtons per radian
+            ``d f_i = result[i] @ omega``, at the rest normals.
+        """
+        derivative = self.traction_normal_derivative(displacements)  # (T, 3, 3)
+        # d(sigma n) = sigma (omega x n) = -sigma skew(n) omega
+        per_triangle = -np.einsum("tij,tjk->tik", derivative, _skew(self.triangle_normals))
+        return self._scatter(per_triangle)
+
+    def __repr__(self) -> str:
+        return f"ContactPatch({self.n_nodes} nodes, {self._tri_global.size} triangles)"

@@ -1,0 +1,171 @@
+"""Mesh construction, validation, surface extraction, I/O and gmsh meshing."""
+
+import numpy as np
+import pytest
+
+from fem import (
+    MeshError,
+    TetMesh,
+    box_mesh,
+    mesh_from_surface,
+    nodes_in_polygon,
+    PrintError,
+    read_mesh,
+    tensor_mesh,
+    write_mesh,
+)
+
+UNIT_TET_NODES = np.array([[0.0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
+
+
+@pytest.fixture
+def graded_box():
+    return box_mesh((1.0, 0.8, 0.6), (4, 3, 5), origin=(-0.5, 0.1, 0.0), grading=4.0)
+
+
+def test_box_mesh_volumes_sum_to_box_volume(graded_box):
+    assert np.all(graded_box.volumes > 0)
+    assert graded_box.volumes.sum() == pytest.approx(1.0 * 0.8 * 0.6, rel=1e-12)
+
+
+def test_grading_makes_top_layers_thinner():
+    zs = np.unique(box_mesh((1, 1, 1), (2, 2, 6), grading=8.0).nodes[:, 2])
+    heights = np.diff(zs)
+    assert np.all(np.diff(heights) < 0)
+    assert heights[0] / heights[-1] == pytest.approx(8.0)
+
+
+def test_tensor_mesh_is_conforming_every_interior_face_shared_twice():
+    mesh = tensor_mesh([0, 0.1, 0.5, 1.0], [0, 0.3, 1.0], [0, 0.2, 0.25, 1.0])
+    # A closed conforming mesh of a box has exactly the box's surface as boundary.
+    assert mesh.surface_areas.sum() == pytest.approx(6.0, rel=1e-12)
+    assert mesh.volumes.sum() == pytest.approx(1.0, rel=1e-12)
+
+
+def test_surface_normals_point_outward(graded_box):
+    mesh = graded_box
+    weighted = (mesh.surface_normals * mesh.surface_areas[:, None]).sum(axis=0)
+    assert np.allclose(weighted, 0.0, atol=1e-12)
+    centroid = mesh.nodes.mean(axis=0)
+    tri_centres = mesh.nodes[mesh.surface_triangles].mean(axis=1)
+    assert np.all(((tri_centres - centroid) * mesh.surface_normals).sum(axis=1) > 0)
+    assert np.allclose(np.linalg.norm(mesh.surface_normals, axis=1), 1.0)
+
+
+def test_surface_triangles_belong_to_their_owner_tet(graded_box):
+    mesh = graded_box
+    owners = mesh.tets[mesh.surface_triangle_tets]
+    assert np.all((mesh.surface_triangles[:, :, None] == owners[:, None, :]).any(axis=2))
+
+
+def test_surface_nodes_of_box_are_on_its_faces(graded_box):
+    lo, hi = graded_box.bounding_box
+    x = graded_box.nodes[graded_box.surface_nodes]
+    on_face = np.isclose(x, lo).any(axis=1) | np.isclose(x, hi).any(axis=1)
+    assert on_face.all()
+    assert graded_box.surface_nodes.size == graded_box.n_nodes - 3 * 2 * 4  # interior nodes: 3 x 2 x 4
+
+
+def test_mesh_arrays_are_read_only(graded_box):
+    with pytest.raises(ValueError):
+        graded_box.nodes[0, 0] = 1.0
+    with pytest.raises(ValueError):
+        graded_box.tets[0, 0] = 1
+
+
+def test_inverted_tet_is_rejected_with_its_index():
+    tets = np.array([[0, 1, 2, 3], [0, 2, 1, 4]])
+    nodes = np.vstack([UNIT_TET_NODES, [0.3, 0.3, -1.0]])
+    # tet 1 with nodes 0,2,1,4 lies below z=0: (0,1,2,4) would be negative, so (0,2,1,4) is positive
+    TetMesh(nodes, tets)
+    with pytest.raises(MeshError, match=r"tet 1 is inverted .*fix_orientation=True"):
+        TetMesh(nodes, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]))
+    fixed = TetMesh(nodes, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]), fix_orientation=True)
+    assert np.all(fixed.volumes > 0)
+
+
+def test_flat_tet_is_rejected():
+    nodes = np.vstack([UNIT_TET_NODES, [0.5, 0.5, 0.0]])
+    with pytest.raises(MeshError, match=r"tet 1 is flat"):
+        TetMesh(nodes, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]))
+
+
+def test_duplicate_nodes_are_rejected():
+    nodes = np.vstack([UNIT_TET_NODES, UNIT_TET_NODES[3]])
+    with pytest.raises(MeshError, match=r"nodes \[3, 4\] are duplicates"):
+        TetMesh(nodes, np.array([[0, 1, 2, 3], [0, 1, 2, 4]]))
+
+
+@pytest.mark.parametrize(
+    "nodes, tets, message",
+    [
+        (np.vstack([UNIT_TET_NODES[:3], [np.nan, 0, 1]]), [[0, 1, 2, 3]], "non-finite"),
+        (UNIT_TET_NODES, [[0, 1, 2, 4]], "outside"),
+        (UNIT_TET_NODES, [[0, 1, 2]], "shape"),
+        (np.vstack([UNIT_TET_NODES, [5, 5, 5]]), [[0, 1, 2, 3]], "belong to no tet"),
+    ],
+    ids=["nan-node", "index-out-of-range", "three-node-cells", "unused-node"],
+)
+def test_invalid_mesh_input_raises_mesh_error(nodes, tets, message):
+    with pytest.raises(MeshError, match=message):
+        TetMesh(nodes, np.array(tets))
+
+
+def test_tensor_mesh_rejects_non_increasing_coordinates():
+    with pytest.raises(MeshError, match="strictly increasing"):
+        tensor_mesh([0, 1, 1], [0, 1], [0, 1])
+
+
+@pytest.mark.parametrize("suffix", [".vtu", ".msh"])
+def test_mesh_file_round_trip_preserves_nodes_and_tets(tmp_path, graded_box, suffix):
+    path = tmp_path / f"box{suffix}"
+    write_mesh(path, graded_box)
+    back = read_mesh(path)
+    assert np.allclose(back.nodes, graded_box.nodes)
+    assert np.array_equal(back.tets, graded_box.tets)
+
+
+def test_reading_a_file_without_tets_says_so(tmp_path):
+    import meshio
+
+    path = tmp_path / "tri.vtu"
+    meshio.write(path, meshio.Mesh(UNIT_TET_NODES, [("triangle", np.array([[0, 1, 2]]))]))
+    with pytest.raises(MeshError, match="no linear 'tetra' cells"):
+        read_mesh(path)
+
+
+def test_gmsh_meshes_a_trimesh_box_with_the_right_volume():
+    trimesh = pytest.importorskip("trimesh")
+    pytest.importorskip("gmsh")
+    surface = trimesh.creation.box((1.0, 0.5, 0.4))
+    try:
+        mesh = mesh_from_surface(surface, 0.2, refine_box=[[-0.1, -0.1, 0.15], [0.1, 0.1, 0.2]], refine_size=0.05)
+    except Exception as exc:  # pragma: no cover - gmsh cannot start in this environment
+        if "initialise" in str(exc):
+            pytest.skip(str(exc))
+        raise
+    assert np.all(mesh.volumes > 0)
+    assert mesh.volumes.sum() == pytest.approx(0.2, rel=1e-9)
+    # the refinement region holds smaller tets than the rest
+    centres = mesh.nodes[mesh.tets].mean(axis=1)
+    near = np.all(np.abs(centres[:, :2]) < 0.1, axis=1) & (centres[:, 2] > 0.1)
+    assert mesh.volumes[near].mean() < 0.5 * mesh.volumes[~near].mean()
+
+
+def test_nodes_in_polygon_finds_nonconvex_print_with_boundary_nodes():
+    mesh = box_mesh((1, 1, 1), (4, 4, 2))
+    # L-shaped polygon on the top face covering the cells [0,.5]x[0,.25] and [0,.25]x[0,.5]
+    polygon = [[0, 0, 1], [0.5, 0, 1], [0.5, 0.25, 1], [0.25, 0.25, 1], [0.25, 0.5, 1], [0, 0.5, 1]]
+    ids = nodes_in_polygon(mesh, polygon)
+    expected = {(0, 0), (0.25, 0), (0.5, 0), (0, 0.25), (0.25, 0.25), (0.5, 0.25), (0, 0.5), (0.25, 0.5)}
+    got = {tuple(np.round(p[:2], 6)) for p in mesh.nodes[ids]}
+    assert got == expected
+    assert np.all(mesh.nodes[ids, 2] == 1.0)
+
+
+def test_nodes_in_polygon_rejects_non_planar_and_short_polygons():
+    mesh = box_mesh((1, 1, 1), (2, 2, 2))
+    with pytest.raises(PrintError, match="not planar"):
+        nodes_in_polygon(mesh, [[0, 0, 1], [1, 0, 1], [1, 1, 1.1], [0, 1, 1]])
+    with pytest.raises(PrintError, match="k >= 3"):
+        nodes_in_polygon(mesh, [[0, 0, 1], [1, 0, 1]])
