@@ -14,11 +14,18 @@ from typing import Any
 
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics
-from .sampling import ReachLimits, options_from_scenario, sample_prints
+from .sampling import ReachLimits, obstacle_boxes, options_from_scenario, sample_prints, surface_kind
 from .search import SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 
-__all__ = ["plan", "load_scenario", "StanceCheck", "PostureOracle", "DEFAULT_PATH_COST"]
+__all__ = [
+    "plan",
+    "load_scenario",
+    "StanceCheck",
+    "PostureOracle",
+    "LookaheadHeuristic",
+    "DEFAULT_PATH_COST",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -104,6 +111,42 @@ class PostureOracle:
         if not verification.ok:
             return StanceCheck(False, "verification failed: " + "; ".join(map(str, verification.reasons)), result)
         return StanceCheck(True, "", result)
+
+
+class LookaheadHeuristic:
+    """Goal distance, looking one placement ahead when a sole is lifted.
+
+    A stance with a sole in the air is only a step towards placing it again:
+    its goal distance counts the lifted sole as missing, which makes every
+    lift look like a step back, and a greedy search then expands every
+    equally good two-feet stance before it lifts a foot. Rating a lifted
+    stance by its best re-placement (the minimum goal distance over the
+    reachable prints of that sole) removes that plateau.
+
+    Parameters
+    ----------
+    goal : environments Goal
+    scene : environments Scene
+    neighbours : StanceNeighbours
+        Gives the reachable prints.
+    soles : sequence of str
+        The robot's sole surfaces.
+    """
+
+    def __init__(self, goal, scene, neighbours, soles):
+        self.goal = goal
+        self.scene = scene
+        self.neighbours = neighbours
+        self.soles = tuple(soles)
+
+    def __call__(self, stance):
+        """Heuristic value, metres, >= 0."""
+        h = self.goal.distance(stance, self.scene)
+        lifted = [rs for rs in self.soles if rs not in stance.robot_surfaces]
+        if len(lifted) == 1 and len(lifted) < len(self.soles):
+            for child, _ in self.neighbours.additions(stance, lifted[0]):
+                h = min(h, self.goal.distance(child, self.scene))
+        return h
 
 
 def _resolve_stance(value, scenario, what):
@@ -199,7 +242,7 @@ def plan(
         robot = stances.Robot.load(scenario.robot)
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
     polygons = {name: surface.polygon for name, surface in robot.surfaces.items()}
-    print_sets = sample_prints(scene.surfaces, polygons, sampling)
+    print_sets = sample_prints(scene.surfaces, polygons, sampling, obstacle_boxes(scene))
     prints = sum(len(s) for s in print_sets.values())
     logger.info(
         "%s: %d prints sampled (spacing %.3f m, %d angles)",
@@ -209,6 +252,7 @@ def plan(
         len(sampling.theta_values),
     )
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach)
+    soles = [name for name in robot.surfaces if surface_kind(name) == "sole"]
     if oracle is None:
         oracle = PostureOracle(robot, scene, solver_options)
 
@@ -229,7 +273,7 @@ def plan(
             start,
             neighbours=neighbours,
             oracle=oracle,
-            heuristic=lambda stance: goal.distance(stance, scene),
+            heuristic=LookaheadHeuristic(goal, scene, neighbours, soles),
             is_goal=lambda stance: goal.is_satisfied(stance, scene),
             path_cost_weight=path_cost,
             limits=limits,

@@ -47,12 +47,15 @@ class SamplingOptions:
     max_sole_tilt : float
         Soles only go on surfaces whose outward normal is within this angle of
         world +z, radians (floors and box tops, not walls).
+    clearance : float
+        Height above a print, metres, that must be free of other objects.
     """
 
     spacing: float = 0.1
     theta_values: tuple = (0.0,)
     margin: float = 0.0
     max_sole_tilt: float = math.radians(20.0)
+    clearance: float = 0.02
 
     def __post_init__(self):
         if not (math.isfinite(self.spacing) and self.spacing > 0):
@@ -181,7 +184,38 @@ def _rotations_2d(thetas):
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (t, 2, 2)
 
 
-def sample_prints(surfaces, robot_polygons, options=SamplingOptions()):
+def obstacle_boxes(scene):
+    """Oriented bounding boxes of the scene's objects, for occupancy pruning.
+
+    Parameters
+    ----------
+    scene : environments Scene
+        Its rigid objects (``box_size`` or mesh bounds) and deformable objects
+        (rest mesh bounds).
+
+    Returns
+    -------
+    list of tuple (str, (4, 4) float, (3,) float, (3,) float)
+        ``(object name, transform_world_to_object, lower, upper)``: the box
+        in the object frame, metres.
+    """
+    boxes = []
+    for obj in scene.rigid_objects:
+        transform = np.asarray(obj.transform_object_to_world, dtype=float)
+        if obj.box_size is not None:
+            half = 0.5 * np.asarray(obj.box_size, dtype=float)
+            lower, upper = -half, half
+        else:
+            lower, upper = np.asarray(obj.mesh.bounds, dtype=float)
+        boxes.append((obj.name, np.linalg.inv(transform), lower, upper))
+    for obj in scene.deformable_objects:
+        nodes = np.asarray(obj.mesh.nodes, dtype=float)
+        transform = np.asarray(obj.transform_body_to_world, dtype=float)
+        boxes.append((obj.name, np.linalg.inv(transform), nodes.min(axis=0), nodes.max(axis=0)))
+    return boxes
+
+
+def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles=()):
     """Sample the prints of every robot surface on every scene surface.
 
     Parameters
@@ -192,6 +226,11 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions()):
         Each robot contact surface's polygon, metres, its contact frame.
     options : SamplingOptions
         Grid step, rotations, margin, sole tilt.
+    obstacles : sequence, optional
+        Boxes of :func:`obstacle_boxes`. A print is dropped if a point
+        ``options.clearance`` above one of its vertices (along the surface
+        normal) lies inside the box of an object other than the surface's own:
+        a print on the floor under a block is not a print.
 
     Returns
     -------
@@ -226,6 +265,15 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions()):
             inside = surface.contains(vertices.reshape(-1, 2), options.margin)
             inside = np.asarray(inside).reshape(vertices.shape[:3]).all(axis=2)  # (c, t)
             rotation, translation = transform[:3, :3], transform[:3, 3]
+            raised = np.concatenate(
+                [vertices, np.full(vertices.shape[:3] + (1,), options.clearance)], axis=3
+            ) @ rotation.T + translation  # (c, t, k, 3), world frame
+            for object_name, transform_world_to_object, lower, upper in obstacles:
+                if object_name == getattr(surface, "object_name", None):
+                    continue
+                local = raised @ transform_world_to_object[:3, :3].T + transform_world_to_object[:3, 3]
+                blocked = np.all((local > lower) & (local < upper), axis=3).any(axis=2)
+                inside &= ~blocked
             for c, t in zip(*np.nonzero(inside)):
                 x, y = centres[c]
                 prints.append(ContactPrint(name, float(x), float(y), float(thetas[t])))
@@ -389,4 +437,4 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
     return SamplingOptions(**kwargs)
 
 
-__all__ += ["contacts_in_world", "options_from_scenario"]
+__all__ += ["contacts_in_world", "options_from_scenario", "obstacle_boxes"]

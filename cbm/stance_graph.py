@@ -73,20 +73,34 @@ class StanceNeighbours:
             result.append((stance.without(robot_surface), Move("remove", robot_surface)))
         placed = contacts_in_world(stance, self.surfaces)
         for robot_surface in sorted(self.print_sets):
-            if robot_surface in in_contact:
-                continue
-            print_set = self.print_sets[robot_surface]
-            mask = reachable_mask(print_set, placed, self.limits)
-            self.pruned += int(len(mask) - np.count_nonzero(mask))
-            for index in np.flatnonzero(mask):
-                contact_print = print_set.prints[index]
-                result.append(
-                    (
-                        stance.with_contact(Contact(robot_surface, contact_print)),
-                        Move("add", robot_surface, contact_print),
-                    )
-                )
+            if robot_surface not in in_contact:
+                result.extend(self.additions(stance, robot_surface, placed))
         return result
+
+    def additions(self, stance, robot_surface, placed=None):
+        """List ``(stance + one contact of robot_surface, Move)`` for every reachable print.
+
+        Parameters
+        ----------
+        stance : environments Stance
+            Without ``robot_surface``.
+        robot_surface : str
+            Robot surface to place.
+        placed : dict, optional
+            :func:`sampling.contacts_in_world` of ``stance``, if known.
+        """
+        if placed is None:
+            placed = contacts_in_world(stance, self.surfaces)
+        print_set = self.print_sets[robot_surface]
+        mask = reachable_mask(print_set, placed, self.limits)
+        self.pruned += int(len(mask) - np.count_nonzero(mask))
+        return [
+            (
+                stance.with_contact(Contact(robot_surface, print_set.prints[index])),
+                Move("add", robot_surface, print_set.prints[index]),
+            )
+            for index in np.flatnonzero(mask)
+        ]
 
 
 def differ_by_one_contact(first, second):

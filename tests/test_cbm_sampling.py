@@ -132,3 +132,25 @@ def test_neighbours_add_or_remove_one_contact_and_keep_a_sole(surfaces):
     children = neighbours(one_sole)
     assert all("right_sole" in child.robot_surfaces for child, _ in children)
     assert neighbours.pruned > 0
+
+
+def test_prints_under_another_object_are_dropped():
+    from environments.objects import box, box_surfaces, floor
+    from environments.scene import Scene
+
+    from cbm.sampling import obstacle_boxes
+
+    ground = floor(size=(2.0, 1.0))
+    block = box("block", (0.6, 0.6, 0.1), center=(0.5, 0.0, 0.05))
+    scene = Scene("s", [ground, block], [], box_surfaces(ground, top_name="floor") + box_surfaces(block))
+    sets = sample_prints(scene.surfaces, {"left_sole": SOLE}, SamplingOptions(spacing=0.05), obstacle_boxes(scene))
+    prints = sets["left_sole"].prints
+    on_floor = [p for p in prints if p.surface == "floor"]
+    on_block = [p for p in prints if p.surface == "block_top"]
+    assert on_block, "the block's own top must keep its prints"
+    # No floor print overlaps the block's footprint x in [0.2, 0.8], |y| <= 0.3.
+    for p in on_floor:
+        vertices = scene.surface("floor").print_polygon_in_world(SOLE, p.x, p.y, p.theta)
+        overlaps = (vertices[:, 0] > 0.2) & (vertices[:, 0] < 0.8) & (np.abs(vertices[:, 1]) < 0.3)
+        assert not overlaps.any()
+    assert any(p.x >= 0.85 for p in on_floor)
