@@ -333,19 +333,29 @@ def _jsonable(value):
 
 
 def _rebuild_result(data):
-    """A stances PostureResult from its dict if stances can, else the dict."""
+    """A stances PostureResult from its ``to_dict`` form, else the dict itself."""
     if data is None:
         return None
     try:
-        import stances
-
-        rebuild = getattr(getattr(stances, "PostureResult", None), "from_dict", None)
+        from stances.results import PointForce, PostureResult
     except ImportError:  # pragma: no cover - stances is part of the project
-        rebuild = None
-    if rebuild is None:
         return data
+    rebuild = getattr(PostureResult, "from_dict", None)
     try:
-        return rebuild(data)
+        if rebuild is not None:
+            return rebuild(data)
+        return PostureResult(
+            feasible=bool(data["feasible"]),
+            q=data["q"],
+            point_forces=tuple(PointForce.from_dict(f) for f in data["point_forces"]),
+            torques=data["torques"],
+            iterations=int(data["iterations"]),
+            solve_time=float(data["solve_time"]),
+            reason=str(data["reason"]),
+            stance=Stance.from_dict(data["stance"]) if data.get("stance") is not None else None,
+            deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
+            statistics=dict(data.get("statistics", {})),
+        )
     except (KeyError, TypeError, ValueError) as error:
-        logger.warning("could not rebuild the solver result (%s); kept as a dict", error)
+        logger.debug("solver result kept as a dict (%s)", error)
         return data

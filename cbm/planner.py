@@ -40,20 +40,21 @@ def load_scenario(scenario):
     Raises
     ------
     UnknownScenario
-        Listing the built-in names when ``scenario`` is neither.
+        Listing the built-in names when ``scenario`` is neither a built-in
+        name nor an existing file.
+    environments.ScenarioError
+        If the file exists but is not a valid scenario.
     """
+    import os
+
     import environments
 
-    if not isinstance(scenario, (str, bytes)) and not hasattr(scenario, "__fspath__"):
+    if not isinstance(scenario, (str, os.PathLike)):
         return scenario
-    try:
-        return environments.load(scenario)
-    except FileNotFoundError:
-        raise UnknownScenario(str(scenario), environments.scenario_names()) from None
-    except ValueError as error:
-        if "unknown" in str(error).lower() or "not found" in str(error).lower():
-            raise UnknownScenario(str(scenario), environments.scenario_names()) from error
-        raise
+    names = environments.scenario_names()
+    if str(scenario) not in names and not os.path.isfile(scenario):
+        raise UnknownScenario(str(scenario), names)
+    return environments.load(scenario)
 
 
 @dataclass(frozen=True)
@@ -107,7 +108,9 @@ class PostureOracle:
             return StanceCheck(False, f"{type(error).__name__}: {error}")
         if not result.feasible:
             return StanceCheck(False, str(result.reason), result)
-        verification = stances.verify(self.robot, self.scene, stance, result)
+        verification = getattr(result, "verification", None)
+        if verification is None:
+            verification = stances.verify(self.robot, self.scene, stance, result)
         if not verification.ok:
             return StanceCheck(False, "verification failed: " + "; ".join(map(str, verification.reasons)), result)
         return StanceCheck(True, "", result)
@@ -147,6 +150,18 @@ class LookaheadHeuristic:
             for child, _ in self.neighbours.additions(stance, lifted[0]):
                 h = min(h, self.goal.distance(child, self.scene))
         return h
+
+
+def _usable_robot_surfaces(robot, options):
+    """Robot surfaces the planner may place: the scenario's ``robot_surfaces`` option, or all."""
+    names = list(robot.surfaces)
+    wanted = (options or {}).get("robot_surfaces")
+    if wanted is None:
+        return names
+    unknown = sorted(set(wanted) - set(names))
+    if unknown:
+        raise CbmError(f"options.robot_surfaces names unknown robot surfaces {unknown}; robot surfaces: {', '.join(names)}")
+    return [name for name in names if name in wanted]
 
 
 def _resolve_stance(value, scenario, what):
@@ -241,7 +256,8 @@ def plan(
 
         robot = stances.Robot.load(scenario.robot)
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
-    polygons = {name: surface.polygon for name, surface in robot.surfaces.items()}
+    usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
+    polygons = {name: robot.surfaces[name].polygon for name in usable}
     print_sets = sample_prints(scene.surfaces, polygons, sampling, obstacle_boxes(scene))
     prints = sum(len(s) for s in print_sets.values())
     logger.info(

@@ -49,6 +49,8 @@ class SamplingOptions:
         world +z, radians (floors and box tops, not walls).
     clearance : float
         Height above a print, metres, that must be free of other objects.
+    region_lower, region_upper : (2,) float or None
+        If given, only prints whose origin lies in this world xy box, metres.
     """
 
     spacing: float = 0.1
@@ -56,6 +58,8 @@ class SamplingOptions:
     margin: float = 0.0
     max_sole_tilt: float = math.radians(20.0)
     clearance: float = 0.02
+    region_lower: tuple | None = None
+    region_upper: tuple | None = None
 
     def __post_init__(self):
         if not (math.isfinite(self.spacing) and self.spacing > 0):
@@ -64,6 +68,13 @@ class SamplingOptions:
         if not thetas or not all(math.isfinite(t) for t in thetas):
             raise CbmError(f"theta_values must be a non-empty list of finite radians, got {self.theta_values!r}")
         object.__setattr__(self, "theta_values", thetas)
+        for name in ("region_lower", "region_upper"):
+            value = getattr(self, name)
+            if value is not None:
+                value = tuple(float(v) for v in value)
+                if len(value) != 2:
+                    raise CbmError(f"{name} must be a world (x, y) pair, metres, got {value!r}")
+                object.__setattr__(self, name, value)
         if self.margin < 0:
             raise CbmError(f"margin must be >= 0 metres, got {self.margin!r}")
 
@@ -265,6 +276,7 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
             inside = surface.contains(vertices.reshape(-1, 2), options.margin)
             inside = np.asarray(inside).reshape(vertices.shape[:3]).all(axis=2)  # (c, t)
             rotation, translation = transform[:3, :3], transform[:3, 3]
+            origins_grid = np.column_stack([centres, np.zeros(len(centres))]) @ rotation.T + translation
             raised = np.concatenate(
                 [vertices, np.full(vertices.shape[:3] + (1,), options.clearance)], axis=3
             ) @ rotation.T + translation  # (c, t, k, 3), world frame
@@ -274,6 +286,10 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
                 local = raised @ transform_world_to_object[:3, :3].T + transform_world_to_object[:3, 3]
                 blocked = np.all((local > lower) & (local < upper), axis=3).any(axis=2)
                 inside &= ~blocked
+            if options.region_lower is not None:
+                inside &= np.all(origins_grid[:, None, :2] >= options.region_lower, axis=2)
+            if options.region_upper is not None:
+                inside &= np.all(origins_grid[:, None, :2] <= options.region_upper, axis=2)
             for c, t in zip(*np.nonzero(inside)):
                 x, y = centres[c]
                 prints.append(ContactPrint(name, float(x), float(y), float(thetas[t])))
@@ -415,8 +431,9 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
     Parameters
     ----------
     scenario_options : mapping or None
-        May hold ``print_spacing`` (metres), ``theta_values_deg`` (degrees)
-        and ``print_margin`` (metres).
+        May hold ``print_spacing`` (metres), ``theta_values_deg`` (degrees),
+        ``print_margin`` (metres) and ``sampling_region`` (``{lower, upper}``
+        world xy, metres).
     spacing : float, optional
         User's spacing, metres; wins over the scenario's.
 
@@ -432,6 +449,10 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
         kwargs["spacing"] = float(scenario_options["print_spacing"])
     if scenario_options.get("theta_values_deg") is not None:
         kwargs["theta_values"] = tuple(math.radians(float(t)) for t in scenario_options["theta_values_deg"])
+    region = scenario_options.get("sampling_region")
+    if region is not None:
+        kwargs["region_lower"] = tuple(region["lower"])
+        kwargs["region_upper"] = tuple(region["upper"])
     if scenario_options.get("print_margin") is not None:
         kwargs["margin"] = float(scenario_options["print_margin"])
     return SamplingOptions(**kwargs)

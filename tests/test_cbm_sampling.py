@@ -154,3 +154,24 @@ def test_prints_under_another_object_are_dropped():
         overlaps = (vertices[:, 0] > 0.2) & (vertices[:, 0] < 0.8) & (np.abs(vertices[:, 1]) < 0.3)
         assert not overlaps.any()
     assert any(p.x >= 0.85 for p in on_floor)
+
+
+def test_sampling_region_keeps_only_prints_inside_it(surfaces):
+    options = SamplingOptions(spacing=0.1, region_lower=(-0.3, -0.2), region_upper=(0.5, 0.4))
+    sets = sample_prints({"floor": surfaces["floor"]}, {"left_sole": SOLE}, options)
+    origins = sets["left_sole"].origins_in_world
+    assert len(origins) > 0
+    assert np.all(origins[:, :2] >= np.array([-0.3, -0.2]) - 1e-12)
+    assert np.all(origins[:, :2] <= np.array([0.5, 0.4]) + 1e-12)
+
+
+def test_scenario_options_set_spacing_angles_and_region():
+    from cbm.sampling import options_from_scenario
+
+    options = options_from_scenario(
+        {"print_spacing": 0.2, "theta_values_deg": [0, 90], "sampling_region": {"lower": [0, 1], "upper": [2, 3]}}
+    )
+    assert options.spacing == 0.2
+    assert options.theta_values == pytest.approx((0.0, math.pi / 2))
+    assert (options.region_lower, options.region_upper) == ((0.0, 1.0), (2.0, 3.0))
+    assert options_from_scenario({"print_spacing": 0.2}, spacing=0.05).spacing == 0.05
