@@ -127,8 +127,8 @@ class RigidContact:
         labels = [
             f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
         ]
-        # 1 mm / 1 mrad: a placement error that matters for a stance.
-        return [equality("placement", residual, jacobian, 1e-3, labels)]
+        # 1 cm / 10 mrad: the size of a placement error that matters.
+        return [equality("placement", residual, jacobian, 1e-2, labels)]
 
     def normal_forces(self, lam) -> np.ndarray:
         """(k,) float: normal component of each vertex force, newtons (>= 0 by construction)."""

@@ -49,7 +49,8 @@ class PostureOptions:
         Bound on each component of a step, rad or m.
     feasibility_tolerance : float
         Accepted violation, in units of each row's scale (see
-        :mod:`stances.blocks`): 1e-4 means 1e-7 m placement, 1e-6 N equilibrium.
+        :mod:`stances.blocks`): 1e-7 means 1e-9 m placement, 1e-6 N
+        equilibrium, 1e-7 N m beyond a torque limit.
     collision_distance : float
         Minimum distance kept between the robot and the scene or itself, m.
     collision_activation : float
@@ -73,7 +74,7 @@ class PostureOptions:
     reaction_model: str = "consistent"
     max_iterations: int = 100
     trust_region: float = 0.3
-    feasibility_tolerance: float = 1e-4
+    feasibility_tolerance: float = 1e-7
     collision_distance: float = 0.005
     collision_activation: float = 0.05
     max_collision_rows: int = 16
@@ -187,7 +188,9 @@ class PostureProblem:
         lam = np.zeros(self.n_variables)
         if self.n_variables:
             weight = self.robot.mass * 9.81
-            lam[:] = weight / self.n_variables
+            # Cone edges are tilted: each carries cos(edge, normal) vertically.
+            vertical = min(c.generators[2::3].sum(axis=0).max() for c in self.contacts if c.n_variables)
+            lam[:] = weight / (self.n_variables * vertical)
         return lam
 
     def check_configuration(self, q) -> np.ndarray:
@@ -257,13 +260,14 @@ class PostureProblem:
 
         blocks = []
         joint_names = self.robot.actuated_joint_names
-        # Static equilibrium of the free flyer (49): 1e-2 N is the scale that matters.
+        # Static equilibrium of the free flyer (49). Scales make a violation that
+        # matters O(1), so the QP's single elastic variable stays well scaled.
         blocks.append(
             equality(
                 "equilibrium",
                 tau[:6],
                 tau_jacobian[:6],
-                1e-2,
+                10.0,
                 [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")],
             )
         )
@@ -275,7 +279,7 @@ class PostureProblem:
                 tau_jacobian[6:],
                 -self.effort,
                 self.effort,
-                1e-2,
+                1.0,
                 tuple(f"torque limit of {name}" for name in joint_names),
             )
         )
@@ -332,7 +336,7 @@ class PostureProblem:
                 value[i] = pair.distance
                 lower[i] = options.collision_distance
                 labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
-        return ConstraintBlock("collision", value, jacobian, lower, np.full(rows, np.inf), 1e-3, tuple(labels))
+        return ConstraintBlock("collision", value, jacobian, lower, np.full(rows, np.inf), 1e-2, tuple(labels))
 
 
 def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:

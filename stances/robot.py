@@ -91,10 +91,6 @@ class SurfaceDeclaration:
     polygon: np.ndarray
 
 
-def _rotation_about_x(angle: float) -> np.ndarray:
-    return pin.utils.rotate("x", angle)
-
-
 def _rectangle(x_min: float, x_max: float, y_min: float, y_max: float) -> np.ndarray:
     return np.array([[x_min, y_min], [x_max, y_min], [x_max, y_max], [x_min, y_max]])
 
@@ -107,12 +103,16 @@ _TALOS_SOLE = _rectangle(-0.10, 0.11, -0.065, 0.065)
 # the gripper. The wrist tool frame's z axis already points back into the
 # forearm, which is the contact-frame convention.
 _TALOS_PALM = _rectangle(-0.05, 0.05, -0.035, 0.035)
+# Turned half a turn about the normal so that, with the forearm pointing down
+# in front of the robot, the palm's x axis points forward: a print with
+# theta = 0 is then the natural hand orientation.
+_PALM_PLACEMENT = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
 
 TALOS_SURFACES = (
     SurfaceDeclaration("left_sole", "left_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
     SurfaceDeclaration("right_sole", "right_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
-    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", pin.SE3.Identity(), _TALOS_PALM),
-    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", pin.SE3.Identity(), _TALOS_PALM),
+    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM),
+    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM),
 )
 # The grippers are replaced by the palm plates, and the head does not take part
 # in static postures: locking them keeps the problem small (nv = 34).

@@ -1,0 +1,628 @@
+"""Collision distances between the robot and the scene, linearised for the posture solver.
+
+At each SQP iteration the posture solver keeps every relevant pair of bodies
+apart with a linearised constraint ``d + row @ dq >= d_min``. This module
+measures the pairs and their rows:
+
+- robot geometry vs scene object (``joint_b = 0``, the universe),
+- robot geometry vs robot geometry, for the self-collision pairs the SRDF
+  allows (``robot.collision_model.collisionPairs``).
+
+The narrow phase is python-fcl (``fcl.distance`` with nearest points and signed
+distance). Robot meshes become the ``fcl.Convex`` convex hull of their mesh file
+once, at construction: GJK on a hull is faster than on a triangle soup and its
+distance varies smoothly with the posture, which the linearisation needs; the
+hull is conservative (it contains the mesh). Primitives stay primitives.
+
+Because a python-level fcl call costs microseconds, a numpy broad phase runs
+first over all pairs at once: each robot geometry is bounded by a sphere fixed in
+its geometry frame and each (static) scene object by its world axis-aligned box, and
+only the pairs whose bounds are closer than ``margin`` reach fcl.
+
+Sign conventions. ``distance <= 0`` means penetration (its magnitude is then
+the penetration depth). ``normal`` is the unit vector, world frame, along which
+translating body a increases the signed distance: from ``point_b`` toward
+``point_a`` when apart, the reverse when penetrating. The linearisation is
+``d(q (+) dq) ~= d + row @ dq`` with ``row = n^T (J_a(p_a) - J_b(p_b))``, ``J``
+the ``(3, nv)`` world-aligned translational Jacobian of the witness point
+attached to its link.
+"""
+
+from __future__ import annotations
+
+import math
+import weakref
+from dataclasses import dataclass
+
+import fcl
+import numpy as np
+import pinocchio as pin
+import trimesh
+
+from .errors import StanceError
+
+__all__ = [
+    "CollisionChecker",
+    "CollisionPair",
+    "CollisionSetupError",
+    "contact_exclusions",
+]
+
+# Scene bounds are measured by bringing a large flat slab from far away along
+# each axis (see _world_bounds); scenes must fit well inside these sizes.
+_PROBE_OFFSET = 1.0e3
+_PROBE_SIZE = 1.0e4
+# Padding of measured scene bounds, metres: absorbs the GJK tolerance so that
+# the broad phase stays conservative.
+_BOUNDS_PADDING = 1.0e-3
+
+
+class CollisionSetupError(StanceError):
+    """Invalid collision set-up: unknown names in an exclusion, duplicate or
+    unsupported geometry, malformed scene objects."""
+
+
+@dataclass(frozen=True)
+class CollisionPair:
+    """One distance measurement between two bodies.
+
+    Parameters
+    ----------
+    name_a : str
+        Robot geometry name (pinocchio collision model).
+    name_b : str
+        Robot geometry name, or scene object name.
+    joint_a : int
+        Pinocchio joint index carrying geometry a.
+    joint_b : int
+        Joint carrying b, or 0 (the universe) for a scene object.
+    point_a : (3,) float
+        Witness point on a, metres, world frame.
+    point_b : (3,) float
+        Witness point on b, metres, world frame.
+    distance : float
+        Signed distance, metres; ``<= 0`` means penetration.
+    normal : (3,) float
+        Unit vector, world frame: the direction in which translating a
+        increases ``distance``.
+    """
+
+    name_a: str
+    name_b: str
+    joint_a: int
+    joint_b: int
+    point_a: np.ndarray
+    point_b: np.ndarray
+    distance: float
+    normal: np.ndarray
+
+    def __post_init__(self) -> None:
+        for field in ("point_a", "point_b", "normal"):
+            value = np.array(getattr(self, field), dtype=float)
+            if value.shape != (3,):
+                raise CollisionSetupError(
+                    f"CollisionPair.{field} must have shape (3,), got {value.shape}"
+                )
+            value.setflags(write=False)
+            object.__setattr__(self, field, value)
+        object.__setattr__(self, "distance", float(self.distance))
+
+    @property
+    def is_self_collision(self) -> bool:
+        """True when b is a robot geometry (``joint_b != 0``)."""
+        return self.joint_b != 0
+
+
+@dataclass(frozen=True)
+class _RobotGeometry:
+    """Robot collision geometry converted to fcl once per robot.
+
+    ``fcl_objects`` are shared by every checker of the robot: each query sets
+    the transforms of the objects it uses before using them.
+    """
+
+    names: tuple
+    joints: np.ndarray  # (g,) int, parent joint of each geometry
+    rotation_geometry_to_joint: np.ndarray  # (g, 3, 3)
+    translation_geometry_to_joint: np.ndarray  # (g, 3) metres
+    sphere_center: np.ndarray  # (g, 3) metres, geometry frame
+    sphere_radius: np.ndarray  # (g,) metres
+    fcl_objects: tuple
+    self_pairs: np.ndarray  # (p, 2) int geometry indices, SRDF-allowed
+
+
+# One conversion per Robot instance: hulls take tens of milliseconds, and the
+# solver builds a checker per stance.
+_GEOMETRY_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _fcl_shape(geometry_object):
+    """fcl geometry and bounding sphere (center, radius) in the geometry frame."""
+    shape = geometry_object.geometry
+    kind = type(shape).__name__
+    if geometry_object.meshPath and ("BVH" in kind or "Convex" in kind):
+        try:
+            mesh = trimesh.load(geometry_object.meshPath, force="mesh")
+        except Exception as error:  # trimesh raises many types on unreadable files
+            raise CollisionSetupError(
+                f"cannot read collision mesh {geometry_object.meshPath!r} of "
+                f"{geometry_object.name!r}: {error}"
+            ) from error
+        # Negative scales mirror the mesh (Talos's right limbs); the hull of the
+        # scaled points is rebuilt, so its faces are outward-oriented again.
+        points = np.asarray(mesh.vertices, dtype=float) * np.asarray(geometry_object.meshScale)
+        hull = trimesh.convex.convex_hull(points)
+        vertices = np.asarray(hull.vertices, dtype=float)
+        faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel()
+        center = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
+        radius = float(np.max(np.linalg.norm(vertices - center, axis=1)))
+        return fcl.Convex(vertices, len(hull.faces), faces), center, radius
+    if kind == "Sphere":
+        return fcl.Sphere(shape.radius), np.zeros(3), float(shape.radius)
+    if kind == "Box":
+        half = np.asarray(shape.halfSide, dtype=float)
+        return fcl.Box(*(2.0 * half)), np.zeros(3), float(np.linalg.norm(half))
+    if kind == "Cylinder":
+        return (
+            fcl.Cylinder(shape.radius, 2.0 * shape.halfLength),
+            np.zeros(3),
+            float(np.hypot(shape.radius, shape.halfLength)),
+        )
+    if kind == "Capsule":
+        return (
+            fcl.Capsule(shape.radius, 2.0 * shape.halfLength),
+            np.zeros(3),
+            float(shape.radius + shape.halfLength),
+        )
+    raise CollisionSetupError(
+        f"collision geometry {geometry_object.name!r} has unsupported type {kind}; "
+        "supported: meshes (with a meshPath), Sphere, Box, Cylinder, Capsule"
+    )
+
+
+def _robot_geometry(robot) -> _RobotGeometry:
+    cached = _GEOMETRY_CACHE.get(robot)
+    if cached is not None:
+        return cached
+    collision_model = robot.collision_model
+    names, joints, rotations, translations, centers, radii, objects = [], [], [], [], [], [], []
+    for geometry_object in collision_model.geometryObjects:
+        shape, center, radius = _fcl_shape(geometry_object)
+        placement = geometry_object.placement
+        names.append(geometry_object.name)
+        joints.append(int(geometry_object.parentJoint))
+        rotations.append(np.array(placement.rotation))
+        translations.append(np.array(placement.translation))
+        centers.append(center)
+        radii.append(radius)
+        objects.append(fcl.CollisionObject(shape, fcl.Transform()))
+    self_pairs = np.array(
+        [(pair.first, pair.second) for pair in collision_model.collisionPairs], dtype=int
+    ).reshape(-1, 2)
+    geometry = _RobotGeometry(
+        names=tuple(names),
+        joints=np.array(joints, dtype=int),
+        rotation_geometry_to_joint=np.array(rotations).reshape(-1, 3, 3),
+        translation_geometry_to_joint=np.array(translations).reshape(-1, 3),
+        sphere_center=np.array(centers).reshape(-1, 3),
+        sphere_radius=np.array(radii, dtype=float),
+        fcl_objects=tuple(objects),
+        self_pairs=self_pairs,
+    )
+    _GEOMETRY_CACHE[robot] = geometry
+    return geometry
+
+
+def _world_bounds(name: str, collision_object) -> np.ndarray:
+    """(2, 3) float: world axis-aligned bounds [lower, upper] of a scene object, metres.
+
+    python-fcl does not expose an object's vertices or AABB, so each bound is
+    measured exactly: a slab far away along -axis (+axis) is at distance
+    ``lower + offset`` (``offset - upper``) from the object. A slab touching the
+    object (distance <= 0) means it is unbounded on that side (a half-space).
+    """
+    bounds = np.empty((2, 3))
+    request = fcl.DistanceRequest()
+    for axis in range(3):
+        size = np.full(3, _PROBE_SIZE)
+        size[axis] = 1.0
+        slab = fcl.Box(*size)
+        for side, sign in ((0, -1.0), (1, 1.0)):
+            center = np.zeros(3)
+            center[axis] = sign * (_PROBE_OFFSET + 0.5)
+            probe = fcl.CollisionObject(slab, fcl.Transform(center))
+            gap = fcl.distance(probe, collision_object, request, fcl.DistanceResult())
+            if gap <= 0.0:
+                bounds[side, axis] = sign * np.inf
+            else:
+                bounds[side, axis] = sign * (_PROBE_OFFSET - gap)
+    if np.any(bounds[0] > bounds[1]):
+        raise CollisionSetupError(
+            f"scene object {name!r}: could not measure its bounds (got {bounds.tolist()}); "
+            f"scene objects must lie within {_PROBE_OFFSET / 2:g} m of the origin"
+        )
+    bounds[0] -= _BOUNDS_PADDING
+    bounds[1] += _BOUNDS_PADDING
+    return bounds
+
+
+def _support_columns(model) -> np.ndarray:
+    """(njoints, nv) bool: columns of ``data.J`` that move each joint (its ancestors')."""
+    mask = np.zeros((model.njoints, model.nv), dtype=bool)
+    for joint in range(1, model.njoints):
+        for ancestor in model.supports[joint]:
+            if ancestor == 0:
+                continue
+            start = model.joints[ancestor].idx_v
+            mask[joint, start : start + model.joints[ancestor].nv] = True
+    return mask
+
+
+def _matching_geometries(key, geometry: _RobotGeometry, model) -> np.ndarray:
+    """Indices of the robot geometries an exclusion key designates (may be empty)."""
+    if isinstance(key, (int, np.integer)):
+        return np.flatnonzero(geometry.joints == int(key))
+    joint_names = [model.names[int(joint)] for joint in geometry.joints]
+    return np.array(
+        [
+            index
+            for index, name in enumerate(geometry.names)
+            if name == key or joint_names[index] == key or name.startswith(key)
+        ],
+        dtype=int,
+    )
+
+
+class CollisionChecker:
+    """Distances, witness points and linearisation rows for one robot in one scene.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+        Robot whose ``collision_model`` gives the geometry and the allowed
+        self-collision pairs.
+    scene_objects : iterable of (str, fcl.CollisionObject)
+        Named static scene objects placed in the world frame (what
+        ``scene.collision_objects()`` returns). Names must be unique and differ
+        from the robot's geometry names.
+    margin : float
+        Pairs farther apart than this, metres, are not reported.
+    exclude : iterable of (key, str)
+        Pairs to ignore. ``key`` designates robot geometries: a geometry name,
+        a joint name or index (every geometry on that joint), or a name prefix
+        such as ``"leg_left_6_link"``. The second entry is a scene object name,
+        ``"*"`` for every scene object, or a robot geometry key (to drop
+        self-collision pairs). :func:`contact_exclusions` builds the entries
+        for a link resting on a support.
+    self_collision : bool
+        Whether to check the SRDF-allowed self-collision pairs.
+
+    Raises
+    ------
+    CollisionSetupError
+        On unknown exclusion names, duplicate scene names or a negative margin.
+
+    Examples
+    --------
+    >>> import fcl, numpy as np, pinocchio as pin
+    >>> from stances import Robot
+    >>> robot = Robot.load("talos")
+    >>> floor = fcl.CollisionObject(fcl.Box(4.0, 4.0, 0.1), fcl.Transform(np.array([0, 0, -0.05])))
+    >>> checker = CollisionChecker(
+    ...     robot, [("floor", floor)],
+    ...     exclude=contact_exclusions(robot, "left_sole", "floor")
+    ...     + contact_exclusions(robot, "right_sole", "floor"))
+    >>> data = robot.model.createData()
+    >>> pin.forwardKinematics(robot.model, data, robot.reference_configuration)
+    >>> pairs = checker.pairs(robot.model, data)
+    >>> min(pair.distance for pair in pairs) > 0.0
+    True
+    >>> checker.jacobian_rows(robot.model, data, pairs).shape == (len(pairs), robot.nv)
+    True
+    """
+
+    def __init__(self, robot, scene_objects, *, margin=0.05, exclude=(), self_collision=True):
+        margin = float(margin)
+        if not margin >= 0.0:
+            raise CollisionSetupError(f"margin must be >= 0 metres, got {margin}")
+        self.margin = margin
+        self.self_collision = bool(self_collision)
+        self._robot = robot
+        self._geometry = _robot_geometry(robot)
+        model = robot.model
+        self._support = _support_columns(model)
+
+        self.scene_names, self._scene_objects, bounds = [], [], []
+        for entry in scene_objects:
+            if len(entry) != 2 or not isinstance(entry[1], fcl.CollisionObject):
+                raise CollisionSetupError(
+                    "scene_objects must be (name, fcl.CollisionObject) pairs, got "
+                    f"{entry!r}"
+                )
+            name, collision_object = entry
+            if name in self.scene_names or name in self._geometry.names or name == "*":
+                raise CollisionSetupError(
+                    f"scene object name {name!r} is used twice, or is '*' or a robot "
+                    "geometry name; give each scene object a unique name"
+                )
+            self.scene_names.append(name)
+            self._scene_objects.append(collision_object)
+            bounds.append(_world_bounds(name, collision_object))
+        self.scene_names = tuple(self.scene_names)
+        self._scene_bounds = np.array(bounds).reshape(-1, 2, 3)
+        self.exclude = tuple((key, other) for key, other in exclude)
+        self._build_pair_lists(model)
+
+    def _build_pair_lists(self, model) -> None:
+        geometry = self._geometry
+        count = len(geometry.names)
+        allowed_scene = np.ones((count, len(self.scene_names)), dtype=bool)
+        allowed_self = np.ones((count, count), dtype=bool)
+        for key, other in self.exclude:
+            rows = _matching_geometries(key, geometry, model)
+            if len(rows) == 0:
+                raise CollisionSetupError(
+                    f"exclusion key {key!r} matches no robot geometry; use a geometry "
+                    f"name, joint name or index, or name prefix. Geometries: "
+                    f"{', '.join(geometry.names)}"
+                )
+            if other == "*":
+                allowed_scene[rows, :] = False
+            elif other in self.scene_names:
+                allowed_scene[rows, self.scene_names.index(other)] = False
+            else:
+                columns = _matching_geometries(other, geometry, model)
+                if len(columns) == 0:
+                    raise CollisionSetupError(
+                        f"exclusion target {other!r} is neither a scene object "
+                        f"({', '.join(self.scene_names) or 'none'}), '*', nor a robot "
+                        "geometry key"
+                    )
+                allowed_self[np.ix_(rows, columns)] = False
+                allowed_self[np.ix_(columns, rows)] = False
+        self._scene_pairs = np.argwhere(allowed_scene).reshape(-1, 2)
+        self_pairs = geometry.self_pairs if self.self_collision else np.zeros((0, 2), int)
+        keep = allowed_self[self_pairs[:, 0], self_pairs[:, 1]]
+        self._self_pairs = self_pairs[keep]
+
+    @property
+    def pair_count(self) -> int:
+        """Number of pairs checked before the broad phase."""
+        return len(self._scene_pairs) + len(self._self_pairs)
+
+    def with_exclusions(self, exclude, *, margin=None) -> "CollisionChecker":
+        """A checker on the same robot and scene with other exclusions (cheap).
+
+        Parameters
+        ----------
+        exclude : iterable of (key, str)
+            As in the constructor; replaces the current exclusions.
+        margin : float, optional
+            New margin, metres; defaults to the current one.
+
+        Returns
+        -------
+        CollisionChecker
+        """
+        clone = object.__new__(CollisionChecker)
+        clone.__dict__.update(self.__dict__)
+        if margin is not None:
+            margin = float(margin)
+            if not margin >= 0.0:
+                raise CollisionSetupError(f"margin must be >= 0 metres, got {margin}")
+            clone.margin = margin
+        clone.exclude = tuple((key, other) for key, other in exclude)
+        clone._build_pair_lists(self._robot.model)
+        return clone
+
+    def _geometry_to_world(self, data, geometry_placements):
+        """(g, 3, 3) rotations and (g, 3) translations of every robot geometry, world frame."""
+        geometry = self._geometry
+        if geometry_placements is not None:
+            if isinstance(geometry_placements, np.ndarray):
+                homogeneous = geometry_placements
+            else:
+                homogeneous = np.array([placement.homogeneous for placement in geometry_placements])
+            if homogeneous.shape != (len(geometry.names), 4, 4):
+                raise CollisionSetupError(
+                    f"geometry_placements must hold {len(geometry.names)} placements "
+                    f"(one per collision geometry), got shape {homogeneous.shape}"
+                )
+            return homogeneous[:, :3, :3], homogeneous[:, :3, 3]
+        # One python loop over joints, then numpy over geometries.
+        joint_to_world = np.array([placement.homogeneous for placement in data.oMi])
+        rotation_joint = joint_to_world[geometry.joints, :3, :3]
+        translation_joint = joint_to_world[geometry.joints, :3, 3]
+        rotation = rotation_joint @ geometry.rotation_geometry_to_joint
+        translation = (
+            np.einsum("gij,gj->gi", rotation_joint, geometry.translation_geometry_to_joint)
+            + translation_joint
+        )
+        return rotation, translation
+
+    def pairs(self, model, data, geometry_placements=None) -> list:
+        """Measure every pair closer than ``margin``.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+            The robot's model.
+        data : pinocchio.Data
+            After ``pin.forwardKinematics`` (``data.oMi``) at the configuration.
+        geometry_placements : (g, 4, 4) float or sequence of pinocchio.SE3, optional
+            World placements of the collision geometries, in collision-model
+            order (e.g. ``GeometryData.oMg``); computed from ``data.oMi`` if
+            omitted.
+
+        Returns
+        -------
+        list of CollisionPair
+            Scene pairs first, then self-collision pairs; only those with
+            ``distance <= margin``.
+        """
+        geometry = self._geometry
+        rotation, translation = self._geometry_to_world(data, geometry_placements)
+        centers = np.einsum("gij,gj->gi", rotation, geometry.sphere_center) + translation
+        radius = geometry.sphere_radius
+
+        # Broad phase, numpy over all pairs: distance bounds never exceed the truth.
+        scene_pairs = self._scene_pairs
+        if len(scene_pairs):
+            c = centers[scene_pairs[:, 0]]
+            lower = self._scene_bounds[scene_pairs[:, 1], 0]
+            upper = self._scene_bounds[scene_pairs[:, 1], 1]
+            gap = np.linalg.norm(c - np.clip(c, lower, upper), axis=1) - radius[scene_pairs[:, 0]]
+            scene_candidates = scene_pairs[gap <= self.margin]
+        else:
+            scene_candidates = scene_pairs
+        self_pairs = self._self_pairs
+        if len(self_pairs):
+            gap = (
+                np.linalg.norm(centers[self_pairs[:, 0]] - centers[self_pairs[:, 1]], axis=1)
+                - radius[self_pairs[:, 0]]
+                - radius[self_pairs[:, 1]]
+            )
+            self_candidates = self_pairs[gap <= self.margin]
+        else:
+            self_candidates = self_pairs
+
+        # Narrow phase: place only the geometries that take part.
+        used = np.union1d(scene_candidates[:, 0], self_candidates.ravel())
+        objects = geometry.fcl_objects
+        for index in used:
+            objects[index].setTransform(fcl.Transform(rotation[index], translation[index]))
+        request = fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True)
+        result = fcl.DistanceResult()
+        measured = []
+        for a, b in scene_candidates:
+            # Reference for a degenerate normal: the nearest point of b's bounds.
+            lower, upper = self._scene_bounds[b]
+            reference_b = np.clip(centers[a], lower, upper)
+            measured.append(
+                self._measure(
+                    a, self._scene_objects[b], self.scene_names[b], 0,
+                    centers[a], reference_b, request, result,
+                )
+            )
+        for a, b in self_candidates:
+            measured.append(
+                self._measure(
+                    a, objects[b], geometry.names[b], int(geometry.joints[b]),
+                    centers[a], centers[b], request, result,
+                )
+            )
+        return [pair for pair in measured if pair is not None]
+
+    def _measure(
+        self, a, object_b, name_b, joint_b, center_a, reference_b, request, result
+    ) -> CollisionPair | None:
+        geometry = self._geometry
+        result.min_distance = np.inf  # fcl only overwrites a result with a smaller distance
+        distance = fcl.distance(geometry.fcl_objects[a], object_b, request, result)
+        if distance > self.margin:
+            return None
+        point_a, point_b = result.nearest_points
+        offset = point_a - point_b
+        length = math.sqrt(offset @ offset)
+        if length > 1e-9:
+            # Apart: a moves away along p_a - p_b. Penetrating: fcl's witness
+            # points are each inside the other body, so the direction flips.
+            normal = offset / length if distance > 0.0 else -offset / length
+        else:
+            # Exactly touching: the witness points carry no direction. Fall
+            # back on the direction from b's centre to a's, a fair separating
+            # guess, or world z when those coincide.
+            offset = center_a - reference_b
+            length = np.linalg.norm(offset)
+            normal = offset / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
+        return CollisionPair(
+            name_a=geometry.names[a],
+            name_b=name_b,
+            joint_a=int(geometry.joints[a]),
+            joint_b=joint_b,
+            point_a=point_a,
+            point_b=point_b,
+            distance=distance,
+            normal=normal,
+        )
+
+    def jacobian_rows(self, model, data, pairs) -> np.ndarray:
+        """Rows of the distance linearisation ``d(q (+) dq) ~= d + row @ dq``.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+        data : pinocchio.Data
+            After ``pin.forwardKinematics`` at the configuration the pairs were
+            measured at; ``data.J`` is overwritten (``pin.computeJointJacobians``).
+        pairs : list of CollisionPair
+            From :meth:`pairs`.
+
+        Returns
+        -------
+        (len(pairs), nv) float
+            ``n^T (J_a(p_a) - J_b(p_b))``, metres per unit tangent step.
+        """
+        if len(pairs) == 0:
+            return np.zeros((0, model.nv))
+        # data.J stacks the motion subspaces in the world frame: a column moves
+        # a world point p at v + omega x p. A point of joint i only sees the
+        # columns of i's ancestors, hence the support mask.
+        jacobian_world = pin.computeJointJacobians(model, data)
+        linear, angular = jacobian_world[:3], jacobian_world[3:]
+        normal = np.array([pair.normal for pair in pairs])
+        point_a = np.array([pair.point_a for pair in pairs])
+        point_b = np.array([pair.point_b for pair in pairs])
+        joint_a = np.array([pair.joint_a for pair in pairs])
+        joint_b = np.array([pair.joint_b for pair in pairs])
+        # n . (v + omega x p) = n . v + (p x n) . omega
+        along_normal = normal @ linear
+        rows_a = along_normal + np.cross(point_a, normal) @ angular
+        rows_b = along_normal + np.cross(point_b, normal) @ angular
+        return self._support[joint_a] * rows_a - self._support[joint_b] * rows_b
+
+
+def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, include_parent_joint=False):
+    """Exclusion entries for a robot link resting on a support by design.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    surface_or_frame : str
+        Robot surface name (``"left_sole"``) or pinocchio frame name.
+    object_name : str
+        Scene object the surface touches, or ``"*"``.
+    include_parent_joint : bool
+        Also exclude the geometry of the parent joint (e.g. the ankle above
+        the sole), which may come within a few millimetres of the support.
+
+    Returns
+    -------
+    list of (str, str)
+        ``(geometry_name, object_name)`` for every geometry rigidly attached to
+        the frame's joint (and its parent's), ready for ``exclude``.
+
+    Raises
+    ------
+    FrameNotFound
+        If neither a surface nor a frame has that name.
+
+    Examples
+    --------
+    >>> from stances import Robot
+    >>> contact_exclusions(Robot.load("talos"), "left_sole", "floor")
+    [('leg_left_6_link_0', 'floor')]
+    """
+    if surface_or_frame in robot.surfaces:
+        frame_name = robot.surfaces[surface_or_frame].frame
+    else:
+        frame_name = surface_or_frame
+    joint = robot.model.frames[robot.frame_id(frame_name)].parentJoint
+    joints = {joint}
+    if include_parent_joint and joint != 0:
+        joints.add(robot.model.parents[joint])
+    return [
+        (geometry_object.name, object_name)
+        for geometry_object in robot.collision_model.geometryObjects
+        if geometry_object.parentJoint in joints
+    ]
