@@ -70,11 +70,7 @@ class Scene:
         if not isinstance(name, str) or not name:
             raise SceneError(f"Scene.name must be a non-empty string, got {name!r}")
         self._name = name
-        objects: dict[str, RigidObject | DeformableObject] = {}
-        for obj in list(rigid_objects) + list(deformable_objects):
-            if obj.name in objects:
-                raise SceneError(f"scene {name!r}: repeated object name {obj.name!r}")
-            objects[obj.name] = obj
+        rigid_objects, deformable_objects = tuple(rigid_objects), tuple(deformable_objects)
         for obj in rigid_objects:
             if not isinstance(obj, RigidObject):
                 raise SceneError(f"scene {name!r}: rigid_objects must be RigidObject, got {type(obj).__name__}")
@@ -83,6 +79,11 @@ class Scene:
                 raise SceneError(
                     f"scene {name!r}: deformable_objects must be DeformableObject, got {type(obj).__name__}"
                 )
+        objects: dict[str, RigidObject | DeformableObject] = {}
+        for obj in rigid_objects + deformable_objects:
+            if obj.name in objects:
+                raise SceneError(f"scene {name!r}: repeated object name {obj.name!r}")
+            objects[obj.name] = obj
         by_name: dict[str, ContactSurface] = {}
         for surface in surfaces:
             if not isinstance(surface, ContactSurface):
@@ -100,8 +101,8 @@ class Scene:
                     f"{surface.object_name!r} is {'deformable' if objects[surface.object_name].deformable else 'rigid'}"
                 )
             by_name[surface.name] = surface
-        self._rigid = tuple(rigid_objects)
-        self._deformable = tuple(deformable_objects)
+        self._rigid = rigid_objects
+        self._deformable = deformable_objects
         self._objects = MappingProxyType(objects)
         self._surfaces = MappingProxyType(by_name)
 
