@@ -1,0 +1,428 @@
+"""Validating reader of scenario YAML documents (the format is described in ``scenario.py``).
+
+Every fault becomes a :class:`ScenarioError` naming the file, the dotted key path
+(``objects[1].size``, ``stances.stand.left_sole.surface``) and the line, found by
+composing the YAML node tree once and recording each key's position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import os
+from collections.abc import Mapping
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from .deformable import RESOLUTIONS, DeformableObject, _fem, soft_box
+from .errors import ScenarioError, SceneError, known_names
+from .goal import Goal, GoalRegion
+from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
+from .scene import Scene
+from .stance import Contact, Stance, contact_print_from_dict
+from .surfaces import ContactSurface
+
+__all__ = ["read_scenario_fields"]
+
+
+def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> dict:
+    """Parse and validate a scenario YAML document into the fields of a ``Scenario``.
+
+    Parameters
+    ----------
+    text : str
+        The YAML document.
+    path : str or os.PathLike, optional
+        File it came from (for messages and relative mesh files).
+    name : str, optional
+        Scenario name; default the ``name`` key, else the file stem.
+
+    Returns
+    -------
+    dict
+        Keyword arguments of ``Scenario``.
+
+    Raises
+    ------
+    ScenarioError
+        On a syntax error (with its line) or any invalid entry.
+    """
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+        data = yaml.safe_load(text)
+    except yaml.YAMLError as error:
+        mark = getattr(error, "problem_mark", None)
+        line = None if mark is None else mark.line + 1
+        problem = getattr(error, "problem", None) or str(error)
+        raise ScenarioError(path, "", f"YAML syntax error: {problem}", line=line) from None
+    lines: dict[str, int] = {}
+    if node is not None:
+        _record_lines(node, "", lines)
+    return _Reader(path, lines).scenario_fields(data, name)
+
+
+
+def _record_lines(node: yaml.Node, key: str, lines: dict[str, int]) -> None:
+    """Map each key path of a composed YAML tree to its 1-based line."""
+    lines.setdefault(key, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        for key_node, value_node in node.value:
+            child = f"{key}.{key_node.value}" if key else str(key_node.value)
+            lines[child] = key_node.start_mark.line + 1
+            _record_lines(value_node, child, lines)
+    elif isinstance(node, yaml.SequenceNode):
+        for index, item in enumerate(node.value):
+            _record_lines(item, f"{key}[{index}]", lines)
+
+
+_MISSING = object()
+
+
+class _Reader:
+    """Validating reader of the plain data of one scenario file."""
+
+    def __init__(self, path, lines: dict[str, int]) -> None:
+        self.path = None if path is None else Path(path)
+        self.lines = lines
+
+    # ------------------------------------------------------------------ basics
+    def error(self, key: str, message: str) -> ScenarioError:
+        probe = key
+        while probe not in self.lines and probe:
+            probe = probe.rpartition(".")[0] if "." in probe else ""
+        return ScenarioError(self.path, key, message, line=self.lines.get(probe))
+
+    def mapping(self, value, key: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
+        if not isinstance(value, Mapping):
+            raise self.error(key, f"must be a mapping with keys {', '.join(allowed)}; got {_kind(value)}")
+        for name in value:
+            if name not in allowed:
+                raise self.error(_join(key, name), f"unknown key {name!r}; valid keys: {', '.join(allowed)}")
+        for name in required:
+            if name not in value:
+                raise self.error(key, f"missing key {name!r}")
+        return dict(value)
+
+    def number(self, data: Mapping, name: str, key: str, default=_MISSING, positive=False) -> float:
+        where = _join(key, name)
+        if name not in data:
+            if default is _MISSING:
+                raise self.error(key, f"missing key {name!r}")
+            return default
+        return self.to_number(data[name], where, positive)
+
+    def to_number(self, value, where: str, positive: bool = False) -> float:
+        # YAML 1.1 reads "1e6" (no dot) as a string: accept any string float() reads.
+        if isinstance(value, bool) or not isinstance(value, (int, float, str)):
+            raise self.error(where, f"must be a number, got {_kind(value)}")
+        try:
+            number = float(value)
+        except ValueError:
+            raise self.error(where, f"must be a number, got {value!r}") from None
+        if not math.isfinite(number):
+            raise self.error(where, f"must be finite, got {value!r}")
+        if positive and number <= 0.0:
+            raise self.error(where, f"must be > 0, got {value!r}")
+        return number
+
+    def vector(self, data: Mapping, name: str, key: str, length: int, default=_MISSING, positive=False) -> np.ndarray:
+        where = _join(key, name)
+        if name not in data:
+            if default is _MISSING:
+                raise self.error(key, f"missing key {name!r}")
+            return np.array(default, dtype=float)
+        value = data[name]
+        if not isinstance(value, list) or len(value) != length:
+            raise self.error(where, f"must be a list of {length} numbers, got {_kind(value)}")
+        return np.array([self.to_number(v, f"{where}[{i}]", positive) for i, v in enumerate(value)])
+
+    def string(self, data: Mapping, name: str, key: str, default=_MISSING) -> str:
+        if name not in data:
+            if default is _MISSING:
+                raise self.error(key, f"missing key {name!r}")
+            return default
+        value = data[name]
+        if not isinstance(value, str) or not value:
+            raise self.error(_join(key, name), f"must be a non-empty string, got {_kind(value)}")
+        return value
+
+    def boolean(self, data: Mapping, name: str, key: str, default: bool) -> bool:
+        value = data.get(name, default)
+        if not isinstance(value, bool):
+            raise self.error(_join(key, name), f"must be true or false, got {_kind(value)}")
+        return value
+
+    # ---------------------------------------------------------------- scenario
+    def scenario_fields(self, data, name: str | None) -> dict:
+        top = self.mapping(
+            data if data is not None else {},
+            "",
+            ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options"),
+            required=("objects", "stances"),
+        )
+        default_name = self.path.stem if self.path is not None else "scenario"
+        name = name if name is not None else self.string(top, "name", "", default_name)
+        robot = self.string(top, "robot", "", "talos")
+        description = top.get("description", "")
+        if not isinstance(description, str):
+            raise self.error("description", f"must be text, got {_kind(description)}")
+        scene = self.scene(name, top["objects"], top.get("surfaces", {}))
+        stances_data = top["stances"]
+        if not isinstance(stances_data, Mapping) or not stances_data:
+            raise self.error("stances", f"must be a non-empty mapping of stance names to contacts, got {_kind(stances_data)}")
+        stances = {
+            str(stance_name): self.stance(contacts, f"stances.{stance_name}", scene)
+            for stance_name, contacts in stances_data.items()
+        }
+        start = top.get("start")
+        if start is not None and start not in stances:
+            raise self.error("start", f"unknown stance {start!r}; stances: {known_names(stances)}")
+        goal = None if top.get("goal") is None else self.goal(top["goal"], scene, stances)
+        options = top.get("options", {})
+        if not isinstance(options, Mapping):
+            raise self.error("options", f"must be a mapping, got {_kind(options)}")
+        return dict(
+            name=name,
+            scene=scene,
+            robot=robot,
+            stances=stances,
+            start=start,
+            goal=goal,
+            description=description.strip(),
+            options=dict(options),
+            path=self.path,
+        )
+
+    def scene(self, name: str, objects_data, surfaces_data) -> Scene:
+        if not isinstance(objects_data, list) or not objects_data:
+            raise self.error("objects", f"must be a non-empty list of objects, got {_kind(objects_data)}")
+        rigid: list[RigidObject] = []
+        deformable: list[DeformableObject] = []
+        surfaces: list[ContactSurface] = []
+        names: set[str] = set()
+        for index, item in enumerate(objects_data):
+            key = f"objects[{index}]"
+            if not isinstance(item, Mapping):
+                raise self.error(key, f"must be a mapping with a 'type', got {_kind(item)}")
+            kind = item.get("type")
+            builders = {"floor": self.floor, "box": self.box, "soft_box": self.soft_box, "mesh": self.mesh}
+            if kind not in builders:
+                raise self.error(_join(key, "type"), f"unknown or missing type {kind!r}; valid types: {', '.join(builders)}")
+            try:
+                obj, obj_surfaces = builders[kind](item, key)
+            except ScenarioError:
+                raise
+            except SceneError as error:
+                raise self.error(key, str(error)) from None
+            except ValueError as error:  # fem's errors (bad material, mesh) are ValueErrors
+                raise self.error(key, f"{type(error).__name__}: {error}") from None
+            if obj.name in names:
+                raise self.error(_join(key, "name"), f"repeated object name {obj.name!r}")
+            names.add(obj.name)
+            (deformable if obj.deformable else rigid).append(obj)
+            surfaces.extend(obj_surfaces)
+        surfaces = self.surface_overrides(surfaces_data, surfaces)
+        try:
+            return Scene(name, rigid, deformable, surfaces)
+        except SceneError as error:
+            raise self.error("objects", str(error)) from None
+
+    def surface_overrides(self, data, surfaces: list[ContactSurface]) -> list[ContactSurface]:
+        if not isinstance(data, Mapping):
+            raise self.error("surfaces", f"must be a mapping of surface names to settings, got {_kind(data)}")
+        by_name = {surface.name: surface for surface in surfaces}
+        for surface_name, settings in data.items():
+            key = f"surfaces.{surface_name}"
+            if surface_name not in by_name:
+                raise self.error(key, f"unknown surface {surface_name!r}; known surfaces: {known_names(by_name)}")
+            settings = self.mapping(settings, key, ("friction",))
+            friction = self.number(settings, "friction", key, by_name[surface_name].friction, positive=True)
+            by_name[surface_name] = dataclasses.replace(by_name[surface_name], friction=friction)
+        return [by_name[surface.name] for surface in surfaces]
+
+    def floor(self, item: Mapping, key: str):
+        item = self.mapping(item, key, ("name", "type", "size", "friction"))
+        name = self.string(item, "name", key, "floor")
+        obj = floor(name, self.vector(item, "size", key, 2, (10.0, 10.0), positive=True))
+        friction = self.number(item, "friction", key, DEFAULT_FRICTION, positive=True)
+        return obj, box_surfaces(obj, friction, top_name=name)
+
+    def box(self, item: Mapping, key: str):
+        item = self.mapping(
+            item, key, ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"), ("name", "size", "center")
+        )
+        name = self.string(item, "name", key)
+        obj = box(
+            name,
+            self.vector(item, "size", key, 3, positive=True),
+            self.vector(item, "center", key, 3),
+            math.radians(self.number(item, "yaw_deg", key, 0.0)),
+        )
+        friction = self.number(item, "friction", key, DEFAULT_FRICTION, positive=True)
+        return obj, box_surfaces(obj, friction, sides=self.boolean(item, "side_surfaces", key, False))
+
+    def soft_box(self, item: Mapping, key: str):
+        item = self.mapping(
+            item,
+            key,
+            ("name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction"),
+            ("name", "size", "center", "material"),
+        )
+        name = self.string(item, "name", key)
+        material_key = _join(key, "material")
+        material_data = self.mapping(item["material"], material_key, ("E", "nu", "rho"), ("E", "nu"))
+        resolution = item.get("resolution", "default")
+        if isinstance(resolution, str):
+            if resolution not in RESOLUTIONS:
+                raise self.error(
+                    _join(key, "resolution"),
+                    f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres",
+                )
+        else:
+            resolution = self.to_number(resolution, _join(key, "resolution"), positive=True)
+        refine = item.get("refine")
+        if refine is not None:
+            if not (isinstance(refine, list) and len(refine) == 2 and all(isinstance(r, list) and len(r) == 2 for r in refine)):
+                raise self.error(_join(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
+            refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
+        fem = _fem()
+        try:
+            material = fem.LinearElasticMaterial(
+                young_modulus=self.number(material_data, "E", material_key, positive=True),
+                poisson_ratio=self.number(material_data, "nu", material_key),
+                density=self.number(material_data, "rho", material_key, 0.0),
+            )
+        except ScenarioError:
+            raise
+        except ValueError as error:
+            raise self.error(material_key, str(error)) from None
+        obj, top = soft_box(
+            name,
+            self.vector(item, "size", key, 3, positive=True),
+            self.vector(item, "center", key, 3),
+            material,
+            resolution=resolution,
+            refine=refine,
+            yaw=math.radians(self.number(item, "yaw_deg", key, 0.0)),
+            friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
+        )
+        return obj, [top]
+
+    def mesh(self, item: Mapping, key: str):
+        item = self.mapping(item, key, ("name", "type", "file", "center", "yaw_deg", "surfaces"), ("name", "file"))
+        name = self.string(item, "name", key)
+        file_name = self.string(item, "file", key)
+        base = self.path.parent if self.path is not None else Path.cwd()
+        file_path = (base / file_name).resolve()
+        if not file_path.is_file():
+            raise self.error(_join(key, "file"), f"mesh file not found: {file_path}")
+        obj = mesh_object(
+            name,
+            str(file_path),
+            self.vector(item, "center", key, 3, (0.0, 0.0, 0.0)),
+            math.radians(self.number(item, "yaw_deg", key, 0.0)),
+        )
+        surfaces_data = item.get("surfaces", [])
+        if not isinstance(surfaces_data, list):
+            raise self.error(_join(key, "surfaces"), f"must be a list of surfaces, got {_kind(surfaces_data)}")
+        surfaces = []
+        for index, surface_item in enumerate(surfaces_data):
+            surface_key = f"{key}.surfaces[{index}]"
+            surface_item = self.mapping(
+                surface_item, surface_key, ("name", "polygon", "origin", "rpy_deg", "friction"), ("name", "polygon")
+            )
+            polygon = surface_item["polygon"]
+            if not isinstance(polygon, list) or not all(isinstance(p, list) and len(p) == 2 for p in polygon):
+                raise self.error(_join(surface_key, "polygon"), "must be a list of [x, y] vertices, counter-clockwise")
+            polygon = [[self.to_number(v, f"{surface_key}.polygon[{i}]") for v in p] for i, p in enumerate(polygon)]
+            rpy = np.radians(self.vector(surface_item, "rpy_deg", surface_key, 3, (0.0, 0.0, 0.0)))
+            transform_surface_to_object = np.eye(4)
+            transform_surface_to_object[:3, :3] = rpy_rotation(*rpy)
+            transform_surface_to_object[:3, 3] = self.vector(surface_item, "origin", surface_key, 3, (0.0, 0.0, 0.0))
+            try:
+                surfaces.append(
+                    surface_from_pose(
+                        self.string(surface_item, "name", surface_key),
+                        name,
+                        polygon,
+                        transform_surface_to_object,
+                        obj.transform_object_to_world,
+                        self.number(surface_item, "friction", surface_key, DEFAULT_FRICTION, positive=True),
+                    )
+                )
+            except ScenarioError:
+                raise
+            except SceneError as error:
+                raise self.error(surface_key, str(error)) from None
+        return obj, surfaces
+
+    # ------------------------------------------------------------------ stances
+    def contacts(self, data, key: str, scene: Scene) -> tuple[Contact, ...]:
+        if not isinstance(data, Mapping) or not data:
+            raise self.error(key, f"must be a non-empty mapping robot_surface -> {{surface, x, y, theta_deg}}, got {_kind(data)}")
+        contacts = []
+        for robot_surface, print_data in data.items():
+            print_key = f"{key}.{robot_surface}"
+            print_data = self.mapping(print_data, print_key, ("surface", "x", "y", "theta", "theta_deg"), ("surface",))
+            surface_name = print_data["surface"]
+            if surface_name not in scene.surfaces:
+                raise self.error(
+                    _join(print_key, "surface"),
+                    f"unknown surface {surface_name!r}; known surfaces: {known_names(scene.surfaces)}",
+                )
+            for name in ("x", "y", "theta", "theta_deg"):
+                if name in print_data:
+                    self.to_number(print_data[name], _join(print_key, name))
+            try:
+                contact_print = contact_print_from_dict(str(robot_surface), print_data)
+                scene.check_print(contact_print)
+            except SceneError as error:
+                raise self.error(print_key, str(error)) from None
+            contacts.append(Contact(str(robot_surface), contact_print))
+        return tuple(contacts)
+
+    def stance(self, data, key: str, scene: Scene) -> Stance:
+        return Stance(self.contacts(data, key, scene))
+
+    def goal(self, data, scene: Scene, stances: dict[str, Stance]) -> Goal:
+        data = self.mapping(data, "goal", ("contacts", "stance", "regions"))
+        if "contacts" in data and "stance" in data:
+            raise self.error("goal", "give 'contacts' or 'stance', not both")
+        contacts: tuple[Contact, ...] = ()
+        if "contacts" in data:
+            contacts = self.contacts(data["contacts"], "goal.contacts", scene)
+        if "stance" in data:
+            stance_name = data["stance"]
+            if stance_name not in stances:
+                raise self.error("goal.stance", f"unknown stance {stance_name!r}; stances: {known_names(stances)}")
+            contacts = stances[stance_name].contacts
+        regions_data = data.get("regions", [])
+        if not isinstance(regions_data, list):
+            raise self.error("goal.regions", f"must be a list, got {_kind(regions_data)}")
+        regions = []
+        for index, item in enumerate(regions_data):
+            key = f"goal.regions[{index}]"
+            item = self.mapping(item, key, ("robot_surface", "lower", "upper"), ("robot_surface", "lower", "upper"))
+            lower, upper = self.vector(item, "lower", key, 2), self.vector(item, "upper", key, 2)
+            if np.any(lower > upper):
+                raise self.error(key, f"lower {lower.tolist()} must be <= upper {upper.tolist()}")
+            regions.append(GoalRegion(self.string(item, "robot_surface", key), lower, upper))
+        if not contacts and not regions:
+            raise self.error("goal", "needs 'contacts', 'stance' or 'regions'")
+        return Goal(contacts, tuple(regions))
+
+
+def _join(key: str, name) -> str:
+    return f"{key}.{name}" if key else str(name)
+
+
+def _kind(value) -> str:
+    if value is None:
+        return "nothing"
+    if isinstance(value, Mapping):
+        return "a mapping"
+    if isinstance(value, list):
+        return f"a list of {len(value)}"
+    return f"{type(value).__name__} {value!r}"
