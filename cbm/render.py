@@ -1,0 +1,132 @@
+"""Pictures of stances: matplotlib 3D, Agg backend, one PNG per stance."""
+
+from __future__ import annotations
+
+import logging
+
+import matplotlib
+
+matplotlib.use("Agg")  # files only: never open a window, work without a display
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from matplotlib import cm, colors  # noqa: E402
+from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
+
+__all__ = ["render_stance", "force_scale"]
+
+logger = logging.getLogger(__name__)
+
+_CONTACT_COLOURS = {"left_sole": "tab:blue", "right_sole": "tab:red", "left_palm": "tab:cyan", "right_palm": "tab:orange"}
+
+
+def force_scale(displays, length=0.4):
+    """Metres of arrow per newton so that the largest resultant is ``length`` long.
+
+    Parameters
+    ----------
+    displays : sequence of StanceDisplay
+    length : float
+        Arrow length of the largest force, metres.
+
+    Returns
+    -------
+    float
+        Metres per newton (1e-3 if there is no force at all).
+    """
+    largest = max((np.linalg.norm(d.forces, axis=1).max() for d in displays if len(d.forces)), default=0.0)
+    return length / largest if largest > 0 else 1e-3
+
+
+def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_displacement=None):
+    """Draw one stance and save it as a PNG.
+
+    Parameters
+    ----------
+    display : StanceDisplay
+        What to draw.
+    path : path-like
+        Output file.
+    edges : dict of str to (e, 2, 3) float, optional
+        Scene wireframes, world frame.
+    bounds : (2, 3) float, optional
+        World box to show, metres.
+    scale : float
+        Arrow metres per newton.
+    max_displacement : float, optional
+        Top of the colour scale, metres (shared by a plan's pictures).
+    """
+    figure = plt.figure(figsize=(8, 7), dpi=90)
+    axes = figure.add_subplot(projection="3d")
+    for name, lines in (edges or {}).items():
+        axes.add_collection3d(Line3DCollection(lines, colors="0.55", linewidths=0.8))
+    mappable = None
+    top = max_displacement
+    if top is None:
+        top = max((d.magnitude.max() for d in display.deformables if len(d.magnitude)), default=0.0)
+    norm = colors.Normalize(0.0, max(top, 1e-9) * 1e3)
+    colormap = plt.get_cmap("viridis")
+    for deformable in display.deformables:
+        face_values = deformable.magnitude[deformable.triangles].mean(axis=1) * 1e3
+        faces = Poly3DCollection(
+            deformable.vertices[deformable.triangles],
+            facecolors=colormap(norm(face_values)),
+            edgecolors="none",
+            alpha=0.9,
+        )
+        axes.add_collection3d(faces)
+        mappable = cm.ScalarMappable(norm=norm, cmap=colormap)
+    axes.add_collection3d(Line3DCollection(display.segments, colors="k", linewidths=2.0))
+    joints = display.segments.reshape(-1, 3)
+    axes.scatter(joints[:, 0], joints[:, 1], joints[:, 2], s=4, c="k", depthshade=False)
+    for robot_surface, polygon in display.polygons.items():
+        colour = _CONTACT_COLOURS.get(robot_surface, "tab:green")
+        patch = Poly3DCollection([polygon], facecolors=colour, edgecolors=colour, alpha=0.6)
+        axes.add_collection3d(patch)
+        axes.plot([], [], color=colour, linewidth=6, label=robot_surface)
+    if len(display.forces):
+        arrows = display.forces * scale
+        axes.quiver(
+            display.force_points[:, 0],
+            display.force_points[:, 1],
+            display.force_points[:, 2],
+            arrows[:, 0],
+            arrows[:, 1],
+            arrows[:, 2],
+            color="tab:purple",
+            linewidth=1.5,
+            arrow_length_ratio=0.15,
+        )
+        reference = _round_force(0.25 / scale)
+        axes.plot([], [], color="tab:purple", label=f"contact force (arrow {reference * scale:.2f} m = {reference:g} N)")
+    if bounds is not None:
+        _equal_axes(axes, bounds)
+    axes.set_xlabel("x (m)")
+    axes.set_ylabel("y (m)")
+    axes.set_zlabel("z (m)")
+    axes.set_title(display.label, fontsize=10)
+    axes.legend(loc="upper left", fontsize=8)
+    axes.view_init(elev=18, azim=-60)
+    if mappable is not None:
+        colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
+        colorbar.set_label("displacement (mm)")
+    figure.savefig(path)
+    plt.close(figure)
+    logger.debug("picture written to %s", path)
+    return path
+
+
+def _round_force(value):
+    """A round number of newtons near ``value`` for the legend."""
+    magnitude = 10 ** np.floor(np.log10(max(value, 1e-9)))
+    return float(np.round(value / magnitude) * magnitude)
+
+
+def _equal_axes(axes, bounds):
+    bounds = np.asarray(bounds, dtype=float)
+    centre = bounds.mean(axis=0)
+    half = 0.5 * np.max(bounds[1] - bounds[0])
+    axes.set_xlim(centre[0] - half, centre[0] + half)
+    axes.set_ylim(centre[1] - half, centre[1] + half)
+    axes.set_zlim(max(centre[2] - half, bounds[0][2]), max(centre[2] - half, bounds[0][2]) + 2 * half)
+    axes.set_box_aspect((1, 1, 1))
