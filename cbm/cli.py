@@ -1,0 +1,215 @@
+"""Command line: ``cbm plan``, ``cbm scenarios``, ``cbm check``.
+
+Exit codes: 0 success, 1 no plan found or stance infeasible, 2 bad input.
+"""
+
+from __future__ import annotations
+
+import argparse
+import logging
+import sys
+from pathlib import Path
+
+__all__ = ["main", "build_parser", "DEFAULT_SCENARIO", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT"]
+
+#: Scenario planned when ``cbm plan`` is given none.
+DEFAULT_SCENARIO = "cross-soft-block"
+
+EXIT_OK = 0
+EXIT_FAILED = 1
+EXIT_BAD_INPUT = 2
+
+logger = logging.getLogger("cbm")
+
+
+class _Parser(argparse.ArgumentParser):
+    """An argparse parser that raises instead of exiting, so main() returns codes."""
+
+    def error(self, message):
+        raise _UsageError(f"{self.prog}: {message}")
+
+
+class _UsageError(Exception):
+    pass
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a number, got {text!r}") from None
+    if not value > 0:
+        raise argparse.ArgumentTypeError(f"expected a positive number, got {text!r}")
+    return value
+
+
+def _non_negative_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"expected a non-negative integer, got {text!r}")
+    return value
+
+
+def build_parser():
+    """The argument parser of ``cbm``."""
+    parser = _Parser(prog="cbm", description="Contact-before-motion planning for Talos on rigid and soft supports.")
+    commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
+    commands.required = True
+
+    plan = commands.add_parser("plan", help="plan a sequence of stances and write the results")
+    plan.add_argument(
+        "scenario",
+        nargs="?",
+        default=DEFAULT_SCENARIO,
+        metavar="SCENARIO",
+        help=f"built-in scenario name or scenario file (default: {DEFAULT_SCENARIO})",
+    )
+    plan.add_argument("--out", type=Path, default=Path("cbm-out"), help="output directory (default: cbm-out)")
+    plan.add_argument("--max-expansions", type=_non_negative_int, default=200, help="stances expanded at most")
+    plan.add_argument("--time-limit", type=_positive_float, default=300.0, help="seconds of search at most")
+    plan.add_argument("--seed", type=int, default=0, help="seed of the tie-breaking shuffle")
+    plan.add_argument("--print-spacing", type=_positive_float, default=None, help="print grid step, metres")
+    plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
+    plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
+
+    commands.add_parser("scenarios", help="list the built-in scenarios")
+
+    check = commands.add_parser("check", help="solve one stance of a scenario")
+    check.add_argument("scenario", metavar="SCENARIO", help="built-in scenario name or scenario file")
+    check.add_argument("--stance", required=True, help="name of the stance in the scenario")
+    check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
+    check.add_argument("--quiet", action="store_true", help="warnings only")
+    return parser
+
+
+def main(argv=None):
+    """Run the command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name; default ``sys.argv[1:]``.
+
+    Returns
+    -------
+    int
+        0 success, 1 no plan / infeasible, 2 bad input.
+    """
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except _UsageError as error:
+        print(error, file=sys.stderr)
+        parser.print_usage(sys.stderr)
+        return EXIT_BAD_INPUT
+    except SystemExit as exit_:  # --help
+        return int(exit_.code or 0)
+    logging.basicConfig(
+        level=logging.WARNING if getattr(args, "quiet", False) else logging.INFO,
+        format="%(levelname)s %(name)s: %(message)s",
+    )
+    try:
+        if args.command == "scenarios":
+            return _scenarios()
+        if args.command == "plan":
+            return _plan(args)
+        return _check(args)
+    except ValueError as error:  # every package's bad-input errors derive from ValueError
+        print(f"cbm {args.command}: error: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+
+
+def _scenarios():
+    import environments
+
+    for name in environments.scenario_names():
+        scenario = environments.load(name)
+        description = " ".join(str(scenario.description).split())
+        print(f"{name}\n    {description}")
+    return EXIT_OK
+
+
+def _plan(args):
+    import stances
+
+    from .output import write_outputs
+    from .planner import load_scenario, plan
+
+    scenario = load_scenario(args.scenario)
+    robot = stances.Robot.load(scenario.robot)
+    result = plan(
+        scenario,
+        robot=robot,
+        print_spacing=args.print_spacing,
+        max_expansions=args.max_expansions,
+        time_limit=args.time_limit,
+        seed=args.seed,
+        progress=not args.quiet,
+    )
+    files = write_outputs(result, scenario, robot, args.out, pictures=not args.no_pictures)
+    s = result.statistics
+    outcome = "plan found" if result.success else f"no plan: {result.reason}"
+    print(f"{scenario.name}: {outcome}; {len(result.stances)} stances")
+    print(
+        f"  {s.expanded} stances expanded, {s.solver_calls} solver calls, "
+        f"{s.cache_hits} cache hits, {s.time:.1f} s"
+    )
+    for index, planned in enumerate(result.stances):
+        print(f"  {index}: {planned.move or 'start'}")
+    print(f"  written to {args.out}: {len(files.all())} files, viewer {files.viewer}")
+    return EXIT_OK if result.success else EXIT_FAILED
+
+
+def _check(args):
+    import stances
+
+    from .planner import PostureOracle, load_scenario
+
+    scenario = load_scenario(args.scenario)
+    if args.stance not in scenario.stances:
+        names = ", ".join(sorted(scenario.stances)) or "(none)"
+        print(
+            f"cbm check: error: scenario {scenario.name!r} has no stance {args.stance!r}; stances: {names}",
+            file=sys.stderr,
+        )
+        return EXIT_BAD_INPUT
+    robot = stances.Robot.load(scenario.robot)
+    stance = scenario.stances[args.stance]
+    check = PostureOracle(robot, scenario.scene)(stance)
+    result = check.result
+    if result is None:
+        print(f"{scenario.name} / {args.stance}: infeasible: {check.reason}")
+        return EXIT_FAILED
+    verdict = "feasible" if check.feasible else f"infeasible: {check.reason}"
+    print(f"{scenario.name} / {args.stance}: {verdict}")
+    print(f"  {result.iterations} iterations, {result.solve_time:.2f} s")
+    if args.out is not None:
+        path = _check_picture(scenario, robot, stance, result, args)
+        print(f"  picture written to {path}")
+    return EXIT_OK if check.feasible else EXIT_FAILED
+
+
+def _check_picture(scenario, robot, stance, result, args):
+    from .display import plan_bounds, scene_edges, stance_display
+    from .plan import PlannedStance
+    from .render import force_scale, render_stance
+
+    planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
+    display = stance_display(planned, scenario.scene, robot, f"{scenario.name}: {args.stance}")
+    bounds = plan_bounds([display])
+    args.out.mkdir(parents=True, exist_ok=True)
+    path = args.out / f"{args.stance}.png"
+    render_stance(
+        display, path, edges=scene_edges(scenario.scene, bounds), bounds=bounds, scale=force_scale([display])
+    )
+    for obj in scenario.scene.deformable_objects:
+        if obj.name in result.deformations:
+            obj.body.write_vtu(args.out / f"{args.stance}_{obj.name}.vtu", result.deformations[obj.name])
+    return path
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())
