@@ -300,17 +300,22 @@ class Plan:
         import environments
         import stances
 
+        from .planner import posture_api
+
         if scenario is None:
             scenario = environments.load(self.scenario_name)
         if robot is None:
             robot = stances.Robot.load(scenario.robot)
+        verify = None
         problems = []
         for index, planned in enumerate(self.stances):
             result = planned.result
             if result is None or isinstance(result, dict):
                 problems.append(f"stance {index}: no solver result to verify")
                 continue
-            verification = stances.verify(robot, scenario.scene, planned.stance, result)
+            if verify is None:
+                verify = posture_api()[1]
+            verification = verify(robot, scenario.scene, planned.stance, result)
             if not verification.ok:
                 problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):

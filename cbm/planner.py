@@ -76,6 +76,22 @@ class StanceCheck:
     result: Any = None
 
 
+def posture_api():
+    """``(solve, verify)`` of :mod:`stances`.
+
+    Taken from the package's public names, or from the modules defining them
+    while the package does not re-export them yet.
+    """
+    import stances
+
+    solve = getattr(stances, "solve", None)
+    verify = getattr(stances, "verify", None)
+    if solve is None or verify is None or not callable(verify):
+        from stances.sqp import solve
+        from stances.verify import verify
+    return solve, verify
+
+
 class PostureOracle:
     """Feasibility oracle: posture solve warm-started from the parent, then verify.
 
@@ -94,13 +110,12 @@ class PostureOracle:
 
     def __call__(self, stance, parent=None, parent_check=None):
         """Check one stance; ``parent_check`` gives the warm start."""
-        import stances
-
+        solve, verify = posture_api()
         q_init = None
         if parent_check is not None and parent_check.result is not None:
             q_init = parent_check.result.q
         try:
-            result = stances.solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
+            result = solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
         except ValueError as error:
             # Bad stance for this scene (e.g. a print covering too few FEM
             # nodes): an infeasible stance for the search, not a crash.
@@ -110,7 +125,7 @@ class PostureOracle:
             return StanceCheck(False, str(result.reason), result)
         verification = getattr(result, "verification", None)
         if verification is None:
-            verification = stances.verify(self.robot, self.scene, stance, result)
+            verification = verify(self.robot, self.scene, stance, result)
         if not verification.ok:
             return StanceCheck(False, "verification failed: " + "; ".join(map(str, verification.reasons)), result)
         return StanceCheck(True, "", result)

@@ -32,6 +32,11 @@ __all__ = [
 ]
 
 
+# Metres: prints sit on grids, so limits are often met exactly; float noise
+# must not decide.
+_EPS = 1e-9
+
+
 @dataclass(frozen=True)
 class SamplingOptions:
     """How prints are sampled.
@@ -89,10 +94,13 @@ class ReachLimits:
     ----------
     max_step_length : float
         Largest horizontal distance between the two sole prints (leg ~0.9 m).
-    min_sole_separation : float
+    min_sole_lateral : float
         Smallest lateral offset of one sole from the other, measured along the
-        other sole's y axis, with the left sole on the left: keeps the feet
-        from overlapping or crossing.
+        other sole's y axis, the left sole on the left: the legs never cross.
+    sole_clearance_length, sole_clearance_width : float
+        The soles must not overlap: in the other sole's frame, the offset is at
+        least this long forward/backward or this wide sideways (Talos's sole
+        is 0.21 m x 0.13 m).
     max_step_height : float
         Largest height difference between the two sole prints.
     max_sole_yaw_difference : float
@@ -106,7 +114,9 @@ class ReachLimits:
     """
 
     max_step_length: float = 0.4
-    min_sole_separation: float = 0.14
+    min_sole_lateral: float = 0.05
+    sole_clearance_length: float = 0.22
+    sole_clearance_width: float = 0.14
     max_step_height: float = 0.3
     max_sole_yaw_difference: float = math.radians(45.0)
     shoulder_height: float = 1.35
@@ -351,7 +361,7 @@ def reachable_mask(print_set, contacts_in_world, limits=ReachLimits()):
     -------
     (n,) bool
         For a sole: within a step of the other sole (length, height, yaw, on
-        its own side), and every palm in contact still within arm reach of the
+        its own side, not overlapping it), and every palm in contact still within arm reach of the
         shoulders above the new pair of soles. For a palm: within arm reach of
         its shoulder above the soles. Without any sole in contact, nothing is
         reachable.
@@ -368,29 +378,33 @@ def reachable_mask(print_set, contacts_in_world, limits=ReachLimits()):
     if surface_kind(adding) == "sole":
         other_origin, other_x = next(iter(soles.values()))
         delta = origins - other_origin
-        mask &= np.hypot(delta[:, 0], delta[:, 1]) <= limits.max_step_length
-        mask &= np.abs(delta[:, 2]) <= limits.max_step_height
+        mask &= np.hypot(delta[:, 0], delta[:, 1]) <= limits.max_step_length + _EPS
+        mask &= np.abs(delta[:, 2]) <= limits.max_step_height + _EPS
         cos_yaw = _horizontal_cosine(x_axes, other_x)
-        mask &= cos_yaw >= math.cos(limits.max_sole_yaw_difference)
+        mask &= cos_yaw >= math.cos(limits.max_sole_yaw_difference) - _EPS
         other_left = np.array([-other_x[1], other_x[0], 0.0])
         other_left /= max(np.linalg.norm(other_left), 1e-9)
         lateral = delta @ other_left
+        forward = delta @ (other_x * np.array([1.0, 1.0, 0.0])) / max(np.linalg.norm(other_x[:2]), 1e-9)
         if side == "left":
-            mask &= lateral >= limits.min_sole_separation
+            mask &= lateral >= limits.min_sole_lateral - _EPS
         elif side == "right":
-            mask &= lateral <= -limits.min_sole_separation
+            mask &= lateral <= -limits.min_sole_lateral + _EPS
+        mask &= (np.abs(forward) >= limits.sole_clearance_length - _EPS) | (
+            np.abs(lateral) >= limits.sole_clearance_width - _EPS
+        )
         sole_origins = np.stack([origins, np.broadcast_to(other_origin, origins.shape)], axis=1)
         sole_x_axes = np.stack([x_axes, np.broadcast_to(other_x, x_axes.shape)], axis=1)
         left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
         for palm, (palm_origin, _) in palms.items():
             shoulder = right if surface_side(palm) == "right" else left
-            mask &= np.linalg.norm(shoulder - palm_origin, axis=1) <= limits.arm_reach
+            mask &= np.linalg.norm(shoulder - palm_origin, axis=1) <= limits.arm_reach + _EPS
     else:
         sole_origins = np.array([v[0] for v in soles.values()])
         sole_x_axes = np.array([v[1] for v in soles.values()])
         left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
         shoulder = right if side == "right" else left
-        mask &= np.linalg.norm(origins - shoulder, axis=1) <= limits.arm_reach
+        mask &= np.linalg.norm(origins - shoulder, axis=1) <= limits.arm_reach + _EPS
     return mask
 
 

@@ -96,14 +96,17 @@ def test_pruning_keeps_a_sole_within_a_step_on_its_own_side(surfaces):
     mask = reachable_mask(candidates, placed, limits)
     assert 0 < mask.sum() < len(mask)
     right = placed["right_sole"][0]
-    kept = candidates.origins_in_world[mask]
-    dropped = candidates.origins_in_world[~mask]
-    assert np.all(np.linalg.norm((kept - right)[:, :2], axis=1) <= limits.max_step_length + 1e-12)
-    assert np.all(kept[:, 1] - right[1] >= limits.min_sole_separation - 1e-12)
-    # Everything dropped breaks one of the two rules.
-    far = np.linalg.norm((dropped - right)[:, :2], axis=1) > limits.max_step_length
-    wrong_side = dropped[:, 1] - right[1] < limits.min_sole_separation
-    assert np.all(far | wrong_side)
+    delta = candidates.origins_in_world - right  # the right sole points along world x
+    step = np.linalg.norm(delta[:, :2], axis=1) <= limits.max_step_length + 1e-12
+    own_side = delta[:, 1] >= limits.min_sole_lateral - 1e-12
+    apart = (np.abs(delta[:, 0]) >= limits.sole_clearance_length - 1e-12) | (
+        np.abs(delta[:, 1]) >= limits.sole_clearance_width - 1e-12
+    )
+    np.testing.assert_array_equal(mask, step & own_side & apart)
+    # The rule is not vacuous: a sole just ahead and slightly left is kept,
+    # one overlapping the right sole is not.
+    index = {(round(p.x, 3), round(p.y, 3)): i for i, p in enumerate(candidates.prints)}
+    assert mask[index[(0.3, 0.0)]] and not mask[index[(0.1, 0.0)]] and not mask[index[(0.0, -0.2)]]
 
 
 def test_pruning_keeps_palms_within_arm_reach_of_the_shoulder(surfaces):
