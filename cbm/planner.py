@@ -12,6 +12,8 @@ import logging
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics
 from .sampling import ReachLimits, obstacle_boxes, options_from_scenario, sample_prints, surface_kind
@@ -24,6 +26,7 @@ __all__ = [
     "StanceCheck",
     "PostureOracle",
     "LookaheadHeuristic",
+    "initial_configuration",
     "DEFAULT_PATH_COST",
 ]
 
@@ -101,19 +104,36 @@ class PostureOracle:
     scene : environments Scene
     solver_options : dict, optional
         Keyword arguments of ``stances.solve``.
+    retry_cold : bool
+        If the warm-started solve fails, solve once more from
+        :func:`initial_configuration` (the parent's posture can be a poor
+        start, e.g. straddling a step when one foot is lifted).
     """
 
-    def __init__(self, robot, scene, solver_options=None):
+    def __init__(self, robot, scene, solver_options=None, retry_cold=True):
         self.robot = robot
         self.scene = scene
         self.solver_options = dict(solver_options or {})
+        self.retry_cold = retry_cold
+        self.solves = 0  # posture solves, retries included
 
     def __call__(self, stance, parent=None, parent_check=None):
         """Check one stance; ``parent_check`` gives the warm start."""
-        solve, verify = posture_api()
-        q_init = None
+        starts = []
         if parent_check is not None and parent_check.result is not None:
-            q_init = parent_check.result.q
+            starts.append(parent_check.result.q)
+        if self.retry_cold or not starts:
+            starts.append(initial_configuration(self.robot, self.scene, stance))
+        check = None
+        for q_init in starts:
+            check = self._solve(stance, q_init)
+            if check.feasible:
+                break
+        return check
+
+    def _solve(self, stance, q_init):
+        solve, verify = posture_api()
+        self.solves += 1
         try:
             result = solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
         except ValueError as error:
@@ -343,3 +363,44 @@ def plan(
         time=s.time,
     )
     return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name)
+
+
+def initial_configuration(robot, scene, stance):
+    """A cold-start posture: the reference posture moved over the stance's soles.
+
+    Parameters
+    ----------
+    robot : stances Robot
+    scene : environments Scene
+    stance : environments Stance
+
+    Returns
+    -------
+    (nq,) float
+        ``robot.reference_configuration`` with its free flyer translated so
+        that the mid-point of its soles lies over the mid-point of the
+        stance's sole prints (or of all prints without a sole) and turned to
+        their mean heading about world z.
+    """
+    import pinocchio as pin
+
+    q = np.array(robot.reference_configuration, dtype=float)
+    model = robot.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, q)
+    soles = [name for name in robot.surfaces if surface_kind(name) == "sole"]
+    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in soles], axis=0)
+    contacts = [c for c in stance if surface_kind(c.robot_surface) == "sole"] or list(stance)
+    if not contacts:
+        return q
+    transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]
+    target = np.mean([t[:3, 3] for t in transforms], axis=0)
+    heading = np.mean([t[:3, 0] for t in transforms], axis=0)
+    yaw = float(np.arctan2(heading[1], heading[0])) if np.linalg.norm(heading[:2]) > 1e-9 else 0.0
+    rotation = pin.utils.rotate("z", yaw)
+    base = pin.XYZQUATToSE3(q[:7])
+    offset = base.translation - reference_feet
+    base.translation = target + rotation @ offset
+    base.rotation = rotation @ base.rotation
+    q[:7] = pin.SE3ToXYZQUAT(base)
+    return q
