@@ -1,0 +1,91 @@
+"""End to end with the real posture solver: planning the built-in multi-step scenarios, the CLI."""
+
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+import environments
+
+from cbm.cli import main
+from cbm.plan import Plan
+from cbm.planner import plan
+from cbm.stance_graph import differ_by_one_contact
+
+try:
+    from cbm.planner import posture_api
+
+    posture_api()
+    SOLVER_MISSING = None
+except ImportError as error:  # the posture solver of `stances` is not there yet
+    SOLVER_MISSING = f"stances cannot solve postures yet: {error}"
+
+pytestmark = pytest.mark.skipif(SOLVER_MISSING is not None, reason=str(SOLVER_MISSING))
+
+MULTI_STEP = ["cross-soft-block", "climb-with-soft-support"]
+# Coarse settings: the scenarios' own print grids, a tight expansion budget, and
+# the solver's iteration cap lowered (a converging solve takes < 30 iterations
+# on these stances; a failing one otherwise spends 100 before it gives up).
+COARSE = {"max_expansions": 40, "time_limit": 240.0, "solver_options": {"max_iterations": 40}}
+
+
+@pytest.fixture(scope="module", params=MULTI_STEP)
+def planned(request):
+    scenario = environments.load(request.param)
+    return scenario, plan(scenario, **COARSE)
+
+
+def test_multi_step_scenario_plans_with_verified_stances(planned):
+    scenario, result = planned
+    assert result.success, result.reason
+    assert len(result.stances) >= 4
+    assert result.stances[0].stance == scenario.start_stance
+    assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
+    for before, after in zip(result.stances, result.stances[1:]):
+        assert differ_by_one_contact(before.stance, after.stance)
+    report = result.check(scenario)
+    assert report.ok, report.problems
+    assert result.statistics.solver_calls <= 40 * 50
+
+
+def test_planned_stances_survive_the_json_round_trip_and_still_verify(planned, tmp_path):
+    scenario, result = planned
+    loaded = Plan.load(result.save(tmp_path / "plan.json"))
+    assert loaded.to_dict() == result.to_dict()
+    report = loaded.check(scenario)
+    assert report.ok, report.problems
+
+
+def test_cli_plan_writes_every_file(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["plan", "cross-soft-block", "--out", str(out), "--quiet", "--max-expansions", "40"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    loaded = Plan.load(out / "plan.json")
+    count = len(loaded.stances)
+    expected = {"plan.json", "viewer.html"}
+    expected |= {f"stance_{i:02d}.png" for i in range(count)}
+    expected |= {f"stance_{i:02d}_foam.vtu" for i in range(count)}
+    assert {p.name for p in out.iterdir()} == expected
+    assert "plan found" in printed
+
+
+def test_cli_check_reports_a_feasible_stance_and_draws_it(tmp_path, capsys):
+    code = main(["check", "cross-soft-block", "--stance", "right-on-foam", "--out", str(tmp_path)])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    assert "feasible" in printed and "iterations" in printed
+    assert (tmp_path / "right-on-foam.png").stat().st_size > 0
+
+
+def test_cli_runs_as_a_separate_process(tmp_path):
+    script = Path(sys.executable).with_name("cbm")
+    command = [str(script)] if script.exists() else [sys.executable, "-m", "cbm"]
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    listed = subprocess.run(command + ["scenarios"], capture_output=True, text=True, timeout=120, env=env)
+    assert listed.returncode == 0 and "cross-soft-block" in listed.stdout
+    bad = subprocess.run(command + ["plan", "nowhere"], capture_output=True, text=True, timeout=120, env=env)
+    assert bad.returncode == 2 and "cross-soft-block" in bad.stderr
