@@ -1,14 +1,46 @@
-"""Contact-before-motion planning for a humanoid over rigid and deformable supports."""
+"""Contact-before-motion planning for a humanoid over rigid and deformable supports.
+
+Examples
+--------
+>>> import cbm
+>>> plan = cbm.plan("cross-soft-block", max_expansions=40)  # doctest: +SKIP
+>>> plan.success, len(plan.stances)  # doctest: +SKIP
+(True, 10)
+"""
 
 from .errors import CbmError, PlanFileError, UnknownScenario
+from .output import OutputFiles, write_outputs
+from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
+from .planner import LookaheadHeuristic, PostureOracle, StanceCheck, initial_configuration, load_scenario, plan
+from .sampling import PrintSet, ReachLimits, SamplingOptions, sample_prints
 from .search import SearchLimits, SearchResult, SearchStatistics, best_first_search
+from .stance_graph import Move, StanceNeighbours, differ_by_one_contact
 
 __all__ = [
     "CbmError",
+    "LookaheadHeuristic",
+    "Move",
+    "OutputFiles",
+    "Plan",
+    "PlanCheck",
     "PlanFileError",
-    "UnknownScenario",
+    "PlanStatistics",
+    "PlannedStance",
+    "PostureOracle",
+    "PrintSet",
+    "ReachLimits",
+    "SamplingOptions",
     "SearchLimits",
     "SearchResult",
     "SearchStatistics",
+    "StanceCheck",
+    "StanceNeighbours",
+    "UnknownScenario",
     "best_first_search",
+    "differ_by_one_contact",
+    "initial_configuration",
+    "load_scenario",
+    "plan",
+    "sample_prints",
+    "write_outputs",
 ]

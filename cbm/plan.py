@@ -11,11 +11,12 @@ from typing import Any
 import numpy as np
 
 from environments.stance import Stance
+from stances.results import PointForce
 
 from .errors import PlanFileError
 from .stance_graph import differ_by_one_contact
 
-__all__ = ["PointForceRecord", "PlannedStance", "PlanStatistics", "Plan", "PlanCheck"]
+__all__ = ["PlannedStance", "PlanStatistics", "Plan", "PlanCheck", "as_point_force"]
 
 logger = logging.getLogger(__name__)
 
@@ -31,40 +32,14 @@ def _readonly(array, shape_tail=None):
     return array
 
 
-@dataclass(frozen=True)
-class PointForceRecord:
-    """A contact force at a point, as stored in a plan file.
-
-    Parameters
-    ----------
-    frame : str
-        Robot contact frame the point belongs to.
-    point : (3,) float
-        Application point, metres, world frame.
-    force : (3,) float
-        Force exerted by the environment on the robot, newtons, world frame.
-    """
-
-    frame: str
-    point: np.ndarray
-    force: np.ndarray
-
-    def __post_init__(self):
-        object.__setattr__(self, "point", _readonly(self.point).reshape(3))
-        object.__setattr__(self, "force", _readonly(self.force).reshape(3))
-
-    @classmethod
-    def from_any(cls, value):
-        """Build from a stances PointForce, a mapping, or a record."""
-        if isinstance(value, cls):
-            return value
-        if isinstance(value, dict):
-            return cls(value["frame"], value["point"], value["force"])
-        return cls(str(value.frame), value.point, value.force)
-
-    def to_dict(self):
-        """Plain data: ``{"frame", "point", "force"}`` with lists."""
-        return {"frame": self.frame, "point": self.point.tolist(), "force": self.force.tolist()}
+def as_point_force(value):
+    """A ``stances.PointForce`` from one, from its dict, or from any object with
+    ``frame``, ``point`` (3,) and ``force`` (3,) (world frame, metres, newtons)."""
+    if isinstance(value, PointForce):
+        return value
+    if isinstance(value, dict):
+        return PointForce.from_dict(value)
+    return PointForce(str(value.frame), value.point, value.force)
 
 
 @dataclass(frozen=True, eq=False)
@@ -77,7 +52,7 @@ class PlannedStance:
         The contacts.
     q : (nq,) float
         Configuration (pinocchio, free flyer first), read-only.
-    point_forces : tuple of PointForceRecord
+    point_forces : tuple of stances.PointForce
         Contact forces on the robot, world frame.
     deformations : dict of str to (N, 3) float
         Node displacements of each deformable object, metres, body frame.
@@ -98,7 +73,7 @@ class PlannedStance:
     def __post_init__(self):
         object.__setattr__(self, "q", _readonly(self.q))
         object.__setattr__(
-            self, "point_forces", tuple(PointForceRecord.from_any(f) for f in self.point_forces)
+            self, "point_forces", tuple(as_point_force(f) for f in self.point_forces)
         )
         object.__setattr__(
             self,
@@ -131,7 +106,7 @@ class PlannedStance:
         return cls(
             stance=Stance.from_dict(data["stance"]),
             q=data["q"],
-            point_forces=tuple(PointForceRecord.from_any(f) for f in data["point_forces"]),
+            point_forces=tuple(as_point_force(f) for f in data["point_forces"]),
             deformations=data.get("deformations", {}),
             result=_rebuild_result(data.get("result")),
             move=data.get("move", ""),
@@ -341,10 +316,8 @@ def _rebuild_result(data):
     """A stances PostureResult from its ``to_dict`` form, else the dict itself."""
     if data is None:
         return None
-    try:
-        from stances.results import PointForce, PostureResult
-    except ImportError:  # pragma: no cover - stances is part of the project
-        return data
+    from stances.results import PostureResult
+
     rebuild = getattr(PostureResult, "from_dict", None)
     try:
         if rebuild is not None:

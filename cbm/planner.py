@@ -276,8 +276,6 @@ def plan(
     CbmError
         If the scenario has no start or no goal and none is given.
     """
-    import environments  # noqa: F401 - scenarios come from there
-
     scenario = load_scenario(scenario)
     scene = scenario.scene
     goal = goal if goal is not None else scenario.goal
