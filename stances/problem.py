@@ -65,6 +65,13 @@ class PostureOptions:
     elastic_penalty : float
         Initial weight of the elastic variable that lets the QP relax
         constraints it cannot meet (it grows when needed).
+    deformable_as_rigid : bool
+        Treat deformable prints as rigid contacts (used for warm starts and
+        for comparisons with a rigid support).
+    rigid_warm_start : bool
+        With deformable contacts, first solve with them held rigid, then
+        switch the FEM forces on from that posture: the FEM forces are only
+        meaningful near the print, so this homotopy makes solves reliable.
     """
 
     posture_weight: float = 1.0
@@ -81,6 +88,8 @@ class PostureOptions:
     self_collision: bool = True
     max_indentation: float = 0.05
     elastic_penalty: float = 1e2
+    deformable_as_rigid: bool = False
+    rigid_warm_start: bool = True
 
     def __post_init__(self) -> None:
         if self.reaction_model not in ("consistent", "traction"):
@@ -381,7 +390,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
             )
         transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
         label = f"{contact.robot_surface} on {surface.name}"
-        if surface.deformable:
+        if surface.deformable and not options.deformable_as_rigid:
             from .deformable import DeformableContact  # FEM machinery only when needed
 
             deformable_object = scene.deformable_of_surface(surface.name)

@@ -21,12 +21,14 @@ iteration limit is reached. Feasible answers are re-checked by
 from __future__ import annotations
 
 import time
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
 import proxsuite
 
 from .blocks import stack
+from .errors import StanceError
 from .problem import PostureOptions, build_problem
 from .results import PointForce, PostureResult
 
@@ -41,27 +43,42 @@ class _QPWorkspace:
         self.qp = None
         self.shape = None
 
+    def _fresh(self, shape):
+        qp = proxsuite.proxqp.dense.QP(shape[0], 0, shape[1], True)
+        # The SQP corrects an inexact step at the next iteration, so a moderate
+        # absolute accuracy suffices; the elastic QP is feasible by
+        # construction, so proxsuite's infeasibility test is made strict (its
+        # default fires falsely on our badly scaled first iterations).
+        qp.settings.eps_abs = 1e-6
+        qp.settings.eps_rel = 0.0
+        qp.settings.eps_primal_inf = 1e-12
+        qp.settings.max_iter = 1000
+        qp.settings.verbose = False
+        return qp
+
     def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper):
         shape = (len(gradient), inequality.shape[0])
-        if self.qp is None or self.shape != shape:
-            self.qp = proxsuite.proxqp.dense.QP(shape[0], 0, shape[1], True)
-            # The SQP corrects an inexact step at the next iteration: a
-            # moderate accuracy saves most of the QP time.
-            self.qp.settings.eps_abs = 1e-7
-            self.qp.settings.eps_rel = 1e-7
-            self.qp.settings.max_iter = 500
-            self.qp.settings.verbose = False
-            self.qp.init(hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
-            self.shape = shape
-        else:
+        data = (hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
+        if self.qp is not None and self.shape == shape:
             self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            self.qp.update(hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
+            self.qp.update(*data)
+            self.qp.solve()
+            if self.qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
+                return np.array(self.qp.results.x)
+        # First solve, a change of size, or a warm start that went astray.
+        self.qp = self._fresh(shape)
+        self.shape = shape
+        self.qp.init(*data)
         self.qp.solve()
         return np.array(self.qp.results.x)
 
 
 def _qp_matrices(linearization, penalty):
-    """Elastic QP data from a linearisation (see the module docstring)."""
+    """Elastic QP data from a linearisation (see the module docstring).
+
+    Each finite bound of a row gives one QP row (an equality gives two), so
+    one-sided constraints (collisions, no adhesion) cost a single row.
+    """
     value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
     n = len(linearization.gradient)
     hessian = np.zeros((n + 1, n + 1))
@@ -70,14 +87,13 @@ def _qp_matrices(linearization, penalty):
     hessian[:n, :n] = linearization.hessian + 1e-8 * np.eye(n)
     hessian[n, n] = 1e-8
     gradient = np.append(linearization.gradient, penalty)
-    rows = len(value)
-    inequality = np.zeros((2 * rows, n + 1))
-    inequality[:rows, :n] = jacobian
-    inequality[:rows, n] = -scale
-    inequality[rows:, :n] = jacobian
-    inequality[rows:, n] = scale
-    qp_lower = np.concatenate([np.full(rows, -_INFINITY), np.maximum(lower - value, -_INFINITY)])
-    qp_upper = np.concatenate([np.minimum(upper - value, _INFINITY), np.full(rows, _INFINITY)])
+    has_upper = np.isfinite(upper)
+    has_lower = np.isfinite(lower)
+    upper_rows = np.hstack([jacobian[has_upper], -scale[has_upper, None]])
+    lower_rows = np.hstack([jacobian[has_lower], scale[has_lower, None]])
+    inequality = np.vstack([upper_rows, lower_rows])
+    qp_lower = np.concatenate([np.full(has_upper.sum(), -_INFINITY), (lower - value)[has_lower]])
+    qp_upper = np.concatenate([(upper - value)[has_upper], np.full(has_lower.sum(), _INFINITY)])
     box_lower = np.append(np.maximum(linearization.step_lower, -_INFINITY), 0.0)
     box_upper = np.append(np.minimum(linearization.step_upper, _INFINITY), _INFINITY)
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
@@ -271,5 +287,24 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
         For bad input (unknown surfaces, a print off its surface, a malformed
         q); an infeasible stance is an answer, not an exception.
     """
-    problem = build_problem(robot, scene, stance, PostureOptions(**options))
-    return solve_problem(problem, q_init)
+    options = _options(options)
+    problem = build_problem(robot, scene, stance, options)
+    warm_iterations = 0
+    if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
+        rigid = build_problem(robot, scene, stance, replace(options, deformable_as_rigid=True))
+        warm = solve_problem(rigid, q_init)
+        q_init, warm_iterations = warm.q, warm.iterations
+    result = solve_problem(problem, q_init)
+    if warm_iterations:
+        statistics = dict(result.statistics, rigid_warm_start_iterations=warm_iterations)
+        result = _with(result, statistics=statistics)
+    return result
+
+
+def _options(options: dict) -> PostureOptions:
+    """PostureOptions from keyword arguments, naming the valid ones on a typo."""
+    valid = set(PostureOptions.__dataclass_fields__)
+    unknown = sorted(set(options) - valid)
+    if unknown:
+        raise StanceError(f"unknown posture option(s) {unknown}; valid options: {sorted(valid)}")
+    return PostureOptions(**options)
