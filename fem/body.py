@@ -15,6 +15,7 @@ from .errors import BoundaryError, FemError, FemWarning
 from .io import write_mesh
 from .material import LinearElasticMaterial
 from .mesh import TetMesh
+from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
 from .solvers import SOLVERS, Factorization, factorize
 
@@ -186,9 +187,16 @@ class DeformableBody:
         """The factorisation of K_NN, computed on first use."""
         if self._factor is None:
             k_nn = self.stiffness[self._free_dofs][:, self._free_dofs]
-            self._factor = factorize(k_nn, self._solver)
+            self._factor = factorize(k_nn, self._solver, ordering=self._free_dof_ordering())
             logger.debug("factorised K_NN (%d dofs) with %s", k_nn.shape[0], self._factor.name)
         return self._factor
+
+    def _free_dof_ordering(self) -> np.ndarray:
+        """Nested-dissection permutation of the free dofs (3 dofs of a node kept together)."""
+        free_nodes = np.flatnonzero(~self._fixed_mask)
+        graph = node_adjacency(self._mesh.tets, self._mesh.n_nodes)[free_nodes][:, free_nodes]
+        order = nested_dissection(self._mesh.nodes[free_nodes], graph)
+        return (3 * order[:, None] + np.arange(3)).ravel()
 
     @property
     def solver(self) -> str:

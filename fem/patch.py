@@ -147,9 +147,22 @@ class ContactPatch:
 
     # ------------------------------------------------------------ matrices
     @cached_property
+    def _compliance_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rows of C[:, P] at the print nodes and at the nodes of the print triangles' tets.
+
+        One set of solves serves both the consistent and the traction method.
+        """
+        rows = np.unique(np.concatenate([self._ids, self._body.mesh.tets[self.triangle_tets].ravel()]))
+        block = self._body.compliance_block(rows, self._ids)
+        position = np.full(self._body.mesh.n_nodes, -1, dtype=np.int64)
+        position[rows] = np.arange(rows.size)
+        return block.reshape(rows.size, 3, -1), position
+
+    @cached_property
     def compliance(self) -> np.ndarray:
         """Compliance block ``[K_NN^-1]_PP``, (3p, 3p) float, m/N."""
-        c = self._body.compliance(self._ids)
+        block, position = self._compliance_rows
+        c = block[position[self._ids]].reshape(3 * self.n_nodes, -1)
         c = 0.5 * (c + c.T)
         c.setflags(write=False)
         return c
@@ -196,8 +209,8 @@ class ContactPatch:
             )
         body = self._body
         nodes, rows = self._owner_nodes
-        g = body.compliance_block(nodes, self._ids) @ self.condensed_stiffness  # (3q, 3p)
-        g = g.reshape(nodes.size, 3, -1)
+        block, position = self._compliance_rows
+        g = block[position[nodes]] @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
         in_print = self._local[nodes]
         idx = np.flatnonzero(in_print >= 0)
         g[idx, :, :] = 0.0

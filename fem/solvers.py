@@ -59,7 +59,7 @@ class CholmodFactorization(Factorization):
 
     name = "cholmod"
 
-    def __init__(self, matrix: sp.spmatrix) -> None:
+    def __init__(self, matrix: sp.spmatrix, ordering: np.ndarray | None = None) -> None:
         import cvxopt
 
         cholmod = _cholmod()
@@ -69,14 +69,26 @@ class CholmodFactorization(Factorization):
             lower.data.astype(float), lower.row.astype(np.int64).tolist(), lower.col.astype(np.int64).tolist(),
             (self.size, self.size),
         )
+        # Force the supernodal factorisation: CHOLMOD's automatic choice sometimes
+        # picks the simplicial one on graded meshes, 10-30x slower on 3-D stiffness.
+        saved = dict(cholmod.options)
+        cholmod.options["supernodal"] = 2
+        cholmod.options["postorder"] = True
         try:
-            self._factor = cholmod.symbolic(a, uplo="L")
+            if ordering is None:
+                self._factor = cholmod.symbolic(a, uplo="L")
+            else:
+                p = cvxopt.matrix(np.asarray(ordering, dtype=np.int32))
+                self._factor = cholmod.symbolic(a, p=p, uplo="L")
             cholmod.numeric(a, self._factor)
         except ArithmeticError as exc:
             raise SolverError(
                 "CHOLMOD: the free-dof stiffness is not positive definite; is the body "
                 "fixed enough to stop every rigid motion?"
             ) from exc
+        finally:
+            cholmod.options.clear()
+            cholmod.options.update(saved)
         self._cholmod = cholmod
         self._matrix = cvxopt.matrix
 
@@ -92,12 +104,15 @@ class ScipyFactorization(Factorization):
 
     name = "scipy"
 
-    def __init__(self, matrix: sp.spmatrix) -> None:
+    def __init__(self, matrix: sp.spmatrix, ordering: np.ndarray | None = None) -> None:
         self.size = matrix.shape[0]
+        self._perm = None if ordering is None else np.asarray(ordering, dtype=np.int64)
+        if self._perm is not None:
+            matrix = sp.csr_matrix(matrix)[self._perm][:, self._perm]
         try:
             self._lu = spla.splu(
                 sp.csc_matrix(matrix),
-                permc_spec="MMD_AT_PLUS_A",
+                permc_spec="MMD_AT_PLUS_A" if self._perm is None else "NATURAL",
                 diag_pivot_thresh=0.0,
                 options={"SymmetricMode": True},
             )
@@ -106,10 +121,15 @@ class ScipyFactorization(Factorization):
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         rhs = np.asarray(rhs, dtype=float)
-        return self._lu.solve(rhs.reshape(self.size, -1)).reshape(rhs.shape)
+        columns = rhs.reshape(self.size, -1)
+        if self._perm is None:
+            return self._lu.solve(columns).reshape(rhs.shape)
+        x = np.empty_like(columns)
+        x[self._perm] = self._lu.solve(np.ascontiguousarray(columns[self._perm]))
+        return x.reshape(rhs.shape)
 
 
-def factorize(matrix: sp.spmatrix, solver: str = "auto") -> Factorization:
+def factorize(matrix: sp.spmatrix, solver: str = "auto", ordering: np.ndarray | None = None) -> Factorization:
     """Factorise a sparse symmetric positive definite matrix.
 
     Parameters
@@ -118,6 +138,9 @@ def factorize(matrix: sp.spmatrix, solver: str = "auto") -> Factorization:
         Symmetric positive definite, e.g. K_NN in N/m.
     solver : {"auto", "cholmod", "scipy"}
         ``"auto"`` takes CHOLMOD when cvxopt is importable, else scipy's SuperLU.
+    ordering : (n,) int, optional
+        Fill-reducing permutation (e.g. :func:`fem.ordering.nested_dissection` of the
+        nodes, expanded to dofs); default the solver's own (AMD / MMD).
 
     Returns
     -------
@@ -136,5 +159,5 @@ def factorize(matrix: sp.spmatrix, solver: str = "auto") -> Factorization:
     if solver == "cholmod":
         if _cholmod() is None:
             raise SolverError("solver='cholmod' needs cvxopt (pip install cvxopt); or use solver='scipy'")
-        return CholmodFactorization(matrix)
-    return ScipyFactorization(matrix)
+        return CholmodFactorization(matrix, ordering)
+    return ScipyFactorization(matrix, ordering)

@@ -1,0 +1,282 @@
+"""Deformable body and contact prints: forces, Jacobians, equilibrium, errors."""
+
+import numpy as np
+import pytest
+
+from fem import (
+    BoundaryError,
+    DeformableBody,
+    FemError,
+    FemWarning,
+    LinearElasticMaterial,
+    PrintError,
+    box_mesh,
+    nodes_in_polygon,
+    read_mesh,
+    tensor_mesh,
+)
+
+RNG_SEED = 7
+MATERIAL = LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
+TOP_SQUARE = [[0.2, 0.2, 1.0], [0.6, 0.2, 1.0], [0.6, 0.6, 1.0], [0.2, 0.6, 1.0]]
+
+
+def make_body(mesh, material=MATERIAL, solver="auto"):
+    return DeformableBody(mesh, material, np.flatnonzero(mesh.nodes[:, 2] == 0.0), solver=solver)
+
+
+@pytest.fixture(scope="module")
+def cube_mesh():
+    """Unit cube, 5x5 cells in x, y, graded toward the top."""
+    return box_mesh((1.0, 1.0, 1.0), (5, 5, 4), grading=2.0)
+
+
+@pytest.fixture(scope="module")
+def cube(cube_mesh):
+    return make_body(cube_mesh)
+
+
+@pytest.fixture(scope="module")
+def patch(cube):
+    return cube.contact_patch(nodes_in_polygon(cube.mesh, TOP_SQUARE))
+
+
+@pytest.fixture
+def displacements(patch):
+    """A press with some shear and tilt, seeded."""
+    rng = np.random.default_rng(RNG_SEED)
+    u = np.tile([0.002, -0.001, -0.01], (patch.n_nodes, 1))
+    return u + 1e-3 * rng.normal(size=u.shape)
+
+
+def rotate(vectors, omega):
+    """Rotate (T, 3) vectors by the rotation vector omega (Rodrigues)."""
+    angle = np.linalg.norm(omega)
+    axis = omega / angle
+    return (
+        vectors * np.cos(angle)
+        + np.cross(axis, vectors) * np.sin(angle)
+        + np.outer(vectors @ axis, axis) * (1 - np.cos(angle))
+    )
+
+
+# ---------------------------------------------------------------- the print
+def test_print_geometry_is_the_square_on_top(patch):
+    assert patch.n_nodes == 9
+    assert np.all(patch.points[:, 2] == 1.0)
+    assert np.allclose(patch.triangle_normals, [0, 0, 1])
+    assert patch.triangle_areas.sum() == pytest.approx(0.4 * 0.4)
+    assert patch.triangles.max() < patch.n_nodes
+
+
+def test_condensed_stiffness_is_symmetric_positive_definite(patch):
+    s = patch.condensed_stiffness
+    assert np.allclose(s, s.T, rtol=0, atol=1e-12 * np.abs(s).max())
+    assert np.linalg.eigvalsh(s).min() > 0
+
+
+def test_condensed_stiffness_equals_explicit_schur_complement(cube, patch):
+    k = cube.stiffness.toarray()
+    free_nodes = np.flatnonzero(~cube.fixed_mask)
+    p_dofs = (3 * patch.node_ids[:, None] + np.arange(3)).ravel()
+    others = np.setdiff1d(free_nodes, patch.node_ids)
+    f_dofs = (3 * others[:, None] + np.arange(3)).ravel()
+    schur = k[np.ix_(p_dofs, p_dofs)] - k[np.ix_(p_dofs, f_dofs)] @ np.linalg.solve(
+        k[np.ix_(f_dofs, f_dofs)], k[np.ix_(f_dofs, p_dofs)]
+    )
+    assert np.abs(patch.condensed_stiffness - schur).max() < 1e-8 * np.abs(schur).max()
+
+
+def test_pressing_down_pushes_the_robot_up(patch):
+    press = np.tile([0.0, 0.0, -0.01], (patch.n_nodes, 1))
+    for method in ("consistent", "traction"):
+        forces = patch.reaction_forces(press, method=method)
+        assert forces[:, 2].sum() > 0
+        assert np.all(forces[:, 2] > 0)
+
+
+def test_displacement_field_matches_print_and_base(cube, patch, displacements):
+    u = cube.displacement_field(patch, displacements)
+    assert np.array_equal(u[patch.node_ids], displacements)
+    assert np.all(u[cube.fixed_nodes] == 0.0)
+
+
+def test_global_equilibrium_of_print_and_base_forces(cube, patch, displacements):
+    u = cube.displacement_field(patch, displacements)
+    on_body_from_print = -patch.reaction_forces(displacements)
+    from_base = cube.fixed_reactions(u)
+    points = np.vstack([cube.mesh.nodes[patch.node_ids], cube.mesh.nodes[cube.fixed_nodes]])
+    forces = np.vstack([on_body_from_print, from_base])
+    scale = np.abs(on_body_from_print).sum()
+    assert np.abs(forces.sum(axis=0)).max() < 1e-8 * scale
+    assert np.abs(np.cross(points, forces).sum(axis=0)).max() < 1e-8 * scale
+    # and the consistent print forces are exactly the nodal forces K u at the print
+    assert np.allclose(cube.nodal_forces(u)[patch.node_ids], on_body_from_print, rtol=0, atol=1e-8 * scale)
+
+
+def test_forces_scale_linearly_with_young_modulus_and_compliance_inversely(cube_mesh, displacements):
+    soft = make_body(cube_mesh, LinearElasticMaterial(1e5, 0.4, 1e3))
+    stiff = make_body(cube_mesh, LinearElasticMaterial(3e5, 0.4, 1e3))
+    ids = nodes_in_polygon(cube_mesh, TOP_SQUARE)
+    p_soft, p_stiff = soft.contact_patch(ids), stiff.contact_patch(ids)
+    for method in ("consistent", "traction"):
+        ratio = p_stiff.reaction_forces(displacements, method) / p_soft.reaction_forces(displacements, method)
+        assert np.allclose(ratio, 3.0, rtol=1e-9)
+    assert np.allclose(soft.compliance(ids), 3.0 * stiff.compliance(ids), rtol=1e-9, atol=0)
+
+
+def test_scipy_and_cholmod_solvers_agree(cube_mesh, patch, displacements):
+    scipy_body = make_body(cube_mesh, solver="scipy")
+    assert scipy_body.solver == "scipy"
+    forces = scipy_body.contact_patch(patch.node_ids).reaction_forces(displacements)
+    assert np.allclose(forces, patch.reaction_forces(displacements), rtol=1e-9, atol=1e-9)
+
+
+def test_precomputed_surface_compliance_gives_same_print_matrices(cube_mesh, patch, displacements):
+    body = make_body(cube_mesh)
+    top = np.flatnonzero(cube_mesh.nodes[:, 2] == 1.0)
+    body.precompute_surface_compliance(top)
+    cached = body.contact_patch(patch.node_ids)
+    for method in ("consistent", "traction"):
+        assert np.allclose(cached.reaction_matrix(method), patch.reaction_matrix(method), rtol=1e-9, atol=1e-6)
+
+
+# ---------------------------------------------------------------- derivatives
+@pytest.mark.parametrize("method", ["consistent", "traction"])
+def test_reaction_matrix_matches_finite_differences(patch, displacements, method):
+    r = patch.reaction_matrix(method)
+    step = 1e-6
+    fd = np.empty_like(r)
+    for j in range(r.shape[1]):
+        du = np.zeros(r.shape[1])
+        du[j] = step
+        du = du.reshape(-1, 3)
+        plus = patch.reaction_forces(displacements + du, method)
+        minus = patch.reaction_forces(displacements - du, method)
+        fd[:, j] = (plus - minus).ravel() / (2 * step)
+    assert np.abs(fd - r).max() < 1e-6 * np.abs(r).max()
+
+
+def test_traction_normal_derivative_matches_finite_differences(patch, displacements):
+    rng = np.random.default_rng(RNG_SEED)
+    normals = patch.triangle_normals
+    direction = rng.normal(size=normals.shape)
+    step = 1e-6
+    plus = patch.reaction_forces(displacements, "traction", normals=normals + step * direction)
+    minus = patch.reaction_forces(displacements, "traction", normals=normals - step * direction)
+    fd = (plus - minus) / (2 * step)
+    derivative = patch.traction_normal_derivative(displacements)  # (T, 3, 3)
+    per_triangle = np.einsum("tij,tj->ti", derivative, direction)
+    predicted = np.zeros_like(fd)
+    for k in range(3):
+        np.add.at(predicted, patch.triangles[:, k], per_triangle)
+    assert np.abs(fd - predicted).max() < 1e-6 * np.abs(predicted).max()
+
+
+def test_traction_rotation_jacobian_matches_rotating_the_normals(patch, displacements):
+    jacobian = patch.traction_rotation_jacobian(displacements)  # (p, 3, 3)
+    step = 1e-6
+    for axis in np.eye(3):
+        plus = patch.reaction_forces(displacements, "traction", normals=rotate(patch.triangle_normals, step * axis))
+        minus = patch.reaction_forces(displacements, "traction", normals=rotate(patch.triangle_normals, -step * axis))
+        fd = (plus - minus) / (2 * step)
+        assert np.abs(fd - jacobian @ axis).max() < 1e-6 * np.abs(jacobian).max()
+
+
+def test_traction_forces_with_rest_normals_match_reaction_matrix(patch, displacements):
+    direct = patch.reaction_forces(displacements, "traction", normals=patch.triangle_normals)
+    assert np.allclose(direct, patch.reaction_forces(displacements, "traction"), rtol=1e-12, atol=1e-9)
+
+
+# ---------------------------------------------------------------- traction vs consistent
+def print_forces(cells):
+    mesh = box_mesh((1.0, 1.0, 1.0), (cells, cells, cells))
+    body = make_body(mesh)
+    patch = body.contact_patch(nodes_in_polygon(mesh, [[0.25, 0.25, 1], [0.75, 0.25, 1], [0.75, 0.75, 1], [0.25, 0.75, 1]]))
+    press = np.tile([0.0, 0.0, -0.01], (patch.n_nodes, 1))
+    return patch.reaction_forces(press, "consistent"), patch.reaction_forces(press, "traction")
+
+
+def test_traction_and_consistent_total_forces_agree_better_on_finer_meshes():
+    gaps = []
+    for cells in (4, 8, 12):
+        consistent, traction = print_forces(cells)
+        gaps.append(abs(traction[:, 2].sum() / consistent[:, 2].sum() - 1.0))
+    assert gaps[0] > gaps[1] > gaps[2]
+
+
+# ---------------------------------------------------------------- fields and files
+def test_strain_check_warns_or_raises_beyond_small_deformations(cube, patch):
+    u = cube.displacement_field(patch, np.tile([0, 0, -0.2], (patch.n_nodes, 1)))
+    with pytest.warns(FemWarning, match="exceeds the small-strain limit"):
+        largest = cube.check_small_strain(u)
+    assert largest > 0.05
+    with pytest.raises(FemError, match=r"largest strain .* exceeds"):
+        cube.check_small_strain(u, action="raise")
+    small = cube.displacement_field(patch, np.tile([0, 0, -1e-4], (patch.n_nodes, 1)))
+    assert cube.check_small_strain(small) < 0.05
+
+
+def test_written_vtu_holds_displacement_and_stress(tmp_path, cube, patch, displacements):
+    import meshio
+
+    u = cube.displacement_field(patch, displacements)
+    path = tmp_path / "deformed.vtu"
+    cube.write_vtu(path, u)
+    raw = meshio.read(path)
+    assert np.allclose(raw.point_data["displacement"], u)
+    assert np.allclose(raw.points, cube.mesh.nodes + u)
+    assert np.allclose(raw.cell_data["stress"][0], cube.stress(u))
+    assert read_mesh(path).n_tets == cube.mesh.n_tets
+
+
+# ---------------------------------------------------------------- bad input
+def test_body_without_fixed_nodes_is_rejected(cube_mesh):
+    with pytest.raises(BoundaryError, match="no fixed node.*fix the base"):
+        DeformableBody(cube_mesh, MATERIAL, np.array([], dtype=int))
+    with pytest.raises(BoundaryError, match="outside"):
+        DeformableBody(cube_mesh, MATERIAL, np.array([0, cube_mesh.n_nodes]))
+
+
+@pytest.mark.parametrize(
+    "which, message",
+    [
+        ("two-nodes", "at least 3 nodes"),
+        ("interior-node", "not on the body surface"),
+        ("fixed-node", "is fixed"),
+        ("duplicates", "duplicate node ids"),
+    ],
+)
+def test_invalid_print_raises_print_error(cube, patch, which, message):
+    ids = list(patch.node_ids)
+    if which == "two-nodes":
+        ids = ids[:2]
+    elif which == "interior-node":
+        ids = ids + [int(np.flatnonzero(~cube.mesh.is_surface_node)[0])]
+    elif which == "fixed-node":
+        ids = ids + [int(cube.fixed_nodes[0])]
+    else:
+        ids = ids + ids[:1]
+    with pytest.raises(PrintError, match=message):
+        cube.contact_patch(np.array(ids))
+
+
+@pytest.mark.parametrize(
+    "bad, message",
+    [
+        (np.zeros((4, 3)), r"must have shape \(9, 3\)"),
+        (np.zeros(27), r"must have shape \(9, 3\)"),
+        (np.full((9, 3), np.nan), "NaN"),
+    ],
+    ids=["too-few-rows", "flat-vector", "nan"],
+)
+def test_invalid_displacements_raise_print_error(patch, bad, message):
+    with pytest.raises(PrintError, match=message):
+        patch.reaction_forces(bad)
+
+
+def test_unknown_method_and_bad_normals_are_rejected(patch, displacements):
+    with pytest.raises(PrintError, match="unknown method"):
+        patch.reaction_matrix("penalty")
+    with pytest.raises(PrintError, match="normals must have shape"):
+        patch.reaction_forces(displacements, "traction", normals=np.zeros((2, 3)))

@@ -1,0 +1,151 @@
+"""Material law, element matrices and assembled stiffness: exact properties of linear tets."""
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+from fem import (
+    LinearElasticMaterial,
+    MaterialError,
+    assemble_stiffness,
+    box_mesh,
+    element_stiffness_matrices,
+    element_strain_matrices,
+    tensor_mesh,
+)
+
+RNG_SEED = 20240611
+MATERIAL = LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
+
+
+@pytest.fixture
+def distorted_mesh():
+    """A 3x3x3 box whose interior nodes are jiggled (seeded): a non-uniform mesh."""
+    mesh = box_mesh((1.0, 1.0, 1.0), (3, 3, 3))
+    rng = np.random.default_rng(RNG_SEED)
+    nodes = np.array(mesh.nodes)
+    interior = ~mesh.is_surface_node
+    nodes[interior] += rng.uniform(-0.08, 0.08, size=(interior.sum(), 3))
+    return type(mesh)(nodes, mesh.tets)
+
+
+def rigid_motions(nodes):
+    """(3N, 6) displacement fields: 3 translations and 3 infinitesimal rotations."""
+    fields = []
+    for axis in np.eye(3):
+        fields.append(np.tile(axis, (nodes.shape[0], 1)).ravel())
+        fields.append(np.cross(axis, nodes - nodes.mean(axis=0)).ravel())
+    return np.stack(fields, axis=1)
+
+
+def test_voigt_matrix_matches_hooke_law_with_engineering_shears():
+    m = MATERIAL
+    lam, mu = m.lame_lambda, m.lame_mu
+    assert lam == pytest.approx(1e6 * 0.4 / (1.4 * 0.2))
+    assert mu == pytest.approx(1e6 / 2.8)
+    # uniaxial stress: sigma = (1, 0, 0) -> strain (1/E, -nu/E, -nu/E)
+    strain = np.linalg.solve(m.voigt_matrix, [1.0, 0, 0, 0, 0, 0])
+    assert np.allclose(strain[:3], np.array([1.0, -0.4, -0.4]) / 1e6)
+    # pure shear: sigma_12 = mu * gamma_12 with gamma the engineering shear
+    assert m.voigt_matrix[3, 3] == pytest.approx(mu)
+
+
+@pytest.mark.parametrize(
+    "kwargs, message",
+    [
+        ({"young_modulus": 0.0, "poisson_ratio": 0.3}, "young_modulus must be > 0"),
+        ({"young_modulus": -5.0, "poisson_ratio": 0.3}, "young_modulus must be > 0"),
+        ({"young_modulus": 1e6, "poisson_ratio": 0.5}, r"poisson_ratio must lie in \(-1, 0.5\)"),
+        ({"young_modulus": 1e6, "poisson_ratio": -1.0}, r"poisson_ratio must lie in \(-1, 0.5\)"),
+        ({"young_modulus": 1e6, "poisson_ratio": 0.3, "density": -1.0}, "density must be >= 0"),
+        ({"young_modulus": float("nan"), "poisson_ratio": 0.3}, "young_modulus must be finite"),
+    ],
+    ids=["zero-E", "negative-E", "incompressible-nu", "nu-minus-one", "negative-density", "nan-E"],
+)
+def test_invalid_material_raises_material_error(kwargs, message):
+    with pytest.raises(MaterialError, match=message):
+        LinearElasticMaterial(**kwargs)
+
+
+def test_strain_matrix_gives_exact_strain_of_affine_field(distorted_mesh):
+    rng = np.random.default_rng(RNG_SEED)
+    gradient = rng.normal(size=(3, 3))
+    u = distorted_mesh.nodes @ gradient.T
+    b, volumes = element_strain_matrices(distorted_mesh.nodes, distorted_mesh.tets)
+    strain = np.einsum("eij,ej->ei", b, u[distorted_mesh.tets].reshape(-1, 12))
+    sym = 0.5 * (gradient + gradient.T)
+    expected = [sym[0, 0], sym[1, 1], sym[2, 2], 2 * sym[0, 1], 2 * sym[0, 2], 2 * sym[1, 2]]
+    assert np.allclose(strain, expected, atol=1e-12)
+    assert np.allclose(volumes, distorted_mesh.volumes)
+
+
+def test_rigid_motions_produce_no_force(distorted_mesh):
+    k = assemble_stiffness(distorted_mesh, MATERIAL)
+    forces = k @ rigid_motions(distorted_mesh.nodes)
+    assert np.abs(forces).max() < 1e-9 * abs(k).max()
+
+
+def test_stiffness_is_symmetric_psd_with_six_rigid_modes(distorted_mesh):
+    k = assemble_stiffness(distorted_mesh, MATERIAL).toarray()
+    assert np.abs(k - k.T).max() < 1e-12 * np.abs(k).max()
+    eigenvalues = np.linalg.eigvalsh(k)
+    scale = eigenvalues.max()
+    assert eigenvalues.min() > -1e-10 * scale
+    assert np.sum(eigenvalues < 1e-10 * scale) == 6
+
+
+def test_free_stiffness_is_positive_definite_once_base_is_fixed(distorted_mesh):
+    k = assemble_stiffness(distorted_mesh, MATERIAL).toarray()
+    free_nodes = distorted_mesh.nodes[:, 2] > 0.0
+    free = np.repeat(free_nodes, 3)
+    eigenvalues = np.linalg.eigvalsh(k[np.ix_(free, free)])
+    assert eigenvalues.min() > 1e-6 * eigenvalues.max()
+
+
+def test_assembly_matches_a_plain_scatter_of_element_matrices(distorted_mesh):
+    k = assemble_stiffness(distorted_mesh, MATERIAL).toarray()
+    ke = element_stiffness_matrices(distorted_mesh, MATERIAL)
+    dofs = (3 * distorted_mesh.tets[:, :, None] + np.arange(3)).reshape(-1, 12)
+    expected = np.zeros_like(k)
+    for e in range(dofs.shape[0]):  # reference loop, small mesh
+        expected[np.ix_(dofs[e], dofs[e])] += ke[e]
+    assert np.abs(k - expected).max() < 1e-12 * np.abs(k).max()
+
+
+def test_patch_test_affine_boundary_displacement_gives_uniform_interior_strain(distorted_mesh):
+    """Linear tets reproduce any affine field exactly (the FE patch test)."""
+    mesh = distorted_mesh
+    rng = np.random.default_rng(RNG_SEED + 1)
+    gradient = 1e-3 * rng.normal(size=(3, 3))
+    exact = mesh.nodes @ gradient.T
+    k = assemble_stiffness(mesh, MATERIAL).tocsr()
+    boundary = np.repeat(mesh.is_surface_node, 3)
+    inner = ~boundary
+    u = exact.ravel().copy()
+    u[inner] = spla.spsolve(k[inner][:, inner].tocsc(), -k[inner][:, boundary] @ u[boundary])
+    b, _ = element_strain_matrices(mesh.nodes, mesh.tets)
+    strain = np.einsum("eij,ej->ei", b, u.reshape(-1, 3)[mesh.tets].reshape(-1, 12))
+    assert np.abs(strain - strain.mean(axis=0)).max() < 1e-10
+    assert np.allclose(u, exact.ravel(), atol=1e-12)
+
+
+def test_column_on_rollers_under_compression_gives_e_a_d_over_l():
+    """Uniaxial compression with free lateral expansion: F = E A d / L to rounding."""
+    width, depth, height, d = 0.3, 0.2, 1.5, 1e-3
+    mesh = tensor_mesh([0, 0.1, 0.3], [0, 0.05, 0.2], np.linspace(0, height, 5) ** 1.0)
+    k = assemble_stiffness(mesh, MATERIAL).tocsr()
+    n = mesh.n_nodes
+    z = mesh.nodes[:, 2]
+    prescribed = np.zeros(3 * n, dtype=bool)
+    values = np.zeros(3 * n)
+    bottom, top = np.flatnonzero(z == 0), np.flatnonzero(z == height)
+    prescribed[3 * bottom + 2] = prescribed[3 * top + 2] = True  # rollers
+    values[3 * top + 2] = -d
+    corner = bottom[np.argmin(np.linalg.norm(mesh.nodes[bottom], axis=1))]
+    x_neighbour = bottom[(mesh.nodes[bottom, 1] == 0) & (mesh.nodes[bottom, 0] > 0)][0]
+    prescribed[[3 * corner, 3 * corner + 1, 3 * x_neighbour + 1]] = True  # no rigid drift
+    free = ~prescribed
+    u = values.copy()
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), -k[free][:, prescribed] @ values[prescribed])
+    force_on_top = (k @ u)[3 * top + 2].sum()
+    assert force_on_top == pytest.approx(-MATERIAL.young_modulus * width * depth * d / height, rel=1e-10)
