@@ -15,6 +15,8 @@ from cbm.plan import Plan
 from cbm.planner import plan
 from cbm.stance_graph import differ_by_one_contact
 
+from test_cbm_output import chromium_binary, page_status
+
 try:
     from cbm.planner import posture_api
 
@@ -71,6 +73,8 @@ def test_cli_plan_writes_every_file(tmp_path, capsys):
     expected |= {f"stance_{i:02d}_foam.vtu" for i in range(count)}
     assert {p.name for p in out.iterdir()} == expected
     assert "plan found" in printed
+    if chromium_binary() is not None:
+        assert page_status(out / "viewer.html", tmp_path) == "ok"
 
 
 def test_cli_check_reports_a_feasible_stance_and_draws_it(tmp_path, capsys):
