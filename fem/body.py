@@ -322,6 +322,18 @@ class DeformableBody:
         ------
         PrintError
             Fewer than 3 nodes, duplicates, out of range, not on the surface, or fixed.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from fem import DeformableBody, LinearElasticMaterial, box_mesh
+        >>> mesh = box_mesh((1.0, 1.0, 1.0), (4, 4, 4))
+        >>> body = DeformableBody(mesh, LinearElasticMaterial(1e6, 0.4), mesh.nodes[:, 2] == 0.0)
+        >>> top = np.flatnonzero(mesh.nodes[:, 2] == 1.0)
+        >>> body.precompute_surface_compliance(top)      # later prints on top: no solve
+        >>> patch = body.contact_patch(top[:8])             # two rows of 4 nodes
+        >>> patch.condensed_stiffness.shape, patch.triangles.shape
+        ((24, 24), (6, 3))
         """
         ids = np.asarray(node_ids)
         key = ids.tobytes() + str(ids.dtype).encode() if ids.ndim == 1 else None
