@@ -331,9 +331,9 @@ class DeformableBody:
         >>> body = DeformableBody(mesh, LinearElasticMaterial(1e6, 0.4), mesh.nodes[:, 2] == 0.0)
         >>> top = np.flatnonzero(mesh.nodes[:, 2] == 1.0)
         >>> body.precompute_surface_compliance(top)      # later prints on top: no solve
-        >>> patch = body.contact_patch(top[:8])             # two rows of 4 nodes
+        >>> patch = body.contact_patch(top[:10])            # two rows of 5 nodes
         >>> patch.condensed_stiffness.shape, patch.triangles.shape
-        ((24, 24), (6, 3))
+        ((30, 30), (8, 3))
         """
         ids = np.asarray(node_ids)
         key = ids.tobytes() + str(ids.dtype).encode() if ids.ndim == 1 else None
