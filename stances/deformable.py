@@ -204,7 +204,7 @@ class DeformableContact:
         jacobian[:, :nv] = np.einsum("j,pjv->pv", normal, d_forces.reshape(p, 3, nv))
         blocks.append(
             ConstraintBlock(
-                "no adhesion", push, jacobian, 0.0, np.inf, 1.0,
+                "no adhesion", push, jacobian, 0.0, np.inf, 10.0,
                 tuple(f"no adhesion at node {n} of {self.label}" for n in self.patch.node_ids),
             )
         )
@@ -219,7 +219,7 @@ class DeformableContact:
         jacobian[:, :nv] = faces @ d_total
         blocks.append(
             ConstraintBlock(
-                "friction", faces @ total, jacobian, 0.0, np.inf, 1.0,
+                "friction", faces @ total, jacobian, 0.0, np.inf, 10.0,
                 tuple(f"friction cone of the resultant of {self.label} ({side})" for side in ("+x", "-x", "+y", "-y")),
             )
         )

@@ -53,6 +53,7 @@ class _QPWorkspace:
         qp.settings.eps_rel = 0.0
         qp.settings.eps_primal_inf = 1e-12
         qp.settings.max_iter = 1000
+        qp.settings.max_iter_in = 200
         qp.settings.verbose = False
         return qp
 
@@ -87,13 +88,19 @@ def _qp_matrices(linearization, penalty):
     hessian[:n, :n] = linearization.hessian + 1e-8 * np.eye(n)
     hessian[n, n] = 1e-8
     gradient = np.append(linearization.gradient, penalty)
-    has_upper = np.isfinite(upper)
-    has_lower = np.isfinite(lower)
-    upper_rows = np.hstack([jacobian[has_upper], -scale[has_upper, None]])
-    lower_rows = np.hstack([jacobian[has_lower], scale[has_lower, None]])
+    # Rows are divided by their scale: every row then reads in "violations
+    # that matter", the elastic variable enters with coefficient one, and
+    # rows in newtons no longer dwarf rows in metres (proxsuite stalls on that).
+    jacobian = jacobian / scale[:, None]
+    lower_gap = (lower - value) / scale
+    upper_gap = (upper - value) / scale
+    has_upper = np.isfinite(upper_gap)
+    has_lower = np.isfinite(lower_gap)
+    upper_rows = np.hstack([jacobian[has_upper], -np.ones((has_upper.sum(), 1))])
+    lower_rows = np.hstack([jacobian[has_lower], np.ones((has_lower.sum(), 1))])
     inequality = np.vstack([upper_rows, lower_rows])
-    qp_lower = np.concatenate([np.full(has_upper.sum(), -_INFINITY), (lower - value)[has_lower]])
-    qp_upper = np.concatenate([(upper - value)[has_upper], np.full(has_lower.sum(), _INFINITY)])
+    qp_lower = np.concatenate([np.full(has_upper.sum(), -_INFINITY), lower_gap[has_lower]])
+    qp_upper = np.concatenate([upper_gap[has_upper], np.full(has_lower.sum(), _INFINITY)])
     box_lower = np.append(np.maximum(linearization.step_lower, -_INFINITY), 0.0)
     box_upper = np.append(np.minimum(linearization.step_upper, _INFINITY), _INFINITY)
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
