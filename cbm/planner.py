@@ -134,6 +134,7 @@ class PostureOracle:
     def _solve(self, stance, q_init):
         solve, verify = posture_api()
         self.solves += 1
+        logger.debug("solving %s", stance.to_dict())
         try:
             result = solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
         except ValueError as error:
