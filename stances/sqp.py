@@ -34,6 +34,7 @@ from .results import PointForce, PostureResult
 
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _MAX_PENALTY = 1e8
+_STAGNATION_WINDOW = 8
 
 
 class _QPWorkspace:
@@ -157,6 +158,7 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
     workspace = _QPWorkspace()
     tolerance = options.feasibility_tolerance
     stalled = 0
+    history = []
     status = "iteration limit"
     linearization = problem.linearize(q, lam)
     iteration = 0
@@ -186,7 +188,7 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
             break
         # Backtracking line search on the exact-penalty merit function.
         alpha, accepted = 1.0, None
-        while alpha >= 1e-4:
+        while alpha >= 1e-3:
             q_try = pin.integrate(model, q, alpha * step[:nv])
             lam_try = np.maximum(lam + alpha * step[nv:], 0.0)
             trial = problem.linearize(q_try, lam_try)
@@ -207,6 +209,18 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
         q, lam, linearization = accepted
         stalled = 0
         new_violation, _ = linearization.max_violation()
+        history.append(new_violation)
+        # Infeasible stances end here rather than at the iteration limit: the
+        # violation has not fallen by 1 % over the last iterations although
+        # the penalty is already large.
+        if (
+            len(history) > _STAGNATION_WINDOW
+            and new_violation > tolerance
+            and penalty >= 1e4
+            and new_violation > 0.99 * history[-_STAGNATION_WINDOW - 1]
+        ):
+            status = "stagnated"
+            break
         # The QP kept some violation although the merit could trade it: raise rho.
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY:
             penalty *= 10.0

@@ -1,0 +1,152 @@
+"""Finite-difference checks of every analytic derivative of the posture problem.
+
+Steps are taken on the configuration manifold with ``pin.integrate`` (central
+differences, eps = 1e-6); the tolerance is relative to the Jacobian's size
+because central differences carry an O(eps^2) truncation and O(1e-16/eps)
+rounding error on values of size up to 1e5 (FEM forces in newtons).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+from conftest import coarse_scenario
+from stances.problem import PostureOptions, build_problem
+from stances.sqp import solve
+from stances.statics import PointLoads, point_jacobians, static_torque_derivatives, static_torques
+
+EPS = 1e-6
+
+
+def _central_difference(function, q, model, n):
+    columns = []
+    for i in range(n):
+        step = np.zeros(model.nv)
+        step[i] = EPS
+        columns.append((function(pin.integrate(model, q, step)) - function(pin.integrate(model, q, -step))) / (2 * EPS))
+    return np.column_stack(columns)
+
+
+def _random_configuration(robot, seed, spread=0.2):
+    rng = np.random.default_rng(seed)
+    return pin.integrate(robot.model, robot.reference_configuration, spread * rng.normal(size=robot.nv))
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_static_torque_derivatives_match_finite_differences(robot, seed):
+    model, data = robot.model, robot.model.createData()
+    rng = np.random.default_rng(seed)
+    q = _random_configuration(robot, seed)
+    joints = [model.frames[robot.frame_id(s.frame)].parentJoint for s in robot.surfaces.values()]
+    loads = PointLoads(joints, 0.1 * rng.normal(size=(len(joints), 3)))
+    forces = 100.0 * rng.normal(size=(len(joints), 3))
+    _, dtau_dq, dtau_dforces = static_torque_derivatives(model, data, q, loads, forces)
+    numeric = _central_difference(lambda x: static_torques(model, data, x, loads, forces), q, model, model.nv)
+    assert np.abs(numeric - dtau_dq).max() <= 1e-6 * max(1.0, np.abs(dtau_dq).max())
+    # Torques are linear in the forces: d tau / d f = -J^T exactly.
+    pin.computeJointJacobians(model, data, q)
+    jacobians = point_jacobians(model, data, loads)
+    assert np.allclose(dtau_dforces, -np.hstack([j.T for j in jacobians]), atol=1e-12)
+
+
+def test_static_torques_agree_with_rnea_and_external_forces(robot):
+    """Two independent routes (computeStaticTorque vs RNEA with fext) give one answer."""
+    model, data = robot.model, robot.model.createData()
+    q = _random_configuration(robot, 3)
+    frame = model.frames[robot.frame_id(robot.surface("right_palm").frame)]
+    loads = PointLoads([frame.parentJoint], [[0.01, 0.02, 0.03]])
+    force = np.array([[10.0, -20.0, 300.0]])
+    tau = static_torques(model, data, q, loads, force)
+    pin.forwardKinematics(model, data, q)
+    placement = data.oMi[frame.parentJoint]
+    fext = [pin.Force.Zero() for _ in range(model.njoints)]
+    local = placement.rotation.T @ force[0]
+    fext[frame.parentJoint] = pin.Force(local, np.cross([0.01, 0.02, 0.03], local))
+    expected = pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv), pin.StdVec_Force(fext))
+    assert np.allclose(tau, expected, atol=1e-9)
+
+
+def _problems(robot):
+    yield "rigid hand-on-table", coarse_scenario("hand-on-table"), "hand-on-table", {}
+    for model_name in ("consistent", "traction"):
+        yield (
+            f"deformable hand-on-cube ({model_name})",
+            coarse_scenario("hand-on-cube"),
+            "hand-on-cube",
+            {"reaction_model": model_name},
+        )
+    yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
+
+
+@pytest.fixture(scope="module")
+def linearised_problems(robot):
+    """Problems at a configuration near their solution (where the FEM forces matter)."""
+    cases = []
+    for label, scenario, stance_name, options in _problems(robot):
+        stance = scenario.stance(stance_name)
+        warm = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
+        problem = build_problem(robot, scenario.scene, stance, PostureOptions(**options))
+        rng = np.random.default_rng(7)
+        q = pin.integrate(robot.model, warm.q, 2e-3 * rng.normal(size=robot.nv))
+        lam = rng.uniform(1.0, 50.0, size=problem.n_variables)
+        cases.append((label, problem, q, lam))
+    return cases
+
+
+def _block_values(problem, q, lam):
+    linearization = problem.linearize(q, lam)
+    return {block.name: block for block in linearization.blocks if block.name != "collision"}, linearization
+
+
+def test_every_constraint_jacobian_matches_finite_differences(linearised_problems):
+    for label, problem, q, lam in linearised_problems:
+        model = problem.robot.model
+        blocks, _ = _block_values(problem, q, lam)
+        for name, block in blocks.items():
+            def value(x, name=name):
+                return _block_values(problem, x, lam)[0][name].value.copy()
+
+            numeric_q = _central_difference(value, q, model, model.nv)
+            analytic_q = block.jacobian[:, : model.nv]
+            size = max(1.0, np.abs(analytic_q).max())
+            assert np.abs(numeric_q - analytic_q).max() <= 2e-5 * size, f"{label}: {name} (q columns)"
+            if problem.n_variables:
+                numeric_lam = np.column_stack(
+                    [
+                        (_block_values(problem, q, lam + EPS * e)[0][name].value - _block_values(problem, q, lam - EPS * e)[0][name].value)
+                        / (2 * EPS)
+                        for e in np.eye(problem.n_variables)
+                    ]
+                )
+                assert np.allclose(numeric_lam, block.jacobian[:, model.nv :], atol=1e-6 * size), f"{label}: {name} (lambda)"
+
+
+def test_objective_gradient_matches_finite_differences(linearised_problems):
+    for label, problem, q, lam in linearised_problems:
+        model = problem.robot.model
+        _, linearization = _block_values(problem, q, lam)
+
+        def objective(x):
+            return np.array([problem.linearize(x, lam).objective])
+
+        numeric = _central_difference(objective, q, model, model.nv)[0]
+        analytic = linearization.gradient[: model.nv]
+        assert np.abs(numeric - analytic).max() <= 1e-5 * max(1.0, np.abs(analytic).max()), label
+
+
+def test_deformable_forces_derivative_includes_the_rotating_normals(linearised_problems):
+    """With ``traction``, dropping eq. (63)'s first term would break the FD match."""
+    label, problem, q, lam = next(c for c in linearised_problems if "traction" in c[0])
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    model, data = problem.robot.model, problem.data
+
+    def forces(x):
+        problem.linearize(x, lam)
+        return contact.forces(model, data, None).reshape(-1).copy()
+
+    numeric = _central_difference(forces, q, model, model.nv)
+    problem.linearize(q, lam)
+    analytic = contact.force_jacobians(model, data, None)[0]
+    assert np.abs(numeric - analytic).max() <= 2e-5 * np.abs(analytic).max()

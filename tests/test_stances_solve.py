@@ -1,0 +1,220 @@
+"""The posture solver on the built-in scenarios, infeasible stances and bad input."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+from conftest import coarse_scenario
+from environments import Contact, ContactPrint, Stance
+from stances import ConfigurationError, FrameNotFound, StanceError
+from stances.problem import PostureOptions, build_problem
+from stances.sqp import solve, solve_problem
+from stances.verify import verify
+
+RIGID = [("stand", "stand"), ("hand-on-table", "hand-on-table"), ("foot-on-block", "foot-on-block")]
+DEFORMABLE = [("hand-on-cube", "hand-on-cube"), ("step-on-cube", "step-on-cube"), ("hand-on-soft-cube", "hand-on-soft-cube")]
+
+
+def _palm_depth(result, name="cube"):
+    return float(np.abs(result.deformations[name]).max())
+
+
+@pytest.fixture(scope="module")
+def deformable_results(robot):
+    results = {}
+    for scenario_name, stance_name in DEFORMABLE:
+        scenario = coarse_scenario(scenario_name)
+        results[scenario_name] = solve(robot, scenario.scene, scenario.stance(stance_name))
+    return results
+
+
+@pytest.mark.parametrize("scenario_name, stance_name", RIGID, ids=[r[0] for r in RIGID])
+def test_rigid_scenario_solves_and_verifies(robot, scenario_name, stance_name):
+    scenario = environments.load(scenario_name)
+    stance = scenario.stance(stance_name)
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    check = verify(robot, scenario.scene, stance, result)
+    assert check.ok, check.reasons
+    assert check.measures["equilibrium_residual"] < 1e-6
+    assert check.measures["torque_margin"] >= -1e-6
+    assert all(v < 1e-6 for k, v in check.measures.items() if k.startswith("placement error"))
+    assert check.measures.get("closest_distance", np.inf) > 0.0
+    # The reported torques are the actuated part of g - J^T f.
+    assert np.all(np.abs(result.torques) <= robot.effort_limits + 1e-6)
+
+
+@pytest.mark.parametrize("scenario_name, stance_name", DEFORMABLE, ids=[d[0] for d in DEFORMABLE])
+def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scenario_name, stance_name):
+    result = deformable_results[scenario_name]
+    assert result.feasible, result.reason
+    scenario = coarse_scenario(scenario_name)
+    check = verify(robot, scenario.scene, scenario.stance(stance_name), result)
+    assert check.ok, check.reasons
+    assert check.measures["equilibrium_residual"] < 1e-6
+    # The FEM forces were recomputed from the link placement and agree.
+    assert all(v <= 1e-6 for k, v in check.measures.items() if k.startswith("FEM force error"))
+    # The support is pressed: its nodes moved and it pushes up on the robot.
+    (name, field), = result.deformations.items()
+    assert field.shape == scenario.scene.deformable(name).mesh.nodes.shape
+    assert np.abs(field).max() > 1e-5
+
+
+def test_softer_cube_gives_a_deeper_print(deformable_results):
+    stiff = _palm_depth(deformable_results["hand-on-cube"])
+    soft = _palm_depth(deformable_results["hand-on-soft-cube"])
+    assert soft > 1.3 * stiff
+
+
+def test_stiffer_cube_tends_to_the_rigid_contact(robot):
+    """Depth falls as 1/E and the palm ends up on its print, as with a rigid support."""
+    errors, depths = [], []
+    for young_modulus in (1e6, 1e7):
+        scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
+        stance = scenario.stance("hand-on-cube")
+        result = solve(robot, scenario.scene, stance)
+        assert result.feasible, result.reason
+        depths.append(_palm_depth(result))
+        problem = build_problem(robot, scenario.scene, stance)
+        contact = next(c for c in problem.contacts if c.kind == "deformable")
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, result.q)
+        errors.append(np.linalg.norm(contact.print_placement.actInv(data.oMf[contact.frame_id]).translation))
+    assert depths[1] < 0.25 * depths[0]
+    assert errors[1] < 0.25 * errors[0]
+
+
+def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
+    scenario = environments.load("stand")
+    stance = Stance(
+        (
+            Contact("left_sole", ContactPrint("floor", 0.0, 0.085, 0.0)),
+            Contact("right_sole", ContactPrint("floor", 3.0, -0.085, 0.0)),
+        )
+    )
+    result = solve(robot, scenario.scene, stance, max_iterations=60)
+    assert not result.feasible
+    assert "unreachable" in result.reason or "violated" in result.reason
+    assert result.iterations <= 60
+
+
+def test_standing_on_one_hand_is_infeasible_with_a_reason(robot):
+    scenario = environments.load("hand-on-table")
+    stance = Stance((Contact("right_palm", ContactPrint("table_top", -0.2, 0.0, 0.0)),))
+    result = solve(robot, scenario.scene, stance, max_iterations=60)
+    assert not result.feasible
+    assert result.reason
+    assert result.iterations <= 60
+
+
+def test_standing_on_the_soft_cube_alone_needs_a_deep_enough_print(robot):
+    """One sole on the soft cube carries the whole weight: fine, unless the
+    indentation bound forbids the depth that weight needs."""
+    scenario = coarse_scenario("step-on-cube")
+    stance = Stance((scenario.stance("step-on-cube").contact("right_sole"),))
+    free = solve(robot, scenario.scene, stance)
+    assert free.feasible, free.reason
+    needed = float(np.abs(free.deformations["cube"]).max())
+    bounded = solve(robot, scenario.scene, stance, max_indentation=0.2 * needed, max_iterations=60)
+    assert not bounded.feasible
+    assert "indentation" in bounded.reason or "equilibrium" in bounded.reason
+
+
+def test_a_lifted_link_would_pull_and_breaks_no_adhesion(robot, deformable_results):
+    """Raising the palm above its print makes the nodes pull: the no-adhesion rows fire."""
+    scenario = coarse_scenario("hand-on-cube")
+    problem = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"))
+    q = np.array(deformable_results["hand-on-cube"].q)
+    q[2] += 0.01  # the whole robot 1 cm up: the palm lifts off its print
+    linearization = problem.linearize(q, problem.initial_variables())
+    adhesion = next(b for b in linearization.blocks if b.name == "no adhesion")
+    assert adhesion.violation().max() > 0
+    assert "no adhesion" in adhesion.labels[int(np.argmax(adhesion.violation()))]
+
+
+def test_result_serialises_to_json(robot):
+    scenario = environments.load("stand")
+    result = solve(robot, scenario.scene, scenario.stance("stand"))
+    data = json.loads(json.dumps(result.to_dict()))
+    assert data["feasible"] is True
+    assert np.allclose(data["q"], result.q)
+    assert len(data["point_forces"]) == len(result.point_forces)
+    total = np.sum([p["force"] for p in data["point_forces"]], axis=0)
+    assert total[2] == pytest.approx(robot.mass * 9.81, rel=1e-6)
+
+
+def test_warm_start_from_the_solution_converges_at_once(robot):
+    scenario = environments.load("foot-on-block")
+    stance = scenario.stance("foot-on-block")
+    first = solve(robot, scenario.scene, stance)
+    again = solve(robot, scenario.scene, stance, q_init=first.q)
+    assert again.feasible and again.iterations < first.iterations
+
+
+# -- bad input --------------------------------------------------------------
+
+
+def test_unknown_robot_surface_lists_the_known_ones(robot):
+    scenario = environments.load("stand")
+    stance = Stance((Contact("left_hoof", ContactPrint("floor", 0.0, 0.0, 0.0)),))
+    with pytest.raises(FrameNotFound, match="unknown robot surface 'left_hoof'.*left_sole"):
+        solve(robot, scenario.scene, stance)
+
+
+def test_unknown_scene_surface_is_named(robot):
+    scenario = environments.load("stand")
+    stance = Stance((Contact("left_sole", ContactPrint("ceiling", 0.0, 0.0, 0.0)),))
+    with pytest.raises(StanceError, match="ceiling"):
+        solve(robot, scenario.scene, stance)
+
+
+def test_print_off_its_surface_is_rejected(robot):
+    scenario = environments.load("hand-on-table")
+    stance = Stance((Contact("right_palm", ContactPrint("table_top", 5.0, 0.0, 0.0)),))
+    with pytest.raises(StanceError, match="lies off surface 'table_top'"):
+        solve(robot, scenario.scene, stance)
+
+
+def test_nan_configuration_is_rejected(robot):
+    scenario = environments.load("stand")
+    q = np.array(robot.reference_configuration)
+    q[10] = np.nan
+    with pytest.raises(ConfigurationError, match=r"non-finite entries at indices \[10\]"):
+        solve(robot, scenario.scene, scenario.stance("stand"), q_init=q)
+
+
+def test_configuration_of_the_wrong_size_is_rejected(robot):
+    scenario = environments.load("stand")
+    with pytest.raises(ConfigurationError, match=r"shape \(35,\)"):
+        solve(robot, scenario.scene, scenario.stance("stand"), q_init=np.zeros(7))
+
+
+def test_unknown_option_lists_the_valid_ones(robot):
+    scenario = environments.load("stand")
+    with pytest.raises(StanceError, match="unknown posture option.*max_iterations"):
+        solve(robot, scenario.scene, scenario.stance("stand"), max_iteration=5)
+
+
+def test_empty_stance_is_rejected(robot):
+    scenario = environments.load("stand")
+    with pytest.raises(StanceError, match="no contact"):
+        build_problem(robot, scenario.scene, Stance(()), PostureOptions())
+
+
+def test_solver_never_raises_on_an_impossible_stance(robot):
+    """A stance on two prints 1 m apart in y is infeasible: an answer, not an exception."""
+    scenario = environments.load("stand")
+    stance = Stance(
+        (
+            Contact("left_sole", ContactPrint("floor", 0.0, 0.6, 0.0)),
+            Contact("right_sole", ContactPrint("floor", 0.0, -0.6, 0.0)),
+        )
+    )
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions(max_iterations=40))
+    result = solve_problem(problem)
+    assert not result.feasible and result.reason
