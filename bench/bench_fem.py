@@ -164,8 +164,7 @@ def punch_table():
         "|---|---|---|---|---|---|---|",
     ]
     for level in (1, 2, 3, 4, 5, 6):
-        n, k = punch_stiffness(level)
-        _, kt = punch_stiffness(level, "traction")
+        n, (k, kt) = punch_stiffness(level, ("consistent", "traction"))
         lines.append(
             f"| {level} | {2 * level} | {n} | {k:.4g} | {k / reference - 1:+.3f} | {kt:.4g} | {kt / reference - 1:+.3f} |"
         )

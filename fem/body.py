@@ -407,9 +407,10 @@ class DeformableBody:
         tensor[:, [0, 1, 2], [0, 1, 2]] = e[:, :3]
         for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
             tensor[:, i, j] = tensor[:, j, i] = 0.5 * e[:, v]
-        largest = float(np.abs(np.linalg.eigvalsh(tensor)).max())
+        per_tet = np.abs(np.linalg.eigvalsh(tensor)).max(axis=1)
+        largest = float(per_tet.max())
         if largest > limit:
-            where = int(np.abs(np.linalg.eigvalsh(tensor)).max(axis=1).argmax())
+            where = int(per_tet.argmax())
             message = (
                 f"largest strain {largest:.3g} (tet {where}) exceeds the small-strain limit "
                 f"{limit:g}: linear elasticity is not valid there; reduce the displacement"

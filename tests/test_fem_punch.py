@@ -46,14 +46,14 @@ def punch_mesh(level: int):
     return tensor_mesh(xs, xs, zs)
 
 
-def punch_stiffness(level: int, method: str = "consistent") -> tuple[int, float]:
-    """(number of nodes, vertical force / depth in N/m) for a uniform indentation."""
+def punch_stiffness(level: int, methods=("consistent",)) -> tuple[int, list[float]]:
+    """(number of nodes, [vertical force / depth in N/m per method]) for a uniform indentation."""
     mesh = punch_mesh(level)
     body = DeformableBody(mesh, LinearElasticMaterial(E, NU, 1e3), mesh.nodes[:, 2] == mesh.nodes[:, 2].min())
     c = HALF_SIDE
     patch = body.contact_patch(nodes_in_polygon(mesh, [[-c, -c, 0], [c, -c, 0], [c, c, 0], [-c, c, 0]]))
     press = np.tile([0.0, 0.0, -DEPTH], (patch.n_nodes, 1))
-    return mesh.n_nodes, patch.reaction_forces(press, method)[:, 2].sum() / DEPTH
+    return mesh.n_nodes, [patch.reaction_forces(press, m)[:, 2].sum() / DEPTH for m in methods]
 
 
 def sneddon_stiffness() -> float:
@@ -64,12 +64,15 @@ def sneddon_stiffness() -> float:
 def test_flat_punch_stiffness_converges_toward_sneddon_half_space():
     reference = sneddon_stiffness()
     levels = (1, 2, 3, 4)  # 1k to 8k nodes
-    sizes, errors = [], []
+    sizes, errors, gaps = [], [], []
     for level in levels:
-        n_nodes, k = punch_stiffness(level)
+        n_nodes, (k, k_traction) = punch_stiffness(level, ("consistent", "traction"))
         sizes.append(2 * HALF_SIDE / (2 * level))
         errors.append(k / reference - 1.0)
+        gaps.append(1.0 - k_traction / k)
     errors = np.array(errors)
+    # the traction method (eqs. 41-44) and the consistent forces approach each other
+    assert np.all(np.diff(gaps) < 0), f"traction/consistent gap must shrink, got {gaps}"
     assert np.all(errors > 0), "displacement FE must be stiffer than the exact solution"
     assert np.all(np.diff(errors) < 0), f"error must decrease with refinement, got {errors}"
     rate = np.polyfit(np.log(sizes), np.log(errors), 1)[0]
