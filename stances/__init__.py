@@ -1,14 +1,38 @@
-"""Static postures of a humanoid in multi-contact stances, rigid or deformable."""
+"""Static postures of a humanoid in multi-contact stances, rigid or deformable.
+
+Build a problem, solve it, check it::
+
+    >>> import environments, stances
+    >>> scenario = environments.load("stand")
+    >>> robot = stances.Robot.load("talos")
+    >>> result = stances.solve(robot, scenario.scene, scenario.stance("stand"))
+    >>> result.feasible, stances.verify(robot, scenario.scene, result.stance, result).ok
+    (True, True)
+"""
 
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
+from .problem import PostureOptions, PostureProblem, build_problem
+from .results import PointForce, PostureResult, Verification
 from .robot import Robot, RobotSurface, SurfaceDeclaration
+from .sqp import solve, solve_problem
+from .verify import verify, verify_problem
 
 __all__ = [
     "ConfigurationError",
     "FrameNotFound",
+    "PointForce",
+    "PostureOptions",
+    "PostureProblem",
+    "PostureResult",
     "Robot",
     "RobotNotFound",
     "RobotSurface",
     "StanceError",
     "SurfaceDeclaration",
+    "Verification",
+    "build_problem",
+    "solve",
+    "solve_problem",
+    "verify",
+    "verify_problem",
 ]

@@ -17,8 +17,8 @@ adding eq. (63)'s first term. The forces act at the moving points ``y_n``.
 
 A deformable contact owns no force variable. It adds the physical validity
 constraints the paper leaves implicit: every node pushes (no adhesion), the
-resultant stays in the friction cone, and no node moves more than
-``max_indentation`` (small deformations).
+resultant stays in the friction cone, and no node is indented more than
+``max_indentation`` along the print normal (small deformations).
 """
 
 from __future__ import annotations
@@ -224,16 +224,16 @@ class DeformableContact:
             )
         )
 
+        # Small deformations: bound each node's displacement along the print
+        # normal (the indentation); tangential motions stay far smaller.
         bound = self.max_indentation
-        jacobian = np.zeros((3 * p, columns))
-        jacobian[:, :nv] = d_displacements
+        normal_in_body = self.rotation_body.T @ normal
+        jacobian = np.zeros((p, columns))
+        jacobian[:, :nv] = np.einsum("j,pjv->pv", normal_in_body, d_displacements.reshape(p, 3, nv))
         blocks.append(
             ConstraintBlock(
-                "indentation", displacements.reshape(-1), jacobian, -bound, bound, 1e-2,
-                tuple(
-                    f"indentation bound at node {n} of {self.label} ({axis})"
-                    for n in self.patch.node_ids for axis in "xyz"
-                ),
+                "indentation", displacements @ normal_in_body, jacobian, -bound, bound, 1e-2,
+                tuple(f"indentation bound at node {n} of {self.label}" for n in self.patch.node_ids),
             )
         )
         return blocks
@@ -287,10 +287,10 @@ class DeformableContact:
         tangential = np.linalg.norm(total - normal_part * self.normal_in_world)
         if tangential > self.friction * normal_part + tolerances.cone:
             reasons.append(f"the resultant of {self.label} leaves its friction cone")
-        depth = float(np.abs(displacements).max())
-        measures[f"largest displacement of {self.label}"] = depth
+        depth = float(np.abs(displacements @ (self.rotation_body.T @ self.normal_in_world)).max())
+        measures[f"indentation of {self.label}"] = depth
         if depth > self.max_indentation + 1e-9:
-            reasons.append(f"a node of {self.label} moves {depth:.3g} m, beyond max_indentation")
+            reasons.append(f"a node of {self.label} is indented {depth:.3g} m, beyond max_indentation")
         return reasons
 
 

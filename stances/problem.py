@@ -51,6 +51,9 @@ class PostureOptions:
         Accepted violation, in units of each row's scale (see
         :mod:`stances.blocks`): 1e-7 means 1e-9 m placement, 1e-6 N
         equilibrium, 1e-7 N m beyond a torque limit.
+    optimality_tolerance : float
+        A feasible iterate is final once a step changes the merit function by
+        less than this, relative.
     collision_distance : float
         Minimum distance kept between the robot and the scene or itself, m.
     collision_activation : float
@@ -60,7 +63,8 @@ class PostureOptions:
     self_collision : bool
         Whether the SRDF self-collision pairs are checked.
     max_indentation : float
-        Deformable supports: bound on each print node's displacement, m
+        Deformable supports: bound on each print node's displacement along
+        the print normal, m
         (keeps the small-deformation hypothesis of linear elasticity).
     elastic_penalty : float
         Initial weight of the elastic variable that lets the QP relax
@@ -82,6 +86,7 @@ class PostureOptions:
     max_iterations: int = 100
     trust_region: float = 0.3
     feasibility_tolerance: float = 1e-7
+    optimality_tolerance: float = 1e-7
     collision_distance: float = 0.005
     collision_activation: float = 0.05
     max_collision_rows: int = 16

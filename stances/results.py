@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -11,6 +12,39 @@ def _readonly(array) -> np.ndarray:
     array = np.array(array, dtype=float)
     array.setflags(write=False)
     return array
+
+
+class LazyDeformations(Mapping):
+    """Displacement fields computed on first access, then kept.
+
+    A full field costs sparse solves on the whole body; a search loop that
+    only needs feasibility should not pay for it, a picture or a file should.
+
+    Parameters
+    ----------
+    producers : dict of str to callable
+        Object name -> function returning its (N, 3) field, metres, body frame.
+    """
+
+    def __init__(self, producers):
+        self._producers = dict(producers)
+        self._fields = {}
+
+    def __getitem__(self, name):
+        if name not in self._fields:
+            field_ = np.array(self._producers[name](), dtype=float)
+            field_.setflags(write=False)
+            self._fields[name] = field_
+        return self._fields[name]
+
+    def __iter__(self):
+        return iter(self._producers)
+
+    def __len__(self):
+        return len(self._producers)
+
+    def __repr__(self):
+        return f"LazyDeformations({sorted(self._producers)})"
 
 
 @dataclass(frozen=True)
