@@ -39,6 +39,10 @@ class ConstraintBlock:
         Violation size that matters, in the rows' units (> 0).
     labels : tuple of str
         One readable label per row.
+    slack : float
+        Violation tolerated before a row counts as violated, in the rows'
+        units. Zero but for nonsmooth rows (collision distances, whose witness
+        points jump), where demanding 1e-9 m would only stall the solver.
     """
 
     name: str
@@ -48,6 +52,7 @@ class ConstraintBlock:
     upper: np.ndarray
     scale: np.ndarray
     labels: tuple
+    slack: float = 0.0
 
     def __post_init__(self) -> None:
         rows = len(self.value)
@@ -65,8 +70,8 @@ class ConstraintBlock:
 
     def violation(self) -> np.ndarray:
         """(r,) float: how far each row is outside its bounds, in units of ``scale``."""
-        below = np.maximum(self.lower - self.value, 0.0)
-        above = np.maximum(self.value - self.upper, 0.0)
+        below = np.maximum(self.lower - self.value - self.slack, 0.0)
+        above = np.maximum(self.value - self.upper - self.slack, 0.0)
         return (below + above) / self.scale
 
 

@@ -350,7 +350,11 @@ class PostureProblem:
                 value[i] = pair.distance
                 lower[i] = options.collision_distance
                 labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
-        return ConstraintBlock("collision", value, jacobian, lower, np.full(rows, np.inf), 1e-2, tuple(labels))
+        # 0.1 mm of the clearance may be eaten: the robot still keeps
+        # collision_distance - 0.1 mm away, and verify checks real contact.
+        return ConstraintBlock(
+            "collision", value, jacobian, lower, np.full(rows, np.inf), 1e-2, tuple(labels), slack=1e-4
+        )
 
 
 def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:

@@ -53,8 +53,10 @@ class _QPWorkspace:
         qp.settings.eps_abs = 1e-9
         qp.settings.eps_rel = 0.0
         qp.settings.eps_primal_inf = 1e-12
-        qp.settings.max_iter = 1000
-        qp.settings.max_iter_in = 200
+        # Bounded work per QP: an unlucky QP must not stall a search loop
+        # (its step is still used; the line search judges it).
+        qp.settings.max_iter = 300
+        qp.settings.max_iter_in = 50
         qp.settings.verbose = False
         return qp
 
@@ -205,6 +207,14 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
             trial_violation, _ = trial.max_violation()
             trial_merit = trial.objective + penalty * trial_violation
             if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0):
+                accepted = (q_try, lam_try, trial)
+                break
+            # Filter-style escape from the Maratos effect: near a solution a
+            # full step may raise the merit through curvature while clearly
+            # improving feasibility; such a step is taken.
+            if alpha == 1.0 and violation > tolerance and trial_violation < 0.5 * violation and (
+                trial.objective <= linearization.objective + 1e-3 * (1.0 + abs(linearization.objective))
+            ):
                 accepted = (q_try, lam_try, trial)
                 break
             alpha *= 0.5
