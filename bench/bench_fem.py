@@ -19,7 +19,14 @@ import scipy.sparse.linalg as spla
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from fem import DeformableBody, LinearElasticMaterial, assemble_stiffness, box_mesh, nodes_in_polygon  # noqa: E402
+from fem import (  # noqa: E402
+    DeformableBody,
+    LinearElasticMaterial,
+    assemble_stiffness,
+    box_mesh,
+    nodes_in_polygon,
+    tensor_mesh,
+)
 from fem.assembly import element_strain_matrices  # noqa: E402
 from fem.solvers import factorize  # noqa: E402
 
@@ -171,26 +178,47 @@ def punch_table():
     return f"Sneddon reference (equal-area circle): k = {reference:.4g} N/m\n\n" + "\n".join(lines)
 
 
+def refined_axis(lo: float, hi: float, h: float, extent: tuple[float, float]) -> np.ndarray:
+    """Uniform cells of size h on [lo, hi] (a pad of 0.05 m around the print), growing outside."""
+    from test_fem_punch import growing
+
+    inner = np.linspace(lo, hi, int(round((hi - lo) / h)) + 1)
+    right = growing(hi, h, extent[1])
+    left = -growing(-lo, h, -extent[0])[::-1]
+    return np.concatenate([left, inner[1:-1], right])
+
+
 def traction_table():
     lines = [
-        "| cube mesh (cells per edge, graded 3:1) | nodes | print nodes | total Fz consistent (N) | total Fz traction (N) | rel. diff total | rel. diff nodal (L2) |",
-        "|---|---|---|---|---|---|---|",
+        "| cell size under the print (m) | nodes | print nodes | print triangles | total Fz consistent (N) | "
+        "total Fz traction (N) | rel. diff total | rel. diff nodal (L2) |",
+        "|---|---|---|---|---|---|---|---|",
     ]
     hand = [[0.45, 0.425, 1.0], [0.55, 0.425, 1.0], [0.55, 0.575, 1.0], [0.45, 0.575, 1.0]]  # 10 x 15 cm
-    for cells in (20, 30, 40):
-        mesh = box_mesh((1.0, 1.0, 1.0), (cells, cells, cells // 2), grading=3.0)
-        # refine x, y near the print only through the uniform grid here (paper-like cube)
+    for h in (0.025, 0.05 / 3, 0.0125):
+        xs = refined_axis(0.4, 0.6, h, (0.0, 1.0))
+        ys = refined_axis(0.375, 0.625, h, (0.0, 1.0))
+        zs = 1.0 - growing_depth(h)
+        mesh = tensor_mesh(xs, ys, zs)
         body = DeformableBody(mesh, MATERIAL, mesh.nodes[:, 2] == 0.0)
-        ids = nodes_in_polygon(mesh, hand, tolerance=1e-9)
-        patch = body.contact_patch(ids)
+        patch = body.contact_patch(nodes_in_polygon(mesh, hand, tolerance=1e-9))
         press = np.tile([0.0, 0.0, -0.01], (patch.n_nodes, 1))
         fc = patch.reaction_forces(press, "consistent")
         ft = patch.reaction_forces(press, "traction")
         lines.append(
-            f"| {cells} | {mesh.n_nodes} | {ids.size} | {fc[:, 2].sum():.1f} | {ft[:, 2].sum():.1f} | "
-            f"{ft[:, 2].sum() / fc[:, 2].sum() - 1:+.3f} | {np.linalg.norm(ft - fc) / np.linalg.norm(fc):.3f} |"
+            f"| {h:.4g} | {mesh.n_nodes} | {patch.n_nodes} | {patch.triangles.shape[0]} | {fc[:, 2].sum():.1f} | "
+            f"{ft[:, 2].sum():.1f} | {ft[:, 2].sum() / fc[:, 2].sum() - 1:+.3f} | "
+            f"{np.linalg.norm(ft - fc) / np.linalg.norm(fc):.3f} |"
         )
     return "\n".join(lines)
+
+
+def growing_depth(h: float) -> np.ndarray:
+    """Depths from the top: uniform h down to 0.05 m, then growing cells down to 1 m."""
+    from test_fem_punch import growing
+
+    top = np.linspace(0.0, 0.05, int(round(0.05 / h)) + 1)
+    return np.concatenate([growing(0.05, h, 1.0)[::-1], top[::-1][1:]])
 
 
 def main():
@@ -258,7 +286,11 @@ Square rigid print of side 0.1 m pressed 0.1 mm into a block of half-width and d
 
 ## Traction vs consistent on a paper-like 1 m cube
 
-Hand-sized print 10 x 15 cm on top, pressed uniformly 1 cm down.
+1 m cube (E = 1e6 Pa, nu = 0.4, base fixed), hand-sized print 10 x 15 cm on top
+pressed uniformly 1 cm down (a rigid, bonded print). tensor_mesh with uniform cells of
+the given size under the print (plus a 5 cm pad, and 5 cm deep), growing by 1.3
+outside. "rel. diff nodal" = ||F_traction - F_consistent|| / ||F_consistent|| over all
+print node forces.
 
 {traction}
 """
