@@ -27,7 +27,6 @@ from __future__ import annotations
 import datetime
 import functools
 import os
-import platform
 import sys
 import time
 
@@ -39,6 +38,8 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import numpy as np  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchmark_info import code_version, machine  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
@@ -124,37 +125,6 @@ def _recording_solve_problem(problem, *args, **kwargs):
         TIMERS.enabled = False
     PHASES.append(("deformable" if deformable else "rigid", result.solve_time, result.iterations))
     return result
-
-
-def machine() -> str:
-    model = "unknown CPU"
-    with open("/proc/cpuinfo") as handle:
-        for line in handle:
-            if line.startswith("model name"):
-                model = line.split(":", 1)[1].strip()
-                break
-    with open("/proc/loadavg") as handle:
-        load = " ".join(handle.read().split()[:3])
-    return (
-        f"nproc {len(os.sched_getaffinity(0))}, {model}, Python {platform.python_version()}, "
-        f"BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}, load average {load} (shared machine)"
-    )
-
-
-def code_version() -> str:
-    """Commit of the code measured, and whether stances/ or fem/ had uncommitted edits."""
-    import subprocess
-
-    root = os.path.join(os.path.dirname(__file__), "..")
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True,
-                                text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "stances", "fem", "environments"],
-                               cwd=root, capture_output=True, text=True, check=True).stdout.split("\n")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown commit"
-    edited = sorted({line[3:] for line in dirty if line.strip()})
-    return f"commit {commit}" + (f", uncommitted edits in {', '.join(edited)}" if edited else "")
 
 
 def deformable_contact(scene, stance):

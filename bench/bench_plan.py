@@ -20,7 +20,6 @@ from pathlib import Path
 import environments
 import stances
 
-import cbm
 from cbm.planner import plan
 
 SCENARIOS = ("cross-soft-block", "climb-with-soft-support")

@@ -29,7 +29,6 @@ from __future__ import annotations
 import datetime
 import math
 import os
-import platform
 import sys
 import time
 
@@ -44,6 +43,8 @@ import pinocchio as pin
 from scipy.optimize import minimize
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchmark_info import code_version, machine  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
@@ -72,40 +73,6 @@ BLOCK_SHIFT = ((-0.04, 0.04), (-0.04, 0.04), 5.0)  # right sole on the block top
 
 class _TimeLimit(Exception):
     """Raised from inside SLSQP's callbacks when its time budget is spent."""
-
-
-def machine() -> str:
-    model = "unknown CPU"
-    try:
-        with open("/proc/cpuinfo") as handle:
-            for line in handle:
-                if line.startswith("model name"):
-                    model = line.split(":", 1)[1].strip()
-                    break
-    except OSError:
-        pass
-    with open("/proc/loadavg") as handle:
-        load = " ".join(handle.read().split()[:3])
-    return (
-        f"nproc {len(os.sched_getaffinity(0))}, {model}, Python {platform.python_version()}, "
-        f"BLAS threads {os.environ['OPENBLAS_NUM_THREADS']}, load average {load} (shared machine)"
-    )
-
-
-def code_version() -> str:
-    """Commit of the code measured, and whether stances/ or fem/ had uncommitted edits."""
-    import subprocess
-
-    root = os.path.join(os.path.dirname(__file__), "..")
-    try:
-        commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=root, capture_output=True,
-                                text=True, check=True).stdout.strip()
-        dirty = subprocess.run(["git", "status", "--porcelain", "--", "stances", "fem", "environments"],
-                               cwd=root, capture_output=True, text=True, check=True).stdout.split("\n")
-    except (OSError, subprocess.CalledProcessError):
-        return "unknown commit"
-    edited = sorted({line[3:] for line in dirty if line.strip()})
-    return f"commit {commit}" + (f", uncommitted edits in {', '.join(edited)}" if edited else "")
 
 
 def _print_on_surface(robot, scene, robot_surface, contact_print) -> bool:

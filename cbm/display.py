@@ -150,11 +150,7 @@ def scene_edges(scene, view_bounds=None):
     edges = {}
     for obj in scene.rigid_objects:
         transform = np.asarray(obj.transform_object_to_world, dtype=float)
-        if obj.box_size is not None:
-            half = 0.5 * np.asarray(obj.box_size, dtype=float)
-            lower, upper = -half, half
-        else:
-            lower, upper = np.asarray(obj.mesh.bounds, dtype=float)
+        lower, upper = obj.bounds_in_object
         aligned = np.allclose(transform[:3, :3], np.eye(3))
         if view_bounds is not None and aligned and np.max(upper[:2] - lower[:2]) > _CLIP_SIZE:
             world_lower, world_upper = lower + transform[:3, 3], upper + transform[:3, 3]

@@ -14,6 +14,7 @@ from environments.stance import Stance
 from stances.results import PointForce
 
 from .errors import PlanFileError
+from .search import SearchStatistics
 from .stance_graph import differ_by_one_contact
 
 __all__ = ["PlannedStance", "PlanStatistics", "Plan", "PlanCheck", "as_point_force"]
@@ -114,35 +115,17 @@ class PlannedStance:
 
 
 @dataclass(frozen=True)
-class PlanStatistics:
-    """Effort spent on a plan.
+class PlanStatistics(SearchStatistics):
+    """Effort spent on a plan: the search's counters and the prints sampled.
 
     Parameters
     ----------
-    expanded : int
-        Stances whose neighbours were generated.
-    generated : int
-        Neighbours generated.
-    solver_calls : int
-        Posture solves.
-    cache_hits : int
-        Solves avoided by the cache.
     prints : int
-        Prints sampled (all robot surfaces).
-    time : float
-        Wall time of the search, seconds.
+        Prints sampled (all robot surfaces); the other fields are
+        :class:`~cbm.search.SearchStatistics`'.
     """
 
-    expanded: int = 0
-    generated: int = 0
-    solver_calls: int = 0
-    cache_hits: int = 0
     prints: int = 0
-    time: float = 0.0
-
-    def to_dict(self):
-        """Plain data."""
-        return dict(self.__dict__)
 
 
 @dataclass(frozen=True)

@@ -223,11 +223,7 @@ def obstacle_boxes(scene):
     boxes = []
     for obj in scene.rigid_objects:
         transform = np.asarray(obj.transform_object_to_world, dtype=float)
-        if obj.box_size is not None:
-            half = 0.5 * np.asarray(obj.box_size, dtype=float)
-            lower, upper = -half, half
-        else:
-            lower, upper = np.asarray(obj.mesh.bounds, dtype=float)
+        lower, upper = obj.bounds_in_object
         boxes.append((obj.name, np.linalg.inv(transform), lower, upper))
     for obj in scene.deformable_objects:
         nodes = np.asarray(obj.mesh.nodes, dtype=float)

@@ -15,6 +15,7 @@ import itertools
 import logging
 import random
 import time
+import dataclasses
 from dataclasses import dataclass, field
 from typing import Any, Callable, Hashable, Iterable
 
@@ -89,14 +90,8 @@ class SearchStatistics:
     time: float = 0.0
 
     def to_dict(self):
-        """Return the counters as a plain dict."""
-        return {
-            "expanded": self.expanded,
-            "generated": self.generated,
-            "solver_calls": self.solver_calls,
-            "cache_hits": self.cache_hits,
-            "time": self.time,
-        }
+        """Return the counters as a plain dict (subclasses' fields included)."""
+        return dataclasses.asdict(self)
 
 
 @dataclass(frozen=True)

@@ -69,6 +69,17 @@ class RigidObject:
         """False: a rigid object."""
         return False
 
+    @property
+    def bounds_in_object(self) -> np.ndarray:
+        """(2, 3) float: lower and upper corners of its box, metres, object frame.
+
+        The exact box for a box object, the mesh's axis-aligned bounds otherwise.
+        """
+        if self.box_size is not None:
+            half = 0.5 * self.box_size
+            return np.array([-half, half])
+        return np.asarray(self.mesh.bounds, dtype=float).copy()
+
     def mesh_in_world(self) -> trimesh.Trimesh:
         """A copy of the mesh placed in the world frame."""
         return self.mesh.copy().apply_transform(self.transform_object_to_world)

@@ -15,7 +15,8 @@ small interface to the problem builder:
 - ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
 - ``force_jacobians(model, data, lam)``: their derivatives in q and lambda;
 - ``blocks(model, data, lam, columns)``: its own constraint rows;
-- ``cost(...)``: its objective terms.
+- ``cost(model, data, options, columns)``: its objective term, or None;
+- ``verify(...)``: its independent checks.
 """
 
 from __future__ import annotations
@@ -129,6 +130,10 @@ class RigidContact:
         ]
         # 1 cm / 10 mrad: the size of a placement error that matters.
         return [equality("placement", residual, jacobian, 1e-2, labels)]
+
+    def cost(self, model, data, options, columns):
+        """No objective term of its own (lambda's is the problem's force term)."""
+        return None
 
     def normal_forces(self, lam) -> np.ndarray:
         """(k,) float: normal component of each vertex force, newtons (>= 0 by construction)."""

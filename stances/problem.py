@@ -15,7 +15,7 @@ functions of q (eq. 29, 44).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -139,7 +139,6 @@ class Linearization:
     step_upper: np.ndarray
     forces: np.ndarray
     torques: np.ndarray
-    extras: dict = field(default_factory=dict)
 
     def max_violation(self) -> tuple[float, str]:
         """Largest scaled violation and the label of its row."""
@@ -232,7 +231,7 @@ class PostureProblem:
             or [np.zeros((0, 3))]
         )
 
-    def linearize(self, q, lam, jacobians: bool = True) -> Linearization:
+    def linearize(self, q, lam) -> Linearization:
         """Evaluate objective and constraints, with Jacobians, at ``(q, lam)``.
 
         Parameters
@@ -241,8 +240,6 @@ class PostureProblem:
             Configuration.
         lam : (m,) float
             Rigid-contact force variables, newtons.
-        jacobians : bool
-            False skips what only the QP needs (faster, for line searches).
 
         Returns
         -------
@@ -316,7 +313,7 @@ class PostureProblem:
             gradient[nv:] += options.force_weight * lam
             hessian[nv:, nv:] += options.force_weight * np.eye(self.n_variables)
         for contact in self.contacts:
-            term = contact.cost(model, data, options, n) if hasattr(contact, "cost") else None
+            term = contact.cost(model, data, options, n)
             if term is not None:
                 value, grad, hess = term
                 objective += value
