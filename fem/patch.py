@@ -225,22 +225,32 @@ class ContactPatch:
         out.setflags(write=False)
         return out
 
-    def reaction_matrix(self, method: str = "consistent") -> np.ndarray:
+    def reaction_matrix(self, method: str = "consistent", normals=None) -> np.ndarray:
         """Jacobian R of the forces on the robot with respect to U_P.
 
         Parameters
         ----------
         method : {"consistent", "traction"}
             ``"consistent"``: R = -S_P, the exact nodal forces of the discrete system.
-            ``"traction"``: eqs. (41)-(44) with the rest normals: each print triangle e
-            gives ``-alpha_e / 3 sigma_e n_e`` to each of its 3 vertices.
+            ``"traction"``: eqs. (41)-(44): each print triangle e gives
+            ``-alpha_e / 3 sigma_e n_e`` to each of its 3 vertices.
+        normals : (T, 3) float, optional
+            ``traction`` only: the print triangles' normals, body frame (e.g.
+            turned with the robot link, eq. 63); the rest normals by default.
 
         Returns
         -------
-        (3p, 3p) float, N/m, read-only, cached
-            ``forces_on_robot.ravel() = R @ U_P.ravel()``.
+        (3p, 3p) float, N/m, read-only
+            ``forces_on_robot.ravel() = R @ U_P.ravel()``; cached for the
+            rest normals.
         """
         self._check_method(method)
+        if normals is not None:
+            if method != "traction":
+                raise PrintError("normals only apply to method='traction'")
+            r = self._traction_matrix(self._check_normals(normals))
+            r.setflags(write=False)
+            return r
         if method not in self._cache:
             if method == "consistent":
                 r = -self.condensed_stiffness

@@ -138,7 +138,7 @@ class DeformableContact:
             relative = rotation_body.T @ link_rotation @ self._print_rotation_in_body.T
             normals = self.patch.triangle_normals @ relative.T
             forces_body = self.patch.reaction_forces(displacements, method="traction", normals=normals)
-            reaction = self._traction_matrix(normals)
+            reaction = self.patch.reaction_matrix("traction", normals=normals)
             d_forces_body = reaction @ d_displacements
             # eq. (63), first term: normals turn with the link, dn = omega x n.
             angular = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED)[3:]
@@ -153,19 +153,6 @@ class DeformableContact:
         self._cache_key = key
         self._cache = (displacements, d_displacements, forces, d_forces)
         return self._cache
-
-    def _traction_matrix(self, normals):
-        """Reaction matrix of eq. (44) for given normals (linear in U_P)."""
-        if np.allclose(normals, self.patch.triangle_normals, atol=1e-12):
-            return self.reaction
-        p = len(self.loads)
-        columns = np.eye(3 * p)
-        return np.column_stack(
-            [
-                self.patch.reaction_forces(columns[:, k].reshape(p, 3), method="traction", normals=normals).reshape(-1)
-                for k in range(3 * p)
-            ]
-        )
 
     def _normal_rotation_term(self, per_triangle, normals, omega_body):
         """d f / d q from rotating each triangle normal with the link, body frame."""

@@ -280,3 +280,13 @@ def test_unknown_method_and_bad_normals_are_rejected(patch, displacements):
         patch.reaction_matrix("penalty")
     with pytest.raises(PrintError, match="normals must have shape"):
         patch.reaction_forces(displacements, "traction", normals=np.zeros((2, 3)))
+
+
+def test_traction_matrix_for_turned_normals_matches_the_forces(patch, displacements):
+    """reaction_matrix('traction', normals) is the exact linear map of eq. (44) with those normals."""
+    normals = rotate(patch.triangle_normals, np.array([0.05, -0.03, 0.2]))
+    matrix = patch.reaction_matrix("traction", normals=normals)
+    forces = patch.reaction_forces(displacements, method="traction", normals=normals)
+    assert np.allclose(matrix @ displacements.ravel(), forces.ravel(), rtol=1e-12, atol=1e-9)
+    with pytest.raises(PrintError, match="normals only apply to method='traction'"):
+        patch.reaction_matrix("consistent", normals=normals)
