@@ -172,7 +172,7 @@ def physics(robot, result, robot_surface, object_name):
     field = result.deformations.get(object_name)
     depth = float(np.linalg.norm(field, axis=1).max()) * 1e3 if field is not None else 0.0
     measures = result.verification.measures if result.verification is not None else {}
-    print_depth = next((1e3 * v for k, v in measures.items() if k.startswith("largest displacement of")), 0.0)
+    print_depth = next((1e3 * v for k, v in measures.items() if k.startswith("indentation of")), 0.0)
     frame = robot.surface(robot_surface).frame
     total = np.sum([p.force for p in result.forces_on(frame)], axis=0)
     return depth, print_depth, total
@@ -271,7 +271,7 @@ static torques, rigid contacts, collisions).
 
 Reaction models (default options otherwise):
 
-| scenario | reaction model | feasible | setup ms (build_problem) | solve ms | SQP ms | iterations | depth mm | print max component mm | reaction z N | FEM share (all terms) |
+| scenario | reaction model | feasible | setup ms (build_problem) | solve ms | SQP ms | iterations | depth mm | print indentation mm | reaction z N | FEM share (all terms) |
 |---|---|---|---|---|---|---|---|---|---|---|
 {chr(10).join(model_rows)}
 
