@@ -72,9 +72,10 @@ def test_softer_cube_gives_a_deeper_print(deformable_results):
 
 
 def test_stiffer_cube_tends_to_the_rigid_contact(robot):
-    """Depth falls as 1/E and the palm ends up on its print, as with a rigid support."""
+    """Depth falls as 1/E (the palm load barely changes) and the palm ends up on
+    its print, as with a rigid support."""
     errors, depths = [], []
-    for young_modulus in (1e6, 1e7):
+    for young_modulus in (1e6, 1e7, 1e8):
         scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
         stance = scenario.stance("hand-on-cube")
         result = solve(robot, scenario.scene, stance)
@@ -85,8 +86,9 @@ def test_stiffer_cube_tends_to_the_rigid_contact(robot):
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, result.q)
         errors.append(np.linalg.norm(contact.print_placement.actInv(data.oMf[contact.frame_id]).translation))
-    assert depths[1] < 0.25 * depths[0]
-    assert errors[1] < 0.25 * errors[0]
+    # Ten times stiffer, ten times shallower, within the change of the palm load.
+    assert np.allclose(np.array(depths[:-1]) / np.array(depths[1:]), 10.0, rtol=0.3), depths
+    assert errors[2] < 0.05 * errors[0]
 
 
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
