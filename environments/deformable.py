@@ -110,6 +110,27 @@ class DeformableObject:
         """Boundary triangles at rest, ``(T, 3, 3)`` metres, world frame."""
         return self.deformed_surface(np.zeros_like(self.mesh.nodes))
 
+    def deformed_collision_object(self, displacements):
+        """The deformed boundary as an FCL mesh, world frame, for clearance checks.
+
+        Parameters
+        ----------
+        displacements : (N, 3) float
+            Nodal displacements, metres, body frame.
+
+        Returns
+        -------
+        fcl.CollisionObject
+        """
+        import fcl
+
+        from .geometry import bvh_model
+
+        triangles = self.deformed_surface(displacements)  # validates the shape
+        vertices = triangles.reshape(-1, 3)
+        faces = np.arange(len(vertices)).reshape(-1, 3)
+        return fcl.CollisionObject(bvh_model(vertices, faces), fcl.Transform())
+
     def deformed_surface(self, displacements) -> np.ndarray:
         """Boundary triangles of the deformed body, for pictures.
 

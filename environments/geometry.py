@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import math
 
+import fcl
 import numpy as np
 
 from .errors import SceneError
@@ -243,3 +244,24 @@ def points_in_convex_polygon(polygon: np.ndarray, points, margin: float = 0.0) -
 def wrap_angle(theta: float) -> float:
     """Angle wrapped to [-pi, pi], radians."""
     return math.remainder(float(theta), 2.0 * math.pi)
+
+
+def bvh_model(vertices, triangles) -> fcl.BVHModel:
+    """An FCL triangle-mesh model.
+
+    Parameters
+    ----------
+    vertices : (n, 3) float
+        Metres, in the frame the model will be placed from.
+    triangles : (t, 3) int
+        Vertex indices.
+
+    Returns
+    -------
+    fcl.BVHModel
+    """
+    model = fcl.BVHModel()
+    model.beginModel(len(vertices), len(triangles))
+    model.addSubModel(np.asarray(vertices, dtype=float), np.asarray(triangles, dtype=np.int32))
+    model.endModel()
+    return model

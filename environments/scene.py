@@ -11,6 +11,7 @@ import numpy as np
 
 from .deformable import DeformableObject
 from .errors import SceneError, known_names
+from .geometry import bvh_model
 from .objects import RigidObject
 from .stance import Contact, ContactPrint
 from .surfaces import ContactSurface
@@ -20,14 +21,6 @@ __all__ = ["Scene"]
 
 def _fcl_transform(transform: np.ndarray) -> fcl.Transform:
     return fcl.Transform(np.array(transform[:3, :3]), np.array(transform[:3, 3]))
-
-
-def _bvh(vertices: np.ndarray, triangles: np.ndarray) -> fcl.BVHModel:
-    model = fcl.BVHModel()
-    model.beginModel(len(vertices), len(triangles))
-    model.addSubModel(np.asarray(vertices, dtype=float), np.asarray(triangles, dtype=np.int32))
-    model.endModel()
-    return model
 
 
 class Scene:
@@ -207,7 +200,7 @@ class Scene:
             if obj.box_size is not None:
                 geometry = fcl.Box(*(float(v) for v in obj.box_size))
             else:
-                geometry = _bvh(obj.mesh.vertices, obj.mesh.faces)
+                geometry = bvh_model(obj.mesh.vertices, obj.mesh.faces)
             placed.append((obj.name, fcl.CollisionObject(geometry, _fcl_transform(obj.transform_object_to_world))))
         for obj in self._deformable:
             placed.append((obj.name, _rest_collision_object(obj)))
@@ -245,4 +238,4 @@ def _rest_collision_object(obj: DeformableObject) -> fcl.CollisionObject:
     import trimesh
 
     hull = trimesh.convex.convex_hull(nodes)
-    return fcl.CollisionObject(_bvh(hull.vertices, hull.faces), _fcl_transform(obj.transform_body_to_world))
+    return fcl.CollisionObject(bvh_model(hull.vertices, hull.faces), _fcl_transform(obj.transform_body_to_world))

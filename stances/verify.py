@@ -44,7 +44,9 @@ def _external_forces(model, data, point_forces):
     return fext
 
 
-def verify_problem(problem, result, tolerances: VerificationTolerances | None = None) -> Verification:
+def verify_problem(
+    problem, result, tolerances: VerificationTolerances | None = None, deformed_surfaces: bool = False
+) -> Verification:
     """Check a result against the problem it claims to solve.
 
     Parameters
@@ -52,6 +54,11 @@ def verify_problem(problem, result, tolerances: VerificationTolerances | None = 
     problem : stances.problem.PostureProblem
     result : stances.PostureResult
     tolerances : VerificationTolerances, optional
+    deformed_surfaces : bool
+        Also check that no link but the contacting one penetrates a deformed
+        support (exact, on the deformed boundary mesh). It needs the whole-body
+        displacement field, a few hundred milliseconds on a large mesh, so the
+        solver's own check (against the rest shape) leaves it out.
 
     Returns
     -------
@@ -102,6 +109,10 @@ def verify_problem(problem, result, tolerances: VerificationTolerances | None = 
         offset += count
         reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
 
+    # Links other than the contacting one keep clear of each deformed surface.
+    if deformed_surfaces and problem.collision_checker is not None:
+        reasons.extend(_deformed_surface_clearance(problem, result, data, tolerances, measures))
+
     # Collisions, measured afresh.
     if problem.collision_checker is not None:
         pairs = problem.collision_checker.pairs(model, data)
@@ -127,6 +138,7 @@ def verify(robot, scene, stance, result, **options) -> Verification:
         Its ``q`` and ``point_forces`` are checked; nothing else is trusted.
     **options
         Posture options (e.g. ``reaction_model``) the result was solved with.
+        Deformable supports are checked against their deformed surface.
 
     Returns
     -------
@@ -136,4 +148,30 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     from .problem import PostureOptions, build_problem
 
     problem = build_problem(robot, scene, stance, PostureOptions(**options))
-    return verify_problem(problem, result)
+    return verify_problem(problem, result, deformed_surfaces=True)
+
+
+def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> list:
+    """Penetrations of robot links into the deformed supports (contact link excluded)."""
+    from .collision import CollisionChecker, contact_exclusions
+
+    reasons = []
+    for contact in problem.contacts:
+        if contact.kind != "deformable":
+            continue
+        obj = contact.deformable_object
+        name = f"{obj.name} (deformed)"
+        checker = CollisionChecker(
+            problem.robot,
+            [(name, obj.deformed_collision_object(result.deformations[obj.name]))],
+            margin=0.0,
+            exclude=contact_exclusions(problem.robot, problem.robot.model.frames[contact.frame_id].name, name),
+            self_collision=False,
+        )
+        pairs = checker.pairs(problem.robot.model, data)
+        deepest = min((p.distance for p in pairs), default=np.inf)
+        measures[f"clearance to deformed {obj.name}"] = float(deepest)
+        for pair in pairs:
+            if pair.distance < -tolerances.penetration:
+                reasons.append(f"{pair.name_a} penetrates the deformed {obj.name} by {-pair.distance:.3g} m")
+    return reasons

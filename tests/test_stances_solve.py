@@ -220,3 +220,19 @@ def test_solver_never_raises_on_an_impossible_stance(robot):
     problem = build_problem(robot, scenario.scene, stance, PostureOptions(max_iterations=40))
     result = solve_problem(problem)
     assert not result.feasible and result.reason
+
+
+def test_verify_catches_links_inside_the_deformed_support(robot, deformable_results):
+    """Moved 0.5 m forward, the robot's body enters the cube: verify says which link."""
+    import dataclasses
+
+    scenario = coarse_scenario("hand-on-cube")
+    stance = scenario.stance("hand-on-cube")
+    result = deformable_results["hand-on-cube"]
+    assert verify(robot, scenario.scene, stance, result).ok
+    q = np.array(result.q)
+    q[0] += 0.5
+    moved = dataclasses.replace(result, q=q)
+    check = verify(robot, scenario.scene, stance, moved)
+    assert not check.ok
+    assert any("penetrates the deformed cube" in reason for reason in check.reasons)
