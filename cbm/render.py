@@ -106,7 +106,7 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     axes.set_zlabel("z (m)")
     axes.set_title(display.label, fontsize=10)
     axes.legend(loc="upper left", fontsize=8)
-    axes.view_init(elev=18, azim=-60)
+    axes.view_init(elev=18, azim=_camera_azimuth(display))
     if mappable is not None:
         colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
         colorbar.set_label("displacement (mm)")
@@ -114,6 +114,24 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     plt.close(figure)
     logger.debug("picture written to %s", path)
     return path
+
+
+def _camera_azimuth(display) -> float:
+    """Camera azimuth, degrees, on the robot's side of the soft bodies.
+
+    matplotlib sorts whole collections by depth, so a soft body between the
+    camera and the robot would be drawn over it: look from the robot's side,
+    a quarter turn off the line joining them. Without soft bodies, the usual
+    front-left three-quarter view.
+    """
+    if not display.deformables or not len(display.segments):
+        return -60.0
+    robot_centre = display.segments.reshape(-1, 3).mean(axis=0)
+    bodies_centre = np.mean([d.vertices.mean(axis=0) for d in display.deformables], axis=0)
+    away = robot_centre[:2] - bodies_centre[:2]
+    if np.linalg.norm(away) < 1e-9:
+        return -60.0
+    return float(np.degrees(np.arctan2(away[1], away[0]))) - 45.0
 
 
 def _round_force(value):
