@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+from abc import ABC, abstractmethod
 
 import numpy as np
 import scipy.sparse as sp
@@ -30,12 +31,13 @@ def available_solvers() -> tuple[str, ...]:
     return ("cholmod", "scipy") if _cholmod() is not None else ("scipy",)
 
 
-class Factorization:
+class Factorization(ABC):
     """A factorised symmetric positive definite matrix; ``solve`` many right-hand sides."""
 
     name: str = ""
     size: int = 0
 
+    @abstractmethod
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         """Solve ``K x = rhs``.
 
@@ -47,7 +49,6 @@ class Factorization:
         -------
         (n,) or (n, k) float
         """
-        raise NotImplementedError
 
 
 class CholmodFactorization(Factorization):

@@ -25,7 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .blocks import equality
-from .statics import PointLoads
+from .statics import PointLoads, points_in_world
 
 
 def friction_cone_generators(friction: float, n_edges: int = 4) -> np.ndarray:
@@ -135,11 +135,6 @@ class RigidContact:
         """No objective term of its own (lambda's is the problem's force term)."""
         return None
 
-    def normal_forces(self, lam) -> np.ndarray:
-        """(k,) float: normal component of each vertex force, newtons (>= 0 by construction)."""
-        forces = self.forces(None, None, lam)
-        return forces @ self.print_placement.rotation[:, 2]
-
     def verify(self, model, data, points, forces, tolerances, measures) -> list:
         """Independent checks of this contact at a posture (see :mod:`stances.verify`).
 
@@ -163,7 +158,7 @@ class RigidContact:
                 f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"
             )
         # The forces must act at the robot surface's vertices...
-        expected = np.array([data.oMi[j].act(p) for j, p in zip(self.loads.joints.tolist(), self.loads.points_in_joint)])
+        expected = points_in_world(data, self.loads)
         if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
             reasons.append(f"forces of {self.label} are not applied at its surface's vertices")
         # ... and lie in the exact Coulomb cone of the print.

@@ -30,7 +30,7 @@ import pinocchio as pin
 
 from .blocks import ConstraintBlock
 from .errors import StanceError
-from .statics import PointLoads, point_jacobians
+from .statics import PointLoads, point_jacobians, points_in_world
 
 # Print patches are expensive to build (compliance solves) and the planner asks
 # for the same prints again and again: keep them per body, per node set.
@@ -126,17 +126,12 @@ class DeformableContact:
         key = (id(data), data.oMi[int(self.loads.joints[0])].homogeneous.tobytes())
         if self._cache_key == key:
             return self._cache
-        joint = int(self.loads.joints[0])
-        placement = data.oMi[joint]
-        points = self.loads.points_in_joint @ placement.rotation.T + placement.translation
         rotation_body = self.rotation_body
-        displacements = (points - self.nodes_in_world) @ rotation_body  # body frame (eq. 29)
+        displacements = self._displacements(data)
         jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
         d_displacements = np.einsum("ji,pjv->piv", rotation_body, jacobians).reshape(-1, model.nv)
         if self.method == "traction":
-            link_rotation = data.oMf[self.frame_id].rotation
-            relative = rotation_body.T @ link_rotation @ self._print_rotation_in_body.T
-            normals = self.patch.triangle_normals @ relative.T
+            normals = self._turned_normals(data)
             forces_body = self.patch.reaction_forces(displacements, method="traction", normals=normals)
             reaction = self.patch.reaction_matrix("traction", normals=normals)
             d_forces_body = reaction @ d_displacements
@@ -154,6 +149,16 @@ class DeformableContact:
         self._cache = (displacements, d_displacements, forces, d_forces)
         return self._cache
 
+    def _displacements(self, data) -> np.ndarray:
+        """(p, 3) U_P imposed by the link points, metres, body frame (eq. 29)."""
+        return (points_in_world(data, self.loads) - self.nodes_in_world) @ self.rotation_body
+
+    def _turned_normals(self, data) -> np.ndarray:
+        """(T, 3) print-triangle normals turned with the link, body frame (eq. 63)."""
+        link_rotation = data.oMf[self.frame_id].rotation
+        relative = self.rotation_body.T @ link_rotation @ self._print_rotation_in_body.T
+        return self.patch.triangle_normals @ relative.T
+
     def _normal_rotation_term(self, per_triangle, normals, omega_body):
         """d f / d q from rotating each triangle normal with the link, body frame."""
         p = len(self.loads)
@@ -169,7 +174,7 @@ class DeformableContact:
     # -- contact-model interface --------------------------------------------
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U_P, metres, body frame (eq. 29)."""
-        return self._state(model, data)[0]
+        return self._displacements(data)
 
     def forces(self, model, data, lam) -> np.ndarray:
         """(p, 3) world forces of the print nodes on the robot, newtons (eq. 44)."""
@@ -246,18 +251,15 @@ class DeformableContact:
     def verify(self, model, data, points, forces, tolerances, measures) -> list:
         """Recompute the FEM forces from the link placement and check them."""
         reasons = []
-        joint = int(self.loads.joints[0])
-        placement = data.oMi[joint]
-        expected_points = self.loads.points_in_joint @ placement.rotation.T + placement.translation
+        expected_points = points_in_world(data, self.loads)
         if len(points) != len(expected_points) or np.abs(points - expected_points).max() > tolerances.placement:
             reasons.append(f"forces of {self.label} are not applied at the print nodes' link points")
             return reasons
-        displacements = (expected_points - self.nodes_in_world) @ self.rotation_body
+        displacements = self._displacements(data)
         if self.method == "traction":
-            link_rotation = data.oMf[self.frame_id].rotation
-            relative = self.rotation_body.T @ link_rotation @ self._print_rotation_in_body.T
-            normals = self.patch.triangle_normals @ relative.T
-            forces_body = self.patch.reaction_forces(displacements, method="traction", normals=normals)
+            forces_body = self.patch.reaction_forces(
+                displacements, method="traction", normals=self._turned_normals(data)
+            )
         else:
             forces_body = self.patch.reaction_forces(displacements, method="consistent")
         expected = np.asarray(forces_body) @ self.rotation_body.T

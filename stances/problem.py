@@ -223,14 +223,6 @@ class PostureProblem:
         q[7:] = np.clip(q[7:], self.q_lower, self.q_upper)
         return q
 
-    def contact_forces(self, lam) -> np.ndarray:
-        """(k, 3) world forces of all contacts at the current kinematics (after linearize)."""
-        model, data = self.robot.model, self.data
-        return np.vstack(
-            [c.forces(model, data, lam[s]) for c, s in zip(self.contacts, self.variable_slices)]
-            or [np.zeros((0, 3))]
-        )
-
     def linearize(self, q, lam) -> Linearization:
         """Evaluate objective and constraints, with Jacobians, at ``(q, lam)``.
 

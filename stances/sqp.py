@@ -292,7 +292,6 @@ def _field_producer(contact, model, q):
     def produce():
         data = model.createData()
         pin.framesForwardKinematics(model, data, q)
-        pin.computeJointJacobians(model, data, q)
         return contact.displacement_field(model, data)
 
     return produce

@@ -80,9 +80,11 @@ def points_in_world(data: pin.Data, loads: PointLoads) -> np.ndarray:
         Points, metres, world frame.
     """
     out = np.empty((len(loads), 3))
-    for i, (joint, point) in enumerate(zip(loads.joints.tolist(), loads.points_in_joint)):
+    # One product per joint: a deformable print puts dozens of points on one link.
+    for joint in np.unique(loads.joints).tolist():
+        rows = loads.joints == joint
         placement = data.oMi[joint]
-        out[i] = placement.rotation @ point + placement.translation
+        out[rows] = loads.points_in_joint[rows] @ placement.rotation.T + placement.translation
     return out
 
 
