@@ -301,22 +301,8 @@ def _rebuild_result(data):
         return None
     from stances.results import PostureResult
 
-    rebuild = getattr(PostureResult, "from_dict", None)
     try:
-        if rebuild is not None:
-            return rebuild(data)
-        return PostureResult(
-            feasible=bool(data["feasible"]),
-            q=data["q"],
-            point_forces=tuple(PointForce.from_dict(f) for f in data["point_forces"]),
-            torques=data["torques"],
-            iterations=int(data["iterations"]),
-            solve_time=float(data["solve_time"]),
-            reason=str(data["reason"]),
-            stance=Stance.from_dict(data["stance"]) if data.get("stance") is not None else None,
-            deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
-            statistics=dict(data.get("statistics", {})),
-        )
+        return PostureResult.from_dict(data)
     except (KeyError, TypeError, ValueError) as error:
         logger.debug("solver result kept as a dict (%s)", error)
         return data

@@ -152,6 +152,30 @@ class PostureResult:
         """The point forces acting through ``frame``."""
         return tuple(p for p in self.point_forces if p.frame == frame)
 
+    @classmethod
+    def from_dict(cls, data) -> "PostureResult":
+        """Inverse of :meth:`to_dict` (the verification is not stored; rerun verify).
+
+        Raises
+        ------
+        KeyError, TypeError, ValueError
+            If ``data`` is not a ``to_dict`` form.
+        """
+        from environments import Stance
+
+        return cls(
+            feasible=bool(data["feasible"]),
+            q=data["q"],
+            point_forces=tuple(PointForce.from_dict(f) for f in data["point_forces"]),
+            torques=data["torques"],
+            iterations=int(data["iterations"]),
+            solve_time=float(data["solve_time"]),
+            reason=str(data["reason"]),
+            stance=Stance.from_dict(data["stance"]) if data.get("stance") is not None else None,
+            deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
+            statistics=dict(data.get("statistics", {})),
+        )
+
     def to_dict(self) -> dict:
         """JSON-ready representation (arrays as lists)."""
         return {

@@ -11,7 +11,7 @@ import pytest
 import environments
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
-from stances import ConfigurationError, FrameNotFound, StanceError
+from stances import ConfigurationError, FrameNotFound, PostureResult, StanceError
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve, solve_problem
 from stances.verify import verify
@@ -148,6 +148,9 @@ def test_result_serialises_to_json(robot):
     assert len(data["point_forces"]) == len(result.point_forces)
     total = np.sum([p["force"] for p in data["point_forces"]], axis=0)
     assert total[2] == pytest.approx(robot.mass * 9.81, rel=1e-6)
+    back = PostureResult.from_dict(data)
+    assert back.stance == result.stance and back.feasible and back.iterations == result.iterations
+    assert np.array_equal(back.q, result.q) and np.array_equal(back.total_force(), result.total_force())
 
 
 def test_warm_start_from_the_solution_converges_at_once(robot):
