@@ -23,7 +23,11 @@ from .geometry import (
 from .objects import DEFAULT_FRICTION
 from .surfaces import ContactSurface, rectangle
 
-__all__ = ["DeformableObject", "soft_box", "RESOLUTIONS", "soft_box_coordinates"]
+__all__ = ["DeformableObject", "soft_box", "RESOLUTIONS", "soft_box_coordinates", "DEFAULT_STRAIN_LIMIT"]
+
+DEFAULT_STRAIN_LIMIT = 0.05
+"""Largest principal strain (dimensionless) a soft object may take: linear elasticity
+(small strain) is trusted up to a few percent."""
 
 RESOLUTIONS = {"coarse": 0.05, "default": 0.0225}
 """Node spacing on the refined part of a soft box's top face, metres.
@@ -72,12 +76,16 @@ class DeformableObject:
         Rigid placement of the body frame.
     fixed_description : str
         Human-readable description of the fixed set F, e.g. ``"base on the floor"``.
+    strain_limit : float
+        Largest principal strain a stance may give this body (dimensionless,
+        default 5 %): beyond it linear elasticity is not a valid model.
     """
 
     name: str
     body: Any
     transform_body_to_world: np.ndarray
     fixed_description: str = ""
+    strain_limit: float = DEFAULT_STRAIN_LIMIT
 
     def __post_init__(self) -> None:
         if not isinstance(self.name, str) or not self.name:
@@ -89,6 +97,11 @@ class DeformableObject:
             "transform_body_to_world",
             validate_rigid_transform(self.transform_body_to_world, f"object {self.name!r} transform"),
         )
+        if not (isinstance(self.strain_limit, (int, float)) and 0.0 < self.strain_limit < 1.0):
+            raise SceneError(
+                f"object {self.name!r}: strain_limit must be a fraction in (0, 1) (e.g. 0.05 for 5 %), "
+                f"got {self.strain_limit!r}"
+            )
 
     @property
     def deformable(self) -> bool:
@@ -257,6 +270,7 @@ def soft_box(
     refine=None,
     yaw: float = 0.0,
     friction: float = DEFAULT_FRICTION,
+    strain_limit: float = DEFAULT_STRAIN_LIMIT,
 ) -> tuple[DeformableObject, ContactSurface]:
     """A deformable box standing on the floor, base fixed, top face a contact surface.
 
@@ -284,6 +298,8 @@ def soft_box(
         Rotation about world z, radians.
     friction : float
         Friction coefficient of the top surface.
+    strain_limit : float
+        Largest principal strain allowed in a stance (see :class:`DeformableObject`).
 
     Returns
     -------
@@ -303,7 +319,9 @@ def soft_box(
     body = fem.DeformableBody(mesh, material, fixed_nodes)
     center = readonly_array(center, (3,), f"object {name!r} center")
     transform_body_to_world = pose_from_center_yaw(center - [0.0, 0.0, 0.5 * size[2]], yaw)
-    obj = DeformableObject(name, body, transform_body_to_world, "base (z = 0 in the body frame) fixed")
+    obj = DeformableObject(
+        name, body, transform_body_to_world, "base (z = 0 in the body frame) fixed", float(strain_limit)
+    )
     transform_top_to_body = transform_from_rotation_translation(np.eye(3), [0.0, 0.0, size[2]])
     top = ContactSurface(
         f"{name}_top",

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .deformable import RESOLUTIONS, DeformableObject, _fem, soft_box
+from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fem, soft_box
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
@@ -267,7 +267,7 @@ class _Reader:
         item = self.mapping(
             item,
             key,
-            ("name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction"),
+            ("name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"),
             ("name", "size", "center", "material"),
         )
         name = self.string(item, "name", key)
@@ -307,6 +307,7 @@ class _Reader:
             refine=refine,
             yaw=math.radians(self.number(item, "yaw_deg", key, 0.0)),
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
+            strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
         )
         return obj, [top]
 

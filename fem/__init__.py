@@ -8,7 +8,7 @@ the print displacements, with an exact, cached Jacobian.
 """
 
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
-from .body import DeformableBody, von_mises
+from .body import DeformableBody, voigt_to_tensor_strain, von_mises
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh
 from .material import LinearElasticMaterial
@@ -40,6 +40,7 @@ __all__ = [
     "DeformableBody",
     "ContactPatch",
     "von_mises",
+    "voigt_to_tensor_strain",
     "nodes_in_polygon",
     "available_solvers",
 ]

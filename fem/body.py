@@ -19,7 +19,7 @@ from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
 from .solvers import SOLVERS, Factorization, factorize
 
-__all__ = ["DeformableBody", "von_mises"]
+__all__ = ["DeformableBody", "von_mises", "voigt_to_tensor_strain"]
 
 logger = logging.getLogger(__name__)
 
@@ -45,6 +45,26 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
         0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
         + 3.0 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2)
     )
+
+
+def voigt_to_tensor_strain(strain: np.ndarray) -> np.ndarray:
+    """Strain tensors from Voigt strains with engineering shears.
+
+    Parameters
+    ----------
+    strain : (..., 6) float
+        (e11, e22, e33, g12, g13, g23), ``g = 2 e`` off the diagonal.
+
+    Returns
+    -------
+    (..., 3, 3) float, symmetric.
+    """
+    e = np.asarray(strain, dtype=float)
+    tensor = np.empty(e.shape[:-1] + (3, 3))
+    tensor[..., [0, 1, 2], [0, 1, 2]] = e[..., :3]
+    for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
+        tensor[..., i, j] = tensor[..., j, i] = 0.5 * e[..., v]
+    return tensor
 
 
 class DeformableBody:
@@ -344,8 +364,40 @@ class DeformableBody:
             self._patches[key] = patch
         return patch
 
+    def displacement_under_loads(self, node_ids, forces) -> np.ndarray:
+        """Displacement of every node under point loads, from one sparse solve.
+
+        This is the full finite-element system, not a condensed one: it is the
+        independent check of any print model built on the compliance.
+
+        Parameters
+        ----------
+        node_ids : (k,) int
+            Distinct non-fixed nodes carrying the loads.
+        forces : (k, 3) float
+            Forces applied ON the body at those nodes, newtons, body frame.
+
+        Returns
+        -------
+        (N, 3) float, metres, body frame; 0 at fixed nodes.
+        """
+        ids = self._node_ids(node_ids)
+        if self._fixed_mask[ids].any():
+            raise BoundaryError(f"node {ids[self._fixed_mask[ids]][0]} is fixed: a load there does nothing")
+        loads = np.asarray(forces, dtype=float)
+        if loads.shape != (ids.size, 3) or not np.all(np.isfinite(loads)):
+            raise FemError(f"forces must be a finite ({ids.size}, 3) array (one row per node), got shape {loads.shape}")
+        rhs = np.zeros(self._mesh.n_dofs)
+        rhs[(3 * ids[:, None] + np.arange(3)).ravel()] = loads.ravel()
+        u = np.zeros(self._mesh.n_dofs)
+        u[self._free_dofs] = self.factorization.solve(rhs[self._free_dofs])
+        return u.reshape(-1, 3)
+
     def displacement_field(self, patch: ContactPatch, displacements: np.ndarray) -> np.ndarray:
         """Displacement of every node when the print is displaced (eqs. 35-36).
+
+        One sparse solve: the print nodes are loaded by ``S_P U_P``, the forces
+        that hold them at ``U_P``.
 
         Parameters
         ----------
@@ -359,11 +411,14 @@ class DeformableBody:
             Exactly ``displacements`` at the print nodes and 0 at fixed nodes.
         """
         u_p = patch._check_displacements(displacements)
-        columns = self.compliance_columns(patch.node_ids)
-        u = (columns @ (patch.condensed_stiffness @ u_p.ravel())).reshape(-1, 3)
+        loads = (patch.condensed_stiffness @ u_p.ravel()).reshape(-1, 3)
+        u = self.displacement_under_loads(patch.node_ids, loads)
         u[patch.node_ids] = u_p
-        u[self._fixed] = 0.0
         return u
+
+    def principal_strains(self, u: np.ndarray) -> np.ndarray:
+        """Principal strains of each tet, (M, 3) float, ascending, dimensionless."""
+        return np.linalg.eigvalsh(voigt_to_tensor_strain(self.strain(u)))
 
     # ------------------------------------------------------------ fields
     def _check_field(self, u: np.ndarray) -> np.ndarray:
@@ -402,12 +457,7 @@ class DeformableBody:
         """
         if action not in ("warn", "raise"):
             raise FemError(f"action must be 'warn' or 'raise', got {action!r}")
-        e = self.strain(u)
-        tensor = np.empty((e.shape[0], 3, 3))
-        tensor[:, [0, 1, 2], [0, 1, 2]] = e[:, :3]
-        for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
-            tensor[:, i, j] = tensor[:, j, i] = 0.5 * e[:, v]
-        per_tet = np.abs(np.linalg.eigvalsh(tensor)).max(axis=1)
+        per_tet = np.abs(self.principal_strains(u)).max(axis=1)
         largest = float(per_tet.max())
         if largest > limit:
             where = int(per_tet.argmax())

@@ -146,12 +146,19 @@ class ContactPatch:
 
     # ------------------------------------------------------------ matrices
     @cached_property
-    def _compliance_rows(self) -> tuple[np.ndarray, np.ndarray]:
-        """Rows of C[:, P] at the print nodes and at the nodes of the print triangles' tets.
+    def neighbour_tets(self) -> np.ndarray:
+        """(T',) int ids of every tet with a node in the print, where strain peaks."""
+        touching = np.isin(self._body.mesh.tets, self._ids).any(axis=1)
+        return np.flatnonzero(touching)
 
-        One set of solves serves both the consistent and the traction method.
+    @cached_property
+    def _compliance_rows(self) -> tuple[np.ndarray, np.ndarray]:
+        """Rows of C[:, P] at the nodes of every tet touching the print.
+
+        One set of solves serves the consistent and traction methods and the
+        strain map (the print triangles' tets touch the print).
         """
-        rows = np.unique(np.concatenate([self._ids, self._body.mesh.tets[self.triangle_tets].ravel()]))
+        rows = np.unique(np.concatenate([self._ids, self._body.mesh.tets[self.neighbour_tets].ravel()]))
         block = self._body.compliance_block(rows, self._ids)
         position = np.full(self._body.mesh.n_nodes, -1, dtype=np.int64)
         position[rows] = np.arange(rows.size)
@@ -186,12 +193,44 @@ class ContactPatch:
         s.setflags(write=False)
         return s
 
+    def _tet_displacement_map(self, tet_ids: np.ndarray) -> np.ndarray:
+        """Displacements of some tets' nodes per unit print displacement (eq. 36).
+
+        Returns
+        -------
+        (T, 12, 3p) float, dimensionless
+            ``u_e = map[t] @ U_P.ravel()`` with ``u = C[:, P] S_P U_P``: exactly U_P at
+            the print nodes and 0 at fixed nodes. Independent of the Young modulus.
+        """
+        body = self._body
+        tets = body.mesh.tets[tet_ids]
+        nodes, rows = np.unique(tets, return_inverse=True)
+        rows = rows.reshape(tets.shape)
+        block, position = self._compliance_rows
+        g = block[position[nodes]] @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
+        in_print = self._local[nodes]
+        idx = np.flatnonzero(in_print >= 0)
+        g[idx, :, :] = 0.0
+        for axis in range(3):  # exact identity rows at the print nodes
+            g[idx, axis, 3 * in_print[idx] + axis] = 1.0
+        g[body.fixed_mask[nodes]] = 0.0
+        return g[rows].reshape(rows.shape[0], 12, -1)
+
     @cached_property
-    def _owner_nodes(self) -> tuple[np.ndarray, np.ndarray]:
-        """Nodes of the print triangles' tets and each tet's local row indices."""
-        tets = self._body.mesh.tets[self.triangle_tets]
-        nodes, inverse = np.unique(tets, return_inverse=True)
-        return nodes, inverse.reshape(tets.shape)
+    def strain_map(self) -> np.ndarray:
+        """Strain of each of :attr:`neighbour_tets` per unit print displacement (eq. 24).
+
+        Returns
+        -------
+        (T', 6, 3p) float, 1/m
+            Voigt strains (engineering shears) ``{epsilon_e} = strain_map[t] @ U_P.ravel()``;
+            independent of the Young modulus, so well scaled for stiff bodies too.
+        """
+        g_e = self._tet_displacement_map(self.neighbour_tets)
+        b = self._body._strain_matrices[self.neighbour_tets]  # (T', 6, 12)
+        out = np.einsum("tik,tkp->tip", b, g_e)
+        out.setflags(write=False)
+        return out
 
     @cached_property
     def stress_map(self) -> np.ndarray:
@@ -209,16 +248,7 @@ class ContactPatch:
                 "(eqs. 41-44) has nothing to integrate; use method='consistent' or a larger print"
             )
         body = self._body
-        nodes, rows = self._owner_nodes
-        block, position = self._compliance_rows
-        g = block[position[nodes]] @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
-        in_print = self._local[nodes]
-        idx = np.flatnonzero(in_print >= 0)
-        g[idx, :, :] = 0.0
-        for axis in range(3):  # exact identity rows at the print nodes
-            g[idx, axis, 3 * in_print[idx] + axis] = 1.0
-        g[body.fixed_mask[nodes]] = 0.0
-        g_e = g[rows].reshape(rows.shape[0], 12, -1)  # (T, 12, 3p)
+        g_e = self._tet_displacement_map(self.triangle_tets)  # (T, 12, 3p)
         b = body._strain_matrices[self.triangle_tets]  # (T, 6, 12)
         ab = np.einsum("ij,tjk->tik", body.material.voigt_matrix, b)
         out = np.einsum("tik,tkp->tip", ab, g_e)

@@ -11,11 +11,13 @@ Every contact model (this one and :mod:`stances.deformable`) offers the same
 small interface to the problem builder:
 
 - ``loads``: a :class:`~stances.statics.PointLoads` (where forces act);
-- ``n_variables``: how many force variables it owns;
+- ``load_frames``: the robot frame each load acts on;
+- ``n_variables`` and ``variable_lower``: its force variables and their lower bounds;
 - ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
-- ``force_jacobians(model, data, lam)``: their derivatives in q and lambda;
-- ``blocks(model, data, lam, columns)``: its own constraint rows;
-- ``cost(model, data, options, columns)``: its objective term, or None;
+- ``force_jacobians(model, data, lam)``: their derivatives in q and its variables;
+- ``blocks(model, data, lam, columns, offset)``: its own constraint rows (its
+  variables start at column ``offset``);
+- ``cost(model, data, lam, options, columns, offset)``: its objective term, or None;
 - ``verify(...)``: its independent checks.
 """
 
@@ -104,6 +106,8 @@ class RigidContact:
         for i in range(n_vertices):
             self.generators[3 * i : 3 * i + 3, i * n_edges : (i + 1) * n_edges] = edges_in_world.T
         self.n_variables = n_vertices * n_edges
+        self.variable_lower = np.zeros(self.n_variables)
+        self.load_frames = (surface.frame,) * n_vertices
 
     def forces(self, model, data, lam) -> np.ndarray:
         """(k, 3) world forces on the robot at the polygon vertices, newtons."""
@@ -113,13 +117,15 @@ class RigidContact:
         """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
         return np.zeros((self.generators.shape[0], model.nv)), self.generators
 
-    def blocks(self, model, data, lam, columns):
+    def blocks(self, model, data, lam, columns, offset):
         """Placement equalities (6 rows), print frame.
 
         Parameters
         ----------
         columns : int
             Width of the step vector (nv + m).
+        offset : int
+            Column of this contact's first variable (its rows do not use them).
         """
         residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
         frame_jacobian = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
@@ -131,7 +137,7 @@ class RigidContact:
         # 1 cm / 10 mrad: the size of a placement error that matters.
         return [equality("placement", residual, jacobian, 1e-2, labels)]
 
-    def cost(self, model, data, options, columns):
+    def cost(self, model, data, lam, options, columns, offset):
         """No objective term of its own (lambda's is the problem's force term)."""
         return None
 

@@ -1,286 +1,475 @@
-"""Deformable contacts: a robot link pressing a print into a linear-elastic body.
+"""Deformable contacts: robot links pressing prints into one linear-elastic body.
 
-At the print's nominal placement, each print node ``x_n`` (eq. 27) is matched
-with the point ``a_n`` of the robot surface lying on it. Those points move
-with the link; the node displacement is the motion they impose (eq. 29):
+All prints on one body form ONE contact system: the body couples them, so the
+force under one sole depends on where the other sole (or a palm) presses. At
+the nominal placement each print node ``x_n`` (eq. 27) is matched with the
+point ``a_n`` of the robot surface lying on it; those points move with their
+link, and the node displacements are the motion they impose (eq. 29):
 
     U_n(q) = R_b^T (y_n(q) - x_n),     y_n(q) = T_link(q) a_n      (body frame)
 
-and the body pushes back on the robot with forces linear in ``U_P`` (eq. 44
-for ``traction``, the condensed stiffness for ``consistent``):
+The body pushes back with forces linear in ``U`` over the union of the
+prints' nodes, ``f = R U`` (R: fem's reaction matrix over the union, ``-S_P``
+for ``consistent``; eq. 44 for ``traction``).
 
-    f_n(q) = R_b F_n(U_P(q)),   F = R U_P    (R: fem's reaction matrix).
+Compliance form. Written as ``f = R U(q)`` the contact is hopelessly
+ill-conditioned for stiff bodies (R grows like E: a nanometre of posture moves
+the forces by newtons). Each link's print instead gets a 6-vector variable
+``W_l``, the generalised force ``G_l^T R_c U`` of its nodes (G: the nodes' rigid
+motion basis about the print origin, body frame; ``R_c = -S_P`` the consistent
+reaction), and with ``A = G^T R_c G`` (symmetric negative definite),
+``D = R G A^-1``:
 
-Their derivative follows eqs. (61)-(64): the point Jacobians of ``a_n`` give
-``dU_P/dq``, and for ``traction`` the print normals rotate with the link,
-adding eq. (63)'s first term. The forces act at the moving points ``y_n``.
+    placement (6 rows per link):   A^-1 G^T R_c U(q) - A^-1 W = 0
+    node forces:                   f(q, W) = D W + (R - D G^T R_c) U(q)
 
-A deformable contact owns no force variable. It adds the physical validity
-constraints the paper leaves implicit: every node pushes (no adhesion), the
-resultant stays in the friction cone, and no node is indented more than
-``max_indentation`` along the print normal (small deformations).
+Where the placement rows hold, ``f = R U(q)`` exactly (the bonded FEM answer).
+``D`` and ``A^-1 G^T R_c`` do not depend on E, ``R - D G^T R_c`` annihilates rigid
+motions of the prints, so every row stays well scaled for any stiffness, and
+as ``E -> inf`` (``A^-1 -> 0``) the placement rows become the rigid contact's.
+This is the compliance-based contact of Duriez, Dubois and Kheddar, reduced to
+the six rigid modes of each link.
+
+Validity, at every node (the paper leaves these implicit): each node pushes
+(no adhesion) and its force lies in its own friction cone, so an accepted
+stance is a sticking state that Coulomb friction allows node by node; nodes
+are indented less than a bound relative to the body's thickness; and the
+principal strains of the tets around the prints stay within the object's
+strain bound (linear elasticity holds only there).
 """
 
 from __future__ import annotations
 
-import weakref
-
 import numpy as np
 import pinocchio as pin
 
-from .blocks import ConstraintBlock
+from .blocks import ConstraintBlock, equality
 from .errors import StanceError
 from .statics import PointLoads, point_jacobians, points_in_world
 
-# Print patches are expensive to build (compliance solves) and the planner asks
-# for the same prints again and again: keep them per body, per node set.
-_PATCH_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+__all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
 
 MINIMUM_PRINT_NODES = 3
 
+# Inner friction pyramid: |f . t_i| <= mu / sqrt(2) f . n implies the exact cone.
+_PYRAMID = 1.0 / np.sqrt(2.0)
+# Tets whose largest principal strain is above this fraction of the bound enter the QP.
+_STRAIN_ACTIVATION = 0.5
 
-def contact_patch(body, node_ids):
-    """The fem contact patch of ``node_ids`` on ``body``, cached."""
-    per_body = _PATCH_CACHE.setdefault(body, {})
-    key = tuple(int(i) for i in node_ids)
-    if key not in per_body:
-        per_body[key] = body.contact_patch(np.asarray(key))
-    return per_body[key]
+
+class PrintSpec:
+    """One robot surface pressing one print on a deformable object (a value).
+
+    Parameters
+    ----------
+    robot_surface : str
+        Robot contact surface name.
+    surface : environments.ContactSurface
+        The deformable object's surface carrying the print.
+    transform_print_to_world : (4, 4) float
+        Nominal print frame (z: outward normal of the surface).
+    label : str
+        Readable name, e.g. ``"right_sole on foam_top"``.
+    """
+
+    def __init__(self, robot_surface, surface, transform_print_to_world, label):
+        self.robot_surface = robot_surface
+        self.surface = surface
+        self.transform_print_to_world = np.asarray(transform_print_to_world, dtype=float)
+        self.label = label
+
+
+def _skew_rows(points: np.ndarray) -> np.ndarray:
+    """(p, 3) -> (p, 3, 3) cross-product matrices."""
+    return np.array([pin.skew(p) for p in points]) if len(points) else np.zeros((0, 3, 3))
 
 
 class DeformableContact:
-    """A robot surface pressing a print on a deformable object.
+    """Every print on one deformable object, as one coupled contact system.
 
     Parameters
     ----------
     robot : stances.Robot
-    robot_surface : str
-        Robot contact surface name.
     deformable_object : environments.DeformableObject
-        Holds the fem body and its placement.
-    surface : environments.ContactSurface
-        The deformable object's contact surface carrying the print.
-    transform_print_to_world : (4, 4) float
-        Nominal print frame.
-    label : str
-        Readable name for constraint labels.
+        Holds the fem body, its placement and its strain bound.
+    prints : sequence of PrintSpec
+        The robot surfaces pressing this object, in stance order.
     options : stances.PostureOptions
-        ``reaction_model``, ``max_indentation``, ``deformation_weight``.
+        ``reaction_model``, ``indentation_limit`` / ``max_indentation``,
+        ``deformation_weight``, ``max_strain_rows``.
 
     Raises
     ------
     StanceError
-        When fewer than three mesh nodes lie in the print (the mesh is too
-        coarse there).
+        A print holds fewer than three mesh nodes, two prints share nodes,
+        or a print's nodes cannot hold a rigid link (collinear).
     """
 
     kind = "deformable"
-    n_variables = 0
 
-    def __init__(self, robot, robot_surface, deformable_object, surface, transform_print_to_world, label, options):
+    def __init__(self, robot, deformable_object, prints, options):
         import fem
 
-        robot_surface_model = robot.surface(robot_surface)
-        self.robot_surface = robot_surface
-        self.label = label
         self.deformable_object = deformable_object
         self.method = options.reaction_model
-        self.max_indentation = options.max_indentation
-        self.friction = float(surface.friction)
-        self.frame_id = robot.frame_id(robot_surface_model.frame)
-        frame = robot.model.frames[self.frame_id]
-        print_placement = pin.SE3(np.asarray(transform_print_to_world, dtype=float))
-        body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
-        self.print_placement = print_placement
-        self.rotation_body = body_placement.rotation
-
-        polygon_in_world = np.array([print_placement.act(v) for v in robot_surface_model.vertices_in_frame])
-        polygon_in_body = np.array([body_placement.actInv(p) for p in polygon_in_world])
+        self.max_strain_rows = int(options.max_strain_rows)
+        self.strain_limit = float(deformable_object.strain_limit)
         body = deformable_object.body
-        node_ids = fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6)
-        if len(node_ids) < MINIMUM_PRINT_NODES:
+        body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
+        self.rotation_body = body_placement.rotation
+        self.prints = list(prints)
+        self.label = " and ".join(p.label for p in self.prints)
+
+        node_sets, joints, points_in_joint, frames = [], [], [], []
+        self.frame_ids, self.print_placements, self.friction = [], [], []
+        for spec in self.prints:
+            surface_model = robot.surface(spec.robot_surface)
+            frame_id = robot.frame_id(surface_model.frame)
+            frame = robot.model.frames[frame_id]
+            placement = pin.SE3(spec.transform_print_to_world)
+            polygon_in_world = surface_model.vertices_in_frame @ placement.rotation.T + placement.translation
+            polygon_in_body = (polygon_in_world - body_placement.translation) @ body_placement.rotation
+            ids = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
+            if len(ids) < MINIMUM_PRINT_NODES:
+                raise StanceError(
+                    f"the print of {spec.label} holds {len(ids)} mesh node(s); at least "
+                    f"{MINIMUM_PRINT_NODES} are needed: refine the mesh of {deformable_object.name!r} "
+                    "where prints land"
+                )
+            for other, other_ids in zip(self.prints, node_sets):
+                shared = np.intersect1d(ids, other_ids)
+                if shared.size:
+                    raise StanceError(
+                        f"the prints of {other.label} and {spec.label} overlap ({shared.size} shared mesh "
+                        f"node(s) of {deformable_object.name!r}): two links cannot press the same spot; "
+                        "move one print"
+                    )
+            nodes_in_world = body.mesh.nodes[ids] @ body_placement.rotation.T + body_placement.translation
+            nodes_in_print = (nodes_in_world - placement.translation) @ placement.rotation
+            node_sets.append(ids)
+            joints.append(np.full(len(ids), frame.parentJoint))
+            points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
+            frames.extend([surface_model.frame] * len(ids))
+            self.frame_ids.append(frame_id)
+            self.print_placements.append(placement)
+            self.friction.append(float(spec.surface.friction))
+
+        self.node_ids = np.concatenate(node_sets)
+        self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
+        self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))
+        self.load_frames = tuple(frames)
+        self.patch = body.contact_patch(self.node_ids)
+        self.nodes_in_world = body.mesh.nodes[self.node_ids] @ self.rotation_body.T + body_placement.translation
+        n_prints, p = len(self.prints), len(self.node_ids)
+        self.n_variables = 6 * n_prints
+        self.variable_lower = np.full(self.n_variables, -np.inf)
+
+        # Rigid-motion basis G (3p, 6L), body frame, about each print's origin.
+        rest = body.mesh.nodes[self.node_ids]
+        basis = np.zeros((p, 3, 6 * n_prints))
+        print_rotations_in_body = []
+        for i, placement in enumerate(self.print_placements):
+            rows = self.print_of_node == i
+            origin = (placement.translation - body_placement.translation) @ body_placement.rotation
+            basis[rows, :, 6 * i : 6 * i + 3] = np.eye(3)
+            basis[rows, :, 6 * i + 3 : 6 * i + 6] = -_skew_rows(rest[rows] - origin)
+            print_rotations_in_body.append(self.rotation_body.T @ placement.rotation)
+        self.basis = basis.reshape(3 * p, -1)
+        # The rigid modes are split off with the consistent stiffness (always
+        # symmetric positive definite); the traction model reuses that split.
+        self.reaction = np.asarray(self.patch.reaction_matrix(self.method))  # rest normals
+        self.consistent = np.asarray(self.patch.reaction_matrix("consistent"))
+        a = self.basis.T @ self.consistent @ self.basis
+        if np.linalg.cond(a) > 1e12:
             raise StanceError(
-                f"the print of {label} holds {len(node_ids)} mesh node(s); at least "
-                f"{MINIMUM_PRINT_NODES} are needed: refine the mesh of {deformable_object.name!r} "
-                "where prints land"
+                f"the print nodes of {self.label} cannot hold a rigid link (nearly collinear): "
+                f"refine the mesh of {deformable_object.name!r} under the prints"
             )
-        self.patch = contact_patch(body, node_ids)
-        self.nodes_in_world = np.array([body_placement.act(p) for p in self.patch.points])
-        nodes_in_print = np.array([print_placement.actInv(p) for p in self.nodes_in_world])
-        # The link points a_n lying on the nodes at the nominal placement.
-        self.loads = PointLoads(
-            np.full(len(nodes_in_print), frame.parentJoint),
-            np.array([frame.placement.act(a) for a in nodes_in_print]),
-        )
-        self.reaction = np.asarray(self.patch.reaction_matrix(self.method))
-        self.normal_in_world = print_placement.rotation[:, 2]
-        # Rotation from the nominal contact frame to the print, body frame, for
-        # rotating the traction normals with the link (eq. 63).
-        self._print_rotation_in_body = self.rotation_body.T @ print_placement.rotation
+        a_inverse = np.linalg.inv(a)
+        self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
+        self.generalised = self.basis.T @ self.consistent  # (6L, 3p): U -> W at the placement
+        # Rows of the placement residual in each print's own axes (x, y, normal).
+        to_print = np.zeros((6 * n_prints, 6 * n_prints))
+        for i, rotation in enumerate(print_rotations_in_body):
+            to_print[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = rotation.T
+            to_print[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = rotation.T
+        self.fit = to_print @ a_inverse @ self.generalised  # (6L, 3p): U -> best-fit rigid motion
+        self.compliance_rows = -to_print @ a_inverse  # d residual / d W
+        self._print_rotations_in_body = print_rotations_in_body
+
+        # Per-node frames: normal and tangents of each node's print, world.
+        self.normals = np.array([self.print_placements[i].rotation[:, 2] for i in self.print_of_node])
+        self.tangents = np.array([self.print_placements[i].rotation[:, :2].T for i in self.print_of_node])
+        self.node_friction = np.array([self.friction[i] for i in self.print_of_node])
+        normals_in_body = self.normals @ self.rotation_body
+        self.normals_in_body = normals_in_body
+        if options.max_indentation is not None:
+            self.max_indentation = float(options.max_indentation)
+        else:
+            # Thickness of the body along each print's normal, from its mesh.
+            heights = [np.ptp(body.mesh.nodes @ (r[:, 2])) for r in print_rotations_in_body]
+            self.max_indentation = float(options.indentation_limit * min(heights))
         self._cache_key = None
         self._cache = None
 
-    # -- kinematics of the print -------------------------------------------
-    def _state(self, model, data):
-        """Displacements, forces and their q-derivatives at the current kinematics."""
-        key = (id(data), data.oMi[int(self.loads.joints[0])].homogeneous.tobytes())
-        if self._cache_key == key:
-            return self._cache
-        rotation_body = self.rotation_body
-        displacements = self._displacements(data)
-        jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
-        d_displacements = np.einsum("ji,pjv->piv", rotation_body, jacobians).reshape(-1, model.nv)
-        if self.method == "traction":
-            normals = self._turned_normals(data)
-            forces_body = self.patch.reaction_forces(displacements, method="traction", normals=normals)
-            reaction = self.patch.reaction_matrix("traction", normals=normals)
-            d_forces_body = reaction @ d_displacements
-            # eq. (63), first term: normals turn with the link, dn = omega x n.
-            angular = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL_WORLD_ALIGNED)[3:]
-            omega_body = rotation_body.T @ angular  # (3, nv)
-            per_triangle = np.asarray(self.patch.traction_normal_derivative(displacements))
-            d_forces_body += self._normal_rotation_term(per_triangle, normals, omega_body)
-        else:
-            forces_body = (self.reaction @ displacements.reshape(-1)).reshape(-1, 3)
-            d_forces_body = self.reaction @ d_displacements
-        forces = forces_body @ rotation_body.T
-        d_forces = np.einsum("ij,pjv->piv", rotation_body, d_forces_body.reshape(-1, 3, model.nv)).reshape(-1, model.nv)
-        self._cache_key = key
-        self._cache = (displacements, d_displacements, forces, d_forces)
-        return self._cache
-
+    # -- kinematics of the prints -------------------------------------------
     def _displacements(self, data) -> np.ndarray:
-        """(p, 3) U_P imposed by the link points, metres, body frame (eq. 29)."""
+        """(p, 3) U imposed by the link points, metres, body frame (eq. 29)."""
         return (points_in_world(data, self.loads) - self.nodes_in_world) @ self.rotation_body
 
-    def _turned_normals(self, data) -> np.ndarray:
-        """(T, 3) print-triangle normals turned with the link, body frame (eq. 63)."""
-        link_rotation = data.oMf[self.frame_id].rotation
-        relative = self.rotation_body.T @ link_rotation @ self._print_rotation_in_body.T
-        return self.patch.triangle_normals @ relative.T
+    def _link_rotations(self, data) -> list:
+        """Each print's link rotation relative to its nominal, body frame."""
+        return [
+            self.rotation_body.T @ data.oMf[frame_id].rotation @ rotation.T
+            for frame_id, rotation in zip(self.frame_ids, self._print_rotations_in_body)
+        ]
 
-    def _normal_rotation_term(self, per_triangle, normals, omega_body):
-        """d f / d q from rotating each triangle normal with the link, body frame."""
-        p = len(self.loads)
-        out = np.zeros((p, 3, omega_body.shape[1]))
-        # df_vertex = D_e (omega x n_e) = -D_e [n_e]x omega
-        skews = np.array([pin.skew(n) for n in normals])
-        per_triangle_omega = -np.einsum("tij,tjk->tik", per_triangle, skews)  # (T, 3, 3)
-        d = np.einsum("tik,kv->tiv", per_triangle_omega, omega_body)
+    def _turned_normals(self, data) -> np.ndarray:
+        """(T, 3) print-triangle normals turned with their link, body frame (eq. 63)."""
+        relative = self._link_rotations(data)
+        owner = self.print_of_node[self.patch.triangles[:, 0]]
+        rest = self.patch.triangle_normals
+        return np.einsum("tij,tj->ti", np.array(relative)[owner], rest)
+
+    def _reaction_now(self, model, data, displacements, d_displacements):
+        """``R(q) U`` and its q-derivative at fixed U-coefficients (eq. 63 for traction)."""
+        if self.method != "traction":
+            return self.reaction, self.reaction @ displacements.reshape(-1), np.zeros_like(d_displacements)
+        normals = self._turned_normals(data)
+        reaction = np.asarray(self.patch.reaction_matrix("traction", normals=normals))
+        forces = reaction @ displacements.reshape(-1)
+        # eq. (63), first term: each triangle's normal turns with its link, dn = omega x n.
+        per_triangle = np.asarray(self.patch.traction_normal_derivative(displacements))  # (T, 3, 3)
+        skews = _skew_rows(normals)
+        per_triangle_omega = -np.einsum("tij,tjk->tik", per_triangle, skews)
+        owner = self.print_of_node[self.patch.triangles[:, 0]]
+        omegas = np.array([
+            self.rotation_body.T @ pin.getFrameJacobian(model, data, f, pin.LOCAL_WORLD_ALIGNED)[3:]
+            for f in self.frame_ids
+        ])  # (L, 3, nv)
+        d = np.einsum("tik,tkv->tiv", per_triangle_omega, omegas[owner])
+        out = np.zeros((len(self.node_ids), 3, model.nv))
         for corner in range(3):
             np.add.at(out, self.patch.triangles[:, corner], d)
-        return out.reshape(3 * p, -1)
+        return reaction, forces, out.reshape(3 * len(self.node_ids), -1)
+
+    def _state(self, model, data, w):
+        """U, dU/dq, forces (world) and their derivatives in q and W at the iterate."""
+        w = np.asarray(w, dtype=float)
+        joints = np.unique(self.loads.joints)
+        key = (id(data), b"".join(data.oMi[int(j)].homogeneous.tobytes() for j in joints), w.tobytes())
+        if self._cache_key == key:
+            return self._cache
+        nv, p = model.nv, len(self.node_ids)
+        displacements = self._displacements(data)
+        jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
+        d_displacements = np.einsum("ji,pjv->piv", self.rotation_body, jacobians).reshape(-1, nv)
+        reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
+        u = displacements.reshape(-1)
+        # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
+        forces_body = self.distribution @ w + elastic - self.distribution @ (self.generalised @ u)
+        d_forces_body = (reaction - self.distribution @ self.generalised) @ d_displacements + d_turn
+        rotation = self.rotation_body
+        forces = (forces_body.reshape(p, 3)) @ rotation.T
+        d_forces_dq = np.einsum("ij,pjv->piv", rotation, d_forces_body.reshape(p, 3, nv)).reshape(3 * p, nv)
+        d_forces_dw = np.einsum("ij,pjv->piv", rotation, self.distribution.reshape(p, 3, -1)).reshape(3 * p, -1)
+        self._cache_key = key
+        self._cache = (displacements, d_displacements, forces, d_forces_dq, d_forces_dw)
+        return self._cache
 
     # -- contact-model interface --------------------------------------------
+    def initial_variables(self, model, data) -> np.ndarray:
+        """W consistent with the current placement: ``G^T R_c U(q)``."""
+        return self.generalised @ self._displacements(data).reshape(-1)
+
     def displacements(self, model, data) -> np.ndarray:
-        """(p, 3) float: print-node displacements U_P, metres, body frame (eq. 29)."""
+        """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
         return self._displacements(data)
 
-    def forces(self, model, data, lam) -> np.ndarray:
+    def forces(self, model, data, w) -> np.ndarray:
         """(p, 3) world forces of the print nodes on the robot, newtons (eq. 44)."""
-        return self._state(model, data)[2]
+        return self._state(model, data, w)[2]
 
-    def force_jacobians(self, model, data, lam):
-        """d forces / d q (3p, nv), eqs. (61)-(64); no force variables."""
-        return self._state(model, data)[3], np.zeros((3 * len(self.loads), 0))
+    def force_jacobians(self, model, data, w):
+        """d forces / d q (3p, nv) and d forces / d W (3p, 6L)."""
+        state = self._state(model, data, w)
+        return state[3], state[4]
 
-    def blocks(self, model, data, lam, columns):
-        """No adhesion, friction of the resultant, bounded indentation."""
-        displacements, d_displacements, forces, d_forces = self._state(model, data)
-        nv, p = model.nv, len(self.loads)
-        normal = self.normal_in_world
+    def blocks(self, model, data, w, columns, offset):
+        """Elastic placement, per-node no adhesion and friction, indentation, strain.
+
+        Parameters
+        ----------
+        columns : int
+            Width of the step vector (nv + m).
+        offset : int
+            Column of this contact's first variable in the step vector.
+        """
+        displacements, d_displacements, forces, d_forces_dq, d_forces_dw = self._state(model, data, w)
+        nv, p = model.nv, len(self.node_ids)
+        w_columns = slice(offset, offset + self.n_variables)
         blocks = []
 
-        push = forces @ normal
-        jacobian = np.zeros((p, columns))
-        jacobian[:, :nv] = np.einsum("j,pjv->pv", normal, d_forces.reshape(p, 3, nv))
-        blocks.append(
-            ConstraintBlock(
-                "no adhesion", push, jacobian, 0.0, np.inf, 10.0,
-                tuple(f"no adhesion at node {n} of {self.label}" for n in self.patch.node_ids),
-            )
-        )
+        # Compliance form of the placement (see the module docstring).
+        u = displacements.reshape(-1)
+        residual = self.fit @ u + self.compliance_rows @ w
+        jacobian = np.zeros((self.n_variables, columns))
+        jacobian[:, :nv] = self.fit @ d_displacements
+        jacobian[:, w_columns] = self.compliance_rows
+        labels = [
+            f"placement of {spec.label} ({axis}, elastic)"
+            for spec in self.prints
+            for axis in ("x", "y", "z", "roll", "pitch", "yaw")
+        ]
+        blocks.append(equality("placement", residual, jacobian, 1e-2, labels))
 
-        total = forces.sum(axis=0)
-        d_total = d_forces.reshape(p, 3, nv).sum(axis=0)
-        tangents = self.print_placement.rotation[:, :2].T
-        # Inner pyramid: |F . t_i| <= mu / sqrt(2) F . n keeps the cone exact-safe.
-        mu = self.friction / np.sqrt(2.0)
-        faces = np.array([mu * normal + s * t for t in tangents for s in (1.0, -1.0)])
-        jacobian = np.zeros((4, columns))
-        jacobian[:, :nv] = faces @ d_total
-        blocks.append(
-            ConstraintBlock(
-                "friction", faces @ total, jacobian, 0.0, np.inf, 10.0,
-                tuple(f"friction cone of the resultant of {self.label} ({side})" for side in ("+x", "-x", "+y", "-y")),
-            )
-        )
+        # Every node pushes and stays in its own (inner) friction pyramid.
+        d_forces = np.zeros((p, 3, columns))
+        d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
+        d_forces[:, :, w_columns] = d_forces_dw.reshape(p, 3, -1)
+        mu = self.node_friction * _PYRAMID
+        faces = np.concatenate(
+            [self.normals[:, None, :], mu[:, None, None] * self.normals[:, None, :]
+             + np.array([1.0, -1.0, 1.0, -1.0])[None, :, None] * np.repeat(self.tangents, 2, axis=1)],
+            axis=1,
+        )  # (p, 5, 3): normal, then +t1, -t1, +t2, -t2 faces
+        value = np.einsum("pkj,pj->pk", faces, forces).reshape(-1)
+        jacobian = np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(5 * p, columns)
+        labels = []
+        for n in self.node_ids:
+            labels.append(f"no adhesion at node {n} of {self.deformable_object.name}")
+            labels.extend(f"friction cone at node {n} of {self.deformable_object.name} ({s})"
+                          for s in ("+x", "-x", "+y", "-y"))
+        blocks.append(ConstraintBlock("node contact", value, jacobian, 0.0, np.inf, 1.0, tuple(labels)))
 
-        # Small deformations: bound each node's displacement along the print
-        # normal (the indentation); tangential motions stay far smaller.
-        bound = self.max_indentation
-        normal_in_body = self.rotation_body.T @ normal
+        # Indentation along each node's print normal, bounded relative to the thickness.
+        depth = -np.einsum("pj,pj->p", displacements, self.normals_in_body)
         jacobian = np.zeros((p, columns))
-        jacobian[:, :nv] = np.einsum("j,pjv->pv", normal_in_body, d_displacements.reshape(p, 3, nv))
+        jacobian[:, :nv] = -np.einsum("pj,pjv->pv", self.normals_in_body, d_displacements.reshape(p, 3, nv))
         blocks.append(
             ConstraintBlock(
-                "indentation", displacements @ normal_in_body, jacobian, -bound, bound, 1e-2,
-                tuple(f"indentation bound at node {n} of {self.label}" for n in self.patch.node_ids),
+                "indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2,
+                tuple(f"indentation bound at node {n} of {self.deformable_object.name}" for n in self.node_ids),
             )
         )
+        strain = self._strain_block(u, d_displacements, columns)
+        if strain is not None:
+            blocks.append(strain)
         return blocks
 
-    def cost(self, model, data, options, columns):
+    def _strain_block(self, u, d_displacements, columns):
+        """Largest and smallest principal strains of the most strained tets near the prints."""
+        import fem
+
+        if self.max_strain_rows == 0:
+            return None
+        strain_map = self.patch.strain_map  # (T', 6, 3p)
+        voigt = strain_map @ u
+        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt))
+        largest, smallest = values[:, 2], values[:, 0]
+        ratio = np.maximum(largest, -smallest) / self.strain_limit
+        candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)
+        if candidates.size == 0:
+            return None
+        chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
+        tets = self.patch.neighbour_tets
+        rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
+        for t in chosen.tolist():
+            for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),
+                                                          (0, -self.strain_limit, np.inf, "compression")):
+                v = vectors[t, :, which]
+                # d lambda = v^T dE v; Voigt with engineering shears.
+                weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
+                row = np.zeros(columns)
+                row[: d_displacements.shape[1]] = (weights @ strain_map[t]) @ d_displacements
+                rows_value.append(values[t, which])
+                rows_jacobian.append(row)
+                lower.append(bound_lower)
+                upper.append(bound_upper)
+                labels.append(f"strain bound ({name}) of tet {int(tets[t])} of {self.deformable_object.name}")
+        return ConstraintBlock(
+            "strain", np.array(rows_value), np.array(rows_jacobian), np.array(lower), np.array(upper),
+            self.strain_limit, tuple(labels),
+        )
+
+    def cost(self, model, data, w, options, columns, offset):
         """Deformation term of the objective: ``w/2 |f|^2`` (paper note 2)."""
-        _, _, forces, d_forces = self._state(model, data)
         weight = options.deformation_weight
         if weight == 0.0:
             return None
+        _, _, forces, d_forces_dq, d_forces_dw = self._state(model, data, w)
         stacked = forces.reshape(-1)
-        gradient = np.zeros(columns)
-        hessian = np.zeros((columns, columns))
-        nv = model.nv
-        gradient[:nv] = weight * d_forces.T @ stacked
-        hessian[:nv, :nv] = weight * d_forces.T @ d_forces
-        return 0.5 * weight * float(stacked @ stacked), gradient, hessian
+        jacobian = np.zeros((stacked.size, columns))
+        jacobian[:, : model.nv] = d_forces_dq
+        jacobian[:, offset : offset + self.n_variables] = d_forces_dw
+        return 0.5 * weight * float(stacked @ stacked), weight * jacobian.T @ stacked, weight * jacobian.T @ jacobian
 
     def displacement_field(self, model, data) -> np.ndarray:
         """(N, 3) float: displacement of every node of the body, metres, body frame (eq. 36)."""
-        return np.asarray(self.deformable_object.body.displacement_field(self.patch, self.displacements(model, data)))
+        return np.asarray(self.deformable_object.body.displacement_field(self.patch, self._displacements(data)))
 
+    # -- independent check ---------------------------------------------------
     def verify(self, model, data, points, forces, tolerances, measures) -> list:
-        """Recompute the FEM forces from the link placement and check them."""
+        """Check the reported forces against a full FEM solve, node by node.
+
+        ``consistent``: the whole body is loaded by the reported forces (one sparse
+        solve of the full system, not the condensed one) and its print nodes must
+        land on the link points. ``traction``: the forces are recomputed from the
+        link placement with eq. (44). Then every node must push and lie in its exact
+        Coulomb cone, the indentation and the strain (over every tet) within bounds.
+        """
+        name = self.deformable_object.name
+        body = self.deformable_object.body
         reasons = []
         expected_points = points_in_world(data, self.loads)
         if len(points) != len(expected_points) or np.abs(points - expected_points).max() > tolerances.placement:
-            reasons.append(f"forces of {self.label} are not applied at the print nodes' link points")
-            return reasons
+            return [f"forces on {name} are not applied at the print nodes' link points"]
+        if not np.all(np.isfinite(forces)):
+            return [f"forces on {name} are not finite"]
         displacements = self._displacements(data)
+        forces_on_body = -(forces @ self.rotation_body)
         if self.method == "traction":
-            forces_body = self.patch.reaction_forces(
-                displacements, method="traction", normals=self._turned_normals(data)
-            )
+            field = body.displacement_field(self.patch, displacements)
+            expected = np.asarray(
+                self.patch.reaction_forces(displacements, method="traction", normals=self._turned_normals(data))
+            ) @ self.rotation_body.T
+            error = np.abs(forces - expected).max() / max(np.abs(expected).max(), 1.0)
+            measures[f"FEM force error on {name}"] = float(error)
+            if error > tolerances.deformable_force:
+                reasons.append(f"forces on {name} differ from the FEM reaction by {error:.3g} (relative)")
         else:
-            forces_body = self.patch.reaction_forces(displacements, method="consistent")
-        expected = np.asarray(forces_body) @ self.rotation_body.T
-        error = np.abs(forces - expected).max() / max(np.abs(expected).max(), 1.0)
-        measures[f"FEM force error of {self.label}"] = float(error)
-        if error > tolerances.deformable_force:
-            reasons.append(f"forces of {self.label} differ from the FEM reaction by {error:.3g} (relative)")
-        push = expected @ self.normal_in_world
-        measures[f"smallest normal force of {self.label}"] = float(push.min())
-        if push.min() < -tolerances.cone:
-            reasons.append(f"a print node of {self.label} pulls on the robot ({push.min():.3g} N): adhesion")
-        total = expected.sum(axis=0)
-        normal_part = total @ self.normal_in_world
-        tangential = np.linalg.norm(total - normal_part * self.normal_in_world)
-        if tangential > self.friction * normal_part + tolerances.cone:
-            reasons.append(f"the resultant of {self.label} leaves its friction cone")
-        depth = float(np.abs(displacements @ (self.rotation_body.T @ self.normal_in_world)).max())
-        measures[f"indentation of {self.label}"] = depth
+            field = body.displacement_under_loads(self.node_ids, forces_on_body)
+            mismatch = float(np.abs(field[self.node_ids] - displacements).max())
+            measures[f"print mismatch on {name}"] = mismatch
+            if mismatch > tolerances.deformable_placement:
+                reasons.append(
+                    f"under the reported forces, the full FEM model of {name} leaves a print node "
+                    f"{mismatch:.3g} m off its link"
+                )
+        local_normal = np.einsum("pj,pj->p", forces, self.normals)
+        local_tangential = np.linalg.norm(forces - local_normal[:, None] * self.normals, axis=1)
+        margin = np.minimum(local_normal, self.node_friction * local_normal - local_tangential)
+        worst = int(np.argmin(margin))
+        measures[f"node cone margin on {name}"] = float(margin[worst])
+        if local_normal.min() < -tolerances.cone:
+            node = int(self.node_ids[int(np.argmin(local_normal))])
+            reasons.append(f"node {node} of {name} pulls on the robot ({local_normal.min():.3g} N): adhesion")
+        elif margin[worst] < -tolerances.cone:
+            reasons.append(
+                f"node {int(self.node_ids[worst])} of {name} leaves its friction cone by {-margin[worst]:.3g} N "
+                f"(tangential {local_tangential[worst]:.3g} N, normal {local_normal[worst]:.3g} N)"
+            )
+        depth = float((-np.einsum("pj,pj->p", displacements, self.normals_in_body)).max())
+        measures[f"indentation of {name}"] = depth
         if depth > self.max_indentation + 1e-9:
-            reasons.append(f"a node of {self.label} is indented {depth:.3g} m, beyond max_indentation")
+            reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
+        principal = np.abs(body.principal_strains(field)).max(axis=1)
+        tet = int(np.argmax(principal))
+        measures[f"largest strain of {name}"] = float(principal[tet])
+        if principal[tet] > self.strain_limit + 1e-6:
+            centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
+            reasons.append(
+                f"strain {principal[tet]:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
+                f"exceeds its bound {self.strain_limit:g}: linear elasticity does not hold there"
+            )
         return reasons
-
-
-__all__ = ["DeformableContact", "contact_patch"]

@@ -62,10 +62,16 @@ class PostureOptions:
         At most this many closest pairs enter a QP.
     self_collision : bool
         Whether the SRDF self-collision pairs are checked.
-    max_indentation : float
-        Deformable supports: bound on each print node's displacement along
-        the print normal, m
-        (keeps the small-deformation hypothesis of linear elasticity).
+    indentation_limit : float
+        Deformable supports: bound on each print node's indentation along the
+        print normal, as a fraction of the body's thickness along that normal.
+    max_indentation : float, optional
+        The same bound in metres; overrides ``indentation_limit`` when given.
+    max_strain_rows : int
+        Deformable supports: at most this many tets (the most strained ones
+        near the prints) bound their principal strains in each QP; the bound
+        itself is the object's ``strain_limit``. 0 turns the rows off (verify
+        still checks every tet).
     elastic_penalty : float
         Initial weight of the elastic variable that lets the QP relax
         constraints it cannot meet (it grows when needed).
@@ -91,7 +97,9 @@ class PostureOptions:
     collision_activation: float = 0.05
     max_collision_rows: int = 16
     self_collision: bool = True
-    max_indentation: float = 0.05
+    indentation_limit: float = 0.25
+    max_indentation: float | None = None
+    max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
     rigid_warm_start: bool = True
@@ -101,12 +109,14 @@ class PostureOptions:
             raise StanceError(
                 f"reaction_model must be 'consistent' or 'traction', got {self.reaction_model!r}"
             )
-        for name in ("max_iterations", "max_collision_rows"):
+        for name in ("max_iterations", "max_collision_rows", "max_strain_rows"):
             if int(getattr(self, name)) < 0:
                 raise StanceError(f"{name} must be >= 0")
-        for name in ("trust_region", "feasibility_tolerance", "max_indentation", "elastic_penalty"):
+        for name in ("trust_region", "feasibility_tolerance", "indentation_limit", "elastic_penalty"):
             if not getattr(self, name) > 0:
                 raise StanceError(f"{name} must be > 0, got {getattr(self, name)}")
+        if self.max_indentation is not None and not self.max_indentation > 0:
+            raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
 
 
 @dataclass
@@ -182,6 +192,12 @@ class PostureProblem:
             self.variable_slices.append(slice(start, start + contact.n_variables))
             start += contact.n_variables
         self.n_variables = start
+        self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
+        # The force term spreads the rigid contacts' cone coefficients; a
+        # deformable contact's variables are weighed by its own deformation term.
+        self.force_weights = np.concatenate(
+            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else 0.0) for c in contacts]
+        ) if contacts else np.zeros(0)
         model = robot.model
         self.posture_weights = np.full(model.nv, options.posture_weight)
         self.posture_weights[:3] = 0.0  # the base may go anywhere
@@ -196,14 +212,24 @@ class PostureProblem:
         """Size of the step vector (nv + m)."""
         return self.robot.model.nv + self.n_variables
 
-    def initial_variables(self) -> np.ndarray:
-        """Force variables sharing the robot's weight evenly among rigid contacts."""
+    def initial_variables(self, q) -> np.ndarray:
+        """Force variables at ``q``: the robot's weight shared evenly among rigid
+        contacts' cone coefficients, and each deformable contact's own start."""
         lam = np.zeros(self.n_variables)
-        if self.n_variables:
+        rigid = [(c, s) for c, s in zip(self.contacts, self.variable_slices) if c.kind == "rigid"]
+        if rigid:
             weight = self.robot.mass * 9.81
             # Cone edges are tilted: each carries cos(edge, normal) vertically.
-            vertical = min(c.generators[2::3].sum(axis=0).max() for c in self.contacts if c.n_variables)
-            lam[:] = weight / (self.n_variables * vertical)
+            vertical = min(c.generators[2::3].sum(axis=0).max() for c, _ in rigid)
+            count = sum(c.n_variables for c, _ in rigid)
+            for _, s in rigid:
+                lam[s] = weight / (count * vertical)
+        deformable = [(c, s) for c, s in zip(self.contacts, self.variable_slices) if c.kind == "deformable"]
+        if deformable:
+            model, data = self.robot.model, self.data
+            pin.framesForwardKinematics(model, data, q)
+            for contact, s in deformable:
+                lam[s] = contact.initial_variables(model, data)
         return lam
 
     def check_configuration(self, q) -> np.ndarray:
@@ -287,7 +313,7 @@ class PostureProblem:
             )
         )
         for contact, s in zip(self.contacts, self.variable_slices):
-            blocks.extend(contact.blocks(model, data, lam[s], n))
+            blocks.extend(contact.blocks(model, data, lam[s], n, nv + s.start))
         if self.collision_checker is not None:
             blocks.append(self._collision_block(q))
 
@@ -301,11 +327,12 @@ class PostureProblem:
         gradient[:nv] = d_error.T @ (weights * error)
         hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
         if self.n_variables:
-            objective += 0.5 * options.force_weight * float(lam @ lam)
-            gradient[nv:] += options.force_weight * lam
-            hessian[nv:, nv:] += options.force_weight * np.eye(self.n_variables)
-        for contact in self.contacts:
-            term = contact.cost(model, data, options, n)
+            weights = options.force_weight * self.force_weights
+            objective += 0.5 * float(lam @ (weights * lam))
+            gradient[nv:] += weights * lam
+            hessian[nv:, nv:] += np.diag(weights)
+        for contact, s in zip(self.contacts, self.variable_slices):
+            term = contact.cost(model, data, lam[s], options, n, nv + s.start)
             if term is not None:
                 value, grad, hess = term
                 objective += value
@@ -317,7 +344,7 @@ class PostureProblem:
         step_upper = np.full(n, options.trust_region)
         step_lower[6:nv] = np.maximum(step_lower[6:nv], self.q_lower - q[7:])
         step_upper[6:nv] = np.minimum(step_upper[6:nv], self.q_upper - q[7:])
-        step_lower[nv:] = -lam
+        step_lower[nv:] = self.variable_lower - lam
         step_upper[nv:] = np.inf
         return Linearization(
             objective, gradient, hessian, blocks, step_lower, step_upper, forces, tau
@@ -373,6 +400,9 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         raise StanceError("the stance has no contact; a robot cannot stand on nothing")
     contacts = []
     exclusions = []
+    # All prints on one deformable object form one contact system (they are
+    # coupled through the body); it takes the place of the object's first print.
+    deformable_prints: dict[str, list] = {}
     for contact in stance:
         robot.surface(contact.robot_surface)  # raises FrameNotFound with the known names
         contact_print = contact.contact_print
@@ -389,15 +419,23 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
         label = f"{contact.robot_surface} on {surface.name}"
         if surface.deformable and not options.deformable_as_rigid:
-            from .deformable import DeformableContact  # FEM machinery only when needed
+            from .deformable import PrintSpec  # FEM machinery only when needed
 
             deformable_object = scene.deformable_of_surface(surface.name)
-            contacts.append(
-                DeformableContact(robot, contact.robot_surface, deformable_object, surface, transform, label, options)
-            )
+            if deformable_object.name not in deformable_prints:
+                deformable_prints[deformable_object.name] = []
+                contacts.append(deformable_object)  # placeholder, replaced below
+            deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
         else:
             contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label))
         exclusions.append((robot.surface(contact.robot_surface).frame, surface.object_name))
+    if deformable_prints:
+        from .deformable import DeformableContact
+
+        contacts = [
+            DeformableContact(robot, c, deformable_prints[c.name], options) if not isinstance(c, RigidContact) else c
+            for c in contacts
+        ]
     checker = _collision_checker(robot, scene, exclusions, options)
     return PostureProblem(robot, scene, stance, contacts, options, checker)
 

@@ -162,7 +162,11 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
     model = problem.robot.model
     nv = model.nv
     q = problem.check_configuration(problem.robot.reference_configuration if q_init is None else q_init)
-    lam = problem.initial_variables() if lam_init is None else np.maximum(np.asarray(lam_init, float), 0.0)
+    lam = (
+        problem.initial_variables(q)
+        if lam_init is None
+        else np.maximum(np.asarray(lam_init, float), problem.variable_lower)
+    )
     penalty = options.elastic_penalty
     workspace = _QPWorkspace()
     tolerance = options.feasibility_tolerance
@@ -203,7 +207,7 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
         alpha, accepted = 1.0, None
         while alpha >= 1e-3:
             q_try = pin.integrate(model, q, alpha * step[:nv])
-            lam_try = np.maximum(lam + alpha * step[nv:], 0.0)
+            lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
             trial = problem.linearize(q_try, lam_try)
             trial_violation, _ = trial.max_violation()
             trial_merit = trial.objective + penalty * trial_violation
@@ -309,10 +313,7 @@ def problem_point_forces(problem, linearization) -> tuple:
 
     model, data = problem.robot.model, problem.data
     points = points_in_world(data, problem.loads)
-    frames = []
-    for contact in problem.contacts:
-        frame = model.frames[contact.frame_id].name
-        frames.extend([frame] * len(contact.loads))
+    frames = [frame for contact in problem.contacts for frame in contact.load_frames]
     return tuple(
         PointForce(frame, point, force)
         for frame, point, force in zip(frames, points, linearization.forces)

@@ -28,7 +28,8 @@ class VerificationTolerances:
     cone: float = 1e-6  # N outside the friction cone
     joint_limit: float = 1e-9  # rad
     penetration: float = 1e-4  # m of collision depth tolerated
-    deformable_force: float = 1e-6  # relative error of recomputed FEM forces
+    deformable_force: float = 1e-6  # relative error of recomputed FEM forces (traction)
+    deformable_placement: float = 1e-6  # m between print nodes under the reported forces and their link
 
 
 def _external_forces(model, data, point_forces):
@@ -165,7 +166,11 @@ def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> 
             problem.robot,
             [(name, obj.deformed_collision_object(result.deformations[obj.name]))],
             margin=0.0,
-            exclude=contact_exclusions(problem.robot, problem.robot.model.frames[contact.frame_id].name, name),
+            exclude=[
+                pair
+                for frame_id in contact.frame_ids
+                for pair in contact_exclusions(problem.robot, problem.robot.model.frames[frame_id].name, name)
+            ],
             self_collision=False,
         )
         pairs = checker.pairs(problem.robot.model, data)

@@ -78,6 +78,14 @@ def _problems(robot):
             {"reaction_model": model_name},
         )
     yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
+    # Two soles on one foam block: one coupled contact system.
+    for model_name in ("consistent", "traction"):
+        yield (
+            f"coupled both-on-foam ({model_name})",
+            coarse_scenario("cross-soft-block"),
+            "both-on-foam",
+            {"reaction_model": model_name},
+        )
 
 
 @pytest.fixture(scope="module")
@@ -88,45 +96,64 @@ def linearised_problems(robot):
         stance = scenario.stance(stance_name)
         warm = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
         problem = build_problem(robot, scenario.scene, stance, PostureOptions(**options))
+        for contact in problem.contacts:
+            if contact.kind == "deformable":
+                # A tiny bound activates the strain rows, so they are checked too.
+                contact.strain_limit = 1e-5
         rng = np.random.default_rng(7)
         q = pin.integrate(robot.model, warm.q, 2e-3 * rng.normal(size=robot.nv))
-        lam = rng.uniform(1.0, 50.0, size=problem.n_variables)
+        lam = problem.initial_variables(q) + rng.uniform(1.0, 50.0, size=problem.n_variables)
         cases.append((label, problem, q, lam))
     return cases
 
 
-def _block_values(problem, q, lam):
+def _rows(problem, q, lam):
+    """Every row but the collision ones (their witness points jump), by label."""
     linearization = problem.linearize(q, lam)
-    return {block.name: block for block in linearization.blocks if block.name != "collision"}, linearization
+    rows = {}
+    for block in linearization.blocks:
+        if block.name == "collision":
+            continue
+        for i, label in enumerate(block.labels):
+            rows[(block.name, label)] = (block.value[i], block.jacobian[i])
+    return rows
 
 
 def test_every_constraint_jacobian_matches_finite_differences(linearised_problems):
+    names = set()
     for label, problem, q, lam in linearised_problems:
         model = problem.robot.model
-        blocks, _ = _block_values(problem, q, lam)
-        for name, block in blocks.items():
-            def value(x, name=name):
-                return _block_values(problem, x, lam)[0][name].value.copy()
-
-            numeric_q = _central_difference(value, q, model, model.nv)
-            analytic_q = block.jacobian[:, : model.nv]
-            size = max(1.0, np.abs(analytic_q).max())
-            assert np.abs(numeric_q - analytic_q).max() <= 2e-5 * size, f"{label}: {name} (q columns)"
-            if problem.n_variables:
-                numeric_lam = np.column_stack(
-                    [
-                        (_block_values(problem, q, lam + EPS * e)[0][name].value - _block_values(problem, q, lam - EPS * e)[0][name].value)
-                        / (2 * EPS)
-                        for e in np.eye(problem.n_variables)
-                    ]
-                )
-                assert np.allclose(numeric_lam, block.jacobian[:, model.nv :], atol=1e-6 * size), f"{label}: {name} (lambda)"
+        base = _rows(problem, q, lam)
+        names.update(name for name, _ in base)
+        keys = list(base)
+        numeric = np.zeros((len(keys), problem.n_step))
+        directions = [("q", i) for i in range(model.nv)] + [("lam", j) for j in range(problem.n_variables)]
+        for column, (kind, i) in enumerate(directions):
+            if kind == "q":
+                step = np.zeros(model.nv)
+                step[i] = EPS
+                plus, minus = _rows(problem, pin.integrate(model, q, step), lam), _rows(problem, pin.integrate(model, q, -step), lam)
+            else:
+                step = np.zeros(problem.n_variables)
+                step[i] = EPS
+                plus, minus = _rows(problem, q, lam + step), _rows(problem, q, lam - step)
+            for r, key in enumerate(keys):
+                # A strain row's tet may drop out of the active set under a step: skip it there.
+                numeric[r, column] = (plus[key][0] - minus[key][0]) / (2 * EPS) if key in plus and key in minus else np.nan
+        for r, key in enumerate(keys):
+            analytic = base[key][1]
+            known = np.isfinite(numeric[r])
+            # Per row: relative to that row's own size, so a wrong small row cannot hide.
+            size = max(np.abs(analytic).max(), 1e-8)
+            error = np.abs(numeric[r, known] - analytic[known]).max()
+            assert error <= 2e-5 * size, f"{label}: {key} off by {error:.3g} (row size {size:.3g})"
+    assert {"placement", "node contact", "indentation", "strain", "equilibrium", "torque limit"} <= names
 
 
 def test_objective_gradient_matches_finite_differences(linearised_problems):
     for label, problem, q, lam in linearised_problems:
         model = problem.robot.model
-        _, linearization = _block_values(problem, q, lam)
+        linearization = problem.linearize(q, lam)
 
         def objective(x):
             return np.array([problem.linearize(x, lam).objective])
@@ -139,14 +166,30 @@ def test_objective_gradient_matches_finite_differences(linearised_problems):
 def test_deformable_forces_derivative_includes_the_rotating_normals(linearised_problems):
     """With ``traction``, dropping eq. (63)'s first term would break the FD match."""
     label, problem, q, lam = next(c for c in linearised_problems if "traction" in c[0])
-    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    index = next(i for i, c in enumerate(problem.contacts) if c.kind == "deformable")
+    contact, own = problem.contacts[index], lam[problem.variable_slices[index]]
     model, data = problem.robot.model, problem.data
 
     def forces(x):
         problem.linearize(x, lam)
-        return contact.forces(model, data, None).reshape(-1).copy()
+        return contact.forces(model, data, own).reshape(-1).copy()
 
     numeric = _central_difference(forces, q, model, model.nv)
     problem.linearize(q, lam)
-    analytic = contact.force_jacobians(model, data, None)[0]
+    analytic = contact.force_jacobians(model, data, own)[0]
     assert np.abs(numeric - analytic).max() <= 2e-5 * np.abs(analytic).max()
+
+
+def test_coupled_prints_move_each_other(linearised_problems):
+    """Two soles on one block: one sole's node forces depend on the other sole's load."""
+    label, problem, q, lam = next(c for c in linearised_problems if c[0].startswith("coupled") and "consistent" in c[0])
+    index = next(i for i, c in enumerate(problem.contacts) if c.kind == "deformable")
+    contact, own = problem.contacts[index], lam[problem.variable_slices[index]]
+    assert len(contact.prints) == 2 and contact.n_variables == 12
+    problem.linearize(q, lam)
+    d_forces_dw = contact.force_jacobians(problem.robot.model, problem.data, own)[1].reshape(-1, 3, 12)
+    first = contact.print_of_node == 0
+    own_block = np.abs(d_forces_dw[first][:, :, :6]).max()
+    cross_block = np.abs(d_forces_dw[first][:, :, 6:]).max()
+    # The blocks are 0.2 m apart on a 0.1 m thick block: weak but real coupling.
+    assert 1e-4 * own_block < cross_block < own_block
