@@ -113,6 +113,7 @@ class DeformableContact:
         self.deformable_object = deformable_object
         self.method = options.reaction_model
         self.max_strain_rows = int(options.max_strain_rows)
+        self.per_node_friction = bool(options.node_friction)
         self.strain_limit = float(deformable_object.strain_limit)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
@@ -200,7 +201,7 @@ class DeformableContact:
         # Per-node frames: normal and tangents of each node's print, world.
         self.normals = np.array([self.print_placements[i].rotation[:, 2] for i in self.print_of_node])
         self.tangents = np.array([self.print_placements[i].rotation[:, :2].T for i in self.print_of_node])
-        self.node_friction = np.array([self.friction[i] for i in self.print_of_node])
+        self.node_mu = np.array([self.friction[i] for i in self.print_of_node])
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
         if options.max_indentation is not None:
@@ -323,24 +324,34 @@ class DeformableContact:
         ]
         blocks.append(equality("placement", residual, jacobian, 1e-2, labels))
 
-        # Every node pushes and stays in its own (inner) friction pyramid.
+        # Every node pushes; its force stays in its own (inner) friction pyramid,
+        # or (the paper's model) only each print's resultant does.
         d_forces = np.zeros((p, 3, columns))
         d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
         d_forces[:, :, w_columns] = d_forces_dw.reshape(p, 3, -1)
-        mu = self.node_friction * _PYRAMID
-        faces = np.concatenate(
-            [self.normals[:, None, :], mu[:, None, None] * self.normals[:, None, :]
-             + np.array([1.0, -1.0, 1.0, -1.0])[None, :, None] * np.repeat(self.tangents, 2, axis=1)],
-            axis=1,
-        )  # (p, 5, 3): normal, then +t1, -t1, +t2, -t2 faces
-        value = np.einsum("pkj,pj->pk", faces, forces).reshape(-1)
-        jacobian = np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(5 * p, columns)
-        labels = []
-        for n in self.node_ids:
-            labels.append(f"no adhesion at node {n} of {self.deformable_object.name}")
-            labels.extend(f"friction cone at node {n} of {self.deformable_object.name} ({s})"
-                          for s in ("+x", "-x", "+y", "-y"))
-        blocks.append(ConstraintBlock("node contact", value, jacobian, 0.0, np.inf, 1.0, tuple(labels)))
+        faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
+        name = self.deformable_object.name
+        push = np.einsum("pj,pj->p", self.normals, forces)
+        push_jacobian = np.einsum("pj,pjc->pc", self.normals, d_forces)
+        push_labels = tuple(f"no adhesion at node {n} of {name}" for n in self.node_ids)
+        if self.per_node_friction:
+            value = np.concatenate([push, np.einsum("pkj,pj->pk", faces, forces).reshape(-1)])
+            jacobian = np.vstack([push_jacobian, np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns)])
+            labels = push_labels + tuple(
+                f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in ("+x", "-x", "+y", "-y")
+            )
+        else:
+            values, jacobians, labels = [push], [push_jacobian], list(push_labels)
+            for i, spec in enumerate(self.prints):
+                rows = self.print_of_node == i
+                placement = self.print_placements[i]
+                face = self._pyramid_faces(placement.rotation[:, 2][None], placement.rotation[:, :2].T[None],
+                                           np.array([self.friction[i]]))[0]  # (4, 3)
+                values.append(face @ forces[rows].sum(axis=0))
+                jacobians.append(face @ d_forces[rows].sum(axis=0))
+                labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in ("+x", "-x", "+y", "-y"))
+            value, jacobian, labels = np.concatenate(values), np.vstack(jacobians), tuple(labels)
+        blocks.append(ConstraintBlock("node contact", value, jacobian, 0.0, np.inf, 1.0, labels))
 
         # Indentation along each node's print normal, bounded relative to the thickness.
         depth = -np.einsum("pj,pj->p", displacements, self.normals_in_body)
@@ -356,6 +367,17 @@ class DeformableContact:
         if strain is not None:
             blocks.append(strain)
         return blocks
+
+    @staticmethod
+    def _pyramid_faces(normals, tangents, friction):
+        """(k, 4, 3) inner friction-pyramid faces: f inside iff every face . f >= 0.
+
+        ``normals`` (k, 3), ``tangents`` (k, 2, 3), ``friction`` (k,); faces
+        +t1, -t1, +t2, -t2 of ``mu / sqrt(2) n +- t``, inside the exact cone.
+        """
+        signs = np.array([1.0, -1.0, 1.0, -1.0])[None, :, None]
+        mu = (np.asarray(friction) * _PYRAMID)[:, None, None]
+        return mu * normals[:, None, :] + signs * np.repeat(tangents, 2, axis=1)
 
     def _strain_block(self, u, d_displacements, columns):
         """Largest and smallest principal strains of the most strained tets near the prints."""
@@ -447,18 +469,29 @@ class DeformableContact:
                     f"{mismatch:.3g} m off its link"
                 )
         local_normal = np.einsum("pj,pj->p", forces, self.normals)
-        local_tangential = np.linalg.norm(forces - local_normal[:, None] * self.normals, axis=1)
-        margin = np.minimum(local_normal, self.node_friction * local_normal - local_tangential)
-        worst = int(np.argmin(margin))
-        measures[f"node cone margin on {name}"] = float(margin[worst])
+        measures[f"smallest node normal force on {name}"] = float(local_normal.min())
         if local_normal.min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(local_normal))])
             reasons.append(f"node {node} of {name} pulls on the robot ({local_normal.min():.3g} N): adhesion")
-        elif margin[worst] < -tolerances.cone:
-            reasons.append(
-                f"node {int(self.node_ids[worst])} of {name} leaves its friction cone by {-margin[worst]:.3g} N "
-                f"(tangential {local_tangential[worst]:.3g} N, normal {local_normal[worst]:.3g} N)"
-            )
+        if self.per_node_friction:
+            groups = [(int(n), forces[i : i + 1], self.normals[i], self.node_mu[i], f"node {int(n)} of {name}")
+                      for i, n in enumerate(self.node_ids)]
+        else:
+            groups = [(i, forces[self.print_of_node == i], self.print_placements[i].rotation[:, 2], self.friction[i],
+                       f"the resultant of {spec.label}") for i, spec in enumerate(self.prints)]
+        worst = np.inf
+        for _, group_forces, normal, mu, what in groups:
+            total = group_forces.sum(axis=0)
+            normal_part = float(total @ normal)
+            tangential = float(np.linalg.norm(total - normal_part * normal))
+            margin = mu * normal_part - tangential
+            worst = min(worst, margin)
+            if margin < -tolerances.cone:
+                reasons.append(
+                    f"{what} leaves its friction cone by {-margin:.3g} N "
+                    f"(tangential {tangential:.3g} N, normal {normal_part:.3g} N, mu {mu:g})"
+                )
+        measures[f"cone margin on {name}"] = float(worst)
         depth = float((-np.einsum("pj,pj->p", displacements, self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
         if depth > self.max_indentation + 1e-9:

@@ -67,6 +67,11 @@ class PostureOptions:
         print normal, as a fraction of the body's thickness along that normal.
     max_indentation : float, optional
         The same bound in metres; overrides ``indentation_limit`` when given.
+    node_friction : bool
+        Deformable supports: each print node pushes and keeps its force in its
+        own friction cone (default: an accepted stance is a sticking state that
+        Coulomb friction allows node by node). False gives the paper's model:
+        the nodes still push, but only each print's resultant is kept in the cone.
     max_strain_rows : int
         Deformable supports: at most this many tets (the most strained ones
         near the prints) bound their principal strains in each QP; the bound
@@ -99,6 +104,7 @@ class PostureOptions:
     self_collision: bool = True
     indentation_limit: float = 0.25
     max_indentation: float | None = None
+    node_friction: bool = True
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False

@@ -20,6 +20,7 @@ iteration limit is reached. Feasible answers are re-checked by
 
 from __future__ import annotations
 
+import logging
 import time
 from dataclasses import replace
 
@@ -31,6 +32,8 @@ from .blocks import stack
 from .errors import StanceError
 from .problem import PostureOptions, build_problem
 from .results import LazyDeformations, PointForce, PostureResult
+
+logger = logging.getLogger(__name__)
 
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _MAX_PENALTY = 1e8
@@ -125,6 +128,8 @@ def _unit(label: str) -> str:
         return "N m"
     if label.startswith("collision") or "indentation" in label:
         return "m"
+    if label.startswith("strain"):
+        return "(strain)"
     return "N"
 
 
@@ -233,7 +238,12 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
             continue
         q, lam, linearization = accepted
         stalled = 0
-        new_violation, _ = linearization.max_violation()
+        new_violation, worst_label = linearization.max_violation()
+        logger.debug(
+            "iteration %d: step %.3g (alpha %.3g), violation %.3g (%s), objective %.6g, elastic %.3g, penalty %.3g",
+            iteration, float(np.max(np.abs(step[:nv]))), alpha, new_violation, worst_label,
+            linearization.objective, elastic, penalty,
+        )
         history.append(new_violation)
         # Infeasible stances end here rather than at the iteration limit: the
         # violation has not fallen by 1 % over the last iterations although
