@@ -237,7 +237,7 @@ def solve_slsqp(robot, scene, stance):
     lin = problem.linearize(q, lam)
     violation, label = lin.max_violation()
     result = PostureResult(
-        feasible=False, q=q, point_forces=problem_point_forces(problem, lin), torques=lin.torques[6:],
+        feasible=False, q=q, point_forces=problem_point_forces(problem, lin, q), torques=lin.torques[6:],
         iterations=iterations, solve_time=elapsed, reason="", stance=stance,
     )
     verification = verify_problem(problem, result)

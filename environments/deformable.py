@@ -30,24 +30,32 @@ DEFAULT_STRAIN_LIMIT = 0.05
 (small strain) is trusted up to a few percent."""
 
 RESOLUTIONS = {"coarse": 0.05, "default": 0.0225}
-"""Node spacing on the refined part of a soft box's top face, metres.
+"""Fine node spacing h of a soft box's mesh where prints land, metres.
 
-``default`` is chosen so that a Talos palm print (0.10 m x 0.07 m) placed anywhere,
-at any angle, on the refined region covers at least 9 surface nodes (a grid of
-spacing h, sampled over offsets and angles, leaves at least 10 under such a
-rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m) covers about 30.
+The whole mesh scales with h (see :func:`soft_box_coordinates`): halving it halves
+every cell, in plane and in depth. ``default`` is chosen so that a Talos palm print
+(0.10 m x 0.07 m) placed anywhere, at any angle, on the refined region covers at
+least 9 surface nodes (a grid of spacing h, sampled over offsets and angles, leaves
+at least 10 under such a rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m)
+covers about 30. At this spacing a rigid print's force is still 10-15 % above that
+of the mesh refined twice, and about 30 % above the extrapolated converged value
+(``bench/bench_mesh_convergence.py``): linear tets resolve a print's edge slowly.
 ``coarse`` is for fast tests: a sole print still covers several nodes, a palm
 print may cover fewer than 9.
 """
 
-# Outside the refined region, cells grow by this ratio up to this many times the
-# fine spacing: enough to keep the node count modest without abrupt size jumps.
-_GROWTH_RATIO = 1.5
+# Size field of the mesh: cells are about h in the refined region and at the top face
+# and grow with the distance d to them as h (1 + d / _GRADING_LENGTH), up to
+# _COARSE_FACTOR h. A grading length in metres, not a growth ratio per cell, makes the
+# mesh one size field scaled by h, so halving h refines the mesh by 2 everywhere (what
+# a convergence study needs); placing nodes so that each cell holds one cell of the
+# field makes the cells a geometric series of ratio exp(h / _GRADING_LENGTH): 1.45 at
+# the default h, the first one 1.2 h long. 6 cm, a bit more than half a palm, because
+# the stress under a print decays over about a print width. The cap bounds the aspect
+# ratio of every cell by about _COARSE_FACTOR: h x h x 4h at the bottom of the refined
+# column, 4h x 4h x 1.2h on the top face outside it.
+_GRADING_LENGTH = 0.06
 _COARSE_FACTOR = 4.0
-# Number of element layers through the height, and the thickness of the top one in
-# fine spacings: thin near the prints, thick near the fixed base where little happens.
-_LAYERS = {"coarse": 2, "default": 3}
-_TOP_LAYER_SPACINGS = 2.0
 
 
 def _fem():
@@ -172,68 +180,114 @@ class DeformableObject:
         return moved[np.asarray(self.mesh.surface_triangles)]
 
 
+def _cells_to_distance(distance, fine: float) -> np.ndarray:
+    """Number of cells of the size field between a refined edge and ``distance`` from it.
+
+    The integral of 1 / size over [0, distance] for the size field
+    ``fine * min(_COARSE_FACTOR, 1 + d / _GRADING_LENGTH)``; fractional.
+    """
+    distance = np.asarray(distance, dtype=float)
+    length, cap = _GRADING_LENGTH, _COARSE_FACTOR
+    capped_from = (cap - 1.0) * length
+    graded = (length / fine) * np.log1p(np.minimum(distance, capped_from) / length)
+    return graded + np.maximum(distance - capped_from, 0.0) / (cap * fine)
+
+
+def _distance_at_cells(cells, fine: float) -> np.ndarray:
+    """Inverse of :func:`_cells_to_distance`: the distance reached after ``cells`` cells."""
+    cells = np.asarray(cells, dtype=float)
+    length, cap = _GRADING_LENGTH, _COARSE_FACTOR
+    cells_to_cap = (length / fine) * math.log(cap)
+    graded = length * np.expm1(np.minimum(cells, cells_to_cap) * fine / length)
+    return graded + np.maximum(cells - cells_to_cap, 0.0) * cap * fine
+
+
 def _graded_side(length: float, fine: float) -> np.ndarray:
-    """Cell sizes over ``length`` starting at ``fine`` and growing away from it."""
+    """Node offsets over ``length`` away from a refined edge, cells growing by the size field.
+
+    Parameters
+    ----------
+    length : float
+        Metres from the refined edge to the end of the axis, >= 0.
+    fine : float
+        Fine spacing h, metres.
+
+    Returns
+    -------
+    (k,) float
+        Increasing offsets from the edge, metres, the last exactly ``length``; empty
+        when ``length`` is 0. The nodes equidistribute the size field: each cell is
+        one (rounded up) cell of it, so no cell is longer than the field allows.
+    """
     if length <= 1e-12:
         return np.zeros(0)
-    sizes, total, size = [], 0.0, fine
-    while total < length - 1e-9:
-        size = min(size * _GROWTH_RATIO, _COARSE_FACTOR * fine)
-        sizes.append(size)
-        total += size
-    # Scale so they sum to length exactly (shrinks them by less than one cell).
-    return np.array(sizes) * (length / total)
+    total = float(_cells_to_distance(length, fine))
+    count = max(1, math.ceil(total - 1e-9))
+    offsets = _distance_at_cells(np.arange(1, count + 1) * (total / count), fine)
+    offsets[-1] = length
+    return offsets
 
 
 def _axis_coordinates(low: float, high: float, refine_low: float, refine_high: float, fine: float) -> np.ndarray:
-    """Coordinates on [low, high], spacing <= fine on [refine_low, refine_high], coarser outside."""
+    """Coordinates on [low, high], spacing <= fine on [refine_low, refine_high], graded outside."""
     refine_low, refine_high = max(low, refine_low), min(high, refine_high)
     cells = max(1, math.ceil((refine_high - refine_low) / fine - 1e-9))
     middle = np.linspace(refine_low, refine_high, cells + 1)
-    below = refine_low - np.cumsum(_graded_side(refine_low - low, fine))
-    above = refine_high + np.cumsum(_graded_side(high - refine_high, fine))
+    below = refine_low - _graded_side(refine_low - low, fine)
+    above = refine_high + _graded_side(high - refine_high, fine)
     coordinates = np.concatenate([below[::-1], middle, above])
     coordinates[0], coordinates[-1] = low, high
     return coordinates
 
 
-def _height_coordinates(height: float, top_cell: float, layers: int) -> np.ndarray:
-    """Coordinates on [0, height] with ``layers`` cells thinning geometrically toward the top."""
-    if top_cell * layers >= height:
-        return np.linspace(0.0, height, layers + 1)
-    # Solve top_cell * (r^layers - 1) / (r - 1) = height for r > 1 by bisection.
-    low, high = 1.0, 2.0
-    while top_cell * (high**layers - 1.0) / (high - 1.0) < height:
-        high *= 2.0
-    for _ in range(100):
-        ratio = 0.5 * (low + high)
-        if top_cell * (ratio**layers - 1.0) / (ratio - 1.0) < height:
-            low = ratio
-        else:
-            high = ratio
-    cells = top_cell * ratio ** np.arange(layers)  # top first
-    cells *= height / cells.sum()
-    return np.concatenate([[0.0], np.cumsum(cells[::-1])])
+def _height_coordinates(height: float, fine: float) -> np.ndarray:
+    """Coordinates on [0, height], the top cell about ``fine`` thick, cells growing downward."""
+    depths = _graded_side(height, fine)  # from the top face down
+    return np.concatenate([height - depths[::-1], [height]])
 
 
 def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
+
+    The mesh is one size field scaled by the fine spacing h: cells of at most h on
+    the refined region of the top face, the top layer about h thick (1.2 h at the
+    default h), and cells growing away from both (``h (1 + d / 0.06 m)`` at a distance
+    d, a geometric growth of 1.45 per cell at the default h) up to 4 h. So no cell is
+    much more than 4 times longer in one direction than in another, and halving h
+    halves every cell, in plane and in depth.
 
     Parameters
     ----------
     size : (3,) float
         Side lengths, metres.
     resolution : {"coarse", "default"} or float
-        Fine node spacing on the refined top region, metres, or a named preset.
+        Fine node spacing h, metres, or a named preset (see :data:`RESOLUTIONS`).
     refine : (2, 2) float, optional
         ``[[x_min, y_min], [x_max, y_max]]`` of the top-face region where prints
         land, metres, top-surface frame (origin at the top-face centre). Default:
-        the whole top face.
+        the whole top face. Its edges are grid lines.
 
     Returns
     -------
     xs, ys, zs : 1-D float arrays
-        Strictly increasing coordinates, metres.
+        Strictly increasing coordinates, metres; ``zs`` from 0 (the base) to the
+        height.
+
+    Raises
+    ------
+    SceneError
+        On a non-positive size or spacing, an unknown preset, or a refine region
+        that is empty or off the top face.
+
+    Examples
+    --------
+    >>> xs, ys, zs = soft_box_coordinates((1.0, 1.0, 1.0), "default")
+    >>> xs.size, ys.size, zs.size                     # 45 cells of 22 mm in plane
+    (46, 46, 14)
+    >>> round(float(zs[-1] - zs[-2]), 4), round(float(zs[1] - zs[0]), 4)   # top, bottom
+    (0.0268, 0.0887)
+    >>> [c.size for c in soft_box_coordinates((1.0, 1.0, 1.0), 0.01125)]  # h / 2
+    [90, 90, 27]
     """
     size = readonly_array(size, (3,), "soft box size")
     if np.any(size <= 0.0):
@@ -241,11 +295,16 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     if isinstance(resolution, str):
         if resolution not in RESOLUTIONS:
             raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
-        fine, layers = RESOLUTIONS[resolution], _LAYERS[resolution]
+        fine = RESOLUTIONS[resolution]
     else:
-        fine, layers = float(resolution), _LAYERS["default"]
+        try:
+            fine = float(resolution)
+        except (TypeError, ValueError):
+            fine = math.nan
         if not (math.isfinite(fine) and fine > 0.0):
-            raise SceneError(f"resolution spacing must be > 0 metres, got {resolution!r}")
+            raise SceneError(
+                f"resolution must be one of {', '.join(RESOLUTIONS)} or a spacing > 0 in metres, got {resolution!r}"
+            )
     half = 0.5 * size[:2]
     if refine is None:
         region = np.array([-half, half])
@@ -257,7 +316,7 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
             raise SceneError(f"refine region {region.tolist()} does not overlap the top face {(-half).tolist()}..{half.tolist()}")
     xs = _axis_coordinates(-half[0], half[0], region[0, 0], region[1, 0], fine)
     ys = _axis_coordinates(-half[1], half[1], region[0, 1], region[1, 1], fine)
-    zs = _height_coordinates(float(size[2]), _TOP_LAYER_SPACINGS * fine, layers)
+    zs = _height_coordinates(float(size[2]), fine)
     return xs, ys, zs
 
 
@@ -275,8 +334,9 @@ def soft_box(
     """A deformable box standing on the floor, base fixed, top face a contact surface.
 
     The body frame is at the centre of the base, with the box's axes. The tensor
-    mesh is refined on the top face where prints land and graded in z toward the
-    top (see :func:`soft_box_coordinates`). Nodes of the base (z = 0 in the body
+    mesh is refined on the top face where prints land, in plane and in depth, and
+    coarsens away from it with bounded cell aspect ratios (see
+    :func:`soft_box_coordinates`). Nodes of the base (z = 0 in the body
     frame) are fixed. The top surface is named ``<name>_top``; its frame is at the
     top-face centre, z up.
 
@@ -291,7 +351,8 @@ def soft_box(
     material : fem.LinearElasticMaterial
         The material.
     resolution : {"coarse", "default"} or float
-        Mesh spacing preset or fine spacing in metres.
+        Mesh spacing preset or fine spacing h in metres; the whole mesh scales
+        with it.
     refine : (2, 2) float, optional
         Region of the top face to refine, metres, top-surface frame.
     yaw : float

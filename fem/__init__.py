@@ -8,6 +8,7 @@ the print displacements, with an exact, cached Jacobian.
 """
 
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
+from .contact import LIFT, SLIP, STICK, PrintContact, solve_print_contact
 from .body import DeformableBody, voigt_to_tensor_strain, von_mises
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh
@@ -43,4 +44,9 @@ __all__ = [
     "voigt_to_tensor_strain",
     "nodes_in_polygon",
     "available_solvers",
+    "PrintContact",
+    "solve_print_contact",
+    "STICK",
+    "SLIP",
+    "LIFT",
 ]

@@ -55,6 +55,8 @@ MINIMUM_PRINT_NODES = 3
 _PYRAMID = 1.0 / np.sqrt(2.0)
 # Tets whose largest principal strain is above this fraction of the bound enter the QP.
 _STRAIN_ACTIVATION = 0.5
+_SIDES = ("+x", "-x", "+y", "-y")
+LAWS = ("coulomb", "sticking", "bonded")
 
 
 class PrintSpec:
@@ -113,7 +115,7 @@ class DeformableContact:
         self.deformable_object = deformable_object
         self.method = options.reaction_model
         self.max_strain_rows = int(options.max_strain_rows)
-        self.per_node_friction = bool(options.node_friction)
+        self.law = options.contact_law
         self.strain_limit = float(deformable_object.strain_limit)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
@@ -187,8 +189,11 @@ class DeformableContact:
                 f"refine the mesh of {deformable_object.name!r} under the prints"
             )
         a_inverse = np.linalg.inv(a)
+        self.a_inverse = a_inverse
         self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
         self.generalised = self.basis.T @ self.consistent  # (6L, 3p): U -> W at the placement
+        # R0 - D G^T R_c: the forces of the prints' non-rigid motion (zero on rigid motions).
+        self.nonrigid = self.reaction - self.distribution @ self.generalised
         # Rows of the placement residual in each print's own axes (x, y, normal).
         to_print = np.zeros((6 * n_prints, 6 * n_prints))
         for i, rotation in enumerate(print_rotations_in_body):
@@ -204,6 +209,9 @@ class DeformableContact:
         self.node_mu = np.array([self.friction[i] for i in self.print_of_node])
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
+        # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
+        self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
+        self._modes = None
         if options.max_indentation is not None:
             self.max_indentation = float(options.max_indentation)
         else:
@@ -233,7 +241,20 @@ class DeformableContact:
         return np.einsum("tij,tj->ti", np.array(relative)[owner], rest)
 
     def _reaction_now(self, model, data, displacements, d_displacements):
-        """``R(q) U`` and its q-derivative at fixed U-coefficients (eq. 63 for traction)."""
+        """The reaction map R at this iterate, ``R U`` and R's own q-derivative term.
+
+        Bonded laws: fem's reaction matrix (its normals turn with the links for
+        ``traction``, eq. 63). Coulomb: the contact solve's mode-fixed Jacobian L,
+        with ``L U`` its exact forces.
+        """
+        if self.law == "coulomb":
+            import fem
+
+            state = fem.solve_print_contact(
+                self.patch.compliance, displacements, self.node_frames, self.node_mu, initial_modes=self._modes
+            )
+            self._modes = state.modes
+            return state.jacobian, state.forces.reshape(-1), np.zeros_like(d_displacements)
         if self.method != "traction":
             return self.reaction, self.reaction @ displacements.reshape(-1), np.zeros_like(d_displacements)
         normals = self._turned_normals(data)
@@ -268,14 +289,27 @@ class DeformableContact:
         reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
         u = displacements.reshape(-1)
         # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
-        forces_body = self.distribution @ w + elastic - self.distribution @ (self.generalised @ u)
-        d_forces_body = (reaction - self.distribution @ self.generalised) @ d_displacements + d_turn
+        if self.law == "coulomb":
+            distribution = reaction @ self.basis @ self.a_inverse
+            nonrigid = reaction - distribution @ self.generalised
+        else:
+            distribution = self.distribution
+            nonrigid = self.nonrigid if self.method != "traction" else reaction - distribution @ self.generalised
+        forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
+        d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
         rotation = self.rotation_body
         forces = (forces_body.reshape(p, 3)) @ rotation.T
-        d_forces_dq = np.einsum("ij,pjv->piv", rotation, d_forces_body.reshape(p, 3, nv)).reshape(3 * p, nv)
-        d_forces_dw = np.einsum("ij,pjv->piv", rotation, self.distribution.reshape(p, 3, -1)).reshape(3 * p, -1)
+        d_forces = np.einsum("ij,pjv->piv", rotation, d_forces_body.reshape(p, 3, -1)).reshape(3 * p, -1)
+        # The body's own print displacement: the compliance under the forces (the link
+        # points' U only where the nodes stick; traction has no compliance form).
+        if self.method == "traction":
+            nodes = displacements.reshape(-1)
+            d_nodes = np.hstack([d_displacements, np.zeros((3 * p, self.n_variables))])
+        else:
+            nodes = -self.patch.compliance @ forces_body
+            d_nodes = -self.patch.compliance @ d_forces_body
         self._cache_key = key
-        self._cache = (displacements, d_displacements, forces, d_forces_dq, d_forces_dw)
+        self._cache = (displacements, d_displacements, forces, d_forces[:, :nv], d_forces[:, nv:], nodes, d_nodes)
         return self._cache
 
     # -- contact-model interface --------------------------------------------
@@ -306,7 +340,7 @@ class DeformableContact:
         offset : int
             Column of this contact's first variable in the step vector.
         """
-        displacements, d_displacements, forces, d_forces_dq, d_forces_dw = self._state(model, data, w)
+        displacements, d_displacements, forces, d_forces_dq, d_forces_dw, nodes, d_nodes = self._state(model, data, w)
         nv, p = model.nv, len(self.node_ids)
         w_columns = slice(offset, offset + self.n_variables)
         blocks = []
@@ -324,46 +358,61 @@ class DeformableContact:
         ]
         blocks.append(equality("placement", residual, jacobian, 1e-2, labels))
 
-        # Every node pushes; its force stays in its own (inner) friction pyramid,
-        # or (the paper's model) only each print's resultant does.
+        name = self.deformable_object.name
         d_forces = np.zeros((p, 3, columns))
         d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
         d_forces[:, :, w_columns] = d_forces_dw.reshape(p, 3, -1)
-        faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
-        name = self.deformable_object.name
-        push = np.einsum("pj,pj->p", self.normals, forces)
-        push_jacobian = np.einsum("pj,pjc->pc", self.normals, d_forces)
-        push_labels = tuple(f"no adhesion at node {n} of {name}" for n in self.node_ids)
-        if self.per_node_friction:
-            value = np.concatenate([push, np.einsum("pkj,pj->pk", faces, forces).reshape(-1)])
-            jacobian = np.vstack([push_jacobian, np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns)])
-            labels = push_labels + tuple(
-                f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in ("+x", "-x", "+y", "-y")
-            )
-        else:
-            values, jacobians, labels = [push], [push_jacobian], list(push_labels)
-            for i, spec in enumerate(self.prints):
+        d_nodes_full = np.zeros((3 * p, columns))
+        d_nodes_full[:, :nv] = d_nodes[:, :nv]
+        d_nodes_full[:, w_columns] = d_nodes[:, nv:]
+        if self.law == "coulomb":
+            # The contact solve keeps every node admissible; each link must still
+            # press its print (on average not above the rest surface), or it is
+            # not in contact.
+            heights = np.einsum("pj,pj->p", displacements, self.normals_in_body)
+            d_heights = np.einsum("pj,pjv->pv", self.normals_in_body, d_displacements.reshape(p, 3, nv))
+            value, jacobian = np.zeros(len(self.prints)), np.zeros((len(self.prints), columns))
+            for i in range(len(self.prints)):
                 rows = self.print_of_node == i
-                placement = self.print_placements[i]
-                face = self._pyramid_faces(placement.rotation[:, 2][None], placement.rotation[:, :2].T[None],
-                                           np.array([self.friction[i]]))[0]  # (4, 3)
-                values.append(face @ forces[rows].sum(axis=0))
-                jacobians.append(face @ d_forces[rows].sum(axis=0))
-                labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in ("+x", "-x", "+y", "-y"))
-            value, jacobian, labels = np.concatenate(values), np.vstack(jacobians), tuple(labels)
-        blocks.append(ConstraintBlock("node contact", value, jacobian, 0.0, np.inf, 1.0, labels))
+                value[i] = heights[rows].mean()
+                jacobian[i, :nv] = d_heights[rows].mean(axis=0)
+            labels = tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints)
+            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels))
+        else:
+            # Bonded nodes push; each node's force stays in its own (inner) friction
+            # pyramid ("sticking"), or only each print's resultant does ("bonded").
+            push = np.einsum("pj,pj->p", self.normals, forces)
+            push_jacobian = np.einsum("pj,pjc->pc", self.normals, d_forces)
+            values, jacobians = [push], [push_jacobian]
+            labels = [f"no adhesion at node {n} of {name}" for n in self.node_ids]
+            if self.law == "sticking":
+                faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
+                values.append(np.einsum("pkj,pj->pk", faces, forces).reshape(-1))
+                jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
+                labels.extend(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
+            else:
+                for i, spec in enumerate(self.prints):
+                    rows = self.print_of_node == i
+                    rotation = self.print_placements[i].rotation
+                    face = self._pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [self.friction[i]])[0]
+                    values.append(face @ forces[rows].sum(axis=0))
+                    jacobians.append(face @ d_forces[rows].sum(axis=0))
+                    labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in _SIDES)
+            blocks.append(
+                ConstraintBlock("node contact", np.concatenate(values), np.vstack(jacobians), 0.0, np.inf, 1.0, tuple(labels))
+            )
 
-        # Indentation along each node's print normal, bounded relative to the thickness.
-        depth = -np.einsum("pj,pj->p", displacements, self.normals_in_body)
-        jacobian = np.zeros((p, columns))
-        jacobian[:, :nv] = -np.einsum("pj,pjv->pv", self.normals_in_body, d_displacements.reshape(p, 3, nv))
+        # Indentation of the body's print nodes along their normal, bounded
+        # relative to the body's thickness.
+        depth = -np.einsum("pj,pj->p", nodes.reshape(p, 3), self.normals_in_body)
+        jacobian = -np.einsum("pj,pjc->pc", self.normals_in_body, d_nodes_full.reshape(p, 3, columns))
         blocks.append(
             ConstraintBlock(
                 "indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2,
-                tuple(f"indentation bound at node {n} of {self.deformable_object.name}" for n in self.node_ids),
+                tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
             )
         )
-        strain = self._strain_block(u, d_displacements, columns)
+        strain = self._strain_block(nodes, d_nodes_full, columns)
         if strain is not None:
             blocks.append(strain)
         return blocks
@@ -379,8 +428,12 @@ class DeformableContact:
         mu = (np.asarray(friction) * _PYRAMID)[:, None, None]
         return mu * normals[:, None, :] + signs * np.repeat(tangents, 2, axis=1)
 
-    def _strain_block(self, u, d_displacements, columns):
-        """Largest and smallest principal strains of the most strained tets near the prints."""
+    def _strain_block(self, u, d_u, columns):
+        """Largest and smallest principal strains of the most strained tets near the prints.
+
+        ``u`` (3p,) are the body's print-node displacements, ``d_u`` (3p, columns)
+        their derivative in the step.
+        """
         import fem
 
         if self.max_strain_rows == 0:
@@ -402,8 +455,7 @@ class DeformableContact:
                 v = vectors[t, :, which]
                 # d lambda = v^T dE v; Voigt with engineering shears.
                 weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                row = np.zeros(columns)
-                row[: d_displacements.shape[1]] = (weights @ strain_map[t]) @ d_displacements
+                row = (weights @ strain_map[t]) @ d_u
                 rows_value.append(values[t, which])
                 rows_jacobian.append(row)
                 lower.append(bound_lower)
@@ -419,26 +471,44 @@ class DeformableContact:
         weight = options.deformation_weight
         if weight == 0.0:
             return None
-        _, _, forces, d_forces_dq, d_forces_dw = self._state(model, data, w)
+        _, _, forces, d_forces_dq, d_forces_dw, _, _ = self._state(model, data, w)
         stacked = forces.reshape(-1)
         jacobian = np.zeros((stacked.size, columns))
         jacobian[:, : model.nv] = d_forces_dq
         jacobian[:, offset : offset + self.n_variables] = d_forces_dw
         return 0.5 * weight * float(stacked @ stacked), weight * jacobian.T @ stacked, weight * jacobian.T @ jacobian
 
-    def displacement_field(self, model, data) -> np.ndarray:
-        """(N, 3) float: displacement of every node of the body, metres, body frame (eq. 36)."""
-        return np.asarray(self.deformable_object.body.displacement_field(self.patch, self._displacements(data)))
+    def displacement_field(self, model, data, forces) -> np.ndarray:
+        """Displacement of every node of the body, metres, body frame (eq. 36).
+
+        Parameters
+        ----------
+        forces : (p, 3) float
+            This contact's forces on the robot, world frame, newtons: the body is
+            loaded by their opposite (one sparse solve). The traction model has no
+            compliance form: its field is the one of the imposed print motion.
+
+        Returns
+        -------
+        (N, 3) float
+        """
+        body = self.deformable_object.body
+        if self.method == "traction":
+            return np.asarray(body.displacement_field(self.patch, self._displacements(data)))
+        return body.displacement_under_loads(self.node_ids, -(np.asarray(forces) @ self.rotation_body))
 
     # -- independent check ---------------------------------------------------
     def verify(self, model, data, points, forces, tolerances, measures) -> list:
         """Check the reported forces against a full FEM solve, node by node.
 
         ``consistent``: the whole body is loaded by the reported forces (one sparse
-        solve of the full system, not the condensed one) and its print nodes must
-        land on the link points. ``traction``: the forces are recomputed from the
-        link placement with eq. (44). Then every node must push and lie in its exact
-        Coulomb cone, the indentation and the strain (over every tet) within bounds.
+        solve of the full system, not the condensed one); the motion of each link
+        point relative to its node must then obey the contact law: Signorini and
+        Coulomb at every node (``coulomb``), or no relative motion at all (the
+        bonded laws). ``traction``: the forces are recomputed from the link
+        placement with eq. (44). Then the friction cones (per node, or of each
+        print's resultant for ``bonded``), the indentation and the strain over
+        every tet of the body are checked.
         """
         name = self.deformable_object.name
         body = self.deformable_object.body
@@ -449,7 +519,7 @@ class DeformableContact:
         if not np.all(np.isfinite(forces)):
             return [f"forces on {name} are not finite"]
         displacements = self._displacements(data)
-        forces_on_body = -(forces @ self.rotation_body)
+        forces_body = forces @ self.rotation_body
         if self.method == "traction":
             field = body.displacement_field(self.patch, displacements)
             expected = np.asarray(
@@ -460,41 +530,29 @@ class DeformableContact:
             if error > tolerances.deformable_force:
                 reasons.append(f"forces on {name} differ from the FEM reaction by {error:.3g} (relative)")
         else:
-            field = body.displacement_under_loads(self.node_ids, forces_on_body)
-            mismatch = float(np.abs(field[self.node_ids] - displacements).max())
-            measures[f"print mismatch on {name}"] = mismatch
-            if mismatch > tolerances.deformable_placement:
-                reasons.append(
-                    f"under the reported forces, the full FEM model of {name} leaves a print node "
-                    f"{mismatch:.3g} m off its link"
-                )
-        local_normal = np.einsum("pj,pj->p", forces, self.normals)
-        measures[f"smallest node normal force on {name}"] = float(local_normal.min())
-        if local_normal.min() < -tolerances.cone:
-            node = int(self.node_ids[int(np.argmin(local_normal))])
-            reasons.append(f"node {node} of {name} pulls on the robot ({local_normal.min():.3g} N): adhesion")
-        if self.per_node_friction:
-            groups = [(int(n), forces[i : i + 1], self.normals[i], self.node_mu[i], f"node {int(n)} of {name}")
-                      for i, n in enumerate(self.node_ids)]
-        else:
-            groups = [(i, forces[self.print_of_node == i], self.print_placements[i].rotation[:, 2], self.friction[i],
-                       f"the resultant of {spec.label}") for i, spec in enumerate(self.prints)]
-        worst = np.inf
-        for _, group_forces, normal, mu, what in groups:
-            total = group_forces.sum(axis=0)
-            normal_part = float(total @ normal)
-            tangential = float(np.linalg.norm(total - normal_part * normal))
-            margin = mu * normal_part - tangential
-            worst = min(worst, margin)
-            if margin < -tolerances.cone:
-                reasons.append(
-                    f"{what} leaves its friction cone by {-margin:.3g} N "
-                    f"(tangential {tangential:.3g} N, normal {normal_part:.3g} N, mu {mu:g})"
-                )
-        measures[f"cone margin on {name}"] = float(worst)
-        depth = float((-np.einsum("pj,pj->p", displacements, self.normals_in_body)).max())
+            field = body.displacement_under_loads(self.node_ids, -forces_body)
+        # Node frames: forces and relative motions (link point minus node) as (t1, t2, n).
+        phi = np.einsum("pij,pj->pi", self.node_frames, forces_body)
+        relative = np.einsum("pij,pj->pi", self.node_frames, displacements - field[self.node_ids])
+        measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
+        if phi[:, 2].min() < -tolerances.cone:
+            node = int(self.node_ids[int(np.argmin(phi[:, 2]))])
+            reasons.append(f"node {node} of {name} pulls on the robot ({phi[:, 2].min():.3g} N): adhesion")
+        if self.method != "traction":
+            if self.law == "coulomb":
+                reasons.extend(self._check_coulomb(phi, relative, tolerances, measures))
+            else:
+                mismatch = float(np.abs(relative).max())
+                measures[f"print mismatch on {name}"] = mismatch
+                if mismatch > tolerances.deformable_placement:
+                    reasons.append(
+                        f"under the reported forces, the full FEM model of {name} leaves a print node "
+                        f"{mismatch:.3g} m off its link (the nodes are bonded)"
+                    )
+        reasons.extend(self._check_cones(forces, tolerances, measures))
+        depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
-        if depth > self.max_indentation + 1e-9:
+        if depth > self.max_indentation + tolerances.deformable_placement:
             reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
         principal = np.abs(body.principal_strains(field)).max(axis=1)
         tet = int(np.argmax(principal))
@@ -505,4 +563,56 @@ class DeformableContact:
                 f"strain {principal[tet]:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
                 f"exceeds its bound {self.strain_limit:g}: linear elasticity does not hold there"
             )
+        return reasons
+
+    def _check_coulomb(self, phi, relative, tolerances, measures) -> list:
+        """Signorini and Coulomb at every node, from forces and relative motions in node frames."""
+        name = self.deformable_object.name
+        gap_tolerance, force_tolerance = tolerances.deformable_placement, tolerances.cone
+        reasons = []
+        penetration = -relative[:, 2]
+        measures[f"deepest penetration into {name}"] = float(penetration.max())
+        if penetration.max() > gap_tolerance:
+            node = int(self.node_ids[int(np.argmax(penetration))])
+            reasons.append(f"a link point sinks {penetration.max():.3g} m into {name} at node {node}")
+        pressed = phi[:, 2] > force_tolerance
+        open_gap = np.where(pressed, relative[:, 2], 0.0)
+        if np.abs(open_gap).max() > gap_tolerance:
+            node = int(self.node_ids[int(np.argmax(np.abs(open_gap)))])
+            reasons.append(f"node {node} of {name} pushes across a gap of {np.abs(open_gap).max():.3g} m")
+        bound = self.node_mu * _PYRAMID * np.maximum(phi[:, 2], 0.0)
+        for axis in range(2):
+            sticking = pressed & (np.abs(phi[:, axis]) < bound - force_tolerance)
+            slip = np.where(sticking, np.abs(relative[:, axis]), 0.0)
+            if slip.max() > gap_tolerance:
+                node = int(self.node_ids[int(np.argmax(slip))])
+                reasons.append(f"node {node} of {name} slips {slip.max():.3g} m while its force is inside the cone")
+            # A node that slips must be pulled back by friction: force against the motion.
+            along = np.where(np.abs(relative[:, axis]) > gap_tolerance, phi[:, axis] * np.sign(relative[:, axis]), 0.0)
+            if along.max() > force_tolerance:
+                node = int(self.node_ids[int(np.argmax(along))])
+                reasons.append(f"friction at node {node} of {name} pushes along its slip ({along.max():.3g} N) instead of against it")
+        return reasons
+
+    def _check_cones(self, forces, tolerances, measures) -> list:
+        """Exact Coulomb cones: per node, or (``bonded``) of each print's resultant."""
+        name = self.deformable_object.name
+        if self.law == "bonded":
+            groups = [(forces[self.print_of_node == i].sum(axis=0), self.print_placements[i].rotation[:, 2],
+                       self.friction[i], f"the resultant of {spec.label}") for i, spec in enumerate(self.prints)]
+        else:
+            groups = [(forces[i], self.normals[i], self.node_mu[i], f"node {int(n)} of {name}")
+                      for i, n in enumerate(self.node_ids)]
+        reasons, worst = [], np.inf
+        for total, normal, mu, what in groups:
+            normal_part = float(total @ normal)
+            tangential = float(np.linalg.norm(total - normal_part * normal))
+            margin = mu * normal_part - tangential
+            worst = min(worst, margin)
+            if margin < -tolerances.cone:
+                reasons.append(
+                    f"{what} leaves its friction cone by {-margin:.3g} N "
+                    f"(tangential {tangential:.3g} N, normal {normal_part:.3g} N, mu {mu:g})"
+                )
+        measures[f"cone margin on {name}"] = float(worst)
         return reasons

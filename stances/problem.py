@@ -67,11 +67,14 @@ class PostureOptions:
         print normal, as a fraction of the body's thickness along that normal.
     max_indentation : float, optional
         The same bound in metres; overrides ``indentation_limit`` when given.
-    node_friction : bool
-        Deformable supports: each print node pushes and keeps its force in its
-        own friction cone (default: an accepted stance is a sticking state that
-        Coulomb friction allows node by node). False gives the paper's model:
-        the nodes still push, but only each print's resultant is kept in the cone.
+    contact_law : {"coulomb", "sticking", "bonded"}
+        Deformable supports, how print nodes meet the link: ``"coulomb"``
+        (default) each node sticks, slips with its force on the friction bound, or
+        lifts off, solved exactly on the condensed compliance; ``"sticking"``
+        every node is bonded and must push and keep its force in its own cone;
+        ``"bonded"`` the paper's model: bonded nodes push, only each print's
+        resultant is kept in the cone. ``"coulomb"`` needs the consistent
+        reaction model.
     max_strain_rows : int
         Deformable supports: at most this many tets (the most strained ones
         near the prints) bound their principal strains in each QP; the bound
@@ -104,7 +107,7 @@ class PostureOptions:
     self_collision: bool = True
     indentation_limit: float = 0.25
     max_indentation: float | None = None
-    node_friction: bool = True
+    contact_law: str = "coulomb"
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
@@ -114,6 +117,15 @@ class PostureOptions:
         if self.reaction_model not in ("consistent", "traction"):
             raise StanceError(
                 f"reaction_model must be 'consistent' or 'traction', got {self.reaction_model!r}"
+            )
+        if self.contact_law not in ("coulomb", "sticking", "bonded"):
+            raise StanceError(
+                f"contact_law must be 'coulomb', 'sticking' or 'bonded', got {self.contact_law!r}"
+            )
+        if self.contact_law == "coulomb" and self.reaction_model == "traction":
+            raise StanceError(
+                "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "
+                "use reaction_model='consistent', or contact_law='bonded' with traction"
             )
         for name in ("max_iterations", "max_collision_rows", "max_strain_rows"):
             if int(getattr(self, name)) < 0:

@@ -174,6 +174,7 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
     )
     penalty = options.elastic_penalty
     workspace = _QPWorkspace()
+    restoration = _QPWorkspace()
     tolerance = options.feasibility_tolerance
     stalled = 0
     history = []
@@ -228,6 +229,15 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
                 accepted = (q_try, lam_try, trial)
                 break
             alpha *= 0.5
+        # Near a feasible point the optimality step may cross a kink (a print
+        # node switching between stick, slip and lift-off) where the linear model
+        # is wrong, and the line search crawls. A restoration step, the shortest
+        # step to the linearised constraints, stays within the current piece and
+        # brings feasibility back quadratically.
+        if violation > tolerance and (accepted is None or alpha < 0.1):
+            restored = _restoration(problem, linearization, q, lam, restoration)
+            if restored is not None and restored[2].max_violation()[0] < 0.5 * violation:
+                accepted, alpha = restored, 1.0
         if accepted is None:
             stalled += 1
             if violation > tolerance and penalty < _MAX_PENALTY:
@@ -272,14 +282,15 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status)
     elapsed = time.perf_counter() - start
-    point_forces = problem_point_forces(problem, linearization)
-    deformations = LazyDeformations(
-        {
-            c.deformable_object.name: _field_producer(c, model, q)
-            for c in problem.contacts
-            if c.kind == "deformable"
-        }
-    )
+    point_forces = problem_point_forces(problem, linearization, q)
+    producers, offset = {}, 0
+    for contact in problem.contacts:
+        count = len(contact.loads)
+        if contact.kind == "deformable":
+            forces = np.array([p.force for p in point_forces[offset : offset + count]])
+            producers[contact.deformable_object.name] = _field_producer(contact, model, q, forces)
+        offset += count
+    deformations = LazyDeformations(producers)
     result = PostureResult(
         feasible=feasible,
         q=q,
@@ -299,14 +310,34 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
     return result
 
 
-def _field_producer(contact, model, q):
-    """A closure computing a contact's body displacement field at ``q`` (eq. 36)."""
-    q = np.array(q)
+def _restoration(problem, linearization, q, lam, workspace):
+    """The shortest step onto the linearised constraints, taken whole, or None.
+
+    Returns
+    -------
+    (q, lam, Linearization) at the restored point.
+    """
+    n = len(linearization.gradient)
+    metric = np.ones(n)
+    metric[problem.robot.model.nv :] = 1e-6  # force variables move freely
+    shortest = replace(linearization, objective=0.0, gradient=np.zeros(n), hessian=np.diag(metric))
+    x = workspace.solve(*_qp_matrices(shortest, _MAX_PENALTY), accuracy=1e-9)
+    if not np.all(np.isfinite(x)):
+        return None
+    nv = problem.robot.model.nv
+    q_new = pin.integrate(problem.robot.model, q, x[:nv])
+    lam_new = np.maximum(lam + x[nv:-1], problem.variable_lower)
+    return q_new, lam_new, problem.linearize(q_new, lam_new)
+
+
+def _field_producer(contact, model, q, forces):
+    """A closure computing a contact's body displacement field at ``q`` under its forces (eq. 36)."""
+    q, forces = np.array(q), np.array(forces)
 
     def produce():
         data = model.createData()
         pin.framesForwardKinematics(model, data, q)
-        return contact.displacement_field(model, data)
+        return contact.displacement_field(model, data, forces)
 
     return produce
 
@@ -317,11 +348,12 @@ def _with(result, **changes) -> PostureResult:
     return PostureResult(**values)
 
 
-def problem_point_forces(problem, linearization) -> tuple:
-    """Point forces of a linearised problem's contacts, in the world frame."""
+def problem_point_forces(problem, linearization, q) -> tuple:
+    """Point forces of a linearised problem's contacts at ``q``, in the world frame."""
     from .statics import points_in_world
 
     model, data = problem.robot.model, problem.data
+    pin.framesForwardKinematics(model, data, q)  # the last linearisation may have been a rejected trial
     points = points_in_world(data, problem.loads)
     frames = [frame for contact in problem.contacts for frame in contact.load_frames]
     return tuple(
@@ -360,15 +392,18 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
     problem = build_problem(robot, scene, stance, options)
     warm_iterations = 0
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
-        # Only a starting posture: loose tolerances save most of its cost.
-        rigid = build_problem(
-            robot,
-            scene,
-            stance,
-            replace(options, deformable_as_rigid=True, feasibility_tolerance=1e-3, optimality_tolerance=1e-3),
-        )
+        # Only starting postures: loose tolerances save most of their cost.
+        loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-3)
+        rigid = build_problem(robot, scene, stance, replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init)
         q_init, warm_iterations = warm.q, warm.iterations
+        if options.contact_law == "coulomb":
+            # From the rigid posture the prints barely touch: nodes in lift-off
+            # give a solver no force gradient. The bonded model presses every
+            # node, so its posture is where Coulomb contact starts well.
+            bonded = build_problem(robot, scene, stance, replace(options, contact_law="bonded", **loose))
+            warm = solve_problem(bonded, q_init)
+            q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     result = solve_problem(problem, q_init)
     statistics = dict(result.statistics, sqp_time=result.solve_time)
     if warm_iterations:

@@ -70,22 +70,23 @@ def test_static_torques_agree_with_rnea_and_external_forces(robot):
 
 def _problems(robot):
     yield "rigid hand-on-table", coarse_scenario("hand-on-table"), "hand-on-table", {}
-    for model_name in ("consistent", "traction"):
-        yield (
-            f"deformable hand-on-cube ({model_name})",
-            coarse_scenario("hand-on-cube"),
-            "hand-on-cube",
-            {"reaction_model": model_name},
-        )
+    for law in ("coulomb", "sticking", "bonded"):
+        yield f"deformable hand-on-cube ({law})", coarse_scenario("hand-on-cube"), "hand-on-cube", {"contact_law": law}
+    yield (
+        "deformable hand-on-cube (traction)",
+        coarse_scenario("hand-on-cube"),
+        "hand-on-cube",
+        {"reaction_model": "traction", "contact_law": "bonded"},
+    )
     yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
     # Two soles on one foam block: one coupled contact system.
-    for model_name in ("consistent", "traction"):
-        yield (
-            f"coupled both-on-foam ({model_name})",
-            coarse_scenario("cross-soft-block"),
-            "both-on-foam",
-            {"reaction_model": model_name},
-        )
+    yield "coupled both-on-foam (coulomb)", coarse_scenario("cross-soft-block"), "both-on-foam", {}
+    yield (
+        "coupled both-on-foam (traction)",
+        coarse_scenario("cross-soft-block"),
+        "both-on-foam",
+        {"reaction_model": "traction", "contact_law": "bonded"},
+    )
 
 
 @pytest.fixture(scope="module")
@@ -147,7 +148,7 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             size = max(np.abs(analytic).max(), 1e-8)
             error = np.abs(numeric[r, known] - analytic[known]).max()
             assert error <= 2e-5 * size, f"{label}: {key} off by {error:.3g} (row size {size:.3g})"
-    assert {"placement", "node contact", "indentation", "strain", "equilibrium", "torque limit"} <= names
+    assert {"placement", "touch", "node contact", "indentation", "strain", "equilibrium", "torque limit"} <= names
 
 
 def test_objective_gradient_matches_finite_differences(linearised_problems):
@@ -182,7 +183,7 @@ def test_deformable_forces_derivative_includes_the_rotating_normals(linearised_p
 
 def test_coupled_prints_move_each_other(linearised_problems):
     """Two soles on one block: one sole's node forces depend on the other sole's load."""
-    label, problem, q, lam = next(c for c in linearised_problems if c[0].startswith("coupled") and "consistent" in c[0])
+    label, problem, q, lam = next(c for c in linearised_problems if c[0].startswith("coupled") and "coulomb" in c[0])
     index = next(i for i, c in enumerate(problem.contacts) if c.kind == "deformable")
     contact, own = problem.contacts[index], lam[problem.variable_slices[index]]
     assert len(contact.prints) == 2 and contact.n_variables == 12

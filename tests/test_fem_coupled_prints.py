@@ -1,0 +1,115 @@
+"""Several prints on one body: the condensed forces against the full finite-element system.
+
+The reference here is independent of the condensation: the whole stiffness K is
+partitioned by hand (prescribed print dofs, fixed base, free rest) and solved
+with scipy's sparse direct solver, then the reactions at the prints are K u.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse.linalg as spla
+
+import fem
+
+E, NU = 1e6, 0.4
+
+
+@pytest.fixture(scope="module")
+def block():
+    """A 0.6 x 0.4 x 0.1 m foam block, base fixed, and two sole-sized prints 5 cm apart."""
+    mesh = fem.box_mesh((0.6, 0.4, 0.1), (24, 16, 4))
+    body = fem.DeformableBody(mesh, fem.LinearElasticMaterial(E, NU), np.flatnonzero(mesh.nodes[:, 2] == 0.0))
+    left = fem.nodes_in_polygon(mesh, [[0.05, 0.05, 0.1], [0.25, 0.05, 0.1], [0.25, 0.35, 0.1], [0.05, 0.35, 0.1]])
+    right = fem.nodes_in_polygon(mesh, [[0.30, 0.05, 0.1], [0.55, 0.05, 0.1], [0.55, 0.35, 0.1], [0.30, 0.35, 0.1]])
+    return body, np.asarray(left), np.asarray(right)
+
+
+def _direct_reactions(body, node_ids, displacements):
+    """Reactions at prescribed nodes from the full system (no condensation, no cache)."""
+    k = body.stiffness.tocsr()
+    n_dofs = body.mesh.n_dofs
+    prescribed = np.zeros(n_dofs)
+    dofs = (3 * node_ids[:, None] + np.arange(3)).ravel()
+    prescribed[dofs] = displacements.ravel()
+    known = np.zeros(n_dofs, dtype=bool)
+    known[dofs] = True
+    known[(3 * body.fixed_nodes[:, None] + np.arange(3)).ravel()] = True
+    free = np.flatnonzero(~known)
+    u = prescribed.copy()
+    u[free] = spla.spsolve(k[free][:, free].tocsc(), -(k[free] @ prescribed))
+    return (k @ u)[dofs].reshape(-1, 3), u.reshape(-1, 3)
+
+
+def _press(rng, count):
+    """A different imposed motion per print: down 3-5 mm, a little sideways."""
+    return np.column_stack([rng.uniform(-1e-3, 1e-3, count), rng.uniform(-1e-3, 1e-3, count), rng.uniform(-5e-3, -3e-3, count)])
+
+
+def test_coupled_print_forces_equal_the_full_system_with_both_prints_prescribed(block):
+    body, left, right = block
+    rng = np.random.default_rng(3)
+    both = np.concatenate([left, right])
+    displacements = _press(rng, both.size)
+    patch = body.contact_patch(both)
+    coupled = patch.reaction_forces(displacements)  # on the robot
+    direct, _ = _direct_reactions(body, both, displacements)  # on the body
+    assert np.abs(coupled + direct).max() <= 1e-8 * np.abs(direct).max()
+
+
+def test_prints_condensed_separately_get_the_forces_wrong(block):
+    """The old model (one Schur complement per print) misses the body's coupling."""
+    body, left, right = block
+    displacements = np.tile([0.0, 0.0, -0.004], (left.size + right.size, 1))
+    coupled = body.contact_patch(np.concatenate([left, right])).reaction_forces(displacements)
+    alone = body.contact_patch(left).reaction_forces(displacements[: left.size])
+    difference = np.abs(alone - coupled[: left.size]).max() / np.abs(coupled[: left.size]).max()
+    assert difference > 0.01
+
+
+def test_coupled_print_forces_balance_the_base_reactions(block):
+    body, left, right = block
+    both = np.concatenate([left, right])
+    displacements = _press(np.random.default_rng(4), both.size)
+    patch = body.contact_patch(both)
+    on_body = -patch.reaction_forces(displacements)
+    field = body.displacement_field(patch, displacements)
+    base = body.fixed_reactions(field)
+    assert np.abs(on_body.sum(axis=0) + base.sum(axis=0)).max() <= 1e-8 * np.abs(on_body).sum()
+
+
+def test_field_under_the_print_forces_puts_the_nodes_where_they_were_pressed(block):
+    """One solve of the full system with the forces as loads gives back the print motion."""
+    body, left, right = block
+    both = np.concatenate([left, right])
+    displacements = _press(np.random.default_rng(5), both.size)
+    patch = body.contact_patch(both)
+    on_body = -patch.reaction_forces(displacements)
+    field = body.displacement_under_loads(both, on_body)
+    assert np.abs(field[both] - displacements).max() <= 1e-9
+    _, direct_field = _direct_reactions(body, both, displacements)
+    assert np.abs(field - direct_field).max() <= 1e-9
+
+
+def test_strain_map_matches_the_strain_of_the_full_field(block):
+    body, left, _ = block
+    displacements = _press(np.random.default_rng(6), left.size)
+    patch = body.contact_patch(left)
+    field = body.displacement_field(patch, displacements)
+    expected = body.strain(field)[patch.neighbour_tets]
+    assert np.allclose(patch.strain_map @ displacements.ravel(), expected, atol=1e-10)
+
+
+def test_strain_map_does_not_depend_on_the_young_modulus(block):
+    body, left, _ = block
+    stiff = fem.DeformableBody(body.mesh, fem.LinearElasticMaterial(1e10, NU), body.fixed_nodes)
+    soft_map = body.contact_patch(left).strain_map
+    stiff_map = stiff.contact_patch(left).strain_map
+    assert np.allclose(soft_map, stiff_map, rtol=1e-6, atol=1e-9 * np.abs(soft_map).max())
+
+
+def test_loads_on_a_fixed_node_are_refused(block):
+    body, _, _ = block
+    with pytest.raises(fem.BoundaryError, match="is fixed"):
+        body.displacement_under_loads(body.fixed_nodes[:1], np.zeros((1, 3)))
