@@ -116,6 +116,7 @@ class DeformableContact:
         self.method = options.reaction_model
         self.max_strain_rows = int(options.max_strain_rows)
         self.law = options.contact_law
+        self.friction_margin = float(options.friction_margin)
         self.strain_limit = float(deformable_object.strain_limit)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
@@ -241,20 +242,10 @@ class DeformableContact:
         return np.einsum("tij,tj->ti", np.array(relative)[owner], rest)
 
     def _reaction_now(self, model, data, displacements, d_displacements):
-        """The reaction map R at this iterate, ``R U`` and R's own q-derivative term.
+        """Bonded laws: the reaction map R, ``R U`` and R's own q-derivative term.
 
-        Bonded laws: fem's reaction matrix (its normals turn with the links for
-        ``traction``, eq. 63). Coulomb: the contact solve's mode-fixed Jacobian L,
-        with ``L U`` its exact forces.
+        fem's reaction matrix; its normals turn with the links for ``traction`` (eq. 63).
         """
-        if self.law == "coulomb":
-            import fem
-
-            state = fem.solve_print_contact(
-                self.patch.compliance, displacements, self.node_frames, self.node_mu, initial_modes=self._modes
-            )
-            self._modes = state.modes
-            return state.jacobian, state.forces.reshape(-1), np.zeros_like(d_displacements)
         if self.method != "traction":
             return self.reaction, self.reaction @ displacements.reshape(-1), np.zeros_like(d_displacements)
         normals = self._turned_normals(data)
@@ -286,13 +277,26 @@ class DeformableContact:
         displacements = self._displacements(data)
         jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
         d_displacements = np.einsum("ji,pjv->piv", self.rotation_body, jacobians).reshape(-1, nv)
-        reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
         u = displacements.reshape(-1)
         # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
         if self.law == "coulomb":
+            import fem
+
+            # Contact is solved at U corrected by the rigid motion that W stands
+            # for, U + G A^-1 (W - G^T R_c U): then f = L U~ = D W + (L - D G^T R_c) U
+            # exactly, and stays continuous in (q, W) when the nodes change modes.
+            corrected = u + self.basis @ (self.a_inverse @ (w - self.generalised @ u))
+            state = fem.solve_print_contact(
+                self.patch.compliance, corrected.reshape(-1, 3), self.node_frames, self.node_mu,
+                initial_modes=self._modes,
+            )
+            self._modes = state.modes
+            reaction, d_turn = state.jacobian, np.zeros_like(d_displacements)
             distribution = reaction @ self.basis @ self.a_inverse
             nonrigid = reaction - distribution @ self.generalised
+            elastic = reaction @ u  # so that forces_body below is L U~
         else:
+            reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
             distribution = self.distribution
             nonrigid = self.nonrigid if self.method != "traction" else reaction - distribution @ self.generalised
         forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
@@ -378,6 +382,10 @@ class DeformableContact:
                 jacobian[i, :nv] = d_heights[rows].mean(axis=0)
             labels = tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints)
             blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels))
+            # Each print's resultant keeps a margin inside its pyramid: a print whose
+            # nodes all slide is at the point of sliding away.
+            values, jacobians, labels = self._resultant_rows(forces, d_forces)
+            blocks.append(ConstraintBlock("node contact", values, jacobians, 0.0, np.inf, 1.0, labels))
         else:
             # Bonded nodes push; each node's force stays in its own (inner) friction
             # pyramid ("sticking"), or only each print's resultant does ("bonded").
@@ -391,13 +399,10 @@ class DeformableContact:
                 jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
                 labels.extend(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
             else:
-                for i, spec in enumerate(self.prints):
-                    rows = self.print_of_node == i
-                    rotation = self.print_placements[i].rotation
-                    face = self._pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [self.friction[i]])[0]
-                    values.append(face @ forces[rows].sum(axis=0))
-                    jacobians.append(face @ d_forces[rows].sum(axis=0))
-                    labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in _SIDES)
+                resultant = self._resultant_rows(forces, d_forces)
+                values.append(resultant[0])
+                jacobians.append(resultant[1])
+                labels.extend(resultant[2])
             blocks.append(
                 ConstraintBlock("node contact", np.concatenate(values), np.vstack(jacobians), 0.0, np.inf, 1.0, tuple(labels))
             )
@@ -416,6 +421,19 @@ class DeformableContact:
         if strain is not None:
             blocks.append(strain)
         return blocks
+
+    def _resultant_rows(self, forces, d_forces):
+        """Each print's resultant inside ``friction_margin`` times its inner pyramid (4 rows each)."""
+        values, jacobians, labels = [], [], []
+        for i, spec in enumerate(self.prints):
+            rows = self.print_of_node == i
+            rotation = self.print_placements[i].rotation
+            mu = self.friction_margin * self.friction[i]
+            face = self._pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [mu])[0]  # (4, 3)
+            values.append(face @ forces[rows].sum(axis=0))
+            jacobians.append(face @ d_forces[rows].sum(axis=0))
+            labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in _SIDES)
+        return np.concatenate(values), np.vstack(jacobians), tuple(labels)
 
     @staticmethod
     def _pyramid_faces(normals, tangents, friction):

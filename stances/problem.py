@@ -75,6 +75,10 @@ class PostureOptions:
         ``"bonded"`` the paper's model: bonded nodes push, only each print's
         resultant is kept in the cone. ``"coulomb"`` needs the consistent
         reaction model.
+    friction_margin : float
+        Deformable supports: each print's resultant force stays within this
+        fraction of its (inner) friction pyramid, so that a print is never all
+        at the point of sliding (1 gives the paper's bonded model exactly).
     max_strain_rows : int
         Deformable supports: at most this many tets (the most strained ones
         near the prints) bound their principal strains in each QP; the bound
@@ -108,6 +112,7 @@ class PostureOptions:
     indentation_limit: float = 0.25
     max_indentation: float | None = None
     contact_law: str = "coulomb"
+    friction_margin: float = 0.8
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
@@ -133,6 +138,8 @@ class PostureOptions:
         for name in ("trust_region", "feasibility_tolerance", "indentation_limit", "elastic_penalty"):
             if not getattr(self, name) > 0:
                 raise StanceError(f"{name} must be > 0, got {getattr(self, name)}")
+        if not 0.0 < self.friction_margin <= 1.0:
+            raise StanceError(f"friction_margin must be in (0, 1], got {self.friction_margin}")
         if self.max_indentation is not None and not self.max_indentation > 0:
             raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
 

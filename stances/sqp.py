@@ -236,7 +236,9 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
         # brings feasibility back quadratically.
         if violation > tolerance and (accepted is None or alpha < 0.1):
             restored = _restoration(problem, linearization, q, lam, restoration)
-            if restored is not None and restored[2].max_violation()[0] < 0.5 * violation:
+            # Taken when it halves the violation, or when nothing else moves at all.
+            needed = 0.5 * violation if accepted is not None else violation
+            if restored is not None and restored[2].max_violation()[0] < needed:
                 accepted, alpha = restored, 1.0
         if accepted is None:
             stalled += 1

@@ -57,12 +57,17 @@ def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scen
     check = verify(robot, scenario.scene, scenario.stance(stance_name), result)
     assert check.ok, check.reasons
     assert check.measures["equilibrium_residual"] < 1e-6
-    # The FEM forces were recomputed from the link placement and agree.
-    assert all(v <= 1e-6 for k, v in check.measures.items() if k.startswith("FEM force error"))
-    # The support is pressed: its nodes moved and it pushes up on the robot.
     (name, field), = result.deformations.items()
+    # Loaded by the reported forces, the full FEM model puts every node where
+    # Signorini and Coulomb allow: no link point inside the body, every node
+    # pushing and inside its own friction cone, strain within the bound.
+    assert check.measures[f"deepest penetration into {name}"] <= 1e-6
+    assert check.measures[f"smallest node normal force on {name}"] >= -1e-6
+    assert check.measures[f"cone margin on {name}"] >= -1e-6
+    assert check.measures[f"largest strain of {name}"] <= 0.05 + 1e-6
+    # The support is pressed: its nodes moved and it pushes up on the robot.
     assert field.shape == scenario.scene.deformable(name).mesh.nodes.shape
-    assert np.abs(field).max() > 1e-5
+    assert np.abs(field).max() > 1e-4
 
 
 def test_softer_cube_gives_a_deeper_print(deformable_results):
@@ -71,24 +76,34 @@ def test_softer_cube_gives_a_deeper_print(deformable_results):
     assert soft > 1.3 * stiff
 
 
+def _print_offset(robot, scenario, stance, result):
+    """Distance of the palm frame from its nominal print, metres."""
+    problem = build_problem(robot, scenario.scene, stance)
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, result.q)
+    return np.linalg.norm(contact.print_placements[0].actInv(data.oMf[contact.frame_ids[0]]).translation)
+
+
 def test_stiffer_cube_tends_to_the_rigid_contact(robot):
-    """Depth falls as 1/E (the palm load barely changes) and the palm ends up on
-    its print, as with a rigid support."""
-    errors, depths = [], []
-    for young_modulus in (1e6, 1e7, 1e8):
+    """The print's compliance (depth per newton of palm load) falls as 1/E, the palm
+    ends up on its print as on a rigid support, and the forces settle to a stiff limit."""
+    offsets, depths, palm_forces = [], [], []
+    for young_modulus in (1e6, 1e7, 1e8, 1e10):
         scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
         stance = scenario.stance("hand-on-cube")
         result = solve(robot, scenario.scene, stance)
-        assert result.feasible, result.reason
-        depths.append(_palm_depth(result))
-        problem = build_problem(robot, scenario.scene, stance)
-        contact = next(c for c in problem.contacts if c.kind == "deformable")
-        data = robot.model.createData()
-        pin.framesForwardKinematics(robot.model, data, result.q)
-        errors.append(np.linalg.norm(contact.print_placement.actInv(data.oMf[contact.frame_id]).translation))
-    # Ten times stiffer, ten times shallower, within the change of the palm load.
-    assert np.allclose(np.array(depths[:-1]) / np.array(depths[1:]), 10.0, rtol=0.3), depths
-    assert errors[2] < 0.05 * errors[0]
+        assert result.feasible, (young_modulus, result.reason)
+        palm = sum(p.force for p in result.point_forces if p.frame == "right_palm_contact")
+        depths.append(_palm_depth(result) / palm[2])
+        offsets.append(_print_offset(robot, scenario, stance, result))
+        palm_forces.append(palm)
+    # Ten times stiffer, about ten times less compliant: not exactly, as the load's
+    # tangential part and the nodes that slip or lift change with the posture.
+    ratios = np.array(depths[:2]) / np.array(depths[1:3])
+    assert np.all((ratios > 5.0) & (ratios < 20.0)), depths
+    assert offsets[3] < 1e-3 * offsets[0]
+    assert np.linalg.norm(palm_forces[3] - palm_forces[2]) < 0.02 * np.linalg.norm(palm_forces[2])
 
 
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
@@ -124,19 +139,28 @@ def test_standing_on_the_soft_cube_alone_needs_a_deep_enough_print(robot):
     needed = float(np.abs(free.deformations["cube"]).max())
     bounded = solve(robot, scenario.scene, stance, max_indentation=0.2 * needed, max_iterations=60)
     assert not bounded.feasible
-    assert "indentation" in bounded.reason or "equilibrium" in bounded.reason
+    assert any(word in bounded.reason for word in ("indentation", "equilibrium", "placement")), bounded.reason
 
 
-def test_a_lifted_link_would_pull_and_breaks_no_adhesion(robot, deformable_results):
-    """Raising the palm above its print makes the nodes pull: the no-adhesion rows fire."""
+def test_a_lifted_palm_is_not_in_contact(robot, deformable_results):
+    """Raising the palm above its print: with Coulomb contact every node lifts off
+    (no force, and the contact row says so); bonded nodes would pull instead."""
     scenario = coarse_scenario("hand-on-cube")
-    problem = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"))
     q = np.array(deformable_results["hand-on-cube"].q)
     q[2] += 0.01  # the whole robot 1 cm up: the palm lifts off its print
-    linearization = problem.linearize(q, problem.initial_variables())
-    adhesion = next(b for b in linearization.blocks if b.name == "no adhesion")
-    assert adhesion.violation().max() > 0
-    assert "no adhesion" in adhesion.labels[int(np.argmax(adhesion.violation()))]
+    problem = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"))
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    touch = next(b for b in linearization.blocks if b.name == "touch")
+    assert touch.violation().max() > 0 and "lifted off" in touch.labels[0]
+    index = next(i for i, c in enumerate(problem.contacts) if c.kind == "deformable")
+    palm = problem.contacts[index].forces(robot.model, problem.data, problem.initial_variables(q)[problem.variable_slices[index]])
+    assert np.abs(palm).max() < 1e-9
+
+    bonded = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"), PostureOptions(contact_law="bonded"))
+    linearization = bonded.linearize(q, bonded.initial_variables(q))
+    rows = next(b for b in linearization.blocks if b.name == "node contact")
+    pulling = [label for label, v in zip(rows.labels, rows.violation()) if v > 0 and "no adhesion" in label]
+    assert len(pulling) == problem.contacts[index].node_ids.size  # every palm node pulls
 
 
 def test_result_serialises_to_json(robot):
