@@ -263,3 +263,78 @@ def test_verify_catches_links_inside_the_deformed_support(robot, deformable_resu
     check = verify(robot, scenario.scene, stance, moved)
     assert not check.ok
     assert any("penetrates the deformed cube" in reason for reason in check.reasons)
+
+
+def _deformable_slice(problem, result):
+    """Index, node count and the reported (points, forces) of the deformable contact."""
+    offset = 0
+    for contact in problem.contacts:
+        count = len(contact.loads)
+        if contact.kind == "deformable":
+            return offset, count
+        offset += count
+    raise AssertionError("no deformable contact")
+
+
+@pytest.mark.parametrize(
+    "tamper, message",
+    [
+        (lambda f: 1.2 * f, "across a gap"),  # more force than the print's depth: the body sinks away from the sole
+        (lambda f: 0.8 * f, "sinks"),  # less force: the body comes back up through the sole
+        (lambda f: f + np.array([5.0, 0.0, 0.0]), "friction"),  # sideways pull the contact cannot give
+        (lambda f: np.full_like(f, np.nan), "not finite"),
+    ],
+    ids=["harder", "softer", "sideways", "nan"],
+)
+def test_verify_rejects_deformable_forces_the_contact_law_forbids(robot, deformable_results, tamper, message):
+    import dataclasses
+
+    from stances.results import PointForce
+
+    scenario = coarse_scenario("step-on-cube")
+    stance = scenario.stance("step-on-cube")
+    result = deformable_results["step-on-cube"]
+    problem = build_problem(robot, scenario.scene, stance)
+    start, count = _deformable_slice(problem, result)
+    forces = np.array([p.force for p in result.point_forces[start : start + count]])
+    changed = tamper(forces)
+    point_forces = list(result.point_forces)
+    for i, force in enumerate(changed):
+        old = point_forces[start + i]
+        point_forces[start + i] = PointForce(old.frame, old.point, force)
+    check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=tuple(point_forces)))
+    assert not check.ok
+    assert any(message in reason for reason in check.reasons), check.reasons
+
+
+def test_two_soles_on_one_print_spot_are_rejected(robot):
+    scenario = coarse_scenario("cross-soft-block")
+    stance = Stance(
+        (
+            Contact("left_sole", ContactPrint("foam_top", 0.0, 0.0, 0.0)),
+            Contact("right_sole", ContactPrint("foam_top", 0.0, 0.05, 0.0)),
+        )
+    )
+    with pytest.raises(StanceError, match="overlap"):
+        build_problem(robot, scenario.scene, stance)
+
+
+def test_strain_bound_is_kept_and_reported(robot):
+    """A tight strain bound changes the answer: kept by the solver, measured by verify."""
+    text = environments.builtin_scenario_path("step-on-cube").read_text().replace("resolution: default", "resolution: 0.04")
+    loose = environments.load_string(text, name="loose")
+    tight = environments.load_string(text.replace("resolution: 0.04", "resolution: 0.04\n    strain_limit: 0.01"), name="tight")
+    stance = loose.stance("step-on-cube")
+    free = solve(robot, loose.scene, stance)
+    assert free.feasible, free.reason
+    free_strain = free.verification.measures["largest strain of cube"]
+    assert free_strain > 0.01  # the bound below would bite
+    bounded = solve(robot, tight.scene, stance)
+    if bounded.feasible:
+        assert bounded.verification.measures["largest strain of cube"] <= 0.01 + 1e-6
+    else:
+        assert "strain" in bounded.reason
+    # verify reports a strain beyond the bound with its value and place.
+    check = verify(robot, tight.scene, stance, free)
+    assert not check.ok
+    assert any("exceeds its bound 0.01" in reason for reason in check.reasons), check.reasons

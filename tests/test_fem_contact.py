@@ -1,0 +1,144 @@
+"""Signorini-Coulomb contact of a rigid indenter on a print, against the full FEM system.
+
+Each answer of :func:`fem.solve_print_contact` is checked with quantities it did
+not compute: the whole body is loaded by the returned forces (one sparse solve of
+the full stiffness), and the motion of each indenter point relative to its node
+must then obey the contact law, node by node. Limits: infinite friction is the
+bonded answer, zero friction is frictionless.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+import fem
+
+MU = 0.5
+PYRAMID = MU / np.sqrt(2.0)
+
+
+@pytest.fixture(scope="module")
+def pad():
+    """A 0.4 x 0.4 x 0.1 m pad, base fixed, and a 0.2 x 0.2 m print in the middle."""
+    mesh = fem.box_mesh((0.4, 0.4, 0.1), (16, 16, 6))
+    body = fem.DeformableBody(mesh, fem.LinearElasticMaterial(1e6, 0.45), np.flatnonzero(mesh.nodes[:, 2] == 0.0))
+    ids = np.asarray(fem.nodes_in_polygon(mesh, [[0.1, 0.1, 0.1], [0.3, 0.1, 0.1], [0.3, 0.3, 0.1], [0.1, 0.3, 0.1]]))
+    patch = body.contact_patch(ids)
+    frames = np.tile(np.eye(3), (ids.size, 1, 1))  # t1 = x, t2 = y, n = z (outward)
+    return body, patch, frames
+
+
+def _rigid_motion(points, translation, rotation_vector, centre):
+    """Displacement of points under a small rigid motion (exact rotation)."""
+    angle = np.linalg.norm(rotation_vector)
+    if angle == 0.0:
+        return np.tile(translation, (len(points), 1))
+    axis = rotation_vector / angle
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    rotation = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    return (points - centre) @ rotation.T + centre + translation - points
+
+
+def _full_system_relative_motion(body, patch, forces):
+    """Indenter-minus-node motion needs U; here: node displacements from the full system."""
+    return body.displacement_under_loads(patch.node_ids, -forces)[patch.node_ids]
+
+
+def _check_signorini_coulomb(body, patch, displacements, state, mu, tolerance=1e-9):
+    forces = state.forces
+    relative = displacements - _full_system_relative_motion(body, patch, forces)
+    scale = np.abs(forces).max()
+    normal, gap = forces[:, 2], relative[:, 2]
+    assert normal.min() >= -1e-9 * scale  # every node pushes or is free
+    assert gap.min() >= -tolerance  # no indenter point inside the body
+    pressed = normal > 1e-9 * scale
+    assert np.abs(gap[pressed]).max(initial=0.0) <= tolerance  # pressing nodes touch
+    assert np.abs(forces[~pressed]).max(initial=0.0) <= 1e-9 * scale  # lifted nodes carry nothing
+    bound = mu / np.sqrt(2.0) * normal
+    for axis in range(2):
+        assert np.all(np.abs(forces[:, axis]) <= bound + 1e-9 * scale)
+        inside = pressed & (np.abs(forces[:, axis]) < bound - 1e-6 * scale)
+        assert np.abs(relative[inside, axis]).max(initial=0.0) <= tolerance  # sticking nodes stick
+        slipping = np.abs(relative[:, axis]) > tolerance
+        # Friction opposes the slip (the force on the indenter against its motion).
+        assert np.all(forces[slipping, axis] * relative[slipping, axis] <= 0.0)
+    return relative
+
+
+def test_pressed_and_sheared_print_obeys_signorini_and_coulomb_in_the_full_system(pad):
+    body, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.002, -0.001, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, MU))
+    relative = _check_signorini_coulomb(body, patch, displacements, state, MU)
+    # Shearing this much makes the print slide somewhere: both modes occur.
+    assert 0 < state.n_stick < patch.n_nodes
+    assert np.abs(relative[:, :2]).max() > 1e-6
+
+
+def test_tilted_indenter_lifts_off_on_one_side(pad):
+    body, patch, frames = pad
+    centre = patch.points.mean(axis=0)
+    displacements = _rigid_motion(patch.points, [0.0, 0.0, -0.002], [0.0, 0.03, 0.0], centre)
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, MU))
+    _check_signorini_coulomb(body, patch, displacements, state, MU)
+    lifted = state.modes[:, 0] == fem.LIFT
+    assert lifted.any() and not lifted.all()
+    # A rotation about +y lowers the +x side: the -x side lifts off.
+    assert patch.points[lifted, 0].mean() < centre[0] < patch.points[~lifted, 0].mean()
+
+
+def test_infinite_friction_is_the_bonded_answer(pad):
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.001, 0.001, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
+    bonded = patch.reaction_forces(displacements)
+    assert (state.modes == fem.STICK).all()
+    assert np.allclose(state.forces, bonded, atol=1e-9 * np.abs(bonded).max())
+    assert np.allclose(state.jacobian, patch.reaction_matrix("consistent"), atol=1e-9 * np.abs(bonded).max() / 1e-3)
+
+
+def test_large_friction_tends_to_bonded_and_zero_friction_is_frictionless(pad):
+    body, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.001, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    shear = []
+    for mu in (0.0, 0.2, 0.5, 2.0, 50.0):
+        state = fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, mu))
+        _check_signorini_coulomb(body, patch, displacements, state, mu)
+        shear.append(state.forces[:, 0].sum())
+    bonded = patch.reaction_forces(displacements)[:, 0].sum()
+    assert shear[0] == pytest.approx(0.0, abs=1e-9 * abs(bonded))
+    grip = np.abs(shear)  # the pad holds the indenter back: its shear force opposes +x
+    assert np.all(np.diff(grip[:3]) > 0) and np.all(np.diff(grip) >= -1e-9 * grip[-1])  # more friction, more grip
+    assert shear[-1] == pytest.approx(bonded, rel=1e-9)
+
+
+def test_forces_are_linear_in_the_motion_with_the_returned_jacobian(pad):
+    """Within one contact set the forces are L U exactly; central differences agree."""
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.002, -0.001, -0.004], [0.0, 0.02, 0.0], patch.points.mean(axis=0))
+    mu = np.full(patch.n_nodes, MU)
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, mu)
+    assert np.allclose(state.jacobian @ displacements.ravel(), state.forces.ravel(), atol=1e-9 * np.abs(state.forces).max())
+    rng = np.random.default_rng(0)
+    direction = rng.normal(size=displacements.shape) * 1e-9
+    plus = fem.solve_print_contact(patch.compliance, displacements + direction, frames, mu, initial_modes=state.modes)
+    minus = fem.solve_print_contact(patch.compliance, displacements - direction, frames, mu, initial_modes=state.modes)
+    assert np.array_equal(plus.modes, state.modes) and np.array_equal(minus.modes, state.modes)
+    numeric = (plus.forces - minus.forces).ravel() / 2.0
+    assert np.allclose(numeric, state.jacobian @ direction.ravel(), atol=1e-6 * np.abs(numeric).max())
+
+
+def test_a_print_pulled_up_carries_nothing(pad):
+    _, patch, frames = pad
+    displacements = np.tile([0.0, 0.0, 0.001], (patch.n_nodes, 1))
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, MU))
+    assert state.n_lift == patch.n_nodes and np.abs(state.forces).max() == 0.0
+
+
+def test_bad_shapes_and_negative_friction_are_refused(pad):
+    _, patch, frames = pad
+    with pytest.raises(fem.FemError, match="shapes do not match"):
+        fem.solve_print_contact(patch.compliance, np.zeros((3, 3)), frames, MU)
+    with pytest.raises(fem.FemError, match="friction coefficients must be >= 0"):
+        fem.solve_print_contact(patch.compliance, np.zeros((patch.n_nodes, 3)), frames, -1.0)
