@@ -28,7 +28,8 @@ the tangential forces vanish (frictionless).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 
@@ -49,8 +50,6 @@ class PrintContact:
     ----------
     forces : (p, 3) float
         Forces of the nodes ON THE INDENTERS, newtons, body frame.
-    jacobian : (3p, 3p) float
-        ``d forces / d U`` with the modes held fixed, N/m, body frame.
     relative : (p, 3) float
         Motion of each indenter point relative to its node, ``U - u``, metres, body frame.
     modes : (p, 2) int
@@ -60,10 +59,31 @@ class PrintContact:
     """
 
     forces: np.ndarray
-    jacobian: np.ndarray
     relative: np.ndarray
     modes: np.ndarray
     iterations: int
+    _system: tuple = field(repr=False, compare=False)
+
+    def jacobian_dot(self, matrix) -> np.ndarray:
+        """``L @ matrix`` for the mode-fixed Jacobian ``L = d forces / d U``, body frame.
+
+        Parameters
+        ----------
+        matrix : (3p, k) float
+            Displacement directions, metres, body frame.
+
+        Returns
+        -------
+        (3p, k) float, newtons per unit of ``matrix``.
+        """
+        system, select, rotation = self._system
+        local = rotation @ np.asarray(matrix, dtype=float)
+        return rotation.T @ (-np.linalg.solve(system, select @ local))
+
+    @cached_property
+    def jacobian(self) -> np.ndarray:
+        """(3p, 3p) float ``d forces / d U`` with the modes held fixed, N/m, body frame."""
+        return self.jacobian_dot(np.eye(self.forces.size))
 
     @property
     def n_stick(self) -> int:
@@ -148,15 +168,15 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     signs = np.zeros((p, 2))
     seen = set()
     for iteration in range(1, _MAX_ITERATIONS + 1):
-        phi, jacobian_local = _solve_modes(c_local, u_local, modes, signs, mu)
+        matrix, select = _mode_system(c_local, modes, signs, mu)
+        phi = np.linalg.solve(matrix, -(select @ u_local.ravel())).reshape(p, 3)
         r = (u_local.ravel() + c_local @ phi.ravel()).reshape(p, 3)
         new_modes, new_signs = _update_modes(phi, r, scale, mu)
         key = new_modes.tobytes() + new_signs.tobytes()
         if np.array_equal(new_modes, modes) and np.array_equal(new_signs, signs):
             forces = (rotation.T @ phi.ravel()).reshape(p, 3)
             relative = (rotation.T @ r.ravel()).reshape(p, 3)
-            jacobian = rotation.T @ jacobian_local @ rotation
-            return PrintContact(forces, jacobian, relative, modes, iteration)
+            return PrintContact(forces, relative, modes, iteration, (matrix, select, rotation))
         if key in seen:
             break
         seen.add(key)
@@ -164,12 +184,12 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     raise FemError(f"the print's contact active set did not settle after {iteration} iterations")
 
 
-def _solve_modes(c_local, u_local, modes, signs, mu):
-    """Forces (p, 3) local and their Jacobian in U (local) for fixed modes."""
-    p = u_local.shape[0]
+def _mode_system(c_local, modes, signs, mu):
+    """The linear system ``matrix @ phi = -select @ U`` (node frames) of fixed modes."""
+    p = modes.shape[0]
     n = 3 * p
     matrix = np.zeros((n, n))
-    select = np.zeros((n, n))  # RHS = -select @ U
+    select = np.zeros((n, n))
     normal = np.arange(p) * 3 + 2
     lifted = modes[:, 0] == LIFT
     for k in range(p):
@@ -187,9 +207,7 @@ def _solve_modes(c_local, u_local, modes, signs, mu):
             else:  # slip: phi_t = s mu' phi_n
                 matrix[row, row] = 1.0
                 matrix[row, normal[k]] = -signs[k, axis] * mu[k]
-    jacobian = -np.linalg.solve(matrix, select)
-    phi = (jacobian @ u_local.ravel()).reshape(p, 3)
-    return phi, jacobian
+    return matrix, select
 
 
 def _update_modes(phi, r, scale, mu):

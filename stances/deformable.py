@@ -291,16 +291,18 @@ class DeformableContact:
                 initial_modes=self._modes,
             )
             self._modes = state.modes
-            reaction, d_turn = state.jacobian, np.zeros_like(d_displacements)
-            distribution = reaction @ self.basis @ self.a_inverse
-            nonrigid = reaction - distribution @ self.generalised
-            elastic = reaction @ u  # so that forces_body below is L U~
+            # Only L applied to a few directions is needed, not L itself.
+            applied = state.jacobian_dot(np.hstack([self.basis @ self.a_inverse, d_displacements]))
+            distribution = applied[:, : self.n_variables]  # D = L G A^-1
+            nonrigid_dq = applied[:, self.n_variables :] - distribution @ (self.generalised @ d_displacements)
+            forces_body = state.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U
+            d_forces_body = np.hstack([nonrigid_dq, distribution])
         else:
             reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
             distribution = self.distribution
             nonrigid = self.nonrigid if self.method != "traction" else reaction - distribution @ self.generalised
-        forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
-        d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
+            forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
+            d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
         rotation = self.rotation_body
         forces = (forces_body.reshape(p, 3)) @ rotation.T
         d_forces = np.einsum("ij,pjv->piv", rotation, d_forces_body.reshape(p, 3, -1)).reshape(3 * p, -1)

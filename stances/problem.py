@@ -218,11 +218,10 @@ class PostureProblem:
             start += contact.n_variables
         self.n_variables = start
         self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
-        # The force term spreads the rigid contacts' cone coefficients; a
-        # deformable contact's variables are weighed by its own deformation term.
-        self.force_weights = np.concatenate(
-            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else 0.0) for c in contacts]
-        ) if contacts else np.zeros(0)
+        # The force term spreads the rigid contacts' cone coefficients and
+        # weighs a deformable print's generalised force W alike (the rigid limit
+        # of a print is a rigid contact); it also keeps the QP strictly convex in W.
+        self.force_weights = np.ones(self.n_variables)
         model = robot.model
         self.posture_weights = np.full(model.nv, options.posture_weight)
         self.posture_weights[:3] = 0.0  # the base may go anywhere
