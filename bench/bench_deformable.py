@@ -1,32 +1,27 @@
-"""Benchmark of posture solves on deformable supports, against the same stance held rigid.
+"""Benchmark of posture solves on deformable supports: one and two soft bodies, any stiffness.
 
 Run as ``.venv/bin/python bench/bench_deformable.py``; prints markdown tables and writes
 them to ``bench/results/deformable.md``.
 
-For each deformable scenario (``hand-on-cube``, ``step-on-cube``, ``hand-on-soft-cube``) at
-its default mesh, the main stance is solved with the default options (FEM forces, rigid
-warm start) and with ``deformable_as_rigid=True``, then with each reaction model
-("consistent", "traction"). Reported per solve:
+Table 1, per built-in soft stance at its default mesh, CPU seconds (``time.process_time``,
+one BLAS thread) of ``stances.solve`` with the default model (Coulomb contact at every
+print node, rigid then bonded warm starts), the median of ``REPEATS`` solves after a first
+one that pays the setup (mesh, factorisation, print compliance); baselines in the same
+run: the same stance with the paper's bonded model (``contact_law="bonded"``) and with the
+soft supports held rigid (``deformable_as_rigid=True``). Each answer is verified
+(``result.feasible`` includes :func:`stances.verify`, which loads the full FEM model with
+the reported forces and checks Signorini and Coulomb at every node).
 
-* setup: loading the scenario and the first ``build_problem`` (mesh, stiffness,
-  factorisation, print compliance), paid once per scene and print; excluded from the
-  solve times;
-* solve: wall clock of ``stances.sqp.solve`` (both SQP phases, problem builds, verify),
-  and the split between the rigid warm start and the deformable SQP (their ``solve_time``);
-* iterations of the deformable SQP and of the rigid warm start;
-* print depth: the largest nodal displacement norm of the body (``result.deformations``);
-* the total reaction on the robot surface touching the deformable object;
-* FEM share: time inside the deformable contact's methods (``_state``, ``forces``,
-  ``force_jacobians``, and separately with ``blocks`` and ``cost``) over the time of
-  ``PostureProblem.linearize``, during the deformable SQP only. The methods are wrapped
-  with timers by this script (outermost call counted once); nothing in the library changes.
+Table 2, the stiffness sweep: ``step-on-cube`` with the cube's Young modulus from 1e4 to
+1e11 Pa, against the rigid support: the soft sole's force and the posture's distance to
+the rigid answer.
 """
 
 from __future__ import annotations
 
 import datetime
-import functools
 import os
+import statistics
 import sys
 import time
 
@@ -43,248 +38,130 @@ from benchmark_info import code_version, machine  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
-import stances.sqp as sqp  # noqa: E402
-from stances.deformable import DeformableContact  # noqa: E402
-from stances.problem import PostureOptions, PostureProblem, build_problem  # noqa: E402
 
-SCENARIOS = ("hand-on-cube", "step-on-cube", "hand-on-soft-cube")
-REPEATS = 3  # median of this many solves per configuration
-TARGET = 0.200  # s per solve
-
-
-class Timers:
-    """Accumulated seconds of wrapped methods, counting only outermost calls."""
-
-    def __init__(self):
-        self.enabled = False
-        self.depth = {"core": 0, "all": 0, "field": 0}
-        self.seconds = {"core": 0.0, "all": 0.0, "linearize": 0.0, "field": 0.0}
-        self.calls = {"linearize": 0}
-
-    def reset(self):
-        self.seconds = {"core": 0.0, "all": 0.0, "linearize": 0.0, "field": 0.0}
-        self.calls = {"linearize": 0}
-
-    def wrap(self, owner, name, groups):
-        original = getattr(owner, name)
-
-        @functools.wraps(original)
-        def timed(*args, **kwargs):
-            if not self.enabled:
-                return original(*args, **kwargs)
-            outer = [g for g in groups if self.depth[g] == 0]
-            for g in groups:
-                self.depth[g] += 1
-            tic = time.perf_counter()
-            try:
-                return original(*args, **kwargs)
-            finally:
-                elapsed = time.perf_counter() - tic
-                for g in groups:
-                    self.depth[g] -= 1
-                for g in outer:
-                    self.seconds[g] += elapsed
-
-        setattr(owner, name, timed)
-
-    def install(self):
-        for name in ("_state", "forces", "force_jacobians"):
-            self.wrap(DeformableContact, name, ("core", "all"))
-        for name in ("blocks", "cost"):
-            self.wrap(DeformableContact, name, ("all",))
-        # The whole-body field for result.deformations, computed after solve_time is taken.
-        self.wrap(DeformableContact, "displacement_field", ("field",))
-        original = PostureProblem.linearize
-
-        @functools.wraps(original)
-        def linearize(problem, *args, **kwargs):
-            deformable = any(c.kind == "deformable" for c in problem.contacts)
-            if not (self.enabled and deformable):
-                return original(problem, *args, **kwargs)
-            tic = time.perf_counter()
-            try:
-                return original(problem, *args, **kwargs)
-            finally:
-                self.seconds["linearize"] += time.perf_counter() - tic
-                self.calls["linearize"] += 1
-
-        PostureProblem.linearize = linearize
+STANCES = (
+    ("hand-on-cube", "hand-on-cube"),
+    ("hand-on-soft-cube", "hand-on-soft-cube"),
+    ("step-on-cube", "step-on-cube"),
+    ("cross-soft-block", "both-on-foam"),
+    ("cross-two-mats", "one-on-each"),
+)
+REPEATS = 3
+STIFFNESS = (1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11)
 
 
-TIMERS = Timers()
-PHASES = []  # solve_time and iterations of each solve_problem call of the current solve
-_solve_problem = sqp.solve_problem
+def timed_solve(robot, scene, stance, **options):
+    tic = time.process_time()
+    result = stances.solve(robot, scene, stance, **options)
+    return time.process_time() - tic, result
 
 
-def _recording_solve_problem(problem, *args, **kwargs):
-    deformable = any(c.kind == "deformable" for c in problem.contacts)
-    TIMERS.enabled = deformable
-    try:
-        result = _solve_problem(problem, *args, **kwargs)
-    finally:
-        TIMERS.enabled = False
-    PHASES.append(("deformable" if deformable else "rigid", result.solve_time, result.iterations))
-    return result
+def soft_forces(robot, result, scene):
+    """Total force on the robot from the links touching a soft body, world frame, newtons."""
+    soft = {name for name, surface in scene.surfaces.items() if surface.deformable}
+    frames = {robot.surface(c.robot_surface).frame for c in result.stance if c.contact_print.surface in soft}
+    return sum((np.array(p.force) for p in result.point_forces if p.frame in frames), np.zeros(3))
 
 
-def deformable_contact(scene, stance):
-    """(robot surface, object name) of the stance's contact on a deformable surface."""
-    for contact in stance:
-        surface = scene.surface(contact.contact_print.surface)
-        if surface.deformable:
-            return contact.robot_surface, scene.deformable_of_surface(surface.name).name
-    raise ValueError("the stance touches no deformable surface")
+def stance_table(robot):
+    rows = ["| stance | soft bodies (nodes) | setup s | Coulomb s | iterations (+ warm starts) | verified | "
+            "bonded (paper) s | rigid support s | stick / slip / lift nodes |",
+            "|---|---|---|---|---|---|---|---|---|"]
+    for name, stance_name in STANCES:
+        scenario = environments.load(name)
+        stance = scenario.stance(stance_name)
+        nodes = ", ".join(f"{o.name} {o.body.mesh.n_nodes}" for o in scenario.scene.deformable_objects)
+        setup, _ = timed_solve(robot, scenario.scene, stance)
+        times, results = [], []
+        for _ in range(REPEATS):
+            seconds, result = timed_solve(robot, scenario.scene, stance)
+            times.append(seconds)
+            results.append(result)
+        bonded = statistics.median(timed_solve(robot, scenario.scene, stance, contact_law="bonded")[0] for _ in range(REPEATS))
+        rigid = statistics.median(
+            timed_solve(robot, scenario.scene, stance, deformable_as_rigid=True)[0] for _ in range(REPEATS)
+        )
+        result = results[-1]
+        modes = _mode_counts(robot, scenario, stance, result)
+        rows.append(
+            f"| {name}/{stance_name} | {nodes} | {setup:.2f} | {statistics.median(times):.2f} | "
+            f"{result.iterations} (+{result.statistics.get('rigid_warm_start_iterations', 0)}) | "
+            f"{'yes' if result.feasible else 'no: ' + result.reason[:60]} | {bonded:.2f} | {rigid:.2f} | {modes} |"
+        )
+        print(rows[-1], flush=True)
+    return rows
 
 
-def run(robot, scene, stance, **options):
-    """Solve REPEATS times; medians of the timings and the last result's physics."""
-    walls, phases, fem = [], [], []
-    result = None
-    for _ in range(REPEATS):
-        PHASES.clear()
-        TIMERS.reset()
-        tic = time.perf_counter()
-        result = sqp.solve(robot, scene, stance, **options)
-        walls.append(time.perf_counter() - tic)
-        phases.append(list(PHASES))
-        fem.append((TIMERS.seconds["core"], TIMERS.seconds["all"], TIMERS.seconds["linearize"],
-                    TIMERS.calls["linearize"], TIMERS.seconds["field"]))
-    rigid_phase = [sum(t for kind, t, _ in p if kind == "rigid") for p in phases]
-    deformable_phase = [sum(t for kind, t, _ in p if kind == "deformable") for p in phases]
-    core, every, linearize, calls, field = np.median(np.array(fem), axis=0)
-    rest = [w - r - d - f[4] for w, r, d, f in zip(walls, rigid_phase, deformable_phase, fem)]
-    return {
-        "result": result,
-        "wall": float(np.median(walls)),
-        "warm_time": float(np.median(rigid_phase)),
-        "sqp_time": float(np.median(deformable_phase)),
-        "fem_core": core,
-        "fem_all": every,
-        "linearize": linearize,
-        "linearize_calls": int(calls),
-        "field": field,
-        "rest": float(np.median(rest)),
-    }
+def _mode_counts(robot, scenario, stance, result):
+    """Node modes of the Coulomb solve at the answer, recomputed from its forces."""
+    import pinocchio as pin
+
+    from stances.problem import build_problem
+
+    problem = build_problem(robot, scenario.scene, stance)
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, result.q)
+    counts = np.zeros(3, dtype=int)
+    offset = 0
+    for contact in problem.contacts:
+        count = len(contact.loads)
+        if contact.kind == "deformable":
+            forces = np.array([p.force for p in result.point_forces[offset : offset + count]]) @ contact.rotation_body
+            field = contact.deformable_object.body.displacement_under_loads(contact.node_ids, -forces)
+            relative = np.einsum("pij,pj->pi", contact.node_frames, contact.displacements(robot.model, data) - field[contact.node_ids])
+            phi = np.einsum("pij,pj->pi", contact.node_frames, forces)
+            lift = phi[:, 2] <= 1e-9 * np.abs(phi).max()
+            slip = ~lift & (np.abs(relative[:, :2]).max(axis=1) > 1e-7)
+            counts += [int((~lift & ~slip).sum()), int(slip.sum()), int(lift.sum())]
+        offset += count
+    return " / ".join(str(c) for c in counts)
 
 
-def physics(robot, result, robot_surface, object_name):
-    """(depth mm, print-node max |U_P| component mm, total reaction on the robot surface N)."""
-    field = result.deformations.get(object_name)
-    depth = float(np.linalg.norm(field, axis=1).max()) * 1e3 if field is not None else 0.0
-    measures = result.verification.measures if result.verification is not None else {}
-    print_depth = next((1e3 * v for k, v in measures.items() if k.startswith("indentation of")), 0.0)
-    frame = robot.surface(robot_surface).frame
-    total = np.sum([p.force for p in result.forces_on(frame)], axis=0)
-    return depth, print_depth, total
+def stiffness_table(robot):
+    text = environments.builtin_scenario_path("step-on-cube").read_text()
+    base = environments.load_string(text, name="step-on-cube")
+    stance = base.stance("step-on-cube")
+    _, rigid = timed_solve(robot, base.scene, stance, deformable_as_rigid=True)
+    rigid_force = soft_forces(robot, rigid, base.scene)
+    rows = ["| E (Pa) | feasible | CPU s | iterations (+ warm starts) | soft sole force (N) | force vs rigid | "
+            "posture vs rigid (max abs q, rad or m) | largest strain |",
+            "|---|---|---|---|---|---|---|---|"]
+    rows.append(f"| rigid | {rigid.feasible} | - | {rigid.iterations} | {np.round(rigid_force, 1).tolist()} | - | - | - |")
+    for young_modulus in STIFFNESS:
+        scenario = environments.load_string(text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}"), name="step-on-cube")
+        timed_solve(robot, scenario.scene, stance)  # setup
+        seconds, result = timed_solve(robot, scenario.scene, stance)
+        force = soft_forces(robot, result, scenario.scene)
+        strain = result.verification.measures.get("largest strain of cube", float("nan")) if result.verification else float("nan")
+        rows.append(
+            f"| {young_modulus:.0e} | {result.feasible} | {seconds:.2f} | {result.iterations} "
+            f"(+{result.statistics.get('rigid_warm_start_iterations', 0)}) | {np.round(force, 1).tolist()} | "
+            f"{np.linalg.norm(force - rigid_force) / np.linalg.norm(rigid_force):.1%} | "
+            f"{np.abs(np.array(result.q) - np.array(rigid.q)).max():.2e} | {strain:.3g} |"
+        )
+        print(rows[-1], flush=True)
+    return rows
 
 
 def main():
-    sqp.solve_problem = _recording_solve_problem  # sqp.solve calls it by its module name
-    TIMERS.install()
     robot = stances.Robot.load("talos")
-    main_rows, model_rows, notes = [], [], []
-    for name in SCENARIOS:
-        tic = time.perf_counter()
-        scenario = environments.load(name)
-        scene, stance = scenario.scene, scenario.stances[name]
-        load_time = time.perf_counter() - tic
-        robot_surface, object_name = deformable_contact(scene, stance)
-        setup = {}
-        for model in ("consistent", "traction"):
-            tic = time.perf_counter()
-            build_problem(robot, scene, stance, PostureOptions(reaction_model=model))
-            setup[model] = time.perf_counter() - tic
-        # One untimed solve per scene: first calls of collision and pinocchio routines.
-        sqp.solve(robot, scene, stance)
-
-        runs = {
-            "consistent": run(robot, scene, stance),
-            "traction": run(robot, scene, stance, reaction_model="traction"),
-            "rigid": run(robot, scene, stance, deformable_as_rigid=True),
-        }
-        mesh = scene.deformable(object_name).mesh
-        for label, key in (("deformable (consistent, default)", "consistent"), ("same stance, rigid support", "rigid")):
-            r = runs[key]
-            result = r["result"]
-            depth, print_depth, total = physics(robot, result, robot_surface, object_name)
-            warm = result.statistics.get("rigid_warm_start_iterations", 0)
-            iterations = f"{result.iterations} + {warm} warm" if warm else f"{result.iterations}"
-            share = (f"{r['fem_core'] / r['linearize']:.0%} / {r['fem_all'] / r['linearize']:.0%}"
-                     if r["linearize"] > 0 else "-")
-            per_call = (f"{1e3 * r['fem_all'] / r['linearize_calls']:.2f} vs "
-                        f"{1e3 * (r['linearize'] - r['fem_all']) / r['linearize_calls']:.2f}"
-                        if r["linearize_calls"] else "-")
-            setup_text = f"{1e3 * (load_time + setup['consistent']):.0f}" if key == "consistent" else "-"
-            main_rows.append(
-                f"| {name} | {label} | {'yes' if result.feasible else 'NO'} | {setup_text} "
-                f"| {1e3 * r['wall']:.0f} | {1e3 * r['warm_time']:.0f} / {1e3 * r['sqp_time']:.0f} / "
-                f"{1e3 * r['field']:.0f} / {1e3 * r['rest']:.0f} "
-                f"| {iterations} | {depth:.1f} | {total[2]:.1f} ({np.linalg.norm(total):.1f}) | {share} | {per_call} |"
-            )
-            if not result.feasible:
-                notes.append(f"- {name}, {label}: {result.reason}")
-            elif key == "consistent" and r["wall"] > TARGET:
-                notes.append(f"- {name}: deformable solve {1e3 * r['wall']:.0f} ms, over the {1e3 * TARGET:.0f} ms target")
-            if key == "consistent" and r["linearize_calls"] and r["fem_all"] > r["linearize"] - r["fem_all"]:
-                notes.append(f"- {name}: FEM terms cost more than the rigid-body terms per linearisation ({per_call} ms)")
-        for model in ("consistent", "traction"):
-            r = runs[model]
-            result = r["result"]
-            depth, print_depth, total = physics(robot, result, robot_surface, object_name)
-            model_rows.append(
-                f"| {name} | {model} | {'yes' if result.feasible else 'NO'} | {1e3 * setup[model]:.0f} "
-                f"| {1e3 * r['wall']:.0f} | {1e3 * r['sqp_time']:.0f} | {result.iterations} "
-                f"| {depth:.1f} | {print_depth:.1f} | {total[2]:.1f} "
-                f"| {r['fem_all'] / max(r['linearize'], 1e-12):.0%} |"
-            )
-            if print_depth > 1e3 * PostureOptions().max_indentation - 0.01:
-                notes.append(f"- {name}, {model}: a print node sits on the max_indentation bound "
-                             f"({1e3 * PostureOptions().max_indentation:.0f} mm)")
-            if not result.feasible and model == "traction":
-                notes.append(f"- {name}, traction: {result.reason}")
-        notes.append(f"- {name}: mesh of {object_name!r} has {mesh.n_nodes} "
-                     f"nodes, {mesh.n_tets} tets; scene load {1e3 * load_time:.0f} ms")
-        print(f"done {name}", file=sys.stderr)
-
-    text = f"""# Deformable-support posture benchmark
-
-Date: {datetime.date.today().isoformat()}
-Machine: {machine()}
-Code: {code_version()}
-Scenarios: {", ".join(SCENARIOS)} at their default mesh; times are medians of {REPEATS} solves.
-
-Setup = scenario load + first `build_problem` (stiffness, factorisation, print compliance),
-paid once per scene and print, not in the solve times. Solve = wall clock of `stances.sqp.solve`
-with default options (problem builds, rigid warm start, deformable SQP, verify); "warm / SQP /
-field / rest" splits it (each a median of its own) into the two SQP phases' own `solve_time`, the whole-body displacement
-field for `result.deformations` (computed after `solve_time` is taken), and the remainder
-(problem builds, collision checker, verify). Depth = largest nodal displacement norm of
-the body. Reaction = sum of the point forces on the robot surface touching the deformable object,
-z (norm), N. FEM share = time in `DeformableContact._state/forces/force_jacobians` / the same plus
-`blocks` and `cost`, over `PostureProblem.linearize` time, deformable SQP only. "FEM vs rest" =
-per linearisation, ms, deformable-contact terms vs everything else in `linearize` (kinematics,
-static torques, rigid contacts, collisions).
-
-| scenario | support | feasible | setup ms | solve ms | warm / SQP / field / rest ms | iterations | depth mm | reaction N | FEM share | FEM vs rest ms |
-|---|---|---|---|---|---|---|---|---|---|---|
-{chr(10).join(main_rows)}
-
-Reaction models (default options otherwise):
-
-| scenario | reaction model | feasible | setup ms (build_problem) | solve ms | SQP ms | iterations | depth mm | print indentation mm | reaction z N | FEM share (all terms) |
-|---|---|---|---|---|---|---|---|---|---|---|
-{chr(10).join(model_rows)}
-
-Targets: each deformable solve under {1e3 * TARGET:.0f} ms; FEM terms no costlier than the
-rigid-body terms per iteration.
-
-Notes:
-
-{chr(10).join(notes)}
-"""
-    print(text)
-    out = os.path.join(os.path.dirname(__file__), "results", "deformable.md")
-    with open(out, "w") as handle:
+    header = [
+        f"# Deformable supports ({datetime.date.today()}, {code_version()})",
+        "",
+        f"Machine: {machine()}.",
+        "",
+        "## Soft stances at the default meshes (CPU seconds, median of "
+        f"{REPEATS} solves after a first one that pays the setup)",
+        "",
+    ]
+    print("\n".join(header), flush=True)
+    rows = stance_table(robot)
+    sweep_header = ["", "## Stiffness sweep (step-on-cube: left sole on a rigid block, right sole on the cube)", ""]
+    print("\n".join(sweep_header), flush=True)
+    sweep = stiffness_table(robot)
+    text = "\n".join(header + rows + sweep_header + sweep) + "\n"
+    path = os.path.join(os.path.dirname(__file__), "results", "deformable.md")
+    with open(path, "w") as handle:
         handle.write(text)
 
 

@@ -26,7 +26,7 @@ from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
-import proxsuite
+from .qp_backend import proxsuite
 
 from .blocks import stack
 from .errors import StanceError
