@@ -219,7 +219,8 @@ def _update_modes(phi, r, scale, mu):
     # node exactly at the surface touches: its bonded Jacobian tells a solver
     # that pressing makes force).
     contact = phi[:, 2] - scale[:, 2] * r[:, 2] >= 0.0
-    bound = mu * np.maximum(phi[:, 2], 0.0)
+    pressing = np.maximum(phi[:, 2], 0.0)
+    bound = np.where(pressing > 0.0, mu * np.where(pressing > 0.0, pressing, 1.0), 0.0)  # inf * 0 is no bound
     for axis in range(2):
         trial = phi[:, axis] - scale[:, axis] * r[:, axis]
         slipping = np.abs(trial) > bound
