@@ -420,6 +420,25 @@ class DeformableBody:
         """Principal strains of each tet, (M, 3) float, ascending, dimensionless."""
         return np.linalg.eigvalsh(voigt_to_tensor_strain(self.strain(u)))
 
+    def largest_principal_strain(self, u: np.ndarray) -> tuple[float, int]:
+        """The largest principal strain magnitude over all tets, and its tet.
+
+        Eigenvalues are computed only where they can be largest: ``|lambda|max`` lies
+        between ``|E|_F / sqrt(3)`` and ``|E|_F`` (Frobenius norm), so tets whose norm
+        is below the largest norm over sqrt(3) cannot hold the maximum.
+
+        Returns
+        -------
+        (float, int)
+            Strain (dimensionless) and tet index.
+        """
+        tensors = voigt_to_tensor_strain(self.strain(u))
+        norms = np.sqrt(np.einsum("tij,tij->t", tensors, tensors))
+        candidates = np.flatnonzero(norms >= norms.max() / np.sqrt(3.0) * (1.0 - 1e-12))
+        values = np.abs(np.linalg.eigvalsh(tensors[candidates])).max(axis=1)
+        best = int(np.argmax(values))
+        return float(values[best]), int(candidates[best])
+
     # ------------------------------------------------------------ fields
     def _check_field(self, u: np.ndarray) -> np.ndarray:
         u = np.asarray(u, dtype=float)
@@ -457,10 +476,8 @@ class DeformableBody:
         """
         if action not in ("warn", "raise"):
             raise FemError(f"action must be 'warn' or 'raise', got {action!r}")
-        per_tet = np.abs(self.principal_strains(u)).max(axis=1)
-        largest = float(per_tet.max())
+        largest, where = self.largest_principal_strain(u)
         if largest > limit:
-            where = int(per_tet.argmax())
             message = (
                 f"largest strain {largest:.3g} (tet {where}) exceeds the small-strain limit "
                 f"{limit:g}: linear elasticity is not valid there; reduce the displacement"

@@ -574,13 +574,12 @@ class DeformableContact:
         measures[f"indentation of {name}"] = depth
         if depth > self.max_indentation + tolerances.deformable_placement:
             reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
-        principal = np.abs(body.principal_strains(field)).max(axis=1)
-        tet = int(np.argmax(principal))
-        measures[f"largest strain of {name}"] = float(principal[tet])
-        if principal[tet] > self.strain_limit + 1e-6:
+        strain, tet = body.largest_principal_strain(field)
+        measures[f"largest strain of {name}"] = strain
+        if strain > self.strain_limit + 1e-6:
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(
-                f"strain {principal[tet]:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
+                f"strain {strain:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
                 f"exceeds its bound {self.strain_limit:g}: linear elasticity does not hold there"
             )
         return reasons

@@ -27,6 +27,7 @@ from dataclasses import replace
 import numpy as np
 import pinocchio as pin
 from .qp_backend import proxsuite
+from .threads import single_threaded_blas
 
 from .blocks import stack
 from .errors import StanceError
@@ -145,6 +146,15 @@ def _reason(linearization, iterations, why) -> str:
 
 
 def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
+    """Run the SQP on a built :class:`~stances.problem.PostureProblem` (one BLAS thread).
+
+    See :func:`_solve_problem`.
+    """
+    with single_threaded_blas():
+        return _solve_problem(problem, q_init, lam_init)
+
+
+def _solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem`.
 
     Parameters
@@ -236,8 +246,8 @@ def solve_problem(problem, q_init=None, lam_init=None) -> PostureResult:
         # brings feasibility back quadratically.
         if violation > tolerance and (accepted is None or alpha < 0.1):
             restored = _restoration(problem, linearization, q, lam, restoration)
-            # Taken when it halves the violation, or when nothing else moves at all.
-            needed = 0.5 * violation if accepted is not None else violation
+            # Taken when it does better on feasibility than the crawling step.
+            needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
                 accepted, alpha = restored, 1.0
         if accepted is None:

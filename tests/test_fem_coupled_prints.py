@@ -113,3 +113,13 @@ def test_loads_on_a_fixed_node_are_refused(block):
     body, _, _ = block
     with pytest.raises(fem.BoundaryError, match="is fixed"):
         body.displacement_under_loads(body.fixed_nodes[:1], np.zeros((1, 3)))
+
+
+def test_largest_principal_strain_is_the_maximum_over_every_tet(block):
+    body, left, right = block
+    both = np.concatenate([left, right])
+    displacements = _press(np.random.default_rng(7), both.size)
+    field = body.displacement_field(body.contact_patch(both), displacements)
+    every = np.abs(body.principal_strains(field)).max(axis=1)
+    value, tet = body.largest_principal_strain(field)
+    assert value == pytest.approx(every.max(), rel=1e-12) and every[tet] == pytest.approx(value, rel=1e-12)

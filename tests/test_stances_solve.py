@@ -70,14 +70,26 @@ def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scen
     assert np.abs(field).max() > 1e-4
 
 
-def test_softer_cube_gives_a_deeper_print(deformable_results):
-    stiff = _palm_depth(deformable_results["hand-on-cube"])
-    soft = _palm_depth(deformable_results["hand-on-soft-cube"])
-    assert soft > 1.3 * stiff
+def test_softer_cube_gives_a_deeper_print(robot):
+    """Half the Young modulus: twice the depth per newton of sole load (the load
+    itself changes with the posture). The strain bound is lifted here: at 5 % it
+    would cap the softer print, which is another test's business."""
+
+    def depth_per_newton(young_modulus):
+        text = environments.builtin_scenario_path("step-on-cube").read_text().replace("resolution: default", "resolution: 0.04")
+        text = text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("resolution: 0.04", "resolution: 0.04\n    strain_limit: 0.5")
+        scenario = environments.load_string(text, name="step-on-cube")
+        result = solve(robot, scenario.scene, scenario.stance("step-on-cube"))
+        assert result.feasible, result.reason
+        sole = sum(p.force for p in result.point_forces if p.frame == "right_sole_contact")
+        assert sole[2] > 50.0  # the soft cube carries part of the weight
+        return _palm_depth(result) / sole[2]
+
+    assert 1.7 < depth_per_newton(5e5) / depth_per_newton(1e6) < 2.3
 
 
 def _print_offset(robot, scenario, stance, result):
-    """Distance of the palm frame from its nominal print, metres."""
+    """Distance of the soft contact's link frame from its nominal print, metres."""
     problem = build_problem(robot, scenario.scene, stance)
     contact = next(c for c in problem.contacts if c.kind == "deformable")
     data = robot.model.createData()
@@ -86,24 +98,33 @@ def _print_offset(robot, scenario, stance, result):
 
 
 def test_stiffer_cube_tends_to_the_rigid_contact(robot):
-    """The print's compliance (depth per newton of palm load) falls as 1/E, the palm
-    ends up on its print as on a rigid support, and the forces settle to a stiff limit."""
-    offsets, depths, palm_forces = [], [], []
-    for young_modulus in (1e6, 1e7, 1e8, 1e10):
-        scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
-        stance = scenario.stance("hand-on-cube")
+    """From a foam to steel: every solve converges, the print's compliance (depth per
+    newton) falls as 1/E, the sole ends up on its print as on a rigid support, and
+    the forces settle to a stiff limit."""
+    offsets, compliance, sole_forces = [], [], []
+    moduli = (1e4, 1e6, 1e7, 1e8, 1e10, 1e11)
+    for young_modulus in moduli:
+        scenario = coarse_scenario("step-on-cube", young_modulus=young_modulus)
+        stance = scenario.stance("step-on-cube")
         result = solve(robot, scenario.scene, stance)
         assert result.feasible, (young_modulus, result.reason)
-        palm = sum(p.force for p in result.point_forces if p.frame == "right_palm_contact")
-        depths.append(_palm_depth(result) / palm[2])
+        sole = sum(p.force for p in result.point_forces if p.frame == "right_sole_contact")
+        compliance.append(_palm_depth(result) / sole[2])
         offsets.append(_print_offset(robot, scenario, stance, result))
-        palm_forces.append(palm)
-    # Ten times stiffer, about ten times less compliant: not exactly, as the load's
-    # tangential part and the nodes that slip or lift change with the posture.
-    ratios = np.array(depths[:2]) / np.array(depths[1:3])
-    assert np.all((ratios > 5.0) & (ratios < 20.0)), depths
-    assert offsets[3] < 1e-3 * offsets[0]
-    assert np.linalg.norm(palm_forces[3] - palm_forces[2]) < 0.02 * np.linalg.norm(palm_forces[2])
+        sole_forces.append(sole)
+    # Ten times stiffer, ten times less compliant, within the change of the load's
+    # tangential part and of the nodes that slip or lift.
+    ratios = np.array(compliance[1:3]) / np.array(compliance[2:4])
+    assert np.all((ratios > 7.0) & (ratios < 13.0)), compliance
+    assert offsets[-1] < 1e-4 * offsets[1]
+    assert np.linalg.norm(sole_forces[-1] - sole_forces[-2]) < 0.02 * np.linalg.norm(sole_forces[-2])
+    rigid = solve(robot, coarse_scenario("step-on-cube").scene, stance, deformable_as_rigid=True)
+    assert rigid.feasible
+    # The rigid model leaves the split of the weight between the feet to the
+    # objective; the stiff limit decides it by elasticity: both carry the weight.
+    rigid_total = sum(p.force for p in rigid.point_forces)
+    stiff_total = sum(p.force for p in solve(robot, scenario.scene, stance).point_forces)
+    assert np.allclose(rigid_total, stiff_total, atol=1e-4)
 
 
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
@@ -323,18 +344,18 @@ def test_strain_bound_is_kept_and_reported(robot):
     """A tight strain bound changes the answer: kept by the solver, measured by verify."""
     text = environments.builtin_scenario_path("step-on-cube").read_text().replace("resolution: default", "resolution: 0.04")
     loose = environments.load_string(text, name="loose")
-    tight = environments.load_string(text.replace("resolution: 0.04", "resolution: 0.04\n    strain_limit: 0.01"), name="tight")
+    tight = environments.load_string(text.replace("resolution: 0.04", "resolution: 0.04\n    strain_limit: 0.002"), name="tight")
     stance = loose.stance("step-on-cube")
     free = solve(robot, loose.scene, stance)
     assert free.feasible, free.reason
     free_strain = free.verification.measures["largest strain of cube"]
-    assert free_strain > 0.01  # the bound below would bite
+    assert free_strain > 0.002  # the bound below would bite
     bounded = solve(robot, tight.scene, stance)
     if bounded.feasible:
-        assert bounded.verification.measures["largest strain of cube"] <= 0.01 + 1e-6
+        assert bounded.verification.measures["largest strain of cube"] <= 0.002 + 1e-6
     else:
         assert "strain" in bounded.reason
     # verify reports a strain beyond the bound with its value and place.
     check = verify(robot, tight.scene, stance, free)
     assert not check.ok
-    assert any("exceeds its bound 0.01" in reason for reason in check.reasons), check.reasons
+    assert any("exceeds its bound 0.002" in reason for reason in check.reasons), check.reasons
