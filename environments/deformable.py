@@ -37,24 +37,26 @@ every cell, in plane and in depth. ``default`` is chosen so that a Talos palm pr
 (0.10 m x 0.07 m) placed anywhere, at any angle, on the refined region covers at
 least 9 surface nodes (a grid of spacing h, sampled over offsets and angles, leaves
 at least 10 under such a rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m)
-covers about 30. At this spacing a rigid print's force is still 10-15 % above that
-of the mesh refined twice, and about 30 % above the extrapolated converged value
-(``bench/bench_mesh_convergence.py``): linear tets resolve a print's edge slowly.
+covers about 30. At this spacing a rigid print's force is still 7-18 % above that
+of the mesh refined twice, and 13-21 % (1 m cube) to 29-42 % (0.1 m mat) above the
+extrapolated converged value (``bench/results/mesh_convergence.md``): linear tets
+resolve the edge of a rigid print slowly, in h^1.3.
 ``coarse`` is for fast tests: a sole print still covers several nodes, a palm
 print may cover fewer than 9.
 """
 
-# Size field of the mesh: cells are about h in the refined region and at the top face
-# and grow with the distance d to them as h (1 + d / _GRADING_LENGTH), up to
-# _COARSE_FACTOR h. A grading length in metres, not a growth ratio per cell, makes the
-# mesh one size field scaled by h, so halving h refines the mesh by 2 everywhere (what
-# a convergence study needs); placing nodes so that each cell holds one cell of the
-# field makes the cells a geometric series of ratio exp(h / _GRADING_LENGTH): 1.45 at
-# the default h, the first one 1.2 h long. 6 cm, a bit more than half a palm, because
-# the stress under a print decays over about a print width. The cap bounds the aspect
-# ratio of every cell by about _COARSE_FACTOR: h x h x 4h at the bottom of the refined
-# column, 4h x 4h x 1.2h on the top face outside it.
+# Cells are at most h on the refined region and in the top layer, and grow away from
+# them geometrically by _growth_ratio(h) per cell up to _COARSE_FACTOR h. The ratio is
+# exp(h / _GRADING_LENGTH): a length in metres rather than a fixed ratio per cell, so
+# that halving h takes the square root of the ratio and every cell, in the graded zone
+# as elsewhere, is about halved (what a convergence study needs). 6 cm, a bit more
+# than half a palm, because the stress under a print decays over about a print width;
+# it gives 1.45 per cell at the default h. _MAX_GROWTH keeps coarse spacings (for
+# fast tests) from jumping in size. The cap bounds the aspect ratio of every cell by
+# about _COARSE_FACTOR: h x h x 4h at the bottom of the refined column, 4h x 4h x h on
+# the top face outside it.
 _GRADING_LENGTH = 0.06
+_MAX_GROWTH = 1.5
 _COARSE_FACTOR = 4.0
 
 
@@ -180,30 +182,13 @@ class DeformableObject:
         return moved[np.asarray(self.mesh.surface_triangles)]
 
 
-def _cells_to_distance(distance, fine: float) -> np.ndarray:
-    """Number of cells of the size field between a refined edge and ``distance`` from it.
-
-    The integral of 1 / size over [0, distance] for the size field
-    ``fine * min(_COARSE_FACTOR, 1 + d / _GRADING_LENGTH)``; fractional.
-    """
-    distance = np.asarray(distance, dtype=float)
-    length, cap = _GRADING_LENGTH, _COARSE_FACTOR
-    capped_from = (cap - 1.0) * length
-    graded = (length / fine) * np.log1p(np.minimum(distance, capped_from) / length)
-    return graded + np.maximum(distance - capped_from, 0.0) / (cap * fine)
-
-
-def _distance_at_cells(cells, fine: float) -> np.ndarray:
-    """Inverse of :func:`_cells_to_distance`: the distance reached after ``cells`` cells."""
-    cells = np.asarray(cells, dtype=float)
-    length, cap = _GRADING_LENGTH, _COARSE_FACTOR
-    cells_to_cap = (length / fine) * math.log(cap)
-    graded = length * np.expm1(np.minimum(cells, cells_to_cap) * fine / length)
-    return graded + np.maximum(cells - cells_to_cap, 0.0) * cap * fine
+def _growth_ratio(fine: float) -> float:
+    """Size ratio of successive cells away from the refined region, for the fine spacing h."""
+    return min(_MAX_GROWTH, math.exp(fine / _GRADING_LENGTH))
 
 
 def _graded_side(length: float, fine: float) -> np.ndarray:
-    """Node offsets over ``length`` away from a refined edge, cells growing by the size field.
+    """Node offsets over ``length`` away from a refined edge, cells growing geometrically.
 
     Parameters
     ----------
@@ -216,14 +201,23 @@ def _graded_side(length: float, fine: float) -> np.ndarray:
     -------
     (k,) float
         Increasing offsets from the edge, metres, the last exactly ``length``; empty
-        when ``length`` is 0. The nodes equidistribute the size field: each cell is
-        one (rounded up) cell of it, so no cell is longer than the field allows.
+        when ``length`` is 0. The cells follow the series h, h g, h g^2, ... capped at
+        ``_COARSE_FACTOR`` h (g from :func:`_growth_ratio`), resampled to a whole
+        number of cells: cell k spans the series from fractional index (k - 1) c
+        to k c, with c <= 1, so no cell is longer than h at the edge, than the cap
+        anywhere, or than g times the cell before it.
     """
     if length <= 1e-12:
         return np.zeros(0)
-    total = float(_cells_to_distance(length, fine))
-    count = max(1, math.ceil(total - 1e-9))
-    offsets = _distance_at_cells(np.arange(1, count + 1) * (total / count), fine)
+    growth = _growth_ratio(fine)
+    graded = fine * growth ** np.arange(math.ceil(math.log(_COARSE_FACTOR) / math.log(growth)))
+    graded = np.minimum(graded, _COARSE_FACTOR * fine)
+    capped = max(0, math.ceil((length - graded.sum()) / (_COARSE_FACTOR * fine))) + 1
+    series = np.concatenate([[0.0], np.cumsum(np.concatenate([graded, np.full(capped, _COARSE_FACTOR * fine)]))])
+    # Fractional number of series cells spanning length, rounded up to whole cells.
+    cells = float(np.interp(length, series, np.arange(series.size)))
+    count = max(1, math.ceil(cells - 1e-9))
+    offsets = np.interp(np.arange(1, count + 1) * (cells / count), np.arange(series.size), series)
     offsets[-1] = length
     return offsets
 
@@ -249,12 +243,11 @@ def _height_coordinates(height: float, fine: float) -> np.ndarray:
 def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
 
-    The mesh is one size field scaled by the fine spacing h: cells of at most h on
-    the refined region of the top face, the top layer about h thick (1.2 h at the
-    default h), and cells growing away from both (``h (1 + d / 0.06 m)`` at a distance
-    d, a geometric growth of 1.45 per cell at the default h) up to 4 h. So no cell is
-    much more than 4 times longer in one direction than in another, and halving h
-    halves every cell, in plane and in depth.
+    Cells are at most h on the refined region of the top face and the top layer is
+    at most h thick; away from both, cells grow geometrically (by ``exp(h / 0.06 m)``
+    per cell, 1.45 at the default h, at most 1.5) up to 4 h. So no cell is more than
+    about 4 times longer in one direction than in another, and halving h about
+    halves every cell, in plane and in depth (a convergence study's refinement).
 
     Parameters
     ----------
@@ -283,11 +276,11 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     --------
     >>> xs, ys, zs = soft_box_coordinates((1.0, 1.0, 1.0), "default")
     >>> xs.size, ys.size, zs.size                     # 45 cells of 22 mm in plane
-    (46, 46, 14)
+    (46, 46, 15)
     >>> round(float(zs[-1] - zs[-2]), 4), round(float(zs[1] - zs[0]), 4)   # top, bottom
-    (0.0268, 0.0887)
+    (0.0212, 0.0848)
     >>> [c.size for c in soft_box_coordinates((1.0, 1.0, 1.0), 0.01125)]  # h / 2
-    [90, 90, 27]
+    [90, 90, 28]
     """
     size = readonly_array(size, (3,), "soft box size")
     if np.any(size <= 0.0):

@@ -294,7 +294,9 @@ def test_default_soft_box_grid_puts_nine_nodes_under_any_palm_print(size):
 
 def test_default_one_metre_cube_grid_has_a_modest_node_count():
     xs, ys, zs = soft_box_coordinates((1.0, 1.0, 1.0), "default")
-    assert 2000 <= xs.size * ys.size * zs.size <= 9000
+    # 46 x 46 x 15 since the layers are graded like the cells in plane (3 layers before,
+    # 40 % too stiff); keep it where CHOLMOD factorises it in a few seconds.
+    assert 2000 <= xs.size * ys.size * zs.size <= 35000
     coarse = soft_box_coordinates((1.0, 1.0, 1.0), "coarse")
     assert np.prod([c.size for c in coarse]) < xs.size * ys.size * zs.size / 3
 
