@@ -8,7 +8,7 @@ the print displacements, with an exact, cached Jacobian.
 """
 
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
-from .contact import LIFT, SLIP, STICK, PrintContact, solve_print_contact
+from .contact import LIFT, SLIP, STICK, PrintContact, print_contact_with_modes, solve_print_contact
 from .body import DeformableBody, voigt_to_tensor_strain, von_mises
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh
@@ -46,6 +46,7 @@ __all__ = [
     "available_solvers",
     "PrintContact",
     "solve_print_contact",
+    "print_contact_with_modes",
     "STICK",
     "SLIP",
     "LIFT",

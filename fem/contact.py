@@ -35,7 +35,7 @@ import numpy as np
 
 from .errors import FemError
 
-__all__ = ["PrintContact", "solve_print_contact", "STICK", "SLIP", "LIFT"]
+__all__ = ["PrintContact", "solve_print_contact", "print_contact_with_modes", "STICK", "SLIP", "LIFT"]
 
 STICK, SLIP, LIFT = 0, 1, 2
 _PYRAMID = 1.0 / np.sqrt(2.0)
@@ -54,15 +54,23 @@ class PrintContact:
         Motion of each indenter point relative to its node, ``U - u``, metres, body frame.
     modes : (p, 2) int
         Per node and tangent axis: ``STICK``, ``SLIP`` or ``LIFT``.
+    signs : (p, 2) float
+        Direction of each slipping force (+1 or -1 along the tangent), 0 otherwise.
     iterations : int
-        Active-set iterations used.
+        Active-set iterations used (0: the modes were given).
     """
 
     forces: np.ndarray
     relative: np.ndarray
     modes: np.ndarray
+    signs: np.ndarray
     iterations: int
     _system: tuple = field(repr=False, compare=False)
+
+    @property
+    def admissible(self) -> bool:
+        """Whether these forces and motions obey Signorini and Coulomb (the modes settled)."""
+        return self._system[3]
 
     def jacobian_dot(self, matrix) -> np.ndarray:
         """``L @ matrix`` for the mode-fixed Jacobian ``L = d forces / d U``, body frame.
@@ -76,7 +84,7 @@ class PrintContact:
         -------
         (3p, k) float, newtons per unit of ``matrix``.
         """
-        system, select, rotation = self._system
+        system, select, rotation, _ = self._system
         local = rotation @ np.asarray(matrix, dtype=float)
         return rotation.T @ (-np.linalg.solve(system, select @ local))
 
@@ -106,7 +114,7 @@ def _local_frames(frames: np.ndarray) -> np.ndarray:
     return out
 
 
-def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None) -> PrintContact:
+def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_signs=None) -> PrintContact:
     """Signorini-Coulomb contact of a print under imposed indenter motions.
 
     Parameters
@@ -123,6 +131,8 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
         Coulomb coefficient mu of each node (>= 0; ``np.inf`` for bonded).
     initial_modes : (p, 2) int, optional
         Modes to start from (e.g. the previous call's): warm start.
+    initial_signs : (p, 2) float, optional
+        Slip directions going with ``initial_modes``.
 
     Returns
     -------
@@ -165,23 +175,129 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     modes = (
         np.zeros((p, 2), dtype=int) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p, 2)
     )
-    signs = np.zeros((p, 2))
+    signs = np.zeros((p, 2)) if initial_signs is None else np.array(initial_signs, dtype=float).reshape(p, 2)
+    result = _active_set(c_local, u_local, modes, signs, mu, scale)
+    if result is None:
+        # The active set cycled (seen on prints where many nodes sit at the
+        # stick/slip boundary): projected Gauss-Seidel finds the contact state,
+        # then the active set restarts from its modes.
+        phi = _gauss_seidel(c_local, u_local, mu)
+        modes, signs = _modes_of(phi, mu)
+        result = _active_set(c_local, u_local, modes, signs, mu, scale)
+        if result is None:
+            raise FemError(
+                "the print's contact did not settle, even from a Gauss-Seidel solution; "
+                "this is a bug worth reporting with the print's compliance and displacements"
+            )
+    phi, r, modes, signs, matrix, select, iteration = result
+    forces = (rotation.T @ phi.ravel()).reshape(p, 3)
+    relative = (rotation.T @ r.ravel()).reshape(p, 3)
+    return PrintContact(forces, relative, modes, signs, iteration, (matrix, select, rotation, True))
+
+
+def print_contact_with_modes(compliance, displacements, frames, friction, modes, signs) -> PrintContact:
+    """The contact state with every node's mode imposed: linear in U, no mode update.
+
+    A solver that has found which nodes stick, slip and lift can hold that set while it
+    converges (the forces are then smooth in U), and check at the end with
+    :func:`solve_print_contact` that the set still holds (:attr:`PrintContact.admissible`
+    says whether it does here).
+
+    Parameters
+    ----------
+    compliance, displacements, frames, friction
+        As :func:`solve_print_contact`.
+    modes : (p, 2) int
+    signs : (p, 2) float
+        As returned by :func:`solve_print_contact`.
+
+    Returns
+    -------
+    PrintContact
+    """
+    c = np.asarray(compliance, dtype=float)
+    u = np.asarray(displacements, dtype=float)
+    p = u.shape[0]
+    frames = np.asarray(frames, dtype=float)
+    mu = np.broadcast_to(np.asarray(friction, dtype=float), (p,)) * _PYRAMID
+    rotation = _local_frames(frames)
+    c_local = rotation @ c @ rotation.T
+    u_local = (rotation @ u.ravel()).reshape(p, 3)
+    modes, signs = np.asarray(modes, dtype=int), np.asarray(signs, dtype=float)
+    matrix, select = _mode_system(c_local, modes, signs, mu)
+    phi = np.linalg.solve(matrix, -(select @ u_local.ravel())).reshape(p, 3)
+    r = (u_local.ravel() + c_local @ phi.ravel()).reshape(p, 3)
+    new_modes, new_signs = _update_modes(phi, r, 1.0 / np.diag(c_local).reshape(p, 3), mu)
+    settled = bool(np.array_equal(new_modes, modes) and np.array_equal(new_signs, signs))
+    forces = (rotation.T @ phi.ravel()).reshape(p, 3)
+    relative = (rotation.T @ r.ravel()).reshape(p, 3)
+    return PrintContact(forces, relative, modes, signs, 0, (matrix, select, rotation, settled))
+
+
+def _active_set(c_local, u_local, modes, signs, mu, scale):
+    """Primal-dual active-set iterations from given modes; None if they cycle."""
+    p = u_local.shape[0]
     seen = set()
     for iteration in range(1, _MAX_ITERATIONS + 1):
         matrix, select = _mode_system(c_local, modes, signs, mu)
         phi = np.linalg.solve(matrix, -(select @ u_local.ravel())).reshape(p, 3)
         r = (u_local.ravel() + c_local @ phi.ravel()).reshape(p, 3)
         new_modes, new_signs = _update_modes(phi, r, scale, mu)
-        key = new_modes.tobytes() + new_signs.tobytes()
         if np.array_equal(new_modes, modes) and np.array_equal(new_signs, signs):
-            forces = (rotation.T @ phi.ravel()).reshape(p, 3)
-            relative = (rotation.T @ r.ravel()).reshape(p, 3)
-            return PrintContact(forces, relative, modes, iteration, (matrix, select, rotation))
+            return phi, r, modes, signs, matrix, select, iteration
+        key = new_modes.tobytes() + new_signs.tobytes()
         if key in seen:
-            break
+            return None
         seen.add(key)
         modes, signs = new_modes, new_signs
-    raise FemError(f"the print's contact active set did not settle after {iteration} iterations")
+    return None
+
+
+def _gauss_seidel(c_local, u_local, mu, sweeps=500, tolerance=1e-12):
+    """Projected Gauss-Seidel on the nodes: normal push, then tangential friction box.
+
+    Returns (p, 3) forces in node frames. Each sweep solves every dof for its own
+    relative motion with the others held, and projects on its admissible set.
+    """
+    p = u_local.shape[0]
+    phi = np.zeros(3 * p)
+    r = u_local.ravel().copy()
+    diagonal = np.diag(c_local)
+    for _ in range(sweeps):
+        largest = 0.0
+        for k in range(p):
+            n = 3 * k + 2
+            new = max(0.0, phi[n] - r[n] / diagonal[n])
+            if new != phi[n]:
+                r += c_local[:, n] * (new - phi[n])
+                largest = max(largest, abs(new - phi[n]))
+                phi[n] = new
+            bound = mu[k] * phi[n] if phi[n] > 0.0 else 0.0
+            for t in (3 * k, 3 * k + 1):
+                new = float(np.clip(phi[t] - r[t] / diagonal[t], -bound, bound))
+                if new != phi[t]:
+                    r += c_local[:, t] * (new - phi[t])
+                    largest = max(largest, abs(new - phi[t]))
+                    phi[t] = new
+        if largest <= tolerance * max(np.abs(phi).max(), 1e-300):
+            break
+    return phi.reshape(p, 3)
+
+
+def _modes_of(phi, mu):
+    """Modes and slip signs read off a contact solution."""
+    p = phi.shape[0]
+    modes = np.full((p, 2), STICK)
+    signs = np.zeros((p, 2))
+    bound = np.where(phi[:, 2] > 0.0, mu * np.where(phi[:, 2] > 0.0, phi[:, 2], 1.0), 0.0)
+    for axis in range(2):
+        slipping = np.abs(phi[:, axis]) >= bound * (1.0 - 1e-9)
+        modes[slipping, axis] = SLIP
+        signs[slipping, axis] = np.sign(phi[slipping, axis])
+    lifted = phi[:, 2] <= 0.0
+    modes[lifted] = LIFT
+    signs[lifted] = 0.0
+    return modes, signs
 
 
 def _mode_system(c_local, modes, signs, mu):

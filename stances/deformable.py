@@ -212,7 +212,8 @@ class DeformableContact:
         self.normals_in_body = normals_in_body
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
-        self._modes = None
+        self._modes = None  # (modes, signs) of the last contact solve: its warm start
+        self._frozen = None  # (modes, signs) held fixed by freeze_modes
         if options.max_indentation is not None:
             self.max_indentation = float(options.max_indentation)
         else:
@@ -286,11 +287,13 @@ class DeformableContact:
             # for, U + G A^-1 (W - G^T R_c U): then f = L U~ = D W + (L - D G^T R_c) U
             # exactly, and stays continuous in (q, W) when the nodes change modes.
             corrected = u + self.basis @ (self.a_inverse @ (w - self.generalised @ u))
-            state = fem.solve_print_contact(
-                self.patch.compliance, corrected.reshape(-1, 3), self.node_frames, self.node_mu,
-                initial_modes=self._modes,
-            )
-            self._modes = state.modes
+            arguments = (self.patch.compliance, corrected.reshape(-1, 3), self.node_frames, self.node_mu)
+            if self._frozen is not None:
+                state = fem.print_contact_with_modes(*arguments, *self._frozen)
+            else:
+                warm = (None, None) if self._modes is None else self._modes
+                state = fem.solve_print_contact(*arguments, initial_modes=warm[0], initial_signs=warm[1])
+                self._modes = (state.modes, state.signs)
             # Only L applied to a few directions is needed, not L itself.
             applied = state.jacobian_dot(np.hstack([self.basis @ self.a_inverse, d_displacements]))
             distribution = applied[:, : self.n_variables]  # D = L G A^-1
@@ -317,6 +320,23 @@ class DeformableContact:
         self._cache_key = key
         self._cache = (displacements, d_displacements, forces, d_forces[:, :nv], d_forces[:, nv:], nodes, d_nodes)
         return self._cache
+
+    # -- contact set ---------------------------------------------------------
+    def freeze_modes(self, model, data, w) -> None:
+        """Hold the current stick / slip / lift modes of every node (Coulomb law).
+
+        The forces are then linear in the corrected displacement, so an SQP converges
+        fast; :func:`stances.verify` still checks Signorini and Coulomb at the answer.
+        """
+        self.release_modes()
+        self._state(model, data, w)
+        self._frozen = self._modes
+        self._cache_key = None
+
+    def release_modes(self) -> None:
+        """Let every node change mode again."""
+        self._frozen = None
+        self._cache_key = None
 
     # -- contact-model interface --------------------------------------------
     def initial_variables(self, model, data) -> np.ndarray:
@@ -383,7 +403,8 @@ class DeformableContact:
                 value[i] = heights[rows].mean()
                 jacobian[i, :nv] = d_heights[rows].mean(axis=0)
             labels = tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints)
-            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels))
+            # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
+            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels, slack=1e-8))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
             values, jacobians, labels = self._resultant_rows(forces, d_forces)

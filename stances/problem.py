@@ -26,6 +26,13 @@ from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives
 
 
+# Weight of a soft print's generalised force W relative to the force term: enough to
+# keep the QP strictly convex in W (proxsuite stalls at its iteration cap without it),
+# small enough not to push load off soft prints (the deformation term weighs their
+# node forces).
+_GENERALISED_FORCE_WEIGHT = 0.1
+
+
 @dataclass(frozen=True)
 class PostureOptions:
     """Weights, limits and tolerances of a posture solve.
@@ -218,10 +225,11 @@ class PostureProblem:
             start += contact.n_variables
         self.n_variables = start
         self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
-        # The force term spreads the rigid contacts' cone coefficients and
-        # weighs a deformable print's generalised force W alike (the rigid limit
-        # of a print is a rigid contact); it also keeps the QP strictly convex in W.
-        self.force_weights = np.ones(self.n_variables)
+        # The force term spreads the rigid contacts' cone coefficients; it weighs a
+        # soft print's generalised force W lightly (see _GENERALISED_FORCE_WEIGHT).
+        self.force_weights = np.concatenate(
+            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else _GENERALISED_FORCE_WEIGHT) for c in contacts]
+        ) if contacts else np.zeros(0)
         model = robot.model
         self.posture_weights = np.full(model.nv, options.posture_weight)
         self.posture_weights[:3] = 0.0  # the base may go anywhere

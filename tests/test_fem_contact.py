@@ -142,3 +142,29 @@ def test_bad_shapes_and_negative_friction_are_refused(pad):
         fem.solve_print_contact(patch.compliance, np.zeros((3, 3)), frames, MU)
     with pytest.raises(fem.FemError, match="friction coefficients must be >= 0"):
         fem.solve_print_contact(patch.compliance, np.zeros((patch.n_nodes, 3)), frames, -1.0)
+
+
+def test_gauss_seidel_fallback_finds_the_same_contact_state(pad):
+    """The projected Gauss-Seidel used when the active set cycles agrees with it."""
+    from fem.contact import _gauss_seidel, _local_frames
+
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.002, -0.001, -0.004], [0.0, 0.02, 0.0], patch.points.mean(axis=0))
+    mu = np.full(patch.n_nodes, MU)
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, mu)
+    rotation = _local_frames(frames)
+    phi = _gauss_seidel(rotation @ patch.compliance @ rotation.T, (rotation @ displacements.ravel()).reshape(-1, 3), mu / np.sqrt(2.0))
+    assert np.allclose(phi, state.forces, atol=1e-6 * np.abs(state.forces).max())
+
+
+def test_held_modes_give_linear_forces_and_say_when_they_no_longer_hold(pad):
+    _, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    pressed = _rigid_motion(patch.points, [0.0005, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    state = fem.solve_print_contact(patch.compliance, pressed, frames, mu)
+    same = fem.print_contact_with_modes(patch.compliance, pressed, frames, mu, state.modes, state.signs)
+    assert same.admissible and np.allclose(same.forces, state.forces, atol=1e-9 * np.abs(state.forces).max())
+    pulled = np.tile([0.0, 0.0, 0.001], (patch.n_nodes, 1))  # the indenter leaves: every node should lift
+    held = fem.print_contact_with_modes(patch.compliance, pulled, frames, mu, state.modes, state.signs)
+    assert not held.admissible
+    assert held.forces[:, 2].min() < 0.0  # held in contact, the nodes would pull
