@@ -30,12 +30,23 @@ as ``E -> inf`` (``A^-1 -> 0``) the placement rows become the rigid contact's.
 This is the compliance-based contact of Duriez, Dubois and Kheddar, reduced to
 the six rigid modes of each link.
 
-Validity, at every node (the paper leaves these implicit): each node pushes
-(no adhesion) and its force lies in its own friction cone, so an accepted
-stance is a sticking state that Coulomb friction allows node by node; nodes
-are indented less than a bound relative to the body's thickness; and the
-principal strains of the tets around the prints stay within the object's
-strain bound (linear elasticity holds only there).
+How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
+
+- ``"coulomb"`` (default): R is the mode-fixed Jacobian L of
+  :func:`fem.solve_print_contact` (each node sticks, slips on its friction bound or
+  lifts off, solved on the condensed compliance). It is evaluated at
+  ``U~ = U + G A^-1 (W - G^T R_c U)``, for which ``L U~`` is the formula above, so
+  the forces stay continuous when nodes change mode. Each print must press (its
+  mean height not above the rest surface) and keep its resultant inside
+  ``friction_margin`` of its pyramid.
+- ``"sticking"``: bonded nodes, each pushing and inside its own friction pyramid.
+- ``"bonded"``: the paper's model; bonded nodes push, each print's resultant is in
+  its pyramid.
+
+Validity (the paper leaves it implicit): nodes are indented less than a bound
+relative to the body's thickness, and the principal strains of the tets around
+the prints stay within the object's strain bound (linear elasticity holds only
+there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
 """
 
 from __future__ import annotations

@@ -22,6 +22,7 @@ import pinocchio as pin
 
 from .blocks import ConstraintBlock, equality
 from .contacts import RigidContact
+from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives
 
@@ -130,10 +131,8 @@ class PostureOptions:
             raise StanceError(
                 f"reaction_model must be 'consistent' or 'traction', got {self.reaction_model!r}"
             )
-        if self.contact_law not in ("coulomb", "sticking", "bonded"):
-            raise StanceError(
-                f"contact_law must be 'coulomb', 'sticking' or 'bonded', got {self.contact_law!r}"
-            )
+        if self.contact_law not in LAWS:
+            raise StanceError(f"contact_law must be one of {LAWS}, got {self.contact_law!r}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
             raise StanceError(
                 "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "
@@ -451,8 +450,6 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
         label = f"{contact.robot_surface} on {surface.name}"
         if surface.deformable and not options.deformable_as_rigid:
-            from .deformable import PrintSpec  # FEM machinery only when needed
-
             deformable_object = scene.deformable_of_surface(surface.name)
             if deformable_object.name not in deformable_prints:
                 deformable_prints[deformable_object.name] = []
@@ -462,8 +459,6 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
             contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label))
         exclusions.append((robot.surface(contact.robot_surface).frame, surface.object_name))
     if deformable_prints:
-        from .deformable import DeformableContact
-
         contacts = [
             DeformableContact(robot, c, deformable_prints[c.name], options) if not isinstance(c, RigidContact) else c
             for c in contacts

@@ -42,6 +42,7 @@ _STAGNATION_WINDOW = 8
 _WARM_QP_ITERATIONS = 60
 _FROZEN_ITERATIONS = 30
 _RESTORATION_PENALTY = 1e6
+_CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify  # per attempt with a print's contact set held (it converges in a few)
 
 
@@ -425,6 +426,13 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
         rigid = build_problem(robot, scene, stance, replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init)
         q_init, warm_iterations = warm.q, warm.iterations
+        if warm.statistics["violation"] > loose["feasibility_tolerance"]:
+            # Even held rigid the stance cannot be held: a support that gives a few
+            # millimetres will not save it. Cheap rejection, with its reason (the
+            # soft solve of such a stance was measured at 10-40 s).
+            statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations)
+            return _with(warm, reason=f"held rigid, {warm.reason}", statistics=statistics,
+                         solve_time=time.perf_counter() - start, stance=stance)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: nodes in lift-off
             # give a solver no force gradient. The bonded model presses every
@@ -472,8 +480,9 @@ def _solve_coulomb(problem, q_init, attempts=3) -> PostureResult:
         iterations += attempt.iterations
         if attempt.feasible:
             return _with(attempt, iterations=iterations)
-        if attempt.statistics["violation"] > 1e-2:
-            break  # not a contact-set matter: a stance that cannot be held
+        if attempt.statistics["violation"] > _CONTACT_SET_VIOLATION:
+            # Far from feasible: not a matter of the contact set, a stance that cannot be held.
+            return _with(attempt, iterations=iterations)
         q = attempt.q
     free = solve_problem(problem, q_init)
     return _with(free, iterations=iterations + free.iterations)

@@ -68,12 +68,17 @@ def test_prints_condensed_separately_get_the_forces_wrong(block):
     assert difference > 0.01
 
 
-def test_coupled_print_forces_balance_the_base_reactions(block):
+def _pressed_together(block, seed):
+    """Both prints pressed with a random motion: body, nodes, U, patch, forces on the body."""
     body, left, right = block
     both = np.concatenate([left, right])
-    displacements = _press(np.random.default_rng(4), both.size)
+    displacements = _press(np.random.default_rng(seed), both.size)
     patch = body.contact_patch(both)
-    on_body = -patch.reaction_forces(displacements)
+    return body, both, displacements, patch, -patch.reaction_forces(displacements)
+
+
+def test_coupled_print_forces_balance_the_base_reactions(block):
+    body, _, displacements, patch, on_body = _pressed_together(block, 4)
     field = body.displacement_field(patch, displacements)
     base = body.fixed_reactions(field)
     assert np.abs(on_body.sum(axis=0) + base.sum(axis=0)).max() <= 1e-8 * np.abs(on_body).sum()
@@ -81,11 +86,7 @@ def test_coupled_print_forces_balance_the_base_reactions(block):
 
 def test_field_under_the_print_forces_puts_the_nodes_where_they_were_pressed(block):
     """One solve of the full system with the forces as loads gives back the print motion."""
-    body, left, right = block
-    both = np.concatenate([left, right])
-    displacements = _press(np.random.default_rng(5), both.size)
-    patch = body.contact_patch(both)
-    on_body = -patch.reaction_forces(displacements)
+    body, both, displacements, _, on_body = _pressed_together(block, 5)
     field = body.displacement_under_loads(both, on_body)
     assert np.abs(field[both] - displacements).max() <= 1e-9
     _, direct_field = _direct_reactions(body, both, displacements)

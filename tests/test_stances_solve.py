@@ -359,3 +359,18 @@ def test_strain_bound_is_kept_and_reported(robot):
     check = verify(robot, tight.scene, stance, free)
     assert not check.ok
     assert any("exceeds its bound 0.002" in reason for reason in check.reasons), check.reasons
+
+
+def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
+    """The rigid warm start already fails: the soft solve is skipped, the reason says so."""
+    scenario = environments.load("cross-two-mats")
+    stance = Stance(
+        (
+            Contact("left_sole", ContactPrint("soft_mat_top", -0.05, 0.3, 0.0)),
+            Contact("right_sole", ContactPrint("firm_mat_top", -0.05, 0.1, 0.0)),
+        )
+    )
+    result = solve(robot, scenario.scene, stance)
+    assert not result.feasible
+    assert result.reason.startswith("held rigid, ")
+    assert "rigid_warm_start_iterations" in result.statistics
