@@ -205,7 +205,7 @@ class SlsqpProblem:
         # Revolute joints: q[7:] = q0[7:] + dq[6:] exactly.
         lower[6:nv] = self.model.lowerPositionLimit[7:] - self.q0[7:]
         upper[6:nv] = self.model.upperPositionLimit[7:] - self.q0[7:]
-        lower[nv:] = 0.0
+        lower[nv:] = self.problem.variable_lower
         return list(zip(lower, upper))
 
 
@@ -214,7 +214,7 @@ def solve_slsqp(robot, scene, stance):
     problem = build_problem(robot, scene, stance, PostureOptions())
     start = time.perf_counter()
     q0 = problem.check_configuration(robot.reference_configuration)
-    lam0 = problem.initial_variables()
+    lam0 = problem.initial_variables(q0)
     wrapped = SlsqpProblem(problem, q0, lam0, start + SLSQP_TIME_LIMIT)
     x0 = np.concatenate([np.zeros(robot.nv), lam0])
     best = {"x": x0}
