@@ -51,6 +51,9 @@ there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+from typing import Any
+
 import numpy as np
 import pinocchio as pin
 
@@ -70,8 +73,9 @@ _SIDES = ("+x", "-x", "+y", "-y")
 LAWS = ("coulomb", "sticking", "bonded")
 
 
+@dataclass(frozen=True)
 class PrintSpec:
-    """One robot surface pressing one print on a deformable object (a value).
+    """One robot surface pressing one print on a deformable object.
 
     Parameters
     ----------
@@ -85,11 +89,15 @@ class PrintSpec:
         Readable name, e.g. ``"right_sole on foam_top"``.
     """
 
-    def __init__(self, robot_surface, surface, transform_print_to_world, label):
-        self.robot_surface = robot_surface
-        self.surface = surface
-        self.transform_print_to_world = np.asarray(transform_print_to_world, dtype=float)
-        self.label = label
+    robot_surface: str
+    surface: Any
+    transform_print_to_world: np.ndarray
+    label: str
+
+    def __post_init__(self) -> None:
+        transform = np.array(self.transform_print_to_world, dtype=float)
+        transform.setflags(write=False)
+        object.__setattr__(self, "transform_print_to_world", transform)
 
 
 def _skew_rows(points: np.ndarray) -> np.ndarray:

@@ -362,12 +362,13 @@ def test_strain_bound_is_kept_and_reported(robot):
 
 
 def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
-    """The rigid warm start already fails: the soft solve is skipped, the reason says so."""
+    """Soles 1.1 m apart, one on each mat: out of the legs' reach already held rigid;
+    the soft solve is skipped, and the reason says so."""
     scenario = environments.load("cross-two-mats")
     stance = Stance(
         (
-            Contact("left_sole", ContactPrint("soft_mat_top", -0.05, 0.3, 0.0)),
-            Contact("right_sole", ContactPrint("firm_mat_top", -0.05, 0.1, 0.0)),
+            Contact("left_sole", ContactPrint("soft_mat_top", 0.0, 0.55, 0.0)),
+            Contact("right_sole", ContactPrint("firm_mat_top", 0.0, -0.55, 0.0)),
         )
     )
     result = solve(robot, scenario.scene, stance)
