@@ -102,18 +102,15 @@ def _mode_counts(robot, scenario, stance, result):
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, result.q)
     counts = np.zeros(3, dtype=int)
-    offset = 0
-    for contact in problem.contacts:
-        count = len(contact.loads)
+    for contact, loads in zip(problem.contacts, problem.load_slices):
         if contact.kind == "deformable":
-            forces = np.array([p.force for p in result.point_forces[offset : offset + count]]) @ contact.rotation_body
+            forces = np.array([p.force for p in result.point_forces[loads]]) @ contact.rotation_body
             field = contact.deformable_object.body.displacement_under_loads(contact.node_ids, -forces)
             relative = np.einsum("pij,pj->pi", contact.node_frames, contact.displacements(robot.model, data) - field[contact.node_ids])
             phi = np.einsum("pij,pj->pi", contact.node_frames, forces)
             lift = phi[:, 2] <= 1e-9 * np.abs(phi).max()
             slip = ~lift & (np.abs(relative[:, :2]).max(axis=1) > 1e-7)
             counts += [int((~lift & ~slip).sum()), int(slip.sum()), int(lift.sum())]
-        offset += count
     return " / ".join(str(c) for c in counts)
 
 

@@ -289,7 +289,7 @@ def _modes_of(phi, mu):
     p = phi.shape[0]
     modes = np.full((p, 2), STICK)
     signs = np.zeros((p, 2))
-    bound = np.where(phi[:, 2] > 0.0, mu * np.where(phi[:, 2] > 0.0, phi[:, 2], 1.0), 0.0)
+    bound = _friction_bound(phi[:, 2], mu)
     for axis in range(2):
         slipping = np.abs(phi[:, axis]) >= bound * (1.0 - 1e-9)
         modes[slipping, axis] = SLIP
@@ -326,6 +326,12 @@ def _mode_system(c_local, modes, signs, mu):
     return matrix, select
 
 
+def _friction_bound(normal, mu):
+    """``mu' phi_n`` of pushing nodes, 0 elsewhere (and no NaN from ``inf * 0``)."""
+    pushing = normal > 0.0
+    return np.where(pushing, mu * np.where(pushing, normal, 1.0), 0.0)
+
+
 def _update_modes(phi, r, scale, mu):
     """Modes from the complementarity functions of Signorini and Coulomb."""
     p = phi.shape[0]
@@ -335,8 +341,7 @@ def _update_modes(phi, r, scale, mu):
     # node exactly at the surface touches: its bonded Jacobian tells a solver
     # that pressing makes force).
     contact = phi[:, 2] - scale[:, 2] * r[:, 2] >= 0.0
-    pressing = np.maximum(phi[:, 2], 0.0)
-    bound = np.where(pressing > 0.0, mu * np.where(pressing > 0.0, pressing, 1.0), 0.0)  # inf * 0 is no bound
+    bound = _friction_bound(phi[:, 2], mu)
     for axis in range(2):
         trial = phi[:, axis] - scale[:, axis] * r[:, axis]
         slipping = np.abs(trial) > bound

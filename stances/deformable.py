@@ -210,6 +210,7 @@ class DeformableContact:
             )
         a_inverse = np.linalg.inv(a)
         self.a_inverse = a_inverse
+        self.rigid_motion = self.basis @ a_inverse  # (3p, 6L): W -> rigid motion of the nodes
         self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
         self.generalised = self.basis.T @ self.consistent  # (6L, 3p): U -> W at the placement
         # R0 - D G^T R_c: the forces of the prints' non-rigid motion (zero on rigid motions).
@@ -314,7 +315,7 @@ class DeformableContact:
                 state = fem.solve_print_contact(*arguments, initial_modes=warm[0], initial_signs=warm[1])
                 self._modes = (state.modes, state.signs)
             # Only L applied to a few directions is needed, not L itself.
-            applied = state.jacobian_dot(np.hstack([self.basis @ self.a_inverse, d_displacements]))
+            applied = state.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))
             distribution = applied[:, : self.n_variables]  # D = L G A^-1
             nonrigid_dq = applied[:, self.n_variables :] - distribution @ (self.generalised @ d_displacements)
             forces_body = state.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U

@@ -206,6 +206,9 @@ class PostureProblem:
     options : PostureOptions
     n_variables : int
         Size of lambda.
+    variable_slices, load_slices : list of slice
+        Each contact's force variables in lambda, and its point loads in the
+        stacked loads (and in a result's ``point_forces``).
     """
 
     def __init__(self, robot, scene, stance, contacts, options, collision_checker=None):
@@ -217,11 +220,13 @@ class PostureProblem:
         self.collision_checker = collision_checker
         self.data = robot.model.createData()
         self.loads = PointLoads.concatenate(c.loads for c in contacts)
-        self.variable_slices = []
-        start = 0
+        self.variable_slices, self.load_slices = [], []
+        start = load_start = 0
         for contact in contacts:
             self.variable_slices.append(slice(start, start + contact.n_variables))
+            self.load_slices.append(slice(load_start, load_start + len(contact.loads)))
             start += contact.n_variables
+            load_start += len(contact.loads)
         self.n_variables = start
         self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
         # The force term spreads the rigid contacts' cone coefficients; it weighs a

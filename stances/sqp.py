@@ -26,13 +26,13 @@ from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
-from .qp_backend import proxsuite
-from .threads import single_threaded_blas
 
 from .blocks import stack
 from .errors import StanceError
 from .problem import PostureOptions, build_problem
+from .qp_backend import proxsuite
 from .results import LazyDeformations, PointForce, PostureResult
+from .threads import single_threaded_blas
 
 logger = logging.getLogger(__name__)
 
@@ -40,10 +40,10 @@ _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _MAX_PENALTY = 1e8
 _STAGNATION_WINDOW = 8
 _WARM_QP_ITERATIONS = 60
-_FROZEN_ITERATIONS = 30
+_FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _RESTORATION_PENALTY = 1e6
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
-_NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify  # per attempt with a print's contact set held (it converges in a few)
+_NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 
 
 class _QPWorkspace:
@@ -304,14 +304,15 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None) -> 
     reason = "" if feasible else _reason(linearization, iteration, status)
     elapsed = time.perf_counter() - start
     point_forces = problem_point_forces(problem, linearization, q)
-    producers, offset = {}, 0
-    for contact in problem.contacts:
-        count = len(contact.loads)
-        if contact.kind == "deformable":
-            forces = np.array([p.force for p in point_forces[offset : offset + count]])
-            producers[contact.deformable_object.name] = _field_producer(contact, model, q, forces)
-        offset += count
-    deformations = LazyDeformations(producers)
+    deformations = LazyDeformations(
+        {
+            contact.deformable_object.name: _field_producer(
+                contact, model, q, [p.force for p in point_forces[loads]]
+            )
+            for contact, loads in zip(problem.contacts, problem.load_slices)
+            if contact.kind == "deformable"
+        }
+    )
     result = PostureResult(
         feasible=feasible,
         q=q,
@@ -466,10 +467,8 @@ def _solve_coulomb(problem, q_init, attempts=3) -> PostureResult:
     deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
     q, iterations = problem.check_configuration(q_init), 0
     for _ in range(attempts):
-        pin.framesForwardKinematics(model, problem.data, q)
-        pin.computeJointJacobians(model, problem.data, q)
-        variables = problem.initial_variables(q)
-        pin.computeJointJacobians(model, problem.data, q)
+        variables = problem.initial_variables(q)  # runs the kinematics at q
+        pin.computeJointJacobians(model, problem.data, q)  # the print points' Jacobians
         for contact, s in deformable:
             contact.freeze_modes(model, problem.data, variables[s])
         try:

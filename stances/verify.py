@@ -102,12 +102,9 @@ def verify_problem(
         )
 
     # Each contact: placement, cones, and (deformable) the FEM forces themselves.
-    offset = 0
-    for contact in problem.contacts:
-        count = len(contact.loads)
-        forces = np.array([p.force for p in result.point_forces[offset : offset + count]])
-        points = np.array([p.point for p in result.point_forces[offset : offset + count]])
-        offset += count
+    for contact, loads in zip(problem.contacts, problem.load_slices):
+        forces = np.array([p.force for p in result.point_forces[loads]])
+        points = np.array([p.point for p in result.point_forces[loads]])
         reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
 
     # Links other than the contacting one keep clear of each deformed surface.

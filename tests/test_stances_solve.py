@@ -286,17 +286,6 @@ def test_verify_catches_links_inside_the_deformed_support(robot, deformable_resu
     assert any("penetrates the deformed cube" in reason for reason in check.reasons)
 
 
-def _deformable_slice(problem, result):
-    """Index, node count and the reported (points, forces) of the deformable contact."""
-    offset = 0
-    for contact in problem.contacts:
-        count = len(contact.loads)
-        if contact.kind == "deformable":
-            return offset, count
-        offset += count
-    raise AssertionError("no deformable contact")
-
-
 @pytest.mark.parametrize(
     "tamper, message",
     [
@@ -316,13 +305,12 @@ def test_verify_rejects_deformable_forces_the_contact_law_forbids(robot, deforma
     stance = scenario.stance("step-on-cube")
     result = deformable_results["step-on-cube"]
     problem = build_problem(robot, scenario.scene, stance)
-    start, count = _deformable_slice(problem, result)
-    forces = np.array([p.force for p in result.point_forces[start : start + count]])
-    changed = tamper(forces)
+    loads = next(s for c, s in zip(problem.contacts, problem.load_slices) if c.kind == "deformable")
+    changed = tamper(np.array([p.force for p in result.point_forces[loads]]))
     point_forces = list(result.point_forces)
-    for i, force in enumerate(changed):
-        old = point_forces[start + i]
-        point_forces[start + i] = PointForce(old.frame, old.point, force)
+    for i, force in zip(range(loads.start, loads.stop), changed):
+        old = point_forces[i]
+        point_forces[i] = PointForce(old.frame, old.point, force)
     check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=tuple(point_forces)))
     assert not check.ok
     assert any(message in reason for reason in check.reasons), check.reasons
