@@ -155,7 +155,7 @@ def _plan(args):
     print(f"{scenario.name}: {outcome}; {len(result.stances)} stances")
     print(
         f"  {s.expanded} stances expanded, {s.solver_calls} solver calls, "
-        f"{s.cache_hits} cache hits, {s.time:.1f} s"
+        f"{s.cache_hits} cache hits, {s.time:.1f} s wall, {s.cpu_time:.1f} s CPU"
     )
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")

@@ -9,6 +9,7 @@ neighbours of a stance (:mod:`cbm.stance_graph`), the posture solver of
 from __future__ import annotations
 
 import logging
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -60,6 +61,9 @@ def load_scenario(scenario):
     return environments.load(scenario)
 
 
+_OUT_OF_TIME = "time limit reached before this stance was solved"
+
+
 @dataclass(frozen=True)
 class StanceCheck:
     """Answer of the feasibility oracle for one stance.
@@ -108,17 +112,24 @@ class PostureOracle:
         If the warm-started solve fails, solve once more from
         :func:`initial_configuration` (the parent's posture can be a poor
         start, e.g. straddling a step when one foot is lifted).
+    deadline : float, optional
+        ``time.perf_counter()`` value after which no solve runs on: each solve
+        gets the time left as its ``time_budget``, so a planner's time limit
+        holds during a solve too.
     """
 
-    def __init__(self, robot, scene, solver_options=None, retry_cold=True):
+    def __init__(self, robot, scene, solver_options=None, retry_cold=True, deadline=None):
         self.robot = robot
         self.scene = scene
         self.solver_options = dict(solver_options or {})
         self.retry_cold = retry_cold
+        self.deadline = deadline
         self.solves = 0  # posture solves, retries included
 
     def __call__(self, stance, parent=None, parent_check=None):
         """Check one stance; ``parent_check`` gives the warm start."""
+        if self._time_left() == 0.0:
+            return StanceCheck(False, _OUT_OF_TIME)
         starts = []
         if parent_check is not None and parent_check.result is not None:
             starts.append(parent_check.result.q)
@@ -131,12 +142,24 @@ class PostureOracle:
                 break
         return check
 
+    def _time_left(self):
+        """Seconds left before the deadline (0.0 once past it), None without one."""
+        if self.deadline is None:
+            return None
+        return max(self.deadline - time.perf_counter(), 0.0)
+
     def _solve(self, stance, q_init):
         solve, verify = posture_api()
+        options = dict(self.solver_options)
+        left = self._time_left()
+        if left == 0.0:
+            return StanceCheck(False, _OUT_OF_TIME)
+        if left is not None:
+            options["time_budget"] = min(left, options.get("time_budget") or np.inf)
         self.solves += 1
         logger.debug("solving %s", stance.to_dict())
         try:
-            result = solve(self.robot, self.scene, stance, q_init=q_init, **self.solver_options)
+            result = solve(self.robot, self.scene, stance, q_init=q_init, **options)
         except ValueError as error:
             # Bad stance for this scene (e.g. a print covering too few FEM
             # nodes): an infeasible stance for the search, not a crash.
@@ -303,8 +326,10 @@ def plan(
     )
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach)
     soles = [name for name in robot.surfaces if surface_kind(name) == "sole"]
+    limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     if oracle is None:
-        oracle = PostureOracle(robot, scene, solver_options)
+        deadline = None if time_limit is None else time.perf_counter() + time_limit
+        oracle = PostureOracle(robot, scene, solver_options, deadline=deadline)
 
     bar = None
     on_expand = None
@@ -317,7 +342,6 @@ def plan(
             bar.update(statistics.expanded - bar.n)
             bar.set_postfix(solves=statistics.solver_calls, cached=statistics.cache_hits)
 
-    limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     try:
         searched = best_first_search(
             start,
@@ -360,6 +384,7 @@ def plan(
         cache_hits=s.cache_hits,
         prints=prints,
         time=s.time,
+        cpu_time=s.cpu_time,
     )
     return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name)
 

@@ -48,8 +48,9 @@ class SearchLimits:
     max_solver_calls : int or None
         Calls to the feasibility oracle (the start node included).
     time_limit : float or None
-        Wall time, seconds. Checked between oracle calls: one call that runs
-        long is not interrupted.
+        Wall time, seconds. Checked between oracle calls; an oracle that can
+        stop in time is told the deadline by its owner (``cbm.plan`` gives
+        each posture solve the time left).
     """
 
     max_expansions: int | None = 200
@@ -81,6 +82,9 @@ class SearchStatistics:
         Oracle requests answered from the cache instead.
     time : float
         Wall time of the search, seconds.
+    cpu_time : float
+        CPU time of this process during the search, seconds (on a loaded
+        machine it stays close to the work done while ``time`` grows).
     """
 
     expanded: int = 0
@@ -88,6 +92,7 @@ class SearchStatistics:
     solver_calls: int = 0
     cache_hits: int = 0
     time: float = 0.0
+    cpu_time: float = 0.0
 
     def to_dict(self):
         """Return the counters as a plain dict (subclasses' fields included)."""
@@ -204,7 +209,7 @@ def best_first_search(
         raise CbmError(f"path_cost_weight must be >= 0, got {path_cost_weight!r}")
     if step_cost is None:
         step_cost = _unit_step_cost
-    started = time.perf_counter()
+    started, cpu_started = time.perf_counter(), time.process_time()
     rng = random.Random(seed)
     # The counter makes every heap entry unique before its node, so the heap
     # never compares two nodes (stances need not be orderable) and equal
@@ -220,7 +225,9 @@ def best_first_search(
     best = None  # (h, order, node) of the feasible node closest to the goal
 
     def statistics():
-        return SearchStatistics(time=time.perf_counter() - started, **counts)
+        return SearchStatistics(
+            time=time.perf_counter() - started, cpu_time=time.process_time() - cpu_started, **counts
+        )
 
     def heuristic_of(node):
         if node not in h_of:

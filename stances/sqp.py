@@ -43,6 +43,7 @@ _WARM_QP_ITERATIONS = 60
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _RESTORATION_PENALTY = 1e6
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
+_OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 
 
@@ -149,16 +150,16 @@ def _reason(linearization, iterations, why) -> str:
     return f"{prefix}{label} violated by {amount:.3g} {_unit(label)} ({why} after {iterations} iterations)"
 
 
-def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None) -> PostureResult:
+def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem` (one BLAS thread).
 
     See :func:`_solve_problem`.
     """
     with single_threaded_blas():
-        return _solve_problem(problem, q_init, lam_init, max_iterations)
+        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline)
 
 
-def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None) -> PostureResult:
+def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem`.
 
     Parameters
@@ -168,6 +169,11 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None) -> 
         Warm start; the robot's reference posture by default.
     lam_init : (m,) float, optional
         Initial force variables.
+    max_iterations : int, optional
+        Lowers the options' iteration limit.
+    deadline : float, optional
+        ``time.perf_counter()`` value after which no new iteration starts; the
+        iterate reached is still checked, so a feasible one is kept.
 
     Returns
     -------
@@ -198,6 +204,9 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None) -> 
     qp_time = 0.0
     limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
     for iteration in range(1, limit + 1):
+        if deadline is not None and time.perf_counter() > deadline:
+            status, iteration = _OUT_OF_TIME, iteration - 1
+            break
         violation, _ = linearization.max_violation()
         merit = linearization.objective + penalty * violation
         matrices = _qp_matrices(linearization, penalty)
@@ -392,7 +401,7 @@ def problem_point_forces(problem, linearization, q) -> tuple:
     )
 
 
-def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
+def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> PostureResult:
     """Find a statically feasible posture holding a stance.
 
     Parameters
@@ -402,6 +411,12 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
     stance : environments.Stance
     q_init : (nq,) float, optional
         Warm start (e.g. the parent stance's posture in a search).
+    time_budget : float, optional
+        Wall-clock seconds this call may take. No SQP iteration starts after
+        it is spent; the stance is then infeasible with a reason that says so
+        (unless the iterate reached is already feasible and verified). Setup
+        and the final verification are not interrupted: a planner's time limit
+        holds to within one of those.
     **options
         Fields of :class:`~stances.problem.PostureOptions`.
 
@@ -418,6 +433,7 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
         q); an infeasible stance is an answer, not an exception.
     """
     start = time.perf_counter()
+    deadline = None if time_budget is None else start + _time_budget(time_budget)
     options = _options(options)
     problem = build_problem(robot, scene, stance, options)
     warm_iterations = 0
@@ -425,34 +441,42 @@ def solve(robot, scene, stance, q_init=None, **options) -> PostureResult:
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-3)
         rigid = build_problem(robot, scene, stance, replace(options, deformable_as_rigid=True, **loose))
-        warm = solve_problem(rigid, q_init)
+        warm = solve_problem(rigid, q_init, deadline=deadline)
         q_init, warm_iterations = warm.q, warm.iterations
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
             # soft solve of such a stance was measured at 10-40 s).
             statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations)
-            return _with(warm, reason=f"held rigid, {warm.reason}", statistics=statistics,
-                         solve_time=time.perf_counter() - start, stance=stance)
+            reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
+            return _timed_out(_with(warm, reason=reason, statistics=statistics,
+                                    solve_time=time.perf_counter() - start, stance=stance), time_budget)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: nodes in lift-off
             # give a solver no force gradient. The bonded model presses every
             # node, so its posture is where Coulomb contact starts well.
             bonded = build_problem(robot, scene, stance, replace(options, contact_law="bonded", **loose))
-            warm = solve_problem(bonded, q_init)
+            warm = solve_problem(bonded, q_init, deadline=deadline)
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
-        result = _solve_coulomb(problem, q_init)
+        result = _solve_coulomb(problem, q_init, deadline)
     else:
-        result = solve_problem(problem, q_init)
+        result = solve_problem(problem, q_init, deadline=deadline)
     statistics = dict(result.statistics, sqp_time=result.solve_time)
     if warm_iterations:
         statistics["rigid_warm_start_iterations"] = warm_iterations
     # solve_time covers everything this call did: building, warm start, SQP, verification.
-    return _with(result, statistics=statistics, solve_time=time.perf_counter() - start)
+    return _timed_out(_with(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
 
 
-def _solve_coulomb(problem, q_init, attempts=3) -> PostureResult:
+def _timed_out(result, time_budget) -> PostureResult:
+    """Say first in an infeasible answer's reason that the time budget stopped it."""
+    if result.feasible or result.statistics.get("status") != _OUT_OF_TIME:
+        return result
+    return _with(result, reason=f"time budget of {float(time_budget):g} s spent before convergence: {result.reason}")
+
+
+def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
     """Coulomb prints: converge with each node's mode held, then read the modes again.
 
     The contact set of a print (which nodes stick, slip, lift off) can flip under
@@ -472,19 +496,30 @@ def _solve_coulomb(problem, q_init, attempts=3) -> PostureResult:
         for contact, s in deformable:
             contact.freeze_modes(model, problem.data, variables[s])
         try:
-            attempt = solve_problem(problem, q, max_iterations=_FROZEN_ITERATIONS)
+            attempt = solve_problem(problem, q, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
         finally:
             for contact, _ in deformable:
                 contact.release_modes()
         iterations += attempt.iterations
-        if attempt.feasible:
+        if attempt.feasible or attempt.statistics["status"] == _OUT_OF_TIME:
             return _with(attempt, iterations=iterations)
         if attempt.statistics["violation"] > _CONTACT_SET_VIOLATION:
             # Far from feasible: not a matter of the contact set, a stance that cannot be held.
             return _with(attempt, iterations=iterations)
         q = attempt.q
-    free = solve_problem(problem, q_init)
+    free = solve_problem(problem, q_init, deadline=deadline)
     return _with(free, iterations=iterations + free.iterations)
+
+
+def _time_budget(value) -> float:
+    """A validated time budget, seconds."""
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        raise StanceError(f"time_budget must be a number of seconds or None, got {value!r}") from None
+    if not seconds > 0 or not np.isfinite(seconds):
+        raise StanceError(f"time_budget must be positive and finite seconds (or None), got {value!r}")
+    return seconds
 
 
 def _options(options: dict) -> PostureOptions:

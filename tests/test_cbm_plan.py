@@ -179,3 +179,13 @@ def test_check_flags_a_transition_changing_two_contacts():
     report = broken.check(scenario=SimpleNamespace(scene=None, robot="fake"), robot=object())
     assert not report.ok
     assert any("differ by exactly one contact" in p for p in report.problems)
+
+
+def test_posture_oracle_past_its_deadline_does_not_solve(scenario):
+    from cbm.planner import PostureOracle
+
+    oracle = PostureOracle(robot=None, scene=scenario.scene, deadline=0.0)
+    check = oracle(scenario.stances["start"])
+    assert not check.feasible
+    assert check.reason == "time limit reached before this stance was solved"
+    assert oracle.solves == 0

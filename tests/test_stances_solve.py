@@ -363,3 +363,29 @@ def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
     assert not result.feasible
     assert result.reason.startswith("held rigid, ")
     assert "rigid_warm_start_iterations" in result.statistics
+
+
+def test_a_spent_time_budget_stops_the_solve_and_says_so(robot):
+    scenario = coarse_scenario("hand-on-cube")
+    result = solve(robot, scenario.scene, scenario.stance("hand-on-cube"), time_budget=1e-6)
+    assert not result.feasible
+    assert result.reason.startswith("time budget of 1e-06 s spent before convergence: ")
+    assert result.statistics["status"] == "time budget spent"
+    assert result.iterations == 0
+
+
+def test_a_time_budget_that_does_not_bind_changes_nothing(robot):
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    free = solve(robot, scenario.scene, stance)
+    budgeted = solve(robot, scenario.scene, stance, time_budget=1e3)
+    assert budgeted.feasible and free.feasible
+    assert np.array_equal(budgeted.q, free.q)
+    assert budgeted.iterations == free.iterations
+
+
+@pytest.mark.parametrize("budget", [0.0, -1.0, float("nan"), float("inf"), "soon"])
+def test_a_bad_time_budget_is_rejected(robot, budget):
+    scenario = environments.load("stand")
+    with pytest.raises(StanceError, match="time_budget must be"):
+        solve(robot, scenario.scene, scenario.stance("stand"), time_budget=budget)
