@@ -108,6 +108,10 @@ class RigidContact:
         self.n_variables = n_vertices * n_edges
         self.variable_lower = np.zeros(self.n_variables)
         self.load_frames = (surface.frame,) * n_vertices
+        # One print: every vertex load pushes along the print normal.
+        self.print_labels = (label,)
+        self.load_prints = np.zeros(n_vertices, dtype=int)
+        self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
 
     def forces(self, model, data, lam) -> np.ndarray:
         """(k, 3) world forces on the robot at the polygon vertices, newtons."""

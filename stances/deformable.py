@@ -180,6 +180,8 @@ class DeformableContact:
         self.node_ids = np.concatenate(node_sets)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))
+        self.print_labels = tuple(spec.label for spec in self.prints)
+        self.load_prints = self.print_of_node
         self.load_frames = tuple(frames)
         self.patch = body.contact_patch(self.node_ids)
         self.nodes_in_world = body.mesh.nodes[self.node_ids] @ self.rotation_body.T + body_placement.translation
@@ -228,6 +230,7 @@ class DeformableContact:
         self.normals = np.array([self.print_placements[i].rotation[:, 2] for i in self.print_of_node])
         self.tangents = np.array([self.print_placements[i].rotation[:, :2].T for i in self.print_of_node])
         self.node_mu = np.array([self.friction[i] for i in self.print_of_node])
+        self.load_normals = self.normals
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).

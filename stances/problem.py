@@ -46,6 +46,15 @@ class PostureOptions:
         Weight of the free flyer's orientation error to the reference, per rad^2.
     force_weight : float
         Weight of sum lambda^2 (spreads rigid-contact forces), per N^2.
+    torque_weight : float
+        Weight of the torque-limit usage sum_i (tau_i / tau_max_i)^2: loads go
+        where the robot is strong instead of onto the joint nearest its limit.
+    effort_margin : float
+        Fraction of each joint's effort limit kept free: the solver keeps
+        ``|tau_i| <= (1 - effort_margin) tau_max_i``. :func:`stances.verify`
+        checks the full limits; the result reports the usage.
+    joint_margin : float
+        Fraction of each joint's range kept free at both ends.
     deformation_weight : float
         Weight of the squared norm of the deformable reaction forces (paper
         note 2), per N^2.
@@ -83,6 +92,11 @@ class PostureOptions:
         ``"bonded"`` the paper's model: bonded nodes push, only each print's
         resultant is kept in the cone. ``"coulomb"`` needs the consistent
         reaction model.
+    min_normal_force : float
+        Each print carries at least this force along its normal, N, so that
+        a contact is a support, not a touch. With the torque-usage term a
+        palm whose load the legs can take carries nothing by default; set a
+        bound where a stance means the hand to push.
     friction_margin : float
         Deformable supports: each print's resultant force stays within this
         fraction of its (inner) friction pyramid, so that a print is never all
@@ -107,6 +121,9 @@ class PostureOptions:
     posture_weight: float = 1.0
     base_orientation_weight: float = 1.0
     force_weight: float = 1e-5
+    torque_weight: float = 0.1
+    effort_margin: float = 0.1
+    joint_margin: float = 0.02
     deformation_weight: float = 1e-5
     reaction_model: str = "consistent"
     max_iterations: int = 100
@@ -120,6 +137,7 @@ class PostureOptions:
     indentation_limit: float = 0.25
     max_indentation: float | None = None
     contact_law: str = "coulomb"
+    min_normal_force: float = 0.0
     friction_margin: float = 0.8
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
@@ -144,10 +162,20 @@ class PostureOptions:
         for name in ("trust_region", "feasibility_tolerance", "indentation_limit", "elastic_penalty"):
             if not getattr(self, name) > 0:
                 raise StanceError(f"{name} must be > 0, got {getattr(self, name)}")
+        for name in ("effort_margin", "joint_margin"):
+            if not 0.0 <= getattr(self, name) < 0.5:
+                raise StanceError(f"{name} must be a fraction in [0, 0.5), got {getattr(self, name)}")
+        if not self.min_normal_force >= 0.0:
+            raise StanceError(f"min_normal_force must be >= 0 newtons, got {self.min_normal_force}")
+        if not self.torque_weight >= 0.0:
+            raise StanceError(f"torque_weight must be >= 0, got {self.torque_weight}")
         if not 0.0 < self.friction_margin <= 1.0:
             raise StanceError(f"friction_margin must be in (0, 1], got {self.friction_margin}")
         if self.max_indentation is not None and not self.max_indentation > 0:
             raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
+
+
+_ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it
 
 
 @dataclass
@@ -239,9 +267,11 @@ class PostureProblem:
         self.posture_weights[:3] = 0.0  # the base may go anywhere
         self.posture_weights[3:6] = options.base_orientation_weight
         self.reference = robot.reference_configuration
-        self.q_lower = model.lowerPositionLimit[7:]
-        self.q_upper = model.upperPositionLimit[7:]
-        self.effort = robot.effort_limits
+        # The joint and effort margins shrink the limits the solver keeps.
+        lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+        keep = options.joint_margin * (upper - lower)
+        self.q_lower, self.q_upper = lower + keep, upper - keep
+        self.effort = (1.0 - options.effort_margin) * robot.effort_limits
 
     @property
     def n_step(self) -> int:
@@ -268,6 +298,46 @@ class PostureProblem:
                 lam[s] = contact.initial_variables(model, data)
         return lam
 
+    def limit_usage(self, q, torques) -> dict:
+        """How close a posture comes to the robot's joint and effort limits.
+
+        Parameters
+        ----------
+        q : (nq,) float
+        torques : (nv - 6,) float
+            Actuated joint torques, N m.
+
+        Returns
+        -------
+        dict
+            ``torque_usage`` (largest ``|tau_i| / tau_max_i``, of the full
+            limit) and its ``torque_joint``; ``joint_clearance`` (smallest
+            distance to a position limit, as a fraction of the joint's range)
+            and its ``clearance_joint``; ``at_margin``, the joints whose torque
+            or position sits on the bound its margin sets: the stance needs
+            them there (a margin of zero means on the limit itself).
+        """
+        model, options = self.robot.model, self.options
+        names = self.robot.actuated_joint_names
+        usage = np.abs(np.asarray(torques, float)) / self.robot.effort_limits
+        lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+        clearance = np.minimum(q[7:] - lower, upper - q[7:]) / (upper - lower)
+        at_margin = [
+            f"torque of {names[i]} at {100 * usage[i]:.1f} % of its limit"
+            for i in np.flatnonzero(usage >= 1.0 - options.effort_margin - _ON_BOUND)
+        ] + [
+            f"position of {names[i]} at {100 * clearance[i]:.2f} % of its range from a limit"
+            for i in np.flatnonzero(clearance <= options.joint_margin + _ON_BOUND)
+        ]
+        worst_torque, worst_joint = int(np.argmax(usage)), int(np.argmin(clearance))
+        return {
+            "torque_usage": float(usage[worst_torque]),
+            "torque_joint": names[worst_torque],
+            "joint_clearance": float(clearance[worst_joint]),
+            "clearance_joint": names[worst_joint],
+            "at_margin": at_margin,
+        }
+
     def check_configuration(self, q) -> np.ndarray:
         """A validated copy of ``q`` (size, finite, unit quaternion renormalised)."""
         q = np.array(q, dtype=float).reshape(-1)
@@ -285,7 +355,7 @@ class PostureProblem:
         q[7:] = np.clip(q[7:], self.q_lower, self.q_upper)
         return q
 
-    def linearize(self, q, lam) -> Linearization:
+    def linearize(self, q, lam, torque_weight=None) -> Linearization:
         """Evaluate objective and constraints, with Jacobians, at ``(q, lam)``.
 
         Parameters
@@ -294,6 +364,9 @@ class PostureProblem:
             Configuration.
         lam : (m,) float
             Rigid-contact force variables, newtons.
+        torque_weight : float, optional
+            Overrides the options' weight of the torque-limit usage (the SQP
+            leaves the term out until it is near feasible).
 
         Returns
         -------
@@ -336,7 +409,8 @@ class PostureProblem:
                 [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")],
             )
         )
-        # Torque limits (47).
+        # Torque limits (47), less the effort margin.
+        margin = f" less its {100 * options.effort_margin:g} % margin" if options.effort_margin else ""
         blocks.append(
             ConstraintBlock(
                 "torque limit",
@@ -345,9 +419,11 @@ class PostureProblem:
                 -self.effort,
                 self.effort,
                 1.0,
-                tuple(f"torque limit of {name}" for name in joint_names),
+                tuple(f"torque limit of {name}{margin}" for name in joint_names),
             )
         )
+        if options.min_normal_force > 0 and len(forces):
+            blocks.append(self._normal_load_block(forces, np.hstack([force_dq, force_dlam])))
         for contact, s in zip(self.contacts, self.variable_slices):
             blocks.extend(contact.blocks(model, data, lam[s], n, nv + s.start))
         if self.collision_checker is not None:
@@ -362,6 +438,15 @@ class PostureProblem:
         hessian = np.zeros((n, n))
         gradient[:nv] = d_error.T @ (weights * error)
         hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
+        # Torque-limit usage, sum (tau_i / tau_max_i)^2 (Gauss-Newton): it
+        # moves load off joints near their limit where the contacts allow it.
+        torque_weight = options.torque_weight if torque_weight is None else torque_weight
+        if torque_weight:
+            usage = tau[6:] / self.robot.effort_limits
+            d_usage = tau_jacobian[6:] / self.robot.effort_limits[:, None]
+            objective += 0.5 * torque_weight * float(usage @ usage)
+            gradient += torque_weight * (d_usage.T @ usage)
+            hessian += torque_weight * (d_usage.T @ d_usage)
         if self.n_variables:
             weights = options.force_weight * self.force_weights
             objective += 0.5 * float(lam @ (weights * lam))
@@ -384,6 +469,31 @@ class PostureProblem:
         step_upper[nv:] = np.inf
         return Linearization(
             objective, gradient, hessian, blocks, step_lower, step_upper, forces, tau
+        )
+
+    def _normal_load_block(self, forces, force_jacobian) -> ConstraintBlock:
+        """Each print's load along its normal, at least ``min_normal_force``.
+
+        Parameters
+        ----------
+        forces : (k, 3) float
+            Stacked contact forces on the robot, world, newtons.
+        force_jacobian : (3k, n) float
+            Their derivative in the step (dq, dlambda).
+        """
+        value, jacobian, labels = [], [], []
+        for contact, loads in zip(self.contacts, self.load_slices):
+            normals = contact.load_normals
+            rows = force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
+            for i, label in enumerate(contact.print_labels):
+                mine = contact.load_prints == i
+                value.append(float(np.einsum("pj,pj->", normals[mine], forces[loads][mine])))
+                jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
+                labels.append(f"normal load of {label}")
+        count = len(value)
+        return ConstraintBlock(
+            "normal load", np.array(value), np.array(jacobian), np.full(count, self.options.min_normal_force),
+            np.full(count, np.inf), 1.0, tuple(labels),
         )
 
     def _collision_block(self, q) -> ConstraintBlock:

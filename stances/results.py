@@ -124,6 +124,11 @@ class PostureResult:
     verification : Verification or None
     statistics : dict
         Per-solve counters (time spent in FEM terms, QP time, ...).
+    limits : dict
+        How close the posture comes to the robot's limits: largest torque
+        usage and its joint, smallest joint clearance and its joint, and the
+        joints the stance needs on their margin (see
+        :meth:`stances.problem.PostureProblem.limit_usage`).
     """
 
     feasible: bool
@@ -137,6 +142,7 @@ class PostureResult:
     deformations: dict = field(default_factory=dict)
     verification: Verification | None = None
     statistics: dict = field(default_factory=dict)
+    limits: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", _readonly(self.q))
@@ -174,6 +180,7 @@ class PostureResult:
             stance=Stance.from_dict(data["stance"]) if data.get("stance") is not None else None,
             deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
             statistics=dict(data.get("statistics", {})),
+            limits=dict(data.get("limits", {})),
         )
 
     def to_dict(self) -> dict:
@@ -189,4 +196,5 @@ class PostureResult:
             "stance": self.stance.to_dict() if hasattr(self.stance, "to_dict") else None,
             "deformations": {k: np.asarray(v).tolist() for k, v in self.deformations.items()},
             "statistics": dict(self.statistics),
+            "limits": dict(self.limits),
         }

@@ -43,6 +43,7 @@ _WARM_QP_ITERATIONS = 60
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _RESTORATION_PENALTY = 1e6
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
+_USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage enters the objective
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 
@@ -199,7 +200,11 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     stalled = 0
     history = []
     status = "iteration limit"
-    linearization = problem.linearize(q, lam)
+    # Far from feasible the torque-usage term steers steps into poor basins (the
+    # soles of step-on-cube crossed); it joins the objective once the
+    # iterate is near feasible, and stays.
+    torque_weight = 0.0
+    linearization = problem.linearize(q, lam, torque_weight)
     iteration = 0
     qp_time = 0.0
     limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
@@ -208,6 +213,9 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
             status, iteration = _OUT_OF_TIME, iteration - 1
             break
         violation, _ = linearization.max_violation()
+        if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
+            torque_weight = options.torque_weight
+            linearization = problem.linearize(q, lam, torque_weight)
         merit = linearization.objective + penalty * violation
         matrices = _qp_matrices(linearization, penalty)
         tic = time.perf_counter()
@@ -238,7 +246,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         while alpha >= 1e-3:
             q_try = pin.integrate(model, q, alpha * step[:nv])
             lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
-            trial = problem.linearize(q_try, lam_try)
+            trial = problem.linearize(q_try, lam_try, torque_weight)
             trial_violation, _ = trial.max_violation()
             trial_merit = trial.objective + penalty * trial_violation
             if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0):
@@ -259,7 +267,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         # step to the linearised constraints, stays within the current piece and
         # brings feasibility back quadratically.
         if violation > tolerance and (accepted is None or alpha < 0.1):
-            restored = _restoration(problem, linearization, q, lam, restoration)
+            restored = _restoration(problem, linearization, q, lam, restoration, torque_weight)
             # Taken when it does better on feasibility than the crawling step.
             needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
@@ -332,6 +340,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         reason=reason,
         stance=problem.stance,
         deformations=deformations,
+        limits=problem.limit_usage(q, linearization.torques[6:]),
         statistics={
             "status": status, "qp_time": qp_time, "penalty": penalty, "lambda": lam.tolist(), "violation": violation,
         },
@@ -346,7 +355,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     return result
 
 
-def _restoration(problem, linearization, q, lam, workspace):
+def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     """The shortest step onto the linearised constraints, taken whole, or None.
 
     Returns
@@ -366,7 +375,7 @@ def _restoration(problem, linearization, q, lam, workspace):
     nv = problem.robot.model.nv
     q_new = pin.integrate(problem.robot.model, q, x[:nv])
     lam_new = np.maximum(lam + x[nv:-1], problem.variable_lower)
-    return q_new, lam_new, problem.linearize(q_new, lam_new)
+    return q_new, lam_new, problem.linearize(q_new, lam_new, torque_weight)
 
 
 def _field_producer(contact, model, q, forces):

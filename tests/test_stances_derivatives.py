@@ -96,7 +96,7 @@ def linearised_problems(robot):
     for label, scenario, stance_name, options in _problems(robot):
         stance = scenario.stance(stance_name)
         warm = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
-        problem = build_problem(robot, scenario.scene, stance, PostureOptions(**options))
+        problem = build_problem(robot, scenario.scene, stance, PostureOptions(min_normal_force=5.0, **options))
         for contact in problem.contacts:
             if contact.kind == "deformable":
                 # A tiny bound activates the strain rows, so they are checked too.
@@ -148,7 +148,7 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             size = max(np.abs(analytic).max(), 1e-8)
             error = np.abs(numeric[r, known] - analytic[known]).max()
             assert error <= 2e-5 * size, f"{label}: {key} off by {error:.3g} (row size {size:.3g})"
-    assert {"placement", "touch", "node contact", "indentation", "strain", "equilibrium", "torque limit"} <= names
+    assert {"placement", "touch", "node contact", "indentation", "strain", "equilibrium", "torque limit", "normal load"} <= names
 
 
 def test_objective_gradient_matches_finite_differences(linearised_problems):
@@ -162,6 +162,26 @@ def test_objective_gradient_matches_finite_differences(linearised_problems):
         numeric = _central_difference(objective, q, model, model.nv)[0]
         analytic = linearization.gradient[: model.nv]
         assert np.abs(numeric - analytic).max() <= 1e-5 * max(1.0, np.abs(analytic).max()), label
+        # In the force variables too: the torque-usage term depends on them.
+        numeric = np.array([
+            (problem.linearize(q, lam + e).objective - problem.linearize(q, lam - e).objective) / (2 * EPS)
+            for e in EPS * np.eye(problem.n_variables)
+        ])
+        analytic = linearization.gradient[model.nv:]
+        assert np.abs(numeric - analytic).max() <= 1e-5 * max(1.0, np.abs(analytic).max()), label
+
+
+def test_torque_usage_term_is_half_the_weighted_squared_usage(robot):
+    scenario = coarse_scenario("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    q = robot.reference_configuration
+    with_term = build_problem(robot, scenario.scene, stance, PostureOptions(torque_weight=0.5))
+    without = build_problem(robot, scenario.scene, stance, PostureOptions(torque_weight=0.0))
+    lam = with_term.initial_variables(q)
+    linearization = with_term.linearize(q, lam)
+    usage = linearization.torques[6:] / robot.effort_limits
+    expected = 0.25 * float(usage @ usage)
+    assert linearization.objective - without.linearize(q, lam).objective == pytest.approx(expected, rel=1e-12)
 
 
 def test_deformable_forces_derivative_includes_the_rotating_normals(linearised_problems):
