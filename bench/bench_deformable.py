@@ -8,7 +8,13 @@ one BLAS thread) of ``stances.solve`` with the default model (Coulomb contact at
 print node, rigid then bonded warm starts), the median of ``REPEATS`` solves after a first
 one that pays the setup (mesh, factorisation, print compliance); baselines in the same
 run: the same stance with the paper's bonded model (``contact_law="bonded"``) and with the
-soft supports held rigid (``deformable_as_rigid=True``). Each answer is verified
+soft supports held rigid (``deformable_as_rigid=True``). This process runs with the fem
+disk cache off (``SOFTCBM_CACHE=off``): these columns are the uncached baseline. The setup
+columns come from two fresh processes sharing a new, empty cache directory, each loading
+the scenario and solving twice: setup = load + first solve - second solve, CPU seconds;
+the first process fills the cache (no cache), the second reads it (disk cache), as a
+second ``cbm plan`` on the same scene would; then the size of the cache directory.
+Each answer is verified
 (``result.feasible`` includes :func:`stances.verify`, which loads the full FEM model with
 the reported forces and checks Signorini and Coulomb at every node).
 
@@ -21,14 +27,19 @@ from __future__ import annotations
 
 import datetime
 import os
+import shutil
 import statistics
+import subprocess
 import sys
+import tempfile
 import time
 
 # One BLAS thread, set before numpy loads: threaded OpenBLAS spins on the cores other
 # processes hold on this shared 2-core machine (see bench_posture.py).
 for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
+# The baseline columns measure the uncached body; the setup processes get their own cache.
+os.environ["SOFTCBM_CACHE"] = "off"
 
 import numpy as np  # noqa: E402
 
@@ -56,6 +67,38 @@ def timed_solve(robot, scene, stance, **options):
     return time.process_time() - tic, result
 
 
+SETUP_SCRIPT = """
+import sys, time
+sys.path.insert(0, {root!r})
+import environments, stances
+robot = stances.Robot.load("talos")
+tic = time.process_time()
+scenario = environments.load({name!r})
+stances.solve(robot, scenario.scene, scenario.stance({stance!r}))
+first = time.process_time() - tic
+tic = time.process_time()
+stances.solve(robot, scenario.scene, scenario.stance({stance!r}))
+print(first - (time.process_time() - tic))
+"""
+
+
+def setup_seconds(name, stance_name):
+    """Setup CPU seconds of two fresh processes sharing a new cache, and the cache's size in MB."""
+    directory = tempfile.mkdtemp(prefix="softcbm-bench-cache-")
+    environment = dict(os.environ, SOFTCBM_CACHE="on", SOFTCBM_CACHE_DIR=directory)
+    code = SETUP_SCRIPT.format(root=os.path.join(os.path.dirname(__file__), ".."), name=name, stance=stance_name)
+    try:
+        seconds = [
+            float(subprocess.run([sys.executable, "-c", code], env=environment, capture_output=True, text=True,
+                                 check=True).stdout.split()[-1])
+            for _ in range(2)
+        ]
+        size = sum(os.path.getsize(os.path.join(folder, f)) for folder, _, files in os.walk(directory) for f in files)
+    finally:
+        shutil.rmtree(directory, ignore_errors=True)
+    return seconds[0], seconds[1], size / 1e6
+
+
 def soft_forces(robot, result, scene):
     """Total force on the robot from the links touching a soft body, world frame, newtons."""
     soft = {name for name, surface in scene.surfaces.items() if surface.deformable}
@@ -64,9 +107,10 @@ def soft_forces(robot, result, scene):
 
 
 def stance_table(robot):
-    rows = ["| stance | soft bodies (nodes) | setup s | Coulomb s | iterations (+ warm starts) | verified | "
+    rows = ["| stance | soft bodies (nodes) | first solve s | setup s: no cache / disk cache (fresh processes) | "
+            "cache MB | Coulomb s | iterations (+ warm starts) | verified | "
             "bonded (paper) s | rigid support s | stick / slip / lift nodes |",
-            "|---|---|---|---|---|---|---|---|---|"]
+            "|---|---|---|---|---|---|---|---|---|---|---|"]
     for name, stance_name in STANCES:
         scenario = environments.load(name)
         stance = scenario.stance(stance_name)
@@ -83,8 +127,10 @@ def stance_table(robot):
         )
         result = results[-1]
         modes = _mode_counts(robot, scenario, stance, result)
+        uncached, cached, megabytes = setup_seconds(name, stance_name)
         rows.append(
-            f"| {name}/{stance_name} | {nodes} | {setup:.2f} | {statistics.median(times):.2f} | "
+            f"| {name}/{stance_name} | {nodes} | {setup:.2f} | {uncached:.2f} / {cached:.2f} | {megabytes:.0f} | "
+            f"{statistics.median(times):.2f} | "
             f"{result.iterations} (+{result.statistics.get('rigid_warm_start_iterations', 0)}) | "
             f"{'yes' if result.feasible else 'no: ' + result.reason[:60]} | {bonded:.2f} | {rigid:.2f} | {modes} |"
         )

@@ -10,6 +10,7 @@ the print displacements, with an exact, cached Jacobian.
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
 from .contact import LIFT, SLIP, STICK, PrintContact, print_contact_with_modes, solve_print_contact
 from .body import DeformableBody, voigt_to_tensor_strain, von_mises
+from .cache import DiskCache
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh
 from .material import LinearElasticMaterial
@@ -39,6 +40,7 @@ __all__ = [
     "element_stiffness_matrices",
     "assemble_stiffness",
     "DeformableBody",
+    "DiskCache",
     "ContactPatch",
     "von_mises",
     "voigt_to_tensor_strain",

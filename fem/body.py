@@ -5,27 +5,35 @@ from __future__ import annotations
 import logging
 import os
 import warnings
+from collections import OrderedDict
 from functools import cached_property
 
 import numpy as np
 import scipy.sparse as sp
 
 from .assembly import assemble_stiffness, element_strain_matrices
+from .cache import DiskCache, cache_digest, default_cache
 from .errors import BoundaryError, FemError, FemWarning
 from .io import write_mesh
 from .material import LinearElasticMaterial
 from .mesh import TetMesh
 from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
-from .solvers import SOLVERS, Factorization, factorize
+from .solvers import SOLVERS, Factorization, factorize, resolve_solver
 
 __all__ = ["DeformableBody", "von_mises", "voigt_to_tensor_strain"]
 
 logger = logging.getLogger(__name__)
 
-# Number of right-hand sides solved at once when filling the compliance cache:
-# bounds the (free dofs x block) dense workspace to a few hundred MB at 50k nodes.
-_SOLVE_BLOCK = 192
+# Full compliance columns kept in memory (3N x 3 floats per node: 0.9 MB at 13k
+# nodes, so about 280 nodes, a dozen palm prints); older ones are dropped and read
+# back from the disk cache, or solved again, when asked for.
+_COLUMN_MEMORY_BYTES = 256 * 2**20
+
+# Loads on at most this many nodes are applied through the nodes' compliance
+# columns (a product, after 3 solves per node that prints have usually paid and the
+# disk cache keeps); more nodes take one sparse solve with the factorisation.
+_COLUMN_LOAD_LIMIT = 256
 
 
 def von_mises(stress: np.ndarray) -> np.ndarray:
@@ -76,6 +84,13 @@ class DeformableBody:
     identity), so a print costs a few solves, or nothing but a sub-block and a small
     dense inverse after :meth:`precompute_surface_compliance`.
 
+    The compliance columns of each node a print uses (three solves, one per axis) are
+    kept, in memory and in a disk cache (:mod:`fem.cache`) shared by every process
+    working on the same body, together with the assembled stiffness; a body met
+    again needs neither assembly nor factorisation for those nodes. Each node's
+    columns come from their own solve, so cached and freshly solved values are the
+    same bits.
+
     Parameters
     ----------
     mesh : TetMesh
@@ -86,6 +101,10 @@ class DeformableBody:
     solver : {"auto", "cholmod", "scipy"}, optional
         Sparse factorisation of K_NN; ``"auto"`` prefers CHOLMOD (cvxopt) and falls
         back to scipy's SuperLU.
+    cache : bool or DiskCache, optional
+        Disk cache of the stiffness and compliance columns: True (default) for
+        :func:`fem.cache.default_cache` (``$SOFTCBM_CACHE_DIR`` or ``~/.cache/softcbm``,
+        ``SOFTCBM_CACHE=off`` turns it off), False for none, or a given cache.
 
     Raises
     ------
@@ -120,6 +139,7 @@ class DeformableBody:
         material: LinearElasticMaterial,
         fixed_nodes: np.ndarray,
         solver: str = "auto",
+        cache: bool | DiskCache = True,
     ) -> None:
         if not isinstance(mesh, TetMesh):
             raise FemError(f"mesh must be a TetMesh, got {type(mesh).__name__}")
@@ -127,6 +147,13 @@ class DeformableBody:
             raise FemError(f"material must be a LinearElasticMaterial, got {type(material).__name__}")
         if solver not in SOLVERS:
             raise FemError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+        if cache is True:
+            cache = default_cache()
+        elif cache is False:
+            cache = None
+        elif not isinstance(cache, DiskCache):
+            raise FemError(f"cache must be True, False or a fem.cache.DiskCache, got {type(cache).__name__}")
+        self._disk_cache = cache
         self._mesh = mesh
         self._material = material
         self._solver = solver
@@ -147,6 +174,8 @@ class DeformableBody:
         self._cache_rows = np.full(mesh.n_nodes, -1, dtype=np.int64)
         self._cache: np.ndarray | None = None
         self._patches: dict[bytes, ContactPatch] = {}
+        # Full compliance columns per node, least recently used first.
+        self._columns: OrderedDict[int, np.ndarray] = OrderedDict()
 
     @staticmethod
     def _check_fixed(mesh: TetMesh, fixed_nodes) -> np.ndarray:
@@ -193,10 +222,56 @@ class DeformableBody:
         """(3N - 3k,) int sorted dofs ``3 * node + axis`` of the non-fixed nodes."""
         return self._free_dofs
 
+    @property
+    def disk_cache(self) -> DiskCache | None:
+        """The disk cache of this body's stiffness and compliance columns, or None."""
+        return self._disk_cache
+
+    @cached_property
+    def cache_key(self) -> str:
+        """Digest of everything the cached values depend on (see :func:`fem.cache.cache_digest`).
+
+        Mesh arrays, elasticity matrix, fixed nodes and the factorisation in use.
+        """
+        return cache_digest(
+            {
+                "nodes": self._mesh.nodes,
+                "tets": self._mesh.tets,
+                "elasticity": self._material.voigt_matrix,
+                "fixed": self._fixed,
+            },
+            {"solver": resolve_solver(self._solver)},
+        )
+
+    def _load_entry(self, name: str) -> dict[str, np.ndarray] | None:
+        if self._disk_cache is None:
+            return None
+        return self._disk_cache.load(self.cache_key, name)
+
+    def _store_entry(self, name: str, arrays: dict[str, np.ndarray]) -> None:
+        if self._disk_cache is not None:
+            self._disk_cache.store(self.cache_key, name, arrays)
+
     @cached_property
     def stiffness(self) -> sp.csr_matrix:
-        """Unconstrained stiffness K, (3N, 3N) csr, N/m (eq. 17)."""
-        return assemble_stiffness(self._mesh, self._material)
+        """Unconstrained stiffness K, (3N, 3N) csr, N/m (eq. 17); read from the disk cache if there."""
+        n = self._mesh.n_dofs
+        entry = self._load_entry("stiffness")
+        if entry is not None:
+            data, indices, indptr = entry["data"], entry["indices"], entry["indptr"]
+            # The digest names the inputs; the shapes guard against an entry that
+            # passed its checks but does not describe a (3N, 3N) matrix.
+            if (
+                data.dtype == np.float64
+                and indptr.shape == (n + 1,)
+                and data.shape == indices.shape == (int(indptr[-1]),)
+                and (indices.size == 0 or (0 <= indices.min() and indices.max() < n))
+            ):
+                # Writable copies: scipy may sort or sum entries in place.
+                return sp.csr_matrix((data.copy(), indices.copy(), indptr.copy()), shape=(n, n))
+        k = assemble_stiffness(self._mesh, self._material)
+        self._store_entry("stiffness", {"data": k.data, "indices": k.indices, "indptr": k.indptr})
+        return k
 
     @cached_property
     def _strain_matrices(self) -> np.ndarray:
@@ -227,6 +302,62 @@ class DeformableBody:
     def _node_ids(self, node_ids, name: str = "node_ids") -> np.ndarray:
         return check_node_ids(node_ids, self._mesh.n_nodes, name, FemError)
 
+    def _check_free(self, ids: np.ndarray) -> None:
+        if self._fixed_mask[ids].any():
+            bad = ids[self._fixed_mask[ids]][0]
+            raise BoundaryError(f"node {bad} is fixed: it has no compliance")
+
+    def _solve_node_columns(self, node: int) -> np.ndarray:
+        """The 3 compliance columns of one node from one solve with 3 right-hand sides.
+
+        One node per solve, whatever the caller asks for: the values then do not
+        depend on which other nodes are solved with them (SuperLU rounds a block of
+        right-hand sides differently from its columns one by one), so columns read
+        from the disk cache are the bits a fresh solve gives.
+        """
+        dofs = 3 * node + np.arange(3)
+        rhs = np.zeros((self._free_dofs.size, 3))
+        rhs[self._free_index[dofs], np.arange(3)] = 1.0
+        out = np.zeros((self._mesh.n_dofs, 3))
+        out[self._free_dofs] = self.factorization.solve(rhs)
+        return out
+
+    def _node_columns(self, ids: np.ndarray) -> list[np.ndarray]:
+        """Full compliance columns ``C[:, dofs(node)]``, (3N, 3) read-only, of free nodes.
+
+        From memory, else the disk cache, else solved (and then stored in both).
+        """
+        found: list[np.ndarray | None] = [None] * ids.size
+        for i, node in enumerate(ids.tolist()):
+            if node in self._columns:
+                self._columns.move_to_end(node)
+                found[i] = self._columns[node]
+        for i, node in enumerate(ids.tolist()):
+            if found[i] is not None:
+                continue
+            entry = self._load_entry(f"columns-{node}")
+            columns = None if entry is None else entry["columns"]
+            # The digest names the inputs; the checks guard against an entry that
+            # passed them but is not a node's columns.
+            if columns is not None and not (
+                columns.shape == (self._mesh.n_dofs, 3)
+                and columns.dtype == np.float64
+                and int(entry["node"]) == node
+            ):
+                columns = None
+            if columns is None:
+                columns = self._solve_node_columns(node)
+                self._store_entry(f"columns-{node}", {"columns": columns, "node": np.int64(node)})
+            columns.setflags(write=False)
+            found[i] = columns
+            self._remember_columns(node, columns)
+        return found
+
+    def _remember_columns(self, node: int, columns: np.ndarray) -> None:
+        self._columns[node] = columns
+        while len(self._columns) > 1 and len(self._columns) * columns.nbytes > _COLUMN_MEMORY_BYTES:
+            self._columns.popitem(last=False)
+
     def compliance_columns(self, node_ids) -> np.ndarray:
         """Columns of the compliance for the dofs of some free nodes.
 
@@ -243,24 +374,19 @@ class DeformableBody:
             force on axis a of node ``node_ids[i]`` (others loaded by nothing).
         """
         ids = self._node_ids(node_ids)
-        if self._fixed_mask[ids].any():
-            bad = ids[self._fixed_mask[ids]][0]
-            raise BoundaryError(f"node {bad} is fixed: it has no compliance")
-        dofs = (3 * ids[:, None] + np.arange(3)).ravel()
-        out = np.zeros((self._mesh.n_dofs, dofs.size))
-        for start in range(0, dofs.size, _SOLVE_BLOCK):
-            cols = dofs[start : start + _SOLVE_BLOCK]
-            rhs = np.zeros((self._free_dofs.size, cols.size))
-            rhs[self._free_index[cols], np.arange(cols.size)] = 1.0
-            out[self._free_dofs, start : start + cols.size] = self.factorization.solve(rhs)
-        return out
+        self._check_free(ids)
+        if ids.size == 0:
+            return np.zeros((self._mesh.n_dofs, 0))
+        return np.hstack(self._node_columns(ids))
 
     def precompute_surface_compliance(self, node_ids=None) -> None:
         """Cache the compliance of a surface region so later prints there cost ~no solve.
 
-        Stores ``C[Q, S]`` where S are the given nodes and Q the nodes of every tet
-        touching S; then :meth:`compliance` and the traction method of any print inside
-        S are sub-block look-ups. Costs ``3 |S|`` solves once.
+        Stores ``C[Q, S]`` in memory, where S are the given nodes and Q the nodes of
+        every tet touching S; then :meth:`compliance` and the traction method of any
+        print inside S are sub-block look-ups. Costs ``3 |S|`` solves once (0.1 s
+        per node on a 13k-node body); prints alone fill the disk cache lazily,
+        only with the nodes they use.
 
         Parameters
         ----------
@@ -275,9 +401,12 @@ class DeformableBody:
             ids = ids[~self._fixed_mask[ids]]
         touching = self._mesh.tets[np.isin(self._mesh.tets, ids).any(axis=1)]
         rows = np.unique(np.concatenate([ids, touching.ravel()]))
-        columns = self.compliance_columns(ids)
         row_dofs = (3 * rows[:, None] + np.arange(3)).ravel()
-        self._cache = columns[row_dofs]
+        # Solved node by node without keeping full columns: only the Q rows stay.
+        cache = np.empty((row_dofs.size, 3 * ids.size))
+        for i, node in enumerate(ids.tolist()):
+            cache[:, 3 * i : 3 * i + 3] = self._solve_node_columns(node)[row_dofs]
+        self._cache = cache
         self._cache_cols[:] = -1
         self._cache_cols[ids] = np.arange(ids.size)
         self._cache_rows[:] = -1
@@ -288,7 +417,7 @@ class DeformableBody:
         """Block ``C[dofs(row_nodes), dofs(col_nodes)]`` of the padded compliance, m/N.
 
         Uses the cache of :meth:`precompute_surface_compliance` when it covers the
-        block, otherwise solves for the columns.
+        block, otherwise the nodes' columns (memory, disk cache, or solves).
 
         Parameters
         ----------
@@ -305,8 +434,12 @@ class DeformableBody:
             r = (3 * self._cache_rows[rows][:, None] + np.arange(3)).ravel()
             c = (3 * self._cache_cols[cols][:, None] + np.arange(3)).ravel()
             return self._cache[np.ix_(r, c)]
+        self._check_free(cols)
         row_dofs = (3 * rows[:, None] + np.arange(3)).ravel()
-        return self.compliance_columns(cols)[row_dofs]
+        block = np.empty((row_dofs.size, 3 * cols.size))
+        for i, columns in enumerate(self._node_columns(cols)):
+            block[:, 3 * i : 3 * i + 3] = columns[row_dofs]
+        return block
 
     def compliance(self, node_ids) -> np.ndarray:
         """Compliance block ``[K_NN^-1]_PP`` of some free nodes.
@@ -368,7 +501,11 @@ class DeformableBody:
         """Displacement of every node under point loads, from one sparse solve.
 
         This is the full finite-element system, not a condensed one: it is the
-        independent check of any print model built on the compliance.
+        independent check of any print model built on the compliance. Loads on up
+        to 256 nodes are superposed from the nodes' full compliance columns (each
+        the exact solution of the full system under a unit load; read from the disk
+        cache when there, so a body met again needs no factorisation); more nodes
+        take one sparse solve.
 
         Parameters
         ----------
@@ -387,9 +524,16 @@ class DeformableBody:
         loads = np.asarray(forces, dtype=float)
         if loads.shape != (ids.size, 3) or not np.all(np.isfinite(loads)):
             raise FemError(f"forces must be a finite ({ids.size}, 3) array (one row per node), got shape {loads.shape}")
+        u = np.zeros(self._mesh.n_dofs)
+        if ids.size <= _COLUMN_LOAD_LIMIT:
+            # Elementwise sums in a fixed order (no BLAS reduction), so the field is
+            # the same bits whichever path gave the columns.
+            for columns, load in zip(self._node_columns(ids), loads):
+                for axis in range(3):
+                    u += columns[:, axis] * load[axis]
+            return u.reshape(-1, 3)
         rhs = np.zeros(self._mesh.n_dofs)
         rhs[(3 * ids[:, None] + np.arange(3)).ravel()] = loads.ravel()
-        u = np.zeros(self._mesh.n_dofs)
         u[self._free_dofs] = self.factorization.solve(rhs[self._free_dofs])
         return u.reshape(-1, 3)
 

@@ -175,7 +175,15 @@ class TetMesh:
     def _surface(self) -> tuple[np.ndarray, np.ndarray]:
         faces = self.tets[:, _OUTWARD_FACES].reshape(-1, 3)
         keys = np.sort(faces, axis=1)
-        _, index, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
+        n = self.n_nodes
+        if n < 2_000_000:
+            # One integer per sorted face (a <= b <= c < n, so a n^2 + b n + c keeps
+            # the rows' lexicographic order and fits in int64): a 1-D unique is
+            # about 5x faster than one over rows, with the same first indices.
+            keys = (keys[:, 0] * n + keys[:, 1]) * n + keys[:, 2]
+            _, index, counts = np.unique(keys, return_index=True, return_counts=True)
+        else:
+            _, index, counts = np.unique(keys, axis=0, return_index=True, return_counts=True)
         if (counts > 2).any():
             bad = index[np.flatnonzero(counts > 2)[0]]
             raise MeshError(

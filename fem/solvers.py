@@ -11,7 +11,14 @@ import scipy.sparse.linalg as spla
 
 from .errors import SolverError
 
-__all__ = ["Factorization", "CholmodFactorization", "ScipyFactorization", "factorize", "available_solvers"]
+__all__ = [
+    "Factorization",
+    "CholmodFactorization",
+    "ScipyFactorization",
+    "factorize",
+    "available_solvers",
+    "resolve_solver",
+]
 
 logger = logging.getLogger(__name__)
 
@@ -130,6 +137,19 @@ class ScipyFactorization(Factorization):
         return x.reshape(rhs.shape)
 
 
+def resolve_solver(solver: str) -> str:
+    """The factorisation a solver name stands for here (``"auto"``: the fastest available).
+
+    Raises
+    ------
+    SolverError
+        If the name is unknown.
+    """
+    if solver not in SOLVERS:
+        raise SolverError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
+    return available_solvers()[0] if solver == "auto" else solver
+
+
 def factorize(matrix: sp.spmatrix, solver: str = "auto", ordering: np.ndarray | None = None) -> Factorization:
     """Factorise a sparse symmetric positive definite matrix.
 
@@ -153,10 +173,7 @@ def factorize(matrix: sp.spmatrix, solver: str = "auto", ordering: np.ndarray | 
         If the solver name is unknown, CHOLMOD is requested but missing, or the
         matrix is not positive definite.
     """
-    if solver not in SOLVERS:
-        raise SolverError(f"unknown solver {solver!r}; choose one of {SOLVERS}")
-    if solver == "auto":
-        solver = available_solvers()[0]
+    solver = resolve_solver(solver)
     if solver == "cholmod":
         if _cholmod() is None:
             raise SolverError("solver='cholmod' needs cvxopt (pip install cvxopt); or use solver='scipy'")

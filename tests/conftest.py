@@ -3,11 +3,33 @@
 from __future__ import annotations
 
 import functools
+import os
+import shutil
+import tempfile
 
 import pytest
 
 import environments
 from stances import Robot
+
+
+_CACHE_DIRECTORY = None
+
+
+def pytest_configure(config):
+    """Point the fem disk cache at a fresh directory for this run (inherited by subprocesses).
+
+    So tests never read or fill the user's cache, and run as on a fresh machine.
+    """
+    global _CACHE_DIRECTORY
+    _CACHE_DIRECTORY = tempfile.mkdtemp(prefix="softcbm-test-cache-")
+    os.environ["SOFTCBM_CACHE_DIR"] = _CACHE_DIRECTORY
+
+
+def pytest_unconfigure(config):
+    """Remove this run's cache directory."""
+    if _CACHE_DIRECTORY is not None:
+        shutil.rmtree(_CACHE_DIRECTORY, ignore_errors=True)
 
 
 @pytest.fixture(scope="session")

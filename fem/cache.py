@@ -1,0 +1,323 @@
+"""On-disk cache of what a body computes once: its stiffness and compliance columns.
+
+A CHOLMOD factor cannot be saved, but what the stance pipeline takes from it can:
+the compliance columns of the nodes prints use (three sparse solves per node, about
+0.1 s per node on the 13k-node cube) and the assembled stiffness (about 0.8 s there).
+A second process working on the same body reads them back instead of assembling,
+factorising and solving again.
+
+Entries are ``.npz`` files under ``<directory>/fem-v<FORMAT_VERSION>/<digest>/``, where
+the digest is a SHA-256 of everything the cached numbers depend on: node and tet
+arrays, elasticity matrix, fixed nodes, solver, the source of the fem modules that
+compute them, library versions and CPU model (a different BLAS kernel rounds
+differently, and a cached body must give the same bits as an uncached one). Each file
+repeats the full digest and its own name; a file that cannot be read, or whose
+record does not match, is ignored (and removed) and the value recomputed. Writes go
+to a temporary file renamed into place, so a reader never sees half an entry. The
+directory is kept under a size bound by removing the least recently used entries.
+
+Environment variables (read when a body is made):
+
+- ``SOFTCBM_CACHE_DIR``: the cache directory (default ``$XDG_CACHE_HOME/softcbm``,
+  else ``~/.cache/softcbm``);
+- ``SOFTCBM_CACHE``: ``off`` (or ``0``, ``false``, ``no``) disables the disk cache;
+- ``SOFTCBM_CACHE_MAX_MB``: size bound in megabytes (default 2048).
+"""
+
+from __future__ import annotations
+
+import functools
+import hashlib
+import json
+import logging
+import os
+import platform
+import tempfile
+from pathlib import Path
+
+import numpy as np
+
+from .errors import FemError
+
+__all__ = ["DiskCache", "default_cache", "default_cache_directory", "cache_digest", "FORMAT_VERSION"]
+
+logger = logging.getLogger(__name__)
+
+# Bump when the layout of an entry changes; numerical changes are caught by the
+# source fingerprint in the digest.
+FORMAT_VERSION = 1
+
+DIRECTORY_VARIABLE = "SOFTCBM_CACHE_DIR"
+SWITCH_VARIABLE = "SOFTCBM_CACHE"
+SIZE_VARIABLE = "SOFTCBM_CACHE_MAX_MB"
+DEFAULT_MAX_MEGABYTES = 2048
+_OFF_VALUES = ("off", "0", "false", "no")
+
+# Modules whose code decides the cached numbers: assembly (stiffness), ordering and
+# solvers (the factor), body (how columns are solved), this one (entry layout).
+_SOURCES = ("assembly.py", "ordering.py", "solvers.py", "body.py", "cache.py")
+
+# After eviction the cache holds at most this fraction of its bound, so that a run
+# adding entries one by one does not rescan the directory at each of them.
+_EVICT_TO = 0.8
+
+
+def default_cache_directory() -> Path:
+    """The cache directory: ``$SOFTCBM_CACHE_DIR``, else the user's cache directory."""
+    configured = os.environ.get(DIRECTORY_VARIABLE)
+    if configured:
+        return Path(configured).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "softcbm"
+
+
+def default_cache() -> DiskCache | None:
+    """The cache bodies use by default, from the environment; None when turned off.
+
+    Returns
+    -------
+    DiskCache or None
+        One shared instance per (directory, bound), so that bodies of one process
+        share its running size count.
+    """
+    if os.environ.get(SWITCH_VARIABLE, "").strip().lower() in _OFF_VALUES:
+        return None
+    text = os.environ.get(SIZE_VARIABLE, "").strip()
+    try:
+        megabytes = float(text) if text else float(DEFAULT_MAX_MEGABYTES)
+    except ValueError:
+        megabytes = float("nan")  # reported just below
+    if not megabytes > 0.0:
+        logger.warning("%s=%r is not a positive number of megabytes; using %d", SIZE_VARIABLE, text, DEFAULT_MAX_MEGABYTES)
+        megabytes = float(DEFAULT_MAX_MEGABYTES)
+    return _shared_cache(str(default_cache_directory()), int(megabytes * 2**20))
+
+
+@functools.lru_cache(maxsize=None)
+def _shared_cache(directory: str, max_bytes: int) -> DiskCache:
+    return DiskCache(directory, max_bytes)
+
+
+@functools.lru_cache(maxsize=None)
+def _environment_fingerprint() -> dict:
+    """What, besides a body's arrays, decides the bits of its cached values."""
+    import scipy
+
+    sources = hashlib.sha256()
+    here = Path(__file__).parent
+    for name in _SOURCES:
+        sources.update(name.encode())
+        sources.update((here / name).read_bytes())
+    try:
+        from importlib.metadata import version
+
+        cvxopt_version = version("cvxopt")
+    except Exception:  # noqa: BLE001 - absent or unreadable: recorded as such
+        cvxopt_version = "none"
+    cpu = platform.processor()
+    try:
+        with open("/proc/cpuinfo") as handle:
+            cpu = next((line.split(":", 1)[1].strip() for line in handle if line.startswith("model name")), cpu)
+    except OSError:
+        pass
+    return {
+        "format": FORMAT_VERSION,
+        "sources": sources.hexdigest(),
+        "numpy": np.__version__,
+        "scipy": scipy.__version__,
+        "cvxopt": cvxopt_version,
+        "machine": platform.machine(),
+        "cpu": cpu,
+    }
+
+
+def cache_digest(arrays: dict, values: dict) -> str:
+    """SHA-256 of a body's inputs and of the code and libraries that compute from them.
+
+    Parameters
+    ----------
+    arrays : dict of str to ndarray
+        Input arrays (nodes, tets, ...); dtype, shape and bytes all enter the digest.
+    values : dict of str to JSON-serialisable
+        Other inputs (e.g. the solver name).
+
+    Returns
+    -------
+    str
+        64 hexadecimal digits.
+    """
+    digest = hashlib.sha256()
+    digest.update(json.dumps({"values": values, "environment": _environment_fingerprint()}, sort_keys=True).encode())
+    for name in sorted(arrays):
+        array = np.ascontiguousarray(arrays[name])
+        digest.update(f"{name}:{array.dtype.str}:{array.shape}".encode())
+        digest.update(array.tobytes())
+    return digest.hexdigest()
+
+
+class DiskCache:
+    """A directory of ``.npz`` entries, each keyed by a digest and a name.
+
+    Never raises on a bad or missing entry or an unwritable directory: loading then
+    returns None and storing does nothing (logged), so a caller recomputes.
+
+    Parameters
+    ----------
+    directory : str or path-like
+        Root directory; entries go under ``fem-v<FORMAT_VERSION>/`` inside it.
+    max_bytes : int, optional
+        Size bound of that subdirectory; least recently used entries are removed
+        beyond it. Default 2 GiB.
+
+    Raises
+    ------
+    FemError
+        If ``max_bytes`` is not a positive integer.
+
+    Examples
+    --------
+    >>> import tempfile, numpy as np
+    >>> cache = DiskCache(tempfile.mkdtemp())
+    >>> cache.store("0" * 64, "example", {"x": np.arange(3.0)})
+    >>> cache.load("0" * 64, "example")["x"]
+    array([0., 1., 2.])
+    >>> cache.load("1" * 64, "example") is None      # another body: a miss
+    True
+    """
+
+    def __init__(self, directory, max_bytes: int = DEFAULT_MAX_MEGABYTES * 2**20) -> None:
+        if not (isinstance(max_bytes, (int, np.integer)) and max_bytes > 0):
+            raise FemError(f"max_bytes must be a positive integer, got {max_bytes!r}")
+        self._root = Path(directory).expanduser() / f"fem-v{FORMAT_VERSION}"
+        self._max_bytes = int(max_bytes)
+        self._size: int | None = None  # running total since the last scan
+        self._warned = False
+
+    @property
+    def directory(self) -> Path:
+        """The directory holding this format's entries."""
+        return self._root
+
+    def path(self, digest: str, name: str) -> Path:
+        """File of an entry."""
+        return self._root / digest / f"{name}.npz"
+
+    def load(self, digest: str, name: str) -> dict[str, np.ndarray] | None:
+        """Arrays of an entry, or None if absent, unreadable or not this entry's.
+
+        Parameters
+        ----------
+        digest : str
+            The digest of the entry's inputs (:func:`cache_digest`).
+        name : str
+            The entry's name within them.
+
+        Returns
+        -------
+        dict of str to read-only ndarray, or None
+        """
+        path = self.path(digest, name)
+        try:
+            with np.load(path, allow_pickle=False) as archive:
+                record = json.loads(str(archive["record"][()]))
+                if record != self._record(digest, name):
+                    logger.info("ignoring cache entry %s: written for other inputs", path)
+                    return None
+                # Reading each array to its end makes zipfile check its CRC-32.
+                arrays = {key: archive[key] for key in archive.files if key != "record"}
+        except FileNotFoundError:
+            return None
+        except Exception as error:  # noqa: BLE001 - any failure to read means: recompute
+            logger.warning("ignoring unreadable cache entry %s (%s: %s)", path, type(error).__name__, error)
+            self._remove(path)
+            return None
+        try:
+            os.utime(path)  # its age is what eviction goes by: mark it used
+        except OSError:
+            pass
+        for array in arrays.values():
+            array.setflags(write=False)
+        return arrays
+
+    def store(self, digest: str, name: str, arrays: dict[str, np.ndarray]) -> None:
+        """Write an entry atomically (temporary file, then rename); errors are logged.
+
+        Parameters
+        ----------
+        digest : str
+        name : str
+        arrays : dict of str to ndarray
+            Saved exactly (dtype, shape, bytes); no object arrays.
+        """
+        path = self.path(digest, name)
+        try:
+            path.parent.mkdir(parents=True, exist_ok=True)
+            handle, temporary = tempfile.mkstemp(prefix=".tmp-", suffix=".npz", dir=path.parent)
+            try:
+                with os.fdopen(handle, "wb") as stream:
+                    np.savez(stream, record=np.array(json.dumps(self._record(digest, name))), **arrays)
+                size = os.path.getsize(temporary)
+                os.replace(temporary, path)
+            except BaseException:
+                self._remove(Path(temporary))
+                raise
+        except OSError as error:
+            if not self._warned:
+                logger.warning("cannot write to the fem cache %s (%s); continuing without it", self._root, error)
+                self._warned = True
+            return
+        self._account(size)
+
+    @staticmethod
+    def _record(digest: str, name: str) -> dict:
+        return {"format": FORMAT_VERSION, "digest": digest, "name": name}
+
+    @staticmethod
+    def _remove(path: Path) -> None:
+        try:
+            path.unlink()
+        except OSError:
+            pass
+
+    def _entries(self) -> list[tuple[float, int, Path]]:
+        """(last use, size, path) of every file under the root, temporary ones included."""
+        entries = []
+        try:
+            bodies = list(os.scandir(self._root))
+        except OSError:
+            return entries
+        for body in bodies:
+            try:
+                files = list(os.scandir(body.path)) if body.is_dir() else []
+            except OSError:
+                continue
+            for entry in files:
+                try:
+                    status = entry.stat()
+                except OSError:  # removed meanwhile by another process
+                    continue
+                entries.append((status.st_mtime, status.st_size, Path(entry.path)))
+        return entries
+
+    def size(self) -> int:
+        """Bytes held in the cache directory now."""
+        return sum(size for _, size, _ in self._entries())
+
+    def _account(self, added: int) -> None:
+        if self._size is None:
+            self._size = self.size()
+        else:
+            self._size += added
+        if self._size <= self._max_bytes:
+            return
+        entries = sorted(self._entries())
+        total = sum(size for _, size, _ in entries)
+        for _, size, path in entries:  # oldest first
+            if total <= _EVICT_TO * self._max_bytes:
+                break
+            self._remove(path)
+            total -= size
+        self._size = total
+
+    def __repr__(self) -> str:
+        return f"DiskCache({str(self._root.parent)!r}, max_bytes={self._max_bytes})"

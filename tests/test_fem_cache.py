@@ -1,0 +1,186 @@
+"""Disk cache of a body's stiffness and compliance columns: same bits, robust to bad entries."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from fem import DeformableBody, LinearElasticMaterial, box_mesh, nodes_in_polygon
+from fem.cache import DiskCache, default_cache
+
+MATERIAL = LinearElasticMaterial(1e6, 0.4, 1e3)
+SQUARE = [[0.3, 0.3, 1.0], [0.7, 0.3, 1.0], [0.7, 0.7, 1.0], [0.3, 0.7, 1.0]]
+
+
+@pytest.fixture
+def cache(tmp_path):
+    """A disk cache in a fresh temporary directory."""
+    return DiskCache(tmp_path / "cache")
+
+
+@pytest.fixture(scope="module")
+def mesh():
+    return box_mesh((1.0, 1.0, 1.0), (8, 8, 6))
+
+
+def make_body(mesh, cache, material=MATERIAL, solver="auto"):
+    return DeformableBody(mesh, material, mesh.nodes[:, 2] == 0.0, solver=solver, cache=cache)
+
+
+def outputs(body):
+    """Everything the stance pipeline takes from a body for one print, as exact bytes."""
+    patch = body.contact_patch(nodes_in_polygon(body.mesh, SQUARE))
+    displacements = np.tile([0.002, -0.001, -0.01], (patch.n_nodes, 1))
+    forces = patch.reaction_forces(displacements)
+    field = body.displacement_under_loads(patch.node_ids, -forces)
+    return {
+        "forces": forces.tobytes(),
+        "traction": patch.reaction_forces(displacements, method="traction").tobytes(),
+        "compliance": patch.compliance.tobytes(),
+        "strain_map": patch.strain_map.tobytes(),
+        "field": field.tobytes(),
+        "stiffness": (body.stiffness @ field.ravel()).tobytes(),
+    }
+
+
+@pytest.mark.parametrize("solver", ["cholmod", "scipy"])
+def test_a_cached_body_gives_the_same_bits_as_an_uncached_one(mesh, cache, solver):
+    if solver == "cholmod":
+        pytest.importorskip("cvxopt")
+    uncached = outputs(make_body(mesh, False, solver=solver))
+    first = outputs(make_body(mesh, cache, solver=solver))
+    warm = make_body(mesh, cache, solver=solver)
+    second = outputs(warm)
+    assert first == uncached
+    assert second == uncached
+    # Everything came from the disk: the warm body never factorised.
+    assert warm._factor is None
+
+
+def test_a_warm_body_reads_its_columns_instead_of_solving(mesh, cache):
+    ids = nodes_in_polygon(mesh, SQUARE)
+    make_body(mesh, cache).compliance_columns(ids)
+    names = sorted(path.name for path in cache.path(make_body(mesh, cache).cache_key, "x").parent.iterdir())
+    assert names == sorted([f"columns-{node}.npz" for node in ids] + ["stiffness.npz"])
+    warm = make_body(mesh, cache)
+    assert np.array_equal(warm.compliance_columns(ids), make_body(mesh, False).compliance_columns(ids))
+    assert warm._factor is None
+
+
+def _flip_bytes_inside(path):
+    """Invert 100 bytes near the end of the array data (before the zip directory)."""
+    data = bytearray(path.read_bytes())
+    data[-400:-300] = bytes(b ^ 0xFF for b in data[-400:-300])
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(
+    "damage",
+    [
+        pytest.param(lambda path: path.write_bytes(b""), id="empty"),
+        pytest.param(lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]), id="truncated"),
+        pytest.param(lambda path: path.write_bytes(b"not an npz file at all" * 100), id="garbage"),
+        pytest.param(_flip_bytes_inside, id="flipped-bytes"),
+    ],
+)
+def test_a_corrupt_cache_file_is_ignored_and_rebuilt(mesh, cache, damage):
+    expected = outputs(make_body(mesh, False))
+    outputs(make_body(mesh, cache))
+    directory = cache.path(make_body(mesh, cache).cache_key, "x").parent
+    for path in directory.iterdir():
+        damage(path)
+    body = make_body(mesh, cache)
+    assert outputs(body) == expected
+    # Rebuilt: a third body finds good entries again and does not factorise.
+    third = make_body(mesh, cache)
+    assert outputs(third) == expected
+    assert third._factor is None
+
+
+def test_an_entry_written_for_other_inputs_is_ignored(mesh, cache):
+    soft, stiff = make_body(mesh, cache), make_body(mesh, cache, LinearElasticMaterial(1e9, 0.3))
+    node = int(nodes_in_polygon(mesh, SQUARE)[0])
+    soft.compliance_columns([node])
+    # Plant the soft body's entry where the stiff body looks for its own.
+    source = cache.path(soft.cache_key, f"columns-{node}")
+    target = cache.path(stiff.cache_key, f"columns-{node}")
+    target.parent.mkdir(parents=True)
+    target.write_bytes(source.read_bytes())
+    assert cache.load(stiff.cache_key, f"columns-{node}") is None
+    assert np.array_equal(stiff.compliance_columns([node]), make_body(mesh, False, LinearElasticMaterial(1e9, 0.3)).compliance_columns([node]))
+
+
+def test_the_key_names_mesh_material_and_fixed_set(mesh):
+    key = make_body(mesh, False).cache_key
+    assert make_body(mesh, False).cache_key == key
+    assert make_body(mesh, False, LinearElasticMaterial(1e6, 0.3)).cache_key != key
+    assert make_body(mesh, False, LinearElasticMaterial(2e6, 0.4)).cache_key != key
+    other_fixed = DeformableBody(mesh, MATERIAL, mesh.nodes[:, 0] == 0.0, cache=False)
+    assert other_fixed.cache_key != key
+    moved = box_mesh((1.0, 1.0, 1.001), (8, 8, 6))
+    assert make_body(moved, False).cache_key != key
+
+
+def test_the_cache_stays_under_its_size_bound(mesh, tmp_path):
+    column_bytes = 3 * mesh.n_dofs * 8
+    small = DiskCache(tmp_path / "small", max_bytes=10 * column_bytes)
+    top = np.flatnonzero((mesh.nodes[:, 2] == 1.0))
+    make_body(mesh, small).compliance_columns(top[:30])
+    assert small.size() <= 10 * column_bytes
+    # The newest entries are the ones kept.
+    assert small.load(make_body(mesh, False).cache_key, f"columns-{top[29]}") is not None
+
+
+def test_an_unwritable_cache_directory_only_turns_the_cache_off(mesh, tmp_path):
+    blocker = tmp_path / "a-file"
+    blocker.write_text("a file where the cache directory should be")
+    body = make_body(mesh, DiskCache(blocker))
+    assert outputs(body) == outputs(make_body(mesh, False))
+
+
+def test_the_environment_sets_the_directory_or_turns_the_cache_off(mesh, tmp_path, monkeypatch):
+    monkeypatch.setenv("SOFTCBM_CACHE_DIR", str(tmp_path / "from-env"))
+    monkeypatch.delenv("SOFTCBM_CACHE", raising=False)
+    body = make_body(mesh, True)
+    assert body.disk_cache.directory.parent == tmp_path / "from-env"
+    monkeypatch.setenv("SOFTCBM_CACHE", "off")
+    assert default_cache() is None
+    assert make_body(mesh, True).disk_cache is None
+
+
+SCRIPT = """
+import sys, hashlib
+sys.path.insert(0, {tests!r})
+import numpy as np
+from conftest import coarse_scenario
+import stances
+robot = stances.Robot.load("talos")
+scenario = coarse_scenario("step-on-cube")
+result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"))
+forces = np.array([p.force for p in result.point_forces])
+factorised = any(o.body._factor is not None for o in scenario.scene.deformable_objects)
+print(result.feasible, result.iterations, factorised,
+      hashlib.sha1(np.asarray(result.q).tobytes() + forces.tobytes()).hexdigest())
+"""
+
+
+def test_a_soft_stance_is_the_same_without_cache_cold_and_warm(tmp_path):
+    code = SCRIPT.format(tests=os.path.dirname(__file__))
+
+    def run(**variables):
+        environment = dict(os.environ, SOFTCBM_CACHE_DIR=str(tmp_path / "cache"), **variables)
+        output = subprocess.run(
+            [sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300, env=environment
+        ).stdout.split()
+        return output[:2] + output[3:], output[2]
+
+    uncached, uncached_factorised = run(SOFTCBM_CACHE="off")
+    cold, cold_factorised = run(SOFTCBM_CACHE="on")
+    warm, warm_factorised = run(SOFTCBM_CACHE="on")
+    assert uncached[0] == "True"
+    assert uncached == cold == warm
+    assert (uncached_factorised, cold_factorised, warm_factorised) == ("True", "True", "False")
