@@ -75,6 +75,10 @@ def verify_problem(
 
     if not np.all(np.isfinite(q)):
         return Verification(False, ("q has non-finite entries",), {})
+    # Every check below compares with `>`, which a NaN passes: refuse them first.
+    for p in result.point_forces:
+        if not (np.all(np.isfinite(p.force)) and np.all(np.isfinite(p.point))):
+            return Verification(False, (f"a contact force on {p.frame} is not finite",), {})
     pin.framesForwardKinematics(model, data, q)
 
     # Joint limits.

@@ -457,3 +457,18 @@ def test_min_normal_force_makes_every_print_carry_it(robot):
         normal = scenario.scene.transform_print_to_world(contact.contact_print)[:3, 2]
         load = sum(p.force @ normal for p in result.forces_on(robot.surface(contact.robot_surface).frame))
         assert load >= 80.0 - 1e-5, contact.robot_surface
+
+
+def test_verify_rejects_rigid_contact_forces_that_are_not_finite(robot):
+    import dataclasses
+
+    from stances.results import PointForce
+
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    result = solve(robot, scenario.scene, stance)
+    assert verify(robot, scenario.scene, stance, result).ok
+    nan = tuple(PointForce(p.frame, p.point, np.full(3, np.nan)) for p in result.point_forces)
+    check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=nan))
+    assert not check.ok
+    assert check.reasons == (f"a contact force on {nan[0].frame} is not finite",)
