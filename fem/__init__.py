@@ -8,7 +8,7 @@ the print displacements, with an exact, cached Jacobian.
 """
 
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
-from .contact import LIFT, SLIP, STICK, PrintContact, print_contact_with_modes, solve_print_contact
+from .contact import LIFT, SLIP, STICK, PrintContact, PrintContactSystem, print_contact_with_modes, solve_print_contact
 from .body import DeformableBody, voigt_to_tensor_strain, von_mises
 from .cache import DiskCache
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
@@ -47,6 +47,7 @@ __all__ = [
     "nodes_in_polygon",
     "available_solvers",
     "PrintContact",
+    "PrintContactSystem",
     "solve_print_contact",
     "print_contact_with_modes",
     "STICK",

@@ -236,6 +236,7 @@ class DeformableContact:
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
         self._modes = None  # (modes, signs) of the last contact solve: its warm start
+        self._contact_system = None  # fem.PrintContactSystem, built on the first Coulomb solve
         self._frozen = None  # (modes, signs) held fixed by freeze_modes
         if options.max_indentation is not None:
             self.max_indentation = float(options.max_indentation)
@@ -309,13 +310,16 @@ class DeformableContact:
             # Contact is solved at U corrected by the rigid motion that W stands
             # for, U + G A^-1 (W - G^T R_c U): then f = L U~ = D W + (L - D G^T R_c) U
             # exactly, and stays continuous in (q, W) when the nodes change modes.
-            corrected = u + self.basis @ (self.a_inverse @ (w - self.generalised @ u))
-            arguments = (self.patch.compliance, corrected.reshape(-1, 3), self.node_frames, self.node_mu)
+            corrected = (u + self.basis @ (self.a_inverse @ (w - self.generalised @ u))).reshape(-1, 3)
+            if self._contact_system is None:
+                # It keeps the factorisation of each contact set it meets: the
+                # SQP holds a set or comes back to it at most linearisations.
+                self._contact_system = fem.PrintContactSystem(self.patch.compliance, self.node_frames, self.node_mu)
             if self._frozen is not None:
-                state = fem.print_contact_with_modes(*arguments, *self._frozen)
+                state = self._contact_system.with_modes(corrected, *self._frozen)
             else:
                 warm = (None, None) if self._modes is None else self._modes
-                state = fem.solve_print_contact(*arguments, initial_modes=warm[0], initial_signs=warm[1])
+                state = self._contact_system.solve(corrected, initial_modes=warm[0], initial_signs=warm[1])
                 self._modes = (state.modes, state.signs)
             # Only L applied to a few directions is needed, not L itself.
             applied = state.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))

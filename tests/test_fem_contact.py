@@ -168,3 +168,26 @@ def test_held_modes_give_linear_forces_and_say_when_they_no_longer_hold(pad):
     held = fem.print_contact_with_modes(patch.compliance, pulled, frames, mu, state.modes, state.signs)
     assert not held.admissible
     assert held.forces[:, 2].min() < 0.0  # held in contact, the nodes would pull
+
+
+def test_a_contact_system_reused_over_motions_gives_the_one_shot_answers(pad):
+    """PrintContactSystem keeps each contact set's factorisation: the answers are the
+    same bits as a fresh solve, whichever motions it met before."""
+    _, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    system = fem.PrintContactSystem(patch.compliance, frames, mu, kept=2)
+    centre = patch.points.mean(axis=0)
+    motions = [
+        _rigid_motion(patch.points, [0.0005 * k, -0.0003 * k, -0.004], [0.0, 0.01 * k, 0.0], centre) for k in range(4)
+    ]
+    for displacements in motions + motions[::-1]:
+        reused = system.solve(displacements)
+        fresh = fem.solve_print_contact(patch.compliance, displacements, frames, mu)
+        assert np.array_equal(reused.forces, fresh.forces) and np.array_equal(reused.modes, fresh.modes)
+        direction = np.random.default_rng(3).normal(size=(3 * patch.n_nodes, 2))
+        assert np.array_equal(reused.jacobian_dot(direction), fresh.jacobian_dot(direction))
+        held = system.with_modes(displacements, fresh.modes, fresh.signs)
+        assert held.admissible and np.array_equal(held.forces, reused.forces)
+    assert len(system._factors) <= 2
+    with pytest.raises(fem.FemError, match=r"displacements must have shape \(%d, 3\)" % patch.n_nodes):
+        system.solve(np.zeros((2, 3)))
