@@ -631,13 +631,19 @@ class CollisionChecker:
 
 
 def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, include_parent_joint=False):
-    """Exclusion entries for a robot link resting on a support by design.
+    """Exclusion entries for a robot surface resting on a support by design.
+
+    Only the surface's own contact geometry may touch the support (a palm's
+    plate, the foot whose bottom is the sole): every other geometry of the link,
+    such as the wrist above a palm plate, keeps its distance like any link.
 
     Parameters
     ----------
     robot : stances.Robot
     surface_or_frame : str
-        Robot surface name (``"left_sole"``) or pinocchio frame name.
+        Robot surface name (``"left_sole"``), its contact frame's name
+        (``"left_sole_contact"``), or another pinocchio frame name (then every
+        geometry on that frame's joint is excluded).
     object_name : str
         Scene object the surface touches, or ``"*"``.
     include_parent_joint : bool
@@ -647,8 +653,8 @@ def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, includ
     Returns
     -------
     list of (str, str)
-        ``(geometry_name, object_name)`` for every geometry rigidly attached to
-        the frame's joint (and its parent's), ready for ``exclude``.
+        ``(geometry_name, object_name)`` for the surface's contact geometries
+        (and the parent joint's), ready for ``exclude``.
 
     Raises
     ------
@@ -658,19 +664,24 @@ def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, includ
     Examples
     --------
     >>> from stances import Robot
-    >>> contact_exclusions(Robot.load("talos"), "left_sole", "floor")
+    >>> robot = Robot.load("talos")
+    >>> contact_exclusions(robot, "left_sole", "floor")
     [('leg_left_6_link_0', 'floor')]
+    >>> contact_exclusions(robot, "right_palm_contact", "cube")
+    [('right_palm_plate', 'cube')]
     """
-    if surface_or_frame in robot.surfaces:
-        frame_name = robot.surfaces[surface_or_frame].frame
-    else:
-        frame_name = surface_or_frame
+    surface = robot.surfaces.get(surface_or_frame) or next(
+        (s for s in robot.surfaces.values() if s.frame == surface_or_frame), None
+    )
+    frame_name = surface.frame if surface is not None else surface_or_frame
     joint = robot.model.frames[robot.frame_id(frame_name)].parentJoint
-    joints = {joint}
+    geometries = robot.collision_model.geometryObjects
+    if surface is not None and surface.contact_geometries:
+        names = set(surface.contact_geometries)
+    else:
+        names = {geometry.name for geometry in geometries if geometry.parentJoint == joint}
     if include_parent_joint and joint != 0:
-        joints.add(robot.model.parents[joint])
-    return [
-        (geometry_object.name, object_name)
-        for geometry_object in robot.collision_model.geometryObjects
-        if geometry_object.parentJoint in joints
-    ]
+        parent = robot.model.parents[joint]
+        names |= {geometry.name for geometry in geometries if geometry.parentJoint == parent}
+    # In collision-model order, so that the entries do not depend on set order.
+    return [(geometry.name, object_name) for geometry in geometries if geometry.name in names]

@@ -25,6 +25,7 @@ import numpy as np
 import pinocchio as pin
 
 from .errors import FrameNotFound, RobotNotFound
+from .plates import PlateDeclaration, mount_plate, plate_geometry
 
 
 @dataclass(frozen=True)
@@ -41,11 +42,16 @@ class RobotSurface:
     polygon : (k, 2) float
         Vertices of the surface, metres, in the contact frame's xy plane,
         counter-clockwise seen from outside the link.
+    contact_geometries : tuple of str
+        Collision geometries that form the surface: the only ones allowed to
+        touch the support the surface rests on (a palm's plate, the foot whose
+        bottom is the sole). Every other geometry keeps its distance.
     """
 
     name: str
     frame: str
     polygon: np.ndarray
+    contact_geometries: tuple = ()
 
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=float)
@@ -56,6 +62,7 @@ class RobotSurface:
             )
         polygon.setflags(write=False)
         object.__setattr__(self, "polygon", polygon)
+        object.__setattr__(self, "contact_geometries", tuple(str(name) for name in self.contact_geometries))
 
     @property
     def vertices_in_frame(self) -> np.ndarray:
@@ -80,15 +87,23 @@ class SurfaceDeclaration:
     parent_frame : str
         Existing pinocchio frame the surface is attached to.
     placement : pin.SE3
-        Transform from the contact frame to ``parent_frame``.
+        Transform from the contact frame to ``parent_frame``; with a plate,
+        from the plate's mounting frame (the link's flange, oriented as the
+        contact frame), which the contact frame then lies beyond along its
+        normal (see :func:`stances.plates.mount_plate`).
     polygon : (k, 2) float
         Vertices in the contact frame, metres.
+    plate : PlateDeclaration, optional
+        A plate carrying the surface, in place of part of the link (a hand's
+        gripper): its box becomes a collision geometry named
+        ``"<name>_plate"``, the surface's only contact geometry.
     """
 
     name: str
     parent_frame: str
     placement: pin.SE3
     polygon: np.ndarray
+    plate: PlateDeclaration | None = None
 
 
 def _rectangle(x_min: float, x_max: float, y_min: float, y_max: float) -> np.ndarray:
@@ -99,25 +114,37 @@ def _rectangle(x_min: float, x_max: float, y_min: float, y_max: float) -> np.nda
 # level; the rectangle is the bottom of the foot's collision mesh, slightly
 # shrunk so that contact-point forces stay inside the real sole.
 _TALOS_SOLE = _rectangle(-0.10, 0.11, -0.065, 0.065)
-# The paper's "modified hand link": a flat plate on the wrist flange replacing
-# the gripper. The wrist tool frame's z axis already points back into the
-# forearm, which is the contact-frame convention.
+# The foot mesh's bottom is the sole plane to within 0.4 mm (a few vertices of
+# the mesh lie up to 0.40 mm below it, measured): the foot mesh itself is the
+# sole's contact geometry, and no other geometry of the foot link exists.
+# The paper's "modified hand link": a flat plate replacing the gripper. It is
+# mounted on the wrist flange (the tool frame, whose z axis already points back
+# into the forearm, the contact-frame convention), past the wrist's own
+# collision geometry: the forearm mesh reaches 17.0 mm beyond the flange
+# (measured when the robot is built, see stances.plates). Its outer face, 27 mm
+# from the flange with a 10 mm plate, is the palm.
 _TALOS_PALM = _rectangle(-0.05, 0.05, -0.035, 0.035)
+_TALOS_PALM_THICKNESS = 0.01
 # Turned half a turn about the normal so that, with the forearm pointing down
 # in front of the robot, the palm's x axis points forward: a print with
 # theta = 0 is then the natural hand orientation.
 _PALM_PLACEMENT = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
+# The plate takes the gripper's mass (1.184 kg, its links' total in the URDF),
+# so that the robot weighs what Talos weighs; the mass moves from the gripper's
+# centre (134 mm past the wrist joint) to the plate's (86 mm past it).
+_LEFT_PALM_PLATE = PlateDeclaration(_TALOS_PALM_THICKNESS, replaces="gripper_left_")
+_RIGHT_PALM_PLATE = PlateDeclaration(_TALOS_PALM_THICKNESS, replaces="gripper_right_")
 
 TALOS_SURFACES = (
     SurfaceDeclaration("left_sole", "left_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
     SurfaceDeclaration("right_sole", "right_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
-    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM),
-    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM),
+    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM, _LEFT_PALM_PLATE),
+    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM, _RIGHT_PALM_PLATE),
 )
-# The grippers are replaced by the palm plates, and the head does not take part
-# in static postures: locking them keeps the problem small (nv = 34).
+# The grippers are replaced by the palm plates (locked first: a plate cannot
+# replace a moving part), and the head does not take part in static postures:
+# locking them keeps the problem small (nv = 34).
 TALOS_LOCKED_JOINTS = ("gripper_left_joint", "gripper_right_joint", "head_1_joint", "head_2_joint")
-TALOS_REMOVED_GEOMETRY = ("gripper_",)
 
 
 def example_robot_data_share() -> Path:
@@ -218,7 +245,6 @@ class Robot:
             package_dirs=[share],
             surfaces=TALOS_SURFACES,
             locked_joints=TALOS_LOCKED_JOINTS,
-            removed_geometry_prefixes=TALOS_REMOVED_GEOMETRY,
             reference_posture="half_sitting",
         )
 
@@ -246,12 +272,12 @@ class Robot:
         package_dirs : list of path-like
             Where ``package://`` mesh URIs resolve.
         surfaces : iterable of SurfaceDeclaration
-            Contact surfaces to add as frames.
+            Contact surfaces to add as frames, with their plates.
         locked_joints : iterable of str
             Joints fixed at their reference value and removed from the model.
         removed_geometry_prefixes : iterable of str
             Collision geometries whose name starts with one of these are
-            dropped (e.g. a gripper replaced by a palm plate).
+            dropped (their mass stays: a plate declares a replaced part).
         reference_posture : str
             Name of the SRDF group state used as reference configuration.
 
@@ -287,27 +313,43 @@ class Robot:
         for geometry_name in names:
             if geometry_name.startswith(tuple(removed_geometry_prefixes)):
                 collision_model.removeGeometryObject(geometry_name)
-        collision_model.addAllCollisionPairs()
-        pin.removeCollisionPairs(model, collision_model, str(srdf), False)
 
-        robot_surfaces = {}
+        frame_names, plates = {}, {}
         for declaration in surfaces:
             if not model.existFrame(declaration.parent_frame):
                 raise FrameNotFound("frame", declaration.parent_frame, [f.name for f in model.frames])
             parent_id = model.getFrameId(declaration.parent_frame)
             parent = model.frames[parent_id]
-            frame_name = f"{declaration.name}_contact"
-            model.addFrame(
-                pin.Frame(
-                    frame_name,
-                    parent.parentJoint,
-                    parent_id,
-                    parent.placement * declaration.placement,
-                    pin.FrameType.OP_FRAME,
+            placement = parent.placement * declaration.placement  # in the parent joint's frame
+            if declaration.plate is not None:
+                placement = mount_plate(
+                    model, collision_model, parent.parentJoint, placement, declaration.polygon, declaration.plate
                 )
+            frame_names[declaration.name] = f"{declaration.name}_contact"
+            frame_id = model.addFrame(
+                pin.Frame(frame_names[declaration.name], parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME)
+            )
+            if declaration.plate is not None:
+                plate = plate_geometry(
+                    f"{declaration.name}_plate", model, frame_id, declaration.polygon, declaration.plate.thickness
+                )
+                collision_model.addGeometryObject(plate)
+                plates[declaration.name] = (plate.name,)
+        # After the plates: the SRDF knows nothing of them (they hang on new
+        # frames), so a plate is checked against every link of other joints.
+        collision_model.addAllCollisionPairs()
+        pin.removeCollisionPairs(model, collision_model, str(srdf), False)
+
+        robot_surfaces = {}
+        for declaration in surfaces:
+            frame_name = frame_names[declaration.name]
+            joint = model.frames[model.getFrameId(frame_name)].parentJoint
+            # Without a plate, the surface is part of its link's own geometry.
+            contact_geometries = plates.get(declaration.name) or tuple(
+                geometry.name for geometry in collision_model.geometryObjects if geometry.parentJoint == joint
             )
             robot_surfaces[declaration.name] = RobotSurface(
-                declaration.name, frame_name, declaration.polygon
+                declaration.name, frame_name, declaration.polygon, contact_geometries
             )
         return cls(name, model, collision_model, robot_surfaces, q_reference)
 
@@ -362,4 +404,4 @@ class Robot:
         )
 
 
-__all__ = ["Robot", "RobotSurface", "SurfaceDeclaration", "example_robot_data_share"]
+__all__ = ["PlateDeclaration", "Robot", "RobotSurface", "SurfaceDeclaration", "example_robot_data_share"]

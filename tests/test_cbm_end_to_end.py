@@ -15,6 +15,8 @@ from cbm.plan import Plan
 from cbm.planner import plan
 from cbm.stance_graph import differ_by_one_contact
 
+from clearance import robot_clearances
+from stances.problem import PostureOptions
 from test_cbm_output import chromium_binary, page_status
 
 try:
@@ -51,6 +53,18 @@ def test_multi_step_scenario_plans_with_verified_stances(planned):
     report = result.check(scenario)
     assert report.ok, report.problems
     assert result.statistics.solver_calls <= 40 * 50
+
+
+def test_planned_stances_keep_all_but_the_contact_geometry_off_the_supports(planned, robot):
+    """Measured on the full meshes, independently of the solver's collision code
+    (tests/clearance.py): a palm touches with its plate only, a sole with its foot."""
+    scenario, result = planned
+    # The collision block lets the QP eat 0.1 mm of the clearance (its slack).
+    minimum = PostureOptions().collision_distance - 1e-4 - 1e-9
+    for step in result.stances:
+        clearances = robot_clearances(robot, scenario.scene, step.stance, step.q)
+        close = {pair: distance for pair, distance in clearances.items() if distance < minimum}
+        assert not close, (step.stance, close)
 
 
 def test_planned_stances_survive_the_json_round_trip_and_still_verify(planned, tmp_path):

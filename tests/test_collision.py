@@ -217,7 +217,7 @@ def test_left_and_right_distances_mirror_each_other(robot, floor, data):
         assert twin is not None, (name_a, name_b)
         assert twin.distance == pytest.approx(pair.distance, abs=1e-6), (name_a, name_b)
         checked += "right" in name_a + name_b
-    assert checked == 15
+    assert checked == 16  # 15 limb and wrist geometries and the palm plate
 
 
 def test_jacobian_rows_match_finite_differences_on_the_manifold(robot, floor, data):

@@ -1,0 +1,97 @@
+"""Robot-to-scene clearances measured independently of stances.collision.
+
+The solver measures convex hulls with python-fcl and exempts what
+``contact_exclusions`` says; this helper measures pinocchio's own collision
+geometry (the full triangle meshes, with coal) against boxes rebuilt from the
+scene's objects, and exempts only the geometry named here as touching.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+
+try:  # pinocchio's collision library: coal since pinocchio 3.4, hpp-fcl before
+    import coal
+except ImportError:  # pragma: no cover
+    import hppfcl as coal
+
+# The geometry that forms each Talos surface, written out here rather than read
+# from the robot: a palm touches with its plate only, a sole with the foot mesh.
+CONTACT_GEOMETRY = {
+    "left_palm": ("left_palm_plate",),
+    "right_palm": ("right_palm_plate",),
+    "left_sole": ("leg_left_6_link_0",),
+    "right_sole": ("leg_right_6_link_0",),
+}
+
+
+def _scene_geometry(scene, deformations=None):
+    """(name, placement, coal shape) of every scene object, world frame."""
+    placed = []
+    for name, obj in scene.objects.items():
+        if obj.deformable:
+            if deformations is not None and name in deformations:
+                triangles = obj.deformed_surface(deformations[name]).reshape(-1, 3)
+                mesh = coal.BVHModelOBBRSS()
+                mesh.beginModel(len(triangles) // 3, len(triangles))
+                mesh.addVertices(np.ascontiguousarray(triangles))
+                mesh.addTriangles(np.arange(len(triangles)).reshape(-1, 3))
+                mesh.endModel()
+                placed.append((name, pin.SE3.Identity(), mesh))
+                continue
+            # Soft boxes fill their bounding box (checked in test_scenarios).
+            nodes = obj.points_in_world(obj.mesh.nodes)
+            low, high = nodes.min(axis=0), nodes.max(axis=0)
+            placed.append((name, pin.SE3(np.eye(3), 0.5 * (low + high)), coal.Box(*(high - low))))
+        elif obj.box_size is not None:
+            transform = obj.transform_object_to_world
+            placed.append((name, pin.SE3(transform[:3, :3], transform[:3, 3]), coal.Box(*obj.box_size)))
+        else:
+            raise NotImplementedError(f"clearance helper: object {name!r} is neither a box nor a soft box")
+    return placed
+
+
+def robot_clearances(robot, scene, stance, q, deformations=None) -> dict:
+    """Distance of every robot geometry to every scene object, but a surface's own to its support.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+    q : (nq,) float
+    deformations : dict of str to (N, 3) float, optional
+        Displacement fields of the soft objects, metres, body frame: those
+        objects are then their deformed boundary meshes instead of their rest
+        boxes.
+
+    Returns
+    -------
+    dict of (str, str) to float
+        ``(robot geometry, scene object) -> distance`` in metres (coal's
+        distance on the full meshes; <= 0 when they overlap).
+    """
+    touching = {
+        (geometry, scene.surface(contact.contact_print.surface).object_name)
+        for contact in stance
+        for geometry in CONTACT_GEOMETRY[contact.robot_surface]
+    }
+    geometry_model = robot.collision_model.copy()
+    geometry_model.removeAllCollisionPairs()
+    count = len(geometry_model.geometryObjects)
+    scene_ids = {
+        name: geometry_model.addGeometryObject(pin.GeometryObject(name, 0, 0, placement, shape))
+        for name, placement, shape in _scene_geometry(scene, deformations)
+    }
+    for index in range(count):
+        for name, scene_id in scene_ids.items():
+            if (geometry_model.geometryObjects[index].name, name) not in touching:
+                geometry_model.addCollisionPair(pin.CollisionPair(index, scene_id))
+    geometry_data = pin.GeometryData(geometry_model)
+    pin.computeDistances(robot.model, robot.model.createData(), geometry_model, geometry_data, np.asarray(q))
+    objects = geometry_model.geometryObjects
+    return {
+        (objects[pair.first].name, objects[pair.second].name): float(result.min_distance)
+        for pair, result in zip(geometry_model.collisionPairs, geometry_data.distanceResults)
+    }
