@@ -88,9 +88,9 @@ class PrintContact:
         -------
         (3p, k) float, newtons per unit of ``matrix``.
         """
-        factor, select, rotation, _ = self._system
-        local = rotation @ np.asarray(matrix, dtype=float)
-        return rotation.T @ (-scipy.linalg.lu_solve(factor, select[:, None] * local, check_finite=False))
+        factor, select, frames, _ = self._system
+        local = _to_nodes(frames, np.asarray(matrix, dtype=float))
+        return _to_body(frames, -scipy.linalg.lu_solve(factor, select[:, None] * local, check_finite=False))
 
     @cached_property
     def jacobian(self) -> np.ndarray:
@@ -108,14 +108,16 @@ class PrintContact:
         return int(np.sum(self.modes[:, 0] == LIFT))
 
 
-def _local_frames(frames: np.ndarray) -> np.ndarray:
-    """(3p, 3p) block-diagonal rotation from body to node frames (rows t1, t2, n)."""
+def _to_nodes(frames: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Stacked body-frame vectors (3p,) or (3p, k) in the node frames (rows t1, t2, n)."""
     p = frames.shape[0]
-    out = np.zeros((3 * p, 3 * p))
-    for k in range(3):
-        for j in range(3):
-            out[np.arange(p) * 3 + k, np.arange(p) * 3 + j] = frames[:, k, j]
-    return out
+    return np.einsum("pij,pj...->pi...", frames, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
+
+
+def _to_body(frames: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """Inverse of :func:`_to_nodes`."""
+    p = frames.shape[0]
+    return np.einsum("pji,pj...->pi...", frames, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
 
 class PrintContactSystem:
@@ -159,8 +161,10 @@ class PrintContactSystem:
         if np.any(mu < 0) or np.any(np.isnan(mu)):
             raise FemError("friction coefficients must be >= 0")
         self.n_nodes = p
-        self.rotation = _local_frames(frames)
-        self.c_local = self.rotation @ c @ self.rotation.T
+        self.frames = frames
+        # R C R^T block by block (R block diagonal): F_i C_ij F_j^T.
+        blocks = np.einsum("iab,ibjc->iajc", frames, c.reshape(p, 3, p, 3))
+        self.c_local = np.einsum("iajc,jdc->iajd", blocks, frames).reshape(3 * p, 3 * p)
         self.mu = mu
         # Complementarity scales: the diagonal stiffness of each dof.
         self.scale = 1.0 / np.diag(self.c_local).reshape(p, 3)
@@ -203,7 +207,7 @@ class PrintContactSystem:
         u = np.asarray(displacements, dtype=float)
         if u.shape != (self.n_nodes, 3):
             raise FemError(f"displacements must have shape ({self.n_nodes}, 3), got {u.shape}")
-        return (self.rotation @ u.ravel()).reshape(-1, 3)
+        return _to_nodes(self.frames, u.ravel()).reshape(-1, 3)
 
     def _factor(self, modes, signs):
         """LU factor and selector of the mode system, kept for the next time."""
@@ -242,9 +246,9 @@ class PrintContactSystem:
 
     def _state(self, phi, r, modes, signs, iterations, settled) -> PrintContact:
         factor, select = self._factor(modes, signs)
-        forces = (self.rotation.T @ phi.ravel()).reshape(-1, 3)
-        relative = (self.rotation.T @ r.ravel()).reshape(-1, 3)
-        return PrintContact(forces, relative, modes, signs, iterations, (factor, select, self.rotation, settled))
+        forces = _to_body(self.frames, phi.ravel()).reshape(-1, 3)
+        relative = _to_body(self.frames, r.ravel()).reshape(-1, 3)
+        return PrintContact(forces, relative, modes, signs, iterations, (factor, select, self.frames, settled))
 
 
 def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_signs=None) -> PrintContact:

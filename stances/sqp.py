@@ -42,6 +42,8 @@ _RESTORATION_PENALTY = 1e6
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
 _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage enters the objective
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
+_CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows are compatible
+_CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 
 
@@ -68,6 +70,31 @@ def _reason(linearization, iterations, why) -> str:
     amount = worst * scale
     prefix = "print unreachable: " if label.startswith("placement") else ""
     return f"{prefix}{label} violated by {amount:.3g} {_unit(label)} ({why} after {iterations} iterations)"
+
+
+def _conflict(linearization, penalty) -> str:
+    """The rows no step can meet together, as a clause for an infeasible answer's reason.
+
+    The worst violated row at the last iterate depends on the path the SQP
+    took; the rows that hold the elastic QP away from zero are the stance's
+    conflict itself (e.g. an indentation bound against the depth equilibrium
+    needs). One more QP at the last iterate finds them: the rows whose
+    linearised violation equals the elastic variable.
+    """
+    x = QPWorkspace().solve(*elastic_qp(linearization, penalty))
+    step, elastic = x[:-1], max(float(x[-1]), 0.0)
+    if elastic <= _CONFLICT_FLOOR:
+        return ""
+    rows = []
+    for block in linearization.blocks:
+        if len(block):
+            moved = block.value + block.jacobian @ step
+            excess = (np.maximum(block.lower - moved, 0.0) + np.maximum(moved - block.upper, 0.0)) / block.scale
+            rows.extend((excess[i], block.labels[i]) for i in np.flatnonzero(excess >= 0.99 * elastic))
+    if not rows:
+        return ""  # only the step bounds (trust region, joint limits) keep it short
+    labels = [label for _, label in sorted(rows, key=lambda row: -row[0])[:_CONFLICT_ROWS]]
+    return f"; no step meets together: {', '.join(labels)}"
 
 
 def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None) -> PostureResult:
@@ -237,7 +264,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     # accuracy on nearly rigid, statically indeterminate contacts) goes to the
     # independent check, whose tolerances are physical: it alone decides.
     nearly = not feasible and violation <= _NEARLY_FEASIBLE * tolerance
-    reason = "" if feasible else _reason(linearization, iteration, status)
+    reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
     elapsed = time.perf_counter() - start
     point_forces = problem_point_forces(problem, linearization, q)
     deformations = LazyDeformations(
