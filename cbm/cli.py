@@ -1,6 +1,9 @@
 """Command line: ``cbm plan``, ``cbm scenarios``, ``cbm check``.
 
-Exit codes: 0 success, 1 no plan found or stance infeasible, 2 bad input.
+Exit codes: 0 success (plan found, stance feasible), 1 no plan found or stance
+infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
+(Ctrl-C). Only the packages' own bad-input errors become code 2; anything else is
+a bug and ends with its traceback.
 """
 
 from __future__ import annotations
@@ -10,7 +13,15 @@ import logging
 import sys
 from pathlib import Path
 
-__all__ = ["main", "build_parser", "DEFAULT_SCENARIO", "EXIT_OK", "EXIT_FAILED", "EXIT_BAD_INPUT"]
+__all__ = [
+    "main",
+    "build_parser",
+    "DEFAULT_SCENARIO",
+    "EXIT_OK",
+    "EXIT_FAILED",
+    "EXIT_BAD_INPUT",
+    "EXIT_INTERRUPTED",
+]
 
 #: Scenario planned when ``cbm plan`` is given none.
 DEFAULT_SCENARIO = "cross-soft-block"
@@ -18,6 +29,13 @@ DEFAULT_SCENARIO = "cross-soft-block"
 EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
+EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
+
+_EXIT_CODES = """exit codes:
+  0    plan found (check: stance feasible)
+  1    no plan found (check: stance infeasible)
+  2    bad input: unknown scenario, invalid scenario file or option, unusable --out
+  130  interrupted (Ctrl-C); nothing is written"""
 
 logger = logging.getLogger("cbm")
 
@@ -55,11 +73,24 @@ def _non_negative_int(text):
 
 def build_parser():
     """The argument parser of ``cbm``."""
-    parser = _Parser(prog="cbm", description="Contact-before-motion planning for Talos on rigid and soft supports.")
+    parser = _Parser(
+        prog="cbm",
+        description="Contact-before-motion planning for Talos on rigid and soft supports.",
+        epilog=_EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     commands.required = True
 
-    plan = commands.add_parser("plan", help="plan a sequence of stances and write the results")
+    plan = commands.add_parser(
+        "plan",
+        help="plan a sequence of stances and write the results",
+        description="Plan a sequence of stances and write plan.json, pictures, meshes and viewer.html. The "
+        "files are written in a temporary folder beside --out and moved into place at the end, so --out "
+        "holds one complete plan or is left as it was.",
+        epilog=_EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     plan.add_argument(
         "scenario",
         nargs="?",
@@ -67,7 +98,10 @@ def build_parser():
         metavar="SCENARIO",
         help=f"built-in scenario name or scenario file (default: {DEFAULT_SCENARIO})",
     )
-    plan.add_argument("--out", type=Path, default=Path("cbm-out"), help="output directory (default: cbm-out)")
+    plan.add_argument(
+        "--out", type=Path, default=Path("cbm-out"), help="output folder, new or empty (default: cbm-out)"
+    )
+    plan.add_argument("--force", action="store_true", help="replace the content of a non-empty --out")
     plan.add_argument("--max-expansions", type=_non_negative_int, default=200, help="stances expanded at most")
     plan.add_argument("--time-limit", type=_positive_float, default=300.0, help="seconds of search at most")
     plan.add_argument("--seed", type=int, default=0, help="seed of the tie-breaking shuffle")
@@ -77,7 +111,12 @@ def build_parser():
 
     commands.add_parser("scenarios", help="list the built-in scenarios")
 
-    check = commands.add_parser("check", help="solve one stance of a scenario")
+    check = commands.add_parser(
+        "check",
+        help="solve one stance of a scenario",
+        epilog=_EXIT_CODES,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
     check.add_argument("scenario", metavar="SCENARIO", help="built-in scenario name or scenario file")
     check.add_argument("--stance", required=True, help="name of the stance in the scenario")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
@@ -96,7 +135,7 @@ def main(argv=None):
     Returns
     -------
     int
-        0 success, 1 no plan / infeasible, 2 bad input.
+        0 success, 1 no plan / infeasible, 2 bad input, 130 interrupted.
     """
     parser = build_parser()
     try:
@@ -117,9 +156,27 @@ def main(argv=None):
         if args.command == "plan":
             return _plan(args)
         return _check(args)
-    except ValueError as error:  # every package's bad-input errors derive from ValueError
+    except _input_errors() as error:
         print(f"cbm {args.command}: error: {error}", file=sys.stderr)
         return EXIT_BAD_INPUT
+    except KeyboardInterrupt:
+        print(f"cbm {args.command}: interrupted; nothing written", file=sys.stderr)
+        return EXIT_INTERRUPTED
+
+
+def _input_errors():
+    """The packages' own bad-input exception types.
+
+    Only these mean "bad input"; a plain ValueError (numpy's LinAlgError, a
+    failed internal check) is a bug and must show its traceback.
+    """
+    from environments.errors import SceneError
+    from fem.errors import FemError
+    from stances.errors import StanceError
+
+    from .errors import CbmError
+
+    return (CbmError, SceneError, FemError, StanceError)
 
 
 def _scenarios():
@@ -135,21 +192,30 @@ def _scenarios():
 def _plan(args):
     import stances
 
-    from .output import write_outputs
+    from .output import StagedOutput, write_outputs
     from .planner import load_scenario, plan
 
     scenario = load_scenario(args.scenario)
     robot = stances.Robot.load(scenario.robot)
-    result = plan(
-        scenario,
-        robot=robot,
-        print_spacing=args.print_spacing,
-        max_expansions=args.max_expansions,
-        time_limit=args.time_limit,
-        seed=args.seed,
-        progress=not args.quiet,
-    )
-    files = write_outputs(result, scenario, robot, args.out, pictures=not args.no_pictures)
+    # Before the search: a bad --out must not cost a whole search, and the
+    # temporary folder made here is where the files go.
+    staged = StagedOutput(args.out, force=args.force)
+    try:
+        result = plan(
+            scenario,
+            robot=robot,
+            print_spacing=args.print_spacing,
+            max_expansions=args.max_expansions,
+            time_limit=args.time_limit,
+            seed=args.seed,
+            progress=not args.quiet,
+        )
+        files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures)
+        staged.publish()
+    except BaseException:
+        # Interrupted, failed or refused: leave --out as it was.
+        staged.discard()
+        raise
     s = result.statistics
     outcome = "plan found" if result.success else f"no plan: {result.reason}"
     print(f"{scenario.name}: {outcome}; {len(result.stances)} stances")
@@ -159,7 +225,7 @@ def _plan(args):
     )
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
-    print(f"  written to {args.out}: {len(files.all())} files, viewer {files.viewer}")
+    print(f"  written to {args.out}: {len(files.all())} files, viewer {staged.final_path(files.viewer)}")
     return EXIT_OK if result.success else EXIT_FAILED
 
 
@@ -175,6 +241,10 @@ def _check(args):
             f"cbm check: error: scenario {scenario.name!r} has no stance {args.stance!r}; stances: {names}",
             file=sys.stderr,
         )
+        return EXIT_BAD_INPUT
+    if args.out is not None and args.out.exists() and not args.out.is_dir():
+        # Checked before the solve, which may take seconds.
+        print(f"cbm check: error: --out {str(args.out)!r} is a file, not a folder", file=sys.stderr)
         return EXIT_BAD_INPUT
     robot = stances.Robot.load(scenario.robot)
     stance = scenario.stances[args.stance]

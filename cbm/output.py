@@ -3,15 +3,19 @@
 from __future__ import annotations
 
 import logging
+import os
+import shutil
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
 from .display import plan_bounds, scene_edges, stance_display
+from .errors import CbmError
 from .viewer import viewer_data, write_viewer
 
-__all__ = ["OutputFiles", "write_outputs", "stance_labels"]
+__all__ = ["OutputFiles", "write_outputs", "stance_labels", "OutputDirectoryError", "StagedOutput"]
 
 logger = logging.getLogger(__name__)
 
@@ -110,3 +114,97 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
 def _round_newtons(value):
     magnitude = 10 ** np.floor(np.log10(max(value, 1e-9)))
     return float(np.round(value / magnitude) * magnitude)
+
+
+class OutputDirectoryError(CbmError):
+    """An output folder that cannot or must not be written (a file, read-only, not empty)."""
+
+
+class StagedOutput:
+    """An output folder filled in a hidden temporary folder beside it, then moved into place.
+
+    A plan's files are written together or not at all: an interrupted or failed
+    write leaves the output folder as it was, and a new plan never sits next to
+    an older plan's stance files. The checks run when the object is made, before
+    any planning, so that a bad ``--out`` costs nothing.
+
+    Parameters
+    ----------
+    out_dir : path-like
+        Final folder. It must not exist, or be an empty folder, or (with
+        ``force``) any folder, whose content is then replaced.
+    force : bool
+        Replace a non-empty folder.
+
+    Raises
+    ------
+    OutputDirectoryError
+        If ``out_dir`` is a file, is not empty (without ``force``), or its
+        parent cannot be written (checked by making the temporary folder there).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> root = pathlib.Path(tempfile.mkdtemp())
+    >>> staged = StagedOutput(root / "results")
+    >>> _ = (staged.folder / "plan.json").write_text("{}")
+    >>> staged.publish().name, sorted(p.name for p in (root / "results").iterdir())
+    ('results', ['plan.json'])
+    """
+
+    def __init__(self, out_dir, force=False):
+        # abspath, not resolve: "." and ".." are folded so the folder has a name and
+        # a parent, while a symbolic link stays the link the user named.
+        self.out = Path(os.path.abspath(out_dir))
+        if self.out.exists() and not self.out.is_dir():
+            raise OutputDirectoryError(f"output {str(self.out)!r} is a file, not a folder; give a folder path to --out")
+        if self.out.is_dir() and not force and any(self.out.iterdir()):
+            raise OutputDirectoryError(
+                f"output folder {str(self.out)!r} is not empty; give a new or empty folder, or --force to "
+                "replace its content"
+            )
+        parent = self.out.parent
+        if not parent.is_dir():
+            raise OutputDirectoryError(
+                f"cannot create output folder {str(self.out)!r}: its parent {str(parent)!r} is not a folder"
+            )
+        try:
+            # In the same parent, so the final move is a rename on one file system.
+            self.folder = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.partial-", dir=parent))
+        except OSError as error:
+            raise OutputDirectoryError(
+                f"cannot write output folder {str(self.out)!r}: {error.strerror or error} in {str(parent)!r}"
+            ) from None
+        # An existing folder is replaced by renaming, which needs write access to it too.
+        if self.out.is_dir() and not os.access(self.out, os.W_OK | os.X_OK):
+            self.discard()
+            raise OutputDirectoryError(f"output folder {str(self.out)!r} is not writable")
+
+    def publish(self):
+        """Move the filled temporary folder to the output folder, replacing it.
+
+        Returns
+        -------
+        Path
+            The output folder.
+        """
+        # mkdtemp makes the folder 0o700; give it the permissions a new folder gets.
+        umask = os.umask(0)
+        os.umask(umask)
+        self.folder.chmod(0o777 & ~umask)
+        old = None
+        if self.out.exists():
+            old = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.old-", dir=self.out.parent))
+            self.out.rename(old / self.out.name)
+        self.folder.rename(self.out)
+        if old is not None:
+            shutil.rmtree(old, ignore_errors=True)
+        return self.out
+
+    def discard(self):
+        """Remove the temporary folder and everything in it (after a failure)."""
+        shutil.rmtree(self.folder, ignore_errors=True)
+
+    def final_path(self, path):
+        """Where a file written in the temporary folder ends up once published."""
+        return self.out / Path(path).relative_to(self.folder)

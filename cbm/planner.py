@@ -158,11 +158,16 @@ class PostureOracle:
             options["time_budget"] = min(left, options.get("time_budget") or np.inf)
         self.solves += 1
         logger.debug("solving %s", stance.to_dict())
+        from environments.errors import SceneError
+        from fem.errors import FemError
+        from stances.errors import StanceError
+
         try:
             result = solve(self.robot, self.scene, stance, q_init=q_init, **options)
-        except ValueError as error:
+        except (StanceError, SceneError, FemError) as error:
             # Bad stance for this scene (e.g. a print covering too few FEM
-            # nodes): an infeasible stance for the search, not a crash.
+            # nodes): an infeasible stance for the search, not a crash. Only the
+            # packages' own errors: any other ValueError (numpy's LinAlgError) is a bug.
             logger.debug("solve raised on %s: %s", stance, error)
             return StanceCheck(False, f"{type(error).__name__}: {error}")
         if not result.feasible:

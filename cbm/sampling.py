@@ -9,6 +9,7 @@ deformable, and prunes by simple distances before any posture solve.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 from typing import Mapping
@@ -35,6 +36,13 @@ __all__ = [
 # Metres: prints sit on grids, so limits are often met exactly; float noise
 # must not decide.
 _EPS = 1e-9
+
+#: Most candidate prints (grid points x headings, summed over the surfaces each
+#: robot surface may touch) one sampling may consider. The built-in scenarios
+#: consider about 30 000; each candidate costs a few hundred bytes of temporary
+#: arrays and the kept ones a node of the search graph, so a spacing that exceeds
+#: this is taken for a mistake and refused before any array is allocated.
+MAX_PRINT_CANDIDATES = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -200,6 +208,78 @@ def grid_values(lower, upper, spacing):
     return start + spacing * np.arange(count)
 
 
+def _candidate_surfaces(surfaces, robot_polygons, options):
+    """(robot surface, surface name) pairs sampled, in sampling order: soles only face up."""
+    cos_tilt = math.cos(options.max_sole_tilt)
+    pairs = []
+    for robot_surface in robot_polygons:
+        for name in sorted(surfaces):
+            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
+            if surface_kind(robot_surface) == "sole" and transform[2, 2] < cos_tilt:
+                continue
+            pairs.append((robot_surface, name))
+    return pairs
+
+
+def count_candidate_prints(surfaces, robot_polygons, options=SamplingOptions()):
+    """How many candidate prints :func:`sample_prints` would test, without sampling.
+
+    Parameters
+    ----------
+    surfaces, robot_polygons, options
+        As for :func:`sample_prints`.
+
+    Returns
+    -------
+    float
+        Grid points times headings, summed over the (robot surface, surface)
+        pairs; a float because a tiny spacing makes it overflow to inf.
+    """
+    total = 0.0
+    for _, name in _candidate_surfaces(surfaces, robot_polygons, options):
+        polygon = np.asarray(surfaces[name].polygon, dtype=float)
+        per_axis = 1.0
+        for extent in (float(np.ptp(polygon[:, 0])), float(np.ptp(polygon[:, 1]))):
+            steps = extent / options.spacing + 1e-9  # grid_values' count, as a float
+            per_axis *= (math.floor(steps) if math.isfinite(steps) else steps) + 1.0
+        total += per_axis * len(options.theta_values)
+    return total
+
+
+def check_print_budget(surfaces, robot_polygons, options=SamplingOptions()):
+    """Refuse a sampling that would test more than :data:`MAX_PRINT_CANDIDATES` prints.
+
+    Raises
+    ------
+    CbmError
+        Giving the count, the limit and the smallest print spacing that fits.
+    """
+    count = count_candidate_prints(surfaces, robot_polygons, options)
+    if count <= MAX_PRINT_CANDIDATES:
+        return
+    # The count falls as the spacing grows: bisect (log scale) on the count alone.
+    low = options.spacing
+    high = max(
+        [low]
+        + [float(np.ptp(np.asarray(s.polygon, dtype=float), axis=0).max()) for s in surfaces.values()]
+    )
+    for _ in range(60):
+        middle = math.sqrt(low * high)
+        trial = dataclasses.replace(options, spacing=middle)
+        if count_candidate_prints(surfaces, robot_polygons, trial) > MAX_PRINT_CANDIDATES:
+            low = middle
+        else:
+            high = middle
+    scale = 10.0 ** (math.floor(math.log10(high)) - 2)
+    fits = f"{math.ceil(high / scale - 1e-9) * scale:.3g}"  # rounded up, so that it still fits
+    shown = f"about {count:.3g}" if math.isfinite(count) else "countless"
+    raise CbmError(
+        f"print_spacing {options.spacing:g} m would sample {shown} candidate prints ({len(options.theta_values)} "
+        f"heading(s), {len(robot_polygons)} robot surface(s)), more than the limit of {MAX_PRINT_CANDIDATES} "
+        f"(cbm.sampling.MAX_PRINT_CANDIDATES); use a print_spacing of at least {fits} m, or fewer headings"
+    )
+
+
 def _rotations_2d(thetas):
     c, s = np.cos(thetas), np.sin(thetas)
     return np.stack([np.stack([c, -s], -1), np.stack([s, c], -1)], -2)  # (t, 2, 2)
@@ -256,7 +336,14 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
         the surface polygon (shrunk by the margin). Soles only on surfaces
         facing up; palms on any surface. Surfaces in name order, then x, y,
         theta: the order is deterministic.
+
+    Raises
+    ------
+    CbmError
+        If more than :data:`MAX_PRINT_CANDIDATES` prints would be tested (see
+        :func:`check_print_budget`).
     """
+    check_print_budget(surfaces, robot_polygons, options)
     thetas = np.asarray(options.theta_values, dtype=float)
     rotations = _rotations_2d(thetas)
     cos_tilt = math.cos(options.max_sole_tilt)
@@ -443,29 +530,47 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
     scenario_options : mapping or None
         May hold ``print_spacing`` (metres), ``theta_values_deg`` (degrees),
         ``print_margin`` (metres) and ``sampling_region`` (``{lower, upper}``
-        world xy, metres).
+        world xy, metres), and ``robot_surfaces`` (read by the planner); see
+        :data:`environments.options.SCENARIO_OPTIONS`.
     spacing : float, optional
         User's spacing, metres; wins over the scenario's.
 
     Returns
     -------
     SamplingOptions
+
+    Raises
+    ------
+    environments.ScenarioError
+        On an unknown key, or a value of the wrong type or out of range (checked
+        again here for options that did not come from a scenario file).
+    CbmError
+        On a bad ``spacing``.
     """
-    scenario_options = dict(scenario_options or {})
+    from environments.options import validate_options
+
+    scenario_options = validate_options(scenario_options)
     kwargs = {}
     if spacing is not None:
         kwargs["spacing"] = float(spacing)
-    elif scenario_options.get("print_spacing") is not None:
-        kwargs["spacing"] = float(scenario_options["print_spacing"])
-    if scenario_options.get("theta_values_deg") is not None:
-        kwargs["theta_values"] = tuple(math.radians(float(t)) for t in scenario_options["theta_values_deg"])
+    elif "print_spacing" in scenario_options:
+        kwargs["spacing"] = scenario_options["print_spacing"]
+    if "theta_values_deg" in scenario_options:
+        kwargs["theta_values"] = tuple(math.radians(t) for t in scenario_options["theta_values_deg"])
     region = scenario_options.get("sampling_region")
     if region is not None:
         kwargs["region_lower"] = tuple(region["lower"])
         kwargs["region_upper"] = tuple(region["upper"])
-    if scenario_options.get("print_margin") is not None:
-        kwargs["margin"] = float(scenario_options["print_margin"])
+    if "print_margin" in scenario_options:
+        kwargs["margin"] = scenario_options["print_margin"]
     return SamplingOptions(**kwargs)
 
 
-__all__ += ["contacts_in_world", "options_from_scenario", "obstacle_boxes"]
+__all__ += [
+    "contacts_in_world",
+    "options_from_scenario",
+    "obstacle_boxes",
+    "count_candidate_prints",
+    "check_print_budget",
+    "MAX_PRINT_CANDIDATES",
+]

@@ -23,7 +23,14 @@ from .geometry import (
 from .objects import DEFAULT_FRICTION
 from .surfaces import ContactSurface, rectangle
 
-__all__ = ["DeformableObject", "soft_box", "RESOLUTIONS", "soft_box_coordinates", "DEFAULT_STRAIN_LIMIT"]
+__all__ = [
+    "DeformableObject",
+    "soft_box",
+    "RESOLUTIONS",
+    "soft_box_coordinates",
+    "DEFAULT_STRAIN_LIMIT",
+    "MAX_SOFT_BOX_NODES",
+]
 
 DEFAULT_STRAIN_LIMIT = 0.05
 """Largest principal strain (dimensionless) a soft object may take: linear elasticity
@@ -58,6 +65,13 @@ print may cover fewer than 9.
 _GRADING_LENGTH = 0.06
 _MAX_GROWTH = 1.5
 _COARSE_FACTOR = 4.0
+
+MAX_SOFT_BOX_NODES = 1_000_000
+"""Most nodes a soft box's mesh may have. The default spacing gives 31 740 nodes on a
+1 m cube and h / 4 about 1.8 million; past a million the stiffness factorisation and
+the compliance columns need tens of gigabytes, so a smaller ``resolution`` is taken
+for a mistake and refused, with the smallest spacing that fits, before any array is
+allocated."""
 
 
 def _fem():
@@ -240,6 +254,70 @@ def _height_coordinates(height: float, fine: float) -> np.ndarray:
     return np.concatenate([height - depths[::-1], [height]])
 
 
+def _graded_cell_estimate(length: float, fine: float) -> float:
+    """About how many cells :func:`_graded_side` puts on ``length`` metres (no arrays).
+
+    The series h g^k (capped at ``_COARSE_FACTOR`` h) is summed in closed form, so
+    the estimate costs nothing even for a spacing that would need billions of cells.
+    """
+    if length <= 1e-12:
+        return 0.0
+    # log of _growth_ratio(fine), without exp: exp(h / 0.06) rounds to 1 for tiny h.
+    log_growth = min(fine / _GRADING_LENGTH, math.log(_MAX_GROWTH))
+    graded_terms = math.log(_COARSE_FACTOR) / log_growth  # cells until the cap
+    graded_length = fine * (_COARSE_FACTOR - 1.0) / math.expm1(log_growth)
+    if length <= graded_length:
+        return math.log1p(length * math.expm1(log_growth) / fine) / log_growth
+    return graded_terms + (length - graded_length) / (_COARSE_FACTOR * fine)
+
+
+def _node_count_estimate(size: np.ndarray, region: np.ndarray, fine: float) -> float:
+    """About how many nodes :func:`soft_box_coordinates` gives (within a few per axis)."""
+    # Python floats: their overflow to inf is silent, numpy's warns.
+    half = [0.5 * float(size[0]), 0.5 * float(size[1])]
+    count = 1.0
+    for axis in range(2):
+        low, high = max(-half[axis], float(region[0, axis])), min(half[axis], float(region[1, axis]))
+        cells = _ceil((high - low) / fine - 1e-9)
+        cells += _graded_cell_estimate(low + half[axis], fine) + _graded_cell_estimate(half[axis] - high, fine)
+        count *= _ceil(cells) + 1
+    return count * (_ceil(_graded_cell_estimate(float(size[2]), fine)) + 1)
+
+
+def _ceil(value: float) -> float:
+    # A spacing of 1e-300 m gives infinitely many cells: keep inf, not an exception.
+    return float(math.ceil(value)) if math.isfinite(value) else value
+
+
+def _check_soft_box_size(size: np.ndarray, region: np.ndarray, fine: float, resolution) -> None:
+    """Refuse a spacing whose mesh would exceed :data:`MAX_SOFT_BOX_NODES`, naming one that fits."""
+    estimate = _node_count_estimate(size, region, fine)
+    if estimate <= MAX_SOFT_BOX_NODES:
+        return
+    # The node count falls as the spacing grows: bisect (in log scale) for the
+    # smallest spacing that fits, on the closed-form estimate only.
+    low, high = fine, max(float(size.max()), fine)
+    for _ in range(60):
+        middle = math.sqrt(low * high)
+        if _node_count_estimate(size, region, middle) > MAX_SOFT_BOX_NODES:
+            low = middle
+        else:
+            high = middle
+    shown = f"{resolution!r} ({fine:g} m)" if isinstance(resolution, str) else f"{fine:g} m"
+    raise SceneError(
+        f"resolution {shown} would mesh this {'x'.join(f'{v:g}' for v in size)} m soft box with "
+        f"{f'about {estimate:.3g}' if math.isfinite(estimate) else 'countless'} nodes, more than the limit of {MAX_SOFT_BOX_NODES} "
+        f"(environments.deformable.MAX_SOFT_BOX_NODES); use a resolution of at least {_round_up(high)} m, "
+        "or refine a smaller region"
+    )
+
+
+def _round_up(value: float) -> str:
+    """``value`` rounded up to 3 significant digits, as text (the bound must still fit)."""
+    scale = 10.0 ** (math.floor(math.log10(value)) - 2)
+    return f"{math.ceil(value / scale - 1e-9) * scale:.3g}"
+
+
 def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
 
@@ -269,8 +347,10 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     Raises
     ------
     SceneError
-        On a non-positive size or spacing, an unknown preset, or a refine region
-        that is empty or off the top face.
+        On a non-positive size or spacing, an unknown preset, a refine region
+        that is empty or off the top face, or a spacing so small that the mesh
+        would have more than :data:`MAX_SOFT_BOX_NODES` nodes (the message gives
+        the smallest spacing that fits).
 
     Examples
     --------
@@ -307,6 +387,7 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
             raise SceneError(f"refine must be [[x_min, y_min], [x_max, y_max]] with min < max, got {region.tolist()}")
         if np.any(region[1] <= -half) or np.any(region[0] >= half):
             raise SceneError(f"refine region {region.tolist()} does not overlap the top face {(-half).tolist()}..{half.tolist()}")
+    _check_soft_box_size(size, region, fine, resolution)
     xs = _axis_coordinates(-half[0], half[0], region[0, 0], region[1, 0], fine)
     ys = _axis_coordinates(-half[1], half[1], region[0, 1], region[1, 1], fine)
     zs = _height_coordinates(float(size[2]), fine)

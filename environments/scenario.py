@@ -23,7 +23,7 @@ A scenario file (see ``environments/scenarios/*.yaml`` for examples)::
     goal:
       contacts: {right_palm: {surface: table_top, x: -0.2, y: 0}}   # or stance: <name>
       regions: [{robot_surface: left_sole, lower: [0.8, -0.4], upper: [1.6, 0.4]}]
-    options: {print_spacing: 0.1, theta_values_deg: [0]}   # plain data for the planner
+    options: {print_spacing: 0.1, theta_values_deg: [0]}   # for the planner, see options.py
 
 Print angles are ``theta_deg`` (degrees) or ``theta`` (radians), at most one, default
 0; x and y are metres in the surface frame. Mesh files are relative to the YAML
@@ -41,6 +41,7 @@ from typing import Any
 
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal
+from .options import validate_options
 from .scenario_reader import read_scenario_fields
 from .scene import Scene
 from .stance import Stance
@@ -72,7 +73,10 @@ class Scenario:
     description : str
         Free text.
     options : dict
-        Plain data for the planner (e.g. ``print_spacing``).
+        Plain data for the planner, validated by
+        :func:`environments.options.validate_options` (keys ``print_spacing``,
+        ``theta_values_deg``, ``print_margin``, ``sampling_region``,
+        ``robot_surfaces``).
     path : pathlib.Path or None
         File it was read from.
 
@@ -101,7 +105,7 @@ class Scenario:
             if not isinstance(stance, Stance):
                 raise SceneError(f"stance {name!r} must be a Stance, got {type(stance).__name__}")
         object.__setattr__(self, "stances", stances)
-        object.__setattr__(self, "options", dict(self.options))
+        object.__setattr__(self, "options", validate_options(self.options, self.path))
         if self.start is not None and self.start not in stances:
             raise SceneError(f"start stance {self.start!r} is not defined; stances: {known_names(stances)}")
 

@@ -20,6 +20,7 @@ from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fe
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
+from .options import validate_options
 from .scene import Scene
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
@@ -51,30 +52,75 @@ def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name:
     """
     try:
         node = yaml.compose(text, Loader=yaml.SafeLoader)
+        lines: dict[str, int] = {}
+        if node is not None:
+            # Before building any Python data: the walk bounds what aliases expand to.
+            _record_lines(node, lines, path)
         data = yaml.safe_load(text)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = None if mark is None else mark.line + 1
         problem = getattr(error, "problem", None) or str(error)
         raise ScenarioError(path, "", f"YAML syntax error: {problem}", line=line) from None
-    lines: dict[str, int] = {}
-    if node is not None:
-        _record_lines(node, "", lines)
+    except RecursionError:
+        raise ScenarioError(path, "", f"YAML nested too deeply; a scenario needs fewer than {MAX_YAML_DEPTH} levels") from None
     return _Reader(path, lines).scenario_fields(data, name)
 
 
+#: Most YAML nodes a scenario may expand to, aliases (``*name``) counted at every
+#: use. The largest built-in scenario has a few hundred; the bound stops an alias
+#: bomb (a kilobyte of nested aliases expanding to billions of nodes) before it
+#: exhausts memory in this reader or in the planner that walks its data.
+MAX_YAML_NODES = 100_000
 
-def _record_lines(node: yaml.Node, key: str, lines: dict[str, int]) -> None:
-    """Map each key path of a composed YAML tree to its 1-based line."""
-    lines.setdefault(key, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        for key_node, value_node in node.value:
-            child = f"{key}.{key_node.value}" if key else str(key_node.value)
-            lines[child] = key_node.start_mark.line + 1
-            _record_lines(value_node, child, lines)
-    elif isinstance(node, yaml.SequenceNode):
-        for index, item in enumerate(node.value):
-            _record_lines(item, f"{key}[{index}]", lines)
+#: Deepest nesting of mappings and lists; scenarios need fewer than 10 levels.
+MAX_YAML_DEPTH = 64
+
+
+def _record_lines(root: yaml.Node, lines: dict[str, int], path) -> None:
+    """Map each key path of a composed YAML tree to its 1-based line, within bounds.
+
+    Raises
+    ------
+    ScenarioError
+        If the tree, its aliases expanded, has more than :data:`MAX_YAML_NODES`
+        nodes, is deeper than :data:`MAX_YAML_DEPTH`, or holds an alias inside
+        its own anchor (a cycle).
+    """
+    # An explicit stack, not recursion: a cyclic or very deep document must give
+    # a ScenarioError, not a RecursionError. Each entry carries the ids of the
+    # nodes above it, so an alias pointing back up is a cycle.
+    stack = [(root, "", ())]
+    visited = 0
+    while stack:
+        node, key, ancestors = stack.pop()
+        visited += 1
+        line = node.start_mark.line + 1
+        if visited > MAX_YAML_NODES:
+            raise ScenarioError(
+                path,
+                key,
+                f"the document expands to more than {MAX_YAML_NODES} YAML values (each use of an "
+                "alias '*name' repeats its anchor's content); write the values out or use fewer "
+                "nested aliases",
+                line=line,
+            )
+        if id(node) in ancestors:
+            raise ScenarioError(path, key, "an alias refers to a value that contains it (a cycle)", line=line)
+        if len(ancestors) > MAX_YAML_DEPTH:
+            raise ScenarioError(
+                path, key, f"nested deeper than {MAX_YAML_DEPTH} levels; flatten the document", line=line
+            )
+        lines.setdefault(key, line)
+        below = (*ancestors, id(node))
+        if isinstance(node, yaml.MappingNode):
+            for key_node, value_node in reversed(node.value):
+                child = f"{key}.{key_node.value}" if key else str(key_node.value)
+                lines[child] = key_node.start_mark.line + 1
+                stack.append((value_node, child, below))
+        elif isinstance(node, yaml.SequenceNode):
+            for index in reversed(range(len(node.value))):
+                stack.append((node.value[index], f"{key}[{index}]", below))
 
 
 _MISSING = object()
@@ -180,9 +226,10 @@ class _Reader:
         if start is not None and start not in stances:
             raise self.error("start", f"unknown stance {start!r}; stances: {known_names(stances)}")
         goal = None if top.get("goal") is None else self.goal(top["goal"], scene, stances)
-        options = top.get("options", {})
-        if not isinstance(options, Mapping):
-            raise self.error("options", f"must be a mapping, got {_kind(options)}")
+        try:
+            options = validate_options(top.get("options", {}), self.path)
+        except ScenarioError as error:
+            raise self.error(error.key, error.message) from None
         return dict(
             name=name,
             scene=scene,
@@ -191,7 +238,7 @@ class _Reader:
             start=start,
             goal=goal,
             description=description.strip(),
-            options=dict(options),
+            options=options,
             path=self.path,
         )
 
@@ -216,7 +263,11 @@ class _Reader:
                 raise
             except SceneError as error:
                 raise self.error(key, str(error)) from None
-            except ValueError as error:  # fem's errors (bad material, mesh) are ValueErrors
+            except ValueError as error:
+                # fem's bad-input errors (material, mesh) become this file's errors;
+                # any other ValueError is a bug and must surface as one.
+                if not _is_fem_error(error):
+                    raise
                 raise self.error(key, f"{type(error).__name__}: {error}") from None
             if obj.name in names:
                 raise self.error(_join(key, "name"), f"repeated object name {obj.name!r}")
@@ -297,6 +348,8 @@ class _Reader:
         except ScenarioError:
             raise
         except ValueError as error:
+            if not _is_fem_error(error):
+                raise
             raise self.error(material_key, str(error)) from None
         obj, top = soft_box(
             name,
@@ -413,6 +466,15 @@ class _Reader:
         if not contacts and not regions:
             raise self.error("goal", "needs 'contacts', 'stance' or 'regions'")
         return Goal(contacts, tuple(regions))
+
+
+def _is_fem_error(error: Exception) -> bool:
+    """Whether an exception is one of fem's own bad-input errors (fem imported lazily)."""
+    try:
+        from fem.errors import FemError
+    except ImportError:  # pragma: no cover - fem is part of the project
+        return False
+    return isinstance(error, FemError)
 
 
 def _join(key: str, name) -> str:

@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from .errors import MaterialError
 from .material import LinearElasticMaterial
 from .mesh import TetMesh
 
@@ -92,6 +93,11 @@ def assemble_stiffness(mesh: TetMesh, material: LinearElasticMaterial) -> sp.csr
     scipy.sparse.csr_matrix, (3N, 3N) float, N/m
         Symmetric positive semi-definite (six rigid modes); dof ``3 * node + axis``.
 
+    Raises
+    ------
+    MaterialError
+        If an entry of the stiffness overflows (non-finite).
+
     Examples
     --------
     >>> from fem import box_mesh, LinearElasticMaterial
@@ -114,5 +120,12 @@ def assemble_stiffness(mesh: TetMesh, material: LinearElasticMaterial) -> sp.csr
     block_rows = unique_keys // n
     indices = (unique_keys % n).astype(np.int32)
     indptr = np.searchsorted(block_rows, np.arange(n + 1)).astype(np.int32)
+    if not np.all(np.isfinite(data)):
+        # Only reachable with extreme but finite inputs (a huge E on large tets, tiny
+        # slivers): refuse here, or every force computed from K comes back NaN.
+        raise MaterialError(
+            f"the stiffness of this mesh has non-finite entries with young_modulus "
+            f"{material.young_modulus:g} Pa; use a smaller modulus or rescale the mesh (metres)"
+        )
     k = sp.bsr_matrix((data, indices, indptr), shape=(3 * n, 3 * n))
     return k.tocsr()

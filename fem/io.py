@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import contextlib
+import io
 import os
 from collections.abc import Mapping
 
@@ -30,12 +32,13 @@ def read_mesh(path: str | os.PathLike) -> TetMesh:
     Raises
     ------
     MeshError
-        If the file cannot be read or holds no linear ``tetra`` cells.
+        If the file cannot be read (missing, corrupt, unknown format) or holds no
+        linear ``tetra`` cells.
     """
     import meshio
 
     try:
-        raw = meshio.read(os.fspath(path))
+        raw = _call_meshio(meshio.read, os.fspath(path))
     except Exception as exc:
         raise MeshError(f"cannot read mesh file {os.fspath(path)!r}: {exc}") from exc
     blocks = [np.asarray(c.data) for c in raw.cells if c.type == "tetra"]
@@ -104,6 +107,32 @@ def write_mesh(
         points_out, [("tetra", np.asarray(mesh.tets))], point_data=point_fields, cell_data=cells
     )
     try:
-        meshio.write(os.fspath(path), out, file_format=file_format)
+        _call_meshio(meshio.write, os.fspath(path), out, file_format=file_format)
     except Exception as exc:
         raise MeshError(f"meshio cannot write {os.fspath(path)!r}: {exc}") from exc
+
+
+class _MeshioExit(Exception):
+    """meshio tried to end the process; carries what it printed."""
+
+
+def _call_meshio(function, *args, **kwargs):
+    """Call a meshio function so that it can neither end the process nor print.
+
+    meshio 5 prints a reader's error and then calls ``sys.exit(1)`` when no reader
+    accepts a file (a corrupt ``.vtu`` or ``.msh``): a library must not end its
+    caller's program, so the exit and the printed text become an ordinary exception
+    whose message is that text. Both streams are captured because meshio prints the
+    reader's error on stdout and its summary on stderr (through ``rich``, which looks
+    up ``sys.stderr`` at each call, so the redirection reaches it).
+    """
+    captured = io.StringIO()
+    try:
+        with contextlib.redirect_stdout(captured), contextlib.redirect_stderr(captured):
+            return function(*args, **kwargs)
+    except SystemExit:
+        said = " ".join(captured.getvalue().split()).removeprefix("Error: ")
+        raise _MeshioExit(
+            f"{said or 'meshio gave up without a reason'} (is the file complete and in the format its "
+            "extension says?)"
+        ) from None

@@ -10,7 +10,13 @@ import numpy as np
 
 from .errors import MaterialError
 
-__all__ = ["LinearElasticMaterial"]
+__all__ = ["LinearElasticMaterial", "MAX_YOUNG_MODULUS"]
+
+#: Largest Young's modulus accepted, pascals: ten times diamond's (1.05e12 Pa). A
+#: stiffer support is rigid for any robot and belongs in the scene as a rigid object;
+#: far beyond it the stiffness entries (E times an element size) overflow to inf and
+#: the forces come back NaN.
+MAX_YOUNG_MODULUS = 1e13
 
 
 @dataclass(frozen=True, eq=False)
@@ -20,7 +26,7 @@ class LinearElasticMaterial:
     Parameters
     ----------
     young_modulus : float
-        Young's modulus E, pascals, > 0.
+        Young's modulus E, pascals, in (0, :data:`MAX_YOUNG_MODULUS`].
     poisson_ratio : float
         Poisson's ratio nu, dimensionless, in (-1, 0.5).
     density : float
@@ -30,7 +36,7 @@ class LinearElasticMaterial:
     Raises
     ------
     MaterialError
-        If a constant is NaN or outside its range.
+        If a constant is NaN, infinite or outside its range.
 
     Examples
     --------
@@ -57,6 +63,11 @@ class LinearElasticMaterial:
             raise MaterialError(
                 f"young_modulus must be > 0 Pa, got {self.young_modulus:g}; "
                 "soft foams are around 1e4-1e6 Pa"
+            )
+        if self.young_modulus > MAX_YOUNG_MODULUS:
+            raise MaterialError(
+                f"young_modulus must be <= {MAX_YOUNG_MODULUS:g} Pa (ten times diamond's), got "
+                f"{self.young_modulus:g}; model a support this stiff as a rigid object"
             )
         if not -1.0 < self.poisson_ratio < 0.5:
             raise MaterialError(

@@ -61,9 +61,10 @@ class TetMesh:
     Raises
     ------
     MeshError
-        On NaN/inf, bad shapes, indices out of range, duplicate nodes, nodes used by
-        no tet, flat tets or (unless ``fix_orientation``) inverted tets; the message
-        names the offending index.
+        On NaN/inf, bad shapes, indices out of range, duplicate nodes, repeated
+        tets (the same four nodes twice), nodes used by no tet, flat tets or
+        (unless ``fix_orientation``) inverted tets; the message names the
+        offending index.
 
     Notes
     -----
@@ -95,6 +96,7 @@ class TetMesh:
                 f"tet {out[0]} has node ids {tets[out[0]].tolist()} outside [0, {n - 1}]"
             )
         self._check_duplicate_nodes(nodes)
+        self._check_repeated_tets(tets)
         used = np.zeros(n, dtype=bool)
         used[tets.ravel()] = True
         if not used.all():
@@ -142,6 +144,25 @@ class TetMesh:
             raise MeshError(
                 f"nodes {same.tolist()} are duplicates (position {nodes[same[0]].tolist()}); "
                 "merge them so neighbouring tets share nodes"
+            )
+
+    @staticmethod
+    def _check_repeated_tets(tets: np.ndarray) -> None:
+        # A tet listed twice (in any node order) adds its stiffness twice: the
+        # body is silently stiffer there, so refuse it rather than assemble it.
+        keys = np.sort(tets, axis=1)
+        n = int(keys.max()) + 1
+        # Two int64 keys per tet (a n + b, c n + d; exact for n < 3e9): sorting two
+        # columns is about twice as fast as sorting four.
+        high, low = keys[:, 0] * n + keys[:, 1], keys[:, 2] * n + keys[:, 3]
+        order = np.lexsort((low, high))
+        high, low = high[order], low[order]
+        same = np.flatnonzero((high[1:] == high[:-1]) & (low[1:] == low[:-1]))
+        if same.size:
+            first, second = sorted((int(order[same[0]]), int(order[same[0] + 1])))
+            raise MeshError(
+                f"tets {first} and {second} have the same nodes {tets[first].tolist()} "
+                f"({same.size} repeated tet(s) in all); remove the repeats"
             )
 
     # ------------------------------------------------------------------ sizes

@@ -15,6 +15,11 @@ __all__ = ["tensor_mesh", "box_mesh", "graded_coordinates", "mesh_from_surface"]
 
 logger = logging.getLogger(__name__)
 
+#: Most nodes a structured mesh may have. Beyond it the stiffness factorisation
+#: needs tens of gigabytes (3 dofs and about 80 stored entries per dof row), so a
+#: request this large is a mistaken spacing, refused before numpy allocates the grid.
+MAX_TENSOR_NODES = 2_000_000
+
 
 def _kuhn_tets() -> np.ndarray:
     """The 6 tets of the unit cube around its diagonal 000-111, positively oriented.
@@ -72,7 +77,8 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
     Raises
     ------
     MeshError
-        If a coordinate array is not strictly increasing or has fewer than 2 values.
+        If a coordinate array is not strictly increasing or has fewer than 2 values,
+        or if the mesh would have more than :data:`MAX_TENSOR_NODES` nodes.
 
     Examples
     --------
@@ -82,6 +88,7 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
     """
     xs, ys, zs = _check_axis("xs", xs), _check_axis("ys", ys), _check_axis("zs", zs)
     nx, ny, nz = xs.size, ys.size, zs.size
+    _check_node_count(nx, ny, nz)
     gx, gy, gz = np.meshgrid(xs, ys, zs, indexing="ij")
     # Node id i + nx (j + ny k): flatten with x fastest.
     nodes = np.stack([gx.ravel("F"), gy.ravel("F"), gz.ravel("F")], axis=1)
@@ -93,6 +100,20 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
     corners = base[:, None] + corner_offsets[None, :]  # (cells, 8) in i + 2j + 4k order
     tets = corners[:, _CUBE_TETS].reshape(-1, 4)
     return TetMesh(nodes, tets)
+
+
+def _check_node_count(nx: int, ny: int, nz: int) -> None:
+    """Refuse a grid of more than :data:`MAX_TENSOR_NODES` nodes, saying what fits."""
+    count = nx * ny * nz  # Python ints: no overflow for any request
+    if count > MAX_TENSOR_NODES:
+        # The same shape scaled down uniformly: coarsen each axis by this factor.
+        factor = (count / MAX_TENSOR_NODES) ** (1.0 / 3.0)
+        raise MeshError(
+            f"a {nx} x {ny} x {nz} grid has {count} nodes, more than the limit of {MAX_TENSOR_NODES} "
+            f"(fem.meshing.MAX_TENSOR_NODES); use about {factor:.3g} times fewer divisions per axis, "
+            f"e.g. {max(1, int((nx - 1) / factor))} x {max(1, int((ny - 1) / factor))} x "
+            f"{max(1, int((nz - 1) / factor))} cells"
+        )
 
 
 def graded_coordinates(start: float, stop: float, divisions: int, ratio: float = 1.0) -> np.ndarray:
@@ -165,6 +186,8 @@ def box_mesh(
         raise MeshError(f"divisions must be 3 integers >= 1, got {divisions}")
     if origin_arr.shape != (3,) or not np.all(np.isfinite(origin_arr)):
         raise MeshError(f"origin must be 3 finite coordinates, got {origin}")
+    # Checked before linspace: a huge division count must not allocate its axes.
+    _check_node_count(*(int(d) + 1 for d in div))
     end = origin_arr + size_arr
     xs = np.linspace(origin_arr[0], end[0], int(div[0]) + 1)
     ys = np.linspace(origin_arr[1], end[1], int(div[1]) + 1)

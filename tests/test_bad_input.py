@@ -1,0 +1,461 @@
+"""Bad input and unsafe output give the package's own error, never a crash or a wrong answer.
+
+Each case is the smallest input of one kind of fault. Cases that, with the bug back,
+would end, hang or exhaust the test process (meshio's ``sys.exit``, an alias bomb, a
+huge allocation) run in a child process with a timeout and an address-space limit.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import resource
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import environments
+import fem
+from cbm import cli
+from cbm.errors import CbmError
+from cbm.output import OutputDirectoryError, StagedOutput
+from cbm.planner import PostureOracle, StanceCheck
+from cbm.sampling import MAX_PRINT_CANDIDATES, options_from_scenario, sample_prints
+from environments.deformable import MAX_SOFT_BOX_NODES, soft_box_coordinates
+from environments.errors import ScenarioError
+from fem.errors import MaterialError, MeshError, PrintError
+from stances.errors import StanceError
+
+ROOT = Path(__file__).resolve().parents[1]
+
+# Address space of a child process: far above what importing the packages takes
+# (about 1.5 GB of mappings), far below what any of the guarded faults would
+# allocate, so a regression fails fast with MemoryError instead of swapping.
+_CHILD_MEMORY = 3 << 30
+
+
+def run_isolated(code: str, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    """Run Python code in a child process with a memory limit and a timeout."""
+
+    def limit_memory():
+        resource.setrlimit(resource.RLIMIT_AS, (_CHILD_MEMORY, _CHILD_MEMORY))
+
+    return subprocess.run(
+        [sys.executable, "-c", textwrap.dedent(code)],
+        capture_output=True,
+        text=True,
+        timeout=timeout,
+        preexec_fn=limit_memory,
+        cwd=ROOT,
+    )
+
+
+SCENARIO = """\
+robot: talos
+objects:
+  - {name: floor, type: floor}
+  - name: foam
+    type: soft_box
+    size: [0.6, 0.6, 0.1]
+    center: [0.5, 0.0, 0.05]
+    material: {E: 1.0e+6, nu: 0.4}
+    resolution: coarse
+stances:
+  stand:
+    left_sole: {surface: floor, x: 0.0, y: 0.085}
+    right_sole: {surface: floor, x: 0.0, y: -0.085}
+start: stand
+options:
+  print_spacing: 0.1
+  theta_values_deg: [0]
+"""
+
+
+# ---------------------------------------------------------------- 1. mesh files
+@pytest.mark.parametrize(
+    "name, content",
+    [
+        ("broken.vtu", '<?xml version="1.0"?>\n<VTKFile type="UnstructuredGrid"><garbage'),
+        ("broken.msh", "$MeshFormat\n4.1 0 8\n$EndMeshFormat\n$Nodes\n1 2 3\n"),
+    ],
+    ids=["vtu", "msh"],
+)
+def test_corrupt_mesh_file_gives_mesh_error_naming_the_file_and_the_process_lives_on(tmp_path, name, content):
+    path = tmp_path / name
+    path.write_text(content)
+    # meshio used to call sys.exit(1) on the .vtu: run in a child so that a
+    # regression fails this test instead of ending pytest.
+    child = run_isolated(
+        f"""
+        import fem
+        try:
+            fem.read_mesh({str(path)!r})
+        except fem.MeshError as error:
+            print("MeshError:", error)
+        print("still running")
+        """
+    )
+    assert child.returncode == 0, child.stderr
+    assert f"MeshError: cannot read mesh file {str(path)!r}" in child.stdout
+    assert child.stdout.rstrip().endswith("still running")
+    assert child.stderr == ""  # meshio's own printing is captured into the message
+
+
+def test_corrupt_mesh_file_in_process_is_a_mesh_error(tmp_path):
+    path = tmp_path / "broken.vtu"
+    path.write_text("<VTKFile")
+    with pytest.raises(MeshError, match="broken.vtu"):
+        fem.read_mesh(path)
+
+
+# ------------------------------------------------------------ 2. YAML aliases
+def test_yaml_alias_bomb_is_refused_quickly_with_a_scenario_error(tmp_path):
+    rows = ['a0: &a0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    rows += [f"a{i}: &a{i} [{', '.join([f'*a{i - 1}'] * 9)}]" for i in range(1, 9)]
+    path = tmp_path / "bomb.yaml"
+    path.write_text("\n".join(rows) + "\nobjects: [*a8]\nstances: {}\n")
+    assert path.stat().st_size < 1024  # a kilobyte expanding to 9^9 values
+    child = run_isolated(
+        f"""
+        import environments
+        try:
+            environments.load({str(path)!r})
+        except environments.ScenarioError as error:
+            print(error)
+        """,
+        timeout=60,
+    )
+    assert child.returncode == 0, child.stderr
+    assert "bomb.yaml" in child.stdout and "expands to more than 100000 YAML values" in child.stdout
+
+
+@pytest.mark.parametrize(
+    "text, message",
+    [
+        ("a: &a [1, *a]\nobjects: *a\nstances: {}\n", "refers to a value that contains it"),
+        ("objects: " + "[" * 3000 + "]" * 3000 + "\nstances: {}\n", "nested"),
+    ],
+    ids=["cyclic-alias", "deep-nesting"],
+)
+def test_cyclic_or_deep_yaml_is_a_scenario_error_not_a_recursion_error(text, message):
+    with pytest.raises(ScenarioError, match=message):
+        environments.load_string(text, path="case.yaml")
+
+
+def test_a_small_alias_still_works():
+    text = SCENARIO.replace("material: {E: 1.0e+6, nu: 0.4}", "material: &foam {E: 2.0e+6, nu: 0.4}")
+    text = text.replace(
+        "stances:",
+        "  - {name: mat, type: soft_box, size: [0.4, 0.4, 0.05], center: [-1, 0, 0.025], material: *foam,\n"
+        "     resolution: coarse}\nstances:",
+    )
+    scenario = environments.load_string(text)
+    assert [o.body.material.young_modulus for o in scenario.scene.deformable_objects] == [2e6, 2e6]
+
+
+# -------------------------------------------------------- 3. resource limits
+def test_tiny_soft_box_resolution_names_the_limit_and_a_resolution_that_fits():
+    with pytest.raises(environments.SceneError) as raised:
+        soft_box_coordinates((1.0, 1.0, 1.0), 1e-5)
+    message = str(raised.value)
+    assert f"the limit of {MAX_SOFT_BOX_NODES}" in message
+    fits = float(message.split("use a resolution of at least ")[1].split(" m")[0])
+    # The suggested spacing must fit, and a spacing 5 % finer must not.
+    xs, ys, zs = soft_box_coordinates((1.0, 1.0, 1.0), fits)
+    assert xs.size * ys.size * zs.size <= MAX_SOFT_BOX_NODES * 1.05  # estimate within a few per axis
+    with pytest.raises(environments.SceneError):
+        soft_box_coordinates((1.0, 1.0, 1.0), 0.95 * fits)
+
+
+def test_tiny_resolution_in_a_scenario_file_is_refused_before_allocating(tmp_path):
+    path = tmp_path / "fine.yaml"
+    path.write_text(SCENARIO.replace("resolution: coarse", "resolution: 1.0e-7"))
+    child = run_isolated(
+        f"""
+        import environments
+        try:
+            environments.load({str(path)!r})
+        except environments.ScenarioError as error:
+            print(error)
+        """
+    )
+    assert child.returncode == 0, child.stderr
+    assert "fine.yaml" in child.stdout and "objects[1]" in child.stdout
+    assert "more than the limit of" in child.stdout and "use a resolution of at least" in child.stdout
+
+
+def test_huge_box_mesh_is_a_mesh_error_before_allocating():
+    with pytest.raises(MeshError, match=r"more than the limit of \d+ .*fewer divisions"):
+        fem.box_mesh((1.0, 1.0, 1.0), (10**6, 10**6, 10**6))
+
+
+def test_tiny_print_spacing_names_the_limit_and_a_spacing_that_fits(robot):
+    scenario = environments.load_string(SCENARIO)
+    polygons = {name: robot.surfaces[name].polygon for name in robot.surfaces}
+    child = run_isolated(
+        """
+        import environments, stances
+        from cbm.sampling import options_from_scenario, sample_prints
+        from cbm.errors import CbmError
+        scenario = environments.load_string(%r)
+        robot = stances.Robot.load("talos")
+        polygons = {name: robot.surfaces[name].polygon for name in robot.surfaces}
+        try:
+            sample_prints(scenario.scene.surfaces, polygons, options_from_scenario({}, 1e-4))
+        except CbmError as error:
+            print(error)
+        """
+        % SCENARIO
+    )
+    assert child.returncode == 0, child.stderr
+    message = child.stdout
+    assert f"more than the limit of {MAX_PRINT_CANDIDATES}" in message
+    fits = float(message.split("use a print_spacing of at least ")[1].split(" m")[0])
+    sets = sample_prints(scenario.scene.surfaces, polygons, options_from_scenario({}, fits))
+    assert sum(len(s) for s in sets.values()) > 0
+    with pytest.raises(CbmError, match="print_spacing"):
+        sample_prints(scenario.scene.surfaces, polygons, options_from_scenario({}, 0.95 * fits))
+
+
+# ------------------------------------------------------- 4. scenario options
+@pytest.mark.parametrize(
+    "options, key, message",
+    [
+        ("{print_spacng: 0.1}", "options.print_spacng", "unknown option 'print_spacng'; valid options: print_spacing"),
+        ("{theta_values_deg: 0}", "options.theta_values_deg", "must be a non-empty list of numbers"),
+        ("{robot_surfaces: left_sole}", "options.robot_surfaces", "must be a non-empty list of robot surface names"),
+        ("{print_spacing: -0.1}", "options.print_spacing", "must be a number > 0"),
+        ("{print_spacing: yes}", "options.print_spacing", "got bool True"),
+        ("{print_margin: .nan}", "options.print_margin", "must be a number >= 0"),
+        ("{sampling_region: {lower: [0, 0]}}", "options.sampling_region", "{lower: [x, y], upper: [x, y]}"),
+        ("{sampling_region: {lower: [1, 0], upper: [0, 1]}}", "options.sampling_region", "must be <= upper"),
+        ("{theta_values_deg: [0, ninety]}", "options.theta_values_deg[1]", "got 'ninety'"),
+    ],
+    ids=["typo", "scalar-for-list", "string-for-list", "negative", "bool", "nan", "region-no-upper",
+         "region-inverted", "word-in-list"],
+)
+def test_bad_scenario_option_names_file_key_line_and_what_is_valid(tmp_path, options, key, message):
+    path = tmp_path / "case.yaml"
+    text = SCENARIO.replace("options:\n  print_spacing: 0.1\n  theta_values_deg: [0]\n", f"options: {options}\n")
+    path.write_text(text)
+    line = text.splitlines().index(f"options: {options}") + 1
+    with pytest.raises(ScenarioError) as raised:
+        environments.load(path)
+    assert str(raised.value).startswith(f"{path}:{line}: {key}: ")
+    assert message in str(raised.value)
+
+
+def test_options_given_in_python_are_validated_too():
+    with pytest.raises(ScenarioError, match="options.robot_surfaces: must be a non-empty list"):
+        options_from_scenario({"robot_surfaces": "left_sole"})
+    scenario = environments.load_string(SCENARIO)
+    with pytest.raises(ScenarioError, match="unknown option 'spacing'"):
+        environments.Scenario(scenario.name, scenario.scene, options={"spacing": 0.1})
+
+
+# ------------------------------------------------- 5. silently wrong physics
+def test_repeated_tet_is_a_mesh_error():
+    mesh = fem.box_mesh((1.0, 1.0, 1.0), (2, 2, 2))
+    tets = np.vstack([mesh.tets, mesh.tets[[5]][:, [1, 0, 3, 2]]])  # same nodes, other order
+    with pytest.raises(MeshError, match=rf"tets 5 and {mesh.n_tets} have the same nodes"):
+        fem.TetMesh(mesh.nodes, tets, fix_orientation=True)
+
+
+@pytest.mark.parametrize(
+    "polygon, message",
+    [
+        ([[0.2, 0.2], [0.8, 0.8], [0.8, 0.2], [0.2, 0.8]], "self-intersecting: edge 0-1 meets edge 2-3"),
+        ([[0.2, 0.2], [0.8, 0.2], [0.8, 0.2], [0.2, 0.8]], "vertices 1 and 2 coincide"),
+        ([[0.2, 0.2], [0.8, 0.2], [0.5, 0.2], [0.5, 0.8]], "folds back on itself at vertex 1"),
+    ],
+    ids=["bow-tie", "repeated-vertex", "spike"],
+)
+def test_self_intersecting_print_polygon_is_a_print_error(polygon, message):
+    mesh = fem.box_mesh((1.0, 1.0, 1.0), (4, 4, 2))
+    with pytest.raises(PrintError, match=message):
+        fem.nodes_in_polygon(mesh, [[x, y, 1.0] for x, y in polygon])
+
+
+def test_non_convex_simple_print_polygon_is_still_accepted():
+    mesh = fem.box_mesh((1.0, 1.0, 1.0), (4, 4, 2))
+    arrow = [[0.2, 0.2, 1.0], [0.8, 0.2, 1.0], [0.5, 0.5, 1.0], [0.8, 0.8, 1.0], [0.2, 0.8, 1.0]]
+    assert fem.nodes_in_polygon(mesh, arrow).size > 0
+
+
+@pytest.mark.parametrize("young_modulus", [1e308, 1e14], ids=["1e308", "1e14"])
+def test_enormous_young_modulus_is_a_material_error(young_modulus):
+    with pytest.raises(MaterialError, match="young_modulus must be <= 1e\\+13 Pa"):
+        fem.LinearElasticMaterial(young_modulus, 0.4)
+
+
+def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
+    with pytest.raises(ScenarioError, match=r"objects\[1\]\.material: young_modulus must be <="):
+        environments.load_string(SCENARIO.replace("E: 1.0e+6", "E: 1.0e+308"), path="case.yaml")
+
+
+# ------------------------------------------------------------ 6. CLI output
+@pytest.fixture
+def fake_planning(monkeypatch):
+    """``cbm plan`` with the search and the writing replaced by instant stand-ins."""
+    calls = []
+
+    class Result:
+        success = True
+        reason = ""
+        stances = ()
+
+        class statistics:  # noqa: N801 - stands in for PlanStatistics
+            expanded = solver_calls = cache_hits = 0
+            time = cpu_time = 0.0
+
+    def plan(*args, **kwargs):
+        calls.append("plan")
+        return Result()
+
+    def write_outputs(result, scenario, robot, out, pictures=True):
+        from cbm.output import OutputFiles
+
+        (Path(out) / "plan.json").write_text("{}")
+        (Path(out) / "viewer.html").write_text("")
+        return OutputFiles(Path(out) / "plan.json", (), (), Path(out) / "viewer.html")
+
+    monkeypatch.setattr("cbm.planner.plan", plan)
+    monkeypatch.setattr("cbm.output.write_outputs", write_outputs)
+    return calls
+
+
+def test_out_that_is_a_file_exits_2_before_the_search(tmp_path, fake_planning, capsys):
+    out = tmp_path / "results"
+    out.write_text("not a folder")
+    assert cli.main(["plan", "stand", "--out", str(out), "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert "is a file, not a folder" in capsys.readouterr().err
+    assert fake_planning == []
+
+
+def test_out_that_cannot_be_written_exits_2_before_the_search(tmp_path, fake_planning, monkeypatch, capsys):
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    # A read-only parent, simulated: tests may run as root, which ignores modes.
+    monkeypatch.setattr("tempfile.mkdtemp", refuse)
+    assert cli.main(["plan", "stand", "--out", str(tmp_path / "results"), "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert "cannot write output folder" in capsys.readouterr().err
+    assert fake_planning == []
+
+
+def test_out_under_a_file_exits_2(tmp_path, fake_planning, capsys):
+    (tmp_path / "file").write_text("")
+    assert cli.main(["plan", "stand", "--out", str(tmp_path / "file" / "results"), "--quiet"]) == 2
+    assert "is not a folder" in capsys.readouterr().err
+    assert fake_planning == []
+
+
+def test_non_empty_out_is_refused_unless_forced_and_then_replaced_whole(tmp_path, fake_planning, capsys):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "stance_07.png").write_text("from an older plan")
+    assert cli.main(["plan", "stand", "--out", str(out), "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert "not empty" in capsys.readouterr().err and fake_planning == []
+    assert cli.main(["plan", "stand", "--out", str(out), "--quiet", "--force"]) == cli.EXIT_OK
+    assert sorted(p.name for p in out.iterdir()) == ["plan.json", "viewer.html"]
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]  # no temporary folder left
+
+
+def test_ctrl_c_during_the_search_exits_130_and_leaves_out_untouched(tmp_path, monkeypatch, capsys):
+    def interrupted(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr("cbm.planner.plan", interrupted)
+    out = tmp_path / "results"
+    assert cli.main(["plan", "stand", "--out", str(out), "--quiet"]) == cli.EXIT_INTERRUPTED
+    assert "interrupted" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_failure_while_writing_leaves_the_previous_plan_in_place(tmp_path, fake_planning, monkeypatch):
+    out = tmp_path / "results"
+    out.mkdir()
+    (out / "plan.json").write_text('{"old": true}')
+
+    def half_written(result, scenario, robot, folder, pictures=True):
+        (Path(folder) / "plan.json").write_text("{}")
+        raise KeyboardInterrupt  # Ctrl-C between the plan and the viewer
+
+    monkeypatch.setattr("cbm.output.write_outputs", half_written)
+    assert cli.main(["plan", "stand", "--out", str(out), "--quiet", "--force"]) == cli.EXIT_INTERRUPTED
+    assert json.loads((out / "plan.json").read_text()) == {"old": True}
+    assert [p.name for p in tmp_path.iterdir()] == ["results"]
+
+
+def test_staged_output_publishes_with_the_permissions_of_a_new_folder(tmp_path):
+    staged = StagedOutput(tmp_path / "results")
+    (staged.folder / "plan.json").write_text("{}")
+    umask = os.umask(0)
+    os.umask(umask)
+    assert staged.publish() == tmp_path / "results"
+    assert (tmp_path / "results").stat().st_mode & 0o777 == 0o777 & ~umask
+    with pytest.raises(OutputDirectoryError, match="not empty"):
+        StagedOutput(tmp_path / "results")
+
+
+def test_help_documents_the_exit_codes(capsys):
+    assert cli.main(["plan", "--help"]) == 0
+    text = capsys.readouterr().out
+    for code, meaning in (("0", "plan found"), ("1", "no plan"), ("2", "bad input"), ("130", "interrupted")):
+        assert any(line.split()[:1] == [code] and meaning in line for line in text.splitlines()), text
+
+
+# ---------------------------------------------- 7. only the library's errors
+def test_cli_lets_a_bug_propagate_instead_of_calling_it_bad_input(tmp_path, monkeypatch):
+    def buggy(*args, **kwargs):
+        raise np.linalg.LinAlgError("Singular matrix")  # a ValueError, but not bad input
+
+    monkeypatch.setattr("cbm.planner.plan", buggy)
+    with pytest.raises(np.linalg.LinAlgError):
+        cli.main(["plan", "stand", "--out", str(tmp_path / "results"), "--quiet"])
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_cli_still_reports_the_library_errors_as_bad_input(tmp_path, monkeypatch, capsys):
+    def refused(*args, **kwargs):
+        raise CbmError("scenario 'stand' has no goal; pass goal=")
+
+    monkeypatch.setattr("cbm.planner.plan", refused)
+    assert cli.main(["plan", "stand", "--out", str(tmp_path / "results"), "--quiet"]) == cli.EXIT_BAD_INPUT
+    assert "has no goal" in capsys.readouterr().err
+
+
+@pytest.fixture
+def oracle_with(monkeypatch, robot):
+    """A PostureOracle whose solver raises a given exception."""
+    scenario = environments.load("stand")
+
+    def make(error):
+        def solve(*args, **kwargs):
+            raise error
+
+        monkeypatch.setattr("cbm.planner.posture_api", lambda: (solve, None))
+        return PostureOracle(robot, scenario.scene, retry_cold=False), scenario.stance("stand")
+
+    return make
+
+
+def test_oracle_lets_a_linear_algebra_bug_propagate(oracle_with):
+    oracle, stance = oracle_with(np.linalg.LinAlgError("Singular matrix"))
+    with pytest.raises(np.linalg.LinAlgError):
+        oracle(stance)
+
+
+@pytest.mark.parametrize(
+    "error",
+    [StanceError("the stance has no contact"), PrintError("print covers 2 nodes"), environments.SceneError("off")],
+    ids=["stances", "fem", "environments"],
+)
+def test_oracle_turns_the_library_errors_into_infeasible(oracle_with, error):
+    oracle, stance = oracle_with(error)
+    check = oracle(stance)
+    assert check == StanceCheck(False, f"{type(error).__name__}: {error}")
