@@ -171,7 +171,7 @@ def test_objective_gradient_matches_finite_differences(linearised_problems):
         assert np.abs(numeric - analytic).max() <= 1e-5 * max(1.0, np.abs(analytic).max()), label
 
 
-def test_torque_usage_term_is_half_the_weighted_squared_usage(robot):
+def test_torque_usage_term_is_half_the_weighted_squared_usage_beyond_half_the_limits(robot):
     scenario = coarse_scenario("hand-on-table")
     stance = scenario.stance("hand-on-table")
     q = robot.reference_configuration
@@ -179,8 +179,10 @@ def test_torque_usage_term_is_half_the_weighted_squared_usage(robot):
     without = build_problem(robot, scenario.scene, stance, PostureOptions(torque_weight=0.0))
     lam = with_term.initial_variables(q)
     linearization = with_term.linearize(q, lam)
-    usage = linearization.torques[6:] / robot.effort_limits
-    expected = 0.25 * float(usage @ usage)
+    usage = np.abs(linearization.torques[6:]) / robot.effort_limits
+    excess = np.maximum(usage - 0.5, 0.0)
+    assert excess.max() > 0.0 and (excess == 0.0).any()  # both sides of the threshold are met
+    expected = 0.25 * float(excess @ excess)
     assert linearization.objective - without.linearize(q, lam).objective == pytest.approx(expected, rel=1e-12)
 
 
