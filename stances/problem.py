@@ -1,11 +1,13 @@
 """The posture problem (45)-(49): build it, then linearise it around an iterate.
 
 Building (:func:`build_problem`) turns a stance into contact models and fixes
-everything that does not change during a solve; linearising
-(:meth:`PostureProblem.linearize`) evaluates the objective and every
-constraint with its exact Jacobian at ``(q, lambda)``. The SQP in
-:mod:`stances.sqp` only stacks what this returns, so the problem can be
-inspected, tested and handed to another solver (the benchmark uses SLSQP).
+everything that does not change during a solve, including the list of costs and
+constraints (:mod:`stances.terms`, one small piece each); linearising
+(:meth:`PostureProblem.linearize`) computes the iterate once (kinematics,
+forces, static torques and their Jacobians) and stacks every piece's value and
+exact Jacobian at ``(q, lambda)``. The SQP in :mod:`stances.sqp` only stacks
+what this returns, so the problem can be inspected, tested and handed to
+another solver (the benchmark uses SLSQP).
 
 Unknowns: a tangent step ``dq`` (nv,) applied with ``pin.integrate`` and the
 force variables ``lambda`` (m,) of the rigid contacts (friction-cone
@@ -20,11 +22,22 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
-from .blocks import ConstraintBlock, equality
 from .contacts import RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives
+from .terms import (
+    CollisionConstraint,
+    ContactConstraints,
+    ContactCosts,
+    EquilibriumConstraint,
+    ForceCost,
+    Iterate,
+    NormalLoadConstraint,
+    PostureCost,
+    TorqueLimitConstraint,
+    TorqueUsageCost,
+)
 
 
 # Weight of a soft print's generalised force W relative to the force term: enough to
@@ -176,7 +189,6 @@ class PostureOptions:
             raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
 
 
-_FREE_USAGE = 0.5  # torque usage (fraction of the limit) the torque term leaves free
 _ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it
 
 
@@ -274,6 +286,19 @@ class PostureProblem:
         keep = options.joint_margin * (upper - lower)
         self.q_lower, self.q_upper = lower + keep, upper - keep
         self.effort = (1.0 - options.effort_margin) * robot.effort_limits
+        # The pieces linearize stacks, in this order (rows and costs), see stances.terms.
+        self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint()]
+        if options.min_normal_force > 0:
+            self.constraints.append(NormalLoadConstraint(options.min_normal_force))
+        self.constraints.append(ContactConstraints())
+        if collision_checker is not None:
+            self.constraints.append(
+                CollisionConstraint(collision_checker, options.collision_distance, options.max_collision_rows)
+            )
+        self.costs = [PostureCost(), TorqueUsageCost(options.torque_weight)]
+        if self.n_variables:
+            self.costs.append(ForceCost(options.force_weight))
+        self.costs.append(ContactCosts())
 
     @property
     def n_step(self) -> int:
@@ -374,12 +399,40 @@ class PostureProblem:
         -------
         Linearization
         """
-        model, data, options = self.robot.model, self.data, self.options
-        nv, n = model.nv, self.n_step
+        options = self.options
+        nv, n = self.robot.model.nv, self.n_step
+        iterate = self.iterate(q, lam)
+        blocks = [block for term in self.constraints for block in term.blocks(self, iterate)]
+        objective, gradient, hessian = 0.0, np.zeros(n), np.zeros((n, n))
+        for term in self.costs:
+            if isinstance(term, TorqueUsageCost) and torque_weight is not None:
+                term = TorqueUsageCost(torque_weight)
+            if isinstance(term, TorqueUsageCost) and not term.weight:
+                continue
+            value, grad, hess = term.evaluate(self, iterate)
+            objective += value
+            gradient += grad
+            hessian += hess
+
+        # Bounds on the step: trust region, joint limits, lambda >= 0.
+        step_lower = np.full(n, -options.trust_region)
+        step_upper = np.full(n, options.trust_region)
+        step_lower[6:nv] = np.maximum(step_lower[6:nv], self.q_lower - q[7:])
+        step_upper[6:nv] = np.minimum(step_upper[6:nv], self.q_upper - q[7:])
+        step_lower[nv:] = self.variable_lower - lam
+        step_upper[nv:] = np.inf
+        return Linearization(
+            objective, gradient, hessian, blocks, step_lower, step_upper, iterate.forces, iterate.tau
+        )
+
+    def iterate(self, q, lam) -> Iterate:
+        """Kinematics (in ``self.data``), contact forces and static torques at
+        ``(q, lam)``, with their Jacobians in the step: what every term reads."""
+        model, data = self.robot.model, self.data
+        nv = model.nv
         pin.framesForwardKinematics(model, data, q)
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
-
         # Contact forces and their derivatives (deformable ones depend on q).
         forces, force_dq, force_dlam = [], [], []
         for contact, s in zip(self.contacts, self.variable_slices):
@@ -392,138 +445,11 @@ class PostureProblem:
         forces = np.vstack(forces) if forces else np.zeros((0, 3))
         force_dq = np.vstack(force_dq) if force_dq else np.zeros((0, nv))
         force_dlam = np.vstack(force_dlam) if force_dlam else np.zeros((0, self.n_variables))
-
         tau, dtau_dq, dtau_dforces = static_torque_derivatives(model, data, q, self.loads, forces)
         # The static-torque routine reruns kinematics; frames need refreshing.
         pin.updateFramePlacements(model, data)
         tau_jacobian = np.hstack([dtau_dq + dtau_dforces @ force_dq, dtau_dforces @ force_dlam])
-
-        blocks = []
-        joint_names = self.robot.actuated_joint_names
-        # Static equilibrium of the free flyer (49). Scales make a violation that
-        # matters O(1), so the QP's single elastic variable stays well scaled.
-        blocks.append(
-            equality(
-                "equilibrium",
-                tau[:6],
-                tau_jacobian[:6],
-                10.0,
-                [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")],
-            )
-        )
-        # Torque limits (47), less the effort margin.
-        margin = f" less its {100 * options.effort_margin:g} % margin" if options.effort_margin else ""
-        blocks.append(
-            ConstraintBlock(
-                "torque limit",
-                tau[6:],
-                tau_jacobian[6:],
-                -self.effort,
-                self.effort,
-                1.0,
-                tuple(f"torque limit of {name}{margin}" for name in joint_names),
-            )
-        )
-        if options.min_normal_force > 0 and len(forces):
-            blocks.append(self._normal_load_block(forces, np.hstack([force_dq, force_dlam])))
-        for contact, s in zip(self.contacts, self.variable_slices):
-            blocks.extend(contact.blocks(model, data, lam[s], n, nv + s.start))
-        if self.collision_checker is not None:
-            blocks.append(self._collision_block(q))
-
-        # Objective: posture (Gauss-Newton through pin.difference) + forces.
-        error = pin.difference(model, self.reference, q)
-        d_error = pin.dDifference(model, self.reference, q, pin.ARG1)
-        weights = self.posture_weights
-        objective = 0.5 * float(error @ (weights * error))
-        gradient = np.zeros(n)
-        hessian = np.zeros((n, n))
-        gradient[:nv] = d_error.T @ (weights * error)
-        hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
-        # Torque-limit usage, sum (tau_i / tau_max_i)^2 (Gauss-Newton): it
-        # moves load off joints near their limit where the contacts allow it.
-        torque_weight = options.torque_weight if torque_weight is None else torque_weight
-        if torque_weight:
-            usage = tau[6:] / self.robot.effort_limits
-            # Only usage beyond _FREE_USAGE counts: joints that carry little are
-            # left to the posture term, and the term (and its Gauss-Newton
-            # curvature, which slowed palm stances 2.7x when on every joint)
-            # acts only where a joint nears its limit.
-            excess = np.sign(usage) * np.maximum(np.abs(usage) - _FREE_USAGE, 0.0)
-            d_excess = (excess != 0.0)[:, None] * tau_jacobian[6:] / self.robot.effort_limits[:, None]
-            objective += 0.5 * torque_weight * float(excess @ excess)
-            gradient += torque_weight * (d_excess.T @ excess)
-            hessian += torque_weight * (d_excess.T @ d_excess)
-        if self.n_variables:
-            weights = options.force_weight * self.force_weights
-            objective += 0.5 * float(lam @ (weights * lam))
-            gradient[nv:] += weights * lam
-            hessian[nv:, nv:] += np.diag(weights)
-        for contact, s in zip(self.contacts, self.variable_slices):
-            term = contact.cost(model, data, lam[s], options, n, nv + s.start)
-            if term is not None:
-                value, grad, hess = term
-                objective += value
-                gradient += grad
-                hessian += hess
-
-        # Bounds on the step: trust region, joint limits, lambda >= 0.
-        step_lower = np.full(n, -options.trust_region)
-        step_upper = np.full(n, options.trust_region)
-        step_lower[6:nv] = np.maximum(step_lower[6:nv], self.q_lower - q[7:])
-        step_upper[6:nv] = np.minimum(step_upper[6:nv], self.q_upper - q[7:])
-        step_lower[nv:] = self.variable_lower - lam
-        step_upper[nv:] = np.inf
-        return Linearization(
-            objective, gradient, hessian, blocks, step_lower, step_upper, forces, tau
-        )
-
-    def _normal_load_block(self, forces, force_jacobian) -> ConstraintBlock:
-        """Each print's load along its normal, at least ``min_normal_force``.
-
-        Parameters
-        ----------
-        forces : (k, 3) float
-            Stacked contact forces on the robot, world, newtons.
-        force_jacobian : (3k, n) float
-            Their derivative in the step (dq, dlambda).
-        """
-        value, jacobian, labels = [], [], []
-        for contact, loads in zip(self.contacts, self.load_slices):
-            normals = contact.load_normals
-            rows = force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
-            for i, label in enumerate(contact.print_labels):
-                mine = contact.load_prints == i
-                value.append(float(np.einsum("pj,pj->", normals[mine], forces[loads][mine])))
-                jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
-                labels.append(f"normal load of {label}")
-        count = len(value)
-        return ConstraintBlock(
-            "normal load", np.array(value), np.array(jacobian), np.full(count, self.options.min_normal_force),
-            np.full(count, np.inf), 1.0, tuple(labels),
-        )
-
-    def _collision_block(self, q) -> ConstraintBlock:
-        """Distances of the closest pairs, padded to a fixed number of rows."""
-        model, data, options = self.robot.model, self.data, self.options
-        rows = options.max_collision_rows
-        pairs = self.collision_checker.pairs(model, data)
-        pairs = sorted(pairs, key=lambda p: p.distance)[:rows]
-        value = np.zeros(rows)
-        jacobian = np.zeros((rows, self.n_step))
-        lower = np.full(rows, -np.inf)
-        labels = ["(inactive collision row)"] * rows
-        if pairs:
-            jacobian[: len(pairs), : model.nv] = self.collision_checker.jacobian_rows(model, data, pairs)
-            for i, pair in enumerate(pairs):
-                value[i] = pair.distance
-                lower[i] = options.collision_distance
-                labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
-        # 0.1 mm of the clearance may be eaten: the robot still keeps
-        # collision_distance - 0.1 mm away, and verify checks real contact.
-        return ConstraintBlock(
-            "collision", value, jacobian, lower, np.full(rows, np.inf), 1e-2, tuple(labels), slack=1e-4
-        )
+        return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian)
 
 
 def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:

@@ -216,3 +216,30 @@ def test_coupled_prints_move_each_other(linearised_problems):
     cross_block = np.abs(d_forces_dw[first][:, :, 6:]).max()
     # The blocks are 0.2 m apart on a 0.1 m thick block: weak but real coupling.
     assert 1e-4 * own_block < cross_block < own_block
+
+
+def test_every_cost_term_gradient_matches_finite_differences(linearised_problems):
+    """Each cost piece of stances.terms on its own, in q and in lambda."""
+    seen = set()
+    for label, problem, q, lam in linearised_problems:
+        model = problem.robot.model
+        for term in problem.costs:
+
+            def value(x, y, term=term):
+                return term.evaluate(problem, problem.iterate(x, y))[0]
+
+            _, gradient, _ = term.evaluate(problem, problem.iterate(q, lam))
+            if np.abs(gradient).max() > 0.0:
+                seen.add(type(term).__name__)  # exercised, not only present
+            numeric_q = np.array([
+                (value(pin.integrate(model, q, e), lam) - value(pin.integrate(model, q, -e), lam)) / (2 * EPS)
+                for e in EPS * np.eye(model.nv)
+            ])
+            numeric_lam = np.array([
+                (value(q, lam + e) - value(q, lam - e)) / (2 * EPS) for e in EPS * np.eye(problem.n_variables)
+            ])
+            numeric = np.concatenate([numeric_q, numeric_lam])
+            size = max(np.abs(gradient).max(), 1e-8)
+            error = np.abs(numeric - gradient).max()
+            assert error <= 1e-5 * max(size, 1.0), f"{label}: {type(term).__name__} off by {error:.3g}"
+    assert {"PostureCost", "TorqueUsageCost", "ForceCost", "ContactCosts"} <= seen

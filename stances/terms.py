@@ -1,0 +1,260 @@
+"""The posture problem's costs and constraints, one small piece each.
+
+Every piece reads an :class:`Iterate`, the quantities of one ``(q, lambda)``
+computed once per linearisation (kinematics, contact forces, static torques and
+their Jacobians), and returns its value with its exact Jacobian in the step
+``x = (dq, dlambda)`` (n,):
+
+- a cost returns ``(value, gradient (n,), Gauss-Newton Hessian (n, n))``;
+- a constraint returns :class:`~stances.blocks.ConstraintBlock` rows.
+
+:meth:`stances.problem.PostureProblem.linearize` only builds the iterate and
+stacks the pieces; the contact models (rigid, deformable) add their own rows
+and costs through the same two calls. Equation numbers are the paper's.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+
+from .blocks import ConstraintBlock, equality
+
+__all__ = [
+    "Iterate",
+    "PostureCost",
+    "ForceCost",
+    "TorqueUsageCost",
+    "ContactCosts",
+    "EquilibriumConstraint",
+    "TorqueLimitConstraint",
+    "NormalLoadConstraint",
+    "ContactConstraints",
+    "CollisionConstraint",
+]
+
+# Torque usage (fraction of the limit) that TorqueUsageCost leaves free.
+FREE_USAGE = 0.5
+
+
+@dataclass(frozen=True)
+class Iterate:
+    """What every term reads at one ``(q, lambda)``, computed once.
+
+    Attributes
+    ----------
+    q : (nq,) float
+        Configuration; ``problem.data`` holds its kinematics and joint Jacobians.
+    lam : (m,) float
+        Force variables.
+    forces : (k, 3) float
+        Contact forces ON the robot, world frame, newtons.
+    force_jacobian : (3k, n) float
+        Their derivative in the step.
+    tau : (nv,) float
+        ``g(q) - sum J^T f``: free-flyer wrench residual, then joint torques, N m.
+    tau_jacobian : (nv, n) float
+        Its derivative in the step.
+    """
+
+    q: np.ndarray
+    lam: np.ndarray
+    forces: np.ndarray
+    force_jacobian: np.ndarray
+    tau: np.ndarray
+    tau_jacobian: np.ndarray
+
+
+@dataclass(frozen=True)
+class PostureCost:
+    """Half the weighted squared distance to the reference posture (Gauss-Newton
+    through ``pin.difference``); the base translation is free."""
+
+    def evaluate(self, problem, iterate):
+        model, n = problem.robot.model, problem.n_step
+        nv = model.nv
+        error = pin.difference(model, problem.reference, iterate.q)
+        d_error = pin.dDifference(model, problem.reference, iterate.q, pin.ARG1)
+        weights = problem.posture_weights
+        gradient, hessian = np.zeros(n), np.zeros((n, n))
+        gradient[:nv] = d_error.T @ (weights * error)
+        hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
+        return 0.5 * float(error @ (weights * error)), gradient, hessian
+
+
+@dataclass(frozen=True)
+class ForceCost:
+    """Half the weighted squared force variables (spreads rigid-contact forces).
+
+    Parameters
+    ----------
+    weight : float
+        Per N^2; each variable's own factor is ``problem.force_weights``.
+    """
+
+    weight: float
+
+    def evaluate(self, problem, iterate):
+        n, nv = problem.n_step, problem.robot.model.nv
+        weights = self.weight * problem.force_weights
+        gradient, hessian = np.zeros(n), np.zeros((n, n))
+        gradient[nv:] = weights * iterate.lam
+        hessian[nv:, nv:] = np.diag(weights)
+        return 0.5 * float(iterate.lam @ (weights * iterate.lam)), gradient, hessian
+
+
+@dataclass(frozen=True)
+class TorqueUsageCost:
+    """Half the weighted squared torque usage beyond half of each limit,
+    ``sum_i max(|tau_i| / tau_max_i - 1/2, 0)^2`` (Gauss-Newton).
+
+    Joints that carry little are left to the posture term; the cost, and its
+    curvature (which slowed palm stances 2.7x when it weighed every joint), acts
+    only where a joint nears its limit, moving load where the robot is strong.
+
+    Parameters
+    ----------
+    weight : float
+    """
+
+    weight: float
+
+    def evaluate(self, problem, iterate):
+        limits = problem.robot.effort_limits
+        usage = iterate.tau[6:] / limits
+        excess = np.sign(usage) * np.maximum(np.abs(usage) - FREE_USAGE, 0.0)
+        d_excess = (excess != 0.0)[:, None] * iterate.tau_jacobian[6:] / limits[:, None]
+        return (
+            0.5 * self.weight * float(excess @ excess),
+            self.weight * (d_excess.T @ excess),
+            self.weight * (d_excess.T @ d_excess),
+        )
+
+
+@dataclass(frozen=True)
+class ContactCosts:
+    """Each contact model's own cost (e.g. the deformation term of soft prints)."""
+
+    def evaluate(self, problem, iterate):
+        model, data, n, nv = problem.robot.model, problem.data, problem.n_step, problem.robot.model.nv
+        value, gradient, hessian = 0.0, np.zeros(n), np.zeros((n, n))
+        for contact, s in zip(problem.contacts, problem.variable_slices):
+            term = contact.cost(model, data, iterate.lam[s], problem.options, n, nv + s.start)
+            if term is not None:
+                value += term[0]
+                gradient += term[1]
+                hessian += term[2]
+        return value, gradient, hessian
+
+
+@dataclass(frozen=True)
+class EquilibriumConstraint:
+    """Static equilibrium of the free flyer (49): six rows, scale 10 N or N m, so
+    that a violation that matters is O(1) and the QP's one elastic variable stays
+    well scaled."""
+
+    def blocks(self, problem, iterate):
+        labels = [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")]
+        return [equality("equilibrium", iterate.tau[:6], iterate.tau_jacobian[:6], 10.0, labels)]
+
+
+@dataclass(frozen=True)
+class TorqueLimitConstraint:
+    """Torque limits (47), less the effort margin (``problem.effort``)."""
+
+    def blocks(self, problem, iterate):
+        margin = problem.options.effort_margin
+        suffix = f" less its {100 * margin:g} % margin" if margin else ""
+        labels = tuple(f"torque limit of {name}{suffix}" for name in problem.robot.actuated_joint_names)
+        return [
+            ConstraintBlock(
+                "torque limit", iterate.tau[6:], iterate.tau_jacobian[6:], -problem.effort, problem.effort, 1.0, labels
+            )
+        ]
+
+
+@dataclass(frozen=True)
+class NormalLoadConstraint:
+    """Each print's load along its normal, at least ``minimum`` newtons.
+
+    Parameters
+    ----------
+    minimum : float
+    """
+
+    minimum: float
+
+    def blocks(self, problem, iterate):
+        if not len(iterate.forces):
+            return []
+        value, jacobian, labels = [], [], []
+        for contact, loads in zip(problem.contacts, problem.load_slices):
+            normals = contact.load_normals
+            rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
+            for i, label in enumerate(contact.print_labels):
+                mine = contact.load_prints == i
+                value.append(float(np.einsum("pj,pj->", normals[mine], iterate.forces[loads][mine])))
+                jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
+                labels.append(f"normal load of {label}")
+        count = len(value)
+        return [
+            ConstraintBlock(
+                "normal load", np.array(value), np.array(jacobian), np.full(count, self.minimum),
+                np.full(count, np.inf), 1.0, tuple(labels),
+            )
+        ]
+
+
+@dataclass(frozen=True)
+class ContactConstraints:
+    """Each contact model's own rows (placement, cones, the soft-contact rows)."""
+
+    def blocks(self, problem, iterate):
+        model, data, n, nv = problem.robot.model, problem.data, problem.n_step, problem.robot.model.nv
+        out = []
+        for contact, s in zip(problem.contacts, problem.variable_slices):
+            out.extend(contact.blocks(model, data, iterate.lam[s], n, nv + s.start))
+        return out
+
+
+@dataclass(frozen=True)
+class CollisionConstraint:
+    """Distances of the closest pairs, at least ``distance``, padded to ``rows``.
+
+    0.1 mm of the clearance may be eaten (the rows' slack): the robot still keeps
+    ``distance - 0.1 mm`` away, and verify checks real contact.
+
+    Parameters
+    ----------
+    checker : stances.collision.CollisionChecker
+    distance : float
+        Metres.
+    rows : int
+        At most this many closest pairs enter a QP (a fixed number of rows lets
+        the QP solver warm-start).
+    """
+
+    checker: object
+    distance: float
+    rows: int
+
+    def blocks(self, problem, iterate):
+        model, data = problem.robot.model, problem.data
+        pairs = sorted(self.checker.pairs(model, data), key=lambda p: p.distance)[: self.rows]
+        value = np.zeros(self.rows)
+        jacobian = np.zeros((self.rows, problem.n_step))
+        lower = np.full(self.rows, -np.inf)
+        labels = ["(inactive collision row)"] * self.rows
+        if pairs:
+            jacobian[: len(pairs), : model.nv] = self.checker.jacobian_rows(model, data, pairs)
+            for i, pair in enumerate(pairs):
+                value[i] = pair.distance
+                lower[i] = self.distance
+                labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
+        return [
+            ConstraintBlock(
+                "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4
+            )
+        ]
