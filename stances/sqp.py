@@ -127,8 +127,6 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     PostureResult
         Feasible or not; never raises for an infeasible stance.
     """
-    from .verify import verify_problem
-
     start = time.perf_counter()
     options = problem.options
     model = problem.robot.model
@@ -172,41 +170,13 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         x = workspace.solve(*matrices, accuracy=accuracy)
         qp_time += time.perf_counter() - tic
         step, elastic = x[:-1], max(x[-1], 0.0)
-        predicted = (
-            linearization.objective
-            + penalty * violation
-            - (
-                linearization.objective
-                + linearization.gradient @ step
-                + 0.5 * step @ linearization.hessian @ step
-                + penalty * elastic
-            )
-        )
+        predicted = _predicted_decrease(linearization, step, elastic, penalty, violation)
         if violation <= tolerance and (
             np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
         ):
             status = "converged"
             break
-        # Backtracking line search on the exact-penalty merit function.
-        alpha, accepted = 1.0, None
-        while alpha >= 1e-3:
-            q_try = pin.integrate(model, q, alpha * step[:nv])
-            lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
-            trial = problem.linearize(q_try, lam_try, torque_weight)
-            trial_violation, _ = trial.max_violation()
-            trial_merit = trial.objective + penalty * trial_violation
-            if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0):
-                accepted = (q_try, lam_try, trial)
-                break
-            # Filter-style escape from the Maratos effect: near a solution a
-            # full step may raise the merit through curvature while clearly
-            # improving feasibility; such a step is taken.
-            if alpha == 1.0 and violation > tolerance and trial_violation < 0.5 * violation and (
-                trial.objective <= linearization.objective + 1e-3 * (1.0 + abs(linearization.objective))
-            ):
-                accepted = (q_try, lam_try, trial)
-                break
-            alpha *= 0.5
+        accepted, alpha = _line_search(problem, q, lam, step, linearization, penalty, predicted, torque_weight)
         # Near a feasible point the optimality step may cross a kink (a print
         # node switching between stick, slip and lift-off) where the linear model
         # is wrong, and the line search crawls. A restoration step, the shortest
@@ -256,6 +226,54 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         ):
             status = "converged"
             break
+    return _result(problem, q, lam, linearization, iteration, status, penalty,
+                   {"qp_time": qp_time}, time.perf_counter() - start)
+
+
+def _predicted_decrease(linearization, step, elastic, penalty, violation) -> float:
+    """Decrease of the merit ``f + rho * violation`` the QP model predicts for ``step``."""
+    model = (
+        linearization.objective
+        + linearization.gradient @ step
+        + 0.5 * step @ linearization.hessian @ step
+        + penalty * elastic
+    )
+    return linearization.objective + penalty * violation - model
+
+
+def _line_search(problem, q, lam, step, linearization, penalty, predicted, torque_weight):
+    """Backtracking on the exact-penalty merit; ``(q, lam, linearization)`` and the
+    step length accepted, or ``(None, alpha)`` when no length down to 1e-3 does."""
+    model, nv = problem.robot.model, problem.robot.model.nv
+    tolerance = problem.options.feasibility_tolerance
+    violation, _ = linearization.max_violation()
+    merit = linearization.objective + penalty * violation
+    alpha = 1.0
+    while alpha >= 1e-3:
+        q_try = pin.integrate(model, q, alpha * step[:nv])
+        lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
+        trial = problem.linearize(q_try, lam_try, torque_weight)
+        trial_violation, _ = trial.max_violation()
+        trial_merit = trial.objective + penalty * trial_violation
+        if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0):
+            return (q_try, lam_try, trial), alpha
+        # Filter-style escape from the Maratos effect: near a solution a
+        # full step may raise the merit through curvature while clearly
+        # improving feasibility; such a step is taken.
+        if alpha == 1.0 and violation > tolerance and trial_violation < 0.5 * violation and (
+            trial.objective <= linearization.objective + 1e-3 * (1.0 + abs(linearization.objective))
+        ):
+            return (q_try, lam_try, trial), alpha
+        alpha *= 0.5
+    return None, alpha
+
+
+def _result(problem, q, lam, linearization, iteration, status, penalty, statistics, elapsed) -> PostureResult:
+    """The answer at the last iterate, checked by :func:`stances.verify` when feasible."""
+    from .verify import verify_problem
+
+    model = problem.robot.model
+    tolerance = problem.options.feasibility_tolerance
     violation, _ = linearization.max_violation()
     feasible = violation <= tolerance
     if feasible and status == "stalled":
@@ -265,7 +283,6 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     # independent check, whose tolerances are physical: it alone decides.
     nearly = not feasible and violation <= _NEARLY_FEASIBLE * tolerance
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
-    elapsed = time.perf_counter() - start
     point_forces = problem_point_forces(problem, linearization, q)
     deformations = LazyDeformations(
         {
@@ -288,7 +305,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         deformations=deformations,
         limits=problem.limit_usage(q, linearization.torques[6:]),
         statistics={
-            "status": status, "qp_time": qp_time, "penalty": penalty, "lambda": lam.tolist(), "violation": violation,
+            "status": status, **statistics, "penalty": penalty, "lambda": lam.tolist(), "violation": violation,
         },
     )
     if feasible or nearly:
