@@ -472,3 +472,24 @@ def test_verify_rejects_rigid_contact_forces_that_are_not_finite(robot):
     check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=nan))
     assert not check.ok
     assert check.reasons == (f"a contact force on {nan[0].frame} is not finite",)
+
+
+def test_every_built_in_stance_keeps_its_margins_and_reports_them(robot, deformable_results):
+    """No accepted posture of the built-in stances goes past its effort or joint
+    margin; a joint the stance holds on its margin is named in result.limits."""
+    model = robot.model
+    lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+    results = dict(deformable_results)
+    for scenario_name, stance_name in RIGID:
+        scenario = environments.load(scenario_name)
+        results[scenario_name] = solve(robot, scenario.scene, scenario.stance(stance_name))
+    for name, result in results.items():
+        assert result.feasible, (name, result.reason)
+        usage = np.abs(result.torques) / robot.effort_limits
+        clearance = np.minimum(result.q[7:] - lower, upper - result.q[7:]) / (upper - lower)
+        assert usage.max() <= 0.9 + 1e-6, name
+        assert clearance.min() >= 0.02 - 1e-9, name
+        named = {entry.split()[2] for entry in result.limits["at_margin"]}
+        on_margin = {robot.actuated_joint_names[i] for i in np.flatnonzero(clearance <= 0.02 + 1e-5)}
+        on_margin |= {robot.actuated_joint_names[i] for i in np.flatnonzero(usage >= 0.9 - 1e-5)}
+        assert named == on_margin, name
