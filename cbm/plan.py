@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
@@ -239,10 +239,14 @@ class Plan:
         return cls.from_dict(data)
 
     def check(self, scenario=None, robot=None):
-        """Re-verify every stance and every transition.
+        """Re-verify every stance, every transition and the outcome.
 
         Each stance is checked by ``stances.verify`` (independent of the
-        solver) and consecutive stances must differ by exactly one contact.
+        solver) on the posture and forces the plan shows (``q`` and
+        ``point_forces`` of each stance, not a copy inside its result), with
+        the posture options its result was solved with. Consecutive stances
+        must differ by exactly one contact, and a plan that says it succeeded
+        must end on a stance that reaches the scenario's goal.
 
         Parameters
         ----------
@@ -273,12 +277,19 @@ class Plan:
                 continue
             if verify is None:
                 verify = posture_api()[1]
-            verification = verify(robot, scenario.scene, planned.stance, result)
+            # What the plan shows is what is checked.
+            shown = replace(result, q=planned.q, point_forces=planned.point_forces)
+            options = dict(getattr(result, "statistics", {}).get("options", {}))
+            verification = verify(robot, scenario.scene, planned.stance, shown, **options)
             if not verification.ok:
                 problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):
             if not differ_by_one_contact(before.stance, after.stance):
                 problems.append(f"stances {index} -> {index + 1} do not differ by exactly one contact")
+        goal = getattr(scenario, "goal", None)
+        if self.success and goal is not None:
+            if not self.stances or not goal.is_satisfied(self.stances[-1].stance, scenario.scene):
+                problems.append("the plan says it succeeded but its last stance does not reach the scenario's goal")
         return PlanCheck(not problems, tuple(problems))
 
 

@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 import pinocchio as pin
@@ -419,7 +419,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> Pos
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
             # soft solve of such a stance was measured at 10-40 s).
-            statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations)
+            statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
             reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
             return _timed_out(_with(warm, reason=reason, statistics=statistics,
                                     solve_time=time.perf_counter() - start, stance=stance), time_budget)
@@ -434,7 +434,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> Pos
         result = _solve_coulomb(problem, q_init, deadline)
     else:
         result = solve_problem(problem, q_init, deadline=deadline)
-    statistics = dict(result.statistics, sqp_time=result.solve_time)
+    statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
     if warm_iterations:
         statistics["rigid_warm_start_iterations"] = warm_iterations
     # solve_time covers everything this call did: building, warm start, SQP, verification.
@@ -481,6 +481,12 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
         q = attempt.q
     free = solve_problem(problem, q_init, deadline=deadline)
     return _with(free, iterations=iterations + free.iterations)
+
+
+def _changed(options) -> dict:
+    """The options that differ from their defaults: what a result records, so that
+    a later check (``Plan.check``) verifies with what the stance was solved with."""
+    return {f.name: getattr(options, f.name) for f in fields(options) if getattr(options, f.name) != f.default}
 
 
 def _time_budget(value) -> float:

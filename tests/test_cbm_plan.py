@@ -189,3 +189,12 @@ def test_posture_oracle_past_its_deadline_does_not_solve(scenario):
     assert not check.feasible
     assert check.reason == "time limit reached before this stance was solved"
     assert oracle.solves == 0
+
+
+def test_check_flags_a_success_flag_that_the_last_stance_does_not_earn(scenario):
+    start = scenario.stances["start"]
+    planned = [PlannedStance(start, np.zeros(3))]
+    claimed = Plan(True, "goal reached", planned, PlanStatistics(), "walk")
+    report = claimed.check(scenario=scenario, robot=object())
+    assert not report.ok
+    assert "the plan says it succeeded but its last stance does not reach the scenario's goal" in report.problems
