@@ -246,7 +246,22 @@ def wrap_angle(theta: float) -> float:
     return math.remainder(float(theta), 2.0 * math.pi)
 
 
-def bvh_model(vertices, triangles) -> fcl.BVHModel:
+class MeshModel(fcl.BVHModel):
+    """An FCL triangle-mesh model that keeps its vertices and triangles.
+
+    python-fcl does not give a model's triangles back; the posture solver's
+    collision checker rebuilds the mesh in another library (coal) from these.
+
+    Attributes
+    ----------
+    vertices : (n, 3) float, read-only
+        Metres, in the frame the model is placed from.
+    triangles : (t, 3) int, read-only
+        Vertex indices.
+    """
+
+
+def bvh_model(vertices, triangles) -> MeshModel:
     """An FCL triangle-mesh model.
 
     Parameters
@@ -258,10 +273,17 @@ def bvh_model(vertices, triangles) -> fcl.BVHModel:
 
     Returns
     -------
-    fcl.BVHModel
+    MeshModel
+        An ``fcl.BVHModel`` that also keeps ``vertices`` and ``triangles``.
     """
-    model = fcl.BVHModel()
+    vertices = np.array(vertices, dtype=float)
+    triangles = np.array(triangles, dtype=np.int32)
+    model = MeshModel()
     model.beginModel(len(vertices), len(triangles))
-    model.addSubModel(np.asarray(vertices, dtype=float), np.asarray(triangles, dtype=np.int32))
+    model.addSubModel(vertices, triangles)
     model.endModel()
+    vertices.setflags(write=False)
+    triangles.setflags(write=False)
+    model.vertices = vertices
+    model.triangles = triangles
     return model

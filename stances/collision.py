@@ -8,16 +8,19 @@ measures the pairs and their rows:
 - robot geometry vs robot geometry, for the self-collision pairs the SRDF
   allows (``robot.collision_model.collisionPairs``).
 
-The narrow phase is python-fcl (``fcl.distance`` with nearest points and signed
-distance). Robot meshes become the ``fcl.Convex`` convex hull of their mesh file
-once, at construction: GJK on a hull is faster than on a triangle soup and its
-distance varies smoothly with the posture, which the linearisation needs; the
-hull is conservative (it contains the mesh). Primitives stay primitives.
+The narrow phase is coal's GJK/EPA (:mod:`stances.narrow_phase`, which states
+its measured accuracy). Robot meshes become the ``coal.Convex`` convex hull of
+their mesh file once, at construction: GJK on a hull is faster than on a
+triangle soup and its distance varies smoothly with the posture, which the
+linearisation needs; the hull is conservative (it contains the mesh).
+Primitives stay primitives. Scene objects, python-fcl objects built by
+``environments``, are rebuilt as coal shapes once per checker.
 
-Because a python-level fcl call costs microseconds, a numpy broad phase runs
-first over all pairs at once: each robot geometry is bounded by a sphere fixed in
-its geometry frame and each (static) scene object by its world axis-aligned box, and
-only the pairs whose bounds are closer than ``margin`` reach fcl.
+Because a python-level coal call still costs microseconds, a numpy broad phase
+runs first over all pairs at once: each robot geometry is bounded by a sphere
+fixed in its geometry frame and each (static) scene object by its world
+axis-aligned box, and only the pairs whose bounds are closer than ``margin``
+reach coal.
 
 Sign conventions. ``distance <= 0`` means penetration (its magnitude is then
 the penetration depth). ``normal`` is the unit vector, world frame, along which
@@ -30,16 +33,13 @@ attached to its link.
 
 from __future__ import annotations
 
-import math
 import weakref
 from dataclasses import dataclass
 
-import fcl
 import numpy as np
 import pinocchio as pin
-import trimesh
 
-from .errors import StanceError
+from .narrow_phase import CollisionSetupError, DistanceQuery, coal, robot_shape, scene_shape, world_bounds
 
 __all__ = [
     "CollisionChecker",
@@ -47,31 +47,6 @@ __all__ = [
     "CollisionSetupError",
     "contact_exclusions",
 ]
-
-# Scene bounds are measured by bringing a large flat slab from far away along
-# each axis (see _world_bounds); scenes must fit well inside these sizes.
-_PROBE_OFFSET = 1.0e3
-_PROBE_SIZE = 1.0e4
-# Padding of measured scene bounds, metres: absorbs the GJK tolerance so that
-# the broad phase stays conservative.
-_BOUNDS_PADDING = 1.0e-3
-# Scene geometry against which a robot hull is measured through its surface
-# triangles (see CollisionChecker._measure): boxes, convex polytopes and meshes.
-# fcl's triangle-sphere and triangle-cylinder distances are off by ~1e-7 m with
-# wrong witness points, so curved scene primitives meet the solid hull.
-_FLAT_NODE_TYPES = frozenset(
-    int(getattr(fcl.NODE_TYPE, name))
-    for name in (
-        "BV_AABB", "BV_OBB", "BV_RSS", "BV_kIOS", "BV_OBBRSS",
-        "BV_KDOP16", "BV_KDOP18", "BV_KDOP24", "GEOM_BOX", "GEOM_CONVEX",
-    )
-)
-
-
-class CollisionSetupError(StanceError):
-    """Invalid collision set-up: unknown names in an exclusion, duplicate or
-    unsupported geometry, malformed scene objects."""
-
 
 @dataclass(frozen=True)
 class CollisionPair:
@@ -126,11 +101,7 @@ class CollisionPair:
 
 @dataclass(frozen=True)
 class _RobotGeometry:
-    """Robot collision geometry converted to fcl once per robot.
-
-    ``fcl_objects`` are shared by every checker of the robot: each query sets
-    the transforms of the objects it uses before using them.
-    """
+    """Robot collision geometry converted to coal once per robot (shapes are never moved)."""
 
     names: tuple
     joints: np.ndarray  # (g,) int, parent joint of each geometry
@@ -138,8 +109,7 @@ class _RobotGeometry:
     translation_geometry_to_joint: np.ndarray  # (g, 3) metres
     sphere_center: np.ndarray  # (g, 3) metres, geometry frame
     sphere_radius: np.ndarray  # (g,) metres
-    fcl_objects: tuple  # solids: fcl.Convex hulls and primitives
-    fcl_surfaces: tuple  # hull surfaces as fcl.BVHModel, None for primitives
+    shapes: tuple  # coal.Convex hulls and primitives, geometry frame
     self_pairs: np.ndarray  # (p, 2) int geometry indices, SRDF-allowed
 
 
@@ -148,66 +118,15 @@ class _RobotGeometry:
 _GEOMETRY_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def _fcl_shape(geometry_object):
-    """fcl solid, fcl hull surface (meshes only, else None) and bounding sphere
-    (center, radius), all in the geometry frame."""
-    shape = geometry_object.geometry
-    kind = type(shape).__name__
-    if geometry_object.meshPath and ("BVH" in kind or "Convex" in kind):
-        try:
-            mesh = trimesh.load(geometry_object.meshPath, force="mesh")
-        except Exception as error:  # trimesh raises many types on unreadable files
-            raise CollisionSetupError(
-                f"cannot read collision mesh {geometry_object.meshPath!r} of "
-                f"{geometry_object.name!r}: {error}"
-            ) from error
-        # Negative scales mirror the mesh (Talos's right limbs); the hull of the
-        # scaled points is rebuilt, so its faces are outward-oriented again.
-        points = np.asarray(mesh.vertices, dtype=float) * np.asarray(geometry_object.meshScale)
-        hull = trimesh.convex.convex_hull(points)
-        vertices = np.asarray(hull.vertices, dtype=float)
-        faces = np.column_stack([np.full(len(hull.faces), 3), hull.faces]).ravel()
-        center = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))
-        radius = float(np.max(np.linalg.norm(vertices - center, axis=1)))
-        surface = fcl.BVHModel()
-        surface.beginModel(len(vertices), len(hull.faces))
-        surface.addSubModel(vertices, np.asarray(hull.faces))
-        surface.endModel()
-        return fcl.Convex(vertices, len(hull.faces), faces), surface, center, radius
-    if kind == "Sphere":
-        return fcl.Sphere(shape.radius), None, np.zeros(3), float(shape.radius)
-    if kind == "Box":
-        half = np.asarray(shape.halfSide, dtype=float)
-        return fcl.Box(*(2.0 * half)), None, np.zeros(3), float(np.linalg.norm(half))
-    if kind == "Cylinder":
-        return (
-            fcl.Cylinder(shape.radius, 2.0 * shape.halfLength),
-            None,
-            np.zeros(3),
-            float(np.hypot(shape.radius, shape.halfLength)),
-        )
-    if kind == "Capsule":
-        return (
-            fcl.Capsule(shape.radius, 2.0 * shape.halfLength),
-            None,
-            np.zeros(3),
-            float(shape.radius + shape.halfLength),
-        )
-    raise CollisionSetupError(
-        f"collision geometry {geometry_object.name!r} has unsupported type {kind}; "
-        "supported: meshes (with a meshPath), Sphere, Box, Cylinder, Capsule"
-    )
-
-
 def _robot_geometry(robot) -> _RobotGeometry:
     cached = _GEOMETRY_CACHE.get(robot)
     if cached is not None:
         return cached
     collision_model = robot.collision_model
     names, joints, rotations, translations, centers, radii = [], [], [], [], [], []
-    objects, surfaces = [], []
+    shapes = []
     for geometry_object in collision_model.geometryObjects:
-        shape, surface, center, radius = _fcl_shape(geometry_object)
+        shape, center, radius = robot_shape(geometry_object)
         placement = geometry_object.placement
         names.append(geometry_object.name)
         joints.append(int(geometry_object.parentJoint))
@@ -215,8 +134,7 @@ def _robot_geometry(robot) -> _RobotGeometry:
         translations.append(np.array(placement.translation))
         centers.append(center)
         radii.append(radius)
-        objects.append(fcl.CollisionObject(shape, fcl.Transform()))
-        surfaces.append(None if surface is None else fcl.CollisionObject(surface, fcl.Transform()))
+        shapes.append(shape)
     self_pairs = np.array(
         [(pair.first, pair.second) for pair in collision_model.collisionPairs], dtype=int
     ).reshape(-1, 2)
@@ -227,45 +145,11 @@ def _robot_geometry(robot) -> _RobotGeometry:
         translation_geometry_to_joint=np.array(translations).reshape(-1, 3),
         sphere_center=np.array(centers).reshape(-1, 3),
         sphere_radius=np.array(radii, dtype=float),
-        fcl_objects=tuple(objects),
-        fcl_surfaces=tuple(surfaces),
+        shapes=tuple(shapes),
         self_pairs=self_pairs,
     )
     _GEOMETRY_CACHE[robot] = geometry
     return geometry
-
-
-def _world_bounds(name: str, collision_object) -> np.ndarray:
-    """(2, 3) float: world axis-aligned bounds [lower, upper] of a scene object, metres.
-
-    python-fcl does not expose an object's vertices or AABB, so each bound is
-    measured exactly: a slab far away along -axis (+axis) is at distance
-    ``lower + offset`` (``offset - upper``) from the object. A slab touching the
-    object (distance <= 0) means it is unbounded on that side (a half-space).
-    """
-    bounds = np.empty((2, 3))
-    request = fcl.DistanceRequest()
-    for axis in range(3):
-        size = np.full(3, _PROBE_SIZE)
-        size[axis] = 1.0
-        slab = fcl.Box(*size)
-        for side, sign in ((0, -1.0), (1, 1.0)):
-            center = np.zeros(3)
-            center[axis] = sign * (_PROBE_OFFSET + 0.5)
-            probe = fcl.CollisionObject(slab, fcl.Transform(center))
-            gap = fcl.distance(probe, collision_object, request, fcl.DistanceResult())
-            if gap <= 0.0:
-                bounds[side, axis] = sign * np.inf
-            else:
-                bounds[side, axis] = sign * (_PROBE_OFFSET - gap)
-    if np.any(bounds[0] > bounds[1]):
-        raise CollisionSetupError(
-            f"scene object {name!r}: could not measure its bounds (got {bounds.tolist()}); "
-            f"scene objects must lie within {_PROBE_OFFSET / 2:g} m of the origin"
-        )
-    bounds[0] -= _BOUNDS_PADDING
-    bounds[1] += _BOUNDS_PADDING
-    return bounds
 
 
 def _support_columns(model) -> np.ndarray:
@@ -303,10 +187,11 @@ class CollisionChecker:
     robot : stances.Robot
         Robot whose ``collision_model`` gives the geometry and the allowed
         self-collision pairs.
-    scene_objects : iterable of (str, fcl.CollisionObject)
+    scene_objects : iterable of (str, fcl.CollisionObject or coal.CollisionObject)
         Named static scene objects placed in the world frame (what
-        ``scene.collision_objects()`` returns). Names must be unique and differ
-        from the robot's geometry names.
+        ``scene.collision_objects()`` returns), rebuilt once as coal shapes
+        (see :func:`stances.narrow_phase.scene_shape`). Names must be unique
+        and differ from the robot's geometry names.
     margin : float
         Pairs farther apart than this, metres, are not reported.
     exclude : iterable of (key, str)
@@ -322,7 +207,8 @@ class CollisionChecker:
     Raises
     ------
     CollisionSetupError
-        On unknown exclusion names, duplicate scene names or a negative margin.
+        On unknown exclusion names, duplicate scene names, unsupported scene
+        geometry or a negative margin.
 
     Examples
     --------
@@ -354,9 +240,9 @@ class CollisionChecker:
         model = robot.model
         self._support = _support_columns(model)
 
-        self.scene_names, self._scene_objects, bounds = [], [], []
+        self.scene_names, self._scene_shapes, self._scene_placements, bounds = [], [], [], []
         for entry in scene_objects:
-            if len(entry) != 2 or not isinstance(entry[1], fcl.CollisionObject):
+            if len(entry) != 2:
                 raise CollisionSetupError(
                     "scene_objects must be (name, fcl.CollisionObject) pairs, got "
                     f"{entry!r}"
@@ -367,14 +253,12 @@ class CollisionChecker:
                     f"scene object name {name!r} is used twice, or is '*' or a robot "
                     "geometry name; give each scene object a unique name"
                 )
+            shape, rotation, translation = scene_shape(name, collision_object)
             self.scene_names.append(name)
-            self._scene_objects.append(collision_object)
-            bounds.append(_world_bounds(name, collision_object))
+            self._scene_shapes.append(shape)
+            self._scene_placements.append(coal.Transform3s(rotation, translation))
+            bounds.append(world_bounds(shape, rotation, translation))
         self.scene_names = tuple(self.scene_names)
-        self._scene_is_flat = tuple(
-            int(collision_object.getNodeType()) in _FLAT_NODE_TYPES
-            for collision_object in self._scene_objects
-        )
         self._scene_bounds = np.array(bounds).reshape(-1, 2, 3)
         self.exclude = tuple((key, other) for key, other in exclude)
         self._build_pair_lists(model)
@@ -514,72 +398,40 @@ class CollisionChecker:
 
         # Narrow phase: place only the geometries that take part.
         used = np.union1d(scene_candidates[:, 0], self_candidates.ravel())
-        objects, surfaces = geometry.fcl_objects, geometry.fcl_surfaces
-        for index in used:
-            transform = fcl.Transform(rotation[index], translation[index])
-            objects[index].setTransform(transform)
-            if surfaces[index] is not None:
-                surfaces[index].setTransform(transform)
-        requests = (
-            fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=False),
-            fcl.DistanceRequest(enable_nearest_points=True, enable_signed_distance=True),
-        )
-        result = fcl.DistanceResult()
+        placements = {int(index): coal.Transform3s(rotation[index], translation[index]) for index in used}
+        shapes = geometry.shapes
+        query = DistanceQuery()
         measured = []
         for a, b in scene_candidates:
             # Reference for a degenerate normal: the nearest point of b's bounds.
             lower, upper = self._scene_bounds[b]
-            reference_b = np.clip(centers[a], lower, upper)
             measured.append(
                 self._measure(
-                    a, self._scene_objects[b], self.scene_names[b], 0,
-                    centers[a], reference_b, requests, result,
-                    surfaces[a] if self._scene_is_flat[b] else None,
+                    query, a, placements[a], self._scene_shapes[b], self._scene_placements[b],
+                    self.scene_names[b], 0, centers[a], np.clip(centers[a], lower, upper),
                 )
             )
         for a, b in self_candidates:
             measured.append(
                 self._measure(
-                    a, objects[b], geometry.names[b], int(geometry.joints[b]),
-                    centers[a], centers[b], requests, result, None,
+                    query, a, placements[a], shapes[b], placements[b],
+                    geometry.names[b], int(geometry.joints[b]), centers[a], centers[b],
                 )
             )
         return [pair for pair in measured if pair is not None]
 
     def _measure(
-        self, a, object_b, name_b, joint_b, center_a, reference_b, requests, result, surface_a
+        self, query, a, placement_a, shape_b, placement_b, name_b, joint_b, center_a, reference_b
     ) -> CollisionPair | None:
-        request_apart, request_signed = requests
         geometry = self._geometry
-        solid_a = geometry.fcl_objects[a]
-        # While apart, query without signed distance: fcl then uses exact
-        # closed forms where it has them (sphere-cylinder...) instead of
-        # libccd's GJK, which stops about 1e-6 m short on curved shapes with
-        # witness points off by ~1e-3 rad. And fcl's GJK between a hull and a
-        # scene box metres wide stops up to 0.1 mm short (measured on Talos
-        # over a 10 m floor, even 2 mm in one aligned case); triangle by
-        # triangle on the hull's surface (same distance while apart) it is exact.
-        result.min_distance = np.inf  # fcl only overwrites a larger result
-        distance = fcl.distance(
-            solid_a if surface_a is None else surface_a, object_b, request_apart, result
-        )
-        if distance <= 0.0:
-            # In contact: only the solids' signed query gives the penetration depth.
-            result.min_distance = np.inf
-            distance = fcl.distance(solid_a, object_b, request_signed, result)
+        distance = query.distance(geometry.shapes[a], placement_a, shape_b, placement_b)
         if distance > self.margin:
             return None
-        point_a, point_b = result.nearest_points
-        offset = point_a - point_b
-        length = math.sqrt(offset @ offset)
-        if length > 1e-9:
-            # Apart: a moves away along p_a - p_b. Penetrating: fcl's witness
-            # points are each inside the other body, so the direction flips.
-            normal = offset / length if distance > 0.0 else -offset / length
-        else:
-            # Exactly touching: the witness points carry no direction. Fall
-            # back on the direction from b's centre to a's, a fair separating
-            # guess, or world z when those coincide.
+        point_a, point_b, normal = query.witness()
+        if normal is None:
+            # coal gave no direction: fall back on the direction from b's
+            # centre to a's, a fair separating guess, or world z when those
+            # coincide.
             offset = center_a - reference_b
             length = np.linalg.norm(offset)
             normal = offset / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
