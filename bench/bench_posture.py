@@ -1,7 +1,10 @@
 """Benchmark of the posture solver on randomised rigid stances, against scipy's SLSQP.
 
 Run as ``.venv/bin/python bench/bench_posture.py``; prints a markdown table and
-writes it to ``bench/results/posture.md``.
+writes it to ``bench/results/posture.md``. With ``--qp-only`` it runs only the last
+part, the side-by-side table of the SQP's QP subproblems (proxsuite with the library's
+policy and with the old one, piqp dense and sparse when installed; see
+``bench/qp_subproblems.py``), and writes it to ``bench/results/posture_qp.md``.
 
 Stances are drawn with a fixed seed by perturbing the stances of the rigid
 built-in scenarios (``stand``, ``hand-on-table``, ``foot-on-block``): each print
@@ -44,6 +47,7 @@ from scipy.optimize import minimize
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
+import qp_subproblems  # noqa: E402
 from benchmark_info import code_version, machine  # noqa: E402
 
 import environments  # noqa: E402
@@ -255,6 +259,28 @@ def summary(name, successes, times, iterations):
     )
 
 
+def qp_section(robot):
+    """The side-by-side QP table, as a markdown section."""
+    return f"""QP subproblems of the SQP, side by side:
+
+{qp_subproblems.table(robot)}
+"""
+
+
+def main_qp_only():
+    robot = stances.Robot.load("talos")
+    text = f"""# Posture solver: QP subproblems
+
+Date: {datetime.date.today().isoformat()}
+Machine: {machine()}
+Code: {code_version()}
+
+{qp_section(robot)}"""
+    print(text)
+    with open(os.path.join(os.path.dirname(__file__), "results", "posture_qp.md"), "w") as handle:
+        handle.write(text)
+
+
 def main():
     robot = stances.Robot.load("talos")
     rng = np.random.default_rng(SEED)
@@ -349,7 +375,8 @@ Targets (stances.solve):
 Failures:
 
 {chr(10).join(failures) if failures else "- none"}
-"""
+
+{qp_section(robot)}"""
     print(text)
     out = os.path.join(os.path.dirname(__file__), "results", "posture.md")
     with open(out, "w") as handle:
@@ -357,4 +384,7 @@ Failures:
 
 
 if __name__ == "__main__":
-    main()
+    if "--qp-only" in sys.argv[1:]:
+        main_qp_only()
+    else:
+        main()
