@@ -41,6 +41,10 @@ import pinocchio as pin
 
 from .narrow_phase import CollisionSetupError, DistanceQuery, coal, robot_shape, scene_shape, world_bounds
 
+# Deepest penetration reported, metres (deeper than any two robot links can
+# overlap): the stand-in when coal cannot measure a depth.
+_DEEPEST = 1.0
+
 __all__ = [
     "CollisionChecker",
     "CollisionPair",
@@ -428,6 +432,12 @@ class CollisionChecker:
         if distance > self.margin:
             return None
         point_a, point_b, normal = query.witness()
+        if not distance >= -_DEEPEST:
+            # coal's EPA gave up on a deep interpenetration (it answers -1.8e308,
+            # seen with a leg through a wrist on a stance 3 m out of reach): a
+            # finite stand-in between the centres keeps the solver's arithmetic
+            # finite and pushes the bodies apart along the line joining them.
+            distance, point_a, point_b, normal = -_DEEPEST, center_a, reference_b, None
         if normal is None:
             # coal gave no direction: fall back on the direction from b's
             # centre to a's, a fair separating guess, or world z when those

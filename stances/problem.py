@@ -45,6 +45,7 @@ from .terms import (
 # small enough not to push load off soft prints (the deformation term weighs their
 # node forces).
 _GENERALISED_FORCE_WEIGHT = 0.1
+_FORCE_STEP_IN_WEIGHTS = 10.0  # bound on a force variable's step, in robot weights
 
 
 @dataclass(frozen=True)
@@ -419,8 +420,12 @@ class PostureProblem:
         step_upper = np.full(n, options.trust_region)
         step_lower[6:nv] = np.maximum(step_lower[6:nv], self.q_lower - q[7:])
         step_upper[6:nv] = np.minimum(step_upper[6:nv], self.q_upper - q[7:])
-        step_lower[nv:] = self.variable_lower - lam
-        step_upper[nv:] = np.inf
+        # Force variables move by at most ten body weights a step: an
+        # infeasible stance's elastic QP can otherwise send them to 1e20 and
+        # the next iterate's torques overflow.
+        force_step = _FORCE_STEP_IN_WEIGHTS * self.robot.mass * 9.81
+        step_lower[nv:] = np.maximum(self.variable_lower - lam, -force_step)
+        step_upper[nv:] = force_step
         return Linearization(
             objective, gradient, hessian, blocks, step_lower, step_upper, iterate.forces, iterate.tau
         )
