@@ -223,6 +223,10 @@ def _plan(args):
         f"  {s.expanded} stances expanded, {s.solver_calls} solver calls, "
         f"{s.cache_hits} cache hits, {s.time:.1f} s wall, {s.cpu_time:.1f} s CPU"
     )
+    if result.rejections:
+        total = sum(entry["count"] for entry in result.rejections.values())
+        causes = ", ".join(f"{entry['count']} {cause}" for cause, entry in result.rejections.items())
+        print(f"  {total} stances rejected: {causes}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
     print(f"  written to {args.out}: {len(files.all())} files, viewer {staged.final_path(files.viewer)}")

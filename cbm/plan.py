@@ -160,6 +160,9 @@ class Plan:
         Effort counters.
     scenario_name : str
         Scenario planned for.
+    rejections : dict
+        Stances the search rejected, by cause (:func:`cbm.rejections.summarise`):
+        ``{cause: {"count": int, "example": str}}``.
     """
 
     success: bool
@@ -167,6 +170,7 @@ class Plan:
     stances: tuple
     statistics: PlanStatistics
     scenario_name: str = ""
+    rejections: dict = field(default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "stances", tuple(self.stances))
@@ -183,6 +187,7 @@ class Plan:
             "success": self.success,
             "reason": self.reason,
             "statistics": self.statistics.to_dict(),
+            "rejections": dict(self.rejections),
             "stances": [s.to_dict() for s in self.stances],
         }
 
@@ -206,6 +211,7 @@ class Plan:
                 stances=tuple(PlannedStance.from_dict(s) for s in data["stances"]),
                 statistics=PlanStatistics(**data["statistics"]),
                 scenario_name=str(data.get("scenario", "")),
+                rejections=dict(data.get("rejections", {})),
             )
         except (KeyError, TypeError) as error:
             raise PlanFileError(f"malformed plan: {error}") from None

@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics
+from .rejections import summarise
 from .sampling import ReachLimits, obstacle_boxes, options_from_scenario, sample_prints, surface_kind
 from .search import SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
@@ -391,7 +392,12 @@ def plan(
         time=s.time,
         cpu_time=s.cpu_time,
     )
-    return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name)
+    rejected = [
+        getattr(attributes["result"], "reason", "") or "rejected"
+        for _, attributes in searched.graph.nodes(data=True)
+        if attributes.get("status") == "infeasible"
+    ]
+    return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name, summarise(rejected))
 
 
 def initial_configuration(robot, scene, stance):

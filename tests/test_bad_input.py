@@ -307,6 +307,7 @@ def fake_planning(monkeypatch):
         success = True
         reason = ""
         stances = ()
+        rejections = {}
 
         class statistics:  # noqa: N801 - stands in for PlanStatistics
             expanded = solver_calls = cache_hits = 0

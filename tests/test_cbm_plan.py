@@ -198,3 +198,37 @@ def test_check_flags_a_success_flag_that_the_last_stance_does_not_earn(scenario)
     report = claimed.check(scenario=scenario, robot=object())
     assert not report.ok
     assert "the plan says it succeeded but its last stance does not reach the scenario's goal" in report.problems
+
+
+def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
+    oracle = SyntheticOracle(forbidden_x=(-0.25, -0.05))
+    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=200)
+    forbidden = [
+        s for s in oracle.calls
+        if any(-0.25 < c.contact_print.x < -0.05 for c in s if c.contact_print.surface == "floor")
+    ]
+    assert forbidden  # the band was met
+    assert result.rejections == {"other": {"count": len(forbidden), "example": "forbidden band"}}
+    result.save(tmp_path / "plan.json")
+    assert Plan.load(tmp_path / "plan.json").rejections == result.rejections
+
+
+@pytest.mark.parametrize(
+    "reason, cause",
+    [
+        ("held rigid, print unreachable: placement of left_sole on floor (x) violated by 0.5 m", "reach (placement)"),
+        ("static equilibrium (fz) violated by 3 N (stagnated after 9 iterations)", "balance (static equilibrium)"),
+        ("torque limit of arm_right_2_joint less its 10 % margin violated by 3.1 N m", "torque limit"),
+        ("collision between leg_left_6_link_0 and firm_mat violated by 0.002 m", "collision"),
+        ("indentation bound at node 375 of cube violated by 0.01 m", "soft support (indentation, strain, contact)"),
+        ("friction cone of the resultant of right_palm on cube_top (-x) violated by 0.9 N", "friction"),
+        ("time limit reached before this stance was solved", "time"),
+        ("time budget of 2 s spent before convergence: collision between a and b", "time"),
+        ("verification failed: joint limit exceeded by 0.1 rad", "verification"),
+        ("something new", "other"),
+    ],
+)
+def test_each_rejection_reason_has_its_cause(reason, cause):
+    from cbm.rejections import cause_of
+
+    assert cause_of(reason) == cause
