@@ -91,7 +91,10 @@ class PostureOptions:
     collision_activation : float
         Pairs farther than this are not linearised this iteration, m.
     max_collision_rows : int
-        At most this many closest pairs enter a QP.
+        At most this many closest pairs enter a QP (20: Talos's four checked
+        forearm-sensor pairs are always within reach of the activation
+        distance; with 16 they crowded out the feet's rows and step-on-cube's
+        rigid start wandered 17 iterations instead of 9).
     self_collision : bool
         Whether the SRDF self-collision pairs are checked.
     indentation_limit : float
@@ -147,7 +150,7 @@ class PostureOptions:
     optimality_tolerance: float = 1e-7
     collision_distance: float = 0.005
     collision_activation: float = 0.05
-    max_collision_rows: int = 16
+    max_collision_rows: int = 20
     self_collision: bool = True
     indentation_limit: float = 0.25
     max_indentation: float | None = None
