@@ -1,0 +1,70 @@
+"""The SQP's elastic QP subproblem (stances.qp) on small problems with known answers."""
+
+import numpy as np
+import pytest
+
+from stances.blocks import ConstraintBlock, equality
+from stances.problem import Linearization
+from stances.qp import QPWorkspace, elastic_qp
+
+
+def _linearization(blocks, n=2, bound=10.0):
+    return Linearization(
+        objective=0.0,
+        gradient=np.zeros(n),
+        hessian=np.eye(n),
+        blocks=blocks,
+        step_lower=np.full(n, -bound),
+        step_upper=np.full(n, bound),
+        forces=np.zeros((0, 3)),
+        torques=np.zeros(6),
+    )
+
+
+def test_a_feasible_qp_gives_the_least_norm_step_and_no_elastic():
+    """min 1/2 |x|^2 s.t. x0 + x1 = 1: x = (1/2, 1/2)."""
+    row = equality("sum", np.array([-1.0]), np.array([[1.0, 1.0]]), 1.0, ["x0 + x1 = 1"])
+    x = QPWorkspace().solve(*elastic_qp(_linearization([row]), penalty=100.0), accuracy=1e-9)
+    assert np.allclose(x[:2], [0.5, 0.5], atol=1e-6)
+    assert abs(x[2]) <= 1e-6
+
+
+def test_conflicting_rows_are_met_halfway_and_the_elastic_says_by_how_much():
+    """x0 = 1 and x0 = -1 cannot both hold: with a large penalty x0 = 0 and the
+    elastic variable, in units of each row's scale, is 1 (scale 1) for both."""
+    rows = [
+        equality("a", np.array([-1.0]), np.array([[1.0, 0.0]]), 1.0, ["x0 = 1"]),
+        equality("b", np.array([1.0]), np.array([[1.0, 0.0]]), 1.0, ["x0 = -1"]),
+    ]
+    x = QPWorkspace().solve(*elastic_qp(_linearization(rows), penalty=1e4), accuracy=1e-9)
+    assert x[0] == pytest.approx(0.0, abs=1e-5)
+    assert x[2] == pytest.approx(1.0, abs=1e-5)
+
+
+def test_an_inequality_binds_only_when_it_must_and_scales_read_in_row_units():
+    """min 1/2 |x - (2, 0)|^2 s.t. x0 <= 1 (scale 0.01) and x1 >= 3 (scale 1), steps
+    within 2: x1 >= 3 cannot hold, the elastic is 1 (one scale of that row) and the
+    same elastic relaxes the cap by one of its own scales, 0.01: x0 = 1.01."""
+    lin = _linearization(
+        [
+            ConstraintBlock("cap", np.zeros(1), np.array([[1.0, 0.0]]), -np.inf, 1.0, 0.01, ("x0 <= 1",)),
+            ConstraintBlock("floor", np.zeros(1), np.array([[0.0, 1.0]]), 3.0, np.inf, 1.0, ("x1 >= 3",)),
+        ],
+        bound=2.0,
+    )
+    lin.gradient[:] = [-2.0, 0.0]
+    x = QPWorkspace().solve(*elastic_qp(lin, penalty=1e4), accuracy=1e-9)
+    assert x[0] == pytest.approx(1.01, abs=1e-5)
+    assert x[1] == pytest.approx(2.0, abs=1e-6)
+    assert x[2] == pytest.approx(1.0, abs=1e-4)
+
+
+def test_a_warm_started_workspace_gives_the_cold_answer():
+    row = equality("sum", np.array([-1.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 1"])
+    workspace = QPWorkspace()
+    workspace.solve(*elastic_qp(_linearization([row]), penalty=100.0), accuracy=1e-9)
+    moved = equality("sum", np.array([-2.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 2"])
+    warm = workspace.solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
+    cold = QPWorkspace().solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
+    assert np.allclose(warm, cold, atol=1e-6)
+    assert np.allclose(warm[:2], [0.4, 0.8], atol=1e-6)
