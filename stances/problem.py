@@ -22,6 +22,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from environments.errors import SceneError
+
 from .contacts import RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
@@ -495,7 +497,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         contact_print = contact.contact_print
         try:
             surface = scene.surface(contact_print.surface)
-        except ValueError as error:
+        except SceneError as error:
             raise StanceError(str(error)) from None
         if not surface.contains(np.array([[contact_print.x, contact_print.y]]))[0]:
             raise StanceError(

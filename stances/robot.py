@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .errors import FrameNotFound, RobotNotFound
+from .errors import FrameNotFound, RobotNotFound, StanceError
 from .plates import PlateDeclaration, mount_plate, plate_geometry
 
 
@@ -56,7 +56,7 @@ class RobotSurface:
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=float)
         if polygon.ndim != 2 or polygon.shape[1] != 2 or len(polygon) < 3:
-            raise ValueError(
+            raise StanceError(
                 f"robot surface {self.name!r}: polygon must be (k, 2) with k >= 3, "
                 f"got shape {polygon.shape}"
             )

@@ -525,3 +525,10 @@ def test_palm_stances_keep_the_forearm_off_the_wrist_sensor(robot, deformable_re
                 coal.DistanceRequest(), coal.DistanceResult(),
             )
             assert distance >= PostureOptions().collision_distance - 1e-4 - 1e-9, (name, link, distance)
+
+
+def test_a_robot_surface_with_a_bad_polygon_is_a_stance_error():
+    from stances.robot import RobotSurface
+
+    with pytest.raises(StanceError, match=r"robot surface 'palm': polygon must be \(k, 2\) with k >= 3, got shape \(2, 2\)"):
+        RobotSurface("palm", "wrist", [[0.0, 0.0], [1.0, 0.0]])
