@@ -1,20 +1,17 @@
 """Robot-to-scene clearances measured independently of stances.collision.
 
-The solver measures convex hulls with python-fcl and exempts what
-``contact_exclusions`` says; this helper measures pinocchio's own collision
-geometry (the full triangle meshes, with coal) against boxes rebuilt from the
-scene's objects, and exempts only the geometry named here as touching.
+The solver measures convex hulls of the robot meshes (stances.narrow_phase) and
+exempts what ``contact_exclusions`` says; this helper measures pinocchio's own
+collision geometry (the full triangle meshes, through pin.computeDistances)
+against shapes rebuilt here from the scene's objects, and exempts only the
+geometry named here as touching.
 """
 
 from __future__ import annotations
 
+import coal
 import numpy as np
 import pinocchio as pin
-
-try:  # pinocchio's collision library: coal since pinocchio 3.4, hpp-fcl before
-    import coal
-except ImportError:  # pragma: no cover
-    import hppfcl as coal
 
 # The geometry that forms each Talos surface, written out here rather than read
 # from the robot: a palm touches with its plate only, a sole with the foot mesh.
@@ -32,12 +29,8 @@ def _scene_geometry(scene, deformations=None):
     for name, obj in scene.objects.items():
         if obj.deformable:
             if deformations is not None and name in deformations:
-                triangles = obj.deformed_surface(deformations[name]).reshape(-1, 3)
-                mesh = coal.BVHModelOBBRSS()
-                mesh.beginModel(len(triangles) // 3, len(triangles))
-                mesh.addVertices(np.ascontiguousarray(triangles))
-                mesh.addTriangles(np.arange(len(triangles)).reshape(-1, 3))
-                mesh.endModel()
+                corners = obj.deformed_surface(deformations[name]).reshape(-1, 3)
+                mesh = _triangle_mesh(corners, np.arange(len(corners)).reshape(-1, 3))
                 placed.append((name, pin.SE3.Identity(), mesh))
                 continue
             # Soft boxes fill their bounding box (checked in test_scenarios).
@@ -48,8 +41,20 @@ def _scene_geometry(scene, deformations=None):
             transform = obj.transform_object_to_world
             placed.append((name, pin.SE3(transform[:3, :3], transform[:3, 3]), coal.Box(*obj.box_size)))
         else:
-            raise NotImplementedError(f"clearance helper: object {name!r} is neither a box nor a soft box")
+            # Any other rigid object: its own triangle mesh, placed in the world.
+            world = obj.mesh_in_world()
+            placed.append((name, pin.SE3.Identity(), _triangle_mesh(world.vertices, world.faces)))
     return placed
+
+
+def _triangle_mesh(vertices, triangles):
+    """A coal triangle mesh (BVH) of (n, 3) vertices and (t, 3) vertex indices."""
+    mesh = coal.BVHModelOBBRSS()
+    mesh.beginModel(len(triangles), len(vertices))
+    mesh.addVertices(np.ascontiguousarray(vertices, dtype=float))
+    mesh.addTriangles(np.ascontiguousarray(triangles, dtype=int))
+    mesh.endModel()
+    return mesh
 
 
 def robot_clearances(robot, scene, stance, q, deformations=None) -> dict:

@@ -228,3 +228,21 @@ def test_only_the_contact_geometry_comes_near_a_support(robot, scenario_name, st
         clearances = robot_clearances(robot, scenario.scene, stance, result.q, deformations)
         close = {pair: distance for pair, distance in clearances.items() if distance < minimum}
         assert not close, close
+
+
+def test_clearance_helper_measures_a_mesh_object_like_its_box(robot):
+    """The independent clearance helper takes any rigid object: the table as its
+    plain triangle mesh gives the distances of the table as a box."""
+    import dataclasses
+    from types import SimpleNamespace
+
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    q = solve(robot, scenario.scene, stance).q
+    as_box = robot_clearances(robot, scenario.scene, stance, q)
+    objects = dict(scenario.scene.objects)
+    objects["table"] = dataclasses.replace(objects["table"], box_size=None)
+    as_mesh = robot_clearances(robot, SimpleNamespace(objects=objects, surface=scenario.scene.surface), stance, q)
+    table = [key for key in as_box if key[1] == "table"]
+    assert table and set(as_mesh) == set(as_box)
+    assert max(abs(as_box[key] - as_mesh[key]) for key in table) < 1e-5
