@@ -18,7 +18,6 @@ import numpy as np
 
 import stances
 import stances.qp
-from stances.qp_backend import proxsuite
 
 FIELDS = ("hessian", "gradient", "inequality", "lower", "upper", "box_lower", "box_upper")
 _ABSENT = 1e19  # bounds beyond this are the QP builder's stand-in for "no bound"
@@ -155,49 +154,16 @@ def reference_solution(qp):
     return policy.solve(data_of(qp), 1e-10)[0]
 
 
-class LegacyWorkspace:
+class LegacyWorkspace(stances.qp.QPWorkspace):
     """:class:`stances.qp.QPWorkspace` as it was before its proxsuite policy was tuned (commit d11d41b).
 
-    Kept here, and only here, as the benchmark's "old policy": proxsuite's default cold
-    guess and first proximal weights, warm starts with the weights the previous solve
-    ended with.
+    Kept here, and only here, as the benchmark's "old policy": proxsuite's automatic
+    backend and default cold guess; everything else (settings, warm starts with the
+    weights the previous solve ended with) is the library's.
     """
 
-    def __init__(self):
-        self.qp = None
-        self.shape = None
-        self.iterations = 0
-
-    def _fresh(self, shape):
-        qp = proxsuite.proxqp.dense.QP(shape[0], 0, shape[1], True)
-        qp.settings.eps_abs = 1e-9
-        qp.settings.eps_rel = 0.0
-        qp.settings.eps_primal_inf = 1e-12
-        qp.settings.max_iter = 300
-        qp.settings.max_iter_in = 50
-        qp.settings.verbose = False
-        return qp
-
-    def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper, accuracy=1e-6):
-        shape = (len(gradient), inequality.shape[0])
-        data = (hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
-        self.iterations = 0
-        if self.qp is not None and self.shape == shape:
-            self.qp.settings.eps_abs = accuracy
-            self.qp.settings.max_iter = 60
-            self.qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
-            self.qp.update(*data)
-            self.qp.solve()
-            self.iterations += self.qp.results.info.iter
-            if self.qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
-                return np.array(self.qp.results.x)
-        self.qp = self._fresh(shape)
-        self.qp.settings.eps_abs = accuracy
-        self.shape = shape
-        self.qp.init(*data)
-        self.qp.solve()
-        self.iterations += self.qp.results.info.iter
-        return np.array(self.qp.results.x)
+    backend = "Automatic"
+    cold_guess = "EQUALITY_CONSTRAINED_INITIAL_GUESS"
 
 
 class Workspace:

@@ -26,6 +26,19 @@ class QPWorkspace:
         start included.
     """
 
+    # proxsuite's automatic choice factorises the primal system H + C^T C / mu
+    # when rows outnumber variables (the soft stances' QPs: 47 variables,
+    # 173-356 rows), and there needed 2-5 times more iterations than the
+    # primal-dual system, which it uses on the rigid stances' QPs anyway.
+    backend = "PrimalDualLDLT"  # a proxsuite.proxqp.dense.DenseBackend name
+    # A cold start begins at x = 0, the current iterate. proxsuite's default
+    # guess minimises the objective under the (absent) equalities alone: along
+    # the elastic variable and the base directions the curvature is the 1e-8
+    # regularisation against a gradient of up to the penalty, so that guess
+    # lies some 1e10 away (measured: the first QP of hand-on-table takes 108
+    # iterations from it, 45 from zero).
+    cold_guess = "NO_INITIAL_GUESS"  # a proxsuite.proxqp.InitialGuess name
+
     def __init__(self):
         self.qp = None
         self.shape = None
@@ -33,11 +46,8 @@ class QPWorkspace:
 
     def _fresh(self, shape):
         dense = proxsuite.proxqp.dense
-        # proxsuite's automatic choice factorises the primal system H + C^T C / mu
-        # when rows outnumber variables (the soft stances' QPs: 47 variables,
-        # 173-356 rows), and there needed 2-5 times more iterations than the
-        # primal-dual system, which it uses on the rigid stances' QPs anyway.
-        qp = dense.QP(shape[0], 0, shape[1], True, dense.HessianType.Dense, dense.DenseBackend.PrimalDualLDLT)
+        backend = getattr(dense.DenseBackend, self.backend)
+        qp = dense.QP(shape[0], 0, shape[1], True, dense.HessianType.Dense, backend)
         # The SQP corrects an inexact step at the next iteration, so a moderate
         # absolute accuracy suffices; the elastic QP is feasible by
         # construction, so proxsuite's infeasibility test is made strict (its
@@ -50,13 +60,7 @@ class QPWorkspace:
         qp.settings.max_iter = 300
         qp.settings.max_iter_in = 50
         qp.settings.verbose = False
-        # A cold start begins at x = 0, the current iterate. proxsuite's default
-        # guess minimises the objective under the (absent) equalities alone: along
-        # the elastic variable and the base directions the curvature is the 1e-8
-        # regularisation against a gradient of up to the penalty, so that guess
-        # lies some 1e10 away (measured: the first QP of hand-on-table takes 108
-        # iterations from it, 45 from zero).
-        qp.settings.initial_guess = proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
+        qp.settings.initial_guess = getattr(proxsuite.proxqp.InitialGuess, self.cold_guess)
         return qp
 
     def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper, accuracy=1e-6):
