@@ -50,3 +50,14 @@ def coarse_scenario(name: str, resolution: str = "0.04", young_modulus: float | 
     if young_modulus is not None:
         text = text.replace("E: 1.0e+6", f"E: {young_modulus:.6e}").replace("E: 5.0e+5", f"E: {young_modulus:.6e}")
     return environments.load_string(text, name=name)
+
+
+def fingerprint(result) -> tuple:
+    """(feasible, iterations, SHA-1 of q and the forces' bits) of a posture result:
+    equal fingerprints mean the same answer bit for bit."""
+    import hashlib
+
+    import numpy as np
+
+    forces = np.array([p.force for p in result.point_forces])
+    return result.feasible, result.iterations, hashlib.sha1(np.asarray(result.q).tobytes() + forces.tobytes()).hexdigest()

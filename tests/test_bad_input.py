@@ -54,6 +54,21 @@ def run_isolated(code: str, timeout: float = 120.0) -> subprocess.CompletedProce
     )
 
 
+def load_isolated(path, timeout: float = 120.0) -> subprocess.CompletedProcess:
+    """Load a scenario file in a child process (:func:`run_isolated`); its
+    ScenarioError message, if any, is the child's output."""
+    return run_isolated(
+        f"""
+        import environments
+        try:
+            environments.load({str(path)!r})
+        except environments.ScenarioError as error:
+            print(error)
+        """,
+        timeout=timeout,
+    )
+
+
 SCENARIO = """\
 robot: talos
 objects:
@@ -119,16 +134,7 @@ def test_yaml_alias_bomb_is_refused_quickly_with_a_scenario_error(tmp_path):
     path = tmp_path / "bomb.yaml"
     path.write_text("\n".join(rows) + "\nobjects: [*a8]\nstances: {}\n")
     assert path.stat().st_size < 1024  # a kilobyte expanding to 9^9 values
-    child = run_isolated(
-        f"""
-        import environments
-        try:
-            environments.load({str(path)!r})
-        except environments.ScenarioError as error:
-            print(error)
-        """,
-        timeout=60,
-    )
+    child = load_isolated(path, timeout=60)
     assert child.returncode == 0, child.stderr
     assert "bomb.yaml" in child.stdout and "expands to more than 100000 YAML values" in child.stdout
 
@@ -174,15 +180,7 @@ def test_tiny_soft_box_resolution_names_the_limit_and_a_resolution_that_fits():
 def test_tiny_resolution_in_a_scenario_file_is_refused_before_allocating(tmp_path):
     path = tmp_path / "fine.yaml"
     path.write_text(SCENARIO.replace("resolution: coarse", "resolution: 1.0e-7"))
-    child = run_isolated(
-        f"""
-        import environments
-        try:
-            environments.load({str(path)!r})
-        except environments.ScenarioError as error:
-            print(error)
-        """
-    )
+    child = load_isolated(path)
     assert child.returncode == 0, child.stderr
     assert "fine.yaml" in child.stdout and "objects[1]" in child.stdout
     assert "more than the limit of" in child.stdout and "use a resolution of at least" in child.stdout

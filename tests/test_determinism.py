@@ -2,30 +2,21 @@
 
 from __future__ import annotations
 
-import hashlib
 import os
 import subprocess
 import sys
 
-import numpy as np
+from conftest import fingerprint
 
 SCRIPT = """
-import sys, hashlib
+import sys
 sys.path.insert(0, {tests!r})
-import numpy as np
-from conftest import coarse_scenario
+from conftest import coarse_scenario, fingerprint
 import stances
 robot = stances.Robot.load("talos")
 scenario = coarse_scenario("hand-on-cube")
-result = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
-forces = np.array([p.force for p in result.point_forces])
-print(result.feasible, result.iterations, hashlib.sha1(np.asarray(result.q).tobytes() + forces.tobytes()).hexdigest())
+print(*fingerprint(stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))))
 """
-
-
-def _fingerprint(result):
-    forces = np.array([p.force for p in result.point_forces])
-    return result.feasible, result.iterations, hashlib.sha1(np.asarray(result.q).tobytes() + forces.tobytes()).hexdigest()
 
 
 def test_a_soft_stance_solved_twice_in_one_process_is_identical(robot):
@@ -36,7 +27,7 @@ def test_a_soft_stance_solved_twice_in_one_process_is_identical(robot):
     first = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
     second = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
     assert first.feasible
-    assert _fingerprint(first) == _fingerprint(second)
+    assert fingerprint(first) == fingerprint(second)
 
 
 def test_a_soft_stance_solved_in_two_fresh_processes_is_identical():
