@@ -292,6 +292,7 @@ class PostureProblem:
         keep = options.joint_margin * (upper - lower)
         self.q_lower, self.q_upper = lower + keep, upper - keep
         self.effort = (1.0 - options.effort_margin) * robot.effort_limits
+        self.force_step = _FORCE_STEP_IN_WEIGHTS * robot.mass * 9.81  # N, bound on a force variable's step
         # The pieces linearize stacks, in this order (rows and costs), see stances.terms.
         self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint()]
         if options.min_normal_force > 0:
@@ -428,9 +429,8 @@ class PostureProblem:
         # Force variables move by at most ten body weights a step: an
         # infeasible stance's elastic QP can otherwise send them to 1e20 and
         # the next iterate's torques overflow.
-        force_step = _FORCE_STEP_IN_WEIGHTS * self.robot.mass * 9.81
-        step_lower[nv:] = np.maximum(self.variable_lower - lam, -force_step)
-        step_upper[nv:] = force_step
+        step_lower[nv:] = np.maximum(self.variable_lower - lam, -self.force_step)
+        step_upper[nv:] = self.force_step
         return Linearization(
             objective, gradient, hessian, blocks, step_lower, step_upper, iterate.forces, iterate.tau
         )

@@ -176,7 +176,9 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         ):
             status = "converged"
             break
-        accepted, alpha = _line_search(problem, q, lam, step, linearization, penalty, predicted, torque_weight)
+        accepted, alpha = _line_search(
+            problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight
+        )
         # Near a feasible point the optimality step may cross a kink (a print
         # node switching between stick, slip and lift-off) where the linear model
         # is wrong, and the line search crawls. A restoration step, the shortest
@@ -241,12 +243,12 @@ def _predicted_decrease(linearization, step, elastic, penalty, violation) -> flo
     return linearization.objective + penalty * violation - model
 
 
-def _line_search(problem, q, lam, step, linearization, penalty, predicted, torque_weight):
-    """Backtracking on the exact-penalty merit; ``(q, lam, linearization)`` and the
-    step length accepted, or ``(None, alpha)`` when no length down to 1e-3 does."""
+def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight):
+    """Backtracking on the exact-penalty merit from ``linearization`` (whose largest
+    scaled violation is ``violation``); ``(q, lam, linearization)`` and the step
+    length accepted, or ``(None, alpha)`` when no length down to 1e-3 does."""
     model, nv = problem.robot.model, problem.robot.model.nv
     tolerance = problem.options.feasibility_tolerance
-    violation, _ = linearization.max_violation()
     merit = linearization.objective + penalty * violation
     alpha = 1.0
     while alpha >= 1e-3:
