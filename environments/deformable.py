@@ -3,6 +3,9 @@
 The fem body is meshed in its own frame (``body``); displacements computed by
 ``fem`` are in that frame. ``soft_box`` builds the common case: a box resting on
 the floor, its base fixed, its top face a deformable contact surface.
+``soft_blocks`` builds one solid from several boxes side by side (a soft step, a
+seat and its back), every block's top face a contact surface of the same body, so
+prints on different blocks deform each other.
 """
 
 from __future__ import annotations
@@ -26,6 +29,7 @@ from .surfaces import ContactSurface, rectangle
 __all__ = [
     "DeformableObject",
     "soft_box",
+    "soft_blocks",
     "RESOLUTIONS",
     "soft_box_coordinates",
     "DEFAULT_STRAIN_LIMIT",
@@ -467,3 +471,180 @@ def soft_box(
         deformable=True,
     )
     return obj, top
+
+
+def _fine_spacing(resolution) -> float:
+    """The fine spacing h, metres, of a preset name or a number (see :data:`RESOLUTIONS`)."""
+    if isinstance(resolution, str):
+        if resolution not in RESOLUTIONS:
+            raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
+        return RESOLUTIONS[resolution]
+    try:
+        fine = float(resolution)
+    except (TypeError, ValueError):
+        fine = math.nan
+    if not (math.isfinite(fine) and fine > 0.0):
+        raise SceneError(f"resolution must be one of {', '.join(RESOLUTIONS)} or a spacing > 0 in metres, got {resolution!r}")
+    return fine
+
+
+def _breakpoint_coordinates(breakpoints, fine: float) -> np.ndarray:
+    """Sorted coordinates through every breakpoint, evenly spaced at most ``fine`` between them."""
+    points = np.unique(np.round(np.asarray(breakpoints, dtype=float), 12))
+    pieces = [points[:1]]
+    for low, high in zip(points[:-1], points[1:]):
+        cells = max(1, math.ceil((high - low) / fine - 1e-9))
+        pieces.append(np.linspace(low, high, cells + 1)[1:])
+    return np.concatenate(pieces)
+
+
+def _merged_heights(bottoms, tops, fine: float) -> np.ndarray:
+    """Heights of the layers of blocks standing side by side, each graded from its own top.
+
+    Every block bottom and top is a layer; the other layers of all blocks are
+    merged, dropping a layer closer than ``fine / 3`` to one already kept (so no
+    sliver cells where two blocks' gradings interleave).
+    """
+    forced = np.unique(np.round(np.concatenate([bottoms, tops]), 12))
+    graded = np.concatenate([bottom + _height_coordinates(top - bottom, fine) for bottom, top in zip(bottoms, tops)])
+    kept = list(forced)
+    for z in np.sort(graded):
+        if np.min(np.abs(np.asarray(kept) - z)) >= fine / 3.0:
+            kept.append(float(z))
+    return np.array(sorted(kept))
+
+
+def soft_blocks(
+    name: str,
+    blocks,
+    material,
+    resolution="default",
+    friction: float = DEFAULT_FRICTION,
+    strain_limit: float = DEFAULT_STRAIN_LIMIT,
+) -> tuple[DeformableObject, list]:
+    """One deformable solid made of axis-aligned blocks side by side, its base fixed.
+
+    A soft step (a low tread beside a tall ledge) or a seat with its back: a
+    foot on one block and a hand on another press the same body, and each print
+    moves the other (one contact system per body, see
+    :class:`stances.deformable.DeformableContact`). The blocks are meshed
+    together on one tensor grid through every block edge, spacing h over the
+    whole footprint and each block's layers graded from its own top face
+    (:func:`soft_box_coordinates` for one block); the cells inside some block
+    are kept. The nodes on the lowest face (the floor) are fixed. The body
+    frame is at the centre of the footprint's bounding rectangle, on the base,
+    with the world's axes.
+
+    Parameters
+    ----------
+    name : str
+        Object name.
+    blocks : sequence of (str, (3,) float, (3,) float)
+        ``(block name, size, center)`` of each block, metres, world frame.
+        Blocks touch along faces and do not overlap; no block stands on
+        another's top face (each top face is a free contact surface).
+    material : fem.LinearElasticMaterial
+    resolution : {"coarse", "default"} or float
+        Fine spacing h, metres, or a preset (:data:`RESOLUTIONS`).
+    friction : float
+        Friction coefficient of the top faces.
+    strain_limit : float
+        Largest principal strain allowed in a stance.
+
+    Returns
+    -------
+    (DeformableObject, list of ContactSurface)
+        The object and the top face of each block, named ``<name>_<block>``,
+        frame at the face centre, z up.
+
+    Raises
+    ------
+    SceneError
+        On bad sizes, overlapping or disconnected blocks, a block on another's
+        top face, a base not on one level, or a mesh beyond
+        :data:`MAX_SOFT_BOX_NODES` nodes.
+    """
+    fem = _fem()
+    if not isinstance(blocks, (list, tuple)) or not blocks:
+        raise SceneError(f"object {name!r}: blocks must be a non-empty list of (name, size, center)")
+    names, lows, highs = [], [], []
+    for block_name, size, center in blocks:
+        size = readonly_array(size, (3,), f"object {name!r} block {block_name!r} size")
+        if np.any(size <= 0.0):
+            raise SceneError(f"object {name!r} block {block_name!r}: size must be > 0 on every axis, got {size.tolist()}")
+        center = readonly_array(center, (3,), f"object {name!r} block {block_name!r} center")
+        if block_name in names:
+            raise SceneError(f"object {name!r}: two blocks are named {block_name!r}; block names must be unique")
+        names.append(block_name)
+        lows.append(center - 0.5 * size)
+        highs.append(center + 0.5 * size)
+    lows, highs = np.array(lows), np.array(highs)
+    base = float(lows[:, 2].min())
+    tolerance = 1e-9 * float(np.max(highs - lows))
+    for i in range(len(names)):
+        for j in range(len(names)):
+            overlap = np.minimum(highs[i], highs[j]) - np.maximum(lows[i], lows[j])
+            if i < j and np.all(overlap > tolerance):
+                raise SceneError(f"object {name!r}: blocks {names[i]!r} and {names[j]!r} overlap; make them touch along a face")
+            if i != j and abs(lows[j, 2] - highs[i, 2]) <= tolerance and np.all(overlap[:2] > tolerance):
+                raise SceneError(
+                    f"object {name!r}: block {names[j]!r} stands on the top face of {names[i]!r}, which would then not "
+                    "be a free contact surface; make one taller block instead, or put them side by side"
+                )
+    fine = _fine_spacing(resolution)
+    xs = _breakpoint_coordinates(np.concatenate([lows[:, 0], highs[:, 0]]), fine)
+    ys = _breakpoint_coordinates(np.concatenate([lows[:, 1], highs[:, 1]]), fine)
+    zs = _merged_heights(lows[:, 2], highs[:, 2], fine)
+    if xs.size * ys.size * zs.size > MAX_SOFT_BOX_NODES:
+        raise SceneError(
+            f"object {name!r}: resolution {fine:g} m gives a grid of {xs.size * ys.size * zs.size} nodes, more than "
+            f"{MAX_SOFT_BOX_NODES} (environments.deformable.MAX_SOFT_BOX_NODES); use a coarser resolution"
+        )
+    centres = np.stack(np.meshgrid(0.5 * (xs[1:] + xs[:-1]), 0.5 * (ys[1:] + ys[:-1]), 0.5 * (zs[1:] + zs[:-1]),
+                                   indexing="ij"), axis=-1)
+    cells = np.zeros(centres.shape[:3], dtype=bool)
+    for low, high in zip(lows, highs):
+        cells |= np.all((centres > low) & (centres < high), axis=-1)
+    origin = np.array([0.5 * (xs[0] + xs[-1]), 0.5 * (ys[0] + ys[-1]), base])
+    mesh = fem.tensor_mesh(xs - origin[0], ys - origin[1], zs - base, cells=cells)
+    _check_one_solid(name, mesh, names, lows - origin, highs - origin)
+    fixed_nodes = np.flatnonzero(np.asarray(mesh.nodes)[:, 2] <= tolerance)
+    body = fem.DeformableBody(mesh, material, fixed_nodes)
+    transform_body_to_world = transform_from_rotation_translation(np.eye(3), origin)
+    obj = DeformableObject(name, body, transform_body_to_world, "base (the lowest face, on the floor) fixed",
+                           float(strain_limit))
+    surfaces = [
+        ContactSurface(
+            f"{name}_{block_name}",
+            name,
+            rectangle(high[0] - low[0], high[1] - low[1]),
+            transform_from_rotation_translation(np.eye(3), [0.5 * (low[0] + high[0]), 0.5 * (low[1] + high[1]), high[2]]),
+            friction,
+            deformable=True,
+        )
+        for block_name, low, high in zip(names, lows, highs)
+    ]
+    return obj, surfaces
+
+
+def _check_one_solid(name, mesh, names, lows, highs) -> None:
+    """Refuse blocks that do not make one connected solid, naming one cut off."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    tets = np.asarray(mesh.tets)
+    rows = np.repeat(tets[:, 0], 3)
+    cols = tets[:, 1:].ravel()
+    graph = coo_matrix((np.ones(rows.size), (rows, cols)), shape=(mesh.n_nodes, mesh.n_nodes))
+    count, labels = connected_components(graph, directed=False)
+    if count == 1:
+        return
+    nodes = np.asarray(mesh.nodes)
+    first = labels[np.argmin(np.linalg.norm(nodes - 0.5 * (lows[0] + highs[0]), axis=1))]
+    for block_name, low, high in zip(names, lows, highs):
+        inside = np.all((nodes >= low - 1e-12) & (nodes <= high + 1e-12), axis=1)
+        if np.any(labels[inside] != first):
+            raise SceneError(
+                f"object {name!r}: block {block_name!r} does not touch the others along a face; the blocks of a "
+                "soft_blocks object must form one solid (use separate objects for separate bodies)"
+            )

@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fem, soft_box
+from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fem, soft_blocks, soft_box
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
@@ -254,7 +254,10 @@ class _Reader:
             if not isinstance(item, Mapping):
                 raise self.error(key, f"must be a mapping with a 'type', got {_kind(item)}")
             kind = item.get("type")
-            builders = {"floor": self.floor, "box": self.box, "soft_box": self.soft_box, "mesh": self.mesh}
+            builders = {
+                "floor": self.floor, "box": self.box, "soft_box": self.soft_box, "soft_blocks": self.soft_blocks,
+                "mesh": self.mesh,
+            }
             if kind not in builders:
                 raise self.error(_join(key, "type"), f"unknown or missing type {kind!r}; valid types: {', '.join(builders)}")
             try:
@@ -322,35 +325,13 @@ class _Reader:
             ("name", "size", "center", "material"),
         )
         name = self.string(item, "name", key)
-        material_key = _join(key, "material")
-        material_data = self.mapping(item["material"], material_key, ("E", "nu", "rho"), ("E", "nu"))
-        resolution = item.get("resolution", "default")
-        if isinstance(resolution, str):
-            if resolution not in RESOLUTIONS:
-                raise self.error(
-                    _join(key, "resolution"),
-                    f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres",
-                )
-        else:
-            resolution = self.to_number(resolution, _join(key, "resolution"), positive=True)
+        resolution = self.resolution(item, key)
         refine = item.get("refine")
         if refine is not None:
             if not (isinstance(refine, list) and len(refine) == 2 and all(isinstance(r, list) and len(r) == 2 for r in refine)):
                 raise self.error(_join(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
             refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
-        fem = _fem()
-        try:
-            material = fem.LinearElasticMaterial(
-                young_modulus=self.number(material_data, "E", material_key, positive=True),
-                poisson_ratio=self.number(material_data, "nu", material_key),
-                density=self.number(material_data, "rho", material_key, 0.0),
-            )
-        except ScenarioError:
-            raise
-        except ValueError as error:
-            if not _is_fem_error(error):
-                raise
-            raise self.error(material_key, str(error)) from None
+        material = self.material(item, key)
         obj, top = soft_box(
             name,
             self.vector(item, "size", key, 3, positive=True),
@@ -363,6 +344,61 @@ class _Reader:
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
         )
         return obj, [top]
+
+    def resolution(self, item: Mapping, key: str):
+        resolution = item.get("resolution", "default")
+        if isinstance(resolution, str):
+            if resolution not in RESOLUTIONS:
+                raise self.error(
+                    _join(key, "resolution"),
+                    f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres",
+                )
+            return resolution
+        return self.to_number(resolution, _join(key, "resolution"), positive=True)
+
+    def material(self, item: Mapping, key: str):
+        material_key = _join(key, "material")
+        material_data = self.mapping(item["material"], material_key, ("E", "nu", "rho"), ("E", "nu"))
+        fem = _fem()
+        try:
+            return fem.LinearElasticMaterial(
+                young_modulus=self.number(material_data, "E", material_key, positive=True),
+                poisson_ratio=self.number(material_data, "nu", material_key),
+                density=self.number(material_data, "rho", material_key, 0.0),
+            )
+        except ScenarioError:
+            raise
+        except ValueError as error:
+            if not _is_fem_error(error):
+                raise
+            raise self.error(material_key, str(error)) from None
+
+    def soft_blocks(self, item: Mapping, key: str):
+        item = self.mapping(
+            item, key, ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
+            ("name", "blocks", "material"),
+        )
+        name = self.string(item, "name", key)
+        blocks_data = item["blocks"]
+        if not isinstance(blocks_data, list) or not blocks_data:
+            raise self.error(_join(key, "blocks"), f"must be a non-empty list of {{name, size, center}}, got {_kind(blocks_data)}")
+        blocks = []
+        for index, block in enumerate(blocks_data):
+            block_key = f"{key}.blocks[{index}]"
+            block = self.mapping(block, block_key, ("name", "size", "center"), ("name", "size", "center"))
+            blocks.append((
+                self.string(block, "name", block_key),
+                self.vector(block, "size", block_key, 3, positive=True),
+                self.vector(block, "center", block_key, 3),
+            ))
+        return soft_blocks(
+            name,
+            blocks,
+            self.material(item, key),
+            resolution=self.resolution(item, key),
+            friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
+            strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+        )
 
     def mesh(self, item: Mapping, key: str):
         item = self.mapping(item, key, ("name", "type", "file", "center", "yaw_deg", "surfaces"), ("name", "file"))

@@ -211,7 +211,7 @@ class Scene:
 
         Rigid boxes are ``fcl.Box``, other rigid meshes ``fcl.BVHModel``; a
         deformable object is its rest shape: a ``fcl.Box`` when its mesh fills its
-        bounding box, otherwise the convex hull of its nodes as a ``fcl.BVHModel``.
+        bounding box, otherwise its boundary triangles as a ``fcl.BVHModel``.
 
         Returns
         -------
@@ -235,7 +235,9 @@ def _rest_collision_object(obj: DeformableObject) -> fcl.CollisionObject:
         transform_box_to_body[:3, 3] = 0.5 * (low + high)
         geometry = fcl.Box(*(high - low))
         return fcl.CollisionObject(geometry, _fcl_transform(obj.transform_body_to_world @ transform_box_to_body))
-    import trimesh
-
-    hull = trimesh.convex.convex_hull(nodes)
-    return fcl.CollisionObject(bvh_model(hull.vertices, hull.faces), _fcl_transform(obj.transform_body_to_world))
+    # Its own boundary, not the convex hull: a hull would fill a soft step's
+    # re-entrant corner where a foot on its tread stands.
+    vertices = np.asarray(obj.mesh.nodes, dtype=float)
+    return fcl.CollisionObject(
+        bvh_model(vertices, np.asarray(obj.mesh.surface_triangles)), _fcl_transform(obj.transform_body_to_world)
+    )

@@ -56,8 +56,8 @@ def _check_axis(name: str, values: Sequence[float]) -> np.ndarray:
     return axis
 
 
-def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -> TetMesh:
-    """Mesh the box ``[xs[0], xs[-1]] x [ys[0], ys[-1]] x [zs[0], zs[-1]]`` with tets.
+def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float], cells=None) -> TetMesh:
+    """Mesh the box ``[xs[0], xs[-1]] x [ys[0], ys[-1]] x [zs[0], zs[-1]]`` (or some of its cells) with tets.
 
     Each cell of the grid ``xs x ys x zs`` is split into 6 positively oriented tets
     around its diagonal, the same way everywhere, so the mesh is conforming. Uneven
@@ -67,12 +67,16 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
     ----------
     xs, ys, zs : (nx,), (ny,), (nz,) float
         Strictly increasing grid coordinates, metres, body frame.
+    cells : (nx - 1, ny - 1, nz - 1) bool, optional
+        Which grid cells to mesh (a solid made of grid-aligned boxes, e.g. a
+        step); all by default. Nodes of no kept cell are dropped and the others
+        renumbered in the same order.
 
     Returns
     -------
     TetMesh
-        ``nx * ny * nz`` nodes (node id ``i + nx * (j + ny * k)``) and
-        ``6 (nx - 1)(ny - 1)(nz - 1)`` tets.
+        With every cell: ``nx * ny * nz`` nodes (node id ``i + nx * (j + ny * k)``)
+        and ``6 (nx - 1)(ny - 1)(nz - 1)`` tets; 6 tets per kept cell otherwise.
 
     Raises
     ------
@@ -85,6 +89,9 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
     >>> mesh = tensor_mesh([0, 0.5, 1], [0, 1], [0, 0.2, 1])
     >>> mesh.n_nodes, mesh.n_tets
     (18, 24)
+    >>> step = np.zeros((2, 1, 2), bool); step[:, 0, 0] = True; step[1, 0, 1] = True   # an L
+    >>> tensor_mesh([0, 0.5, 1], [0, 1], [0, 0.2, 1], cells=step).n_nodes
+    16
     """
     xs, ys, zs = _check_axis("xs", xs), _check_axis("ys", ys), _check_axis("zs", zs)
     nx, ny, nz = xs.size, ys.size, zs.size
@@ -98,6 +105,17 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float]) -
         [dx + nx * (dy + ny * dz) for dz in (0, 1) for dy in (0, 1) for dx in (0, 1)]
     )
     corners = base[:, None] + corner_offsets[None, :]  # (cells, 8) in i + 2j + 4k order
+    if cells is not None:
+        cells = np.asarray(cells)
+        if cells.shape != (nx - 1, ny - 1, nz - 1) or cells.dtype != bool:
+            raise MeshError(f"cells must be a boolean array of shape {(nx - 1, ny - 1, nz - 1)}, got {cells.dtype} {cells.shape}")
+        if not cells.any():
+            raise MeshError("cells keeps no cell of the grid: nothing to mesh")
+        corners = corners[cells.ravel()]
+        used = np.unique(corners)
+        renumber = np.full(len(nodes), -1)
+        renumber[used] = np.arange(used.size)
+        nodes, corners = nodes[used], renumber[corners]
     tets = corners[:, _CUBE_TETS].reshape(-1, 4)
     return TetMesh(nodes, tets)
 

@@ -28,15 +28,16 @@ def _scene_geometry(scene, deformations=None):
     placed = []
     for name, obj in scene.objects.items():
         if obj.deformable:
-            if deformations is not None and name in deformations:
-                corners = obj.deformed_surface(deformations[name]).reshape(-1, 3)
-                mesh = _triangle_mesh(corners, np.arange(len(corners)).reshape(-1, 3))
-                placed.append((name, pin.SE3.Identity(), mesh))
-                continue
-            # Soft boxes fill their bounding box (checked in test_scenarios).
             nodes = obj.points_in_world(obj.mesh.nodes)
             low, high = nodes.min(axis=0), nodes.max(axis=0)
-            placed.append((name, pin.SE3(np.eye(3), 0.5 * (low + high)), coal.Box(*(high - low))))
+            field = deformations[name] if deformations is not None and name in deformations else None
+            if field is None and np.isclose(obj.mesh.volumes.sum(), np.prod(high - low), rtol=1e-9):
+                # A soft box at rest: a solid box, so a link wholly inside counts as inside.
+                placed.append((name, pin.SE3(np.eye(3), 0.5 * (low + high)), coal.Box(*(high - low))))
+                continue
+            # Deformed, or any other shape (a soft step): its boundary triangles.
+            corners = (obj.rest_surface() if field is None else obj.deformed_surface(field)).reshape(-1, 3)
+            placed.append((name, pin.SE3.Identity(), _triangle_mesh(corners, np.arange(len(corners)).reshape(-1, 3))))
         elif obj.box_size is not None:
             transform = obj.transform_object_to_world
             placed.append((name, pin.SE3(transform[:3, :3], transform[:3, 3]), coal.Box(*obj.box_size)))

@@ -7,6 +7,7 @@ import numpy as np
 import pytest
 
 import environments
+import fem
 from environments import (
     Contact,
     ContactPrint,
@@ -23,14 +24,6 @@ from environments import (
 )
 from environments.deformable import soft_box_coordinates
 from environments.geometry import rotation_about_z
-
-
-def fem_or_skip():
-    fem = pytest.importorskip("fem")
-    missing = [n for n in ("tensor_mesh", "LinearElasticMaterial", "DeformableBody", "nodes_in_polygon") if not hasattr(fem, n)]
-    if missing:
-        pytest.skip(f"fem does not provide {', '.join(missing)} yet")
-    return fem
 
 
 def contact(robot_surface, surface="floor", x=0.0, y=0.0, theta=0.0):
@@ -311,7 +304,6 @@ def test_refine_region_is_fine_and_the_rest_coarser():
 
 
 def test_soft_box_fixes_its_base_and_exposes_a_deformable_top():
-    fem = fem_or_skip()
     material = fem.LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
     obj, top = environments.soft_box("cube", (1.0, 1.0, 1.0), (0.9, -0.3, 0.5), material, resolution="coarse")
     nodes_world = obj.points_in_world(obj.mesh.nodes)
@@ -328,7 +320,6 @@ def test_soft_box_fixes_its_base_and_exposes_a_deformable_top():
 
 
 def test_palm_and_sole_prints_anywhere_on_a_default_cube_hold_nine_nodes():
-    fem = fem_or_skip()
     material = fem.LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
     obj, top = environments.soft_box("cube", (1.0, 1.0, 1.0), (0.9, -0.3, 0.5), material)
     transform_world_to_body = np.linalg.inv(obj.transform_body_to_world)
@@ -342,7 +333,6 @@ def test_palm_and_sole_prints_anywhere_on_a_default_cube_hold_nine_nodes():
 
 
 def test_deformable_top_frame_points_out_of_the_body_and_collision_uses_its_rest_box():
-    fem = fem_or_skip()
     material = fem.LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
     obj, top = environments.soft_box("cube", (0.3, 0.3, 0.3), (0.0, -0.16, 0.15), material, resolution="coarse")
     low, high = obj.points_in_world(obj.mesh.nodes).min(axis=0), obj.points_in_world(obj.mesh.nodes).max(axis=0)

@@ -9,9 +9,9 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-import scipy.sparse.linalg as spla
 
 import fem
+from fem_reference import direct_reactions as _direct_reactions
 
 E, NU = 1e6, 0.4
 
@@ -24,22 +24,6 @@ def block():
     left = fem.nodes_in_polygon(mesh, [[0.05, 0.05, 0.1], [0.25, 0.05, 0.1], [0.25, 0.35, 0.1], [0.05, 0.35, 0.1]])
     right = fem.nodes_in_polygon(mesh, [[0.30, 0.05, 0.1], [0.55, 0.05, 0.1], [0.55, 0.35, 0.1], [0.30, 0.35, 0.1]])
     return body, np.asarray(left), np.asarray(right)
-
-
-def _direct_reactions(body, node_ids, displacements):
-    """Reactions at prescribed nodes from the full system (no condensation, no cache)."""
-    k = body.stiffness.tocsr()
-    n_dofs = body.mesh.n_dofs
-    prescribed = np.zeros(n_dofs)
-    dofs = (3 * node_ids[:, None] + np.arange(3)).ravel()
-    prescribed[dofs] = displacements.ravel()
-    known = np.zeros(n_dofs, dtype=bool)
-    known[dofs] = True
-    known[(3 * body.fixed_nodes[:, None] + np.arange(3)).ravel()] = True
-    free = np.flatnonzero(~known)
-    u = prescribed.copy()
-    u[free] = spla.spsolve(k[free][:, free].tocsc(), -(k[free] @ prescribed))
-    return (k @ u)[dofs].reshape(-1, 3), u.reshape(-1, 3)
 
 
 def _press(rng, count):

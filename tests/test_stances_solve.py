@@ -18,7 +18,12 @@ from stances.sqp import solve, solve_problem
 from stances.verify import verify
 
 RIGID = [("stand", "stand"), ("hand-on-table", "hand-on-table"), ("foot-on-block", "foot-on-block")]
-DEFORMABLE = [("hand-on-cube", "hand-on-cube"), ("step-on-cube", "step-on-cube"), ("hand-on-soft-cube", "hand-on-soft-cube")]
+DEFORMABLE = [
+    ("hand-on-cube", "hand-on-cube"),
+    ("step-on-cube", "step-on-cube"),
+    ("hand-on-soft-cube", "hand-on-soft-cube"),
+    ("foot-and-hand-on-foam", "foot-and-hand"),  # a sole and a palm on one soft body
+]
 
 
 def _palm_depth(result, name="cube"):
@@ -78,6 +83,11 @@ def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scen
         assert np.abs(field).max() < 1e-9 + 1e-5 * max(load, 0.0)
     if scenario_name == "step-on-cube":
         assert load > 100.0  # a sole on the cube carries part of the weight
+    if scenario_name == "foot-and-hand-on-foam":
+        # Both links press the one body, each a real support.
+        for surface in ("right_sole", "right_palm"):
+            carried = sum(p.force[2] for p in result.forces_on(robot.surface(surface).frame))
+            assert carried > 50.0, (surface, carried)
 
 
 def test_softer_cube_gives_a_deeper_print(robot):

@@ -1,0 +1,142 @@
+"""One soft solid made of blocks (``soft_blocks``): its mesh, its surfaces, its
+prints pressing each other, and the shapes it refuses."""
+
+from __future__ import annotations
+
+import textwrap
+
+import fcl
+import numpy as np
+import pytest
+
+import environments
+import fem
+from environments import ScenarioError, SceneError
+from environments.deformable import soft_blocks
+from fem_reference import direct_reactions
+
+MATERIAL = fem.LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4)
+# A soft step: a 0.1 m tread beside a 0.85 m ledge (the built-in scenario's shape).
+STEP = [("tread", (0.5, 0.55, 0.1), (0.1, -0.275, 0.05)), ("ledge", (0.4, 0.55, 0.85), (0.55, -0.275, 0.425))]
+
+
+@pytest.fixture(scope="module")
+def step():
+    return soft_blocks("foam", STEP, MATERIAL, resolution=0.05)
+
+
+def test_the_mesh_fills_the_blocks_and_nothing_else(step):
+    obj, _ = step
+    mesh = obj.mesh
+    volume = sum(np.prod(size) for _, size, _ in STEP)
+    assert np.isclose(mesh.volumes.sum(), volume, rtol=1e-12)
+    centroids = obj.points_in_world(np.asarray(mesh.nodes)[np.asarray(mesh.tets)].mean(axis=1))
+    inside = np.zeros(len(centroids), dtype=bool)
+    for _, size, center in STEP:
+        inside |= np.all(np.abs(centroids - center) < 0.5 * np.asarray(size), axis=1)
+    assert inside.all()
+
+
+def test_the_base_is_fixed_and_nothing_else(step):
+    obj, _ = step
+    world = obj.points_in_world(obj.mesh.nodes)
+    assert np.array_equal(np.sort(obj.body.fixed_nodes), np.flatnonzero(np.abs(world[:, 2]) < 1e-12))
+
+
+def test_each_block_top_is_a_soft_surface_of_the_same_body(step):
+    obj, surfaces = step
+    assert [s.name for s in surfaces] == ["foam_tread", "foam_ledge"]
+    world = obj.points_in_world(obj.mesh.nodes)
+    for surface, (_, size, center) in zip(surfaces, STEP):
+        assert surface.object_name == "foam" and surface.deformable
+        top = np.asarray(center) + [0.0, 0.0, 0.5 * size[2]]
+        assert np.allclose(surface.transform_surface_to_world[:3, 3], top)
+        # The top face's corners are mesh nodes on the body's boundary.
+        boundary = world[obj.mesh.is_surface_node]
+        for sx in (-0.5, 0.5):
+            for sy in (-0.5, 0.5):
+                corner = top + [sx * size[0], sy * size[1], 0.0]
+                assert np.linalg.norm(boundary - corner, axis=1).min() < 1e-12
+
+
+def test_a_print_on_each_block_matches_the_full_system_and_couples_them(step):
+    """A sole on the tread and a palm on the ledge, condensed together, against a
+    direct solve of the whole body with both prints prescribed; alone, the palm
+    print would react differently (the sole's press moves the ledge)."""
+    obj, _ = step
+    body = obj.body
+    world = obj.points_in_world(obj.mesh.nodes)
+
+    def nodes_under(x, y, z):
+        return np.flatnonzero((np.abs(world[:, 2] - z) < 1e-12) & (np.abs(world[:, 0] - x[0] - x[1]) <= x[1] + 1e-9)
+                              & (np.abs(world[:, 1] - y[0] - y[1]) <= y[1] + 1e-9))
+
+    sole = nodes_under((0.15, 0.1), (-0.35, 0.05), 0.1)  # 0.2 x 0.1 m near the ledge's foot
+    palm = nodes_under((0.40, 0.05), (-0.30, 0.05), 0.85)
+    assert sole.size >= 6 and palm.size >= 4
+    both = np.concatenate([sole, palm])
+    press = np.tile([0.0, 0.0, -0.004], (both.size, 1))
+    coupled = body.contact_patch(both).reaction_forces(press)
+    direct, _ = direct_reactions(body, both, press)
+    assert np.abs(coupled + direct).max() <= 1e-8 * np.abs(direct).max()
+    alone = body.contact_patch(palm).reaction_forces(press[sole.size :])
+    assert np.abs(alone - coupled[sole.size :]).max() > 1e-6 * np.abs(alone).max()
+
+
+def test_the_collision_shape_keeps_the_re_entrant_corner_free(step):
+    """A foot over the tread, in front of the ledge, is outside the solid (a convex
+    hull of the nodes would hold it)."""
+    obj, surfaces = step
+    scene = environments.Scene("step", [], [obj], surfaces)
+    (name, foam), = scene.collision_objects()
+    probe = fcl.CollisionObject(fcl.Sphere(0.05), fcl.Transform(np.array([-0.05, -0.275, 0.4])))
+    result = fcl.DistanceResult()
+    distance = fcl.distance(foam, probe, fcl.DistanceRequest(), result)
+    assert name == "foam"
+    assert distance == pytest.approx(0.4 - 0.1 - 0.05, abs=1e-6)  # down to the tread
+
+
+@pytest.mark.parametrize(
+    "blocks, message",
+    [
+        ([("a", (1, 1, 1), (0, 0, 0.5)), ("b", (1, 1, 1), (0.5, 0, 0.5))], "blocks 'a' and 'b' overlap"),
+        ([("a", (1, 1, 1), (0, 0, 0.5)), ("b", (1, 1, 1), (0, 0, 1.5))], "block 'b' stands on the top face of 'a'"),
+        ([("a", (1, 1, 1), (0, 0, 0.5)), ("b", (1, 1, 1), (1.5, 0, 0.5))], "block 'b' does not touch the others"),
+        ([("a", (1, 1, 1), (0, 0, 0.5)), ("a", (1, 1, 1), (1, 0, 0.5))], "two blocks are named 'a'"),
+        ([("a", (1, 0, 1), (0, 0, 0.5))], "size must be > 0 on every axis"),
+        ([], "blocks must be a non-empty list"),
+    ],
+)
+def test_shapes_that_are_not_one_solid_are_refused(blocks, message):
+    with pytest.raises(SceneError, match=message):
+        soft_blocks("foam", blocks, MATERIAL, resolution=0.25)
+
+
+def test_a_scenario_file_names_the_bad_block(tmp_path):
+    text = textwrap.dedent(
+        """
+        robot: talos
+        description: a step whose blocks overlap
+        objects:
+          - {name: floor, type: floor}
+          - name: foam
+            type: soft_blocks
+            blocks:
+              - {name: tread, size: [0.5, 0.5, 0.1], center: [0.0, -0.3, 0.05]}
+              - {name: ledge, size: [0.4, 0.5, 0.8], center: [0.4, -0.3, 0.4]}
+            material: {E: 1.0e+6, nu: 0.4}
+            resolution: 0.1
+        stances:
+          stand:
+            left_sole: {surface: floor, x: 0.0, y: 0.085}
+            right_sole: {surface: floor, x: 0.0, y: -0.085}
+        start: stand
+        """
+    )
+    path = tmp_path / "step.yaml"
+    path.write_text(text)
+    with pytest.raises(ScenarioError, match=r"objects\[1\].*blocks 'tread' and 'ledge' overlap"):
+        environments.load(str(path))
+    path.write_text(text.replace("size: [0.4, 0.5, 0.8], center: [0.4,", "size: [0.4, 0.5, 0.8], center: [0.45,"))
+    scenario = environments.load(str(path))
+    assert {"foam_tread", "foam_ledge"} <= set(scenario.scene.surfaces)
