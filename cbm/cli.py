@@ -176,14 +176,17 @@ def build_parser():
 
     check = commands.add_parser(
         "check",
-        help="solve one stance of a scenario",
+        help="solve one stance of a scenario, or verify a saved plan again",
         description="Solve one stance of a scenario and print its forces, depths in the soft bodies and "
-        "margins to the robot's limits.",
+        "margins to the robot's limits; or, given a plan.json, verify every stance of the plan again "
+        "(with the scenario the file embeds, so it works on a copied plan).",
         epilog=_EXIT_CODES,
         formatter_class=_HelpFormatter,
     )
-    check.add_argument("scenario", metavar="SCENARIO", help="built-in scenario name or scenario file")
-    check.add_argument("--stance", required=True, help="name of the stance in the scenario")
+    check.add_argument(
+        "scenario", metavar="SCENARIO", help="built-in scenario name, scenario file, or a plan .json file"
+    )
+    check.add_argument("--stance", help="name of the stance in the scenario (required unless checking a plan)")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
     return parser
@@ -328,13 +331,13 @@ def _check(args):
 
     from .planner import PostureOracle, load_scenario
 
+    if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
+        return _check_plan(args.scenario)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
         names = ", ".join(sorted(scenario.stances)) or "(none)"
-        print(
-            f"cbm check: error: scenario {scenario.name!r} has no stance {args.stance!r}; stances: {names}",
-            file=sys.stderr,
-        )
+        problem = "needs --stance" if args.stance is None else f"has no stance {args.stance!r}"
+        print(f"cbm check: error: scenario {scenario.name!r} {problem}; stances: {names}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.out is not None and args.out.exists() and not args.out.is_dir():
         # Checked before the solve, which may take seconds.
@@ -360,6 +363,18 @@ def _check(args):
     return EXIT_OK if check.feasible else EXIT_FAILED
 
 
+def _check_plan(path):
+    from .plan import Plan
+
+    plan = Plan.load(path)
+    report = plan.check()
+    verdict = "every stance verifies" if report.ok else f"{len(report.problems)} problems"
+    print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}")
+    for problem in report.problems:
+        print(f"  {problem}")
+    return EXIT_OK if report.ok else EXIT_FAILED
+
+
 def _check_picture(scenario, robot, stance, result, args):
     from .display import plan_bounds, scene_edges, stance_display
     from .plan import PlannedStance
@@ -375,7 +390,7 @@ def _check_picture(scenario, robot, stance, result, args):
     )
     for obj in scenario.scene.deformable_objects:
         if obj.name in result.deformations:
-            obj.body.write_vtu(args.out / f"{args.stance}_{obj.name}.vtu", result.deformations[obj.name])
+            obj.write_vtu(args.out / f"{args.stance}_{obj.name}.vtu", result.deformations[obj.name])
     return path
 
 
