@@ -6,15 +6,15 @@ infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
 traceback). Only the packages' own bad-input errors become code 2; anything else
 is a bug and ends with its traceback.
 
-Defaults shared with Python: ``cbm plan``'s options take their defaults from
-:func:`cbm.plan`'s signature, so the two cannot drift apart; ``--help`` shows them.
+Defaults shared with Python: ``cbm plan``'s budgets are :func:`cbm.plan`'s own
+(:data:`cbm.planner.DEFAULT_MAX_EXPANSIONS`, :data:`cbm.planner.DEFAULT_TIME_LIMIT`);
+``--help`` shows them.
 """
 
 from __future__ import annotations
 
 import argparse
 import functools
-import inspect
 import logging
 import os
 import sys
@@ -94,16 +94,6 @@ def _version():
         return "unknown (softcbm is not installed; run pip install -e .)"
 
 
-def plan_defaults():
-    """Default value of each keyword of :func:`cbm.plan`, which ``cbm plan`` uses as its own."""
-    from .planner import plan
-
-    return {
-        name: parameter.default
-        for name, parameter in inspect.signature(plan).parameters.items()
-        if parameter.default is not inspect.Parameter.empty
-    }
-
 
 def _positive_float(text):
     try:
@@ -155,18 +145,17 @@ def build_parser():
     )
     plan.add_argument("--out", type=Path, default=Path("cbm-out"), help="output folder, new or empty")
     plan.add_argument("--force", action="store_true", help="replace the content of a non-empty --out")
-    defaults = plan_defaults()
+    from .planner import DEFAULT_MAX_EXPANSIONS, DEFAULT_TIME_LIMIT
+
     plan.add_argument(
-        "--max-expansions", type=_non_negative_int, default=defaults["max_expansions"], help="stances expanded at most"
+        "--max-expansions", type=_non_negative_int, default=DEFAULT_MAX_EXPANSIONS, help="stances expanded at most"
     )
-    plan.add_argument(
-        "--time-limit", type=_positive_float, default=defaults["time_limit"], help="seconds of search at most"
-    )
-    plan.add_argument("--seed", type=int, default=defaults["seed"], help="seed of the tie-breaking shuffle")
+    plan.add_argument("--time-limit", type=_positive_float, default=DEFAULT_TIME_LIMIT, help="seconds of search at most")
+    plan.add_argument("--seed", type=int, default=0, help="seed of the tie-breaking shuffle")
     plan.add_argument(
         "--print-spacing",
         type=_positive_float,
-        default=defaults["print_spacing"],
+        default=None,
         help="print grid step, metres (default: the scenario's print_spacing option, else 0.1)",
     )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
