@@ -311,11 +311,13 @@ def test_cli_bad_scenario_file_exits_2(tmp_path, capsys):
 
 def test_cli_lists_every_scenario_with_its_stance_names(capsys):
     assert main(["scenarios"]) == 0
-    blocks = capsys.readouterr().out.split("\n    stances: ")
-    listed = {}
-    for before, after in zip(blocks, blocks[1:]):
-        name = before.rsplit("\n", 2)[-2].strip() if before.count("\n") >= 2 else before.split("\n")[0]
-        listed[name] = after.split("\n")[0].split(", ")
+    listed, name = {}, None
+    for line in capsys.readouterr().out.splitlines():
+        if not line.startswith(" "):
+            name = line
+        elif line.startswith("    stances: "):
+            listed[name] = line[len("    stances: "):].split(", ")
+    assert sorted(listed) == environments.scenario_names()
     for name in environments.scenario_names():
         scenario = environments.load(name)
         expected = [f"{s} (start)" if s == scenario.start else s for s in scenario.stances]
