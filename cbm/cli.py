@@ -41,8 +41,8 @@ EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
 EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what shells report for `yes | head -1`
 
 _EXIT_CODES = """exit codes:
-  0    plan found (check: stance feasible)
-  1    no plan found (check: stance infeasible)
+  0    plan found (check: stance feasible, or plan.json verifies)
+  1    no plan found (check: stance infeasible, or plan.json fails its check)
   2    bad input: unknown scenario, invalid scenario file or option, unusable --out
   130  interrupted (Ctrl-C); nothing is written
   141  output pipe closed early (e.g. piped into head)"""
