@@ -2,14 +2,21 @@
 
 Exit codes: 0 success (plan found, stance feasible), 1 no plan found or stance
 infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
-(Ctrl-C). Only the packages' own bad-input errors become code 2; anything else is
-a bug and ends with its traceback.
+(Ctrl-C), 141 output pipe closed (``cbm scenarios | head -1``: not an error, no
+traceback). Only the packages' own bad-input errors become code 2; anything else
+is a bug and ends with its traceback.
+
+Defaults shared with Python: ``cbm plan``'s budgets are :func:`cbm.plan`'s own
+(:data:`cbm.planner.DEFAULT_MAX_EXPANSIONS`, :data:`cbm.planner.DEFAULT_TIME_LIMIT`);
+``--help`` shows them.
 """
 
 from __future__ import annotations
 
 import argparse
+import functools
 import logging
+import os
 import sys
 from pathlib import Path
 
@@ -21,6 +28,7 @@ __all__ = [
     "EXIT_FAILED",
     "EXIT_BAD_INPUT",
     "EXIT_INTERRUPTED",
+    "EXIT_PIPE_CLOSED",
 ]
 
 #: Scenario planned when ``cbm plan`` is given none.
@@ -30,12 +38,14 @@ EXIT_OK = 0
 EXIT_FAILED = 1
 EXIT_BAD_INPUT = 2
 EXIT_INTERRUPTED = 130  # 128 + SIGINT, what shells report for Ctrl-C
+EXIT_PIPE_CLOSED = 141  # 128 + SIGPIPE, what shells report for `yes | head -1`
 
 _EXIT_CODES = """exit codes:
-  0    plan found (check: stance feasible)
-  1    no plan found (check: stance infeasible)
+  0    plan found (check: stance feasible, or plan.json verifies)
+  1    no plan found (check: stance infeasible, or plan.json fails its check)
   2    bad input: unknown scenario, invalid scenario file or option, unusable --out
-  130  interrupted (Ctrl-C); nothing is written"""
+  130  interrupted (Ctrl-C); nothing is written
+  141  output pipe closed early (e.g. piped into head)"""
 
 logger = logging.getLogger("cbm")
 
@@ -49,6 +59,40 @@ class _Parser(argparse.ArgumentParser):
 
 class _UsageError(Exception):
     pass
+
+
+class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
+    """Keeps the epilog's layout (the exit codes) and shows each option's default.
+
+    Like argparse's ArgumentDefaultsHelpFormatter, but silent for flags and for
+    defaults of None ("not given"), where "(default: None)" would say nothing.
+    """
+
+    def _fill_text(self, text, width, indent):
+        # One-line descriptions are wrapped; text with its own line breaks (the
+        # exit-code table) is kept as written.
+        if "\n" in text:
+            return super()._fill_text(text, width, indent)
+        return argparse.HelpFormatter._fill_text(self, text, width, indent)
+
+    def _get_help_string(self, action):
+        text = action.help or ""
+        shown = action.option_strings or action.nargs in (argparse.OPTIONAL, argparse.ZERO_OR_MORE)
+        # Identity, not ``in``: a default of 0 equals False but is worth showing.
+        silent = action.default is None or action.default is False or action.default is argparse.SUPPRESS
+        if shown and "%(default)" not in text and not silent:
+            text += " (default: %(default)s)"
+        return text
+
+
+def _version():
+    from importlib.metadata import PackageNotFoundError, version
+
+    try:
+        return version("softcbm")
+    except PackageNotFoundError:
+        return "unknown (softcbm is not installed; run pip install -e .)"
+
 
 
 def _positive_float(text):
@@ -77,8 +121,9 @@ def build_parser():
         prog="cbm",
         description="Contact-before-motion planning for Talos on rigid and soft supports.",
         epilog=_EXIT_CODES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=_HelpFormatter,
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s {_version()}")
     commands = parser.add_subparsers(dest="command", metavar="COMMAND", parser_class=_Parser)
     commands.required = True
 
@@ -89,41 +134,76 @@ def build_parser():
         "files are written in a temporary folder beside --out and moved into place at the end, so --out "
         "holds one complete plan or is left as it was.",
         epilog=_EXIT_CODES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=_HelpFormatter,
     )
     plan.add_argument(
         "scenario",
         nargs="?",
         default=DEFAULT_SCENARIO,
         metavar="SCENARIO",
-        help=f"built-in scenario name or scenario file (default: {DEFAULT_SCENARIO})",
+        help="built-in scenario name or scenario file",
     )
-    plan.add_argument(
-        "--out", type=Path, default=Path("cbm-out"), help="output folder, new or empty (default: cbm-out)"
-    )
+    plan.add_argument("--out", type=Path, default=Path("cbm-out"), help="output folder, new or empty")
     plan.add_argument("--force", action="store_true", help="replace the content of a non-empty --out")
-    plan.add_argument("--max-expansions", type=_non_negative_int, default=200, help="stances expanded at most")
-    plan.add_argument("--time-limit", type=_positive_float, default=300.0, help="seconds of search at most")
+    from .planner import DEFAULT_MAX_EXPANSIONS, DEFAULT_TIME_LIMIT
+
+    plan.add_argument(
+        "--max-expansions", type=_non_negative_int, default=DEFAULT_MAX_EXPANSIONS, help="stances expanded at most"
+    )
+    plan.add_argument("--time-limit", type=_positive_float, default=DEFAULT_TIME_LIMIT, help="seconds of search at most")
     plan.add_argument("--seed", type=int, default=0, help="seed of the tie-breaking shuffle")
-    plan.add_argument("--print-spacing", type=_positive_float, default=None, help="print grid step, metres")
+    plan.add_argument(
+        "--print-spacing",
+        type=_positive_float,
+        default=None,
+        help="print grid step, metres (default: the scenario's print_spacing option, else 0.1)",
+    )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
 
-    commands.add_parser("scenarios", help="list the built-in scenarios")
+    commands.add_parser("scenarios", help="list the built-in scenarios and their stances")
 
     check = commands.add_parser(
         "check",
-        help="solve one stance of a scenario",
+        help="solve one stance of a scenario, or verify a saved plan again",
+        description="Solve one stance of a scenario and print its forces, depths in the soft bodies and "
+        "margins to the robot's limits; or, given a plan.json, verify every stance of the plan again "
+        "(with the scenario the file embeds, so it works on a copied plan).",
         epilog=_EXIT_CODES,
-        formatter_class=argparse.RawDescriptionHelpFormatter,
+        formatter_class=_HelpFormatter,
     )
-    check.add_argument("scenario", metavar="SCENARIO", help="built-in scenario name or scenario file")
-    check.add_argument("--stance", required=True, help="name of the stance in the scenario")
+    check.add_argument(
+        "scenario", metavar="SCENARIO", help="built-in scenario name, scenario file, or a plan .json file"
+    )
+    check.add_argument("--stance", help="name of the stance in the scenario (required unless checking a plan)")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
     return parser
 
 
+def _quiet_on_closed_pipe(function):
+    """Make a closed standard output (``cbm scenarios | head -1``) end quietly with code 141.
+
+    Output is flushed inside the guard: otherwise the interpreter's last flush, at
+    exit, meets the closed pipe and prints a traceback no code can catch.
+    """
+
+    @functools.wraps(function)
+    def guarded(argv=None):
+        try:
+            code = function(argv)
+            sys.stdout.flush()
+        except BrokenPipeError:
+            # Whatever is still buffered goes nowhere instead of failing again at exit.
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())
+            return EXIT_PIPE_CLOSED
+        return code
+
+    return guarded
+
+
+@_quiet_on_closed_pipe
 def main(argv=None):
     """Run the command line.
 
@@ -135,7 +215,8 @@ def main(argv=None):
     Returns
     -------
     int
-        0 success, 1 no plan / infeasible, 2 bad input, 130 interrupted.
+        0 success, 1 no plan / infeasible, 2 bad input, 130 interrupted,
+        141 standard output closed early.
     """
     parser = build_parser()
     try:
@@ -185,7 +266,8 @@ def _scenarios():
     for name in environments.scenario_names():
         scenario = environments.load(name)
         description = " ".join(str(scenario.description).split())
-        print(f"{name}\n    {description}")
+        stance_names = ", ".join(f"{stance} (start)" if stance == scenario.start else stance for stance in scenario.stances)
+        print(f"{name}\n    {description}\n    stances: {stance_names}")
     return EXIT_OK
 
 
@@ -238,13 +320,13 @@ def _check(args):
 
     from .planner import PostureOracle, load_scenario
 
+    if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
+        return _check_plan(args.scenario)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
         names = ", ".join(sorted(scenario.stances)) or "(none)"
-        print(
-            f"cbm check: error: scenario {scenario.name!r} has no stance {args.stance!r}; stances: {names}",
-            file=sys.stderr,
-        )
+        problem = "needs --stance" if args.stance is None else f"has no stance {args.stance!r}"
+        print(f"cbm check: error: scenario {scenario.name!r} {problem}; stances: {names}", file=sys.stderr)
         return EXIT_BAD_INPUT
     if args.out is not None and args.out.exists() and not args.out.is_dir():
         # Checked before the solve, which may take seconds.
@@ -260,10 +342,26 @@ def _check(args):
     verdict = "feasible" if check.feasible else f"infeasible: {check.reason}"
     print(f"{scenario.name} / {args.stance}: {verdict}")
     print(f"  {result.iterations} iterations, {result.solve_time:.2f} s")
+    if check.feasible:
+        from .report import stance_report
+
+        print("\n".join(stance_report(result, robot, stance)))
     if args.out is not None:
         path = _check_picture(scenario, robot, stance, result, args)
         print(f"  picture written to {path}")
     return EXIT_OK if check.feasible else EXIT_FAILED
+
+
+def _check_plan(path):
+    from .plan import Plan
+
+    plan = Plan.load(path)
+    report = plan.check()
+    verdict = "every stance verifies" if report.ok else f"{len(report.problems)} problems"
+    print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}")
+    for problem in report.problems:
+        print(f"  {problem}")
+    return EXIT_OK if report.ok else EXIT_FAILED
 
 
 def _check_picture(scenario, robot, stance, result, args):
@@ -281,7 +379,7 @@ def _check_picture(scenario, robot, stance, result, args):
     )
     for obj in scenario.scene.deformable_objects:
         if obj.name in result.deformations:
-            obj.body.write_vtu(args.out / f"{args.stance}_{obj.name}.vtu", result.deformations[obj.name])
+            obj.write_vtu(args.out / f"{args.stance}_{obj.name}.vtu", result.deformations[obj.name])
     return path
 
 

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import numpy as np
 
+from fem.io import write_pvd
+
 from .display import plan_bounds, scene_edges, stance_display
 from .errors import CbmError
 from .viewer import viewer_data, write_viewer
@@ -31,19 +33,25 @@ class OutputFiles:
     pictures : tuple of Path
         ``stance_XX.png``, one per stance (empty with ``pictures=False``).
     meshes : tuple of Path
-        ``stance_XX_<object>.vtu``, one per deformable object per stance.
+        ``stance_XX_<object>.vtu``, one per deformable object per stance:
+        world frame, rest positions, ``displacement`` point field.
     viewer : Path
         ``viewer.html``.
+    series : Path or None
+        ``plan.pvd``, the meshes as a ParaView time series (time = stance
+        number, one part per deformable object); None without soft bodies.
     """
 
     plan: Path
     pictures: tuple
     meshes: tuple
     viewer: Path
+    series: Path | None = None
 
     def all(self):
         """Every path, plan first."""
-        return (self.plan, *self.pictures, *self.meshes, self.viewer)
+        series = () if self.series is None else (self.series,)
+        return (self.plan, *self.pictures, *self.meshes, *series, self.viewer)
 
 
 def stance_labels(plan):
@@ -84,15 +92,20 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
 
     scale = force_scale(displays)
     legend = _round_newtons(0.25 / scale)
-    meshes = []
+    meshes, datasets = [], []
     for index, planned in enumerate(plan.stances):
-        for obj in scene.deformable_objects:
+        for part, obj in enumerate(scene.deformable_objects):
             u = planned.deformations.get(obj.name)
             if u is None:
                 u = np.zeros_like(np.asarray(obj.mesh.nodes, dtype=float))
             path = out / f"stance_{index:02d}_{obj.name}.vtu"
-            obj.body.write_vtu(path, u)
+            obj.write_vtu(path, u)
             meshes.append(path)
+            datasets.append((index, part, path))
+    series = None
+    if datasets:
+        series = out / "plan.pvd"
+        write_pvd(series, datasets)
     picture_paths = []
     if pictures:
         from .render import render_stance
@@ -108,7 +121,7 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
     data = viewer_data(f"{plan.scenario_name} ({status})", displays, edges, bounds, scale, legend)
     viewer_path = write_viewer(out / "viewer.html", data)
     logger.info("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(meshes))
-    return OutputFiles(plan_path, tuple(picture_paths), tuple(meshes), viewer_path)
+    return OutputFiles(plan_path, tuple(picture_paths), tuple(meshes), viewer_path, series)
 
 
 def _round_newtons(value):

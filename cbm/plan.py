@@ -1,4 +1,14 @@
-"""A plan: the sequence of verified stances, saved to and read from JSON."""
+"""A plan: the sequence of verified stances, saved to and read from JSON.
+
+The file (``plan.json``, format ``softcbm-plan`` version 2) describes itself: its
+``units`` and ``frames`` say what every number is, ``robot`` names each
+coordinate of ``q`` and each torque and gives the locked joints' values (the
+robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
+:meth:`Plan.check` works on the file anywhere. Each value is stored once: a
+stance's posture, forces and displacements are not repeated in its solver
+summary. Version 1 files (before these headers) are read as they are; a file
+with no version or an unknown one is refused with the versions this library reads.
+"""
 
 from __future__ import annotations
 
@@ -17,12 +27,46 @@ from .errors import PlanFileError
 from .search import SearchStatistics
 from .stance_graph import differ_by_one_contact
 
-__all__ = ["PlannedStance", "PlanStatistics", "Plan", "PlanCheck", "as_point_force"]
+__all__ = [
+    "PlannedStance",
+    "PlanStatistics",
+    "Plan",
+    "PlanCheck",
+    "as_point_force",
+    "robot_description",
+    "scenario_source",
+    "PLAN_VERSION",
+    "READABLE_VERSIONS",
+]
 
 logger = logging.getLogger(__name__)
 
 PLAN_FORMAT = "softcbm-plan"
-PLAN_VERSION = 1
+PLAN_VERSION = 2
+#: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
+#: stance's arrays inside its ``result``.
+READABLE_VERSIONS = (1, 2)
+
+#: Units of every number in a plan file.
+UNITS = {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
+
+#: What each stance entry's values are expressed in.
+FRAMES = {
+    "world": "z up, gravity -9.81 m/s^2 along z; the scenario's frame",
+    "q": "configuration of the robot's model without its locked joints: the free flyer's position (m, world) "
+    "and orientation quaternion (qx, qy, qz, qw) of the base, then one angle per joint; coordinate names in "
+    "robot.configuration_names, values of the locked joints in robot.locked_joints",
+    "point_forces": "force_in_world acts ON the robot at point_in_world, both in the world frame; link_frame names "
+    "the robot frame of the link it acts on, not a frame it is expressed in",
+    "displacements_in_body": "node displacements of each soft body, in its body frame (scenario."
+    "transform_body_to_world maps it to the world), nodes in the order of the body's mesh",
+    "stance": "each print's x, y (m) and theta (rad) in its surface's frame",
+    "move": "how the stance was reached from the previous one, in words",
+    "result.torques": "actuated joint torques, N m, in robot.joint_names order",
+}
+
+#: Keys of a solver result that a stance entry holds once, outside its result.
+_STANCE_KEYS = ("q", "point_forces", "deformations", "stance")
 
 
 def _readonly(array, shape_tail=None):
@@ -88,28 +132,46 @@ class PlannedStance:
         return np.array([f.force for f in self.point_forces]).reshape(-1, 3)
 
     def to_dict(self):
-        """Plain JSON-ready data."""
+        """Plain JSON-ready data (version 2: each value once, frames in the key names)."""
         result = self.result
         if result is not None and not isinstance(result, dict):
             result = result.to_dict() if hasattr(result, "to_dict") else None
+        if result is not None:
+            result = {key: value for key, value in result.items() if key not in _STANCE_KEYS}
         return {
             "stance": self.stance.to_dict(),
             "move": self.move,
             "q": self.q.tolist(),
-            "point_forces": [f.to_dict() for f in self.point_forces],
-            "deformations": {k: v.tolist() for k, v in self.deformations.items()},
+            "point_forces": [
+                {"link_frame": f.frame, "point_in_world": f.point.tolist(), "force_in_world": f.force.tolist()}
+                for f in self.point_forces
+            ],
+            "displacements_in_body": {k: v.tolist() for k, v in self.deformations.items()},
             "result": _jsonable(result),
         }
 
     @classmethod
-    def from_dict(cls, data):
-        """Inverse of :meth:`to_dict`."""
+    def from_dict(cls, data, version=PLAN_VERSION):
+        """Inverse of :meth:`to_dict`; ``version=1`` reads a version 1 entry."""
+        if version == 1:
+            forces = [as_point_force(f) for f in data["point_forces"]]
+            deformations = data.get("deformations", {})
+            result = data.get("result")
+        else:
+            forces = [PointForce(f["link_frame"], f["point_in_world"], f["force_in_world"]) for f in data["point_forces"]]
+            deformations = data.get("displacements_in_body", {})
+            result = data.get("result")
+            if result is not None:
+                # The solver's result, whole again: what it shares with the stance is stored there.
+                shared = [f.to_dict() for f in forces]
+                result = {**result, "q": data["q"], "point_forces": shared, "deformations": deformations,
+                          "stance": data["stance"]}
         return cls(
             stance=Stance.from_dict(data["stance"]),
             q=data["q"],
-            point_forces=tuple(as_point_force(f) for f in data["point_forces"]),
-            deformations=data.get("deformations", {}),
-            result=_rebuild_result(data.get("result")),
+            point_forces=tuple(forces),
+            deformations=deformations,
+            result=_rebuild_result(result),
             move=data.get("move", ""),
         )
 
@@ -163,6 +225,13 @@ class Plan:
     rejections : dict
         Stances the search rejected, by cause (:func:`cbm.rejections.summarise`):
         ``{cause: {"count": int, "example": str}}``.
+    robot : dict
+        The robot planned for (:func:`robot_description`): ``name``, ``urdf``,
+        ``configuration_names``, ``joint_names``, ``locked_joints``, ``mass``.
+    scenario_source : dict
+        Where the scenario came from (:func:`scenario_source`): ``path``,
+        ``built_in``, its YAML ``text`` and each soft body's
+        ``transform_body_to_world``.
     """
 
     success: bool
@@ -171,6 +240,8 @@ class Plan:
     statistics: PlanStatistics
     scenario_name: str = ""
     rejections: dict = field(default_factory=dict)
+    robot: dict = field(default_factory=dict)
+    scenario_source: dict = field(default_factory=dict)
 
     def __post_init__(self):
         object.__setattr__(self, "stances", tuple(self.stances))
@@ -179,11 +250,14 @@ class Plan:
         return len(self.stances)
 
     def to_dict(self):
-        """Plain JSON-ready data."""
+        """Plain JSON-ready data, with the headers that describe it (units, frames, robot, scenario)."""
         return {
             "format": PLAN_FORMAT,
             "version": PLAN_VERSION,
-            "scenario": self.scenario_name,
+            "units": dict(UNITS),
+            "frames": dict(FRAMES),
+            "robot": _jsonable(self.robot),
+            "scenario": {"name": self.scenario_name, **_jsonable(self.scenario_source)},
             "success": self.success,
             "reason": self.reason,
             "statistics": self.statistics.to_dict(),
@@ -202,19 +276,31 @@ class Plan:
         """
         if not isinstance(data, dict) or data.get("format") != PLAN_FORMAT:
             raise PlanFileError(f"not a plan: expected format {PLAN_FORMAT!r}")
-        if data.get("version") != PLAN_VERSION:
-            raise PlanFileError(f"plan version {data.get('version')!r} is not supported (expected {PLAN_VERSION})")
+        version = data.get("version")
+        if version not in READABLE_VERSIONS:
+            readable = ", ".join(map(str, READABLE_VERSIONS))
+            raise PlanFileError(
+                f"plan version {version!r} is not supported: this softcbm reads versions {readable}; "
+                "plan the scenario again with this version (cbm plan)"
+            )
         try:
+            if version == 1:
+                scenario_name, source, robot = str(data.get("scenario", "")), {}, {}
+            else:
+                source = dict(data["scenario"])
+                scenario_name, robot = str(source.pop("name")), dict(data["robot"])
             return cls(
                 success=bool(data["success"]),
                 reason=str(data["reason"]),
-                stances=tuple(PlannedStance.from_dict(s) for s in data["stances"]),
+                stances=tuple(PlannedStance.from_dict(s, version) for s in data["stances"]),
                 statistics=PlanStatistics(**data["statistics"]),
-                scenario_name=str(data.get("scenario", "")),
+                scenario_name=scenario_name,
                 rejections=dict(data.get("rejections", {})),
+                robot=robot,
+                scenario_source=source,
             )
         except (KeyError, TypeError) as error:
-            raise PlanFileError(f"malformed plan: {error}") from None
+            raise PlanFileError(f"malformed plan (version {version}): missing or wrong entry {error}") from None
 
     def save(self, path):
         """Write the plan as JSON (arrays as lists).
@@ -257,23 +343,24 @@ class Plan:
         Parameters
         ----------
         scenario : environments Scenario, optional
-            Loaded from ``scenario_name`` if not given.
+            Default: the scenario embedded in the plan (its YAML text, read
+            again; mesh files it names are looked for beside its original
+            path), else the built-in scenario ``scenario_name``.
         robot : stances Robot, optional
-            Loaded from the scenario's robot name if not given.
+            Default: the robot the plan names, else the scenario's.
 
         Returns
         -------
         PlanCheck
         """
-        import environments
         import stances
 
         from .planner import posture_api
 
         if scenario is None:
-            scenario = environments.load(self.scenario_name)
+            scenario = self.scenario()
         if robot is None:
-            robot = stances.Robot.load(scenario.robot)
+            robot = stances.Robot.load(self.robot.get("name") or scenario.robot)
         verify = None
         problems = []
         for index, planned in enumerate(self.stances):
@@ -297,6 +384,111 @@ class Plan:
             if not self.stances or not goal.is_satisfied(self.stances[-1].stance, scenario.scene):
                 problems.append("the plan says it succeeded but its last stance does not reach the scenario's goal")
         return PlanCheck(not problems, tuple(problems))
+
+
+    def scenario(self):
+        """The scenario planned: the embedded YAML read again, else the built-in one by name.
+
+        Raises
+        ------
+        environments.ScenarioError
+            If the embedded text no longer reads (e.g. a mesh file it names is
+            gone), or there is no embedded text and no built-in scenario of
+            that name.
+        """
+        import environments
+
+        text = self.scenario_source.get("text")
+        if text is None:
+            return environments.load(self.scenario_name)
+        return environments.load_string(text, path=self.scenario_source.get("path"), name=self.scenario_name)
+
+    def full_configuration(self, index):
+        """Stance ``index``'s configuration with the locked joints, by coordinate name.
+
+        Parameters
+        ----------
+        index : int
+            Stance number.
+
+        Returns
+        -------
+        dict of str to float
+            ``robot.configuration_names`` with the values of ``q``, then each
+            locked joint's coordinates (``<joint>`` or ``<joint>:i``) at its
+            locked value: every coordinate of the robot's URDF.
+
+        Raises
+        ------
+        PlanFileError
+            If the plan does not describe its robot (a version 1 file).
+        """
+        names = self.robot.get("configuration_names")
+        if names is None:
+            raise PlanFileError("this plan does not name its configuration coordinates (a version 1 file)")
+        values = dict(zip(names, self.stances[index].q.tolist()))
+        for joint, locked in self.robot.get("locked_joints", {}).items():
+            if len(locked) == 1:
+                values[joint] = float(locked[0])
+            else:
+                values.update({f"{joint}:{i}": float(v) for i, v in enumerate(locked)})
+        return values
+
+
+def robot_description(robot):
+    """What a plan file says about its robot.
+
+    Parameters
+    ----------
+    robot : stances Robot
+
+    Returns
+    -------
+    dict
+        ``name`` (for ``stances.Robot.load``), ``urdf`` (path or None),
+        ``configuration_names`` (nq,), ``joint_names`` (actuated joints, torque
+        order), ``locked_joints`` (name -> locked coordinate values) and
+        ``mass`` (kg).
+    """
+    urdf = getattr(robot, "urdf", None)
+    return {
+        "name": robot.name,
+        "urdf": None if urdf is None else str(urdf),
+        "configuration_names": list(robot.configuration_names),
+        "joint_names": list(robot.actuated_joint_names),
+        "locked_joints": {name: list(values) for name, values in getattr(robot, "locked_joints", {}).items()},
+        "mass": float(robot.mass),
+    }
+
+
+def scenario_source(scenario):
+    """What a plan file says about its scenario's origin.
+
+    Parameters
+    ----------
+    scenario : environments Scenario
+
+    Returns
+    -------
+    dict
+        ``path`` (str or None), ``built_in`` (bool), ``robot`` (the robot name
+        the scenario asks for), ``text`` (its YAML, None for a scenario built in
+        code) and ``transform_body_to_world`` ((4, 4) float of each soft body,
+        by object name).
+    """
+    from environments.scenario import SCENARIO_DIRECTORY
+
+    path = getattr(scenario, "path", None)
+    built_in = path is not None and Path(path).resolve().parent == SCENARIO_DIRECTORY
+    return {
+        "path": None if path is None else str(path),
+        "built_in": bool(built_in),
+        "robot": scenario.robot,
+        "text": getattr(scenario, "text", None),
+        "transform_body_to_world": {
+            obj.name: np.asarray(obj.transform_body_to_world).tolist() for obj in scenario.scene.deformable_objects
+        },
+    }
 
 
 def _jsonable(value):

@@ -16,7 +16,7 @@ from typing import Any
 import numpy as np
 
 from .errors import CbmError, UnknownScenario
-from .plan import Plan, PlannedStance, PlanStatistics
+from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .rejections import summarise
 from .sampling import ReachLimits, obstacle_boxes, options_from_scenario, sample_prints, surface_kind
 from .search import SearchLimits, best_first_search
@@ -30,6 +30,8 @@ __all__ = [
     "LookaheadHeuristic",
     "initial_configuration",
     "DEFAULT_PATH_COST",
+    "DEFAULT_MAX_EXPANSIONS",
+    "DEFAULT_TIME_LIMIT",
 ]
 
 logger = logging.getLogger(__name__)
@@ -37,6 +39,14 @@ logger = logging.getLogger(__name__)
 #: Path cost per move, metres of goal distance: small, so the search stays
 #: greedy towards the goal but prefers fewer moves among equally close stances.
 DEFAULT_PATH_COST = 0.02
+
+#: Stances expanded at most, for :func:`plan` and ``cbm plan`` alike.
+DEFAULT_MAX_EXPANSIONS = 200
+
+#: Seconds of search at most, for :func:`plan` and ``cbm plan`` alike: enough for
+#: the default expansions on the built-in scenarios (cross-two-mats spends its
+#: 200 expansions in about 140 s on 2 cores).
+DEFAULT_TIME_LIMIT = 300.0
 
 
 def load_scenario(scenario):
@@ -247,9 +257,9 @@ def plan(
     start=None,
     robot=None,
     print_spacing=None,
-    max_expansions=200,
+    max_expansions=DEFAULT_MAX_EXPANSIONS,
     max_solver_calls=None,
-    time_limit=120.0,
+    time_limit=DEFAULT_TIME_LIMIT,
     seed=0,
     progress=False,
     solver_options=None,
@@ -397,7 +407,16 @@ def plan(
         for _, attributes in searched.graph.nodes(data=True)
         if attributes.get("status") == "infeasible"
     ]
-    return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name, summarise(rejected))
+    return Plan(
+        searched.success,
+        searched.reason,
+        tuple(planned),
+        statistics,
+        scenario.name,
+        summarise(rejected),
+        robot=robot_description(robot),
+        scenario_source=scenario_source(scenario),
+    )
 
 
 def initial_configuration(robot, scene, stance):

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -35,7 +36,11 @@ class Move:
         if self.kind == "remove":
             return f"lift {self.robot_surface}"
         p = self.contact_print
-        return f"place {self.robot_surface} on {p.surface} at ({p.x:.3f}, {p.y:.3f}, {p.theta:.3f})"
+        # Spelled out: bare "(x, y, theta)" reads like a world point in radians.
+        return (
+            f"place {self.robot_surface} on {p.surface} at x {p.x:.3f} m, y {p.y:.3f} m, "
+            f"theta {math.degrees(p.theta):.0f} deg in {p.surface}'s frame"
+        )
 
 
 class StanceNeighbours:

@@ -199,6 +199,25 @@ class DeformableObject:
         moved = self.points_in_world(nodes + displacements)
         return moved[np.asarray(self.mesh.surface_triangles)]
 
+    def write_vtu(self, path, displacements) -> None:
+        """Write the body for ParaView in the world frame, at rest, with its displacement field.
+
+        Parameters
+        ----------
+        path : str or os.PathLike
+            Output ``.vtu`` file.
+        displacements : (N, 3) float
+            Nodal displacements, metres, body frame (as ``fem`` computes them).
+
+        Notes
+        -----
+        Points are the rest positions in the world frame and the point field
+        ``displacement`` is rotated into the world frame, so that ParaView's
+        Warp By Vector shows the deformed body where the robot stands; stress and
+        strain (cell fields, Voigt order) are in the world frame too.
+        """
+        self.body.write_vtu(path, displacements, transform_body_to_output=self.transform_body_to_world)
+
 
 def _growth_ratio(fine: float) -> float:
     """Size ratio of successive cells away from the refined region, for the fine spacing h."""

@@ -79,6 +79,9 @@ class Scenario:
         ``robot_surfaces``).
     path : pathlib.Path or None
         File it was read from.
+    text : str or None
+        The YAML document it was read from (None for a scenario built in code),
+        kept so that a plan can carry its scenario and be checked anywhere.
 
     Examples
     --------
@@ -96,6 +99,7 @@ class Scenario:
     description: str = ""
     options: Mapping[str, Any] = field(default_factory=dict)
     path: Path | None = None
+    text: str | None = None
 
     def __post_init__(self) -> None:
         if not isinstance(self.scene, Scene):
@@ -210,4 +214,4 @@ def load_string(text: str, path: str | os.PathLike | None = None, name: str | No
     ScenarioError
         On a syntax error (with its line) or any invalid entry.
     """
-    return Scenario(**read_scenario_fields(text, path, name))
+    return Scenario(**read_scenario_fields(text, path, name), text=text)

@@ -25,7 +25,34 @@ from .scene import Scene
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
 
-__all__ = ["read_scenario_fields"]
+__all__ = ["read_scenario_fields", "SCENARIO_KEYS", "OBJECT_KEYS", "NESTED_KEYS"]
+
+#: Keys of a scenario document.
+SCENARIO_KEYS = ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options")
+
+#: Keys each object ``type`` takes (docs/scenarios.md describes every one).
+OBJECT_KEYS = {
+    "floor": ("name", "type", "size", "friction"),
+    "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
+    "soft_box": (
+        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"
+    ),
+    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
+    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces"),
+}
+
+#: Keys of the mappings inside a scenario: a soft box's material, a mesh's
+#: surfaces, a print (in stances and goal contacts), the goal and its regions,
+#: a surface override.
+NESTED_KEYS = {
+    "material": ("E", "nu", "rho"),
+    "block": ("name", "size", "center"),
+    "mesh surface": ("name", "polygon", "origin", "rpy_deg", "friction"),
+    "print": ("surface", "x", "y", "theta", "theta_deg"),
+    "goal": ("contacts", "stance", "regions"),
+    "goal region": ("robot_surface", "lower", "upper"),
+    "surface override": ("friction",),
+}
 
 
 def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> dict:
@@ -205,7 +232,7 @@ class _Reader:
         top = self.mapping(
             data if data is not None else {},
             "",
-            ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options"),
+            SCENARIO_KEYS,
             required=("objects", "stances"),
         )
         default_name = self.path.stem if self.path is not None else "scenario"
@@ -254,10 +281,7 @@ class _Reader:
             if not isinstance(item, Mapping):
                 raise self.error(key, f"must be a mapping with a 'type', got {_kind(item)}")
             kind = item.get("type")
-            builders = {
-                "floor": self.floor, "box": self.box, "soft_box": self.soft_box, "soft_blocks": self.soft_blocks,
-                "mesh": self.mesh,
-            }
+            builders = {kind: getattr(self, kind) for kind in OBJECT_KEYS}
             if kind not in builders:
                 raise self.error(_join(key, "type"), f"unknown or missing type {kind!r}; valid types: {', '.join(builders)}")
             try:
@@ -291,22 +315,20 @@ class _Reader:
             key = f"surfaces.{surface_name}"
             if surface_name not in by_name:
                 raise self.error(key, f"unknown surface {surface_name!r}; known surfaces: {known_names(by_name)}")
-            settings = self.mapping(settings, key, ("friction",))
+            settings = self.mapping(settings, key, NESTED_KEYS["surface override"])
             friction = self.number(settings, "friction", key, by_name[surface_name].friction, positive=True)
             by_name[surface_name] = dataclasses.replace(by_name[surface_name], friction=friction)
         return [by_name[surface.name] for surface in surfaces]
 
     def floor(self, item: Mapping, key: str):
-        item = self.mapping(item, key, ("name", "type", "size", "friction"))
+        item = self.mapping(item, key, OBJECT_KEYS["floor"])
         name = self.string(item, "name", key, "floor")
         obj = floor(name, self.vector(item, "size", key, 2, (10.0, 10.0), positive=True))
         friction = self.number(item, "friction", key, DEFAULT_FRICTION, positive=True)
         return obj, box_surfaces(obj, friction, top_name=name)
 
     def box(self, item: Mapping, key: str):
-        item = self.mapping(
-            item, key, ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"), ("name", "size", "center")
-        )
+        item = self.mapping(item, key, OBJECT_KEYS["box"], ("name", "size", "center"))
         name = self.string(item, "name", key)
         obj = box(
             name,
@@ -318,12 +340,7 @@ class _Reader:
         return obj, box_surfaces(obj, friction, sides=self.boolean(item, "side_surfaces", key, False))
 
     def soft_box(self, item: Mapping, key: str):
-        item = self.mapping(
-            item,
-            key,
-            ("name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"),
-            ("name", "size", "center", "material"),
-        )
+        item = self.mapping(item, key, OBJECT_KEYS["soft_box"], ("name", "size", "center", "material"))
         name = self.string(item, "name", key)
         resolution = self.resolution(item, key)
         refine = item.get("refine")
@@ -358,7 +375,7 @@ class _Reader:
 
     def material(self, item: Mapping, key: str):
         material_key = _join(key, "material")
-        material_data = self.mapping(item["material"], material_key, ("E", "nu", "rho"), ("E", "nu"))
+        material_data = self.mapping(item["material"], material_key, NESTED_KEYS["material"], ("E", "nu"))
         fem = _fem()
         try:
             return fem.LinearElasticMaterial(
@@ -374,10 +391,7 @@ class _Reader:
             raise self.error(material_key, str(error)) from None
 
     def soft_blocks(self, item: Mapping, key: str):
-        item = self.mapping(
-            item, key, ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
-            ("name", "blocks", "material"),
-        )
+        item = self.mapping(item, key, OBJECT_KEYS["soft_blocks"], ("name", "blocks", "material"))
         name = self.string(item, "name", key)
         blocks_data = item["blocks"]
         if not isinstance(blocks_data, list) or not blocks_data:
@@ -385,7 +399,7 @@ class _Reader:
         blocks = []
         for index, block in enumerate(blocks_data):
             block_key = f"{key}.blocks[{index}]"
-            block = self.mapping(block, block_key, ("name", "size", "center"), ("name", "size", "center"))
+            block = self.mapping(block, block_key, NESTED_KEYS["block"], ("name", "size", "center"))
             blocks.append((
                 self.string(block, "name", block_key),
                 self.vector(block, "size", block_key, 3, positive=True),
@@ -401,7 +415,7 @@ class _Reader:
         )
 
     def mesh(self, item: Mapping, key: str):
-        item = self.mapping(item, key, ("name", "type", "file", "center", "yaw_deg", "surfaces"), ("name", "file"))
+        item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
         name = self.string(item, "name", key)
         file_name = self.string(item, "file", key)
         base = self.path.parent if self.path is not None else Path.cwd()
@@ -420,9 +434,7 @@ class _Reader:
         surfaces = []
         for index, surface_item in enumerate(surfaces_data):
             surface_key = f"{key}.surfaces[{index}]"
-            surface_item = self.mapping(
-                surface_item, surface_key, ("name", "polygon", "origin", "rpy_deg", "friction"), ("name", "polygon")
-            )
+            surface_item = self.mapping(surface_item, surface_key, NESTED_KEYS["mesh surface"], ("name", "polygon"))
             polygon = surface_item["polygon"]
             if not isinstance(polygon, list) or not all(isinstance(p, list) and len(p) == 2 for p in polygon):
                 raise self.error(_join(surface_key, "polygon"), "must be a list of [x, y] vertices, counter-clockwise")
@@ -455,7 +467,7 @@ class _Reader:
         contacts = []
         for robot_surface, print_data in data.items():
             print_key = f"{key}.{robot_surface}"
-            print_data = self.mapping(print_data, print_key, ("surface", "x", "y", "theta", "theta_deg"), ("surface",))
+            print_data = self.mapping(print_data, print_key, NESTED_KEYS["print"], ("surface",))
             surface_name = print_data["surface"]
             if surface_name not in scene.surfaces:
                 raise self.error(
@@ -477,7 +489,7 @@ class _Reader:
         return Stance(self.contacts(data, key, scene))
 
     def goal(self, data, scene: Scene, stances: dict[str, Stance]) -> Goal:
-        data = self.mapping(data, "goal", ("contacts", "stance", "regions"))
+        data = self.mapping(data, "goal", NESTED_KEYS["goal"])
         if "contacts" in data and "stance" in data:
             raise self.error("goal", "give 'contacts' or 'stance', not both")
         contacts: tuple[Contact, ...] = ()
@@ -494,7 +506,7 @@ class _Reader:
         regions = []
         for index, item in enumerate(regions_data):
             key = f"goal.regions[{index}]"
-            item = self.mapping(item, key, ("robot_surface", "lower", "upper"), ("robot_surface", "lower", "upper"))
+            item = self.mapping(item, key, NESTED_KEYS["goal region"], NESTED_KEYS["goal region"])
             lower, upper = self.vector(item, "lower", key, 2), self.vector(item, "upper", key, 2)
             if np.any(lower > upper):
                 raise self.error(key, f"lower {lower.tolist()} must be <= upper {upper.tolist()}")

@@ -9,10 +9,10 @@ the print displacements, with an exact, cached Jacobian.
 
 from .assembly import assemble_stiffness, element_stiffness_matrices, element_strain_matrices
 from .contact import LIFT, SLIP, STICK, PrintContact, PrintContactSystem, print_contact_with_modes, solve_print_contact
-from .body import DeformableBody, voigt_to_tensor_strain, von_mises
+from .body import DeformableBody, rotate_voigt, voigt_to_tensor_strain, von_mises
 from .cache import DiskCache
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
-from .io import read_mesh, write_mesh
+from .io import read_mesh, write_mesh, write_pvd
 from .material import LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
@@ -35,6 +35,7 @@ __all__ = [
     "mesh_from_surface",
     "read_mesh",
     "write_mesh",
+    "write_pvd",
     "LinearElasticMaterial",
     "element_strain_matrices",
     "element_stiffness_matrices",
@@ -44,6 +45,7 @@ __all__ = [
     "ContactPatch",
     "von_mises",
     "voigt_to_tensor_strain",
+    "rotate_voigt",
     "nodes_in_polygon",
     "available_solvers",
     "PrintContact",

@@ -21,7 +21,7 @@ from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
 from .solvers import SOLVERS, Factorization, factorize, resolve_solver
 
-__all__ = ["DeformableBody", "von_mises", "voigt_to_tensor_strain"]
+__all__ = ["DeformableBody", "von_mises", "voigt_to_tensor_strain", "rotate_voigt"]
 
 logger = logging.getLogger(__name__)
 
@@ -73,6 +73,40 @@ def voigt_to_tensor_strain(strain: np.ndarray) -> np.ndarray:
     for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
         tensor[..., i, j] = tensor[..., j, i] = 0.5 * e[..., v]
     return tensor
+
+
+def rotate_voigt(voigt: np.ndarray, rotation: np.ndarray, engineering_shears: bool) -> np.ndarray:
+    """Symmetric tensors in Voigt form expressed in a rotated frame, ``R T R^T``.
+
+    Parameters
+    ----------
+    voigt : (M, 6) float
+        (11, 22, 33, 12, 13, 23) in the original frame.
+    rotation : (3, 3) float
+        Rotation from the original frame to the new one.
+    engineering_shears : bool
+        True for strains whose shears are ``g = 2 e`` (as :meth:`DeformableBody.strain`),
+        False for stresses.
+
+    Returns
+    -------
+    (M, 6) float, the same convention, new frame.
+
+    Examples
+    --------
+    >>> quarter_turn = np.array([[0.0, -1.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    >>> rotate_voigt(np.array([[1.0, 2.0, 3.0, 0.0, 0.0, 0.0]]), quarter_turn, False).tolist()
+    [[2.0, 1.0, 3.0, 0.0, 0.0, 0.0]]
+    """
+    shear_scale = 1.0 if engineering_shears else 2.0
+    values = np.array(voigt, dtype=float)
+    values[:, 3:] *= shear_scale  # to engineering shears, voigt_to_tensor_strain's input
+    tensor = voigt_to_tensor_strain(values)
+    turned = np.einsum("ij,mjk,lk->mil", rotation, tensor, rotation)
+    rows, columns = (0, 0, 1), (1, 2, 2)
+    return np.concatenate(
+        [turned[:, [0, 1, 2], [0, 1, 2]], 2.0 * turned[:, rows, columns] / shear_scale], axis=1
+    )
 
 
 class DeformableBody:
@@ -650,27 +684,54 @@ class DeformableBody:
         """
         return self.nodal_forces(u)[self._fixed]
 
-    def write_vtu(self, path: str | os.PathLike, u: np.ndarray, deformed: bool = True) -> None:
-        """Write the body for ParaView: displacement, stress and von Mises stress.
+    def write_vtu(
+        self,
+        path: str | os.PathLike,
+        u: np.ndarray,
+        deformed: bool = False,
+        transform_body_to_output: np.ndarray | None = None,
+    ) -> None:
+        """Write the body for ParaView: displacement, stress, strain and von Mises stress.
+
+        By default the points are the rest positions and ``displacement`` a point
+        field, ParaView's convention: its Warp By Vector filter then shows the
+        deformed body once (on deformed points it would add the displacement twice).
 
         Parameters
         ----------
         path : str or path-like
             Output file (``.vtu``, or any meshio format).
         u : (N, 3) float
-            Displacement field, metres.
+            Displacement field, metres, body frame.
         deformed : bool, optional
-            Write the deformed node positions (rest positions + u); the point field
-            ``displacement`` is written either way.
+            Write the deformed node positions (rest positions + u) instead; the point
+            field ``displacement`` is written either way.
+        transform_body_to_output : (4, 4) float, optional
+            Rigid placement of the body frame in the frame the file is written in
+            (e.g. the world): points are placed by it, the displacement (N, 3) and
+            the Voigt stress and strain (M, 6; strain with engineering shears) are
+            rotated by it. Default: the body frame itself.
         """
         u = self._check_field(u)
-        stress = self.stress(u)
+        stress, strain = self.stress(u), self.strain(u)
+        points = self._mesh.nodes + u if deformed else np.asarray(self._mesh.nodes)
+        if transform_body_to_output is not None:
+            transform = np.asarray(transform_body_to_output, dtype=float)
+            if transform.shape != (4, 4):
+                raise FemError(f"transform_body_to_output must be a (4, 4) matrix, got shape {transform.shape}")
+            rotation = transform[:3, :3]
+            if not np.allclose(rotation @ rotation.T, np.eye(3), atol=1e-9) or np.linalg.det(rotation) < 0.0:
+                raise FemError("transform_body_to_output must be a rigid transform (a rotation and a translation)")
+            points = points @ rotation.T + transform[:3, 3]
+            u = u @ rotation.T
+            stress = rotate_voigt(stress, rotation, engineering_shears=False)
+            strain = rotate_voigt(strain, rotation, engineering_shears=True)
         write_mesh(
             path,
             self._mesh,
-            points=self._mesh.nodes + u if deformed else None,
+            points=points,
             point_data={"displacement": u},
-            cell_data={"stress": stress, "von_mises": von_mises(stress), "strain": self.strain(u)},
+            cell_data={"stress": stress, "von_mises": von_mises(stress), "strain": strain},
         )
 
     def __repr__(self) -> str:

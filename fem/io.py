@@ -12,7 +12,7 @@ import numpy as np
 from .errors import MeshError
 from .mesh import TetMesh
 
-__all__ = ["read_mesh", "write_mesh"]
+__all__ = ["read_mesh", "write_mesh", "write_pvd"]
 
 
 def read_mesh(path: str | os.PathLike) -> TetMesh:
@@ -110,6 +110,52 @@ def write_mesh(
         _call_meshio(meshio.write, os.fspath(path), out, file_format=file_format)
     except Exception as exc:
         raise MeshError(f"meshio cannot write {os.fspath(path)!r}: {exc}") from exc
+
+
+def write_pvd(path: str | os.PathLike, datasets) -> None:
+    """Write a ParaView collection (``.pvd``): mesh files as a time series.
+
+    ParaView opens the collection as one source whose time steps are the
+    datasets' times, so its play button steps through them; datasets of one
+    time with different parts are shown together.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Output ``.pvd`` file.
+    datasets : iterable of (float, int, path-like)
+        ``(time, part, file)`` of each mesh file (e.g. ``.vtu``); files are
+        written relative to the collection's folder when they are inside it.
+
+    Raises
+    ------
+    MeshError
+        If a time is not a finite number or a part not a non-negative integer.
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> folder = pathlib.Path(tempfile.mkdtemp())
+    >>> write_pvd(folder / "plan.pvd", [(0, 0, folder / "stance_00.vtu"), (1, 0, folder / "stance_01.vtu")])
+    >>> print((folder / "plan.pvd").read_text().splitlines()[4])
+        <DataSet timestep="1" part="0" file="stance_01.vtu"/>
+    """
+    from xml.sax.saxutils import quoteattr
+
+    folder = os.path.dirname(os.path.abspath(path))
+    lines = ['<?xml version="1.0"?>', '<VTKFile type="Collection" version="0.1">', "  <Collection>"]
+    for time, part, file in datasets:
+        if isinstance(time, bool) or not isinstance(time, (int, float, np.number)) or not np.isfinite(time):
+            raise MeshError(f"a .pvd time must be a finite number, got {time!r}")
+        if isinstance(part, bool) or not isinstance(part, (int, np.integer)) or part < 0:
+            raise MeshError(f"a .pvd part must be a non-negative integer, got {part!r}")
+        file = os.path.abspath(file)
+        if os.path.commonpath([folder, file]) == folder:
+            file = os.path.relpath(file, folder)
+        lines.append(f"    <DataSet timestep={quoteattr(f'{time:g}')} part=\"{int(part)}\" file={quoteattr(file)}/>")
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    with open(path, "w", encoding="utf-8") as stream:
+        stream.write("\n".join(lines))
 
 
 class _MeshioExit(Exception):

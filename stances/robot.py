@@ -204,10 +204,17 @@ class Robot:
         Contact surfaces by name.
     reference_configuration : (nq,) float
         Reference posture (read-only), the objective's target.
+    locked_joints : dict of str to tuple of float
+        Joints of the URDF removed from ``model``, with the configuration
+        values they are locked at (radians or metres), in URDF order.
+    urdf : Path or None
+        The URDF file the model was built from.
     """
 
-    def __init__(self, name, model, collision_model, surfaces, reference_configuration):
+    def __init__(self, name, model, collision_model, surfaces, reference_configuration, locked_joints=None, urdf=None):
         self.name = name
+        self.locked_joints = {str(k): tuple(float(v) for v in values) for k, values in dict(locked_joints or {}).items()}
+        self.urdf = None if urdf is None else Path(urdf)
         self.model = model
         self.collision_model = collision_model
         self.surfaces = dict(surfaces)
@@ -308,11 +315,13 @@ class Robot:
             raise FrameNotFound("reference posture", reference_posture, references)
         q_reference = references[reference_posture]
 
-        lock_ids = []
+        lock_ids, locked_values = [], {}
         for joint in locked_joints:
             if not model.existJointName(joint):
                 raise FrameNotFound("joint", joint, list(model.names))
             lock_ids.append(model.getJointId(joint))
+            start = model.idx_qs[lock_ids[-1]]
+            locked_values[joint] = q_reference[start : start + model.nqs[lock_ids[-1]]]
         if lock_ids:
             model, (collision_model,) = pin.buildReducedModel(
                 model, [collision_model], lock_ids, q_reference
@@ -371,7 +380,7 @@ class Robot:
             robot_surfaces[declaration.name] = RobotSurface(
                 declaration.name, frame_name, declaration.polygon, contact_geometries
             )
-        return cls(name, model, collision_model, robot_surfaces, q_reference)
+        return cls(name, model, collision_model, robot_surfaces, q_reference, locked_values, urdf)
 
     @property
     def nq(self) -> int:
@@ -382,6 +391,32 @@ class Robot:
     def nv(self) -> int:
         """Size of a velocity / tangent vector."""
         return self.model.nv
+
+    @property
+    def configuration_names(self) -> list[str]:
+        """Name of each coordinate of a configuration q, ``(nq,)`` list.
+
+        The free flyer's are ``<joint>:x``, ``:y``, ``:z`` (metres, world frame)
+        and ``:qx``, ``:qy``, ``:qz``, ``:qw`` (its orientation quaternion); a
+        one-coordinate joint's is the joint name, a joint with k coordinates
+        gives ``<joint>:0`` to ``<joint>:k-1``.
+
+        Examples
+        --------
+        >>> names = Robot.load("talos").configuration_names
+        >>> names[:8], len(names)
+        (['root_joint:x', 'root_joint:y', 'root_joint:z', 'root_joint:qx', 'root_joint:qy', 'root_joint:qz', 'root_joint:qw', 'leg_left_1_joint'], 35)
+        """
+        names = []
+        for joint_id in range(1, self.model.njoints):
+            joint, name = self.model.joints[joint_id], self.model.names[joint_id]
+            if joint.shortname() == "JointModelFreeFlyer":
+                names += [f"{name}:{axis}" for axis in ("x", "y", "z", "qx", "qy", "qz", "qw")]
+            elif joint.nq == 1:
+                names.append(name)
+            else:
+                names += [f"{name}:{index}" for index in range(joint.nq)]
+        return names
 
     @property
     def actuated_joint_names(self) -> list[str]:

@@ -1,11 +1,13 @@
 """End to end with the real posture solver: planning the built-in multi-step scenarios, the CLI."""
 
+import json
 import os
 import shutil
 import subprocess
 import sys
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 import environments
@@ -27,8 +29,11 @@ COARSE = {"max_expansions": 40, "time_limit": 240.0, "solver_options": {"max_ite
 
 
 @pytest.fixture(scope="module", params=MULTI_STEP)
-def planned(request):
-    scenario = environments.load(request.param)
+def planned(request, tmp_path_factory):
+    """A plan of a user's scenario file (a copy of the built-in one under another name)."""
+    user_file = tmp_path_factory.mktemp("user") / f"my-{request.param}.yaml"
+    shutil.copy(environments.builtin_scenario_path(request.param), user_file)
+    scenario = environments.load(user_file)
     return scenario, plan(scenario, **COARSE)
 
 
@@ -49,8 +54,6 @@ def test_multi_step_scenario_plans_with_verified_stances(planned):
 def test_check_verifies_what_the_plan_shows_not_a_copy(planned):
     """A posture moved in the plan (not in its nested result) fails the check."""
     import dataclasses
-
-    import numpy as np
 
     scenario, result = planned
     moved = list(result.stances)
@@ -76,10 +79,38 @@ def test_planned_stances_keep_all_but_the_contact_geometry_off_the_supports(plan
 
 def test_planned_stances_survive_the_json_round_trip_and_still_verify(planned, tmp_path):
     scenario, result = planned
-    loaded = Plan.load(result.save(tmp_path / "plan.json"))
+    path = result.save(tmp_path / "plan.json")
+    loaded = Plan.load(path)
     assert loaded.to_dict() == result.to_dict()
     report = loaded.check(scenario)
     assert report.ok, report.problems
+    # Each value once: a stance's posture, forces and displacements are not repeated in its result...
+    for entry in json.loads(path.read_text())["stances"]:
+        assert not {"q", "point_forces", "deformations", "stance"} & set(entry["result"])
+    # ... and the result read back holds them all the same.
+    for original, read in zip(result.stances, loaded.stances):
+        np.testing.assert_array_equal(read.result.q, original.result.q)
+        np.testing.assert_array_equal(read.result.torques, original.result.torques)
+        assert [f.frame for f in read.result.point_forces] == [f.frame for f in original.point_forces]
+        np.testing.assert_array_equal([f.force for f in read.result.point_forces], original.contact_forces)
+        assert read.result.stance == original.stance
+
+
+def test_a_copied_plan_checks_without_the_scenario_file(planned, tmp_path, capsys):
+    """plan.json carries its scenario: move the user's YAML away, copy the plan, check it."""
+    scenario, result = planned
+    copy = tmp_path / "elsewhere" / "plan.json"
+    copy.parent.mkdir()
+    shutil.copy(result.save(tmp_path / "plan.json"), copy)
+    hidden = scenario.path.with_suffix(".hidden")
+    scenario.path.rename(hidden)
+    try:
+        report = Plan.load(copy).check()
+        assert report.ok, report.problems
+        assert main(["check", str(copy)]) == 0
+    finally:
+        hidden.rename(scenario.path)
+    assert f"plan of {scenario.name!r}, {len(result.stances)} stances: every stance verifies" in capsys.readouterr().out
 
 
 def test_cli_plan_writes_every_file(tmp_path, capsys):
@@ -89,7 +120,7 @@ def test_cli_plan_writes_every_file(tmp_path, capsys):
     assert code == 0, printed
     loaded = Plan.load(out / "plan.json")
     count = len(loaded.stances)
-    expected = {"plan.json", "viewer.html"}
+    expected = {"plan.json", "plan.pvd", "viewer.html"}
     expected |= {f"stance_{i:02d}.png" for i in range(count)}
     expected |= {f"stance_{i:02d}_foam.vtu" for i in range(count)}
     assert {p.name for p in out.iterdir()} == expected
@@ -103,6 +134,9 @@ def test_cli_check_reports_a_feasible_stance_and_draws_it(tmp_path, capsys):
     printed = capsys.readouterr().out
     assert code == 0, printed
     assert "feasible" in printed and "iterations" in printed
+    for line in ["forces on the robot (N, world frame):", "    right_sole on foam_top: ", "    left_sole on floor: ",
+                 "depths in the soft bodies:", "    foam: indented ", "margins:", "    largest torque: "]:
+        assert line in printed
     assert (tmp_path / "right-on-foam.png").stat().st_size > 0
 
 

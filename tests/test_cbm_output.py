@@ -10,10 +10,11 @@ import pytest
 import environments
 import stances
 
+from cbm.errors import PlanFileError
 from cbm.cli import DEFAULT_SCENARIO, main
 from cbm.display import robot_segments
 from cbm.output import write_outputs
-from cbm.plan import Plan, PlannedStance, PlanStatistics
+from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 
 
 def chromium_binary():
@@ -63,7 +64,10 @@ def synthetic_plan(robot, scenario):
         u = np.zeros_like(nodes)
         u[:, 2] = -0.004 * index * np.exp(-(nodes[:, 0] ** 2 + nodes[:, 1] ** 2) / 0.02)
         planned.append(PlannedStance(stance, q, forces, {"foam": u}, None, move="" if index == 0 else f"move {index}"))
-    return Plan(True, "goal reached", planned, PlanStatistics(expanded=3), "cross-soft-block")
+    return Plan(
+        True, "goal reached", planned, PlanStatistics(expanded=3), "cross-soft-block",
+        robot=robot_description(robot), scenario_source=scenario_source(scenario),
+    )
 
 
 def test_stick_figure_segments_join_each_joint_to_its_parent(robot):
@@ -79,7 +83,7 @@ def test_stick_figure_segments_join_each_joint_to_its_parent(robot):
 def test_outputs_write_every_file(synthetic_plan, scenario, robot, tmp_path):
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path / "out")
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
-    expected = ["plan.json", "viewer.html"] + [f"stance_{i:02d}.png" for i in range(4)]
+    expected = ["plan.json", "plan.pvd", "viewer.html"] + [f"stance_{i:02d}.png" for i in range(4)]
     expected += [f"stance_{i:02d}_foam.vtu" for i in range(4)]
     assert names == sorted(expected)
     assert all(p.stat().st_size > 0 for p in files.all())
@@ -89,7 +93,159 @@ def test_outputs_write_every_file(synthetic_plan, scenario, robot, tmp_path):
     import meshio
 
     mesh = meshio.read(files.meshes[2])
-    np.testing.assert_allclose(mesh.point_data["displacement"], synthetic_plan.stances[2].deformations["foam"])
+    foam = scenario.scene.deformable_objects[0]
+    np.testing.assert_allclose(mesh.points, foam.points_in_world(foam.mesh.nodes), atol=1e-12)
+    rotation = foam.transform_body_to_world[:3, :3]
+    np.testing.assert_allclose(
+        mesh.point_data["displacement"], synthetic_plan.stances[2].deformations["foam"] @ rotation.T, atol=1e-15
+    )
+
+
+def test_pvd_plays_the_plan_one_stance_per_time_step(synthetic_plan, scenario, robot, tmp_path):
+    import xml.etree.ElementTree as ElementTree
+
+    files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
+    entries = [e.attrib for e in ElementTree.parse(files.series).getroot().iter("DataSet")]
+    assert [(e["timestep"], e["part"], e["file"]) for e in entries] == [
+        (str(i), "0", f"stance_{i:02d}_foam.vtu") for i in range(4)
+    ]
+    assert all((tmp_path / e["file"]).is_file() for e in entries)
+
+
+SLANTED_SOFT_BOX = """
+objects:
+  - {name: floor, type: floor}
+  - {name: pad, type: soft_box, size: [0.6, 0.4, 0.2], center: [1.0, -0.5, 0.1], yaw_deg: 30,
+     material: {E: 1.0e6, nu: 0.4}, resolution: coarse}
+stances:
+  stand:
+    left_sole: {surface: floor, x: 0.0, y: 0.085}
+    right_sole: {surface: floor, x: 0.0, y: -0.085}
+"""
+
+
+def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(tmp_path):
+    """On a box turned 30 degrees: ParaView's Warp By Vector lands on the deformed body in the world."""
+    import meshio
+
+    pad = environments.load_string(SLANTED_SOFT_BOX, name="slanted").scene.deformable_objects[0]
+    nodes = np.asarray(pad.mesh.nodes)
+    u = np.zeros_like(nodes)
+    u[:, 0] = 0.002 * nodes[:, 2]  # a shear along the box's own x axis
+    u[:, 2] = -0.004 * nodes[:, 2] / nodes[:, 2].max()
+    pad.write_vtu(tmp_path / "pad.vtu", u)
+    mesh = meshio.read(tmp_path / "pad.vtu")
+    np.testing.assert_allclose(mesh.points, pad.points_in_world(nodes), atol=1e-12)
+    yaw = np.radians(30.0)
+    along_x = np.array([np.cos(yaw), np.sin(yaw), 0.0])  # the box's x axis in the world
+    expected = 0.002 * nodes[:, 2:3] * along_x + u[:, 2:3] * [0.0, 0.0, 1.0]
+    np.testing.assert_allclose(mesh.point_data["displacement"], expected, atol=1e-15)
+    warped = (mesh.points + mesh.point_data["displacement"])[np.asarray(pad.mesh.surface_triangles)]
+    np.testing.assert_allclose(warped, pad.deformed_surface(u), atol=1e-12)
+
+
+def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
+    data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
+    assert (data["format"], data["version"]) == ("softcbm-plan", 2)
+    assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
+    assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
+    described = data["robot"]
+    assert described["name"] == "talos" and len(described["configuration_names"]) == robot.nq
+    assert described["joint_names"] == robot.actuated_joint_names and len(described["joint_names"]) == robot.nv - 6
+    assert sorted(described["locked_joints"]) == ["gripper_left_joint", "gripper_right_joint", "head_1_joint", "head_2_joint"]
+    source = data["scenario"]
+    assert source["name"] == "cross-soft-block" and source["built_in"] and source["robot"] == "talos"
+    assert source["text"] == environments.builtin_scenario_path("cross-soft-block").read_text()
+    foam = environments.load("cross-soft-block").scene.deformable_objects[0]
+    np.testing.assert_array_equal(source["transform_body_to_world"]["foam"], foam.transform_body_to_world)
+    force = data["stances"][1]["point_forces"][0]
+    assert set(force) == {"link_frame", "point_in_world", "force_in_world"}
+    assert force["force_in_world"] == [0.0, 0.0, 450.0]
+
+
+def test_full_configuration_puts_every_link_of_the_urdf_where_the_plan_has_it(synthetic_plan, robot):
+    """The configuration with the locked joints drives the robot's full URDF model to the same posture."""
+    from types import SimpleNamespace
+
+    import pinocchio as pin
+
+    full = pin.buildModelFromUrdf(str(robot.urdf), pin.JointModelFreeFlyer())
+    names = type(robot).configuration_names.fget(SimpleNamespace(model=full))
+    values = synthetic_plan.full_configuration(2)
+    assert sorted(values) == sorted(names)  # every coordinate of the URDF, no other
+    q_full = np.array([values[name] for name in names])
+    data, full_data = robot.model.createData(), full.createData()
+    pin.framesForwardKinematics(robot.model, data, synthetic_plan.stances[2].q)
+    pin.framesForwardKinematics(full, full_data, q_full)
+    links = [f.name for f in full.frames if f.type == pin.FrameType.BODY and robot.model.existFrame(f.name)]
+    assert len(links) > 30
+    for link in links:
+        placed = data.oMf[robot.model.getFrameId(link)]
+        np.testing.assert_allclose(full_data.oMf[full.getFrameId(link)].homogeneous, placed.homogeneous, atol=1e-12)
+
+
+def test_version_1_plan_files_are_still_read(synthetic_plan):
+    """Files written before the headers: same stances; no robot description to expand q with."""
+    version_1 = {
+        "format": "softcbm-plan", "version": 1, "scenario": "cross-soft-block", "success": True,
+        "reason": "goal reached", "statistics": synthetic_plan.statistics.to_dict(), "rejections": {},
+        "stances": [
+            {"stance": s.stance.to_dict(), "move": s.move, "q": s.q.tolist(),
+             "point_forces": [f.to_dict() for f in s.point_forces],
+             "deformations": {k: v.tolist() for k, v in s.deformations.items()}, "result": None}
+            for s in synthetic_plan.stances
+        ],
+    }
+    loaded = Plan.from_dict(version_1)
+    assert loaded.scenario_name == "cross-soft-block" and loaded.scenario().name == "cross-soft-block"
+    for before, after in zip(synthetic_plan.stances, loaded.stances):
+        assert (before.stance, before.move) == (after.stance, after.move)
+        np.testing.assert_array_equal(before.q, after.q)
+        np.testing.assert_array_equal(before.contact_forces, after.contact_forces)
+        np.testing.assert_array_equal(before.deformations["foam"], after.deformations["foam"])
+    assert loaded.to_dict()["stances"] == synthetic_plan.to_dict()["stances"]
+    with pytest.raises(PlanFileError, match=r"does not name its configuration coordinates \(a version 1 file\)"):
+        loaded.full_configuration(0)
+
+
+@pytest.mark.parametrize("version", [None, 3, "2"], ids=["no-version", "future", "string"])
+def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
+    data = synthetic_plan.to_dict()
+    if version is None:
+        del data["version"]
+    else:
+        data["version"] = version
+    message = (
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2; "
+        "plan the scenario again with this version (cbm plan)"
+    )
+    with pytest.raises(PlanFileError) as raised:
+        Plan.from_dict(data)
+    assert str(raised.value) == message
+
+
+def test_plan_checks_with_its_embedded_scenario_when_the_scenario_file_is_gone(synthetic_plan, tmp_path):
+    """A plan of a user's file: the YAML travels in plan.json, the file itself is not needed."""
+    text = environments.builtin_scenario_path("cross-soft-block").read_text()
+    user_file = tmp_path / "my-foam.yaml"
+    user_file.write_text(text.replace("0.35..0.65", "x 0.35 to 0.65"))
+    user_scenario = environments.load(user_file)
+    plan = Plan(
+        True, "goal reached", synthetic_plan.stances[:1], PlanStatistics(), user_scenario.name,
+        robot=synthetic_plan.robot, scenario_source=scenario_source(user_scenario),
+    )
+    saved = plan.save(tmp_path / "plan.json")
+    user_file.unlink()
+    moved = tmp_path / "elsewhere"
+    moved.mkdir()
+    shutil.copy(saved, moved / "plan.json")
+    loaded = Plan.load(moved / "plan.json")
+    scenario = loaded.scenario()
+    assert scenario.name == "my-foam" and "x 0.35 to 0.65" in scenario.description
+    assert sorted(scenario.stances) == sorted(environments.load("cross-soft-block").stances)
+    # Checked against the embedded scene: the start stance's goal is not reached.
+    report = loaded.check()
+    assert "the plan says it succeeded but its last stance does not reach the scenario's goal" in report.problems
 
 
 def test_viewer_page_is_self_contained_and_embeds_every_stance(synthetic_plan, scenario, robot, tmp_path):
@@ -151,3 +307,112 @@ def test_cli_bad_scenario_file_exits_2(tmp_path, capsys):
     path.write_text("robot: talos\nobjects: 3\n")
     assert main(["plan", str(path), "--out", str(tmp_path / "out")]) == 2
     assert "broken.yaml" in capsys.readouterr().err
+
+
+def test_cli_lists_every_scenario_with_its_stance_names(capsys):
+    assert main(["scenarios"]) == 0
+    listed, name = {}, None
+    for line in capsys.readouterr().out.splitlines():
+        if not line.startswith(" "):
+            name = line
+        elif line.startswith("    stances: "):
+            listed[name] = line[len("    stances: "):].split(", ")
+    assert sorted(listed) == environments.scenario_names()
+    for name in environments.scenario_names():
+        scenario = environments.load(name)
+        expected = [f"{s} (start)" if s == scenario.start else s for s in scenario.stances]
+        assert listed[name] == expected
+
+
+def test_cli_help_shows_the_defaults_and_the_exit_codes(capsys):
+    assert main(["plan", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())  # argparse wraps lines
+    for shown in ["(default: 200)", "(default: 300.0)", "(default: 0)", "(default: cbm-out)",
+                  f"(default: {DEFAULT_SCENARIO})", "130 interrupted (Ctrl-C)", "141 output pipe closed"]:
+        assert shown in text
+    assert "(default: None)" not in text and "(default: False)" not in text
+
+
+def test_cli_and_python_share_their_defaults():
+    import inspect
+
+    from cbm.cli import build_parser
+    from cbm.planner import plan
+
+    signature = inspect.signature(plan).parameters
+    args = build_parser().parse_args(["plan"])
+    for name in ("max_expansions", "time_limit", "seed", "print_spacing"):
+        assert getattr(args, name) == signature[name].default, name
+    assert signature["time_limit"].default == 300.0  # the value README and --help quote
+
+
+def test_cli_version_names_the_installed_package(capsys):
+    from importlib.metadata import version
+
+    assert main(["--version"]) == 0
+    assert capsys.readouterr().out == f"cbm {version('softcbm')}\n"
+
+
+def test_cli_output_into_a_closed_pipe_ends_quietly(tmp_path):
+    """`cbm scenarios | head -1`: the reader is gone before cbm writes; no traceback, exit 141."""
+    import os
+    import sys
+    from pathlib import Path
+
+    env = dict(os.environ, PYTHONPATH=str(Path(__file__).resolve().parents[1]))
+    process = subprocess.Popen(
+        [sys.executable, "-m", "cbm", "scenarios"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, env=env
+    )
+    process.stdout.close()  # before the child has imported anything, let alone written
+    errors = process.stderr.read().decode()
+    assert process.wait(timeout=120) == 141, errors
+    assert errors == ""
+
+
+def test_check_report_gives_forces_depths_and_margins():
+    from types import SimpleNamespace
+
+    from environments import Contact, ContactPrint, Stance
+    from stances.results import PointForce
+
+    from cbm.report import stance_report
+
+    robot = SimpleNamespace(surfaces={"left_sole": SimpleNamespace(frame="left_sole_contact"),
+                                      "right_palm": SimpleNamespace(frame="right_palm_contact")})
+    stance = Stance((Contact("left_sole", ContactPrint("floor", 0.0, 0.1)), Contact("right_palm", ContactPrint("cube_top", 0.0, 0.0))))
+    forces = [PointForce("left_sole_contact", [0, 0, 0], [3.0, 0.0, 200.0]),
+              PointForce("left_sole_contact", [0, 0, 0], [0.0, -4.0, 100.0]),
+              PointForce("right_palm_contact", [0, 0, 0], [0.0, 0.0, 30.0])]
+    measures = {"indentation of cube": 0.00125, "largest strain of cube": 0.0123, "closest_distance": 0.0119,
+                "cone margin on cube": 3.06, "cone margin of left_sole on floor": 120.0, "torque_margin": 5.0}
+    limits = {"torque_usage": 0.222, "torque_joint": "arm_left_4_joint", "joint_clearance": 0.06,
+              "clearance_joint": "arm_right_2_joint", "at_margin": ["torque of leg_left_4_joint at 90.0 % of its limit"]}
+    result = SimpleNamespace(point_forces=forces, limits=limits, verification=SimpleNamespace(measures=measures))
+    assert stance_report(result, robot, stance) == [
+        "  forces on the robot (N, world frame):",
+        "    left_sole on floor: 300.0 N (x 3.0, y -4.0, z 300.0)",
+        "    right_palm on cube_top: 30.0 N (x 0.0, y 0.0, z 30.0)",
+        "  depths in the soft bodies:",
+        "    cube: indented 1.25 mm, largest strain 1.23 %",
+        "  margins:",
+        "    largest torque: 22.2 % of the limit of arm_left_4_joint",
+        "    closest joint limit: 6.0 % of the range of arm_right_2_joint",
+        "    closest collision distance: 11.9 mm",
+        "    cone margin of left_sole on floor: 120.0 N",
+        "    cone margin on cube: 3.1 N",
+        "    on its margin: torque of leg_left_4_joint at 90.0 % of its limit",
+    ]
+
+
+def test_cli_check_of_a_plan_file_reports_what_fails(synthetic_plan, tmp_path, capsys):
+    path = synthetic_plan.save(tmp_path / "plan.json")
+    assert main(["check", str(path)]) == 1
+    out = capsys.readouterr().out
+    assert f"{path}: plan of 'cross-soft-block', 4 stances: 7 problems" in out
+    assert "  stances 0 -> 1 do not differ by exactly one contact" in out
+    assert "  stance 0: no solver result to verify" in out
+
+
+def test_cli_check_of_a_scenario_needs_a_stance(capsys):
+    assert main(["check", "cross-soft-block"]) == 2
+    assert "scenario 'cross-soft-block' needs --stance; stances: beyond, both-on-foam" in capsys.readouterr().err

@@ -85,7 +85,10 @@ def robot():
         name: SimpleNamespace(name=name, frame=f"{name}_contact", polygon=poly)
         for name, poly in [("left_sole", SOLE), ("right_sole", SOLE), ("left_palm", PALM), ("right_palm", PALM)]
     }
-    return SimpleNamespace(surfaces=surfaces)
+    # What a plan file records of its robot, for a robot with no joints.
+    return SimpleNamespace(
+        name="fake", surfaces=surfaces, configuration_names=[], actuated_joint_names=[], locked_joints={}, mass=0.0
+    )
 
 
 def test_plan_walks_to_the_goal_one_contact_at_a_time(scenario, robot):

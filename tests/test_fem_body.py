@@ -9,11 +9,15 @@ from fem import (
     FemError,
     FemWarning,
     LinearElasticMaterial,
+    MeshError,
     PrintError,
+    TetMesh,
     box_mesh,
     nodes_in_polygon,
     read_mesh,
     tensor_mesh,
+    von_mises,
+    write_pvd,
 )
 
 RNG_SEED = 7
@@ -222,12 +226,56 @@ def test_written_vtu_holds_displacement_and_stress(tmp_path, cube, patch, displa
 
     u = cube.displacement_field(patch, displacements)
     path = tmp_path / "deformed.vtu"
-    cube.write_vtu(path, u)
+    cube.write_vtu(path, u, deformed=True)
     raw = meshio.read(path)
     assert np.allclose(raw.point_data["displacement"], u)
     assert np.allclose(raw.points, cube.mesh.nodes + u)
     assert np.allclose(raw.cell_data["stress"][0], cube.stress(u))
     assert read_mesh(path).n_tets == cube.mesh.n_tets
+    # By default at rest, so that ParaView's Warp By Vector adds u once.
+    cube.write_vtu(path, u)
+    np.testing.assert_array_equal(meshio.read(path).points, cube.mesh.nodes)
+
+
+def test_vtu_written_in_another_frame_is_the_body_meshed_there(tmp_path, cube, patch, displacements):
+    """Placed by a rigid transform, the file holds what the same body meshed in that frame gives."""
+    import meshio
+
+    u = cube.displacement_field(patch, displacements)
+    rotation = rotate(np.eye(3), np.array([0.3, -0.5, 0.9])).T  # columns: the turned axes
+    transform = np.eye(4)
+    transform[:3, :3], transform[:3, 3] = rotation, [1.0, -2.0, 0.5]
+    path = tmp_path / "placed.vtu"
+    cube.write_vtu(path, u, transform_body_to_output=transform)
+    raw = meshio.read(path)
+    placed = DeformableBody(TetMesh(cube.mesh.nodes @ rotation.T + transform[:3, 3], cube.mesh.tets), MATERIAL,
+                            np.flatnonzero(cube.fixed_mask))
+    u_placed = u @ rotation.T
+    np.testing.assert_allclose(raw.points, placed.mesh.nodes, atol=1e-12)
+    np.testing.assert_allclose(raw.point_data["displacement"], u_placed, atol=1e-15)
+    scale = np.abs(cube.stress(u)).max()
+    np.testing.assert_allclose(raw.cell_data["stress"][0], placed.stress(u_placed), atol=1e-9 * scale)
+    np.testing.assert_allclose(raw.cell_data["strain"][0], placed.strain(u_placed), atol=1e-12)
+    np.testing.assert_allclose(raw.cell_data["von_mises"][0], von_mises(cube.stress(u)), atol=1e-9 * scale)
+
+
+def test_vtu_refuses_a_transform_that_is_not_rigid(tmp_path, cube):
+    with pytest.raises(FemError, match="must be a rigid transform"):
+        cube.write_vtu(tmp_path / "x.vtu", np.zeros_like(cube.mesh.nodes), transform_body_to_output=2.0 * np.eye(4))
+
+
+def test_pvd_lists_each_file_at_its_time_and_part(tmp_path):
+    import xml.etree.ElementTree as ElementTree
+
+    write_pvd(tmp_path / "series.pvd", [(0, 0, tmp_path / "a0.vtu"), (0, 1, tmp_path / "b0.vtu"), (1.5, 0, "/elsewhere/a1.vtu")])
+    entries = [e.attrib for e in ElementTree.parse(tmp_path / "series.pvd").getroot().iter("DataSet")]
+    assert entries == [
+        {"timestep": "0", "part": "0", "file": "a0.vtu"},
+        {"timestep": "0", "part": "1", "file": "b0.vtu"},
+        {"timestep": "1.5", "part": "0", "file": "/elsewhere/a1.vtu"},
+    ]
+    with pytest.raises(MeshError, match="part must be a non-negative integer, got -1"):
+        write_pvd(tmp_path / "bad.pvd", [(0, -1, "a.vtu")])
 
 
 # ---------------------------------------------------------------- bad input
