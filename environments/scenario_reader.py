@@ -25,7 +25,19 @@ from .scene import Scene
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
 
-__all__ = ["read_scenario_fields"]
+__all__ = ["read_scenario_fields", "line_of", "ROBOT_FILE_SUFFIXES"]
+
+#: A ``robot:`` value ending so is a robot description file, relative to the
+#: scenario file; any other value is a built-in robot name.
+ROBOT_FILE_SUFFIXES = (".yaml", ".yml")
+
+
+def line_of(lines: dict, key: str) -> int | None:
+    """Line of a dotted key path, or of its nearest enclosing key, in a recorded line map."""
+    probe = key
+    while probe not in lines and probe:
+        probe = probe.rpartition(".")[0] if "." in probe else ""
+    return lines.get(probe)
 
 
 def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> dict:
@@ -135,10 +147,7 @@ class _Reader:
 
     # ------------------------------------------------------------------ basics
     def error(self, key: str, message: str) -> ScenarioError:
-        probe = key
-        while probe not in self.lines and probe:
-            probe = probe.rpartition(".")[0] if "." in probe else ""
-        return ScenarioError(self.path, key, message, line=self.lines.get(probe))
+        return ScenarioError(self.path, key, message, line=line_of(self.lines, key))
 
     def mapping(self, value, key: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
         if not isinstance(value, Mapping):
@@ -210,7 +219,7 @@ class _Reader:
         )
         default_name = self.path.stem if self.path is not None else "scenario"
         name = name if name is not None else self.string(top, "name", "", default_name)
-        robot = self.string(top, "robot", "", "talos")
+        robot = self.robot(self.string(top, "robot", "", "talos"))
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.error("description", f"must be text, got {_kind(description)}")
@@ -240,7 +249,18 @@ class _Reader:
             description=description.strip(),
             options=options,
             path=self.path,
+            lines=dict(self.lines),
         )
+
+    def robot(self, value: str) -> str:
+        """A built-in robot name as is, or a description file made absolute (relative to this file)."""
+        if not value.endswith(ROBOT_FILE_SUFFIXES):
+            return value
+        base = self.path.parent if self.path is not None else Path.cwd()
+        file_path = (base / value).resolve()
+        if not file_path.is_file():
+            raise self.error("robot", f"robot description file not found: {file_path}")
+        return str(file_path)
 
     def scene(self, name: str, objects_data, surfaces_data) -> Scene:
         if not isinstance(objects_data, list) or not objects_data:
