@@ -301,9 +301,9 @@ def plan(
         Show a tqdm progress bar (stderr) during the search.
     solver_options : dict, optional
         Keyword arguments of ``stances.solve``.
-    reach : ReachLimits
+    reach : ReachLimits or ReachModel
         Ratios of the reach pruning, applied to the robot's own dimensions
-        (:mod:`cbm.reach`).
+        (:mod:`cbm.reach`), or a ready reach model.
     path_cost : float
         Priority added per move, metres of goal distance.
     eager : bool
@@ -349,9 +349,9 @@ def plan(
         sampling.spacing,
         len(sampling.theta_values),
     )
-    reach_model = ReachModel.of(robot, reach)
+    reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model)
-    feet = robot.surfaces_with_role(robot.support.role)
+    feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     if oracle is None:
         deadline = None if time_limit is None else time.perf_counter() + time_limit

@@ -9,33 +9,14 @@ from environments.geometry import pose_from_center_yaw, transform_from_rotation_
 from environments.stance import Contact, ContactPrint, Stance
 from environments.surfaces import ContactSurface, rectangle
 
+from conftest import ARM_REACH, LEG, hand_made_biped
 from stances.robot import RobotSurface
 
-from cbm.reach import LimbReach, ReachModel
 from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints
 from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
 
-SOLE = np.array([[-0.10, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.10, 0.065]])
-PALM = np.array([[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]])
-LIMBS = {"left_sole": "left_leg", "right_sole": "right_leg", "left_palm": "left_arm", "right_palm": "right_arm"}
-ROBOT = {
-    name: RobotSurface(name, f"{name}_contact", SOLE if "sole" in name else PALM, role="foot" if "sole" in name else "hand", limb=limb)
-    for name, limb in LIMBS.items()
-}
-# A hand-made reach: legs 0.8 m from hips 0.2 m apart, shoulders 1.35 m above the
-# feet and 0.4 m apart with arms reaching 0.65 m once the extension ratio applies.
-LEG, ARM_REACH = 0.8, 0.65
-REACH = ReachModel(
-    roles={name: surface.role for name, surface in ROBOT.items()},
-    limbs_of=LIMBS,
-    limbs={
-        "left_leg": LimbReach("left_leg", np.array([0.0, 0.1, LEG]), LEG),
-        "right_leg": LimbReach("right_leg", np.array([0.0, -0.1, LEG]), LEG),
-        "left_arm": LimbReach("left_arm", np.array([0.0, 0.2, 1.35]), ARM_REACH / 0.85),
-        "right_arm": LimbReach("right_arm", np.array([0.0, -0.2, 1.35]), ARM_REACH / 0.85),
-    },
-    foot_size=np.array([0.21, 0.13]),
-)
+ROBOT, REACH = hand_made_biped()
+SOLE, PALM = ROBOT["left_sole"].polygon, ROBOT["left_palm"].polygon
 
 
 def wall_transform():
