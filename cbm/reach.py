@@ -212,7 +212,7 @@ class ReachModel:
         >>> import stances
         >>> reach = ReachModel.of(stances.Robot.load("talos"))
         >>> round(reach.limbs["left_arm"].length, 3), reach.limbs["left_arm"].root_in_support.round(2).tolist()
-        (0.774, [0.02, 0.16, 1.32])
+        (0.774, [0.01, 0.16, 1.32])
         """
         per_robot = _CACHE.setdefault(robot, {})
         if limits not in per_robot:

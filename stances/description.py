@@ -42,6 +42,8 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
+from environments.plain_data import checked_mapping, join_key, kind_of
+
 from .errors import RobotNotFound, StanceError
 from .plates import PlateDeclaration
 
@@ -346,32 +348,24 @@ class _Reader:
         return RobotDescriptionError(self.path, key, message)
 
     def mapping(self, value, key: str, allowed, required=()) -> dict:
-        if not isinstance(value, Mapping):
-            raise self.error(key, f"must be a mapping with keys {', '.join(allowed)}; got {_kind(value)}")
-        for name in value:
-            if name not in allowed:
-                raise self.error(_join(key, name), f"unknown key {name!r}; valid keys: {', '.join(allowed)}")
-        for name in required:
-            if name not in value:
-                raise self.error(key, f"missing key {name!r}")
-        return dict(value)
+        return checked_mapping(value, key, allowed, required, self.error)
 
     def string(self, value, key: str) -> str:
         if not isinstance(value, str) or not value:
-            raise self.error(key, f"must be a non-empty string, got {_kind(value)}")
+            raise self.error(key, f"must be a non-empty string, got {kind_of(value)}")
         return value
 
     def strings(self, value, key: str) -> tuple:
         if not isinstance(value, list):
-            raise self.error(key, f"must be a list of names, got {_kind(value)}")
+            raise self.error(key, f"must be a list of names, got {kind_of(value)}")
         return tuple(self.string(item, f"{key}[{index}]") for index, item in enumerate(value))
 
     def numbers(self, value, key: str, length: int) -> list:
         if not isinstance(value, list) or len(value) != length:
-            raise self.error(key, f"must be a list of {length} numbers, got {_kind(value)}")
+            raise self.error(key, f"must be a list of {length} numbers, got {kind_of(value)}")
         for index, item in enumerate(value):
             if isinstance(item, bool) or not isinstance(item, (int, float)) or not math.isfinite(item):
-                raise self.error(f"{key}[{index}]", f"must be a finite number, got {_kind(item)}")
+                raise self.error(f"{key}[{index}]", f"must be a finite number, got {kind_of(item)}")
         return [float(item) for item in value]
 
     def file(self, value, key: str, base: Path) -> Path:
@@ -385,11 +379,11 @@ class _Reader:
         name = self.string(top.get("name", self.path.stem), "name")
         urdf, srdf, package_dirs = self.model(top["model"])
         if not isinstance(top["limbs"], Mapping) or not top["limbs"]:
-            raise self.error("limbs", f"must be a non-empty mapping of limb names to root joints, got {_kind(top['limbs'])}")
+            raise self.error("limbs", f"must be a non-empty mapping of limb names to root joints, got {kind_of(top['limbs'])}")
         limbs = {str(limb): self.string(joint, f"limbs.{limb}") for limb, joint in top["limbs"].items()}
         surfaces_data = top["surfaces"]
         if not isinstance(surfaces_data, Mapping) or not surfaces_data:
-            raise self.error("surfaces", f"must be a non-empty mapping of surface names to surfaces, got {_kind(surfaces_data)}")
+            raise self.error("surfaces", f"must be a non-empty mapping of surface names to surfaces, got {kind_of(surfaces_data)}")
         surfaces = tuple(self.surface(str(surface), item, limbs) for surface, item in surfaces_data.items())
         support_data = self.mapping(top.get("support", {}), "support", ("role", "keep"))
         pairs = []
@@ -400,7 +394,7 @@ class _Reader:
             pairs.append(names)
         description = top.get("description", "")
         if not isinstance(description, str):
-            raise self.error("description", f"must be text, got {_kind(description)}")
+            raise self.error("description", f"must be text, got {kind_of(description)}")
         try:
             support = SupportRule(**support_data)
             return RobotDescription(
@@ -446,40 +440,26 @@ class _Reader:
         data = self.mapping(data, key, _SURFACE_KEYS, ("role", "limb", "link", "polygon"))
         role = data["role"]
         if role not in ROLES:
-            raise self.error(_join(key, "role"), f"unknown role {role!r}; roles: {', '.join(ROLES)}")
-        limb = self.string(data["limb"], _join(key, "limb"))
+            raise self.error(join_key(key, "role"), f"unknown role {role!r}; roles: {', '.join(ROLES)}")
+        limb = self.string(data["limb"], join_key(key, "limb"))
         if limb not in limbs:
-            raise self.error(_join(key, "limb"), f"unknown limb {limb!r}; limbs: {', '.join(limbs) or '(none)'}")
+            raise self.error(join_key(key, "limb"), f"unknown limb {limb!r}; limbs: {', '.join(limbs) or '(none)'}")
         polygon = data["polygon"]
         if not isinstance(polygon, list) or len(polygon) < 3:
-            raise self.error(_join(key, "polygon"), f"must be a list of at least 3 [x, y] vertices, got {_kind(polygon)}")
+            raise self.error(join_key(key, "polygon"), f"must be a list of at least 3 [x, y] vertices, got {kind_of(polygon)}")
         vertices = [self.numbers(vertex, f"{key}.polygon[{index}]", 2) for index, vertex in enumerate(polygon)]
-        xyz = self.numbers(data.get("xyz", [0.0, 0.0, 0.0]), _join(key, "xyz"), 3)
-        rpy = [math.radians(angle) for angle in self.numbers(data.get("rpy_deg", [0.0, 0.0, 0.0]), _join(key, "rpy_deg"), 3)]
+        xyz = self.numbers(data.get("xyz", [0.0, 0.0, 0.0]), join_key(key, "xyz"), 3)
+        rpy = [math.radians(angle) for angle in self.numbers(data.get("rpy_deg", [0.0, 0.0, 0.0]), join_key(key, "rpy_deg"), 3)]
         placement = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
         try:
             plate = None
             if "plate" in data:
-                plate_data = self.mapping(data["plate"], _join(key, "plate"), ("thickness", "replaces", "mass"), ("thickness",))
+                plate_data = self.mapping(data["plate"], join_key(key, "plate"), ("thickness", "replaces", "mass"), ("thickness",))
                 plate = PlateDeclaration(**plate_data)
             return SurfaceDeclaration(
-                name, self.string(data["link"], _join(key, "link")), placement, vertices, plate, role, limb
+                name, self.string(data["link"], join_key(key, "link")), placement, vertices, plate, role, limb
             )
         except RobotDescriptionError:
             raise
         except StanceError as error:
             raise self.error(key, str(error)) from None
-
-
-def _join(key: str, name) -> str:
-    return f"{key}.{name}" if key else str(name)
-
-
-def _kind(value) -> str:
-    if value is None:
-        return "nothing"
-    if isinstance(value, Mapping):
-        return "a mapping"
-    if isinstance(value, list):
-        return f"a list of {len(value)}"
-    return f"{type(value).__name__} {value!r}"
