@@ -163,6 +163,9 @@ class Plan:
     rejections : dict
         Stances the search rejected, by cause (:func:`cbm.rejections.summarise`):
         ``{cause: {"count": int, "example": str}}``.
+    robot : str
+        Robot planned for: a built-in robot name or a robot description file;
+        empty for the scenario's robot.
     """
 
     success: bool
@@ -171,6 +174,7 @@ class Plan:
     statistics: PlanStatistics
     scenario_name: str = ""
     rejections: dict = field(default_factory=dict)
+    robot: str = ""
 
     def __post_init__(self):
         object.__setattr__(self, "stances", tuple(self.stances))
@@ -184,6 +188,7 @@ class Plan:
             "format": PLAN_FORMAT,
             "version": PLAN_VERSION,
             "scenario": self.scenario_name,
+            "robot": self.robot,
             "success": self.success,
             "reason": self.reason,
             "statistics": self.statistics.to_dict(),
@@ -212,6 +217,7 @@ class Plan:
                 statistics=PlanStatistics(**data["statistics"]),
                 scenario_name=str(data.get("scenario", "")),
                 rejections=dict(data.get("rejections", {})),
+                robot=str(data.get("robot", "")),
             )
         except (KeyError, TypeError) as error:
             raise PlanFileError(f"malformed plan: {error}") from None
@@ -259,7 +265,7 @@ class Plan:
         scenario : environments Scenario, optional
             Loaded from ``scenario_name`` if not given.
         robot : stances Robot, optional
-            Loaded from the scenario's robot name if not given.
+            Loaded from the plan's robot (else the scenario's) if not given.
 
         Returns
         -------
@@ -273,7 +279,7 @@ class Plan:
         if scenario is None:
             scenario = environments.load(self.scenario_name)
         if robot is None:
-            robot = stances.Robot.load(scenario.robot)
+            robot = stances.Robot.load(self.robot or scenario.robot)
         verify = None
         problems = []
         for index, planned in enumerate(self.stances):

@@ -417,7 +417,15 @@ def plan(
         for _, attributes in searched.graph.nodes(data=True)
         if attributes.get("status") == "infeasible"
     ]
-    return Plan(searched.success, searched.reason, tuple(planned), statistics, scenario.name, summarise(rejected))
+    return Plan(
+        searched.success,
+        searched.reason,
+        tuple(planned),
+        statistics,
+        scenario.name,
+        summarise(rejected),
+        getattr(robot, "source", ""),
+    )
 
 
 def initial_configuration(robot, scene, stance):

@@ -288,7 +288,7 @@ def description_path(name_or_file) -> Path:
         return BUILTIN_DIRECTORY / f"{text}.yaml"
     path = Path(text)
     if path.is_file():
-        return path
+        return path.resolve()
     hint = "no such file" if path.suffix in _DESCRIPTION_SUFFIXES or os.sep in text else "not a built-in robot"
     raise RobotNotFound(
         f"unknown robot {text!r} ({hint}); built-in robots: {', '.join(builtin_robot_names())}, "

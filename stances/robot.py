@@ -26,6 +26,7 @@ import numpy as np
 import pinocchio as pin
 
 from .description import (
+    BUILTIN_DIRECTORY,
     ROLES,
     RobotDescription,
     RobotDescriptionError,
@@ -165,6 +166,9 @@ class Robot:
         Limb name -> name of its root joint.
     support : SupportRule
         Contacts every stance keeps (a biped: one foot).
+    source : str
+        What :meth:`Robot.load` loads it from again: a built-in name or a
+        description file; empty for a robot built by :meth:`from_urdf`.
     """
 
     def __init__(self, name, model, collision_model, surfaces, reference_configuration, limbs=None, support=SupportRule()):
@@ -177,6 +181,7 @@ class Robot:
         self.reference_configuration = reference_configuration
         self.limbs = dict(limbs) if limbs is not None else {}
         self.support = support
+        self.source = ""
 
     @classmethod
     def load(cls, name_or_file="talos") -> "Robot":
@@ -220,7 +225,7 @@ class Robot:
             not in the model, naming the description file.
         """
         try:
-            return cls.from_urdf(
+            robot = cls.from_urdf(
                 name=description.name,
                 urdf=description.urdf,
                 srdf=description.srdf,
@@ -236,6 +241,9 @@ class Robot:
             raise
         except StanceError as error:
             raise RobotDescriptionError(description.path, "", str(error)) from None
+        builtin = description.path is not None and description.path == BUILTIN_DIRECTORY / f"{description.name}.yaml"
+        robot.source = description.name if builtin else str(description.path or "")
+        return robot
 
     @classmethod
     def from_urdf(

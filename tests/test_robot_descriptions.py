@@ -15,6 +15,7 @@ from stances import Robot, RobotDescriptionError, RobotNotFound
 from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
 
 from cbm.cli import EXIT_BAD_INPUT, main
+from cbm.plan import Plan
 from cbm.planner import plan
 from cbm.reach import ReachModel
 from cbm.sampling import obstacle_boxes, options_from_scenario, sample_prints
@@ -125,7 +126,12 @@ def test_a_description_file_of_another_robot_plans_by_role(tmp_path):
     assert scenario.robot == str(tmp_path / "pawed.yaml")
     result = plan(scenario, max_expansions=30, time_limit=240.0, solver_options={"max_iterations": 40})
     assert result.success, result.reason
+    # Both feet move at least 0.3 m: lift and place each, from the start.
+    assert len(result.stances) >= 5
     assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
+    # The plan names its robot's file, and its check loads that robot again.
+    assert result.robot == str(tmp_path / "pawed.yaml")
+    assert Plan.from_dict(result.to_dict()).robot == result.robot
     assert result.check(scenario).ok
     for planned in result.stances:
         assert planned.stance.robot_surfaces  # never airborne
