@@ -164,7 +164,7 @@ class SurfaceDeclaration:
     placement: pin.SE3
     polygon: np.ndarray
     plate: PlateDeclaration | None = None
-    role: str = "foot"
+    role: str = ""  # required: the defaults only let plate keep its place
     limb: str = ""
 
     def __post_init__(self) -> None:
