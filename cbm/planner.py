@@ -231,18 +231,29 @@ def _usable_robot_surfaces(robot, options):
     return [name for name in names if name in wanted]
 
 
-def check_robot_surfaces(scenario, robot):
-    """Refuse a scenario whose stances or goal name surfaces the robot lacks.
+def check_robot_surfaces(scenario, robot, goal=None):
+    """Refuse a scenario, or a goal given in its place, naming surfaces the robot lacks.
 
     Raises
     ------
     environments.ScenarioError
-        Naming the file, the key, the surface and the robot's surfaces.
+        For the scenario's stances and goal: naming the file, the key, the
+        surface and the robot's surfaces.
+    CbmError
+        For ``goal``: naming the surface and the robot's surfaces.
     """
     import environments
 
     if isinstance(scenario, environments.Scenario):
         scenario.check_robot_surfaces(robot.surfaces, f"robot {robot.name!r}")
+    if goal is not None:
+        named = [c.robot_surface for c in goal.contacts] + [r.robot_surface for r in goal.regions]
+        for robot_surface in named:
+            if robot_surface not in robot.surfaces:
+                raise CbmError(
+                    f"the goal names robot surface {robot_surface!r}, not a surface of robot {robot.name!r}; "
+                    f"its surfaces: {', '.join(robot.surfaces)}"
+                )
 
 
 def _resolve_stance(value, scenario, what):
@@ -337,7 +348,7 @@ def plan(
         import stances
 
         robot = stances.Robot.load(scenario.robot)
-    check_robot_surfaces(scenario, robot)
+    check_robot_surfaces(scenario, robot, goal)
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
     print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))

@@ -267,3 +267,15 @@ def test_the_reach_model_bounds_every_posture_and_is_measured_once(robot):
     for left, right in (("left_leg", "right_leg"), ("left_arm", "right_arm")):
         mirrored = reach.limbs[right].root_in_support * np.array([1.0, -1.0, 1.0])
         np.testing.assert_allclose(reach.limbs[left].root_in_support, mirrored, atol=1e-3)
+
+
+def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(romeo):
+    from environments.goal import Goal, GoalRegion
+
+    from cbm.errors import CbmError
+
+    goal = Goal(regions=(GoalRegion("right_palm", (0.0, 0.0), (1.0, 1.0)),))
+    with pytest.raises(CbmError, match=re.escape(
+        "the goal names robot surface 'right_palm', not a surface of robot 'romeo'; its surfaces: left_sole, right_sole"
+    )):
+        plan("stand", goal=goal, robot=romeo)
