@@ -1,4 +1,4 @@
-"""Contact-before-motion planning for a humanoid over rigid and deformable supports.
+"""Contact-before-motion planning for a legged robot over rigid and deformable supports.
 
 Examples
 --------
@@ -12,7 +12,8 @@ from .errors import CbmError, PlanFileError, UnknownScenario
 from .output import OutputFiles, write_outputs
 from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
 from .planner import LookaheadHeuristic, PostureOracle, StanceCheck, initial_configuration, load_scenario, plan
-from .sampling import PrintSet, ReachLimits, SamplingOptions, sample_prints
+from .reach import ReachLimits, ReachModel
+from .sampling import PrintSet, SamplingOptions, sample_prints
 from .search import SearchLimits, SearchResult, SearchStatistics, best_first_search
 from .stance_graph import Move, StanceNeighbours, differ_by_one_contact
 
@@ -29,6 +30,7 @@ __all__ = [
     "PostureOracle",
     "PrintSet",
     "ReachLimits",
+    "ReachModel",
     "SamplingOptions",
     "SearchLimits",
     "SearchResult",

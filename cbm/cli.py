@@ -1,4 +1,4 @@
-"""Command line: ``cbm plan``, ``cbm scenarios``, ``cbm check``.
+"""Command line: ``cbm plan``, ``cbm scenarios``, ``cbm robots``, ``cbm check``.
 
 Exit codes: 0 success (plan found, stance feasible), 1 no plan found or stance
 infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
@@ -160,8 +160,10 @@ def build_parser():
     )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
+    _add_robot_option(plan)
 
     commands.add_parser("scenarios", help="list the built-in scenarios and their stances")
+    commands.add_parser("robots", help="list the built-in robots")
 
     check = commands.add_parser(
         "check",
@@ -178,7 +180,17 @@ def build_parser():
     check.add_argument("--stance", help="name of the stance in the scenario (required unless checking a plan)")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
+    _add_robot_option(check)
     return parser
+
+
+def _add_robot_option(parser):
+    parser.add_argument(
+        "--robot",
+        default=None,
+        metavar="ROBOT",
+        help="built-in robot name (see `cbm robots`) or robot description file; default: the scenario's robot",
+    )
 
 
 def _quiet_on_closed_pipe(function):
@@ -234,6 +246,8 @@ def main(argv=None):
     try:
         if args.command == "scenarios":
             return _scenarios()
+        if args.command == "robots":
+            return _robots()
         if args.command == "plan":
             return _plan(args)
         return _check(args)
@@ -271,14 +285,33 @@ def _scenarios():
     return EXIT_OK
 
 
-def _plan(args):
+def _robots():
     import stances
 
+    for name in stances.builtin_robot_names():
+        description = stances.read_description(name)
+        roles = ", ".join(f"{s.name} ({s.role}, {s.limb})" for s in description.surfaces)
+        print(f"{name}\n    {description.description}\n    surfaces: {roles}")
+    return EXIT_OK
+
+
+def _load_robot(args, scenario):
+    """The robot of ``--robot``, else the scenario's, checked against the scenario's stances and goal."""
+    import stances
+
+    from .planner import check_robot_surfaces
+
+    robot = stances.Robot.load(args.robot if args.robot is not None else scenario.robot)
+    check_robot_surfaces(scenario, robot)
+    return robot
+
+
+def _plan(args):
     from .output import StagedOutput, write_outputs
     from .planner import load_scenario, plan
 
     scenario = load_scenario(args.scenario)
-    robot = stances.Robot.load(scenario.robot)
+    robot = _load_robot(args, scenario)
     # Before the search: a bad --out must not cost a whole search, and the
     # temporary folder made here is where the files go.
     staged = StagedOutput(args.out, force=args.force)
@@ -316,8 +349,6 @@ def _plan(args):
 
 
 def _check(args):
-    import stances
-
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
@@ -332,7 +363,7 @@ def _check(args):
         # Checked before the solve, which may take seconds.
         print(f"cbm check: error: --out {str(args.out)!r} is a file, not a folder", file=sys.stderr)
         return EXIT_BAD_INPUT
-    robot = stances.Robot.load(scenario.robot)
+    robot = _load_robot(args, scenario)
     stance = scenario.stances[args.stance]
     check = PostureOracle(robot, scenario.scene)(stance)
     result = check.result

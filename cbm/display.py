@@ -20,7 +20,17 @@ __all__ = [
     "scene_edges",
     "stance_display",
     "plan_bounds",
+    "contact_colours",
 ]
+
+# Colours of the robot surfaces by role, in declaration order within a role
+# (Talos: left sole blue, right sole red, left palm cyan, right palm orange).
+# Purple is the forces' colour; green marks a surface without a colour.
+_ROLE_COLOURS = {
+    "foot": ("#1f77b4", "#d62728", "#8c564b", "#e377c2"),
+    "hand": ("#17becf", "#ff7f0e", "#bcbd22", "#7f7f7f"),
+}
+_UNKNOWN_COLOUR = "#2ca02c"
 
 # Edges of a unit cube's 8 corners, indexed as bits (x, y, z).
 _CUBE_EDGES = np.array(
@@ -72,6 +82,8 @@ class StanceDisplay:
         Resultant contact force on the robot per contact, newtons, world frame.
     deformables : tuple of DeformableDisplay
         Every deformable object, deformed by this stance.
+    colours : dict of str to str
+        Colour of each robot surface in ``polygons``, ``"#rrggbb"``.
     """
 
     label: str
@@ -80,6 +92,28 @@ class StanceDisplay:
     force_points: np.ndarray
     forces: np.ndarray
     deformables: tuple = field(default=())
+    colours: dict = field(default_factory=dict)
+
+
+def contact_colours(robot):
+    """A colour for each robot surface, from its role and rank among that role's surfaces.
+
+    Parameters
+    ----------
+    robot : stances Robot
+
+    Returns
+    -------
+    dict of str to str
+        Robot surface -> ``"#rrggbb"``.
+    """
+    colours, rank = {}, {}
+    for name, surface in robot.surfaces.items():
+        palette = _ROLE_COLOURS.get(surface.role, (_UNKNOWN_COLOUR,))
+        index = rank.get(surface.role, 0)
+        rank[surface.role] = index + 1
+        colours[name] = palette[index % len(palette)]
+    return colours
 
 
 def robot_segments(model, q, extra_frames=()):
@@ -208,7 +242,9 @@ def stance_display(planned, scene, robot, label=""):
     deformables = tuple(
         _deformable_display(obj, planned.deformations.get(obj.name)) for obj in scene.deformable_objects
     )
+    colours = contact_colours(robot)
     return StanceDisplay(
+        colours={name: colours.get(name, _UNKNOWN_COLOUR) for name in polygons},
         label=label,
         segments=segments,
         polygons=polygons,

@@ -360,7 +360,7 @@ class Plan:
         if scenario is None:
             scenario = self.scenario()
         if robot is None:
-            robot = stances.Robot.load(self.robot.get("name") or scenario.robot)
+            robot = stances.Robot.load(self.robot.get("source") or scenario.robot)
         verify = None
         problems = []
         for index, planned in enumerate(self.stances):
@@ -445,7 +445,9 @@ def robot_description(robot):
     Returns
     -------
     dict
-        ``name`` (for ``stances.Robot.load``), ``urdf`` (path or None),
+        ``name``, ``source`` (what ``stances.Robot.load`` loads it from again: a
+        built-in name or a description file; empty for a robot built in code),
+        ``urdf`` (path or None),
         ``configuration_names`` (nq,), ``joint_names`` (actuated joints, torque
         order), ``locked_joints`` (name -> locked coordinate values) and
         ``mass`` (kg).
@@ -453,6 +455,7 @@ def robot_description(robot):
     urdf = getattr(robot, "urdf", None)
     return {
         "name": robot.name,
+        "source": str(getattr(robot, "source", "")),
         "urdf": None if urdf is None else str(urdf),
         "configuration_names": list(robot.configuration_names),
         "joint_names": list(robot.actuated_joint_names),

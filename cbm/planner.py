@@ -18,7 +18,8 @@ import numpy as np
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .rejections import summarise
-from .sampling import ReachLimits, obstacle_boxes, options_from_scenario, sample_prints, surface_kind
+from .reach import ReachLimits, ReachModel
+from .sampling import obstacle_boxes, options_from_scenario, sample_prints
 from .search import SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 
@@ -29,6 +30,7 @@ __all__ = [
     "PostureOracle",
     "LookaheadHeuristic",
     "initial_configuration",
+    "check_robot_surfaces",
     "DEFAULT_PATH_COST",
     "DEFAULT_MAX_EXPANSIONS",
     "DEFAULT_TIME_LIMIT",
@@ -192,14 +194,14 @@ class PostureOracle:
 
 
 class LookaheadHeuristic:
-    """Goal distance, looking one placement ahead when a sole is lifted.
+    """Goal distance, looking one placement ahead when a foot is lifted.
 
-    A stance with a sole in the air is only a step towards placing it again:
-    its goal distance counts the lifted sole as missing, which makes every
+    A stance with a foot in the air is only a step towards placing it again:
+    its goal distance counts the lifted foot as missing, which makes every
     lift look like a step back, and a greedy search then expands every
     equally good two-feet stance before it lifts a foot. Rating a lifted
     stance by its best re-placement (the minimum goal distance over the
-    reachable prints of that sole) removes that plateau.
+    reachable prints of that foot) removes that plateau.
 
     Parameters
     ----------
@@ -207,21 +209,21 @@ class LookaheadHeuristic:
     scene : environments Scene
     neighbours : StanceNeighbours
         Gives the reachable prints.
-    soles : sequence of str
-        The robot's sole surfaces.
+    feet : sequence of str
+        The robot's support surfaces (its feet), from the robot's roles.
     """
 
-    def __init__(self, goal, scene, neighbours, soles):
+    def __init__(self, goal, scene, neighbours, feet):
         self.goal = goal
         self.scene = scene
         self.neighbours = neighbours
-        self.soles = tuple(soles)
+        self.feet = tuple(feet)
 
     def __call__(self, stance):
         """Heuristic value, metres, >= 0."""
         h = self.goal.distance(stance, self.scene)
-        lifted = [rs for rs in self.soles if rs not in stance.robot_surfaces]
-        if len(lifted) == 1 and len(lifted) < len(self.soles):
+        lifted = [rs for rs in self.feet if rs not in stance.robot_surfaces]
+        if len(lifted) == 1 and len(lifted) < len(self.feet):
             for child, _ in self.neighbours.additions(stance, lifted[0]):
                 h = min(h, self.goal.distance(child, self.scene))
         return h
@@ -237,6 +239,31 @@ def _usable_robot_surfaces(robot, options):
     if unknown:
         raise CbmError(f"options.robot_surfaces names unknown robot surfaces {unknown}; robot surfaces: {', '.join(names)}")
     return [name for name in names if name in wanted]
+
+
+def check_robot_surfaces(scenario, robot, goal=None):
+    """Refuse a scenario, or a goal given in its place, naming surfaces the robot lacks.
+
+    Raises
+    ------
+    environments.ScenarioError
+        For the scenario's stances and goal: naming the file, the key, the
+        surface and the robot's surfaces.
+    CbmError
+        For ``goal``: naming the surface and the robot's surfaces.
+    """
+    import environments
+
+    if isinstance(scenario, environments.Scenario):
+        scenario.check_robot_surfaces(robot.surfaces, f"robot {robot.name!r}")
+    if goal is not None:
+        named = [c.robot_surface for c in goal.contacts] + [r.robot_surface for r in goal.regions]
+        for robot_surface in named:
+            if robot_surface not in robot.surfaces:
+                raise CbmError(
+                    f"the goal names robot surface {robot_surface!r}, not a surface of robot {robot.name!r}; "
+                    f"its surfaces: {', '.join(robot.surfaces)}"
+                )
 
 
 def _resolve_stance(value, scenario, what):
@@ -295,8 +322,9 @@ def plan(
         Show a tqdm progress bar (stderr) during the search.
     solver_options : dict, optional
         Keyword arguments of ``stances.solve``.
-    reach : ReachLimits
-        Geometric pruning thresholds.
+    reach : ReachLimits or ReachModel
+        Ratios of the reach pruning, applied to the robot's own dimensions
+        (:mod:`cbm.reach`), or a ready reach model.
     path_cost : float
         Priority added per move, metres of goal distance.
     eager : bool
@@ -315,6 +343,8 @@ def plan(
     ------
     CbmError
         If the scenario has no start or no goal and none is given.
+    environments.ScenarioError
+        If a stance or the goal names a surface the robot lacks.
     """
     scenario = load_scenario(scenario)
     scene = scenario.scene
@@ -328,10 +358,10 @@ def plan(
         import stances
 
         robot = stances.Robot.load(scenario.robot)
+    check_robot_surfaces(scenario, robot, goal)
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
-    polygons = {name: robot.surfaces[name].polygon for name in usable}
-    print_sets = sample_prints(scene.surfaces, polygons, sampling, obstacle_boxes(scene))
+    print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
     prints = sum(len(s) for s in print_sets.values())
     logger.info(
         "%s: %d prints sampled (spacing %.3f m, %d angles)",
@@ -340,8 +370,9 @@ def plan(
         sampling.spacing,
         len(sampling.theta_values),
     )
-    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach)
-    soles = [name for name in robot.surfaces if surface_kind(name) == "sole"]
+    reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
+    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model)
+    feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     if oracle is None:
         deadline = None if time_limit is None else time.perf_counter() + time_limit
@@ -363,7 +394,7 @@ def plan(
             start,
             neighbours=neighbours,
             oracle=oracle,
-            heuristic=LookaheadHeuristic(goal, scene, neighbours, soles),
+            heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
             is_goal=lambda stance: goal.is_satisfied(stance, scene),
             path_cost_weight=path_cost,
             limits=limits,
@@ -420,7 +451,7 @@ def plan(
 
 
 def initial_configuration(robot, scene, stance):
-    """A cold-start posture: the reference posture moved over the stance's soles.
+    """A cold-start posture: the reference posture moved over the stance's feet.
 
     Parameters
     ----------
@@ -432,9 +463,9 @@ def initial_configuration(robot, scene, stance):
     -------
     (nq,) float
         ``robot.reference_configuration`` with its free flyer translated so
-        that the mid-point of its soles lies over the mid-point of the
-        stance's sole prints (or of all prints without a sole) and turned to
-        their mean heading about world z.
+        that the mid-point of its feet (surfaces of its support role) lies
+        over the mid-point of the stance's foot prints (or of all prints
+        without a foot) and turned to their mean heading about world z.
     """
     import pinocchio as pin
 
@@ -442,9 +473,9 @@ def initial_configuration(robot, scene, stance):
     model = robot.model
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
-    soles = [name for name in robot.surfaces if surface_kind(name) == "sole"]
-    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in soles], axis=0)
-    contacts = [c for c in stance if surface_kind(c.robot_surface) == "sole"] or list(stance)
+    feet = robot.surfaces_with_role(robot.support.role)
+    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in feet], axis=0)
+    contacts = [c for c in stance if c.robot_surface in feet] or list(stance)
     if not contacts:
         return q
     transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]

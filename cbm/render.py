@@ -17,7 +17,6 @@ __all__ = ["render_stance", "force_scale"]
 
 logger = logging.getLogger(__name__)
 
-_CONTACT_COLOURS = {"left_sole": "tab:blue", "right_sole": "tab:red", "left_palm": "tab:cyan", "right_palm": "tab:orange"}
 
 
 def force_scale(displays, length=0.4):
@@ -80,7 +79,7 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     joints = display.segments.reshape(-1, 3)
     axes.scatter(joints[:, 0], joints[:, 1], joints[:, 2], s=4, c="k", depthshade=False)
     for robot_surface, polygon in display.polygons.items():
-        colour = _CONTACT_COLOURS.get(robot_surface, "tab:green")
+        colour = display.colours.get(robot_surface, "tab:green")
         patch = Poly3DCollection([polygon], facecolors=colour, edgecolors=colour, alpha=0.6)
         axes.add_collection3d(patch)
         axes.plot([], [], color=colour, linewidth=6, label=robot_surface)

@@ -1,10 +1,11 @@
-"""Contact-print sampling on the scene's surfaces, and cheap reach pruning.
+"""Contact-print sampling on the scene's surfaces (reach pruning: :mod:`cbm.reach`).
 
 The paper's Sec. V explains why prints on a deformable support must be fixed
 beforehand: the FEM print (the set of surface nodes under the link) changes
 discontinuously with the print pose. So the planner searches over a finite
 grid of prints ``(x, y, theta)`` sampled on every contact surface, rigid or
-deformable, and prunes by simple distances before any posture solve.
+deformable; :mod:`cbm.reach` then prunes them by simple distances before any
+posture solve.
 """
 
 from __future__ import annotations
@@ -22,20 +23,10 @@ from .errors import CbmError
 
 __all__ = [
     "SamplingOptions",
-    "ReachLimits",
     "PrintSet",
-    "surface_kind",
-    "surface_side",
     "grid_values",
     "sample_prints",
-    "shoulders_in_world",
-    "reachable_mask",
 ]
-
-
-# Metres: prints sit on grids, so limits are often met exactly; float noise
-# must not decide.
-_EPS = 1e-9
 
 #: Most candidate prints (grid points x headings, summed over the surfaces each
 #: robot surface may touch) one sampling may consider. The built-in scenarios
@@ -58,8 +49,9 @@ class SamplingOptions:
     margin : float
         Distance every print vertex keeps inside the surface polygon, metres.
     max_sole_tilt : float
-        Soles only go on surfaces whose outward normal is within this angle of
-        world +z, radians (floors and box tops, not walls).
+        Feet (robot surfaces of role ``"foot"``) only go on surfaces whose
+        outward normal is within this angle of world +z, radians (floors and
+        box tops, not walls).
     clearance : float
         Height above a print, metres, that must be free of other objects.
     region_lower, region_upper : (2,) float or None
@@ -90,71 +82,6 @@ class SamplingOptions:
                 object.__setattr__(self, name, value)
         if self.margin < 0:
             raise CbmError(f"margin must be >= 0 metres, got {self.margin!r}")
-
-
-@dataclass(frozen=True)
-class ReachLimits:
-    """Geometric limits of a humanoid's reach, defaults suited to Talos.
-
-    All distances are metres, between print origins, world frame.
-
-    Parameters
-    ----------
-    max_step_length : float
-        Largest horizontal distance between the two sole prints (leg ~0.9 m).
-    min_sole_lateral : float
-        Smallest lateral offset of one sole from the other, measured along the
-        other sole's y axis, the left sole on the left: the legs never cross.
-    sole_clearance_length, sole_clearance_width : float
-        The soles must not overlap: in the other sole's frame, the offset is at
-        least this long forward/backward or this wide sideways (Talos's sole
-        is 0.21 m x 0.13 m).
-    max_step_height : float
-        Largest height difference between the two sole prints.
-    max_sole_yaw_difference : float
-        Largest angle between the soles' x axes, radians.
-    shoulder_height : float
-        Height of the shoulders above the mid-point of the soles.
-    shoulder_half_width : float
-        Lateral offset of each shoulder from the body's mid-plane.
-    arm_reach : float
-        Largest distance from a shoulder to the print of its palm.
-    """
-
-    max_step_length: float = 0.4
-    min_sole_lateral: float = 0.05
-    sole_clearance_length: float = 0.22
-    sole_clearance_width: float = 0.14
-    max_step_height: float = 0.3
-    max_sole_yaw_difference: float = math.radians(45.0)
-    shoulder_height: float = 1.35
-    shoulder_half_width: float = 0.2
-    arm_reach: float = 0.65
-
-    def __post_init__(self):
-        for name, value in self.__dict__.items():
-            if not (math.isfinite(value) and value >= 0):
-                raise CbmError(f"ReachLimits.{name} must be a finite non-negative number, got {value!r}")
-
-
-def surface_kind(robot_surface):
-    """Kind of a robot contact surface from its name: ``"sole"`` or ``"palm"``.
-
-    Names containing ``sole`` or ``foot`` are soles; everything else is
-    treated like a palm (it may touch any surface).
-    """
-    name = robot_surface.lower()
-    return "sole" if ("sole" in name or "foot" in name) else "palm"
-
-
-def surface_side(robot_surface):
-    """Side of a robot contact surface from its name: ``"left"``, ``"right"`` or ``""``."""
-    name = robot_surface.lower()
-    if "left" in name or name.startswith("l_"):
-        return "left"
-    if "right" in name or name.startswith("r_"):
-        return "right"
-    return ""
 
 
 @dataclass(frozen=True, eq=False)
@@ -208,25 +135,28 @@ def grid_values(lower, upper, spacing):
     return start + spacing * np.arange(count)
 
 
-def _candidate_surfaces(surfaces, robot_polygons, options):
-    """(robot surface, surface name) pairs sampled, in sampling order: soles only face up."""
-    cos_tilt = math.cos(options.max_sole_tilt)
-    pairs = []
-    for robot_surface in robot_polygons:
-        for name in sorted(surfaces):
-            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
-            if surface_kind(robot_surface) == "sole" and transform[2, 2] < cos_tilt:
-                continue
-            pairs.append((robot_surface, name))
-    return pairs
+def _faces_feet(surface, options):
+    """Whether a scene surface can take a foot: its normal within the tilt bound of world up."""
+    transform = np.asarray(surface.transform_surface_to_world, dtype=float)
+    return transform[2, 2] >= math.cos(options.max_sole_tilt)
 
 
-def count_candidate_prints(surfaces, robot_polygons, options=SamplingOptions()):
+def _candidate_surfaces(surfaces, robot_surfaces, options):
+    """(robot surface, surface name) pairs sampled, in sampling order: feet only on surfaces facing up."""
+    return [
+        (robot_surface, name)
+        for robot_surface, declared in robot_surfaces.items()
+        for name in sorted(surfaces)
+        if declared.role != "foot" or _faces_feet(surfaces[name], options)
+    ]
+
+
+def count_candidate_prints(surfaces, robot_surfaces, options=SamplingOptions()):
     """How many candidate prints :func:`sample_prints` would test, without sampling.
 
     Parameters
     ----------
-    surfaces, robot_polygons, options
+    surfaces, robot_surfaces, options
         As for :func:`sample_prints`.
 
     Returns
@@ -236,7 +166,7 @@ def count_candidate_prints(surfaces, robot_polygons, options=SamplingOptions()):
         pairs; a float because a tiny spacing makes it overflow to inf.
     """
     total = 0.0
-    for _, name in _candidate_surfaces(surfaces, robot_polygons, options):
+    for _, name in _candidate_surfaces(surfaces, robot_surfaces, options):
         polygon = np.asarray(surfaces[name].polygon, dtype=float)
         per_axis = 1.0
         for extent in (float(np.ptp(polygon[:, 0])), float(np.ptp(polygon[:, 1]))):
@@ -246,7 +176,7 @@ def count_candidate_prints(surfaces, robot_polygons, options=SamplingOptions()):
     return total
 
 
-def check_print_budget(surfaces, robot_polygons, options=SamplingOptions()):
+def check_print_budget(surfaces, robot_surfaces, options=SamplingOptions()):
     """Refuse a sampling that would test more than :data:`MAX_PRINT_CANDIDATES` prints.
 
     Raises
@@ -254,7 +184,7 @@ def check_print_budget(surfaces, robot_polygons, options=SamplingOptions()):
     CbmError
         Giving the count, the limit and the smallest print spacing that fits.
     """
-    count = count_candidate_prints(surfaces, robot_polygons, options)
+    count = count_candidate_prints(surfaces, robot_surfaces, options)
     if count <= MAX_PRINT_CANDIDATES:
         return
     # The count falls as the spacing grows: bisect (log scale) on the count alone.
@@ -266,7 +196,7 @@ def check_print_budget(surfaces, robot_polygons, options=SamplingOptions()):
     for _ in range(60):
         middle = math.sqrt(low * high)
         trial = dataclasses.replace(options, spacing=middle)
-        if count_candidate_prints(surfaces, robot_polygons, trial) > MAX_PRINT_CANDIDATES:
+        if count_candidate_prints(surfaces, robot_surfaces, trial) > MAX_PRINT_CANDIDATES:
             low = middle
         else:
             high = middle
@@ -275,7 +205,7 @@ def check_print_budget(surfaces, robot_polygons, options=SamplingOptions()):
     shown = f"about {count:.3g}" if math.isfinite(count) else "countless"
     raise CbmError(
         f"print_spacing {options.spacing:g} m would sample {shown} candidate prints ({len(options.theta_values)} "
-        f"heading(s), {len(robot_polygons)} robot surface(s)), more than the limit of {MAX_PRINT_CANDIDATES} "
+        f"heading(s), {len(robot_surfaces)} robot surface(s)), more than the limit of {MAX_PRINT_CANDIDATES} "
         f"(cbm.sampling.MAX_PRINT_CANDIDATES); use a print_spacing of at least {fits} m, or fewer headings"
     )
 
@@ -312,17 +242,19 @@ def obstacle_boxes(scene):
     return boxes
 
 
-def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles=()):
+def sample_prints(surfaces, robot_surfaces, options=SamplingOptions(), obstacles=()):
     """Sample the prints of every robot surface on every scene surface.
 
     Parameters
     ----------
     surfaces : mapping of str to environments ContactSurface
         The scene's contact surfaces (rigid and deformable).
-    robot_polygons : mapping of str to (k, 2) float
-        Each robot contact surface's polygon, metres, its contact frame.
+    robot_surfaces : mapping of str to stances RobotSurface
+        The robot contact surfaces to place: their ``polygon`` ((k, 2)
+        float, metres, contact frame) and ``role`` (feet only go on surfaces
+        facing up).
     options : SamplingOptions
-        Grid step, rotations, margin, sole tilt.
+        Grid step, rotations, margin, foot tilt.
     obstacles : sequence, optional
         Boxes of :func:`obstacle_boxes`. A print is dropped if a point
         ``options.clearance`` above one of its vertices (along the surface
@@ -333,8 +265,8 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
     -------
     dict of str to PrintSet
         For each robot surface, every print whose robot polygon lies inside
-        the surface polygon (shrunk by the margin). Soles only on surfaces
-        facing up; palms on any surface. Surfaces in name order, then x, y,
+        the surface polygon (shrunk by the margin). Feet only on surfaces
+        facing up; hands on any surface. Surfaces in name order, then x, y,
         theta: the order is deterministic.
 
     Raises
@@ -343,20 +275,17 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
         If more than :data:`MAX_PRINT_CANDIDATES` prints would be tested (see
         :func:`check_print_budget`).
     """
-    check_print_budget(surfaces, robot_polygons, options)
+    check_print_budget(surfaces, robot_surfaces, options)
     thetas = np.asarray(options.theta_values, dtype=float)
     rotations = _rotations_2d(thetas)
-    cos_tilt = math.cos(options.max_sole_tilt)
+    pairs = _candidate_surfaces(surfaces, robot_surfaces, options)
     sets = {}
-    for robot_surface, robot_polygon in robot_polygons.items():
-        robot_polygon = np.asarray(robot_polygon, dtype=float)
-        kind = surface_kind(robot_surface)
+    for robot_surface, declared in robot_surfaces.items():
+        robot_polygon = np.asarray(declared.polygon, dtype=float)
         prints, origins, x_axes = [], [], []
-        for name in sorted(surfaces):
+        for name in [name for rs, name in pairs if rs == robot_surface]:
             surface = surfaces[name]
             transform = np.asarray(surface.transform_surface_to_world, dtype=float)
-            if kind == "sole" and transform[2, 2] < cos_tilt:
-                continue
             polygon = np.asarray(surface.polygon, dtype=float)
             xs = grid_values(polygon[:, 0].min(), polygon[:, 0].max(), options.spacing)
             ys = grid_values(polygon[:, 1].min(), polygon[:, 1].max(), options.spacing)
@@ -394,109 +323,6 @@ def sample_prints(surfaces, robot_polygons, options=SamplingOptions(), obstacles
         x_axes.setflags(write=False)
         sets[robot_surface] = PrintSet(robot_surface, tuple(prints), origins, x_axes)
     return sets
-
-
-def shoulders_in_world(sole_origins, sole_x_axes, limits=ReachLimits()):
-    """Estimated shoulder positions above the soles.
-
-    Parameters
-    ----------
-    sole_origins : (s, 3) or (n, s, 3) float
-        Sole print origins, metres, world frame (s = 1 or 2 soles).
-    sole_x_axes : same shape float
-        Sole print x axes, world frame.
-    limits : ReachLimits
-        Shoulder height and half width.
-
-    Returns
-    -------
-    left, right : (3,) or (n, 3) float
-        Shoulder positions, metres, world frame: ``shoulder_height`` above the
-        soles' mid-point, ``shoulder_half_width`` to each side of the mean
-        heading.
-    """
-    middle = np.mean(sole_origins, axis=-2)
-    heading = np.mean(sole_x_axes, axis=-2)
-    heading = heading * np.array([1.0, 1.0, 0.0])
-    norm = np.linalg.norm(heading, axis=-1, keepdims=True)
-    heading = np.where(norm > 1e-9, heading / np.maximum(norm, 1e-9), np.array([1.0, 0.0, 0.0]))
-    leftward = np.stack([-heading[..., 1], heading[..., 0], np.zeros_like(heading[..., 0])], axis=-1)
-    up = np.array([0.0, 0.0, limits.shoulder_height])
-    left = middle + up + limits.shoulder_half_width * leftward
-    right = middle + up - limits.shoulder_half_width * leftward
-    return left, right
-
-
-def reachable_mask(print_set, contacts_in_world, limits=ReachLimits()):
-    """Which candidate prints of one robot surface the current contacts can reach.
-
-    Parameters
-    ----------
-    print_set : PrintSet
-        Candidates for the robot surface being added (n prints).
-    contacts_in_world : mapping of str to tuple ((3,) float, (3,) float)
-        The other contacts of the stance: robot surface -> (print origin,
-        print x axis), metres, world frame.
-    limits : ReachLimits
-        Thresholds.
-
-    Returns
-    -------
-    (n,) bool
-        For a sole: within a step of the other sole (length, height, yaw, on
-        its own side, not overlapping it), and every palm in contact still within arm reach of the
-        shoulders above the new pair of soles. For a palm: within arm reach of
-        its shoulder above the soles. Without any sole in contact, nothing is
-        reachable.
-    """
-    origins, x_axes = print_set.origins_in_world, print_set.x_axes_in_world
-    n = len(print_set)
-    adding = print_set.robot_surface
-    side = surface_side(adding)
-    soles = {rs: v for rs, v in contacts_in_world.items() if surface_kind(rs) == "sole"}
-    palms = {rs: v for rs, v in contacts_in_world.items() if surface_kind(rs) == "palm"}
-    if not soles or n == 0:
-        return np.zeros(n, dtype=bool)
-    mask = np.ones(n, dtype=bool)
-    if surface_kind(adding) == "sole":
-        other_origin, other_x = next(iter(soles.values()))
-        delta = origins - other_origin
-        mask &= np.hypot(delta[:, 0], delta[:, 1]) <= limits.max_step_length + _EPS
-        mask &= np.abs(delta[:, 2]) <= limits.max_step_height + _EPS
-        cos_yaw = _horizontal_cosine(x_axes, other_x)
-        mask &= cos_yaw >= math.cos(limits.max_sole_yaw_difference) - _EPS
-        other_left = np.array([-other_x[1], other_x[0], 0.0])
-        other_left /= max(np.linalg.norm(other_left), 1e-9)
-        lateral = delta @ other_left
-        forward = delta @ (other_x * np.array([1.0, 1.0, 0.0])) / max(np.linalg.norm(other_x[:2]), 1e-9)
-        if side == "left":
-            mask &= lateral >= limits.min_sole_lateral - _EPS
-        elif side == "right":
-            mask &= lateral <= -limits.min_sole_lateral + _EPS
-        mask &= (np.abs(forward) >= limits.sole_clearance_length - _EPS) | (
-            np.abs(lateral) >= limits.sole_clearance_width - _EPS
-        )
-        sole_origins = np.stack([origins, np.broadcast_to(other_origin, origins.shape)], axis=1)
-        sole_x_axes = np.stack([x_axes, np.broadcast_to(other_x, x_axes.shape)], axis=1)
-        left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
-        for palm, (palm_origin, _) in palms.items():
-            shoulder = right if surface_side(palm) == "right" else left
-            mask &= np.linalg.norm(shoulder - palm_origin, axis=1) <= limits.arm_reach + _EPS
-    else:
-        sole_origins = np.array([v[0] for v in soles.values()])
-        sole_x_axes = np.array([v[1] for v in soles.values()])
-        left, right = shoulders_in_world(sole_origins, sole_x_axes, limits)
-        shoulder = right if side == "right" else left
-        mask &= np.linalg.norm(origins - shoulder, axis=1) <= limits.arm_reach + _EPS
-    return mask
-
-
-def _horizontal_cosine(vectors, reference):
-    """Cosine of the angle between horizontal projections, (n,)."""
-    a = np.asarray(vectors, dtype=float)[:, :2]
-    b = np.asarray(reference, dtype=float)[:2]
-    norms = np.linalg.norm(a, axis=1) * max(np.linalg.norm(b), 1e-12)
-    return (a @ b) / np.maximum(norms, 1e-12)
 
 
 def contacts_in_world(stance, surfaces):

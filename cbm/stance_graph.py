@@ -1,4 +1,4 @@
-"""Neighbours of a stance: add one contact or remove one, keeping a sole down."""
+"""Neighbours of a stance: add one contact or remove one, keeping the robot's support."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import numpy as np
 
 from environments.stance import Contact, ContactPrint
 
-from .sampling import ReachLimits, contacts_in_world, reachable_mask, surface_kind
+from .sampling import contacts_in_world
 
 __all__ = ["Move", "StanceNeighbours", "differ_by_one_contact"]
 
@@ -52,28 +52,28 @@ class StanceNeighbours:
         Candidate prints per robot surface.
     surfaces : mapping of str to ContactSurface
         The scene's surfaces (to place the stance's prints in the world).
-    limits : ReachLimits
-        Reach pruning thresholds.
+    reach : cbm.reach.ReachModel
+        The robot's reach and support rule.
 
     Notes
     -----
-    A stance keeps at least one sole in contact: lifting the last sole is not
-    a neighbour. Added prints must pass :func:`sampling.reachable_mask`.
+    A stance keeps the robot's support (a biped: a foot in contact): lifting
+    a surface that would break it is not a neighbour. Added prints must pass
+    :meth:`cbm.reach.ReachModel.reachable_mask`.
     """
 
-    def __init__(self, print_sets, surfaces, limits=ReachLimits()):
+    def __init__(self, print_sets, surfaces, reach):
         self.print_sets = dict(print_sets)
         self.surfaces = surfaces
-        self.limits = limits
+        self.reach = reach
         self.pruned = 0  # candidate prints removed by reach pruning so far
 
     def __call__(self, stance):
         """List ``(neighbour stance, Move)`` pairs: removals first, then additions."""
         result = []
         in_contact = stance.robot_surfaces
-        soles = [rs for rs in in_contact if surface_kind(rs) == "sole"]
         for robot_surface in in_contact:
-            if surface_kind(robot_surface) == "sole" and len(soles) == 1:
+            if not self.reach.may_lift(robot_surface, in_contact):
                 continue
             result.append((stance.without(robot_surface), Move("remove", robot_surface)))
         placed = contacts_in_world(stance, self.surfaces)
@@ -92,12 +92,12 @@ class StanceNeighbours:
         robot_surface : str
             Robot surface to place.
         placed : dict, optional
-            :func:`sampling.contacts_in_world` of ``stance``, if known.
+            :func:`cbm.sampling.contacts_in_world` of ``stance``, if known.
         """
         if placed is None:
             placed = contacts_in_world(stance, self.surfaces)
         print_set = self.print_sets[robot_surface]
-        mask = reachable_mask(print_set, placed, self.limits)
+        mask = self.reach.reachable_mask(print_set, placed)
         self.pruned += int(len(mask) - np.count_nonzero(mask))
         return [
             (

@@ -2,7 +2,7 @@
 
 A scenario file (see ``environments/scenarios/*.yaml`` for examples)::
 
-    robot: talos                      # default talos
+    robot: talos                      # default talos; or a robot description file (.yaml)
     description: Both feet on the floor.
     objects:                          # a list; each has a name and a type
       - {name: floor, type: floor}    # top at z = 0; its surface is named like it
@@ -42,7 +42,7 @@ from typing import Any
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal
 from .options import validate_options
-from .scenario_reader import read_scenario_fields
+from .scenario_reader import line_of, read_scenario_fields
 from .scene import Scene
 from .stance import Stance
 
@@ -63,7 +63,8 @@ class Scenario:
     scene : Scene
         Objects and contact surfaces.
     robot : str
-        Robot name, e.g. ``"talos"``.
+        Built-in robot name, e.g. ``"talos"``, or the path of a robot
+        description file.
     stances : dict of str to Stance
         Named stances.
     start : str or None
@@ -82,6 +83,8 @@ class Scenario:
     text : str or None
         The YAML document it was read from (None for a scenario built in code),
         kept so that a plan can carry its scenario and be checked anywhere.
+    lines : dict of str to int
+        Line of each key path in that file, for messages.
 
     Examples
     --------
@@ -100,6 +103,7 @@ class Scenario:
     options: Mapping[str, Any] = field(default_factory=dict)
     path: Path | None = None
     text: str | None = None
+    lines: Mapping[str, int] = field(default_factory=dict, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         if not isinstance(self.scene, Scene):
@@ -127,6 +131,44 @@ class Scenario:
             raise SceneError(
                 f"scenario {self.name!r}: unknown stance {name!r}; stances: {known_names(self.stances)}"
             ) from None
+
+    def check_robot_surfaces(self, robot_surfaces, robot_name: str = "the robot") -> None:
+        """Check that every stance and goal names only surfaces the robot has.
+
+        Parameters
+        ----------
+        robot_surfaces : iterable of str
+            The robot's contact surface names.
+        robot_name : str
+            For the message.
+
+        Raises
+        ------
+        ScenarioError
+            At the first contact or goal region naming another surface: the
+            file, key path and line, the surface, and the robot's surfaces.
+
+        Examples
+        --------
+        >>> load("stand").check_robot_surfaces(["left_foot", "right_foot"], "a robot")
+        Traceback (most recent call last):
+        ...
+        environments.errors.ScenarioError: ...: stances.stand.left_sole: robot surface 'left_sole' is not a surface of a robot; its surfaces: left_foot, right_foot
+        """
+        known = list(robot_surfaces)
+        uses = [(f"stances.{name}.{c.robot_surface}", c.robot_surface) for name, st in self.stances.items() for c in st]
+        if self.goal is not None:
+            uses += [(f"goal.contacts.{c.robot_surface}", c.robot_surface) for c in self.goal.contacts]
+            uses += [(f"goal.regions[{i}].robot_surface", r.robot_surface) for i, r in enumerate(self.goal.regions)]
+        for key, robot_surface in uses:
+            if robot_surface not in known:
+                raise ScenarioError(
+                    self.path,
+                    key,
+                    f"robot surface {robot_surface!r} is not a surface of {robot_name}; its surfaces: "
+                    f"{', '.join(known) or '(none)'}",
+                    line=line_of(self.lines, key),
+                )
 
     @property
     def start_stance(self) -> Stance | None:

@@ -21,11 +21,12 @@ from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
 from .options import validate_options
+from .plain_data import checked_mapping, join_key, kind_of
 from .scene import Scene
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
 
-__all__ = ["read_scenario_fields", "SCENARIO_KEYS", "OBJECT_KEYS", "NESTED_KEYS"]
+__all__ = ["read_scenario_fields", "line_of", "ROBOT_FILE_SUFFIXES", "SCENARIO_KEYS", "OBJECT_KEYS", "NESTED_KEYS"]
 
 #: Keys of a scenario document.
 SCENARIO_KEYS = ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options")
@@ -53,6 +54,18 @@ NESTED_KEYS = {
     "goal region": ("robot_surface", "lower", "upper"),
     "surface override": ("friction",),
 }
+
+#: A ``robot:`` value ending so is a robot description file, relative to the
+#: scenario file; any other value is a built-in robot name.
+ROBOT_FILE_SUFFIXES = (".yaml", ".yml")
+
+
+def line_of(lines: dict, key: str) -> int | None:
+    """Line of a dotted key path, or of its nearest enclosing key, in a recorded line map."""
+    probe = key
+    while probe not in lines and probe:
+        probe = probe.rpartition(".")[0] if "." in probe else ""
+    return lines.get(probe)
 
 
 def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> dict:
@@ -162,24 +175,13 @@ class _Reader:
 
     # ------------------------------------------------------------------ basics
     def error(self, key: str, message: str) -> ScenarioError:
-        probe = key
-        while probe not in self.lines and probe:
-            probe = probe.rpartition(".")[0] if "." in probe else ""
-        return ScenarioError(self.path, key, message, line=self.lines.get(probe))
+        return ScenarioError(self.path, key, message, line=line_of(self.lines, key))
 
     def mapping(self, value, key: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
-        if not isinstance(value, Mapping):
-            raise self.error(key, f"must be a mapping with keys {', '.join(allowed)}; got {_kind(value)}")
-        for name in value:
-            if name not in allowed:
-                raise self.error(_join(key, name), f"unknown key {name!r}; valid keys: {', '.join(allowed)}")
-        for name in required:
-            if name not in value:
-                raise self.error(key, f"missing key {name!r}")
-        return dict(value)
+        return checked_mapping(value, key, allowed, required, self.error)
 
     def number(self, data: Mapping, name: str, key: str, default=_MISSING, positive=False) -> float:
-        where = _join(key, name)
+        where = join_key(key, name)
         if name not in data:
             if default is _MISSING:
                 raise self.error(key, f"missing key {name!r}")
@@ -189,7 +191,7 @@ class _Reader:
     def to_number(self, value, where: str, positive: bool = False) -> float:
         # YAML 1.1 reads "1e6" (no dot) as a string: accept any string float() reads.
         if isinstance(value, bool) or not isinstance(value, (int, float, str)):
-            raise self.error(where, f"must be a number, got {_kind(value)}")
+            raise self.error(where, f"must be a number, got {kind_of(value)}")
         try:
             number = float(value)
         except ValueError:
@@ -201,14 +203,14 @@ class _Reader:
         return number
 
     def vector(self, data: Mapping, name: str, key: str, length: int, default=_MISSING, positive=False) -> np.ndarray:
-        where = _join(key, name)
+        where = join_key(key, name)
         if name not in data:
             if default is _MISSING:
                 raise self.error(key, f"missing key {name!r}")
             return np.array(default, dtype=float)
         value = data[name]
         if not isinstance(value, list) or len(value) != length:
-            raise self.error(where, f"must be a list of {length} numbers, got {_kind(value)}")
+            raise self.error(where, f"must be a list of {length} numbers, got {kind_of(value)}")
         return np.array([self.to_number(v, f"{where}[{i}]", positive) for i, v in enumerate(value)])
 
     def string(self, data: Mapping, name: str, key: str, default=_MISSING) -> str:
@@ -218,13 +220,13 @@ class _Reader:
             return default
         value = data[name]
         if not isinstance(value, str) or not value:
-            raise self.error(_join(key, name), f"must be a non-empty string, got {_kind(value)}")
+            raise self.error(join_key(key, name), f"must be a non-empty string, got {kind_of(value)}")
         return value
 
     def boolean(self, data: Mapping, name: str, key: str, default: bool) -> bool:
         value = data.get(name, default)
         if not isinstance(value, bool):
-            raise self.error(_join(key, name), f"must be true or false, got {_kind(value)}")
+            raise self.error(join_key(key, name), f"must be true or false, got {kind_of(value)}")
         return value
 
     # ---------------------------------------------------------------- scenario
@@ -237,14 +239,14 @@ class _Reader:
         )
         default_name = self.path.stem if self.path is not None else "scenario"
         name = name if name is not None else self.string(top, "name", "", default_name)
-        robot = self.string(top, "robot", "", "talos")
+        robot = self.robot(self.string(top, "robot", "", "talos"))
         description = top.get("description", "")
         if not isinstance(description, str):
-            raise self.error("description", f"must be text, got {_kind(description)}")
+            raise self.error("description", f"must be text, got {kind_of(description)}")
         scene = self.scene(name, top["objects"], top.get("surfaces", {}))
         stances_data = top["stances"]
         if not isinstance(stances_data, Mapping) or not stances_data:
-            raise self.error("stances", f"must be a non-empty mapping of stance names to contacts, got {_kind(stances_data)}")
+            raise self.error("stances", f"must be a non-empty mapping of stance names to contacts, got {kind_of(stances_data)}")
         stances = {
             str(stance_name): self.stance(contacts, f"stances.{stance_name}", scene)
             for stance_name, contacts in stances_data.items()
@@ -267,11 +269,22 @@ class _Reader:
             description=description.strip(),
             options=options,
             path=self.path,
+            lines=dict(self.lines),
         )
+
+    def robot(self, value: str) -> str:
+        """A built-in robot name as is, or a description file made absolute (relative to this file)."""
+        if not value.endswith(ROBOT_FILE_SUFFIXES):
+            return value
+        base = self.path.parent if self.path is not None else Path.cwd()
+        file_path = (base / value).resolve()
+        if not file_path.is_file():
+            raise self.error("robot", f"robot description file not found: {file_path}")
+        return str(file_path)
 
     def scene(self, name: str, objects_data, surfaces_data) -> Scene:
         if not isinstance(objects_data, list) or not objects_data:
-            raise self.error("objects", f"must be a non-empty list of objects, got {_kind(objects_data)}")
+            raise self.error("objects", f"must be a non-empty list of objects, got {kind_of(objects_data)}")
         rigid: list[RigidObject] = []
         deformable: list[DeformableObject] = []
         surfaces: list[ContactSurface] = []
@@ -279,11 +292,11 @@ class _Reader:
         for index, item in enumerate(objects_data):
             key = f"objects[{index}]"
             if not isinstance(item, Mapping):
-                raise self.error(key, f"must be a mapping with a 'type', got {_kind(item)}")
+                raise self.error(key, f"must be a mapping with a 'type', got {kind_of(item)}")
             kind = item.get("type")
             builders = {kind: getattr(self, kind) for kind in OBJECT_KEYS}
             if kind not in builders:
-                raise self.error(_join(key, "type"), f"unknown or missing type {kind!r}; valid types: {', '.join(builders)}")
+                raise self.error(join_key(key, "type"), f"unknown or missing type {kind!r}; valid types: {', '.join(builders)}")
             try:
                 obj, obj_surfaces = builders[kind](item, key)
             except ScenarioError:
@@ -297,7 +310,7 @@ class _Reader:
                     raise
                 raise self.error(key, f"{type(error).__name__}: {error}") from None
             if obj.name in names:
-                raise self.error(_join(key, "name"), f"repeated object name {obj.name!r}")
+                raise self.error(join_key(key, "name"), f"repeated object name {obj.name!r}")
             names.add(obj.name)
             (deformable if obj.deformable else rigid).append(obj)
             surfaces.extend(obj_surfaces)
@@ -309,7 +322,7 @@ class _Reader:
 
     def surface_overrides(self, data, surfaces: list[ContactSurface]) -> list[ContactSurface]:
         if not isinstance(data, Mapping):
-            raise self.error("surfaces", f"must be a mapping of surface names to settings, got {_kind(data)}")
+            raise self.error("surfaces", f"must be a mapping of surface names to settings, got {kind_of(data)}")
         by_name = {surface.name: surface for surface in surfaces}
         for surface_name, settings in data.items():
             key = f"surfaces.{surface_name}"
@@ -346,7 +359,7 @@ class _Reader:
         refine = item.get("refine")
         if refine is not None:
             if not (isinstance(refine, list) and len(refine) == 2 and all(isinstance(r, list) and len(r) == 2 for r in refine)):
-                raise self.error(_join(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
+                raise self.error(join_key(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
             refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
         material = self.material(item, key)
         obj, top = soft_box(
@@ -367,14 +380,14 @@ class _Reader:
         if isinstance(resolution, str):
             if resolution not in RESOLUTIONS:
                 raise self.error(
-                    _join(key, "resolution"),
+                    join_key(key, "resolution"),
                     f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres",
                 )
             return resolution
-        return self.to_number(resolution, _join(key, "resolution"), positive=True)
+        return self.to_number(resolution, join_key(key, "resolution"), positive=True)
 
     def material(self, item: Mapping, key: str):
-        material_key = _join(key, "material")
+        material_key = join_key(key, "material")
         material_data = self.mapping(item["material"], material_key, NESTED_KEYS["material"], ("E", "nu"))
         fem = _fem()
         try:
@@ -395,7 +408,7 @@ class _Reader:
         name = self.string(item, "name", key)
         blocks_data = item["blocks"]
         if not isinstance(blocks_data, list) or not blocks_data:
-            raise self.error(_join(key, "blocks"), f"must be a non-empty list of {{name, size, center}}, got {_kind(blocks_data)}")
+            raise self.error(join_key(key, "blocks"), f"must be a non-empty list of {{name, size, center}}, got {kind_of(blocks_data)}")
         blocks = []
         for index, block in enumerate(blocks_data):
             block_key = f"{key}.blocks[{index}]"
@@ -421,7 +434,7 @@ class _Reader:
         base = self.path.parent if self.path is not None else Path.cwd()
         file_path = (base / file_name).resolve()
         if not file_path.is_file():
-            raise self.error(_join(key, "file"), f"mesh file not found: {file_path}")
+            raise self.error(join_key(key, "file"), f"mesh file not found: {file_path}")
         obj = mesh_object(
             name,
             str(file_path),
@@ -430,14 +443,14 @@ class _Reader:
         )
         surfaces_data = item.get("surfaces", [])
         if not isinstance(surfaces_data, list):
-            raise self.error(_join(key, "surfaces"), f"must be a list of surfaces, got {_kind(surfaces_data)}")
+            raise self.error(join_key(key, "surfaces"), f"must be a list of surfaces, got {kind_of(surfaces_data)}")
         surfaces = []
         for index, surface_item in enumerate(surfaces_data):
             surface_key = f"{key}.surfaces[{index}]"
             surface_item = self.mapping(surface_item, surface_key, NESTED_KEYS["mesh surface"], ("name", "polygon"))
             polygon = surface_item["polygon"]
             if not isinstance(polygon, list) or not all(isinstance(p, list) and len(p) == 2 for p in polygon):
-                raise self.error(_join(surface_key, "polygon"), "must be a list of [x, y] vertices, counter-clockwise")
+                raise self.error(join_key(surface_key, "polygon"), "must be a list of [x, y] vertices, counter-clockwise")
             polygon = [[self.to_number(v, f"{surface_key}.polygon[{i}]") for v in p] for i, p in enumerate(polygon)]
             rpy = np.radians(self.vector(surface_item, "rpy_deg", surface_key, 3, (0.0, 0.0, 0.0)))
             transform_surface_to_object = np.eye(4)
@@ -463,7 +476,7 @@ class _Reader:
     # ------------------------------------------------------------------ stances
     def contacts(self, data, key: str, scene: Scene) -> tuple[Contact, ...]:
         if not isinstance(data, Mapping) or not data:
-            raise self.error(key, f"must be a non-empty mapping robot_surface -> {{surface, x, y, theta_deg}}, got {_kind(data)}")
+            raise self.error(key, f"must be a non-empty mapping robot_surface -> {{surface, x, y, theta_deg}}, got {kind_of(data)}")
         contacts = []
         for robot_surface, print_data in data.items():
             print_key = f"{key}.{robot_surface}"
@@ -471,12 +484,12 @@ class _Reader:
             surface_name = print_data["surface"]
             if surface_name not in scene.surfaces:
                 raise self.error(
-                    _join(print_key, "surface"),
+                    join_key(print_key, "surface"),
                     f"unknown surface {surface_name!r}; known surfaces: {known_names(scene.surfaces)}",
                 )
             for name in ("x", "y", "theta", "theta_deg"):
                 if name in print_data:
-                    self.to_number(print_data[name], _join(print_key, name))
+                    self.to_number(print_data[name], join_key(print_key, name))
             try:
                 contact_print = contact_print_from_dict(str(robot_surface), print_data)
                 scene.check_print(contact_print)
@@ -502,7 +515,7 @@ class _Reader:
             contacts = stances[stance_name].contacts
         regions_data = data.get("regions", [])
         if not isinstance(regions_data, list):
-            raise self.error("goal.regions", f"must be a list, got {_kind(regions_data)}")
+            raise self.error("goal.regions", f"must be a list, got {kind_of(regions_data)}")
         regions = []
         for index, item in enumerate(regions_data):
             key = f"goal.regions[{index}]"
@@ -523,17 +536,3 @@ def _is_fem_error(error: Exception) -> bool:
     except ImportError:  # pragma: no cover - fem is part of the project
         return False
     return isinstance(error, FemError)
-
-
-def _join(key: str, name) -> str:
-    return f"{key}.{name}" if key else str(name)
-
-
-def _kind(value) -> str:
-    if value is None:
-        return "nothing"
-    if isinstance(value, Mapping):
-        return "a mapping"
-    if isinstance(value, list):
-        return f"a list of {len(value)}"
-    return f"{type(value).__name__} {value!r}"

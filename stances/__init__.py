@@ -10,6 +10,7 @@ Build a problem, solve it, check it::
     (True, True)
 """
 
+from .description import RobotDescription, RobotDescriptionError, SupportRule, builtin_robot_names, read_description
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
 from .results import PointForce, PostureResult, Verification
@@ -25,12 +26,17 @@ __all__ = [
     "PostureProblem",
     "PostureResult",
     "Robot",
+    "RobotDescription",
+    "RobotDescriptionError",
     "RobotNotFound",
     "RobotSurface",
     "StanceError",
+    "SupportRule",
     "SurfaceDeclaration",
     "Verification",
     "build_problem",
+    "builtin_robot_names",
+    "read_description",
     "solve",
     "solve_problem",
     "verify",

@@ -27,12 +27,15 @@ class FrameNotFound(StanceError):
         The name that was not found.
     known : iterable of str
         The valid names, listed in the message so the user can pick one.
+    context : str, optional
+        Who asked for the name (``"robot surface 'left_sole'"``), put first in the message.
     """
 
-    def __init__(self, kind: str, name: str, known) -> None:
+    def __init__(self, kind: str, name: str, known, context: str = "") -> None:
         known = sorted(known)
         shown = ", ".join(known[:40]) + (", ..." if len(known) > 40 else "")
-        super().__init__(f"unknown {kind} {name!r}; known {kind}s: {shown}")
+        prefix = f"{context}: " if context else ""
+        super().__init__(f"{prefix}unknown {kind} {name!r}; known {kind}s: {shown}")
         self.name = name
         self.known = known
 

@@ -68,6 +68,29 @@ def _convex(vertices: np.ndarray, faces: np.ndarray):
     return coal.Convex(points, triangles)
 
 
+def _mesh_points(geometry_object) -> np.ndarray:
+    """(n, 3) float: a collision mesh's vertices, scaled, metres, geometry frame.
+
+    Read from the mesh file; when trimesh cannot read it (COLLADA files, such
+    as Romeo's, need pycollada), the copy pinocchio loaded (scale applied).
+
+    Raises
+    ------
+    CollisionSetupError
+        If neither the file nor pinocchio's copy gives vertices.
+    """
+    try:
+        mesh = trimesh.load(geometry_object.meshPath, force="mesh")
+    except Exception as error:  # trimesh raises many types on unreadable files
+        shape = geometry_object.geometry
+        if hasattr(shape, "vertices") and shape.num_vertices > 0:
+            return np.asarray(shape.vertices(), dtype=float)
+        raise CollisionSetupError(
+            f"cannot read collision mesh {geometry_object.meshPath!r} of {geometry_object.name!r}: {error}"
+        ) from error
+    return np.asarray(mesh.vertices, dtype=float) * np.asarray(geometry_object.meshScale)
+
+
 def robot_shape(geometry_object):
     """coal shape of a robot collision geometry and its bounding sphere.
 
@@ -93,16 +116,9 @@ def robot_shape(geometry_object):
     shape = geometry_object.geometry
     kind = type(shape).__name__
     if geometry_object.meshPath and ("BVH" in kind or "Convex" in kind):
-        try:
-            mesh = trimesh.load(geometry_object.meshPath, force="mesh")
-        except Exception as error:  # trimesh raises many types on unreadable files
-            raise CollisionSetupError(
-                f"cannot read collision mesh {geometry_object.meshPath!r} of "
-                f"{geometry_object.name!r}: {error}"
-            ) from error
         # Negative scales mirror the mesh (Talos's right limbs); the hull of the
         # scaled points is rebuilt, so its faces are outward-oriented again.
-        points = np.asarray(mesh.vertices, dtype=float) * np.asarray(geometry_object.meshScale)
+        points = _mesh_points(geometry_object)
         hull = trimesh.convex.convex_hull(points)
         vertices = np.asarray(hull.vertices, dtype=float)
         center = 0.5 * (vertices.min(axis=0) + vertices.max(axis=0))

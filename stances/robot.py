@@ -1,9 +1,10 @@
 """The robot: a pinocchio model with declared contact surfaces.
 
-A :class:`Robot` bundles what the posture solver needs to know about a
-humanoid: its kinematic and inertial model, its collision geometry with the
-self-collision pairs its SRDF allows, its joint and torque limits, a reference
-posture, and the planar surfaces it may put in contact (soles, palm plates).
+A :class:`Robot` bundles what the posture solver and the planner need to know
+about a legged robot: its kinematic and inertial model, its collision geometry
+with the self-collision pairs its SRDF allows, its joint and torque limits, a
+reference posture, the planar surfaces it may put in contact (soles, palm
+plates) with their role (foot or hand) and limb, and its support rule.
 
 Contact-frame convention (used everywhere in :mod:`stances`): each robot
 surface has a frame whose origin lies on the surface and whose z axis points
@@ -11,20 +12,32 @@ surface has a frame whose origin lies on the surface and whose z axis points
 then simply "the robot surface frame coincides with the print frame", whose z
 axis is the environment surface's outward normal.
 
-Talos (the paper's HRP-2 is not public) is loaded from the files installed by
-the ``example-robot-data`` package; no path of one machine is hard-coded.
+Robots are data: :meth:`Robot.load` reads a robot description
+(:mod:`stances.description`; the built-in ones, Talos and Romeo, point to the
+files installed by the ``example-robot-data`` package, so no path of one
+machine is hard-coded).
 """
 
 from __future__ import annotations
 
-import importlib.metadata
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
-from .errors import FrameNotFound, RobotNotFound, StanceError
+from .description import (
+    BUILTIN_DIRECTORY,
+    ROLES,
+    RobotDescription,
+    RobotDescriptionError,
+    SupportRule,
+    SurfaceDeclaration,
+    builtin_robot_names,
+    example_robot_data_share,
+    read_description,
+)
+from .errors import FrameNotFound, StanceError
 from .plates import PlateDeclaration, mount_plate, plate_geometry
 
 
@@ -46,12 +59,18 @@ class RobotSurface:
         Collision geometries that form the surface: the only ones allowed to
         touch the support the surface rests on (a palm's plate, the foot whose
         bottom is the sole). Every other geometry keeps its distance.
+    role : str
+        ``"foot"`` or ``"hand"`` (see :data:`stances.description.ROLES`).
+    limb : str
+        Limb the surface ends, a key of :attr:`Robot.limbs`.
     """
 
     name: str
     frame: str
     polygon: np.ndarray
     contact_geometries: tuple = ()
+    role: str = "foot"
+    limb: str = ""
 
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=float)
@@ -60,6 +79,8 @@ class RobotSurface:
                 f"robot surface {self.name!r}: polygon must be (k, 2) with k >= 3, "
                 f"got shape {polygon.shape}"
             )
+        if self.role not in ROLES:
+            raise StanceError(f"robot surface {self.name!r}: unknown role {self.role!r}; roles: {', '.join(ROLES)}")
         polygon.setflags(write=False)
         object.__setattr__(self, "polygon", polygon)
         object.__setattr__(self, "contact_geometries", tuple(str(name) for name in self.contact_geometries))
@@ -76,108 +97,45 @@ class RobotSurface:
         return 0.5 * abs(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1)))
 
 
-@dataclass(frozen=True)
-class SurfaceDeclaration:
-    """Where a robot surface sits on a link, before it is added to a model.
-
-    Parameters
-    ----------
-    name : str
-        Robot surface name.
-    parent_frame : str
-        Existing pinocchio frame the surface is attached to.
-    placement : pin.SE3
-        Transform from the contact frame to ``parent_frame``; with a plate,
-        from the plate's mounting frame (the link's flange, oriented as the
-        contact frame), which the contact frame then lies beyond along its
-        normal (see :func:`stances.plates.mount_plate`).
-    polygon : (k, 2) float
-        Vertices in the contact frame, metres.
-    plate : PlateDeclaration, optional
-        A plate carrying the surface, in place of part of the link (a hand's
-        gripper): its box becomes a collision geometry named
-        ``"<name>_plate"``, the surface's only contact geometry.
-    """
-
-    name: str
-    parent_frame: str
-    placement: pin.SE3
-    polygon: np.ndarray
-    plate: PlateDeclaration | None = None
+def _chain_to_root(model, joint: int) -> list[int]:
+    """Joint indices from ``joint`` up to the universe's child (the free flyer), inclusive."""
+    chain = [joint]
+    while model.parents[chain[-1]] > 0:
+        chain.append(model.parents[chain[-1]])
+    return chain
 
 
-def _rectangle(x_min: float, x_max: float, y_min: float, y_max: float) -> np.ndarray:
-    return np.array([[x_min, y_min], [x_max, y_min], [x_max, y_max], [x_min, y_max]])
+def _limb_roots(model, surfaces, limbs) -> dict:
+    """Each limb's root joint name, checked against the surfaces that end the limb.
 
-
-# Talos's feet: the sole frames already have z up (into the foot) at ground
-# level; the rectangle is the bottom of the foot's collision mesh, slightly
-# shrunk so that contact-point forces stay inside the real sole.
-_TALOS_SOLE = _rectangle(-0.10, 0.11, -0.065, 0.065)
-# The foot mesh's bottom is the sole plane to within 0.4 mm (a few vertices of
-# the mesh lie up to 0.40 mm below it, measured): the foot mesh itself is the
-# sole's contact geometry, and no other geometry of the foot link exists.
-# The paper's "modified hand link": a flat plate replacing the gripper. It is
-# mounted on the wrist flange (the tool frame, whose z axis already points back
-# into the forearm, the contact-frame convention), past the wrist's own
-# collision geometry: the forearm mesh reaches 17.0 mm beyond the flange
-# (measured when the robot is built, see stances.plates). Its outer face, 27 mm
-# from the flange with a 10 mm plate, is the palm.
-_TALOS_PALM = _rectangle(-0.05, 0.05, -0.035, 0.035)
-_TALOS_PALM_THICKNESS = 0.01
-# Turned half a turn about the normal so that, with the forearm pointing down
-# in front of the robot, the palm's x axis points forward: a print with
-# theta = 0 is then the natural hand orientation.
-_PALM_PLACEMENT = pin.SE3(pin.utils.rotate("z", np.pi), np.zeros(3))
-# The plate takes the gripper's mass (1.184 kg, its links' total in the URDF),
-# so that the robot weighs what Talos weighs; the mass moves from the gripper's
-# centre (134 mm past the wrist joint) to the plate's (86 mm past it).
-_LEFT_PALM_PLATE = PlateDeclaration(_TALOS_PALM_THICKNESS, replaces="gripper_left_")
-_RIGHT_PALM_PLATE = PlateDeclaration(_TALOS_PALM_THICKNESS, replaces="gripper_right_")
-
-TALOS_SURFACES = (
-    SurfaceDeclaration("left_sole", "left_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
-    SurfaceDeclaration("right_sole", "right_sole_link", pin.SE3.Identity(), _TALOS_SOLE),
-    SurfaceDeclaration("left_palm", "wrist_left_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM, _LEFT_PALM_PLATE),
-    SurfaceDeclaration("right_palm", "wrist_right_ft_tool_link", _PALM_PLACEMENT, _TALOS_PALM, _RIGHT_PALM_PLATE),
-)
-# The grippers are replaced by the palm plates (locked first: a plate cannot
-# replace a moving part), and the head does not take part in static postures:
-# locking them keeps the problem small (nv = 34).
-TALOS_LOCKED_JOINTS = ("gripper_left_joint", "gripper_right_joint", "head_1_joint", "head_2_joint")
-# Pairs the SRDF marks "Never" that solved postures do bring into contact: the
-# forearm against the wrist's force-torque sensor (measured -1.13 mm in
-# hand-on-soft-cube before these were checked; 3.6 mm for arm 6). At the
-# reference posture they are 15.5 and 12.8 mm apart.
-TALOS_CHECKED_PAIRS = tuple(
-    (f"arm_{side}_{link}_link_0", f"wrist_{side}_ft_link_0") for side in ("left", "right") for link in (5, 6)
-)
-
-
-def example_robot_data_share() -> Path:
-    """Directory holding example-robot-data's ``robots/`` folder.
-
-    Returns
-    -------
-    Path
-        The ``share`` directory usable as a pinocchio package directory, so that
-        ``package://example-robot-data/...`` mesh URIs resolve.
+    Without ``limbs``, a limb's root is the joint just below the last branching
+    joint above its first surface: the hip of a leg, the shoulder of an arm.
 
     Raises
     ------
-    RobotNotFound
-        If example-robot-data is not installed.
+    FrameNotFound
+        For a root joint not in the model, or a surface limb not in ``limbs``.
+    StanceError
+        If a surface is not below its limb's root joint.
     """
-    try:
-        distribution = importlib.metadata.distribution("example-robot-data")
-    except importlib.metadata.PackageNotFoundError as error:
-        raise RobotNotFound(
-            "example-robot-data is not installed; `pip install example-robot-data`"
-        ) from error
-    share = Path(distribution.locate_file("cmeel.prefix/share"))
-    if not (share / "example-robot-data" / "robots").is_dir():
-        raise RobotNotFound(f"example-robot-data's robots folder is missing under {share}")
-    return share
+    children = np.bincount(np.asarray(model.parents[1:], dtype=int), minlength=model.njoints)
+    roots = {} if limbs is None else dict(limbs)
+    for surface in surfaces.values():
+        chain = _chain_to_root(model, model.frames[model.getFrameId(surface.frame)].parentJoint)
+        if limbs is None and surface.limb not in roots:
+            below_branch = [joint for joint in chain if children[model.parents[joint]] > 1] or [chain[-1]]
+            roots[surface.limb] = model.names[below_branch[0]]
+        if surface.limb not in roots:
+            raise FrameNotFound("limb", surface.limb, roots, f"robot surface {surface.name!r}")
+        root = roots[surface.limb]
+        if not model.existJointName(root):
+            raise FrameNotFound("joint", root, list(model.names)[1:], f"limb {surface.limb!r}")
+        if model.getJointId(root) not in chain:
+            raise StanceError(
+                f"robot surface {surface.name!r} on limb {surface.limb!r} is not below the limb's root joint "
+                f"{root!r}; its chain: {', '.join(model.names[joint] for joint in reversed(chain))}"
+            )
+    return roots
 
 
 def _reference_configurations(model) -> dict:
@@ -186,10 +144,11 @@ def _reference_configurations(model) -> dict:
 
 
 class Robot:
-    """A humanoid model ready for posture problems.
+    """A legged robot's model ready for posture problems.
 
-    Build one with :meth:`Robot.load` (built-in robots) or
-    :meth:`Robot.from_urdf` (any URDF/SRDF with declared contact surfaces).
+    Build one with :meth:`Robot.load` (a built-in robot or a description
+    file, see :mod:`stances.description`) or :meth:`Robot.from_urdf` (any
+    URDF/SRDF with declared contact surfaces).
 
     Attributes
     ----------
@@ -201,9 +160,16 @@ class Robot:
     collision_model : pinocchio.GeometryModel
         Collision geometry, with the self-collision pairs the SRDF allows.
     surfaces : dict of str to RobotSurface
-        Contact surfaces by name.
+        Contact surfaces by name, in declaration order.
     reference_configuration : (nq,) float
         Reference posture (read-only), the objective's target.
+    limbs : dict of str to str
+        Limb name -> name of its root joint.
+    support : SupportRule
+        Contacts every stance keeps (a biped: one foot).
+    source : str
+        What :meth:`Robot.load` loads it from again: a built-in name or a
+        description file; empty for a robot built by :meth:`from_urdf`.
     locked_joints : dict of str to tuple of float
         Joints of the URDF removed from ``model``, with the configuration
         values they are locked at (radians or metres), in URDF order.
@@ -211,7 +177,10 @@ class Robot:
         The URDF file the model was built from.
     """
 
-    def __init__(self, name, model, collision_model, surfaces, reference_configuration, locked_joints=None, urdf=None):
+    def __init__(
+        self, name, model, collision_model, surfaces, reference_configuration, limbs=None, support=SupportRule(),
+        locked_joints=None, urdf=None,
+    ):
         self.name = name
         self.locked_joints = {str(k): tuple(float(v) for v in values) for k, values in dict(locked_joints or {}).items()}
         self.urdf = None if urdf is None else Path(urdf)
@@ -221,15 +190,19 @@ class Robot:
         reference_configuration = np.array(reference_configuration, dtype=float)
         reference_configuration.setflags(write=False)
         self.reference_configuration = reference_configuration
+        self.limbs = dict(limbs) if limbs is not None else {}
+        self.support = support
+        self.source = ""
 
     @classmethod
-    def load(cls, name: str = "talos") -> "Robot":
-        """Load a built-in robot.
+    def load(cls, name_or_file="talos") -> "Robot":
+        """Load a built-in robot by name, or a robot from its description file.
 
         Parameters
         ----------
-        name : str
-            ``"talos"`` (the only built-in robot so far).
+        name_or_file : str or os.PathLike
+            A name of :func:`stances.description.builtin_robot_names`
+            (``"talos"``, ``"romeo"``) or a robot description YAML file.
 
         Returns
         -------
@@ -238,7 +211,9 @@ class Robot:
         Raises
         ------
         RobotNotFound
-            For an unknown name.
+            For a name that is neither built in nor a file.
+        RobotDescriptionError
+            For an invalid description (naming the file and the key at fault).
 
         Examples
         --------
@@ -248,20 +223,38 @@ class Robot:
         >>> robot.model.nv
         34
         """
-        if name != "talos":
-            raise RobotNotFound(f"unknown robot {name!r}; built-in robots: talos")
-        share = example_robot_data_share()
-        talos = share / "example-robot-data" / "robots" / "talos_data"
-        return cls.from_urdf(
-            name="talos",
-            urdf=talos / "robots" / "talos_reduced.urdf",
-            srdf=talos / "srdf" / "talos.srdf",
-            package_dirs=[share],
-            surfaces=TALOS_SURFACES,
-            locked_joints=TALOS_LOCKED_JOINTS,
-            reference_posture="half_sitting",
-            checked_pairs=TALOS_CHECKED_PAIRS,
-        )
+        return cls.from_description(read_description(name_or_file))
+
+    @classmethod
+    def from_description(cls, description: RobotDescription) -> "Robot":
+        """Build the robot a :class:`~stances.description.RobotDescription` describes.
+
+        Raises
+        ------
+        RobotDescriptionError
+            If a name of the description (link, joint, geometry, posture) is
+            not in the model, naming the description file.
+        """
+        try:
+            robot = cls.from_urdf(
+                name=description.name,
+                urdf=description.urdf,
+                srdf=description.srdf,
+                package_dirs=description.package_dirs,
+                surfaces=description.surfaces,
+                locked_joints=description.locked_joints,
+                reference_posture=description.reference_posture,
+                checked_pairs=description.checked_pairs,
+                limbs=description.limbs,
+                support=description.support,
+            )
+        except RobotDescriptionError:
+            raise
+        except StanceError as error:
+            raise RobotDescriptionError(description.path, "", str(error)) from None
+        builtin = description.path is not None and description.path == BUILTIN_DIRECTORY / f"{description.name}.yaml"
+        robot.source = description.name if builtin else str(description.path or "")
+        return robot
 
     @classmethod
     def from_urdf(
@@ -275,6 +268,8 @@ class Robot:
         removed_geometry_prefixes=(),
         reference_posture="half_sitting",
         checked_pairs=(),
+        limbs=None,
+        support=SupportRule(),
     ) -> "Robot":
         """Build a robot from URDF and SRDF files with declared contact surfaces.
 
@@ -288,7 +283,7 @@ class Robot:
         package_dirs : list of path-like
             Where ``package://`` mesh URIs resolve.
         surfaces : iterable of SurfaceDeclaration
-            Contact surfaces to add as frames, with their plates.
+            Contact surfaces to add as frames, with their plates, roles and limbs.
         locked_joints : iterable of str
             Joints fixed at their reference value and removed from the model.
         removed_geometry_prefixes : iterable of str
@@ -299,10 +294,23 @@ class Robot:
         checked_pairs : iterable of (str, str)
             Collision geometry pairs to check although the SRDF disables them
             (pairs a robot's postures can bring into contact).
+        limbs : mapping of str to str, optional
+            Limb name -> root joint. Default: each surface's limb starts at
+            the joint after the last branching of the kinematic tree above the
+            surface (a leg at its hip, an arm at its shoulder).
+        support : SupportRule
+            Contacts every stance keeps.
 
         Returns
         -------
         Robot
+
+        Raises
+        ------
+        FrameNotFound
+            For a link, joint, geometry or posture name not in the model.
+        StanceError
+            If a surface is not on the chain of its limb's root joint.
         """
         dirs = [str(d) for d in package_dirs]
         model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
@@ -338,7 +346,9 @@ class Robot:
         frame_names, plates = {}, {}
         for declaration in surfaces:
             if not model.existFrame(declaration.parent_frame):
-                raise FrameNotFound("frame", declaration.parent_frame, [f.name for f in model.frames])
+                raise FrameNotFound(
+                    "frame", declaration.parent_frame, [f.name for f in model.frames], f"robot surface {declaration.name!r}"
+                )
             parent_id = model.getFrameId(declaration.parent_frame)
             parent = model.frames[parent_id]
             placement = parent.placement * declaration.placement  # in the parent joint's frame
@@ -378,9 +388,10 @@ class Robot:
                 geometry.name for geometry in collision_model.geometryObjects if geometry.parentJoint == joint
             )
             robot_surfaces[declaration.name] = RobotSurface(
-                declaration.name, frame_name, declaration.polygon, contact_geometries
+                declaration.name, frame_name, declaration.polygon, contact_geometries, declaration.role, declaration.limb
             )
-        return cls(name, model, collision_model, robot_surfaces, q_reference, locked_values, urdf)
+        limb_roots = _limb_roots(model, robot_surfaces, limbs)
+        return cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
 
     @property
     def nq(self) -> int:
@@ -446,6 +457,27 @@ class Robot:
         except KeyError:
             raise FrameNotFound("robot surface", name, self.surfaces) from None
 
+    def surfaces_with_role(self, role: str, limb: str | None = None) -> list[str]:
+        """Names of the contact surfaces with a role (and on a limb), in declaration order.
+
+        Parameters
+        ----------
+        role : str
+            ``"foot"`` or ``"hand"``.
+        limb : str, optional
+            Only the surfaces of this limb.
+
+        Examples
+        --------
+        >>> Robot.load("talos").surfaces_with_role("foot")
+        ['left_sole', 'right_sole']
+        """
+        return [
+            name
+            for name, surface in self.surfaces.items()
+            if surface.role == role and (limb is None or surface.limb == limb)
+        ]
+
     def frame_id(self, name: str) -> int:
         """Pinocchio frame index of ``name``, with a helpful error."""
         if not self.model.existFrame(name):
@@ -459,4 +491,12 @@ class Robot:
         )
 
 
-__all__ = ["PlateDeclaration", "Robot", "RobotSurface", "SurfaceDeclaration", "example_robot_data_share"]
+__all__ = [
+    "PlateDeclaration",
+    "Robot",
+    "RobotSurface",
+    "SupportRule",
+    "SurfaceDeclaration",
+    "builtin_robot_names",
+    "example_robot_data_share",
+]

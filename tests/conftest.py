@@ -61,3 +61,40 @@ def fingerprint(result) -> tuple:
 
     forces = np.array([p.force for p in result.point_forces])
     return result.feasible, result.iterations, hashlib.sha1(np.asarray(result.q).tobytes() + forces.tobytes()).hexdigest()
+
+
+# A hand-made biped for planner tests without kinematics: Talos's sole and palm
+# rectangles, legs 0.8 m long from hips 0.2 m apart, shoulders 1.35 m above the
+# feet and 0.4 m apart, arms reaching 0.65 m once the extension ratio applies.
+SOLE = ((-0.10, -0.065), (0.11, -0.065), (0.11, 0.065), (-0.10, 0.065))
+PALM = ((-0.05, -0.035), (0.05, -0.035), (0.05, 0.035), (-0.05, 0.035))
+LEG, ARM_REACH = 0.8, 0.65
+
+
+def hand_made_biped():
+    """``(surfaces, reach)``: RobotSurface by name and the matching cbm ReachModel."""
+    import numpy as np
+
+    from cbm.reach import LimbReach, ReachLimits, ReachModel
+    from stances.robot import RobotSurface
+
+    limbs = {"left_sole": "left_leg", "right_sole": "right_leg", "left_palm": "left_arm", "right_palm": "right_arm"}
+    surfaces = {
+        name: RobotSurface(
+            name, f"{name}_contact", SOLE if "sole" in name else PALM, role="foot" if "sole" in name else "hand", limb=limb
+        )
+        for name, limb in limbs.items()
+    }
+    extension = ReachLimits().limb_extension
+    reach = ReachModel(
+        roles={name: surface.role for name, surface in surfaces.items()},
+        limbs_of=limbs,
+        limbs={
+            "left_leg": LimbReach("left_leg", np.array([0.0, 0.1, LEG]), LEG),
+            "right_leg": LimbReach("right_leg", np.array([0.0, -0.1, LEG]), LEG),
+            "left_arm": LimbReach("left_arm", np.array([0.0, 0.2, 1.35]), ARM_REACH / extension),
+            "right_arm": LimbReach("right_arm", np.array([0.0, -0.2, 1.35]), ARM_REACH / extension),
+        },
+        foot_size=np.array([0.21, 0.13]),
+    )
+    return surfaces, reach

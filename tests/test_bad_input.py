@@ -193,7 +193,7 @@ def test_huge_box_mesh_is_a_mesh_error_before_allocating():
 
 def test_tiny_print_spacing_names_the_limit_and_a_spacing_that_fits(robot):
     scenario = environments.load_string(SCENARIO)
-    polygons = {name: robot.surfaces[name].polygon for name in robot.surfaces}
+    polygons = dict(robot.surfaces)
     child = run_isolated(
         """
         import environments, stances
@@ -201,7 +201,7 @@ def test_tiny_print_spacing_names_the_limit_and_a_spacing_that_fits(robot):
         from cbm.errors import CbmError
         scenario = environments.load_string(%r)
         robot = stances.Robot.load("talos")
-        polygons = {name: robot.surfaces[name].polygon for name in robot.surfaces}
+        polygons = dict(robot.surfaces)
         try:
             sample_prints(scenario.scene.surfaces, polygons, options_from_scenario({}, 1e-4))
         except CbmError as error:

@@ -12,13 +12,13 @@ from environments.objects import box, box_surfaces, floor
 from environments.scene import Scene
 from environments.stance import Contact, ContactPrint, Stance
 
+from conftest import hand_made_biped
+
 from cbm.errors import CbmError, PlanFileError
 from cbm.plan import Plan, PlannedStance, PlanStatistics
 from cbm.planner import StanceCheck, plan
 from cbm.stance_graph import differ_by_one_contact
 
-SOLE = np.array([[-0.10, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.10, 0.065]])
-PALM = np.array([[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]])
 
 
 @dataclass(frozen=True)
@@ -81,18 +81,17 @@ def scenario():
 
 @pytest.fixture
 def robot():
-    surfaces = {
-        name: SimpleNamespace(name=name, frame=f"{name}_contact", polygon=poly)
-        for name, poly in [("left_sole", SOLE), ("right_sole", SOLE), ("left_palm", PALM), ("right_palm", PALM)]
-    }
-    # What a plan file records of its robot, for a robot with no joints.
+    """A robot without kinematics: its surfaces, a hand-made reach model given to
+    plan(), and what a plan file records of a robot with no joints."""
+    surfaces, reach = hand_made_biped()
     return SimpleNamespace(
-        name="fake", surfaces=surfaces, configuration_names=[], actuated_joint_names=[], locked_joints={}, mass=0.0
+        name="fake", surfaces=surfaces, reach=reach, configuration_names=[], actuated_joint_names=[],
+        locked_joints={}, mass=0.0,
     )
 
 
 def test_plan_walks_to_the_goal_one_contact_at_a_time(scenario, robot):
-    result = plan(scenario, robot=robot, oracle=SyntheticOracle(), max_expansions=100)
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100)
     assert result.success, result.reason
     assert len(result.stances) >= 4
     assert result.stances[0].stance == scenario.stances["start"]
@@ -106,7 +105,7 @@ def test_plan_walks_to_the_goal_one_contact_at_a_time(scenario, robot):
 
 def test_plan_avoids_infeasible_prints(scenario, robot):
     oracle = SyntheticOracle(forbidden_x=(-0.25, -0.05))
-    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=200)
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=200)
     assert result.success, result.reason
     for planned in result.stances:
         assert not any(
@@ -117,15 +116,15 @@ def test_plan_avoids_infeasible_prints(scenario, robot):
 
 
 def test_same_seed_gives_the_same_plan(scenario, robot):
-    first = plan(scenario, robot=robot, oracle=SyntheticOracle(), seed=3)
-    again = plan(scenario, robot=robot, oracle=SyntheticOracle(), seed=3)
+    first = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), seed=3)
+    again = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), seed=3)
     assert [s.stance for s in first.stances] == [s.stance for s in again.stances]
     assert first.statistics.solver_calls == again.statistics.solver_calls
 
 
 def test_unreachable_goal_fails_within_budget_with_a_partial_plan(scenario, robot):
     oracle = SyntheticOracle(forbidden_x=(0.0, 10.0))  # nothing past x = 0 is feasible
-    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=15)
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=15)
     assert not result.success
     assert result.reason in ("budget exhausted: max_expansions", "no feasible neighbour")
     assert result.statistics.expanded <= 15
@@ -135,16 +134,16 @@ def test_unreachable_goal_fails_within_budget_with_a_partial_plan(scenario, robo
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):
-        plan(scenario, robot=robot, oracle=SyntheticOracle())
+        plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle())
 
 
 def test_unknown_start_stance_names_the_valid_ones(scenario, robot):
     with pytest.raises(CbmError, match="stances: start"):
-        plan(scenario, robot=robot, start="sit", oracle=SyntheticOracle())
+        plan(scenario, robot=robot, reach=robot.reach, start="sit", oracle=SyntheticOracle())
 
 
 def test_plan_json_round_trip_preserves_everything(scenario, robot, tmp_path):
-    original = plan(scenario, robot=robot, oracle=SyntheticOracle(), max_expansions=100)
+    original = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100)
     path = original.save(tmp_path / "plan.json")
     loaded = Plan.load(path)
     assert loaded.to_dict() == json.loads(path.read_text())
@@ -205,7 +204,7 @@ def test_check_flags_a_success_flag_that_the_last_stance_does_not_earn(scenario)
 
 def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
     oracle = SyntheticOracle(forbidden_x=(-0.25, -0.05))
-    result = plan(scenario, robot=robot, oracle=oracle, max_expansions=200)
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=200)
     forbidden = [
         s for s in oracle.calls
         if any(-0.25 < c.contact_print.x < -0.05 for c in s if c.contact_print.surface == "floor")

@@ -9,18 +9,14 @@ from environments.geometry import pose_from_center_yaw, transform_from_rotation_
 from environments.stance import Contact, ContactPrint, Stance
 from environments.surfaces import ContactSurface, rectangle
 
-from cbm.sampling import (
-    ReachLimits,
-    SamplingOptions,
-    contacts_in_world,
-    reachable_mask,
-    sample_prints,
-)
+from conftest import ARM_REACH, LEG, hand_made_biped
+from stances.robot import RobotSurface
+
+from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints
 from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
 
-SOLE = np.array([[-0.10, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.10, 0.065]])
-PALM = np.array([[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]])
-ROBOT = {"left_sole": SOLE, "right_sole": SOLE, "left_palm": PALM, "right_palm": PALM}
+ROBOT, REACH = hand_made_biped()
+SOLE, PALM = ROBOT["left_sole"].polygon, ROBOT["left_palm"].polygon
 
 
 def wall_transform():
@@ -47,13 +43,13 @@ def test_every_sampled_print_lies_inside_its_surface(surfaces):
         assert len(print_set) > 0
         for p, origin in zip(print_set.prints, print_set.origins_in_world):
             surface = surfaces[p.surface]
-            vertices = surface.print_polygon_in_surface(ROBOT[robot_surface], p.x, p.y, p.theta)
+            vertices = surface.print_polygon_in_surface(ROBOT[robot_surface].polygon, p.x, p.y, p.theta)
             assert surface.contains(vertices, margin=0.01 - 1e-9).all()
             np.testing.assert_allclose(origin, surface.transform_print_to_world(p.x, p.y, p.theta)[:3, 3])
 
 
 def test_a_print_near_the_edge_is_rejected(surfaces):
-    sets = sample_prints({"block_top": surfaces["block_top"]}, {"left_sole": SOLE}, SamplingOptions(spacing=0.01))
+    sets = sample_prints({"block_top": surfaces["block_top"]}, {"left_sole": ROBOT["left_sole"]}, SamplingOptions(spacing=0.01))
     xs = np.array([p.x for p in sets["left_sole"].prints])
     # The block is 0.5 m long and the sole reaches 0.11 m forward, 0.10 back.
     assert xs.max() <= 0.25 - 0.11 + 1e-9 and xs.min() >= -0.25 + 0.10 - 1e-9
@@ -62,7 +58,7 @@ def test_a_print_near_the_edge_is_rejected(surfaces):
 
 def test_spacing_and_theta_values_are_respected(surfaces):
     thetas = (0.0, math.radians(30.0))
-    sets = sample_prints({"floor": surfaces["floor"]}, {"right_sole": SOLE}, SamplingOptions(0.25, thetas))
+    sets = sample_prints({"floor": surfaces["floor"]}, {"right_sole": ROBOT["right_sole"]}, SamplingOptions(0.25, thetas))
     prints = sets["right_sole"].prints
     assert sorted({p.theta for p in prints}) == pytest.approx(sorted(thetas))
     xs = np.unique(np.round([p.x for p in prints], 9))
@@ -79,6 +75,17 @@ def test_soles_go_only_on_surfaces_facing_up_and_palms_anywhere(surfaces):
     assert {p.surface for p in sets["left_palm"].prints} == {"floor", "block_top", "wall"}
 
 
+def test_the_role_not_the_name_decides_where_a_surface_goes(surfaces):
+    """A hand called ``left_sole`` goes on the wall; a foot called ``grip`` does not."""
+    misnamed = {
+        "left_sole": RobotSurface("left_sole", "a", PALM, role="hand", limb="arm"),
+        "grip": RobotSurface("grip", "b", PALM, role="foot", limb="leg"),
+    }
+    sets = sample_prints(surfaces, misnamed, SamplingOptions(spacing=0.1))
+    assert {p.surface for p in sets["left_sole"].prints} == {"floor", "block_top", "wall"}
+    assert {p.surface for p in sets["grip"].prints} == {"floor", "block_top"}
+
+
 def feet_together():
     return Stance(
         (
@@ -89,18 +96,19 @@ def feet_together():
 
 
 def test_pruning_keeps_a_sole_within_a_step_on_its_own_side(surfaces):
-    limits = ReachLimits()
+    limits = REACH.limits
     sets = sample_prints({"floor": surfaces["floor"]}, ROBOT, SamplingOptions(spacing=0.05))
     placed = contacts_in_world(feet_together().without("left_sole"), surfaces)
     candidates = sets["left_sole"]
-    mask = reachable_mask(candidates, placed, limits)
+    mask = REACH.reachable_mask(candidates, placed)
     assert 0 < mask.sum() < len(mask)
     right = placed["right_sole"][0]
     delta = candidates.origins_in_world - right  # the right sole points along world x
-    step = np.linalg.norm(delta[:, :2], axis=1) <= limits.max_step_length + 1e-12
-    own_side = delta[:, 1] >= limits.min_sole_lateral - 1e-12
-    apart = (np.abs(delta[:, 0]) >= limits.sole_clearance_length - 1e-12) | (
-        np.abs(delta[:, 1]) >= limits.sole_clearance_width - 1e-12
+    # Step: half a leg (0.4 m); own side: 0.3 x the hips' 0.2 m; apart: the sole's size + 1 cm.
+    step = np.linalg.norm(delta[:, :2], axis=1) <= limits.step_length * LEG + 1e-12
+    own_side = delta[:, 1] >= limits.foot_lateral * 0.2 - 1e-12
+    apart = (np.abs(delta[:, 0]) >= 0.21 + limits.foot_clearance - 1e-12) | (
+        np.abs(delta[:, 1]) >= 0.13 + limits.foot_clearance - 1e-12
     )
     np.testing.assert_array_equal(mask, step & own_side & apart)
     # The rule is not vacuous: a sole just ahead and slightly left is kept,
@@ -110,22 +118,21 @@ def test_pruning_keeps_a_sole_within_a_step_on_its_own_side(surfaces):
 
 
 def test_pruning_keeps_palms_within_arm_reach_of_the_shoulder(surfaces):
-    limits = ReachLimits()
     sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.05))
     placed = contacts_in_world(feet_together(), surfaces)
-    mask = reachable_mask(sets["left_palm"], placed, limits)
+    mask = REACH.reachable_mask(sets["left_palm"], placed)
     kept = sets["left_palm"].origins_in_world[mask]
     # The floor is out of reach (1.35 m below the shoulders, 0.65 m arms);
     # part of the wall in front at 0.6 m is reachable.
     assert {sets["left_palm"].prints[i].surface for i in np.flatnonzero(mask)} == {"wall"}
     shoulder = np.array([0.0, 0.2, 1.35])
-    assert np.all(np.linalg.norm(kept - shoulder, axis=1) <= limits.arm_reach + 1e-12)
+    assert np.all(np.linalg.norm(kept - shoulder, axis=1) <= ARM_REACH + 1e-9)
     assert mask.sum() < sum(p.surface == "wall" for p in sets["left_palm"].prints)
 
 
 def test_neighbours_add_or_remove_one_contact_and_keep_a_sole(surfaces):
     sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
-    neighbours = StanceNeighbours(sets, surfaces)
+    neighbours = StanceNeighbours(sets, surfaces, REACH)
     start = feet_together()
     pairs = neighbours(start)
     assert pairs and all(differ_by_one_contact(start, child) for child, _ in pairs)
@@ -146,7 +153,7 @@ def test_prints_under_another_object_are_dropped():
     ground = floor(size=(2.0, 1.0))
     block = box("block", (0.6, 0.6, 0.1), center=(0.5, 0.0, 0.05))
     scene = Scene("s", [ground, block], [], box_surfaces(ground, top_name="floor") + box_surfaces(block))
-    sets = sample_prints(scene.surfaces, {"left_sole": SOLE}, SamplingOptions(spacing=0.05), obstacle_boxes(scene))
+    sets = sample_prints(scene.surfaces, {"left_sole": ROBOT["left_sole"]}, SamplingOptions(spacing=0.05), obstacle_boxes(scene))
     prints = sets["left_sole"].prints
     on_floor = [p for p in prints if p.surface == "floor"]
     on_block = [p for p in prints if p.surface == "block_top"]
@@ -161,7 +168,7 @@ def test_prints_under_another_object_are_dropped():
 
 def test_sampling_region_keeps_only_prints_inside_it(surfaces):
     options = SamplingOptions(spacing=0.1, region_lower=(-0.3, -0.2), region_upper=(0.5, 0.4))
-    sets = sample_prints({"floor": surfaces["floor"]}, {"left_sole": SOLE}, options)
+    sets = sample_prints({"floor": surfaces["floor"]}, {"left_sole": ROBOT["left_sole"]}, options)
     origins = sets["left_sole"].origins_in_world
     assert len(origins) > 0
     assert np.all(origins[:, :2] >= np.array([-0.3, -0.2]) - 1e-12)

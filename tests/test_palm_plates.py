@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import xml.etree.ElementTree as ElementTree
 
 import numpy as np
@@ -11,11 +12,12 @@ import pytest
 import environments
 from clearance import CONTACT_GEOMETRY, robot_clearances
 from conftest import coarse_scenario
-from stances import Robot, StanceError, SurfaceDeclaration
+from stances import Robot, StanceError
 from stances.collision import contact_exclusions
 from stances.plates import PlateDeclaration, geometry_reach
 from stances.problem import PostureOptions
-from stances.robot import TALOS_LOCKED_JOINTS, TALOS_SURFACES, example_robot_data_share
+from stances.description import read_description
+from stances.robot import example_robot_data_share
 from stances.sqp import solve
 
 try:
@@ -24,6 +26,7 @@ except ImportError:  # pragma: no cover
     import hppfcl as coal
 
 PALMS = ("left_palm", "right_palm")
+TALOS = read_description("talos")
 THICKNESS = 0.01
 # The collision block lets the QP eat 0.1 mm of the clearance (its slack).
 CLEARANCE_TOLERANCE = 1e-4 + 1e-9
@@ -103,10 +106,8 @@ def test_the_plate_moves_the_gripper_mass_to_the_plate_centre(robot, palm):
     """Against a Talos built with the gripper kept: same mass on the wrist, its
     first moment shifted by (gripper mass) x (plate centre - gripper centre)."""
     share, urdf, srdf = _talos_files()
-    without_plates = [
-        SurfaceDeclaration(d.name, d.parent_frame, d.placement, d.polygon) for d in TALOS_SURFACES
-    ]
-    gripped = Robot.from_urdf("talos", urdf, srdf, [share], without_plates, TALOS_LOCKED_JOINTS)
+    without_plates = [dataclasses.replace(d, plate=None) for d in TALOS.surfaces]
+    gripped = Robot.from_urdf("talos", urdf, srdf, [share], without_plates, TALOS.locked_joints)
     side = palm.split("_")[0]
     joint = robot.model.getJointId(f"arm_{side}_7_joint")
     before, after = gripped.model.inertias[joint], robot.model.inertias[joint]
@@ -185,11 +186,8 @@ def test_bad_plates_are_rejected(plate):
 
 def test_a_plate_cannot_replace_a_moving_part():
     share, urdf, srdf = _talos_files()
-    moving = [
-        SurfaceDeclaration(d.name, d.parent_frame, d.placement, d.polygon, d.plate) for d in TALOS_SURFACES
-    ]
     with pytest.raises(StanceError, match="gripper_left_joint"):
-        Robot.from_urdf("talos", urdf, srdf, [share], moving, ("head_1_joint", "head_2_joint"))
+        Robot.from_urdf("talos", urdf, srdf, [share], TALOS.surfaces, ("head_1_joint", "head_2_joint"))
 
 
 def _palm_stances():

@@ -53,7 +53,8 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend):
                 "label": display.label,
                 "segments": _rounded(display.segments),
                 "polygons": [
-                    {"robot_surface": name, "points": _rounded(points)} for name, points in display.polygons.items()
+                    {"robot_surface": name, "points": _rounded(points), "colour": display.colours.get(name, "#2ca02c")}
+                    for name, points in display.polygons.items()
                 ],
                 "forces": [
                     {"point": _rounded(point), "force": _rounded(force, 3)}

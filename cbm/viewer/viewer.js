@@ -13,7 +13,11 @@
   var radius = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
   var camera = { azimuth: -1.0, elevation: 0.35, distance: 2.2 * radius };
   var index = 0, playing = null;
-  var colours = { left_sole: "#1f77b4", right_sole: "#d62728", left_palm: "#17becf", right_palm: "#ff7f0e" };
+  // Each robot surface's colour, from the prints of every stance (the robot's roles decide them).
+  var colours = {};
+  data.stances.forEach(function (stance) {
+    stance.polygons.forEach(function (print) { colours[print.robot_surface] = print.colour; });
+  });
 
   function viridis(t) {
     // Piecewise-linear approximation of matplotlib's viridis, t in [0, 1].
@@ -86,7 +90,7 @@
       faces.forEach(function (face) { var c = viridis(face.value / top); polygon(project, face.points, c, c); });
     });
     stance.polygons.forEach(function (print) {
-      var colour = colours[print.robot_surface] || "#2ca02c";
+      var colour = print.colour || "#2ca02c";
       polygon(project, print.points, colour, "#000");
     });
     stance.segments.forEach(function (s) { line(project, s[0], s[1], "#111", 2.5); });

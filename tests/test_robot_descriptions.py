@@ -1,0 +1,281 @@
+"""Robots as data: built-in descriptions, a description file of another robot, bad files, reach."""
+
+import re
+import textwrap
+
+import numpy as np
+import pinocchio as pin
+import pytest
+import yaml
+
+import environments
+import stances
+from environments.errors import ScenarioError
+from stances import Robot, RobotDescriptionError, RobotNotFound
+from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
+
+from cbm.cli import EXIT_BAD_INPUT, main
+from cbm.plan import Plan
+from cbm.planner import plan
+from cbm.reach import ReachModel
+from cbm.sampling import obstacle_boxes, options_from_scenario, sample_prints
+
+BUILTIN = ["talos", "romeo"]
+
+
+@pytest.fixture(scope="module")
+def romeo():
+    return Robot.load("romeo")
+
+
+@pytest.mark.parametrize("name", BUILTIN)
+def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo):
+    loaded = {"talos": robot, "romeo": romeo}[name]
+    description = read_description(name)
+    assert name in builtin_robot_names()
+    assert [(s.name, s.role, s.limb) for s in loaded.surfaces.values()] == [
+        (s.name, s.role, s.limb) for s in description.surfaces
+    ]
+    assert loaded.limbs == description.limbs
+    # Every locked joint left the model: one degree of freedom each.
+    full = pin.buildModelFromUrdf(str(description.urdf), pin.JointModelFreeFlyer())
+    assert loaded.nv == full.nv - len(description.locked_joints)
+    # At the reference posture the feet are level and their contact frames'
+    # z axes point up, into the feet (the contact-frame convention), within
+    # 0.3 degrees (Talos's half-sitting tilts its feet by 1.7 mrad).
+    data = loaded.model.createData()
+    pin.framesForwardKinematics(loaded.model, data, loaded.reference_configuration)
+    feet = [data.oMf[loaded.frame_id(loaded.surfaces[f].frame)] for f in loaded.surfaces_with_role("foot")]
+    assert len(feet) == 2
+    assert abs(feet[0].translation[2] - feet[1].translation[2]) < 1e-3
+    for foot in feet:
+        np.testing.assert_allclose(foot.rotation[:, 2], [0.0, 0.0, 1.0], atol=5e-3)
+    # Each limb's root joint is above its surfaces in the kinematic tree.
+    for surface in loaded.surfaces.values():
+        joint = loaded.model.frames[loaded.frame_id(surface.frame)].parentJoint
+        chain = []
+        while joint > 0:
+            chain.append(loaded.model.names[joint])
+            joint = loaded.model.parents[joint]
+        assert loaded.limbs[surface.limb] in chain
+
+
+def test_romeo_stands_on_the_floor_with_a_verified_posture(romeo):
+    scenario = environments.load_string(
+        textwrap.dedent(
+            """
+            robot: romeo
+            objects: [{name: floor, type: floor}]
+            stances:
+              stand:
+                left_sole: {surface: floor, x: 0.0, y: 0.096}
+                right_sole: {surface: floor, x: 0.0, y: -0.096}
+            """
+        )
+    )
+    result = stances.solve(romeo, scenario.scene, scenario.stance("stand"))
+    assert result.feasible, result.reason
+    assert stances.verify(romeo, scenario.scene, result.stance, result).ok
+    # Both feet carry Romeo's weight (40.5 kg).
+    vertical = sum(f.force[2] for f in result.point_forces)
+    assert vertical == pytest.approx(romeo.mass * 9.81, rel=1e-6)
+
+
+def _talos_data():
+    return yaml.safe_load((BUILTIN_DIRECTORY / "talos.yaml").read_text())
+
+
+def _write(path, data):
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def test_a_description_file_of_another_robot_plans_by_role(tmp_path):
+    """Talos's model with feet only, called ``paw_a`` and ``paw_b`` (no side or
+    "sole" in their names), from a scenario naming the file: the planner walks it
+    forward, telling the feet apart by role and the sides by the hips."""
+    data = _talos_data()
+    data["name"] = "pawed"
+    data["surfaces"] = {
+        "paw_a": {**data["surfaces"]["left_sole"], "limb": "a"},
+        "paw_b": {**data["surfaces"]["right_sole"], "limb": "b"},
+    }
+    data["limbs"] = {"a": "leg_left_1_joint", "b": "leg_right_1_joint"}
+    del data["checked_pairs"]
+    _write(tmp_path / "pawed.yaml", data)
+    scenario_path = tmp_path / "walk.yaml"
+    scenario_path.write_text(
+        textwrap.dedent(
+            """
+            robot: pawed.yaml
+            objects: [{name: floor, type: floor, size: [3, 2]}]
+            stances:
+              start:
+                paw_a: {surface: floor, x: 0.0, y: 0.085}
+                paw_b: {surface: floor, x: 0.0, y: -0.085}
+            start: start
+            goal:
+              regions:
+                - {robot_surface: paw_a, lower: [0.3, 0.0], upper: [0.7, 0.5]}
+                - {robot_surface: paw_b, lower: [0.3, -0.5], upper: [0.7, 0.0]}
+            options: {print_spacing: 0.1, sampling_region: {lower: [-0.3, -0.4], upper: [0.8, 0.4]}}
+            """
+        )
+    )
+    scenario = environments.load(scenario_path)
+    assert scenario.robot == str(tmp_path / "pawed.yaml")
+    result = plan(scenario, max_expansions=30, time_limit=240.0, solver_options={"max_iterations": 40})
+    assert result.success, result.reason
+    # Both feet move at least 0.3 m: lift and place each, from the start.
+    assert len(result.stances) >= 5
+    assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
+    # The plan names its robot's file, and its check loads that robot again.
+    assert result.robot["source"] == str(tmp_path / "pawed.yaml")
+    assert Plan.from_dict(result.to_dict()).robot == result.robot
+    assert result.check(scenario).ok
+    for planned in result.stances:
+        assert planned.stance.robot_surfaces  # never airborne
+        if len(planned.stance) == 2:
+            a, b = (planned.stance.contact(name).contact_print for name in ("paw_a", "paw_b"))
+            assert a.y > b.y  # paw_a stays on the left, as its hip
+
+
+BAD_DESCRIPTIONS = {
+    "missing link": (
+        lambda d: d["surfaces"]["left_sole"].update(link="no_such_link"),
+        "robot surface 'left_sole': unknown frame 'no_such_link'; known frames: ",
+    ),
+    "unknown role": (
+        lambda d: d["surfaces"]["left_sole"].update(role="paw"),
+        "surfaces.left_sole.role: unknown role 'paw'; roles: foot, hand",
+    ),
+    "clockwise polygon": (
+        lambda d: d["surfaces"]["left_sole"].update(polygon=d["surfaces"]["left_sole"]["polygon"][::-1]),
+        "surfaces.left_sole: robot surface 'left_sole': polygon must be convex with its vertices counter-clockwise",
+    ),
+    "two-vertex polygon": (
+        lambda d: d["surfaces"]["left_sole"].update(polygon=[[0, 0], [1, 0]]),
+        "surfaces.left_sole.polygon: must be a list of at least 3 [x, y] vertices, got a list of 2",
+    ),
+    "unknown limb": (
+        lambda d: d["surfaces"]["left_sole"].update(limb="tail"),
+        "surfaces.left_sole.limb: unknown limb 'tail'; limbs: left_leg, right_leg, left_arm, right_arm",
+    ),
+    "limb root not above the surface": (
+        lambda d: d["limbs"].update(left_leg="arm_left_1_joint"),
+        "robot surface 'left_sole' on limb 'left_leg' is not below the limb's root joint 'arm_left_1_joint'",
+    ),
+    "unknown key": (
+        lambda d: d["surfaces"]["left_sole"].update(colour="red"),
+        "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, plate",
+    ),
+}
+
+
+@pytest.mark.parametrize("case", BAD_DESCRIPTIONS, ids=list(BAD_DESCRIPTIONS))
+def test_a_bad_description_file_gets_an_error_naming_the_file_and_the_fault(tmp_path, case):
+    change, message = BAD_DESCRIPTIONS[case]
+    data = _talos_data()
+    change(data)
+    path = _write(tmp_path / "bad.yaml", data)
+    with pytest.raises(RobotDescriptionError, match=re.escape(message)) as caught:
+        Robot.load(path)
+    assert str(caught.value).startswith(str(path))
+
+
+def test_an_unknown_robot_name_lists_the_builtin_robots():
+    with pytest.raises(RobotNotFound, match=re.escape("unknown robot 'tals' (not a built-in robot); built-in robots: romeo, talos")):
+        Robot.load("tals")
+
+
+def test_a_stance_naming_a_surface_the_robot_lacks_is_refused_before_planning(romeo):
+    path = environments.builtin_scenario_path("hand-on-table")
+    line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if text.strip().startswith("right_palm:"))
+    expected = (
+        f"{path}:{line}: stances.hand-on-table.right_palm: robot surface 'right_palm' is not a surface of "
+        "robot 'romeo'; its surfaces: left_sole, right_sole"
+    )
+    with pytest.raises(ScenarioError) as caught:
+        plan("hand-on-table", robot=romeo)
+    assert str(caught.value) == expected
+
+
+def test_a_goal_region_naming_a_surface_the_robot_lacks_is_refused(romeo):
+    scenario = environments.load_string(
+        textwrap.dedent(
+            """
+            objects: [{name: floor, type: floor}]
+            stances: {stand: {left_sole: {surface: floor, y: 0.1}, right_sole: {surface: floor, y: -0.1}}}
+            goal: {regions: [{robot_surface: left_hand, lower: [0, 0], upper: [1, 1]}]}
+            """
+        )
+    )
+    with pytest.raises(ScenarioError, match=re.escape(
+        "<scenario>:4: goal.regions[0].robot_surface: robot surface 'left_hand' is not a surface of robot 'romeo'; "
+        "its surfaces: left_sole, right_sole"
+    )):
+        scenario.check_robot_surfaces(romeo.surfaces, "robot 'romeo'")
+
+
+def test_the_command_line_takes_a_robot_and_refuses_a_scenario_it_cannot_stand(capsys):
+    assert main(["check", "hand-on-table", "--stance", "stand", "--robot", "romeo"]) == EXIT_BAD_INPUT
+    error = capsys.readouterr().err
+    assert "robot surface 'right_palm' is not a surface of robot 'romeo'; its surfaces: left_sole, right_sole" in error
+    assert main(["robots"]) == 0
+    listed = capsys.readouterr().out
+    assert all(name in listed for name in BUILTIN)
+    assert "left_palm (hand, left_arm)" in listed
+
+
+def test_a_scenario_naming_a_missing_robot_file_is_a_scenario_error(tmp_path):
+    path = tmp_path / "s.yaml"
+    path.write_text("robot: nowhere.yaml\nobjects: [{name: floor, type: floor}]\nstances: {s: {a: {surface: floor}}}\n")
+    with pytest.raises(ScenarioError, match=re.escape(f"s.yaml:1: robot: robot description file not found: {tmp_path / 'nowhere.yaml'}")):
+        environments.load(path)
+
+
+def test_talos_feet_by_role_go_where_soles_went_by_name(robot):
+    """The built-in roles agree with the names' old reading (``sole`` = foot), and
+    feet get prints only on surfaces facing up, hands anywhere they fit."""
+    assert {name: s.role for name, s in robot.surfaces.items()} == {
+        name: "foot" if "sole" in name else "hand" for name in robot.surfaces
+    }
+    scenario = environments.load("hand-on-table")
+    sets = sample_prints(scenario.scene.surfaces, robot.surfaces, options_from_scenario({}, 0.2), obstacle_boxes(scenario.scene))
+    up = {name for name, s in scenario.scene.surfaces.items() if s.transform_surface_to_world[2, 2] > np.cos(np.radians(20))}
+    for name, print_set in sets.items():
+        used = {p.surface for p in print_set.prints}
+        assert used <= up if robot.surfaces[name].role == "foot" else used
+    assert {p.surface for p in sets["left_palm"].prints} == {p.surface for p in sets["left_sole"].prints}
+
+
+def test_the_reach_model_bounds_every_posture_and_is_measured_once(robot):
+    reach = ReachModel.of(robot)
+    assert ReachModel.of(robot) is reach
+    model, data = robot.model, robot.model.createData()
+    rng = np.random.default_rng(0)
+    lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
+    for _ in range(200):
+        q = np.array(robot.reference_configuration)
+        q[7:] = rng.uniform(lower, upper)
+        pin.framesForwardKinematics(model, data, q)
+        for name, surface in robot.surfaces.items():
+            root = data.oMi[model.getJointId(robot.limbs[surface.limb])].translation
+            frame = data.oMf[robot.frame_id(surface.frame)].translation
+            assert np.linalg.norm(frame - root) <= reach.limbs[surface.limb].length + 1e-9
+    # Talos is left-right symmetric: so are its limb roots (within its URDF's 0.4 mm).
+    for left, right in (("left_leg", "right_leg"), ("left_arm", "right_arm")):
+        mirrored = reach.limbs[right].root_in_support * np.array([1.0, -1.0, 1.0])
+        np.testing.assert_allclose(reach.limbs[left].root_in_support, mirrored, atol=1e-3)
+
+
+def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(romeo):
+    from environments.goal import Goal, GoalRegion
+
+    from cbm.errors import CbmError
+
+    goal = Goal(regions=(GoalRegion("right_palm", (0.0, 0.0), (1.0, 1.0)),))
+    with pytest.raises(CbmError, match=re.escape(
+        "the goal names robot surface 'right_palm', not a surface of robot 'romeo'; its surfaces: left_sole, right_sole"
+    )):
+        plan("stand", goal=goal, robot=romeo)
