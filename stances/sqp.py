@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import logging
 import time
-from dataclasses import fields, replace
+from dataclasses import dataclass, fields, replace
 
 import numpy as np
 import pinocchio as pin
@@ -130,14 +130,85 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     """
     start = time.perf_counter()
     options = problem.options
-    model = problem.robot.model
-    nv = model.nv
     q = problem.check_configuration(problem.robot.reference_configuration if q_init is None else q_init)
     lam = (
         problem.initial_variables(q)
         if lam_init is None
         else np.maximum(np.asarray(lam_init, float), problem.variable_lower)
     )
+    limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
+    outcome = run_sqp(problem, q, lam, limit, deadline)
+    return _result(problem, outcome, time.perf_counter() - start)
+
+
+@dataclass(frozen=True)
+class SqpOutcome:
+    """Where the SQP iterations stopped, before the robot's own checks.
+
+    Attributes
+    ----------
+    q : (nq,) float
+        Last accepted configuration.
+    lam : (m,) float
+        Last accepted force variables.
+    linearization : Linearization
+        The problem linearised at ``(q, lam)``.
+    iterations : int
+        SQP iterations run.
+    status : str
+        "converged", "stalled", "stagnated", "iteration limit" or the time-budget status.
+    penalty : float
+        Final weight of the elastic variable (of the merit's violation).
+    qp_time : float
+        Seconds spent in the QP solver.
+    feasible : bool
+        Whether the largest scaled violation is within the feasibility tolerance.
+    reason : str
+        Empty when feasible; otherwise the worst row, by how much, why the
+        iterations stopped, and the rows no step can meet together.
+    """
+
+    q: np.ndarray
+    lam: np.ndarray
+    linearization: object
+    iterations: int
+    status: str
+    penalty: float
+    qp_time: float
+    feasible: bool
+    reason: str
+
+
+def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
+    """The SQP iterations from ``(q, lam)``, on any problem that linearises like
+    :class:`~stances.problem.PostureProblem`.
+
+    What the iterations read of ``problem``: ``options`` (a
+    :class:`~stances.problem.PostureOptions`: tolerances, elastic penalty,
+    torque weight), ``variable_lower`` (m,), ``robot.model`` (a pinocchio
+    model: the tangent size ``nv`` and ``pin.integrate`` for configuration
+    steps) and ``linearize(q, lam, torque_weight)`` returning a
+    :class:`~stances.problem.Linearization`. Nothing here knows contacts or
+    torques, so the loop can be checked on a toy problem with a known optimum.
+
+    Parameters
+    ----------
+    problem : PostureProblem or a problem with the attributes above
+    q : (nq,) float
+        Start configuration (already validated).
+    lam : (m,) float
+        Start force variables, at or above ``problem.variable_lower``.
+    limit : int
+        Iteration limit.
+    deadline : float, optional
+        ``time.perf_counter()`` value after which no new iteration starts.
+
+    Returns
+    -------
+    SqpOutcome
+    """
+    options = problem.options
+    nv = problem.robot.model.nv
     penalty = options.elastic_penalty
     workspace = QPWorkspace()
     restoration = QPWorkspace()
@@ -152,7 +223,6 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     linearization = problem.linearize(q, lam, torque_weight)
     iteration = 0
     qp_time = 0.0
-    limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
             status, iteration = _OUT_OF_TIME, iteration - 1
@@ -229,8 +299,12 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         ):
             status = "converged"
             break
-    return _result(problem, q, lam, linearization, iteration, status, penalty,
-                   {"qp_time": qp_time}, time.perf_counter() - start)
+    violation, _ = linearization.max_violation()
+    feasible = violation <= tolerance
+    if feasible and status == "stalled":
+        status = "converged"  # feasible, and the merit cannot decrease further
+    reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
+    return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason)
 
 
 def _predicted_decrease(linearization, step, elastic, penalty, violation) -> float:
@@ -271,21 +345,17 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     return None, alpha
 
 
-def _result(problem, q, lam, linearization, iteration, status, penalty, statistics, elapsed) -> PostureResult:
-    """The answer at the last iterate, checked by :func:`stances.verify` when feasible."""
+def _result(problem, outcome, elapsed) -> PostureResult:
+    """The answer at the SQP's last iterate, checked by :func:`stances.verify` when feasible."""
     from .verify import verify_problem
 
     model = problem.robot.model
-    tolerance = problem.options.feasibility_tolerance
+    q, lam, linearization, feasible = outcome.q, outcome.lam, outcome.linearization, outcome.feasible
     violation, _ = linearization.max_violation()
-    feasible = violation <= tolerance
-    if feasible and status == "stalled":
-        status = "converged"  # feasible, and the merit cannot decrease further
     # An iterate that stopped just short of the SQP's tolerance (a floor of the QP's
     # accuracy on nearly rigid, statically indeterminate contacts) goes to the
     # independent check, whose tolerances are physical: it alone decides.
-    nearly = not feasible and violation <= _NEARLY_FEASIBLE * tolerance
-    reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
+    nearly = not feasible and violation <= _NEARLY_FEASIBLE * problem.options.feasibility_tolerance
     point_forces = problem_point_forces(problem, linearization, q)
     deformations = LazyDeformations(
         {
@@ -301,14 +371,15 @@ def _result(problem, q, lam, linearization, iteration, status, penalty, statisti
         q=q,
         point_forces=point_forces,
         torques=linearization.torques[6:],
-        iterations=iteration,
+        iterations=outcome.iterations,
         solve_time=elapsed,
-        reason=reason,
+        reason=outcome.reason,
         stance=problem.stance,
         deformations=deformations,
         limits=problem.limit_usage(q, linearization.torques[6:]),
         statistics={
-            "status": status, **statistics, "penalty": penalty, "lambda": lam.tolist(), "violation": violation,
+            "status": outcome.status, "qp_time": outcome.qp_time, "penalty": outcome.penalty,
+            "lambda": lam.tolist(), "violation": violation,
         },
     )
     if feasible or nearly:
