@@ -115,6 +115,13 @@ def _non_negative_int(text):
     return value
 
 
+def _positive_int(text):
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
 def build_parser():
     """The argument parser of ``cbm``."""
     parser = _Parser(
@@ -157,6 +164,9 @@ def build_parser():
         type=_positive_float,
         default=None,
         help="print grid step, metres (default: the scenario's print_spacing option, else 0.1)",
+    )
+    plan.add_argument(
+        "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"
     )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
@@ -324,6 +334,7 @@ def _plan(args):
             time_limit=args.time_limit,
             seed=args.seed,
             progress=not args.quiet,
+            workers=args.workers,
         )
         files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures)
         staged.publish()
