@@ -82,9 +82,7 @@ def solve_many(checks, *, address=None, workers=2, solver_options=None, progress
     try:
         with Client(address if cluster is None else cluster) as client:
             # pure=False: two identical checks are two tasks, each answering its row.
-            futures = client.map(run_check, checks, options=options, pure=False) if False else [
-                client.submit(run_check, check, options, pure=False) for check in checks
-            ]
+            futures = [client.submit(run_check, check, options, pure=False) for check in checks]
             if progress:
                 for done, future in enumerate(as_completed(futures), start=1):
                     logger.info("%d/%d checks answered", done, len(futures))
