@@ -122,7 +122,7 @@ class DeformableContact:
     Raises
     ------
     StanceError
-        A print holds fewer than three mesh nodes, two prints share nodes,
+        A point foot presses the body (not modelled), a print holds fewer than three mesh nodes, two prints share nodes,
         or a print's nodes cannot hold a rigid link (collinear).
     """
 
@@ -147,6 +147,12 @@ class DeformableContact:
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
+            if surface_model.is_point:
+                # A bonded print would glue the ball's orientation to the print's.
+                raise StanceError(
+                    f"{spec.label}: a point foot on a deformable support is not modelled yet; "
+                    "solve with deformable_as_rigid=True, or use a polygon foot"
+                )
             frame_id = robot.frame_id(surface_model.frame)
             frame = robot.model.frames[frame_id]
             placement = pin.SE3(spec.transform_print_to_world)
