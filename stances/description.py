@@ -332,7 +332,7 @@ def builtin_robot_names() -> list[str]:
     Examples
     --------
     >>> builtin_robot_names()
-    ['romeo', 'talos']
+    ['anymal', 'romeo', 'talos']
     """
     return sorted(path.stem for path in BUILTIN_DIRECTORY.glob("*.yaml"))
 

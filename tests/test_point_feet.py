@@ -1,0 +1,216 @@
+"""Point feet: the ball-foot shape of robot descriptions, its rigid contact, and ANYmal standing on it."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import stances
+from stances import Robot, StanceError
+from stances.contacts import PointContact, point_placement_residual
+from stances.description import point_print
+from stances.problem import PostureOptions, build_problem
+from stances.verify import verify_problem
+
+EPS = 1e-6
+FOOT_RADIUS = 0.031  # ANYmal's foot spheres, from its URDF
+
+
+@pytest.fixture(scope="module")
+def anymal():
+    return Robot.load("anymal")
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return environments.load("quadruped-walk")
+
+
+@pytest.fixture(scope="module")
+def solved(anymal, walk):
+    """Each named stance of quadruped-walk with its problem and result."""
+    out = {}
+    for name in ("start", "three-feet", "front-feet-up"):
+        stance = walk.stance(name)
+        problem = build_problem(anymal, walk.scene, stance)
+        out[name] = (problem, stances.solve(anymal, walk.scene, stance))
+    return out
+
+
+def test_a_point_print_is_a_regular_octagon_circumscribing_the_foot():
+    polygon = point_print(0.02)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    # Distance from the centre to each edge's line: the circle touches every edge.
+    def cross(a, b):
+        return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+    distances = np.abs(cross(polygon, edges)) / np.linalg.norm(edges, axis=1)
+    np.testing.assert_allclose(distances, 0.02, rtol=1e-12)
+    assert len(polygon) == 8 and np.all(cross(edges, np.roll(edges, -1, axis=0)) > 0)  # convex, counter-clockwise
+
+
+def test_anymal_has_four_point_feet_touching_only_with_their_spheres(anymal):
+    assert anymal.support.keep == 3
+    assert anymal.surfaces_with_role("foot") == ["left_front_foot", "right_front_foot", "left_hind_foot", "right_hind_foot"]
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, anymal.reference_configuration)
+    geometry_data = anymal.collision_model.createData()
+    pin.updateGeometryPlacements(anymal.model, data, anymal.collision_model, geometry_data)
+    names = [g.name for g in anymal.collision_model.geometryObjects]
+    for surface in anymal.surfaces.values():
+        assert surface.is_point and surface.radius == FOOT_RADIUS
+        (sphere,) = surface.contact_geometries
+        index = names.index(sphere)
+        assert anymal.collision_model.geometryObjects[index].geometry.radius == pytest.approx(surface.radius)
+        # The contact frame is the sphere's centre.
+        centre = data.oMf[anymal.frame_id(surface.frame)].translation
+        np.testing.assert_allclose(geometry_data.oMg[index].translation, centre, atol=1e-9)
+
+
+def test_point_placement_jacobian_matches_finite_differences(anymal):
+    model, data = anymal.model, anymal.model.createData()
+    rng = np.random.default_rng(0)
+    q = pin.integrate(model, anymal.reference_configuration, 0.2 * rng.normal(size=model.nv))
+    frame_id = anymal.frame_id(anymal.surface("left_front_foot").frame)
+    print_frame = pin.SE3(pin.rpy.rpyToMatrix(0.2, -0.1, 0.7), np.array([0.3, 0.2, 0.05]))
+
+    def residual(x):
+        pin.framesForwardKinematics(model, data, x)
+        pin.computeJointJacobians(model, data, x)
+        return point_placement_residual(model, data, frame_id, print_frame, FOOT_RADIUS)
+
+    _, analytic = residual(q)
+    numeric = np.column_stack([
+        (residual(pin.integrate(model, q, e))[0] - residual(pin.integrate(model, q, -e))[0]) / (2 * EPS)
+        for e in EPS * np.eye(model.nv)
+    ])
+    assert np.abs(numeric - analytic).max() <= 1e-7 * np.abs(analytic).max()
+    # The residual is the centre's offset from the point r above the print, print frame.
+    value, _ = residual(q)
+    centre = data.oMf[frame_id].translation
+    np.testing.assert_allclose(print_frame.rotation @ value, centre - print_frame.translation - FOOT_RADIUS * print_frame.rotation[:, 2])
+
+
+def test_point_contact_rows_and_forces_match_finite_differences(anymal, walk):
+    """Every constraint row of a three-foot problem (3 placement rows a foot), in q and lambda."""
+    problem = build_problem(anymal, walk.scene, walk.stance("three-feet"), PostureOptions(min_normal_force=5.0))
+    assert all(isinstance(contact, PointContact) for contact in problem.contacts)
+    assert problem.n_variables == 3 * 4  # one four-edge pyramid a foot
+    rng = np.random.default_rng(3)
+    model = anymal.model
+    q = pin.integrate(model, anymal.reference_configuration, 0.05 * rng.normal(size=model.nv))
+    lam = rng.uniform(1.0, 50.0, size=problem.n_variables)
+
+    def rows(x, y):
+        blocks = [b for b in problem.linearize(x, y).blocks if b.name != "collision"]
+        return np.concatenate([b.value for b in blocks]), np.vstack([b.jacobian for b in blocks]), blocks
+
+    _, analytic, blocks = rows(q, lam)
+    assert [b.name for b in blocks if b.name == "placement"] == ["placement"] * 3
+    assert all(len(b.value) == 3 for b in blocks if b.name == "placement")
+    numeric = np.column_stack(
+        [(rows(pin.integrate(model, q, e), lam)[0] - rows(pin.integrate(model, q, -e), lam)[0]) / (2 * EPS)
+         for e in EPS * np.eye(model.nv)]
+        + [(rows(q, lam + e)[0] - rows(q, lam - e)[0]) / (2 * EPS) for e in EPS * np.eye(problem.n_variables)]
+    )
+    size = np.maximum(np.abs(analytic).max(axis=1), 1e-8)
+    assert np.all(np.abs(numeric - analytic).max(axis=1) <= 1e-5 * size)
+
+
+@pytest.mark.parametrize("name, feet", [("start", 4), ("three-feet", 3), ("front-feet-up", 4)])
+def test_anymal_stances_solve_and_verify_with_balls_on_their_prints(anymal, walk, solved, name, feet):
+    problem, result = solved[name]
+    assert result.feasible, result.reason
+    verification = verify_problem(problem, result)
+    assert verification.ok, verification.reasons
+    assert len(result.point_forces) == feet  # one force a foot, at its ball's centre
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, result.q)
+    total = np.zeros(3)
+    for contact, point_force in zip(walk.stance(name), result.point_forces):
+        surface = walk.scene.surface(contact.contact_print.surface)
+        placement = surface.transform_print_to_world(contact.contact_print.x, contact.contact_print.y, 0.0)
+        centre = data.oMf[anymal.frame_id(anymal.surface(contact.robot_surface).frame)].translation
+        # The ball touches the support at the print: its centre a radius above it.
+        np.testing.assert_allclose(centre, placement[:3, 3] + FOOT_RADIUS * placement[:3, 2], atol=1e-6)
+        np.testing.assert_allclose(point_force.point, centre, atol=1e-9)
+        normal = point_force.force @ placement[:3, 2]
+        tangential = np.linalg.norm(point_force.force - normal * placement[:3, 2])
+        assert tangential <= 0.7 * normal + 1e-6  # inside the floor's cone (mu = 0.7)
+        total += point_force.force
+    # The feet carry the robot's weight.
+    np.testing.assert_allclose(total, [0.0, 0.0, anymal.mass * 9.81], atol=1e-5)
+
+
+def test_verify_catches_a_point_foot_off_its_print_and_a_force_outside_its_cone(anymal, solved):
+    problem, result = solved["start"]
+    q = np.array(result.q)
+    q[0] += 1e-3  # the whole robot slides 1 mm forward
+    moved = verify_problem(problem, dataclasses.replace(result, q=q))
+    assert not moved.ok
+    assert any(
+        re.fullmatch(r"left_front_foot on floor is off its print by 0\.001 m \(its ball must touch the support at the print\)", r)
+        for r in moved.reasons
+    ), moved.reasons
+    forces = list(result.point_forces)
+    first = forces[0]
+    push = first.force[2]
+    forces[0] = dataclasses.replace(first, force=first.force + np.array([push, 0.0, 0.0]))  # tangential = normal > mu normal
+    pushed = verify_problem(problem, dataclasses.replace(result, point_forces=tuple(forces)))
+    label = problem.contacts[0].label
+    assert f"a force of {label} leaves its friction cone by {push * (1 - 0.7):.3g} N" in pushed.reasons
+
+
+def test_a_point_foot_on_a_soft_body_is_refused_with_a_way_out(anymal):
+    scenario = environments.load_string(
+        """
+robot: anymal
+objects:
+  - {name: floor, type: floor}
+  - {name: foam, type: soft_box, size: [0.3, 0.6, 0.05], center: [0.363, 0.0, 0.025],
+     material: {E: 1.0e+6, nu: 0.4, rho: 100.0}, resolution: coarse}
+stances:
+  front-on-foam:
+    left_front_foot: {surface: foam_top, x: 0.0, y: 0.201}
+    left_hind_foot: {surface: floor, x: -0.363, y: 0.201}
+    right_hind_foot: {surface: floor, x: -0.363, y: -0.201}
+start: front-on-foam
+"""
+    )
+    with pytest.raises(StanceError, match=re.escape(
+        "left_front_foot on foam_top: a point foot on a deformable support is not modelled yet; "
+        "solve with deformable_as_rigid=True, or use a polygon foot"
+    )):
+        build_problem(anymal, scenario.scene, scenario.stance("front-on-foam"))
+    # As a rigid support, the same stance solves.
+    result = stances.solve(anymal, scenario.scene, scenario.stance("front-on-foam"), deformable_as_rigid=True)
+    assert result.feasible and math.isfinite(result.q[2])
+
+
+def test_anymal_plans_its_front_feet_up_a_step_and_every_stance_verifies(anymal, walk):
+    """The quadruped-walk plan: each foot lifts and lands (three feet always down)."""
+    from cbm.planner import plan
+
+    # A 3 s budget per posture solve: the plan's stances solve in under 0.6 s,
+    # while an unreachable candidate grinds for tens of seconds to its iteration limit.
+    result = plan(walk, robot=anymal, time_limit=120, solver_options={"time_budget": 3.0})
+    assert result.success, result.reason
+    check = result.check(walk, anymal)
+    assert check.ok, check.problems
+    feet = set(anymal.surfaces_with_role("foot"))
+    for planned in result.stances:
+        assert len(feet & set(planned.stance.robot_surfaces)) >= 3
+    last = {c.robot_surface: c.contact_print for c in result.stances[-1].stance}
+    assert last["left_front_foot"].surface == "step_top" and last["right_front_foot"].surface == "step_top"
+    moved = [
+        name for name in feet
+        if {c.robot_surface: c.contact_print for c in result.stances[0].stance}[name] != last[name]
+    ]
+    assert sorted(moved) == sorted(feet)
+    assert len(result.stances) >= 9  # each of the four feet lifted and placed again
