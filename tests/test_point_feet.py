@@ -257,3 +257,29 @@ def test_anymal_plans_its_front_feet_onto_a_step_or_foam_and_every_stance_verifi
     ]
     assert sorted(moved) == sorted(feet)
     assert len(result.stances) >= 9  # each of the four feet lifted and placed again
+
+
+def test_anymal_steps_are_measured_from_where_its_reference_posture_puts_each_foot(anymal):
+    """A foot may land within half a leg of its reference place relative to the three others."""
+    from cbm.reach import ReachModel
+    from cbm.sampling import PrintSet
+    from environments import ContactPrint
+
+    reach = ReachModel.of(anymal)
+    legs = {limb.length for limb in reach.limbs.values()}
+    assert len(legs) == 1  # four equal legs, measured on the model
+    (leg,) = legs
+    nominal = {"left_front_foot": (0.363, 0.201), "right_front_foot": (0.363, -0.201),
+               "left_hind_foot": (-0.363, 0.201), "right_hind_foot": (-0.363, -0.201)}
+    np.testing.assert_allclose(reach.limbs["left_front_leg"].foot_in_support[:2], nominal["left_front_foot"], atol=1e-3)
+    others = {name: (np.array([*xy, 0.0]), np.array([1.0, 0.0, 0.0])) for name, xy in nominal.items() if name != "left_front_foot"}
+    step = 0.5 * leg  # ReachLimits.step_length, in legs
+    ahead = np.array([0.0, 0.9 * step, 1.1 * step])
+    origins = np.column_stack([0.363 + ahead, np.full(3, 0.201), np.zeros(3)])
+    candidates = PrintSet(
+        "left_front_foot", tuple(ContactPrint("floor", x, y, 0.0) for x, y, _ in origins), origins, np.tile([1.0, 0.0, 0.0], (3, 1))
+    )
+    assert reach.reachable_mask(candidates, others).tolist() == [True, True, False]
+    # The support rule: three of the four feet stay down.
+    assert reach.may_lift("left_front_foot", list(nominal))
+    assert not reach.may_lift("left_front_foot", list(others))
