@@ -92,6 +92,7 @@ class RigidContact:
     """
 
     kind = "rigid"
+    application = "its surface's vertices"  # where its forces act, for messages
 
     def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
         surface = robot.surface(robot_surface)
@@ -175,7 +176,7 @@ class RigidContact:
         # The forces must act at the robot surface's vertices...
         expected = points_in_world(data, self.loads)
         if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
-            reasons.append(f"forces of {self.label} are not applied at its surface's vertices")
+            reasons.append(f"forces of {self.label} are not applied at {self.application}")
         # ... and lie in the exact Coulomb cone of the print.
         rotation_print = self.print_placement.rotation
         local = forces @ rotation_print
@@ -236,6 +237,8 @@ class PointContact(RigidContact):
     free: only its centre is placed. The force acts at the ball's centre (see
     the module docstring).
     """
+
+    application = "its ball's centre"
 
     def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
         surface = robot.surface(robot_surface)

@@ -283,3 +283,11 @@ def test_anymal_steps_are_measured_from_where_its_reference_posture_puts_each_fo
     # The support rule: three of the four feet stay down.
     assert reach.may_lift("left_front_foot", list(nominal))
     assert not reach.may_lift("left_front_foot", list(others))
+
+
+def test_verify_catches_a_point_foot_force_reported_away_from_its_ball(anymal, solved):
+    problem, result = solved["start"]
+    forces = list(result.point_forces)
+    forces[0] = dataclasses.replace(forces[0], point=forces[0].point - np.array([0.0, 0.0, FOOT_RADIUS]))  # at the ground
+    moved = verify_problem(problem, dataclasses.replace(result, point_forces=tuple(forces)))
+    assert f"forces of {problem.contacts[0].label} are not applied at its ball's centre" in moved.reasons
