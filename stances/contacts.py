@@ -33,7 +33,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .blocks import equality
+from .blocks import PLACEMENT_ACCURACY, equality
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
@@ -153,7 +153,7 @@ class RigidContact:
             f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
         ]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def cost(self, model, data, lam, options, columns, offset):
         """No objective term of its own (lambda's is the problem's force term)."""
@@ -258,7 +258,7 @@ class PointContact(RigidContact):
         jacobian = np.zeros((3, columns))
         jacobian[:, : model.nv] = jacobian_q
         labels = [f"placement of {self.label} ({axis})" for axis in ("x", "y", "z")]
-        return [equality("placement", residual, jacobian, 1e-2, labels)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def _verify_placement(self, data, tolerances, measures) -> list:
         """The ball's centre ``radius`` above the print origin, along its normal."""
