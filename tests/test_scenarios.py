@@ -9,6 +9,7 @@ import trimesh
 
 import environments
 from environments import ScenarioError, SceneError, load, scenario_names
+from stances.description import builtin_robot_names
 
 BUILTIN = scenario_names()
 EXPECTED = {
@@ -21,6 +22,7 @@ EXPECTED = {
     "cross-soft-block",
     "climb-with-soft-support",
     "foot-and-hand-on-foam",
+    "quadruped-walk",
 }
 
 
@@ -42,9 +44,9 @@ def test_every_expected_scenario_is_built_in():
 
 
 @pytest.mark.parametrize("name", BUILTIN)
-def test_builtin_scenario_loads_with_talos_and_a_start_stance(name, loaded):
+def test_builtin_scenario_loads_with_a_builtin_robot_and_a_start_stance(name, loaded):
     scenario = loaded(name)
-    assert scenario.name == name and scenario.robot == "talos"
+    assert scenario.name == name and scenario.robot in builtin_robot_names()
     assert scenario.start in scenario.stances
     assert scenario.description
     assert "floor" in scenario.scene.surfaces
