@@ -20,6 +20,7 @@ from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fe
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
+from .mesh_surfaces import SurfaceSearch, auto_surfaces
 from .options import validate_options
 from .plain_data import checked_mapping, join_key, kind_of
 from .scene import Scene
@@ -39,7 +40,7 @@ OBJECT_KEYS = {
         "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"
     ),
     "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
-    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces"),
+    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
 }
 
 #: Keys of the mappings inside a scenario: a soft box's material, a mesh's
@@ -49,6 +50,7 @@ NESTED_KEYS = {
     "material": ("E", "nu", "rho"),
     "block": ("name", "size", "center"),
     "mesh surface": ("name", "polygon", "origin", "rpy_deg", "friction"),
+    "auto surfaces": ("max_slope_deg", "min_area", "sides", "friction"),
     "print": ("surface", "x", "y", "theta", "theta_deg"),
     "goal": ("contacts", "stance", "regions"),
     "goal region": ("robot_surface", "lower", "upper"),
@@ -427,6 +429,21 @@ class _Reader:
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
         )
 
+    def surface_search(self, item: Mapping, key: str) -> SurfaceSearch:
+        """The settings of ``surfaces: auto`` (``auto_surfaces``), defaults where absent."""
+        settings_key = join_key(key, "auto_surfaces")
+        settings = self.mapping(item.get("auto_surfaces", {}), settings_key, NESTED_KEYS["auto surfaces"])
+        defaults = SurfaceSearch()
+        max_slope = self.number(settings, "max_slope_deg", settings_key, defaults.max_slope_deg)
+        if not 0.0 <= max_slope < 90.0:
+            raise self.error(join_key(settings_key, "max_slope_deg"), f"must be in [0, 90) degrees, got {max_slope:g}")
+        return SurfaceSearch(
+            max_slope,
+            self.number(settings, "min_area", settings_key, defaults.min_area, positive=True),
+            self.boolean(settings, "sides", settings_key, defaults.sides),
+            self.number(settings, "friction", settings_key, defaults.friction, positive=True),
+        )
+
     def mesh(self, item: Mapping, key: str):
         item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
         name = self.string(item, "name", key)
@@ -442,8 +459,12 @@ class _Reader:
             math.radians(self.number(item, "yaw_deg", key, 0.0)),
         )
         surfaces_data = item.get("surfaces", [])
+        if surfaces_data == "auto":
+            return obj, auto_surfaces(name, obj.mesh, obj.transform_object_to_world, self.surface_search(item, key))
+        if "auto_surfaces" in item:
+            raise self.error(join_key(key, "auto_surfaces"), "applies only with 'surfaces: auto'")
         if not isinstance(surfaces_data, list):
-            raise self.error(join_key(key, "surfaces"), f"must be a list of surfaces, got {kind_of(surfaces_data)}")
+            raise self.error(join_key(key, "surfaces"), f"must be 'auto' or a list of surfaces, got {kind_of(surfaces_data)}")
         surfaces = []
         for index, surface_item in enumerate(surfaces_data):
             surface_key = f"{key}.surfaces[{index}]"
