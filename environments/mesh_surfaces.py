@@ -269,6 +269,11 @@ def _convex_pieces(faces: np.ndarray, points_2d: np.ndarray) -> list[list[int]]:
     loop of the directed edges the two pieces do not share.
     """
     pieces = {index: [int(v) for v in face] for index, face in enumerate(faces)}
+    # The common case first (a rectangle meshed by gmsh in hundreds of triangles,
+    # which greedy merging could leave in several pieces): the whole region is convex.
+    whole = _boundary_loop(list(pieces.values()))
+    if whole is not None and _is_convex(points_2d[whole]):
+        return [whole]
     owner = {}
     for index, loop in pieces.items():
         for u, v in zip(loop, loop[1:] + loop[:1]):
@@ -281,7 +286,7 @@ def _convex_pieces(faces: np.ndarray, points_2d: np.ndarray) -> list[list[int]]:
         a, b = owner.get((u, v)), owner.get((v, u))
         if a is None or b is None or a == b:
             continue
-        merged = _union_loop(pieces[a], pieces[b])
+        merged = _boundary_loop([pieces[a], pieces[b]])
         if merged is None or not _is_convex(points_2d[merged]):
             continue
         for edge in zip(pieces[b], pieces[b][1:] + pieces[b][:1]):
@@ -294,9 +299,11 @@ def _convex_pieces(faces: np.ndarray, points_2d: np.ndarray) -> list[list[int]]:
     return [pieces[index] for index in sorted(pieces)]
 
 
-def _union_loop(first: list[int], second: list[int]) -> list[int] | None:
-    """The boundary loop of two pieces glued along their shared edges, or None if it is not one simple loop."""
-    edges = set(zip(first, first[1:] + first[:1])) | set(zip(second, second[1:] + second[:1]))
+def _boundary_loop(loops: list[list[int]]) -> list[int] | None:
+    """The boundary loop of pieces glued along their shared edges, or None if it is not one simple loop."""
+    edges = set()
+    for loop in loops:
+        edges.update(zip(loop, loop[1:] + loop[:1]))
     boundary = {(u, v) for (u, v) in edges if (v, u) not in edges}
     following = {}
     for u, v in boundary:

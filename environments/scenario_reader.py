@@ -24,6 +24,7 @@ from .mesh_surfaces import SurfaceSearch, auto_surfaces
 from .options import validate_options
 from .plain_data import checked_mapping, join_key, kind_of
 from .scene import Scene
+from .soft_mesh import ON_FLOOR, FixedPlane, soft_mesh
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
 
@@ -41,6 +42,10 @@ OBJECT_KEYS = {
     ),
     "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
     "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
+    "soft_mesh": (
+        "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
+        "strain_limit",
+    ),
 }
 
 #: Keys of the mappings inside a scenario: a soft box's material, a mesh's
@@ -51,6 +56,7 @@ NESTED_KEYS = {
     "block": ("name", "size", "center"),
     "mesh surface": ("name", "polygon", "origin", "rpy_deg", "friction"),
     "auto surfaces": ("max_slope_deg", "min_area", "sides", "friction"),
+    "fixed": ("plane",),
     "print": ("surface", "x", "y", "theta", "theta_deg"),
     "goal": ("contacts", "stance", "regions"),
     "goal region": ("robot_surface", "lower", "upper"),
@@ -444,14 +450,50 @@ class _Reader:
             self.number(settings, "friction", settings_key, defaults.friction, positive=True),
         )
 
-    def mesh(self, item: Mapping, key: str):
-        item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
-        name = self.string(item, "name", key)
+    def mesh_file(self, item: Mapping, key: str) -> Path:
+        """The ``file`` of a mesh object, relative to the scenario file, which must exist."""
         file_name = self.string(item, "file", key)
         base = self.path.parent if self.path is not None else Path.cwd()
         file_path = (base / file_name).resolve()
         if not file_path.is_file():
             raise self.error(join_key(key, "file"), f"mesh file not found: {file_path}")
+        return file_path
+
+    def soft_mesh(self, item: Mapping, key: str):
+        item = self.mapping(item, key, OBJECT_KEYS["soft_mesh"], ("name", "file", "material"))
+        name = self.string(item, "name", key)
+        if item.get("surfaces", "auto") != "auto":
+            raise self.error(join_key(key, "surfaces"), f"must be 'auto' (a soft mesh's surfaces are found on it), got {kind_of(item['surfaces'])}")
+        return soft_mesh(
+            name,
+            self.mesh_file(item, key),
+            self.material(item, key),
+            position=self.vector(item, "position", key, 3, (0.0, 0.0, 0.0)),
+            rpy=np.radians(self.vector(item, "rpy_deg", key, 3, (0.0, 0.0, 0.0))),
+            fixed=self.fixed_plane(item, key),
+            resolution=self.resolution(item, key),
+            search=self.surface_search(item, key),
+            strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+        )
+
+    def fixed_plane(self, item: Mapping, key: str) -> FixedPlane:
+        """``fixed: on_floor`` (the default) or ``fixed: {plane: "z = 0.3"}``."""
+        fixed_key = join_key(key, "fixed")
+        value = item.get("fixed", "on_floor")
+        if value == "on_floor":
+            return ON_FLOOR
+        if not isinstance(value, Mapping):
+            raise self.error(fixed_key, f"must be on_floor or {{plane: '<x|y|z> = <metres>'}}, got {kind_of(value)}")
+        value = self.mapping(value, fixed_key, NESTED_KEYS["fixed"], ("plane",))
+        try:
+            return FixedPlane.parse(value["plane"])
+        except SceneError as error:
+            raise self.error(join_key(fixed_key, "plane"), str(error)) from None
+
+    def mesh(self, item: Mapping, key: str):
+        item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
+        name = self.string(item, "name", key)
+        file_path = self.mesh_file(item, key)
         obj = mesh_object(
             name,
             str(file_path),
