@@ -24,6 +24,7 @@ from .mesh_surfaces import SurfaceSearch, auto_surfaces
 from .options import validate_options
 from .plain_data import checked_mapping, join_key, kind_of
 from .scene import Scene
+from .scene_checks import SceneSenseError, check_overlaps, check_supported
 from .soft_mesh import ON_FLOOR, FixedPlane, soft_mesh
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
@@ -31,20 +32,23 @@ from .surfaces import ContactSurface
 __all__ = ["read_scenario_fields", "line_of", "ROBOT_FILE_SUFFIXES", "SCENARIO_KEYS", "OBJECT_KEYS", "NESTED_KEYS"]
 
 #: Keys of a scenario document.
-SCENARIO_KEYS = ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options")
+SCENARIO_KEYS = (
+    "name", "robot", "description", "objects", "allowed_overlaps", "surfaces", "stances", "start", "goal", "options"
+)
 
 #: Keys each object ``type`` takes (docs/scenarios.md describes every one).
 OBJECT_KEYS = {
     "floor": ("name", "type", "size", "friction"),
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
     "soft_box": (
-        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"
+        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit",
+        "floating",
     ),
-    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
+    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "floating"),
     "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
     "soft_mesh": (
         "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
-        "strain_limit",
+        "strain_limit", "floating",
     ),
 }
 
@@ -251,7 +255,7 @@ class _Reader:
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.error("description", f"must be text, got {kind_of(description)}")
-        scene = self.scene(name, top["objects"], top.get("surfaces", {}))
+        scene = self.scene(name, top["objects"], top.get("surfaces", {}), top.get("allowed_overlaps", []))
         stances_data = top["stances"]
         if not isinstance(stances_data, Mapping) or not stances_data:
             raise self.error("stances", f"must be a non-empty mapping of stance names to contacts, got {kind_of(stances_data)}")
@@ -290,13 +294,15 @@ class _Reader:
             raise self.error("robot", f"robot description file not found: {file_path}")
         return str(file_path)
 
-    def scene(self, name: str, objects_data, surfaces_data) -> Scene:
+    def scene(self, name: str, objects_data, surfaces_data, overlaps_data) -> Scene:
         if not isinstance(objects_data, list) or not objects_data:
             raise self.error("objects", f"must be a non-empty list of objects, got {kind_of(objects_data)}")
         rigid: list[RigidObject] = []
         deformable: list[DeformableObject] = []
         surfaces: list[ContactSurface] = []
         names: set[str] = set()
+        floating: set[str] = set()
+        keys: dict[str, str] = {}  # object name -> its key path, for messages
         for index, item in enumerate(objects_data):
             key = f"objects[{index}]"
             if not isinstance(item, Mapping):
@@ -322,11 +328,36 @@ class _Reader:
             names.add(obj.name)
             (deformable if obj.deformable else rigid).append(obj)
             surfaces.extend(obj_surfaces)
+            if obj.deformable and self.boolean(item, "floating", key, False):
+                floating.add(obj.name)
+            keys[obj.name] = key
         surfaces = self.surface_overrides(surfaces_data, surfaces)
+        allowed = self.allowed_overlaps(overlaps_data, keys)
         try:
-            return Scene(name, rigid, deformable, surfaces)
+            scene = Scene(name, rigid, deformable, surfaces)
         except SceneError as error:
             raise self.error("objects", str(error)) from None
+        try:
+            check_supported(scene, floating)
+            check_overlaps(scene, allowed)
+        except SceneSenseError as error:
+            raise self.error(keys[error.objects[-1]], str(error)) from None
+        return scene
+
+    def allowed_overlaps(self, data, keys: dict[str, str]) -> set[frozenset]:
+        """``allowed_overlaps: [[a, b], ...]``: pairs of known objects whose overlap is intended."""
+        if not isinstance(data, list):
+            raise self.error("allowed_overlaps", f"must be a list of [object, object] pairs, got {kind_of(data)}")
+        allowed = set()
+        for index, pair in enumerate(data):
+            pair_key = f"allowed_overlaps[{index}]"
+            if not (isinstance(pair, list) and len(pair) == 2 and pair[0] != pair[1]):
+                raise self.error(pair_key, f"must be a pair of two object names [a, b], got {kind_of(pair)}")
+            for name in pair:
+                if name not in keys:
+                    raise self.error(pair_key, f"unknown object {name!r}; objects: {known_names(keys)}")
+            allowed.add(frozenset(pair))
+        return allowed
 
     def surface_overrides(self, data, surfaces: list[ContactSurface]) -> list[ContactSurface]:
         if not isinstance(data, Mapping):
