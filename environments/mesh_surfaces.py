@@ -103,7 +103,8 @@ def find_surfaces(mesh: trimesh.Trimesh, rotation_object_to_world=None, search: 
     Parameters
     ----------
     mesh : trimesh.Trimesh
-        Consistently oriented mesh (outward normals), metres, object frame.
+        Triangle mesh, metres, object frame; a closed one wound inward or
+        inconsistently is reoriented (on a copy) so that normals point out.
     rotation_object_to_world : (3, 3) float, optional
         Orientation of the object frame in the world (identity by default): the
         slope of a region is measured against world +z.
@@ -134,6 +135,11 @@ def find_surfaces(mesh: trimesh.Trimesh, rotation_object_to_world=None, search: 
     rotation = np.eye(3) if rotation_object_to_world is None else np.asarray(rotation_object_to_world, dtype=float)
     if not isinstance(mesh, trimesh.Trimesh) or len(mesh.faces) == 0:
         raise SceneError("find_surfaces needs a non-empty trimesh.Trimesh")
+    if mesh.is_watertight and (not mesh.is_winding_consistent or mesh.volume < 0.0):
+        # Files from other tools may be wound inward or inconsistently: the outward
+        # normal decides which side a foot stands on.
+        mesh = mesh.copy()
+        trimesh.repair.fix_normals(mesh)
     vertices = np.asarray(mesh.vertices, dtype=float)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     normals = np.asarray(mesh.face_normals, dtype=float)

@@ -124,6 +124,16 @@ def test_a_region_that_is_not_convex_is_cut_into_convex_pieces_covering_it():
         assert np.allclose(piece.transform_surface_to_object[:3, 2], [0.0, 0.0, 1.0])
 
 
+def test_a_mesh_wound_inward_gives_the_same_surfaces():
+    slab = trimesh.creation.box((1.0, 0.5, 0.2))
+    inward = slab.copy()
+    inward.invert()
+    assert inward.volume < 0.0
+    for first, second in zip(find_surfaces(slab), find_surfaces(inward), strict=True):
+        assert first.role == second.role
+        assert np.allclose(first.transform_surface_to_object, second.transform_surface_to_object)
+
+
 def test_min_area_slope_and_sides_select_the_pieces():
     wedge = trimesh.creation.box((1.0, 1.0, 0.2))
     tilted = wedge.copy().apply_transform(trimesh.transformations.rotation_matrix(np.radians(25.0), [0, 1, 0]))

@@ -31,18 +31,25 @@ def print_force(obj, motion) -> np.ndarray:
     return obj.body.contact_patch(ids).reaction_forces(press).sum(axis=0) @ transform[:3, :3].T
 
 
+@pytest.fixture(scope="module")
+def same_box():
+    """The 0.6 x 0.6 x 0.2 m box as a soft_mesh and a soft_box at h = 25 mm, and a soft_box at 50 mm."""
+    surface = trimesh.creation.box(SIZE).apply_translation((0.0, 0.0, 0.1))
+    solid, surfaces = soft_mesh("solid", surface, MATERIAL, resolution=0.025)
+    box, top = soft_box("box", SIZE, (0.0, 0.0, 0.1), MATERIAL, resolution=0.025)
+    coarser, _ = soft_box("coarser", SIZE, (0.0, 0.0, 0.1), MATERIAL, resolution=0.05)
+    return solid, surfaces, box, top, coarser
+
+
 @pytest.mark.parametrize("motion", [(0.0, 0.0, -0.001), (0.0005, 0.0, 0.0)], ids=["press", "shear"])
-def test_a_soft_mesh_of_a_box_surface_presses_back_like_the_soft_box(motion):
+def test_a_soft_mesh_of_a_box_surface_presses_back_like_the_soft_box(same_box, motion):
     """Both meshes have spacing h = 25 mm under the print. A rigid print's force
     converges slowly (h^1.3, see environments.deformable.RESOLUTIONS), so each mesh
     is still some 10-20 % from the converged force: the tolerance is the soft box's
     own change from h = 50 mm to 25 mm, the size of the discretisation error.
     Measured: press 398 N (box) vs 393 N (gmsh), box at 50 mm 480 N; shear 95.9 N
     vs 96.4 N, box at 50 mm 110 N."""
-    surface = trimesh.creation.box(SIZE).apply_translation((0.0, 0.0, 0.1))
-    solid, surfaces = soft_mesh("solid", surface, MATERIAL, resolution=0.025)
-    box, top = soft_box("box", SIZE, (0.0, 0.0, 0.1), MATERIAL, resolution=0.025)
-    coarser, _ = soft_box("coarser", SIZE, (0.0, 0.0, 0.1), MATERIAL, resolution=0.05)
+    solid, surfaces, box, top, coarser = same_box
     axis = int(np.argmax(np.abs(motion)))
     by_mesh, by_box, by_coarser = (print_force(obj, motion)[axis] for obj in (solid, box, coarser))
     assert by_box * np.sign(motion[axis]) < 0.0  # it pushes back
