@@ -143,18 +143,23 @@ def find_surfaces(mesh: trimesh.Trimesh, rotation_object_to_world=None, search: 
     vertices = np.asarray(mesh.vertices, dtype=float)
     faces = np.asarray(mesh.faces, dtype=np.int64)
     normals = np.asarray(mesh.face_normals, dtype=float)
+    areas = np.asarray(mesh.area_faces)
     cos_slope = math.cos(math.radians(search.max_slope_deg))
     found = []
     for region in _planar_regions(vertices, faces, normals, np.asarray(mesh.face_adjacency)):
-        normal = _unit(np.sum(normals[region] * np.asarray(mesh.area_faces)[region][:, None], axis=0))
+        if areas[region].sum() < search.min_area:
+            continue  # no piece of it can be large enough (a facet of a curved surface)
+        normal = _unit(np.sum(normals[region] * areas[region][:, None], axis=0))
         up = float((rotation @ normal)[2])
         role = "foot" if up >= cos_slope else "hand"
         if role == "hand" and not search.sides:
             continue
         frame = _region_frame(normal, rotation, role)
-        offset = float(np.mean(vertices[faces[region]].reshape(-1, 3) @ normal))
-        for loop in _convex_pieces(faces[region], vertices @ frame[:, :2]):
-            polygon = _drop_collinear(vertices[loop] @ frame[:, :2])
+        used, local_faces = np.unique(faces[region], return_inverse=True)
+        offset = float(np.mean(vertices[used] @ normal))
+        points_2d = vertices[used] @ frame[:, :2]
+        for loop in _convex_pieces(local_faces.reshape(-1, 3), points_2d):
+            polygon = points_2d[loop][_corners(points_2d[loop])]
             if polygon_area(polygon) < search.min_area:
                 continue
             centroid = polygon_centroid(polygon)
@@ -268,25 +273,64 @@ def _region_frame(normal: np.ndarray, rotation_object_to_world: np.ndarray, role
 def _convex_pieces(faces: np.ndarray, points_2d: np.ndarray) -> list[list[int]]:
     """Vertex loops (counter-clockwise) of convex pieces covering a flat region's triangles.
 
-    Hertel-Mehlhorn's idea on the mesh's own triangulation: start from the
-    triangles and merge two pieces across their shared boundary whenever the union
-    is still convex, trying the longest shared edges first (so the two triangles of
-    a rectangle become the rectangle). Pieces are vertex loops; a union is the
-    loop of the directed edges the two pieces do not share.
+    A region whose outline is convex is one piece. Otherwise Hertel-Mehlhorn's
+    idea: triangulate, then merge two pieces across their shared boundary whenever
+    the union is still convex, longest shared edges first. Two triangulations are
+    tried and the one giving fewer pieces kept: the mesh's own, and, when the
+    region has one outline (no hole), that outline's corners cut into ears (a
+    finely meshed L-shaped landing then gives two pieces, not dozens).
     """
-    pieces = {index: [int(v) for v in face] for index, face in enumerate(faces)}
-    # The common case first (a rectangle meshed by gmsh in hundreds of triangles,
-    # which greedy merging could leave in several pieces): the whole region is convex.
-    whole = _boundary_loop(list(pieces.values()))
-    if whole is not None and _is_convex(points_2d[whole]):
-        return [whole]
+    triangles = [[int(v) for v in face] for face in faces]
+    outline = _boundary_loop(triangles)
+    if outline is None:
+        return _merged_pieces(triangles, points_2d)
+    corners = [outline[k] for k in _corners(points_2d[outline])]
+    if _is_convex(points_2d[corners]):
+        return [outline]
+    ears = _ears(corners, points_2d)
+    candidates = [_merged_pieces(triangles, points_2d)]
+    if ears is not None:
+        candidates.append(_merged_pieces(ears, points_2d))
+    return min(candidates, key=len)
+
+
+def _ears(loop: list[int], points_2d: np.ndarray) -> list[list[int]] | None:
+    """Triangles of a simple counter-clockwise polygon by ear clipping, or None if it has no ear (not simple)."""
+    remaining = list(loop)
+    triangles = []
+    while len(remaining) > 3:
+        for index in range(len(remaining)):
+            a, b, c = remaining[index - 1], remaining[index], remaining[(index + 1) % len(remaining)]
+            corner = points_2d[[a, b, c]]
+            if _cross(corner[1] - corner[0], corner[2] - corner[1]) <= 0.0:
+                continue  # reflex or straight: not an ear
+            others = points_2d[[v for v in remaining if v not in (a, b, c)]]
+            inside = np.ones(len(others), dtype=bool)
+            for k in range(3):
+                inside &= _cross(corner[(k + 1) % 3] - corner[k], others - corner[k]) >= 0.0
+            if inside.any():
+                continue
+            triangles.append([a, b, c])
+            remaining.pop(index)
+            break
+        else:
+            return None
+    return triangles + [remaining]
+
+
+def _cross(first: np.ndarray, second: np.ndarray):
+    """z of the cross product of 2-D vectors (rows broadcast)."""
+    return first[..., 0] * second[..., 1] - first[..., 1] * second[..., 0]
+
+
+def _merged_pieces(triangles: list[list[int]], points_2d: np.ndarray) -> list[list[int]]:
+    """Hertel-Mehlhorn merging of triangles into convex pieces (see :func:`_convex_pieces`)."""
+    pieces = dict(enumerate(triangles))
     owner = {}
     for index, loop in pieces.items():
         for u, v in zip(loop, loop[1:] + loop[:1]):
             owner[(u, v)] = index
-    shared = [
-        (u, v) for (u, v) in owner if (v, u) in owner and u < v
-    ]
+    shared = [(u, v) for (u, v) in owner if (v, u) in owner and u < v]
     shared.sort(key=lambda edge: (-np.linalg.norm(points_2d[edge[0]] - points_2d[edge[1]]), edge))
     for u, v in shared:
         a, b = owner.get((u, v)), owner.get((v, u))
@@ -335,14 +379,13 @@ def _is_convex(points: np.ndarray) -> bool:
     return bool(np.all(cross >= -1e-9 * scale) and np.all((cross > 1e-9 * scale) | (dot > 0.0)))
 
 
-def _drop_collinear(points: np.ndarray) -> np.ndarray:
-    """The loop without the vertices lying on the chord of their neighbours."""
+def _corners(points: np.ndarray) -> list[int]:
+    """Indices of a loop's vertices that do not lie on the chord of their neighbours."""
     keep = []
     for index in range(len(points)):
         before, here, after = points[index - 1], points[index], points[(index + 1) % len(points)]
         chord = after - before
         length = np.linalg.norm(chord)
-        offset = before - here
-        if length == 0.0 or abs(chord[0] * offset[1] - chord[1] * offset[0]) / length > _COLLINEAR:
+        if length == 0.0 or abs(_cross(chord, before - here)) / length > _COLLINEAR:
             keep.append(index)
-    return points[keep]
+    return keep

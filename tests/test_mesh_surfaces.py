@@ -111,8 +111,11 @@ def l_shaped_slab() -> trimesh.Trimesh:
     return trimesh.Trimesh(vertices, faces, process=True)
 
 
-def test_a_region_that_is_not_convex_is_cut_into_convex_pieces_covering_it():
+@pytest.mark.parametrize("subdivisions", [0, 3], ids=["as-made", "finely-meshed"])
+def test_a_region_that_is_not_convex_is_cut_into_convex_pieces_covering_it(subdivisions):
     slab = l_shaped_slab()
+    for _ in range(subdivisions):  # 4 ** 3 triangles for each: greedy merging alone left dozens of pieces
+        slab = slab.subdivide()
     assert slab.is_watertight and slab.volume > 0
     tops = [f for f in find_surfaces(slab) if f.role == "foot"]
     assert len(tops) == 2  # an L needs two convex pieces, no more
