@@ -245,13 +245,13 @@ def test_mesh_objects_are_read_relative_to_the_file_with_declared_surfaces(tmp_p
     trimesh.creation.box(extents=(0.4, 0.4, 0.2)).export(tmp_path / "step.stl")
     text = GOOD.replace(
         "stances:",
-        "  - name: step\n    type: mesh\n    file: step.stl\n    center: [1.0, 0.0, 0.1]\n"
+        "  - name: step\n    type: mesh\n    file: step.stl\n    center: [1.0, 0.5, 0.1]\n"  # clear of the table
         "    surfaces:\n      - {name: step_top, polygon: [[-0.2, -0.2], [0.2, -0.2], [0.2, 0.2], [-0.2, 0.2]],"
         " origin: [0, 0, 0.1], friction: 0.6}\nstances:",
     )
     scenario = load(write(tmp_path, text))
     surface = scenario.scene.surface("step_top")
-    np.testing.assert_allclose(surface.point_in_world(0, 0), [1.0, 0.0, 0.2])
+    np.testing.assert_allclose(surface.point_in_world(0, 0), [1.0, 0.5, 0.2])
     names = [name for name, _ in scenario.scene.collision_objects()]
     assert names == ["floor", "table", "step"]
     with pytest.raises(ScenarioError, match=r"objects\[2\].file: mesh file not found"):
@@ -264,7 +264,7 @@ def test_mesh_objects_are_read_relative_to_the_file_with_declared_surfaces(tmp_p
 def test_soft_box_material_errors_name_the_material_key(tmp_path):
     soft = GOOD.replace(
         "stances:",
-        "  - {name: cube, type: soft_box, size: [0.3, 0.3, 0.3], center: [1, 0, 0.15],"
+        "  - {name: cube, type: soft_box, size: [0.3, 0.3, 0.3], center: [1.2, 0, 0.15],"  # clear of the table
         " material: {E: 1e6, nu: 0.5}, resolution: coarse}\nstances:",
     )
     with pytest.raises(ScenarioError, match=r"objects\[2\].material: .*") as info:
