@@ -99,13 +99,15 @@ class FramePlacementConstraint:
 
 
 def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=0.25):
-    """Waypoints from one placement to another, lifted along a normal.
+    """Waypoints of a step from one placement to another: up, across, down.
 
-    The first and last waypoints sit ``approach`` straight above the ends
-    (lift-off and touch-down); between them, ``samples`` waypoints follow the
-    straight line plus ``clearance * min(1, s / ramp, (1 - s) / ramp)`` along
-    ``normal`` (up quickly, across, down quickly), at s = k / (samples + 1).
-    Orientations follow the geodesic of SO(3).
+    Along ``normal`` the path rises from the start to ``clearance`` above the
+    higher end, crosses at that height and comes down to the end (a step onto
+    a block clears its edge); across it moves only at the top. The first and
+    last waypoints sit ``approach`` straight above the ends (lift-off and
+    touch-down). Between them, ``samples`` waypoints at s = k / (samples + 1):
+    rising for s < ``ramp``, falling for s > 1 - ``ramp``. Orientations follow
+    the geodesic of SO(3), turning with the motion across.
 
     Parameters
     ----------
@@ -114,7 +116,7 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=0.2
     normal : (3,) float
         Lift direction, world frame (normalised here).
     clearance : float
-        Lift across, metres.
+        Height of the crossing above the higher end, metres.
     samples : int
         Waypoints between the two approach waypoints.
     approach : float
@@ -131,22 +133,27 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=0.2
     --------
     >>> import numpy as np
     >>> start, end = np.eye(4), np.eye(4)
-    >>> end[0, 3] = 0.3
-    >>> path = lifted_path(start, end, [0, 0, 1], 0.05, 3, approach=0.01)
+    >>> end[:3, 3] = [0.3, 0.0, 0.1]  # onto a 10 cm block
+    >>> path = lifted_path(start, end, [0, 0, 1], 0.05, 3, approach=0.01, ramp=0.3)
     >>> np.round(path[:, :3, 3], 3).tolist()
-    [[0.0, 0.0, 0.01], [0.075, 0.0, 0.05], [0.15, 0.0, 0.05], [0.225, 0.0, 0.05], [0.3, 0.0, 0.01]]
+    [[0.0, 0.0, 0.01], [0.0, 0.0, 0.125], [0.15, 0.0, 0.15], [0.3, 0.0, 0.142], [0.3, 0.0, 0.11]]
     """
     start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
     normal = np.asarray(normal, dtype=float)
     normal = normal / np.linalg.norm(normal)
-    turn = pin.log3(start[:3, :3].T @ end[:3, :3])
+    height_start, height_end = start[:3, 3] @ normal, end[:3, 3] @ normal
+    top = max(height_start, height_end) + clearance
     s = np.arange(samples + 2) / (samples + 1)
-    lift = clearance * np.minimum(1.0, np.minimum(s, 1.0 - s) / ramp)
-    lift[[0, -1]] = approach
+    across = np.clip((s - ramp) / (1.0 - 2.0 * ramp), 0.0, 1.0)
+    height = np.where(s < 0.5, height_start + (top - height_start) * np.minimum(s / ramp, 1.0),
+                      height_end + (top - height_end) * np.minimum((1.0 - s) / ramp, 1.0))
+    height[[0, -1]] = height_start + approach, height_end + approach
+    turn = pin.log3(start[:3, :3].T @ end[:3, :3])
     path = np.tile(np.eye(4), (samples + 2, 1, 1))
     for k in range(samples + 2):
-        path[k, :3, 3] = (1.0 - s[k]) * start[:3, 3] + s[k] * end[:3, 3] + lift[k] * normal
-        path[k, :3, :3] = start[:3, :3] @ pin.exp3(s[k] * turn)
+        point = (1.0 - across[k]) * start[:3, 3] + across[k] * end[:3, 3]
+        path[k, :3, 3] = point + (height[k] - point @ normal) * normal
+        path[k, :3, :3] = start[:3, :3] @ pin.exp3(across[k] * turn)
     return path
 
 
@@ -166,7 +173,8 @@ class Motion:
         Postures, the first stance's ``q`` first and the second's last;
         between them, one per waypoint (fewer if the motion failed).
     targets : (k - 2, 4, 4) float
-        Where the moving surface's frame is held at each interior sample, world.
+        Where the moving surface's frame is held at each interior sample, world
+        (the path's waypoints, and any halfway waypoints the solves needed).
     results : tuple of stances PostureResult
         The support's posture solve of each interior sample.
     feasible : bool
@@ -237,7 +245,7 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, solver_options=None):
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_splits=4, solver_options=None):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
 
     Parameters
@@ -252,6 +260,10 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, solv
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
+    max_splits : int
+        Waypoints no posture reaches from the previous sample are retried from
+        a waypoint halfway (a shorter continuation step), at most this many
+        times per motion.
     solver_options : dict, optional
         Posture options; default those the arriving stance was solved with.
 
@@ -280,26 +292,40 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, solv
     targets = lifted_path(start, end, normal, clearance, samples)
     options = _options_of(after) if solver_options is None else dict(solver_options)
     solve, verify = posture_api()
-    q, configurations, results, reason = before.q, [before.q], [], ""
-    for k, target in enumerate(targets):
-        constraint = FramePlacementConstraint(frame, target, f"path of {moving.robot_surface} (sample {k + 1})")
+    q, configurations, results, reached, reason = before.q, [before.q], [], [], ""
+    pending, last, splits = list(targets), start, 0
+    while pending:
+        target = pending[0]
+        constraint = FramePlacementConstraint(frame, target, f"path of {moving.robot_surface} (sample {len(results) + 1})")
         result = solve(robot, scenario.scene, support, q_init=q, constraints=(constraint,), **options)
         if result.feasible:
             verification = verify(robot, scenario.scene, support, result, **options)
             if not verification.ok:
                 result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
-        if not result.feasible:
-            reason = f"sample {k + 1} of {len(targets)}: {result.reason}"
+        if result.feasible:
+            q, last = result.q, pending.pop(0)
+            configurations.append(q)
+            results.append(result)
+            reached.append(target)
+        elif splits < max_splits:
+            # A shorter step of the continuation: the waypoint halfway from the last one reached.
+            pending.insert(0, _halfway(last, target))
+            splits += 1
+        else:
+            reason = f"sample {len(results) + 1} (of {len(targets)} waypoints, {splits} halved): {result.reason}"
             logger.warning("motion %d -> %d stops at %s", index, index + 1, reason)
             break
-        q = result.q
-        configurations.append(q)
-        results.append(result)
     feasible = not reason
     if feasible:
         configurations.append(after.q)
-    return Motion(index, moving.robot_surface, support, np.array(configurations), targets[: len(results)],
-                  tuple(results), feasible, reason)
+    return Motion(index, moving.robot_surface, support, np.array(configurations),
+                  np.array(reached).reshape(-1, 4, 4), tuple(results), feasible, reason)
+
+
+def _halfway(first, second):
+    """(4, 4) float: the placement halfway between two, along the SE(3) geodesic."""
+    step = pin.log6(pin.SE3(first).actInv(pin.SE3(second)))
+    return (pin.SE3(first) * pin.exp6(0.5 * step)).homogeneous
 
 
 def plan_motions(plan, scenario, robot, **options):

@@ -49,7 +49,7 @@ _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is 
 
 
 def _unit(label: str) -> str:
-    if label.startswith("placement"):
+    if label.startswith(("placement", "path")):
         return "m or rad"
     if label.startswith("static equilibrium"):
         return "N or N m"

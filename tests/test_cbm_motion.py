@@ -121,13 +121,20 @@ def test_path_constraint_jacobian_matches_finite_differences(robot, scenario):
     np.testing.assert_allclose(analytic, numeric, atol=1e-6)
 
 
-def test_lifted_path_turns_along_the_geodesic(robot):
+def test_lifted_path_goes_up_turns_while_crossing_and_comes_down():
     start, end = np.eye(4), np.eye(4)
     end[:3, :3] = pin.exp3(np.array([0.0, 0.0, 0.6]))
+    end[:3, 3] = [0.3, 0.0, 0.1]
     path = lifted_path(start, end, [0.0, 0.0, 2.0], 0.05, 5)
-    angles = [pin.log3(p[:3, :3])[2] for p in path]
-    np.testing.assert_allclose(angles, 0.6 * np.arange(7) / 6, atol=1e-12)
-    np.testing.assert_allclose(path[[0, -1], 2, 3], 0.015)
+    angles = np.array([pin.log3(p[:3, :3])[2] for p in path])
+    progress = path[:, 0, 3] / 0.3
+    # The turn goes with the crossing: none while rising, all of it once across.
+    np.testing.assert_allclose(angles, 0.6 * progress, atol=1e-12)
+    np.testing.assert_allclose(progress[[0, 1, -2, -1]], [0, 0, 1, 1], atol=1e-12)
+    # 1.5 cm above each end, crossing 5 cm above the higher one.
+    np.testing.assert_allclose(path[[0, -1], 2, 3], [0.015, 0.115])
+    assert path[3, 2, 3] == pytest.approx(0.15)
+    assert np.all(path[progress > 0, 2, 3] >= 0.115 - 1e-12)  # never lower than touch-down once moving across
 
 
 def test_trajectory_files_name_the_joints_and_replay_the_plan(step_plan, motions, tmp_path):
