@@ -37,6 +37,7 @@ __all__ = [
     "FramePlacementConstraint",
     "Motion",
     "MotionError",
+    "keep_clear",
     "lifted_path",
     "plan_motion",
     "plan_motions",
@@ -48,6 +49,8 @@ logger = logging.getLogger(__name__)
 #: A sample's frame may miss its waypoint by this much (m and rad): the SQP
 #: meets equalities to 1e-9 m (its tolerance 1e-7 times the rows' 1 cm scale).
 PATH_TOLERANCE = 1e-6
+#: Fraction of a step's path spent rising (and falling), straight above its ends.
+RAMP = 0.25
 
 
 class MotionError(CbmError):
@@ -98,7 +101,7 @@ class FramePlacementConstraint:
         return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
 
 
-def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=0.25):
+def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAMP):
     """Waypoints of a step from one placement to another: up, across, down.
 
     Along ``normal`` the path rises from the start to ``clearance`` above the
@@ -245,7 +248,49 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_splits=4, solver_options=None):
+def keep_clear(path, points, normal, distance):
+    """Push waypoints away from points, across the normal, to at least a distance.
+
+    The swing foot of a step passes beside the stance foot, not through it: a
+    waypoint closer than ``distance`` to a support print's origin (measured in
+    the plane across ``normal``) moves straight away from it in that plane.
+
+    Parameters
+    ----------
+    path : (k, 4, 4) float
+        Waypoints, world frame.
+    points : (p, 3) float
+        Origins of the prints to keep clear of, world frame.
+    normal : (3,) float
+        Lift direction, world frame.
+    distance : float
+        Metres.
+
+    Returns
+    -------
+    (k, 4, 4) float
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> path = np.tile(np.eye(4), (1, 1, 1))
+    >>> path[0, :3, 3] = [0.1, 0.05, 0.05]
+    >>> keep_clear(path, [[0.1, 0.0, 0.0]], [0, 0, 1], 0.2)[0, :3, 3].round(3).tolist()
+    [0.1, 0.2, 0.05]
+    """
+    path = np.array(path, dtype=float)
+    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    for point in np.asarray(points, dtype=float).reshape(-1, 3):
+        offset = path[:, :3, 3] - point
+        across = offset - np.outer(offset @ normal, normal)
+        length = np.linalg.norm(across, axis=1)
+        near = (length < distance) & (length > 1e-9)
+        path[near, :3, 3] += across[near] * ((distance - length[near]) / length[near])[:, None]
+    return path
+
+
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=0.2, max_splits=2,
+                solver_options=None):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
 
     Parameters
@@ -260,6 +305,10 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
+    clear_distance : float
+        While crossing, the moving frame keeps this far (metres, across the
+        normal) from the origin of each support print (:func:`keep_clear`):
+        0.2 m lets a Talos sole pass beside the other.
     max_splits : int
         Waypoints no posture reaches from the previous sample are retried from
         a waypoint halfway (a shorter continuation step), at most this many
@@ -290,6 +339,11 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     end = _frame_placement(robot, after.q, frame)
     normal = scenario.scene.transform_print_to_world(moving.contact_print)[:3, 2]
     targets = lifted_path(start, end, normal, clearance, samples)
+    # Only the waypoints that move across: those above either end stay where they are.
+    s = np.arange(samples + 2) / (samples + 1)
+    crossing = (s > RAMP) & (s < 1.0 - RAMP)
+    support_points = [scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in support]
+    targets[crossing] = keep_clear(targets[crossing], support_points, normal, clear_distance)
     options = _options_of(after) if solver_options is None else dict(solver_options)
     solve, verify = posture_api()
     q, configurations, results, reached, reason = before.q, [before.q], [], [], ""
