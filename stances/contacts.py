@@ -26,7 +26,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .blocks import equality
+from .blocks import PLACEMENT_ACCURACY, equality
 from .statics import PointLoads, points_in_world
 
 
@@ -139,7 +139,7 @@ class RigidContact:
             f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
         ]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def cost(self, model, data, lam, options, columns, offset):
         """No objective term of its own (lambda's is the problem's force term)."""

@@ -229,6 +229,10 @@ class Linearization:
     forces: np.ndarray
     torques: np.ndarray
 
+    def met(self, tolerance: float) -> bool:
+        """Whether every row is within ``tolerance`` (scaled) or its block's ``accuracy``."""
+        return all(block.met(tolerance) for block in self.blocks if len(block))
+
     def max_violation(self) -> tuple[float, str]:
         """Largest scaled violation and the label of its row."""
         worst, label = 0.0, ""

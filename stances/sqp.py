@@ -242,7 +242,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         qp_time += time.perf_counter() - tic
         step, elastic = x[:-1], max(x[-1], 0.0)
         predicted = _predicted_decrease(linearization, step, elastic, penalty, violation)
-        if violation <= tolerance and (
+        if linearization.met(tolerance) and (
             np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
         ):
             status = "converged"
@@ -269,6 +269,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 status = "stalled"
                 break
             continue
+        previous_objective = linearization.objective
         q, lam, linearization = accepted
         stalled = 0
         new_violation, worst_label = linearization.max_violation()
@@ -292,15 +293,21 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # The QP kept some violation although the merit could trade it: raise rho.
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY:
             penalty *= 10.0
-        if new_violation <= tolerance and (
+        # Feasible (each row within its tolerance): the objective alone says
+        # whether a step still improves. The violations left are below what
+        # matters, and penalty times their change, as the SQP creeps linearly
+        # along the constraints, would keep the merit moving for 5-10 more
+        # iterations (hand-on-table: 19 iterations, now 11) for a posture that
+        # moves by 1e-5 rad.
+        if linearization.met(tolerance) and (
             alpha * np.max(np.abs(step[:nv])) < 1e-6
-            or abs(merit - (linearization.objective + penalty * new_violation))
-            < options.optimality_tolerance * (1.0 + abs(merit))
+            or abs(previous_objective - linearization.objective)
+            < options.optimality_tolerance * (1.0 + abs(previous_objective))
         ):
             status = "converged"
             break
     violation, _ = linearization.max_violation()
-    feasible = violation <= tolerance
+    feasible = linearization.met(tolerance)
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
@@ -499,7 +506,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     warm_iterations = 0
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
-        loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-3)
+        loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init, deadline=deadline)
         q_init, warm_iterations = warm.q, warm.iterations
@@ -559,9 +566,9 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
     free = solve_problem(problem, q, max_iterations=_FREE_ITERATIONS, deadline=deadline)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
-    if free.feasible or status == _OUT_OF_TIME or (status != "iteration limit" and violation > _CONTACT_SET_VIOLATION):
-        return free  # converged, out of time, or stuck far from feasible: a stance that cannot be held
-    # Cut short near a solution: go on from there; far from it: from the start.
+    if free.feasible or status == _OUT_OF_TIME or (status == "stagnated" and violation > _CONTACT_SET_VIOLATION):
+        return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
+    # Cut short or stalled near a solution: go on from there; far from it: from the start.
     q = start = free.q if violation <= _CONTACT_SET_VIOLATION else q
     for _ in range(attempts):
         variables = problem.initial_variables(q)  # runs the kinematics at q
