@@ -28,7 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
-from stances.blocks import equality
+from stances.blocks import PLACEMENT_ACCURACY, equality
 from stances.contacts import placement_residual
 
 from .errors import CbmError
@@ -46,8 +46,8 @@ __all__ = [
 
 logger = logging.getLogger(__name__)
 
-#: A sample's frame may miss its waypoint by this much (m and rad): the SQP
-#: meets equalities to 1e-9 m (its tolerance 1e-7 times the rows' 1 cm scale).
+#: A sample's frame may miss its waypoint by this much (m and rad), as
+#: stances.verify's placements: the SQP meets these rows to PLACEMENT_ACCURACY (1e-7).
 PATH_TOLERANCE = 1e-6
 #: Fraction of a step's path spent rising (and falling), straight above its ends.
 RAMP = 0.25
@@ -90,7 +90,7 @@ class FramePlacementConstraint:
         jacobian = np.zeros((6, problem.n_step))
         jacobian[:, : model.nv] = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
         labels = [f"{self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")]
-        return [equality("frame path", residual, jacobian, 1e-2, labels)]
+        return [equality("frame path", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def error(self, robot, q):
         """Largest translation (m) or rotation (rad) error of the frame at ``q``."""
