@@ -16,7 +16,7 @@ import time
 
 import numpy as np
 
-from .display import plan_bounds, stance_display
+from .display import plan_bounds, scene_edges, stance_display
 from .errors import CbmError
 from .output import stance_labels
 from .robot_mesh import visual_model
@@ -99,8 +99,6 @@ class LiveView:
 
     def _rigid_objects(self):
         bounds = plan_bounds(self.displays) if self.displays else None
-        from .display import scene_edges
-
         for name, edges in scene_edges(self.scenario.scene, bounds).items():
             self._lines(f"scene/{name}", edges, 0x999999)
 
