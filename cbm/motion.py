@@ -367,7 +367,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
             splits += 1
         else:
             reason = f"sample {len(results) + 1} (of {len(targets)} waypoints, {splits} halved): {result.reason}"
-            logger.warning("motion %d -> %d stops at %s", index, index + 1, reason)
+            logger.info("motion %d -> %d stops at %s", index, index + 1, reason)
             break
     feasible = not reason
     if feasible:
