@@ -45,6 +45,7 @@ _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage ente
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows are compatible
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
+_CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 
 
@@ -82,7 +83,11 @@ def _conflict(linearization, penalty) -> str:
     needs). One more QP at the last iterate finds them: the rows whose
     linearised violation equals the elastic variable.
     """
-    x = QPWorkspace().solve(*elastic_qp(linearization, penalty))
+    # At the loop's largest penalties (1e8) proxsuite stops at its iteration
+    # limit with the elastic variable near zero (measured on two contradicting
+    # rows: 4e-14 instead of 0.5); any penalty that makes the QP prefer
+    # feasibility names the same rows, so it is capped where proxsuite is sure.
+    x = QPWorkspace().solve(*elastic_qp(linearization, min(penalty, _CONFLICT_PENALTY)))
     step, elastic = x[:-1], max(float(x[-1]), 0.0)
     if elastic <= _CONFLICT_FLOOR:
         return ""

@@ -211,12 +211,6 @@ def test_contradicting_rows_end_at_the_least_violation_with_a_reason():
     assert tail.startswith(f"0.5 N ({outcome.status} after {outcome.iterations} iterations)")
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="_conflict solves the elastic QP at the loop's last penalty (1e8 here), where proxsuite "
-    "stops at its iteration limit (8184 iterations) with the elastic variable at 4e-14 instead of "
-    "0.5, so no row is named",
-)
 def test_contradicting_rows_are_named_together():
     problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), contradicting_rows)
     outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=100)
