@@ -163,19 +163,28 @@ def _primitive(shape):
 
 
 def _geometry_mesh(geometry_object):
-    """(vertices, triangles) of one visual geometry, mesh frame, scale applied; None if unreadable."""
-    if geometry_object.meshPath and type(geometry_object.geometry).__name__.startswith(("BVH", "Convex")):
+    """(vertices, triangles) of one visual geometry, mesh frame, scale applied; None if unreadable.
+
+    Mesh files are read with trimesh; those it cannot read (COLLADA files, as
+    ANYmal's and Romeo's, need pycollada) come from the copy pinocchio loaded
+    (with assimp, its scale applied).
+    """
+    shape = geometry_object.geometry
+    if geometry_object.meshPath and type(shape).__name__.startswith(("BVH", "Convex")):
+        scale = np.asarray(geometry_object.meshScale, dtype=float)
         try:
             mesh = trimesh.load(geometry_object.meshPath, force="mesh")
-        except Exception as error:  # trimesh raises many types on files it cannot read (COLLADA without pycollada)
-            logger.warning("visual mesh %s not drawn: %s", geometry_object.meshPath, error)
-            return None
-        scale = np.asarray(geometry_object.meshScale, dtype=float)
-        triangles = np.asarray(mesh.faces, dtype=int)
+            vertices, triangles = np.asarray(mesh.vertices, dtype=float) * scale, np.asarray(mesh.faces, dtype=int)
+        except Exception as error:  # trimesh raises many types on files it cannot read
+            if not shape.num_tris:
+                logger.warning("visual mesh %s not drawn: %s", geometry_object.meshPath, error)
+                return None
+            vertices = np.asarray(shape.vertices(), dtype=float)
+            triangles = np.array([[t[0], t[1], t[2]] for t in map(shape.tri_indices, range(shape.num_tris))])
         if np.prod(np.sign(scale)) < 0:
             triangles = triangles[:, ::-1]  # a mirror turns the faces inside out
-        return np.asarray(mesh.vertices, dtype=float) * scale, triangles
-    mesh = _primitive(geometry_object.geometry)
+        return vertices, triangles
+    mesh = _primitive(shape)
     if mesh is None:
         return None
     return np.asarray(mesh.vertices, dtype=float), np.asarray(mesh.faces, dtype=int)
@@ -243,7 +252,11 @@ def _load(key, cell):
     return RobotMeshes(tuple(meshes))
 
 
-def robot_meshes(robot, cell=DEFAULT_CELL):
+#: Most triangles drawn for a robot: the page redraws them all at each frame.
+MAX_TRIANGLES = 40_000
+
+
+def robot_meshes(robot, cell=DEFAULT_CELL, max_triangles=MAX_TRIANGLES):
     """The visual meshes of a robot loaded from a URDF, decimated.
 
     Parameters
@@ -253,6 +266,9 @@ def robot_meshes(robot, cell=DEFAULT_CELL):
         ``robot.model``.
     cell : float
         Vertex-cluster size, metres (0: the meshes as they are).
+    max_triangles : int
+        The cell grows by half until the meshes have at most this many
+        triangles (ANYmal: 62 000 at 2 cm, 39 000 at 3 cm).
 
     Returns
     -------
@@ -261,4 +277,10 @@ def robot_meshes(robot, cell=DEFAULT_CELL):
         stick figure instead.
     """
     key = _key(robot)
-    return None if key is None else _load(key, float(cell))
+    if key is None:
+        return None
+    meshes = _load(key, float(cell))
+    while cell > 0 and meshes.triangle_count > max_triangles:
+        cell *= 1.5
+        meshes = _load(key, float(cell))
+    return meshes

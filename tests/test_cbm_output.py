@@ -456,3 +456,16 @@ def test_cli_check_of_a_plan_file_reports_what_fails(synthetic_plan, tmp_path, c
 def test_cli_check_of_a_scenario_needs_a_stance(capsys):
     assert main(["check", "cross-soft-block"]) == 2
     assert "scenario 'cross-soft-block' needs --stance; stances: beyond, both-on-foam" in capsys.readouterr().err
+
+
+def test_every_visual_geometry_is_drawn_even_from_files_trimesh_cannot_read():
+    """Romeo's visuals are COLLADA files (trimesh needs pycollada): they come from pinocchio's copy."""
+    from cbm.robot_mesh import robot_meshes, visual_model
+
+    romeo = stances.Robot.load("romeo")
+    meshes = robot_meshes(romeo)
+    assert [m.name for m in meshes.meshes] == [g.name for g in visual_model(romeo).geometryObjects]
+    assert 0 < meshes.triangle_count <= 40_000
+    vertices, _ = meshes.posed(romeo.model, romeo.reference_configuration)
+    height = vertices[:, 2].max() - vertices[:, 2].min()
+    assert 1.2 < height < 1.6  # Romeo is 1.4 m tall
