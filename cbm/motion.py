@@ -32,13 +32,12 @@ from stances.blocks import PLACEMENT_ACCURACY, equality
 from stances.contacts import placement_residual
 
 from .errors import CbmError
+from .step_path import RAMP, halfway, keep_clear, lifted_path
 
 __all__ = [
     "FramePlacementConstraint",
     "Motion",
     "MotionError",
-    "keep_clear",
-    "lifted_path",
     "plan_motion",
     "plan_motions",
     "verify_motion",
@@ -49,8 +48,6 @@ logger = logging.getLogger(__name__)
 #: A sample's frame may miss its waypoint by this much (m and rad), as
 #: stances.verify's placements: the SQP meets these rows to PLACEMENT_ACCURACY (1e-7).
 PATH_TOLERANCE = 1e-6
-#: Fraction of a step's path spent rising (and falling), straight above its ends.
-RAMP = 0.25
 
 
 class MotionError(CbmError):
@@ -99,65 +96,6 @@ class FramePlacementConstraint:
         error = pin.SE3(self.transform_frame_to_world).actInv(data.oMf[robot.model.getFrameId(self.frame)])
         residual = pin.log6(error).vector
         return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
-
-
-def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAMP):
-    """Waypoints of a step from one placement to another: up, across, down.
-
-    Along ``normal`` the path rises from the start to ``clearance`` above the
-    higher end, crosses at that height and comes down to the end (a step onto
-    a block clears its edge); across it moves only at the top. The first and
-    last waypoints sit ``approach`` straight above the ends (lift-off and
-    touch-down). Between them, ``samples`` waypoints at s = k / (samples + 1):
-    rising for s < ``ramp``, falling for s > 1 - ``ramp``. Orientations follow
-    the geodesic of SO(3), turning with the motion across.
-
-    Parameters
-    ----------
-    start, end : (4, 4) float
-        Placements at s = 0 and s = 1, world frame, metres.
-    normal : (3,) float
-        Lift direction, world frame (normalised here).
-    clearance : float
-        Height of the crossing above the higher end, metres.
-    samples : int
-        Waypoints between the two approach waypoints.
-    approach : float
-        Lift of the first and last waypoints, metres.
-    ramp : float
-        Fraction of the path spent going up (and down).
-
-    Returns
-    -------
-    (samples + 2, 4, 4) float
-        Placements, world frame; the ends themselves are not included.
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> start, end = np.eye(4), np.eye(4)
-    >>> end[:3, 3] = [0.3, 0.0, 0.1]  # onto a 10 cm block
-    >>> path = lifted_path(start, end, [0, 0, 1], 0.05, 3, approach=0.01, ramp=0.3)
-    >>> np.round(path[:, :3, 3], 3).tolist()
-    [[0.0, 0.0, 0.01], [0.0, 0.0, 0.125], [0.15, 0.0, 0.15], [0.3, 0.0, 0.142], [0.3, 0.0, 0.11]]
-    """
-    start, end = np.asarray(start, dtype=float), np.asarray(end, dtype=float)
-    normal = np.asarray(normal, dtype=float)
-    normal = normal / np.linalg.norm(normal)
-    height_start, height_end = start[:3, 3] @ normal, end[:3, 3] @ normal
-    top = max(height_start, height_end) + clearance
-    s = np.arange(samples + 2) / (samples + 1)
-    across = np.clip((s - ramp) / (1.0 - 2.0 * ramp), 0.0, 1.0)
-    height = np.where(s < 0.5, height_start + (top - height_start) * np.minimum(s / ramp, 1.0),
-                      height_end + (top - height_end) * np.minimum((1.0 - s) / ramp, 1.0))
-    height[[0, -1]] = height_start + approach, height_end + approach
-    turn = pin.log3(start[:3, :3].T @ end[:3, :3])
-    path = np.tile(np.eye(4), (samples + 2, 1, 1))
-    for k in range(samples + 2):
-        point = (1.0 - across[k]) * start[:3, 3] + across[k] * end[:3, 3]
-        path[k, :3, 3] = point + (height[k] - point @ normal) * normal
-        path[k, :3, :3] = start[:3, :3] @ pin.exp3(across[k] * turn)
-    return path
 
 
 @dataclass(frozen=True, eq=False)
@@ -248,47 +186,6 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def keep_clear(path, points, normal, distance):
-    """Push waypoints away from points, across the normal, to at least a distance.
-
-    The swing foot of a step passes beside the stance foot, not through it: a
-    waypoint closer than ``distance`` to a support print's origin (measured in
-    the plane across ``normal``) moves straight away from it in that plane.
-
-    Parameters
-    ----------
-    path : (k, 4, 4) float
-        Waypoints, world frame.
-    points : (p, 3) float
-        Origins of the prints to keep clear of, world frame.
-    normal : (3,) float
-        Lift direction, world frame.
-    distance : float
-        Metres.
-
-    Returns
-    -------
-    (k, 4, 4) float
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> path = np.tile(np.eye(4), (1, 1, 1))
-    >>> path[0, :3, 3] = [0.1, 0.05, 0.05]
-    >>> keep_clear(path, [[0.1, 0.0, 0.0]], [0, 0, 1], 0.2)[0, :3, 3].round(3).tolist()
-    [0.1, 0.2, 0.05]
-    """
-    path = np.array(path, dtype=float)
-    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    for point in np.asarray(points, dtype=float).reshape(-1, 3):
-        offset = path[:, :3, 3] - point
-        across = offset - np.outer(offset @ normal, normal)
-        length = np.linalg.norm(across, axis=1)
-        near = (length < distance) & (length > 1e-9)
-        path[near, :3, 3] += across[near] * ((distance - length[near]) / length[near])[:, None]
-    return path
-
-
 def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=0.2, max_splits=2,
                 solver_options=None):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
@@ -301,13 +198,13 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
     scenario : environments Scenario
     robot : stances Robot
     samples : int
-        Waypoints of the moving limb across (:func:`lifted_path`; two more,
+        Waypoints of the moving limb across (:func:`cbm.step_path.lifted_path`; two more,
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
     clear_distance : float
         While crossing, the moving frame keeps this far (metres, across the
-        normal) from the origin of each support print (:func:`keep_clear`):
+        normal) from the origin of each support print (:func:`cbm.step_path.keep_clear`):
         0.2 m lets a Talos sole pass beside the other.
     max_splits : int
         Waypoints no posture reaches from the previous sample are retried from
@@ -363,7 +260,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
             reached.append(target)
         elif splits < max_splits:
             # A shorter step of the continuation: the waypoint halfway from the last one reached.
-            pending.insert(0, _halfway(last, target))
+            pending.insert(0, halfway(last, target))
             splits += 1
         else:
             reason = f"sample {len(results) + 1} (of {len(targets)} waypoints, {splits} halved): {result.reason}"
@@ -374,12 +271,6 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
         configurations.append(after.q)
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   np.array(reached).reshape(-1, 4, 4), tuple(results), feasible, reason)
-
-
-def _halfway(first, second):
-    """(4, 4) float: the placement halfway between two, along the SE(3) geodesic."""
-    step = pin.log6(pin.SE3(first).actInv(pin.SE3(second)))
-    return (pin.SE3(first) * pin.exp6(0.5 * step)).homogeneous
 
 
 def plan_motions(plan, scenario, robot, **options):

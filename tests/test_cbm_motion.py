@@ -12,7 +12,8 @@ import environments
 import stances
 from environments.stance import Contact, ContactPrint
 
-from cbm.motion import FramePlacementConstraint, MotionError, lifted_path, plan_motion, plan_motions, verify_motion
+from cbm.motion import FramePlacementConstraint, MotionError, plan_motion, plan_motions, verify_motion
+from cbm.step_path import lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
 
