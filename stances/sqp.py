@@ -369,15 +369,7 @@ def _result(problem, outcome, elapsed) -> PostureResult:
     # independent check, whose tolerances are physical: it alone decides.
     nearly = not feasible and violation <= _NEARLY_FEASIBLE * problem.options.feasibility_tolerance
     point_forces = problem_point_forces(problem, linearization, q)
-    deformations = LazyDeformations(
-        {
-            contact.deformable_object.name: _field_producer(
-                contact, model, q, [p.force for p in point_forces[loads]]
-            )
-            for contact, loads in zip(problem.contacts, problem.load_slices)
-            if contact.kind == "deformable"
-        }
-    )
+    deformations = deformation_fields(problem, q, point_forces)
     result = PostureResult(
         feasible=feasible,
         q=q,
@@ -425,6 +417,35 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     q_new = pin.integrate(problem.robot.model, q, x[:nv])
     lam_new = np.maximum(lam + x[nv:-1], problem.variable_lower)
     return q_new, lam_new, problem.linearize(q_new, lam_new, torque_weight)
+
+
+def deformation_fields(problem, q, point_forces) -> LazyDeformations:
+    """The body displacement field of each deformable contact of a problem, computed on access.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+    q : (nq,) float
+        Configuration of ``problem.robot.model``.
+    point_forces : tuple of PointForce
+        The problem's contact forces at ``q`` (:func:`problem_point_forces`
+        order), newtons, world frame.
+
+    Returns
+    -------
+    LazyDeformations
+        Deformable object name -> (N, 3) float, metres, body frame (eq. 36).
+    """
+    model = problem.robot.model
+    return LazyDeformations(
+        {
+            contact.deformable_object.name: _field_producer(
+                contact, model, q, [p.force for p in point_forces[loads]]
+            )
+            for contact, loads in zip(problem.contacts, problem.load_slices)
+            if contact.kind == "deformable"
+        }
+    )
 
 
 def _field_producer(contact, model, q, forces):
@@ -499,7 +520,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
-    options = _options(options)
+    options = posture_options(options)
     constraints = tuple(constraints)
 
     def build(options):
@@ -613,7 +634,7 @@ def _time_budget(value) -> float:
     return seconds
 
 
-def _options(options: dict) -> PostureOptions:
+def posture_options(options: dict) -> PostureOptions:
     """PostureOptions from keyword arguments, naming the valid ones on a typo."""
     valid = set(PostureOptions.__dataclass_fields__)
     unknown = sorted(set(options) - valid)
