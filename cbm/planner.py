@@ -20,11 +20,12 @@ from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenar
 from .rejections import summarise
 from .reach import ReachLimits, ReachModel
 from .sampling import obstacle_boxes, options_from_scenario, sample_prints
-from .search import SearchLimits, best_first_search
+from .search import SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 
 __all__ = [
     "plan",
+    "PlanInterrupted",
     "load_scenario",
     "StanceCheck",
     "PostureOracle",
@@ -75,6 +76,24 @@ def load_scenario(scenario):
 
 
 _OUT_OF_TIME = "time limit reached before this stance was solved"
+
+
+class PlanInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`plan`'s search, carrying the best partial plan so far.
+
+    A ``KeyboardInterrupt``: uncaught, it stops a program like any Ctrl-C.
+
+    Parameters
+    ----------
+    plan : Plan
+        ``success`` False, its reason saying it was interrupted; its stances
+        lead from the start towards the goal (none if the start was not yet
+        solved).
+    """
+
+    def __init__(self, plan):
+        super().__init__(plan.reason)
+        self.plan = plan
 
 
 @dataclass(frozen=True)
@@ -345,6 +364,8 @@ def plan(
         If the scenario has no start or no goal and none is given.
     environments.ScenarioError
         If a stance or the goal names a surface the robot lacks.
+    PlanInterrupted
+        On Ctrl-C during the search, with the best partial plan so far.
     """
     scenario = load_scenario(scenario)
     scene = scenario.scene
@@ -403,10 +424,22 @@ def plan(
             seed=seed,
             on_expand=on_expand,
         )
+    except SearchInterrupted as interrupted:
+        searched = interrupted.result
+        s = searched.statistics
+        reason = (
+            f"{searched.reason} after {s.expanded} stances expanded and {s.solver_calls} solver calls; "
+            "the stances are the best partial sequence found so far"
+        )
+        raise PlanInterrupted(_plan_of(searched, scenario, robot, prints, reason)) from None
     finally:
         if bar is not None:
             bar.close()
+    return _plan_of(searched, scenario, robot, prints, searched.reason)
 
+
+def _plan_of(searched, scenario, robot, prints, reason):
+    """The Plan of a search result: its path's stances with their postures and the statistics."""
     planned = []
     for index, (stance, check) in enumerate(zip(searched.path, searched.results)):
         move = ""
@@ -440,7 +473,7 @@ def plan(
     ]
     return Plan(
         searched.success,
-        searched.reason,
+        reason,
         tuple(planned),
         statistics,
         scenario.name,

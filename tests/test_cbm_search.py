@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import networkx as nx
 import pytest
 
-from cbm.search import NO_FEASIBLE_NEIGHBOUR, SearchLimits, best_first_search
+from cbm.search import INTERRUPTED, NO_FEASIBLE_NEIGHBOUR, SearchInterrupted, SearchLimits, best_first_search
 
 
 @dataclass(frozen=True)
@@ -158,6 +158,37 @@ def test_unreachable_goal_ends_with_no_feasible_neighbour_and_the_best_partial_p
     assert result.reason == NO_FEASIBLE_NEIGHBOUR
     assert result.path == ("s", "a", "d")
     assert result.statistics.expanded <= 100
+
+
+class InterruptingOracle(CountingOracle):
+    """Feasible answers until ``node`` is given, where Ctrl-C arrives."""
+
+    def __init__(self, node, **kwargs):
+        super().__init__(**kwargs)
+        self.node = node
+
+    def __call__(self, node, parent, parent_result):
+        if node == self.node:
+            raise KeyboardInterrupt
+        return super().__call__(node, parent, parent_result)
+
+
+def test_ctrl_c_during_a_solve_carries_the_best_partial_path_so_far():
+    # s and a (h=1) are solved and expanded; Ctrl-C falls in the goal's solve.
+    with pytest.raises(SearchInterrupted) as stopped:
+        search_graph(diamond(), "s", "goal", InterruptingOracle("goal"))
+    result = stopped.value.result
+    assert isinstance(stopped.value, KeyboardInterrupt)
+    assert not result.success and result.reason == INTERRUPTED
+    assert result.path == ("s", "a")
+    assert [r.warm_start for r in result.results] == ["s", "a"]
+    assert result.statistics.solver_calls == 2 and result.statistics.expanded == 2
+
+
+def test_ctrl_c_before_the_start_is_solved_carries_an_empty_path():
+    with pytest.raises(SearchInterrupted) as stopped:
+        search_graph(diamond(), "s", "goal", InterruptingOracle("s"))
+    assert stopped.value.result.path == () and stopped.value.result.results == ()
 
 
 def test_infeasible_start_is_reported():
