@@ -198,6 +198,26 @@ def test_infeasible_start_is_reported():
     assert result.path == ()
 
 
+def test_statistics_count_every_expansion_child_solve_and_cache_hit_exactly():
+    # s -> a (infeasible), s -> b -> c -> goal, and b, c both lead back to a:
+    # pops s, a, b, c, goal (5 solves); s, b, c expanded with 2 children each;
+    # a is met again as a known infeasible child of b and of c (2 cache hits).
+    g = diamond()
+    g.remove_edge("a", "goal")
+    g.add_edges_from([("b", "a"), ("c", "a")])
+    oracle = CountingOracle(infeasible={"a"})
+    result = search_graph(g, "s", "goal", oracle)
+    assert result.path == ("s", "b", "c", "goal")
+    counts = result.statistics.to_dict()
+    assert {k: counts[k] for k in ("expanded", "generated", "solver_calls", "cache_hits")} == {
+        "expanded": 3,
+        "generated": 6,
+        "solver_calls": 5,
+        "cache_hits": 2,
+    }
+    assert sum(oracle.calls.values()) == 5
+
+
 def test_no_node_is_given_to_the_oracle_twice():
     # Converging paths in a grid: every node is reachable many ways.
     grid = nx.grid_2d_graph(5, 5).to_directed()
