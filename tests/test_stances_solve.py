@@ -542,3 +542,20 @@ def test_a_robot_surface_with_a_bad_polygon_is_a_stance_error():
 
     with pytest.raises(StanceError, match=r"robot surface 'palm': polygon must be \(k, 2\) with k >= 3, got shape \(2, 2\)"):
         RobotSurface("palm", "wrist", [[0.0, 0.0], [1.0, 0.0]])
+
+
+def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_tolerance(robot):
+    # A negative tolerance asks for clearance: the closest pair of a feasible
+    # stance, at distance d > 0, passes a demand of d / 2 and fails one of 2 d.
+    from stances.problem import PostureOptions, build_problem
+    from stances.verify import VerificationTolerances, verify_problem
+
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    result = solve(robot, scenario.scene, stance)
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions())
+    closest = verify_problem(problem, result).measures["closest_distance"]
+    assert 0.0 < closest < np.inf
+    assert verify_problem(problem, result, VerificationTolerances(penetration=-0.5 * closest)).ok
+    check = verify_problem(problem, result, VerificationTolerances(penetration=-2.0 * closest))
+    assert not check.ok and all(reason.startswith("collision between ") for reason in check.reasons)
