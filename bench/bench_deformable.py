@@ -56,6 +56,7 @@ STANCES = (
     ("step-on-cube", "step-on-cube"),
     ("cross-soft-block", "both-on-foam"),
     ("cross-two-mats", "one-on-each"),
+    ("foot-and-hand-on-foam", "foot-and-hand"),
 )
 REPEATS = 3
 STIFFNESS = (1e4, 1e5, 1e6, 1e7, 1e8, 1e9, 1e10, 1e11)

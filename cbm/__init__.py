@@ -8,6 +8,8 @@ Examples
 (True, 10)
 """
 
+from .batch import BatchFileError, Check, CheckOutcome, read_checks, run_check
+from .distributed import solve_many, write_dataset
 from .errors import CbmError, PlanFileError, UnknownScenario
 from .output import OutputFiles, write_outputs
 from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
@@ -18,6 +20,9 @@ from .search import SearchLimits, SearchResult, SearchStatistics, best_first_sea
 from .stance_graph import Move, StanceNeighbours, differ_by_one_contact
 
 __all__ = [
+    "BatchFileError",
+    "Check",
+    "CheckOutcome",
     "CbmError",
     "LookaheadHeuristic",
     "Move",
@@ -43,6 +48,10 @@ __all__ = [
     "initial_configuration",
     "load_scenario",
     "plan",
+    "read_checks",
+    "run_check",
+    "solve_many",
+    "write_dataset",
     "sample_prints",
     "write_outputs",
 ]

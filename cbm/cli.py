@@ -2,8 +2,8 @@
 
 Exit codes: 0 success (plan found, stance feasible), 1 no plan found or stance
 infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
-(Ctrl-C: ``cbm plan`` still writes the best partial plan found so far), 141 output pipe closed (``cbm scenarios | head -1``: not an error, no
-traceback). Only the packages' own bad-input errors become code 2; anything else
+(Ctrl-C: ``cbm plan`` still writes the best partial plan found so far), 141
+output pipe closed (``cbm scenarios | head -1``: not an error, no traceback). Only the packages' own bad-input errors become code 2; anything else
 is a bug and ends with its traceback.
 
 Defaults shared with Python: ``cbm plan``'s budgets are :func:`cbm.plan`'s own
@@ -116,6 +116,13 @@ def _non_negative_int(text):
     return value
 
 
+def _positive_int(text):
+    value = _non_negative_int(text)
+    if value == 0:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}")
+    return value
+
+
 def build_parser():
     """The argument parser of ``cbm``."""
     parser = _Parser(
@@ -159,9 +166,27 @@ def build_parser():
         default=None,
         help="print grid step, metres (default: the scenario's print_spacing option, else 0.1)",
     )
+    plan.add_argument(
+        "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"
+    )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
     _add_robot_option(plan)
+
+    batch = commands.add_parser(
+        "batch",
+        help="solve many stance checks on a Dask cluster and write a Parquet dataset",
+        description="Solve and verify every (robot, scenario, stance) check of a YAML or CSV file "
+        "(see cbm.batch) on a local Dask cluster, or on a running one with --scheduler, and write "
+        "DIR/checks.parquet: one row per check with stance, feasible, reason, q, forces and times.",
+        epilog=_EXIT_CODES,
+        formatter_class=_HelpFormatter,
+    )
+    batch.add_argument("file", type=Path, metavar="FILE", help="batch file (.yaml, .yml or .csv)")
+    batch.add_argument("--out", type=Path, required=True, help="folder of the dataset")
+    batch.add_argument("--workers", type=_positive_int, default=2, help="processes of the local cluster")
+    batch.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler instead")
+    batch.add_argument("--quiet", action="store_true", help="warnings only")
 
     commands.add_parser("scenarios", help="list the built-in scenarios and their stances")
     commands.add_parser("robots", help="list the built-in robots")
@@ -251,6 +276,8 @@ def main(argv=None):
             return _robots()
         if args.command == "plan":
             return _plan(args)
+        if args.command == "batch":
+            return _batch(args)
         return _check(args)
     except _input_errors() as error:
         print(f"cbm {args.command}: error: {error}", file=sys.stderr)
@@ -327,6 +354,7 @@ def _plan(args):
                 time_limit=args.time_limit,
                 seed=args.seed,
                 progress=not args.quiet,
+                workers=args.workers,
             )
         except PlanInterrupted as stop:
             if not stop.plan.stances:
@@ -360,6 +388,20 @@ def _plan(args):
     if interrupted:
         return EXIT_INTERRUPTED
     return EXIT_OK if result.success else EXIT_FAILED
+
+
+def _batch(args):
+    from .batch import read_checks
+    from .distributed import solve_many, write_dataset
+
+    checks, solver_options = read_checks(args.file)
+    outcomes = solve_many(
+        checks, address=args.scheduler, workers=args.workers, solver_options=solver_options, progress=not args.quiet
+    )
+    path = write_dataset(outcomes, args.out)
+    feasible = sum(o.feasible for o in outcomes)
+    print(f"{len(outcomes)} checks: {feasible} feasible, {len(outcomes) - feasible} infeasible; written to {path}")
+    return EXIT_OK
 
 
 def _check(args):

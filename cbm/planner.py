@@ -17,6 +17,7 @@ import numpy as np
 
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .reach import ReachLimits, ReachModel
 from .sampling import obstacle_boxes, options_from_scenario, sample_prints
@@ -313,6 +314,7 @@ def plan(
     path_cost=DEFAULT_PATH_COST,
     eager=False,
     oracle=None,
+    workers=1,
 ):
     """Plan a sequence of stances from the scenario's start to its goal.
 
@@ -351,6 +353,12 @@ def plan(
     oracle : callable, optional
         Replaces the posture oracle (tests): ``oracle(stance, parent,
         parent_check) -> StanceCheck``.
+    workers : int
+        Processes solving stances (:mod:`cbm.parallel`): with more than one,
+        the search solves the open list's next stances (in eager mode, an
+        expansion's candidates) ahead, in parallel; the plan is the same, bit
+        for bit, for any number. Needs a scenario read from YAML and a robot
+        from ``stances.Robot.load``, and the built-in oracle.
 
     Returns
     -------
@@ -395,9 +403,14 @@ def plan(
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model)
     feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
+    pool = None
+    if check_workers(workers) > 1 and oracle is not None:
+        raise CbmError("workers > 1 runs the posture oracle in worker processes; a custom oracle= needs workers=1")
     if oracle is None:
         deadline = None if time_limit is None else time.perf_counter() + time_limit
         oracle = PostureOracle(robot, scene, solver_options, deadline=deadline)
+        if workers > 1:
+            pool = PosturePool(workers, scenario, robot, solver_options, deadline=deadline)
 
     bar = None
     on_expand = None
@@ -423,6 +436,8 @@ def plan(
             shuffle_neighbours=True,
             seed=seed,
             on_expand=on_expand,
+            submit=None if pool is None else pool.submit,
+            lookahead=workers,
         )
     except SearchInterrupted as interrupted:
         searched = interrupted.result
@@ -435,6 +450,8 @@ def plan(
     finally:
         if bar is not None:
             bar.close()
+        if pool is not None:
+            pool.close()
     return _plan_of(searched, scenario, robot, prints, searched.reason)
 
 

@@ -9,7 +9,12 @@ it):
   mid-point of the feet with x along their mean heading and z up;
 - each limb's stretched length: the sum of the segment lengths from its root
   joint to its contact frame, an upper bound of its reach;
-- the feet's sizes (their polygons), for the feet not to overlap.
+- the feet's sizes (their polygons), for the feet not to overlap;
+- where each leg's foot stands relative to the others at the reference
+  posture: a quadruped's feet at opposite corners of its body are farther apart
+  than a step, so a foot's step is measured from where the reference posture
+  puts it relative to such a foot (a biped's feet, less than a step apart,
+  are stepped from directly).
 
 Only dimensionless ratios and angles, :class:`ReachLimits`, are planning
 choices; their defaults are those the planner was tuned with on Talos
@@ -90,11 +95,15 @@ class LimbReach:
     length : float
         Stretched length from the root joint to the farthest contact frame of
         the limb, metres.
+    foot_in_support : (3,) float or None
+        Mean origin of the limb's support surfaces at the reference posture,
+        metres, support frame; None for a limb without any.
     """
 
     limb: str
     root_in_support: np.ndarray = field(repr=False)
     length: float
+    foot_in_support: np.ndarray | None = field(default=None, repr=False)
 
 
 def support_frame(origins, x_axes):
@@ -240,7 +249,12 @@ class ReachModel:
             ]
             root_in_support = rotation.T @ (data.oMi[root].translation - origin)
             root_in_support.setflags(write=False)
-            limbs[limb] = LimbReach(limb, root_in_support, max(lengths, default=0.0))
+            own_feet = [name for name in feet if robot.surfaces[name].limb == limb]
+            foot_in_support = None
+            if own_feet:
+                foot_in_support = rotation.T @ (np.mean([data.oMf[frames[n]].translation for n in own_feet], axis=0) - origin)
+                foot_in_support.setflags(write=False)
+            limbs[limb] = LimbReach(limb, root_in_support, max(lengths, default=0.0), foot_in_support)
         foot_size = np.max([np.ptp(robot.surfaces[name].polygon, axis=0) for name in feet], axis=0)
         foot_size.setflags(write=False)
         return cls(
@@ -278,7 +292,15 @@ class ReachModel:
         limits = self.limits
         leg = self.limbs[limb].length
         delta = origins - other_origin
-        mask = np.hypot(delta[:, 0], delta[:, 1]) <= limits.step_length * leg + _EPS
+        # Measured from where the reference posture puts this foot relative to the
+        # other, when that is beyond a step (a quadruped's diagonal or opposite feet).
+        mine, theirs = self.limbs[limb].foot_in_support, self.limbs[other_limb].foot_in_support
+        nominal = np.zeros(3) if mine is None or theirs is None else (mine - theirs) * np.array([1.0, 1.0, 0.0])
+        step_delta = delta
+        if np.linalg.norm(nominal) > limits.step_length * leg:
+            _, rotation = support_frame(other_origin[None], other_x[None])
+            step_delta = delta - rotation @ nominal
+        mask = np.hypot(step_delta[:, 0], step_delta[:, 1]) <= limits.step_length * leg + _EPS
         mask &= np.abs(delta[:, 2]) <= limits.step_height * leg + _EPS
         mask &= _horizontal_cosine(x_axes, other_x) >= math.cos(limits.max_foot_yaw_difference) - _EPS
         other_left = np.array([-other_x[1], other_x[0], 0.0])

@@ -169,6 +169,8 @@ def best_first_search(
     shuffle_neighbours: bool = False,
     seed: int = 0,
     on_expand: Callable[[SearchStatistics], None] | None = None,
+    submit: Callable[[Any, Any, Any], Any] | None = None,
+    lookahead: int = 0,
 ) -> SearchResult:
     """Search from ``start`` to a goal node through feasible nodes only.
 
@@ -209,6 +211,20 @@ def best_first_search(
         Seed of the shuffling generator.
     on_expand : callable, optional
         Called with the current statistics after each expansion (progress).
+    submit : callable, optional
+        Starts oracle calls ahead: ``submit(node, parent, parent_result)``
+        returns a future (``result()``, ``done()``) of ``oracle``'s answer
+        for the same arguments, run elsewhere (a process pool). With it the
+        search still consumes answers in its own order, each one computed
+        from the node and parent it would have used alone, so the result is
+        the same whatever ``lookahead`` is; ``oracle`` is then not called.
+    lookahead : int
+        With ``submit``: oracle calls kept running at once. Whenever the
+        search waits for an answer it starts the next calls it would make if
+        no expansion intervened (the open list's best entries; in eager mode
+        every new neighbour of an expansion), up to ``lookahead``. Answers
+        never consumed are wasted work, counted as ``speculative`` only in the
+        log.
 
     Returns
     -------
@@ -236,6 +252,8 @@ def best_first_search(
     """
     if path_cost_weight < 0:
         raise CbmError(f"path_cost_weight must be >= 0, got {path_cost_weight!r}")
+    if submit is not None and not (int(lookahead) == lookahead and lookahead >= 1):
+        raise CbmError(f"lookahead must be a positive integer with submit, got {lookahead!r}")
     if step_cost is None:
         step_cost = _unit_step_cost
     started, cpu_started = time.perf_counter(), time.process_time()
@@ -282,8 +300,12 @@ def best_first_search(
         exceeded = budget_exceeded(before_solve=True)
         if exceeded is not None:
             raise _BudgetExhausted(exceeded)
-        parent_result = cache.get(parent) if parent is not None else None
-        answer = oracle(node, parent, parent_result)
+        if submit is None:
+            answer = oracle(node, parent, cache.get(parent) if parent is not None else None)
+        else:
+            ahead.request(node, parent)
+            ahead.fill(heap)
+            answer = ahead.take(node, parent)
         counts["solver_calls"] += 1
         cache[node] = answer
         feasible = bool(answer.feasible)
@@ -312,6 +334,7 @@ def best_first_search(
             graph=graph,
         )
 
+    ahead = _Lookahead(submit, lookahead, cache, closed) if submit is not None else None
     graph.add_node(start, status="open", result=None, h=heuristic_of(start))
     heapq.heappush(heap, (heuristic_of(start), next(counter), start, None, 0.0))
     try:
@@ -345,6 +368,10 @@ def best_first_search(
             counts["generated"] += len(children)
             if shuffle_neighbours:
                 rng.shuffle(children)
+            if eager and ahead is not None:
+                for child, _ in children:
+                    if child not in closed and child not in cache:
+                        ahead.request(child, node)
             for child, move in children:
                 if child in closed:
                     continue
@@ -369,7 +396,54 @@ def best_first_search(
         # Every node on the way to ``best`` has its answer in the cache and its
         # parent in came_from before ``best`` names it, wherever the interrupt falls.
         raise SearchInterrupted(finish(False, INTERRUPTED, best[2] if best else None)) from None
+    finally:
+        if ahead is not None and ahead.pending:
+            logger.info("%d oracle calls started ahead were not used", len(ahead.pending))
     return finish(False, NO_FEASIBLE_NEIGHBOUR, best[2] if best else None)
+
+
+class _Lookahead:
+    """Oracle calls started ahead of the search, keyed by (node, parent).
+
+    The key holds the parent because the answer depends on it (the warm
+    start): a node reached later through another parent is a new call, so
+    every answer the search consumes is the one it would have computed alone.
+    """
+
+    def __init__(self, submit, size, cache, closed):
+        self.submit = submit
+        self.size = int(size)
+        self.cache = cache
+        self.closed = closed
+        self.pending = {}
+
+    def request(self, node, parent):
+        """Start the oracle call of ``node`` warm-started from ``parent``, unless started."""
+        if (node, parent) not in self.pending:
+            parent_result = self.cache.get(parent) if parent is not None else None
+            self.pending[node, parent] = self.submit(node, parent, parent_result)
+
+    def fill(self, heap):
+        """Start the calls of the open list's best entries while fewer than ``size`` run."""
+        running = sum(not future.done() for future in self.pending.values())
+        if running >= self.size:
+            return
+        seen = set()
+        # The heap's entries in pop order; only a node's first entry is the one
+        # the search would pop, its later ones are skipped as closed or cached.
+        for _, _, node, parent, _ in heapq.nsmallest(4 * self.size + len(self.pending), heap):
+            if running >= self.size:
+                break
+            if node in seen or node in self.closed or node in self.cache:
+                continue
+            seen.add(node)
+            if (node, parent) not in self.pending:
+                self.request(node, parent)
+                running += 1
+
+    def take(self, node, parent):
+        """Wait for the answer of a started call and forget the call."""
+        return self.pending.pop((node, parent)).result()
 
 
 class _BudgetExhausted(Exception):

@@ -7,9 +7,11 @@ Rigid objects, deformable (FEM) objects, the contact surfaces on them, stances
 from .deformable import DeformableObject, soft_box
 from .errors import ScenarioError, SceneError
 from .goal import Goal, GoalRegion
+from .mesh_surfaces import SurfaceSearch, auto_surfaces, find_surfaces
 from .objects import RigidObject, box, box_surfaces, floor, mesh_object
 from .scenario import Scenario, builtin_scenario_path, load, load_string, scenario_names
 from .scene import Scene
+from .soft_mesh import FixedPlane, soft_mesh
 from .stance import Contact, ContactPrint, Stance
 from .surfaces import ContactSurface, rectangle
 
@@ -18,6 +20,7 @@ __all__ = [
     "ContactPrint",
     "ContactSurface",
     "DeformableObject",
+    "FixedPlane",
     "Goal",
     "GoalRegion",
     "RigidObject",
@@ -26,9 +29,12 @@ __all__ = [
     "Scene",
     "SceneError",
     "Stance",
+    "SurfaceSearch",
+    "auto_surfaces",
     "box",
     "box_surfaces",
     "builtin_scenario_path",
+    "find_surfaces",
     "floor",
     "load",
     "load_string",
@@ -36,4 +42,5 @@ __all__ = [
     "rectangle",
     "scenario_names",
     "soft_box",
+    "soft_mesh",
 ]

@@ -14,6 +14,10 @@ A scenario file (see ``environments/scenarios/*.yaml`` for examples)::
       - {name: rock, type: mesh, file: rock.stl, center: [1, 0, 0], yaw_deg: 0,
          surfaces: [{name: rock_top, polygon: [[0, 0], [0.1, 0], [0, 0.1]],
                      origin: [0, 0, 0.2], rpy_deg: [0, 0, 0], friction: 0.5}]}
+      - {name: stairs, type: mesh, file: stairs.stl, surfaces: auto}   # stairs_top_0, ..., stairs_side_0, ...
+      - {name: pad, type: soft_mesh, file: pad.stl, position: [0.5, 0, 0], rpy_deg: [0, 0, 90],
+         material: {E: 2.0e6, nu: 0.45}, fixed: on_floor}     # pad_top_0, ... (found on it)
+    allowed_overlaps: [[stairs, rock]]                      # else overlapping objects are refused
     surfaces: {table_top: {friction: 0.5}}                  # per-surface overrides
     stances:                          # robot surface -> print on a surface
       stand:

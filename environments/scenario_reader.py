@@ -20,26 +20,36 @@ from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fe
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
+from .mesh_surfaces import SurfaceSearch, auto_surfaces
 from .options import validate_options
 from .plain_data import checked_mapping, join_key, kind_of
 from .scene import Scene
+from .scene_checks import SceneSenseError, check_overlaps, check_supported
+from .soft_mesh import ON_FLOOR, FixedPlane, soft_mesh
 from .stance import Contact, Stance, contact_print_from_dict
 from .surfaces import ContactSurface
 
 __all__ = ["read_scenario_fields", "line_of", "ROBOT_FILE_SUFFIXES", "SCENARIO_KEYS", "OBJECT_KEYS", "NESTED_KEYS"]
 
 #: Keys of a scenario document.
-SCENARIO_KEYS = ("name", "robot", "description", "objects", "surfaces", "stances", "start", "goal", "options")
+SCENARIO_KEYS = (
+    "name", "robot", "description", "objects", "allowed_overlaps", "surfaces", "stances", "start", "goal", "options"
+)
 
 #: Keys each object ``type`` takes (docs/scenarios.md describes every one).
 OBJECT_KEYS = {
     "floor": ("name", "type", "size", "friction"),
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
     "soft_box": (
-        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit"
+        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit",
+        "floating",
     ),
-    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit"),
-    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces"),
+    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "floating"),
+    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
+    "soft_mesh": (
+        "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
+        "strain_limit", "floating",
+    ),
 }
 
 #: Keys of the mappings inside a scenario: a soft box's material, a mesh's
@@ -49,6 +59,8 @@ NESTED_KEYS = {
     "material": ("E", "nu", "rho"),
     "block": ("name", "size", "center"),
     "mesh surface": ("name", "polygon", "origin", "rpy_deg", "friction"),
+    "auto surfaces": ("max_slope_deg", "min_area", "sides", "friction"),
+    "fixed": ("plane",),
     "print": ("surface", "x", "y", "theta", "theta_deg"),
     "goal": ("contacts", "stance", "regions"),
     "goal region": ("robot_surface", "lower", "upper"),
@@ -243,7 +255,7 @@ class _Reader:
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.error("description", f"must be text, got {kind_of(description)}")
-        scene = self.scene(name, top["objects"], top.get("surfaces", {}))
+        scene = self.scene(name, top["objects"], top.get("surfaces", {}), top.get("allowed_overlaps", []))
         stances_data = top["stances"]
         if not isinstance(stances_data, Mapping) or not stances_data:
             raise self.error("stances", f"must be a non-empty mapping of stance names to contacts, got {kind_of(stances_data)}")
@@ -282,13 +294,15 @@ class _Reader:
             raise self.error("robot", f"robot description file not found: {file_path}")
         return str(file_path)
 
-    def scene(self, name: str, objects_data, surfaces_data) -> Scene:
+    def scene(self, name: str, objects_data, surfaces_data, overlaps_data) -> Scene:
         if not isinstance(objects_data, list) or not objects_data:
             raise self.error("objects", f"must be a non-empty list of objects, got {kind_of(objects_data)}")
         rigid: list[RigidObject] = []
         deformable: list[DeformableObject] = []
         surfaces: list[ContactSurface] = []
         names: set[str] = set()
+        floating: set[str] = set()
+        keys: dict[str, str] = {}  # object name -> its key path, for messages
         for index, item in enumerate(objects_data):
             key = f"objects[{index}]"
             if not isinstance(item, Mapping):
@@ -314,11 +328,36 @@ class _Reader:
             names.add(obj.name)
             (deformable if obj.deformable else rigid).append(obj)
             surfaces.extend(obj_surfaces)
+            if obj.deformable and self.boolean(item, "floating", key, False):
+                floating.add(obj.name)
+            keys[obj.name] = key
         surfaces = self.surface_overrides(surfaces_data, surfaces)
+        allowed = self.allowed_overlaps(overlaps_data, keys)
         try:
-            return Scene(name, rigid, deformable, surfaces)
+            scene = Scene(name, rigid, deformable, surfaces)
         except SceneError as error:
             raise self.error("objects", str(error)) from None
+        try:
+            check_supported(scene, floating)
+            check_overlaps(scene, allowed)
+        except SceneSenseError as error:
+            raise self.error(keys[error.objects[-1]], str(error)) from None
+        return scene
+
+    def allowed_overlaps(self, data, keys: dict[str, str]) -> set[frozenset]:
+        """``allowed_overlaps: [[a, b], ...]``: pairs of known objects whose overlap is intended."""
+        if not isinstance(data, list):
+            raise self.error("allowed_overlaps", f"must be a list of [object, object] pairs, got {kind_of(data)}")
+        allowed = set()
+        for index, pair in enumerate(data):
+            pair_key = f"allowed_overlaps[{index}]"
+            if not (isinstance(pair, list) and len(pair) == 2 and pair[0] != pair[1]):
+                raise self.error(pair_key, f"must be a pair of two object names [a, b], got {kind_of(pair)}")
+            for name in pair:
+                if name not in keys:
+                    raise self.error(pair_key, f"unknown object {name!r}; objects: {known_names(keys)}")
+            allowed.add(frozenset(pair))
+        return allowed
 
     def surface_overrides(self, data, surfaces: list[ContactSurface]) -> list[ContactSurface]:
         if not isinstance(data, Mapping):
@@ -427,14 +466,65 @@ class _Reader:
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
         )
 
-    def mesh(self, item: Mapping, key: str):
-        item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
-        name = self.string(item, "name", key)
+    def surface_search(self, item: Mapping, key: str) -> SurfaceSearch:
+        """The settings of ``surfaces: auto`` (``auto_surfaces``), defaults where absent."""
+        settings_key = join_key(key, "auto_surfaces")
+        settings = self.mapping(item.get("auto_surfaces", {}), settings_key, NESTED_KEYS["auto surfaces"])
+        defaults = SurfaceSearch()
+        max_slope = self.number(settings, "max_slope_deg", settings_key, defaults.max_slope_deg)
+        if not 0.0 <= max_slope < 90.0:
+            raise self.error(join_key(settings_key, "max_slope_deg"), f"must be in [0, 90) degrees, got {max_slope:g}")
+        return SurfaceSearch(
+            max_slope,
+            self.number(settings, "min_area", settings_key, defaults.min_area, positive=True),
+            self.boolean(settings, "sides", settings_key, defaults.sides),
+            self.number(settings, "friction", settings_key, defaults.friction, positive=True),
+        )
+
+    def mesh_file(self, item: Mapping, key: str) -> Path:
+        """The ``file`` of a mesh object, relative to the scenario file, which must exist."""
         file_name = self.string(item, "file", key)
         base = self.path.parent if self.path is not None else Path.cwd()
         file_path = (base / file_name).resolve()
         if not file_path.is_file():
             raise self.error(join_key(key, "file"), f"mesh file not found: {file_path}")
+        return file_path
+
+    def soft_mesh(self, item: Mapping, key: str):
+        item = self.mapping(item, key, OBJECT_KEYS["soft_mesh"], ("name", "file", "material"))
+        name = self.string(item, "name", key)
+        if item.get("surfaces", "auto") != "auto":
+            raise self.error(join_key(key, "surfaces"), f"must be 'auto' (a soft mesh's surfaces are found on it), got {kind_of(item['surfaces'])}")
+        return soft_mesh(
+            name,
+            self.mesh_file(item, key),
+            self.material(item, key),
+            position=self.vector(item, "position", key, 3, (0.0, 0.0, 0.0)),
+            rpy=np.radians(self.vector(item, "rpy_deg", key, 3, (0.0, 0.0, 0.0))),
+            fixed=self.fixed_plane(item, key),
+            resolution=self.resolution(item, key),
+            search=self.surface_search(item, key),
+            strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+        )
+
+    def fixed_plane(self, item: Mapping, key: str) -> FixedPlane:
+        """``fixed: on_floor`` (the default) or ``fixed: {plane: "z = 0.3"}``."""
+        fixed_key = join_key(key, "fixed")
+        value = item.get("fixed", "on_floor")
+        if value == "on_floor":
+            return ON_FLOOR
+        if not isinstance(value, Mapping):
+            raise self.error(fixed_key, f"must be on_floor or {{plane: '<x|y|z> = <metres>'}}, got {kind_of(value)}")
+        value = self.mapping(value, fixed_key, NESTED_KEYS["fixed"], ("plane",))
+        try:
+            return FixedPlane.parse(value["plane"])
+        except SceneError as error:
+            raise self.error(join_key(fixed_key, "plane"), str(error)) from None
+
+    def mesh(self, item: Mapping, key: str):
+        item = self.mapping(item, key, OBJECT_KEYS["mesh"], ("name", "file"))
+        name = self.string(item, "name", key)
+        file_path = self.mesh_file(item, key)
         obj = mesh_object(
             name,
             str(file_path),
@@ -442,8 +532,12 @@ class _Reader:
             math.radians(self.number(item, "yaw_deg", key, 0.0)),
         )
         surfaces_data = item.get("surfaces", [])
+        if surfaces_data == "auto":
+            return obj, auto_surfaces(name, obj.mesh, obj.transform_object_to_world, self.surface_search(item, key))
+        if "auto_surfaces" in item:
+            raise self.error(join_key(key, "auto_surfaces"), "applies only with 'surfaces: auto'")
         if not isinstance(surfaces_data, list):
-            raise self.error(join_key(key, "surfaces"), f"must be a list of surfaces, got {kind_of(surfaces_data)}")
+            raise self.error(join_key(key, "surfaces"), f"must be 'auto' or a list of surfaces, got {kind_of(surfaces_data)}")
         surfaces = []
         for index, surface_item in enumerate(surfaces_data):
             surface_key = f"{key}.surfaces[{index}]"

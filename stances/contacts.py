@@ -7,6 +7,13 @@ that is a non-negative combination of the edges of a linearised friction cone
 are fixed in the world (they belong to the print); the application points move
 with the link.
 
+A point foot (:class:`PointContact`), a ball of radius r centred on its contact
+frame, rests on the print with 3 equalities (its centre r above the print
+origin along the print normal; the foot turns freely) and one friction pyramid.
+Its force is applied at the ball's centre, a point fixed on the link: the
+friction's moment about the centre, ``r n x f_t`` (at most ``r mu f_n``), is
+left out, as point-foot models usually do.
+
 Every contact model (this one and :mod:`stances.deformable`) offers the same
 small interface to the problem builder:
 
@@ -26,7 +33,8 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-from .blocks import equality
+from .blocks import PLACEMENT_ACCURACY, equality
+from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
 
@@ -84,6 +92,7 @@ class RigidContact:
     """
 
     kind = "rigid"
+    application = "its surface's vertices"  # where its forces act, for messages
 
     def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
         surface = robot.surface(robot_surface)
@@ -93,7 +102,7 @@ class RigidContact:
         frame = robot.model.frames[self.frame_id]
         self.print_placement = pin.SE3(np.asarray(transform_print_to_world, dtype=float))
         self.friction = float(friction)
-        vertices = surface.vertices_in_frame
+        vertices = self._points_in_frame(surface)
         self.loads = PointLoads(
             np.full(len(vertices), frame.parentJoint),
             np.array([frame.placement.act(v) for v in vertices]),
@@ -112,6 +121,11 @@ class RigidContact:
         self.print_labels = (label,)
         self.load_prints = np.zeros(n_vertices, dtype=int)
         self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
+
+    @staticmethod
+    def _points_in_frame(surface) -> np.ndarray:
+        """(k, 3) application points of the forces, contact frame: the polygon's vertices."""
+        return surface.vertices_in_frame
 
     def forces(self, model, data, lam) -> np.ndarray:
         """(k, 3) world forces on the robot at the polygon vertices, newtons."""
@@ -139,7 +153,7 @@ class RigidContact:
             f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
         ]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def cost(self, model, data, lam, options, columns, offset):
         """No objective term of its own (lambda's is the problem's force term)."""
@@ -158,19 +172,11 @@ class RigidContact:
         list of str
             Failed checks, empty when all pass.
         """
-        reasons = []
-        error = self.print_placement.actInv(data.oMf[self.frame_id])
-        residual = pin.log6(error).vector
-        translation, rotation = np.abs(residual[:3]).max(), np.abs(residual[3:]).max()
-        measures[f"placement error of {self.label}"] = float(max(translation, rotation))
-        if max(translation, rotation) > tolerances.placement:
-            reasons.append(
-                f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"
-            )
+        reasons = self._verify_placement(data, tolerances, measures)
         # The forces must act at the robot surface's vertices...
         expected = points_in_world(data, self.loads)
         if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
-            reasons.append(f"forces of {self.label} are not applied at its surface's vertices")
+            reasons.append(f"forces of {self.label} are not applied at {self.application}")
         # ... and lie in the exact Coulomb cone of the print.
         rotation_print = self.print_placement.rotation
         local = forces @ rotation_print
@@ -181,3 +187,85 @@ class RigidContact:
         if margin.min() < -tolerances.cone:
             reasons.append(f"a force of {self.label} leaves its friction cone by {-margin.min():.3g} N")
         return reasons
+
+    def _verify_placement(self, data, tolerances, measures) -> list:
+        """The surface frame on the print frame: translation and rotation errors."""
+        error = self.print_placement.actInv(data.oMf[self.frame_id])
+        residual = pin.log6(error).vector
+        translation, rotation = np.abs(residual[:3]).max(), np.abs(residual[3:]).max()
+        measures[f"placement error of {self.label}"] = float(max(translation, rotation))
+        if max(translation, rotation) > tolerances.placement:
+            return [f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"]
+        return []
+
+
+def point_placement_residual(model, data, frame_id: int, transform_print_to_world: pin.SE3, radius: float):
+    """Placement error of a point foot's centre relative to its print.
+
+    Parameters
+    ----------
+    model, data : pinocchio Model and Data
+        Frame placements and joint Jacobians computed at the iterate.
+    frame_id : int
+        The foot's contact frame, whose origin is the ball's centre.
+    transform_print_to_world : pin.SE3
+        Print frame (z: outward normal of the support).
+    radius : float
+        Ball radius, metres.
+
+    Returns
+    -------
+    residual : (3,) float
+        ``R_p^T (c - o_p) - (0, 0, r)``: the centre's offset from the point
+        ``r`` above the print origin, metres, print frame. Zero when the ball
+        touches the support at the print origin.
+    jacobian : (3, nv) float
+        Its derivative for a tangent step.
+    """
+    rotation = transform_print_to_world.rotation
+    centre = data.oMf[frame_id].translation
+    residual = rotation.T @ (centre - transform_print_to_world.translation) - np.array([0.0, 0.0, radius])
+    jacobian = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+    return residual, rotation.T @ jacobian
+
+
+class PointContact(RigidContact):
+    """A point foot (a ball) on a rigid print: 3 placement equalities, one friction pyramid.
+
+    Parameters are those of :class:`RigidContact`; ``robot_surface`` must be
+    a point foot (a surface with a ``radius``). The foot's orientation is
+    free: only its centre is placed. The force acts at the ball's centre (see
+    the module docstring).
+    """
+
+    application = "its ball's centre"
+
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
+        surface = robot.surface(robot_surface)
+        if not surface.is_point:
+            raise StanceError(f"robot surface {robot_surface!r} is a polygon, not a point foot: use RigidContact")
+        self.radius = float(surface.radius)
+        super().__init__(robot, robot_surface, transform_print_to_world, friction, label)
+
+    @staticmethod
+    def _points_in_frame(surface) -> np.ndarray:
+        """(1, 3): the force acts at the ball's centre, the contact frame's origin."""
+        return np.zeros((1, 3))
+
+    def blocks(self, model, data, lam, columns, offset):
+        """Placement equalities of the ball's centre (3 rows), print frame."""
+        residual, jacobian_q = point_placement_residual(model, data, self.frame_id, self.print_placement, self.radius)
+        jacobian = np.zeros((3, columns))
+        jacobian[:, : model.nv] = jacobian_q
+        labels = [f"placement of {self.label} ({axis})" for axis in ("x", "y", "z")]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
+
+    def _verify_placement(self, data, tolerances, measures) -> list:
+        """The ball's centre ``radius`` above the print origin, along its normal."""
+        centre = data.oMf[self.frame_id].translation
+        expected = self.print_placement.translation + self.radius * self.print_placement.rotation[:, 2]
+        error = float(np.abs(centre - expected).max())
+        measures[f"placement error of {self.label}"] = error
+        if error > tolerances.placement:
+            return [f"{self.label} is off its print by {error:.3g} m (its ball must touch the support at the print)"]
+        return []

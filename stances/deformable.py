@@ -8,6 +8,13 @@ link, and the node displacements are the motion they impose (eq. 29):
 
     U_n(q) = R_b^T (y_n(q) - x_n),     y_n(q) = T_link(q) a_n      (body frame)
 
+A point foot (a ball of radius r) presses the nodes under its print octagon,
+which circumscribes the ball's circle: its link points are all the ball's
+centre, ``x_n`` is replaced by the centre's rest position r above the print,
+and ``U_n = R_b^T (c(q) - c_0)``: the print translates with the ball and does
+not turn with the foot (the ball rolls freely, and every node's force acts at
+its centre, as in the rigid point contact of :mod:`stances.contacts`).
+
 The body pushes back with forces linear in ``U`` over the union of the
 prints' nodes, ``f = R U`` (R: fem's reaction matrix over the union, ``-S_P``
 for ``consistent``; eq. 44 for ``traction``).
@@ -122,7 +129,7 @@ class DeformableContact:
     Raises
     ------
     StanceError
-        A print holds fewer than three mesh nodes, two prints share nodes,
+        A point foot presses the body with the traction model, a print holds fewer than three mesh nodes, two prints share nodes,
         or a print's nodes cannot hold a rigid link (collinear).
     """
 
@@ -144,9 +151,15 @@ class DeformableContact:
         self.label = " and ".join(p.label for p in self.prints)
 
         node_sets, joints, points_in_joint, frames = [], [], [], []
+        point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
+            if surface_model.is_point and self.method == "traction":
+                raise StanceError(
+                    f"{spec.label}: a point foot's print needs the consistent reaction model "
+                    "(its nodes follow the ball's centre, not the foot's turn)"
+                )
             frame_id = robot.frame_id(surface_model.frame)
             frame = robot.model.frames[frame_id]
             placement = pin.SE3(spec.transform_print_to_world)
@@ -171,7 +184,12 @@ class DeformableContact:
             nodes_in_print = (nodes_in_world - placement.translation) @ placement.rotation
             node_sets.append(ids)
             joints.append(np.full(len(ids), frame.parentJoint))
-            points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
+            if surface_model.is_point:
+                # Every node of a ball's print follows the ball's centre, where its force acts.
+                points_in_joint.append(np.tile(frame.placement.translation, (len(ids), 1)))
+                point_rests.append((len(node_sets) - 1, placement.translation + surface_model.radius * placement.rotation[:, 2]))
+            else:
+                points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
             frames.extend([surface_model.frame] * len(ids))
             self.frame_ids.append(frame_id)
             self.print_placements.append(placement)
@@ -185,6 +203,11 @@ class DeformableContact:
         self.load_frames = tuple(frames)
         self.patch = body.contact_patch(self.node_ids)
         self.nodes_in_world = body.mesh.nodes[self.node_ids] @ self.rotation_body.T + body_placement.translation
+        # Where each node's link point is when the body is at rest: the node itself
+        # for a polygon; the ball's centre, a radius above the print, for a point foot.
+        self.link_points_at_rest = self.nodes_in_world.copy()
+        for index, centre in point_rests:
+            self.link_points_at_rest[self.print_of_node == index] = centre
         n_prints, p = len(self.prints), len(self.node_ids)
         self.n_variables = 6 * n_prints
         self.variable_lower = np.full(self.n_variables, -np.inf)
@@ -250,7 +273,7 @@ class DeformableContact:
     # -- kinematics of the prints -------------------------------------------
     def _displacements(self, data) -> np.ndarray:
         """(p, 3) U imposed by the link points, metres, body frame (eq. 29)."""
-        return (points_in_world(data, self.loads) - self.nodes_in_world) @ self.rotation_body
+        return (points_in_world(data, self.loads) - self.link_points_at_rest) @ self.rotation_body
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""

@@ -21,7 +21,19 @@ A description is a small YAML file; the built-in ones ship in ``stances/robots/`
         rpy_deg: [0, 0, 0]                #   (its z axis points into the link)
         polygon: [[-0.1, -0.065], [0.11, -0.065], [0.11, 0.065], [-0.1, 0.065]]
         plate: {thickness: 0.01, replaces: gripper_left_}   # optional, see stances.plates
+      left_front_foot:                    # a point foot (see anymal.yaml): a ball
+        role: foot
+        limb: left_front_leg
+        link: LF_FOOT
+        xyz: [0, 0, 0.02325]              # the ball's centre in the link frame
+        point: {radius: 0.031}            # in place of polygon, metres
+        geometries: [LF_FOOT_0]           # optional: the collision geometries that touch
     checked_pairs: [[arm_left_5_link_0, wrist_left_ft_link_0]]   # optional
+
+A surface is a polygon (a sole, a palm: a rigid contact holds it with 6
+placement equalities and a friction pyramid at each vertex) or a point foot (a
+ball of ``radius`` centred on the contact frame's origin: 3 placement
+equalities and one friction pyramid, see :mod:`stances.point_contact`).
 
 Reading a description checks its structure and values (roles, polygons, limbs)
 without loading the model; names of links, joints and geometries are checked
@@ -57,6 +69,7 @@ __all__ = [
     "builtin_robot_names",
     "description_path",
     "example_robot_data_share",
+    "point_print",
     "read_description",
 ]
 
@@ -131,6 +144,42 @@ def _check_polygon(polygon, owner: str) -> np.ndarray:
     return polygon
 
 
+#: Vertices of a point foot's print polygon: a regular polygon circumscribing
+#: the foot's circle, so that sampling keeps the whole foot inside a surface.
+POINT_PRINT_VERTICES = 8
+
+
+def _check_radius(radius, owner: str) -> float:
+    if isinstance(radius, bool) or not isinstance(radius, (int, float)) or not (math.isfinite(radius) and radius > 0):
+        raise StanceError(f"{owner}: a point foot's radius must be a positive number of metres, got {radius!r}")
+    return float(radius)
+
+
+def point_print(radius: float) -> np.ndarray:
+    """The print polygon of a point foot: a regular octagon around its circle.
+
+    Parameters
+    ----------
+    radius : float
+        Foot radius, metres.
+
+    Returns
+    -------
+    (8, 2) float
+        Vertices, metres, counter-clockwise, circumscribing the circle of
+        ``radius`` (the planner keeps it inside surfaces; displays draw it).
+
+    Examples
+    --------
+    >>> point_print(0.02).round(4)[:2].tolist()
+    [[0.0216, 0.0], [0.0153, 0.0153]]
+    """
+    radius = _check_radius(radius, "point_print")
+    angles = 2.0 * np.pi * np.arange(POINT_PRINT_VERTICES) / POINT_PRINT_VERTICES
+    outer = radius / math.cos(math.pi / POINT_PRINT_VERTICES)
+    return outer * np.column_stack([np.cos(angles), np.sin(angles)])
+
+
 @dataclass(frozen=True)
 class SurfaceDeclaration:
     """Where a robot surface sits on a link, before it is added to a model.
@@ -157,6 +206,12 @@ class SurfaceDeclaration:
         One of :data:`ROLES`.
     limb : str
         Name of the limb the surface ends (a key of the description's limbs).
+    radius : float, optional
+        A point foot: the radius of its ball, metres, centred on the contact
+        frame's origin; ``polygon`` is then its print (see :func:`point_print`).
+    geometries : tuple of str
+        Collision geometries forming the surface, the only ones allowed to
+        touch its support; empty: every geometry of the link (or the plate).
     """
 
     name: str
@@ -166,12 +221,19 @@ class SurfaceDeclaration:
     plate: PlateDeclaration | None = None
     role: str = ""  # required: the defaults only let plate keep its place
     limb: str = ""
+    radius: float | None = None
+    geometries: tuple = ()
 
     def __post_init__(self) -> None:
         if self.role not in ROLES:
             raise StanceError(f"robot surface {self.name!r}: unknown role {self.role!r}; roles: {', '.join(ROLES)}")
         if not isinstance(self.limb, str) or not self.limb:
             raise StanceError(f"robot surface {self.name!r}: limb must be a non-empty limb name, got {self.limb!r}")
+        if self.radius is not None:
+            _check_radius(self.radius, f"robot surface {self.name!r}")
+            if self.plate is not None:
+                raise StanceError(f"robot surface {self.name!r}: a point foot carries no plate")
+        object.__setattr__(self, "geometries", tuple(str(name) for name in self.geometries))
         polygon = _check_polygon(self.polygon, f"robot surface {self.name!r}")
         polygon.setflags(write=False)
         object.__setattr__(self, "polygon", polygon)
@@ -270,7 +332,7 @@ def builtin_robot_names() -> list[str]:
     Examples
     --------
     >>> builtin_robot_names()
-    ['romeo', 'talos']
+    ['anymal', 'romeo', 'talos']
     """
     return sorted(path.stem for path in BUILTIN_DIRECTORY.glob("*.yaml"))
 
@@ -335,7 +397,7 @@ _TOP_KEYS = (
     "name", "description", "model", "locked_joints", "reference_posture", "support", "limbs", "surfaces",
     "checked_pairs",
 )
-_SURFACE_KEYS = ("role", "limb", "link", "xyz", "rpy_deg", "polygon", "plate")
+_SURFACE_KEYS = ("role", "limb", "link", "xyz", "rpy_deg", "polygon", "point", "plate", "geometries")
 
 
 class _Reader:
@@ -437,17 +499,29 @@ class _Reader:
 
     def surface(self, name: str, data, limbs) -> SurfaceDeclaration:
         key = f"surfaces.{name}"
-        data = self.mapping(data, key, _SURFACE_KEYS, ("role", "limb", "link", "polygon"))
+        data = self.mapping(data, key, _SURFACE_KEYS, ("role", "limb", "link"))
         role = data["role"]
         if role not in ROLES:
             raise self.error(join_key(key, "role"), f"unknown role {role!r}; roles: {', '.join(ROLES)}")
         limb = self.string(data["limb"], join_key(key, "limb"))
         if limb not in limbs:
             raise self.error(join_key(key, "limb"), f"unknown limb {limb!r}; limbs: {', '.join(limbs) or '(none)'}")
-        polygon = data["polygon"]
-        if not isinstance(polygon, list) or len(polygon) < 3:
-            raise self.error(join_key(key, "polygon"), f"must be a list of at least 3 [x, y] vertices, got {kind_of(polygon)}")
-        vertices = [self.numbers(vertex, f"{key}.polygon[{index}]", 2) for index, vertex in enumerate(polygon)]
+        if ("polygon" in data) == ("point" in data):
+            raise self.error(key, "give its shape: either polygon (a sole, a palm) or point (a point foot), not both")
+        radius = None
+        if "point" in data:
+            point = self.mapping(data["point"], join_key(key, "point"), ("radius",), ("radius",))
+            try:
+                radius = _check_radius(point["radius"], "point foot")
+            except StanceError:
+                raise self.error(join_key(key, "point.radius"), f"must be a positive number of metres, got {kind_of(point['radius'])}") from None
+            vertices = point_print(radius)
+        else:
+            polygon = data["polygon"]
+            if not isinstance(polygon, list) or len(polygon) < 3:
+                raise self.error(join_key(key, "polygon"), f"must be a list of at least 3 [x, y] vertices, got {kind_of(polygon)}")
+            vertices = [self.numbers(vertex, f"{key}.polygon[{index}]", 2) for index, vertex in enumerate(polygon)]
+        geometries = self.strings(data.get("geometries", []), join_key(key, "geometries"))
         xyz = self.numbers(data.get("xyz", [0.0, 0.0, 0.0]), join_key(key, "xyz"), 3)
         rpy = [math.radians(angle) for angle in self.numbers(data.get("rpy_deg", [0.0, 0.0, 0.0]), join_key(key, "rpy_deg"), 3)]
         placement = pin.SE3(pin.rpy.rpyToMatrix(*rpy), np.array(xyz))
@@ -457,7 +531,8 @@ class _Reader:
                 plate_data = self.mapping(data["plate"], join_key(key, "plate"), ("thickness", "replaces", "mass"), ("thickness",))
                 plate = PlateDeclaration(**plate_data)
             return SurfaceDeclaration(
-                name, self.string(data["link"], join_key(key, "link")), placement, vertices, plate, role, limb
+                name, self.string(data["link"], join_key(key, "link")), placement, vertices, plate, role, limb,
+                radius, geometries,
             )
         except RobotDescriptionError:
             raise

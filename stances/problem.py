@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from environments.errors import SceneError
 
-from .contacts import RigidContact
+from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives
@@ -228,6 +228,10 @@ class Linearization:
     step_upper: np.ndarray
     forces: np.ndarray
     torques: np.ndarray
+
+    def met(self, tolerance: float) -> bool:
+        """Whether every row is within ``tolerance`` (scaled) or its block's ``accuracy``."""
+        return all(block.met(tolerance) for block in self.blocks if len(block))
 
     def max_violation(self) -> tuple[float, str]:
         """Largest scaled violation and the label of its row."""
@@ -514,7 +518,8 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
                 contacts.append(deformable_object)  # placeholder, replaced below
             deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
         else:
-            contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label))
+            model = PointContact if robot.surface(contact.robot_surface).is_point else RigidContact
+            contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label))
         exclusions.append((robot.surface(contact.robot_surface).frame, surface.object_name))
     if deformable_prints:
         contacts = [

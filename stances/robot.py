@@ -63,6 +63,11 @@ class RobotSurface:
         ``"foot"`` or ``"hand"`` (see :data:`stances.description.ROLES`).
     limb : str
         Limb the surface ends, a key of :attr:`Robot.limbs`.
+    radius : float, optional
+        A point foot: radius of its ball, metres, centred on the contact
+        frame's origin (which then lies ``radius`` above the support);
+        ``polygon`` is its print (:func:`stances.description.point_print`).
+        None for a planar surface.
     """
 
     name: str
@@ -71,6 +76,7 @@ class RobotSurface:
     contact_geometries: tuple = ()
     role: str = "foot"
     limb: str = ""
+    radius: float | None = None
 
     def __post_init__(self) -> None:
         polygon = np.array(self.polygon, dtype=float)
@@ -81,9 +87,16 @@ class RobotSurface:
             )
         if self.role not in ROLES:
             raise StanceError(f"robot surface {self.name!r}: unknown role {self.role!r}; roles: {', '.join(ROLES)}")
+        if self.radius is not None and not (np.isfinite(self.radius) and self.radius > 0):
+            raise StanceError(f"robot surface {self.name!r}: a point foot's radius must be positive, got {self.radius!r}")
         polygon.setflags(write=False)
         object.__setattr__(self, "polygon", polygon)
         object.__setattr__(self, "contact_geometries", tuple(str(name) for name in self.contact_geometries))
+
+    @property
+    def is_point(self) -> bool:
+        """Whether the surface is a point foot (a ball) rather than a polygon."""
+        return self.radius is not None
 
     @property
     def vertices_in_frame(self) -> np.ndarray:
@@ -383,12 +396,19 @@ class Robot:
         for declaration in surfaces:
             frame_name = frame_names[declaration.name]
             joint = model.frames[model.getFrameId(frame_name)].parentJoint
-            # Without a plate, the surface is part of its link's own geometry.
-            contact_geometries = plates.get(declaration.name) or tuple(
+            # Without a plate or declared geometries, the surface is part of its
+            # link's own geometry.
+            for geometry_name in declaration.geometries:
+                if geometry_name not in geometry_names:
+                    raise FrameNotFound(
+                        "collision geometry", geometry_name, geometry_names, f"robot surface {declaration.name!r}"
+                    )
+            contact_geometries = plates.get(declaration.name) or declaration.geometries or tuple(
                 geometry.name for geometry in collision_model.geometryObjects if geometry.parentJoint == joint
             )
             robot_surfaces[declaration.name] = RobotSurface(
-                declaration.name, frame_name, declaration.polygon, contact_geometries, declaration.role, declaration.limb
+                declaration.name, frame_name, declaration.polygon, contact_geometries, declaration.role, declaration.limb,
+                declaration.radius,
             )
         limb_roots = _limb_roots(model, robot_surfaces, limbs)
         return cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)

@@ -165,9 +165,21 @@ BAD_DESCRIPTIONS = {
         lambda d: d["limbs"].update(left_leg="arm_left_1_joint"),
         "robot surface 'left_sole' on limb 'left_leg' is not below the limb's root joint 'arm_left_1_joint'",
     ),
+    "polygon and point": (
+        lambda d: d["surfaces"]["left_sole"].update(point={"radius": 0.02}),
+        "surfaces.left_sole: give its shape: either polygon (a sole, a palm) or point (a point foot), not both",
+    ),
+    "zero point radius": (
+        lambda d: d["surfaces"]["left_sole"].pop("polygon") and d["surfaces"]["left_sole"].update(point={"radius": 0}),
+        "surfaces.left_sole.point.radius: must be a positive number of metres, got int 0",
+    ),
+    "unknown contact geometry": (
+        lambda d: d["surfaces"]["left_sole"].update(geometries=["no_such_geometry"]),
+        "robot surface 'left_sole': unknown collision geometry 'no_such_geometry'; known collision geometrys: ",
+    ),
     "unknown key": (
         lambda d: d["surfaces"]["left_sole"].update(colour="red"),
-        "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, plate",
+        "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, point, plate, geometries",
     ),
 }
 
@@ -184,7 +196,7 @@ def test_a_bad_description_file_gets_an_error_naming_the_file_and_the_fault(tmp_
 
 
 def test_an_unknown_robot_name_lists_the_builtin_robots():
-    with pytest.raises(RobotNotFound, match=re.escape("unknown robot 'tals' (not a built-in robot); built-in robots: romeo, talos")):
+    with pytest.raises(RobotNotFound, match=re.escape("unknown robot 'tals' (not a built-in robot); built-in robots: anymal, romeo, talos")):
         Robot.load("tals")
 
 

@@ -9,6 +9,7 @@ import trimesh
 
 import environments
 from environments import ScenarioError, SceneError, load, scenario_names
+from stances.description import builtin_robot_names
 
 BUILTIN = scenario_names()
 EXPECTED = {
@@ -21,6 +22,7 @@ EXPECTED = {
     "cross-soft-block",
     "climb-with-soft-support",
     "foot-and-hand-on-foam",
+    "quadruped-walk",
 }
 
 
@@ -42,9 +44,9 @@ def test_every_expected_scenario_is_built_in():
 
 
 @pytest.mark.parametrize("name", BUILTIN)
-def test_builtin_scenario_loads_with_talos_and_a_start_stance(name, loaded):
+def test_builtin_scenario_loads_with_a_builtin_robot_and_a_start_stance(name, loaded):
     scenario = loaded(name)
-    assert scenario.name == name and scenario.robot == "talos"
+    assert scenario.name == name and scenario.robot in builtin_robot_names()
     assert scenario.start in scenario.stances
     assert scenario.description
     assert "floor" in scenario.scene.surfaces
@@ -243,13 +245,13 @@ def test_mesh_objects_are_read_relative_to_the_file_with_declared_surfaces(tmp_p
     trimesh.creation.box(extents=(0.4, 0.4, 0.2)).export(tmp_path / "step.stl")
     text = GOOD.replace(
         "stances:",
-        "  - name: step\n    type: mesh\n    file: step.stl\n    center: [1.0, 0.0, 0.1]\n"
+        "  - name: step\n    type: mesh\n    file: step.stl\n    center: [1.0, 0.5, 0.1]\n"  # clear of the table
         "    surfaces:\n      - {name: step_top, polygon: [[-0.2, -0.2], [0.2, -0.2], [0.2, 0.2], [-0.2, 0.2]],"
         " origin: [0, 0, 0.1], friction: 0.6}\nstances:",
     )
     scenario = load(write(tmp_path, text))
     surface = scenario.scene.surface("step_top")
-    np.testing.assert_allclose(surface.point_in_world(0, 0), [1.0, 0.0, 0.2])
+    np.testing.assert_allclose(surface.point_in_world(0, 0), [1.0, 0.5, 0.2])
     names = [name for name, _ in scenario.scene.collision_objects()]
     assert names == ["floor", "table", "step"]
     with pytest.raises(ScenarioError, match=r"objects\[2\].file: mesh file not found"):
@@ -262,7 +264,7 @@ def test_mesh_objects_are_read_relative_to_the_file_with_declared_surfaces(tmp_p
 def test_soft_box_material_errors_name_the_material_key(tmp_path):
     soft = GOOD.replace(
         "stances:",
-        "  - {name: cube, type: soft_box, size: [0.3, 0.3, 0.3], center: [1, 0, 0.15],"
+        "  - {name: cube, type: soft_box, size: [0.3, 0.3, 0.3], center: [1.2, 0, 0.15],"  # clear of the table
         " material: {E: 1e6, nu: 0.5}, resolution: coarse}\nstances:",
     )
     with pytest.raises(ScenarioError, match=r"objects\[2\].material: .*") as info:

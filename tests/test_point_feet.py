@@ -1,0 +1,293 @@
+"""Point feet: the ball-foot shape of robot descriptions, its rigid contact, and ANYmal standing on it."""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import re
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import stances
+from stances import Robot, StanceError
+from stances.contacts import PointContact, point_placement_residual
+from stances.description import point_print
+from stances.problem import PostureOptions, build_problem
+from stances.verify import verify_problem
+
+EPS = 1e-6
+FOOT_RADIUS = 0.031  # ANYmal's foot spheres, from its URDF
+
+
+@pytest.fixture(scope="module")
+def anymal():
+    return Robot.load("anymal")
+
+
+@pytest.fixture(scope="module")
+def walk():
+    return environments.load("quadruped-walk")
+
+
+@pytest.fixture(scope="module")
+def solved(anymal, walk):
+    """Each named stance of quadruped-walk with its problem and result."""
+    out = {}
+    for name in ("start", "three-feet", "front-feet-up"):
+        stance = walk.stance(name)
+        problem = build_problem(anymal, walk.scene, stance)
+        out[name] = (problem, stances.solve(anymal, walk.scene, stance))
+    return out
+
+
+def test_a_point_print_is_a_regular_octagon_circumscribing_the_foot():
+    polygon = point_print(0.02)
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    # Distance from the centre to each edge's line: the circle touches every edge.
+    def cross(a, b):
+        return a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]
+
+    distances = np.abs(cross(polygon, edges)) / np.linalg.norm(edges, axis=1)
+    np.testing.assert_allclose(distances, 0.02, rtol=1e-12)
+    assert len(polygon) == 8 and np.all(cross(edges, np.roll(edges, -1, axis=0)) > 0)  # convex, counter-clockwise
+
+
+def test_anymal_has_four_point_feet_touching_only_with_their_spheres(anymal):
+    assert anymal.support.keep == 3
+    assert anymal.surfaces_with_role("foot") == ["left_front_foot", "right_front_foot", "left_hind_foot", "right_hind_foot"]
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, anymal.reference_configuration)
+    geometry_data = anymal.collision_model.createData()
+    pin.updateGeometryPlacements(anymal.model, data, anymal.collision_model, geometry_data)
+    names = [g.name for g in anymal.collision_model.geometryObjects]
+    for surface in anymal.surfaces.values():
+        assert surface.is_point and surface.radius == FOOT_RADIUS
+        (sphere,) = surface.contact_geometries
+        index = names.index(sphere)
+        assert anymal.collision_model.geometryObjects[index].geometry.radius == pytest.approx(surface.radius)
+        # The contact frame is the sphere's centre.
+        centre = data.oMf[anymal.frame_id(surface.frame)].translation
+        np.testing.assert_allclose(geometry_data.oMg[index].translation, centre, atol=1e-9)
+
+
+def test_point_placement_jacobian_matches_finite_differences(anymal):
+    model, data = anymal.model, anymal.model.createData()
+    rng = np.random.default_rng(0)
+    q = pin.integrate(model, anymal.reference_configuration, 0.2 * rng.normal(size=model.nv))
+    frame_id = anymal.frame_id(anymal.surface("left_front_foot").frame)
+    print_frame = pin.SE3(pin.rpy.rpyToMatrix(0.2, -0.1, 0.7), np.array([0.3, 0.2, 0.05]))
+
+    def residual(x):
+        pin.framesForwardKinematics(model, data, x)
+        pin.computeJointJacobians(model, data, x)
+        return point_placement_residual(model, data, frame_id, print_frame, FOOT_RADIUS)
+
+    _, analytic = residual(q)
+    numeric = np.column_stack([
+        (residual(pin.integrate(model, q, e))[0] - residual(pin.integrate(model, q, -e))[0]) / (2 * EPS)
+        for e in EPS * np.eye(model.nv)
+    ])
+    assert np.abs(numeric - analytic).max() <= 1e-7 * np.abs(analytic).max()
+    # The residual is the centre's offset from the point r above the print, print frame.
+    value, _ = residual(q)
+    centre = data.oMf[frame_id].translation
+    np.testing.assert_allclose(print_frame.rotation @ value, centre - print_frame.translation - FOOT_RADIUS * print_frame.rotation[:, 2])
+
+
+def _rows_match_finite_differences(problem, q, lam):
+    """Every non-collision row's Jacobian against central differences in q (on the manifold) and lambda."""
+    model = problem.robot.model
+
+    def rows(x, y):
+        blocks = [b for b in problem.linearize(x, y).blocks if b.name != "collision"]
+        return np.concatenate([b.value for b in blocks]), np.vstack([b.jacobian for b in blocks]), blocks
+
+    _, analytic, blocks = rows(q, lam)
+    numeric = np.column_stack(
+        [(rows(pin.integrate(model, q, e), lam)[0] - rows(pin.integrate(model, q, -e), lam)[0]) / (2 * EPS)
+         for e in EPS * np.eye(model.nv)]
+        + [(rows(q, lam + e)[0] - rows(q, lam - e)[0]) / (2 * EPS) for e in EPS * np.eye(problem.n_variables)]
+    )
+    # Per row, relative to its own size (FEM rows are in newtons, placement rows in metres).
+    size = np.maximum(np.abs(analytic).max(axis=1), 1e-8)
+    error = np.abs(numeric - analytic).max(axis=1)
+    labels = [label for b in blocks for label in b.labels]
+    assert np.all(error <= 2e-5 * size), [(labels[i], error[i], size[i]) for i in np.flatnonzero(error > 2e-5 * size)]
+    return blocks
+
+
+def test_point_contact_rows_and_forces_match_finite_differences(anymal, walk):
+    """Every constraint row of a three-foot problem (3 placement rows a foot), in q and lambda."""
+    problem = build_problem(anymal, walk.scene, walk.stance("three-feet"), PostureOptions(min_normal_force=5.0))
+    assert all(isinstance(contact, PointContact) for contact in problem.contacts)
+    assert problem.n_variables == 3 * 4  # one four-edge pyramid a foot
+    rng = np.random.default_rng(3)
+    q = pin.integrate(anymal.model, anymal.reference_configuration, 0.05 * rng.normal(size=anymal.nv))
+    lam = rng.uniform(1.0, 50.0, size=problem.n_variables)
+    blocks = _rows_match_finite_differences(problem, q, lam)
+    assert [len(b.value) for b in blocks if b.name == "placement"] == [3, 3, 3]
+
+
+@pytest.mark.parametrize("name, feet", [("start", 4), ("three-feet", 3), ("front-feet-up", 4)])
+def test_anymal_stances_solve_and_verify_with_balls_on_their_prints(anymal, walk, solved, name, feet):
+    problem, result = solved[name]
+    assert result.feasible, result.reason
+    verification = verify_problem(problem, result)
+    assert verification.ok, verification.reasons
+    assert len(result.point_forces) == feet  # one force a foot, at its ball's centre
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, result.q)
+    total = np.zeros(3)
+    for contact, point_force in zip(walk.stance(name), result.point_forces):
+        surface = walk.scene.surface(contact.contact_print.surface)
+        placement = surface.transform_print_to_world(contact.contact_print.x, contact.contact_print.y, 0.0)
+        centre = data.oMf[anymal.frame_id(anymal.surface(contact.robot_surface).frame)].translation
+        # The ball touches the support at the print: its centre a radius above it.
+        np.testing.assert_allclose(centre, placement[:3, 3] + FOOT_RADIUS * placement[:3, 2], atol=1e-6)
+        np.testing.assert_allclose(point_force.point, centre, atol=1e-9)
+        normal = point_force.force @ placement[:3, 2]
+        tangential = np.linalg.norm(point_force.force - normal * placement[:3, 2])
+        assert tangential <= 0.7 * normal + 1e-6  # inside the floor's cone (mu = 0.7)
+        total += point_force.force
+    # The feet carry the robot's weight.
+    np.testing.assert_allclose(total, [0.0, 0.0, anymal.mass * 9.81], atol=1e-5)
+
+
+def test_verify_catches_a_point_foot_off_its_print_and_a_force_outside_its_cone(anymal, solved):
+    problem, result = solved["start"]
+    q = np.array(result.q)
+    q[0] += 1e-3  # the whole robot slides 1 mm forward
+    moved = verify_problem(problem, dataclasses.replace(result, q=q))
+    assert not moved.ok
+    assert any(
+        re.fullmatch(r"left_front_foot on floor is off its print by 0\.001 m \(its ball must touch the support at the print\)", r)
+        for r in moved.reasons
+    ), moved.reasons
+    forces = list(result.point_forces)
+    first = forces[0]
+    push = first.force[2]
+    forces[0] = dataclasses.replace(first, force=first.force + np.array([push, 0.0, 0.0]))  # tangential = normal > mu normal
+    pushed = verify_problem(problem, dataclasses.replace(result, point_forces=tuple(forces)))
+    label = problem.contacts[0].label
+    assert f"a force of {label} leaves its friction cone by {push * (1 - 0.7):.3g} N" in pushed.reasons
+
+
+@pytest.fixture(scope="module")
+def foam():
+    return environments.load("quadruped-foam")
+
+
+@pytest.fixture(scope="module")
+def on_foam(anymal, foam):
+    stance = foam.stance("front-feet-on-foam")
+    return build_problem(anymal, foam.scene, stance), stances.solve(anymal, foam.scene, stance)
+
+
+def test_a_ball_foot_presses_the_foam_nodes_under_its_print_from_its_centre(anymal, foam, on_foam):
+    problem, result = on_foam
+    assert result.feasible, result.reason
+    verification = verify_problem(problem, result, deformed_surfaces=True)
+    assert verification.ok, verification.reasons
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    body = foam.scene.deformable_of_surface("foam_top")
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, result.q)
+    forces = np.array([p.force for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    points = np.array([p.point for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    for i, spec in enumerate(soft.prints):
+        rows = soft.print_of_node == i
+        assert 8 <= rows.sum() <= 16  # the 15 mm mesh puts 15 nodes under a 31 mm ball's print
+        # The nodes lie under the print octagon, which circumscribes the ball's circle.
+        origin = spec.transform_print_to_world[:3, 3]
+        nodes = body.points_in_world(body.body.mesh.nodes[soft.node_ids[rows]])
+        assert np.all(np.linalg.norm(nodes[:, :2] - origin[:2], axis=1) <= FOOT_RADIUS / math.cos(math.pi / 8) + 1e-9)
+        np.testing.assert_allclose(nodes[:, 2], origin[2], atol=1e-9)
+        # Every node's force acts at the ball's centre, which sinks into the foam.
+        centre = data.oMf[anymal.frame_id(anymal.surface(spec.robot_surface).frame)].translation
+        np.testing.assert_allclose(points[rows], np.tile(centre, (rows.sum(), 1)), atol=1e-9)
+        assert 0.0 < origin[2] + FOOT_RADIUS - centre[2] <= verification.measures["indentation of foam"] + 1e-9
+        assert forces[rows].sum(axis=0)[2] > 0.0
+    total = np.sum([p.force for p in result.point_forces], axis=0)
+    np.testing.assert_allclose(total, [0.0, 0.0, anymal.mass * 9.81], atol=1e-5)
+
+
+def test_soft_point_print_rows_match_finite_differences(anymal, on_foam):
+    problem, result = on_foam
+    rng = np.random.default_rng(5)
+    q = pin.integrate(anymal.model, result.q, 1e-4 * rng.normal(size=anymal.nv))
+    lam = problem.initial_variables(q) + rng.uniform(1.0, 5.0, size=problem.n_variables)
+    names = {b.name for b in _rows_match_finite_differences(problem, q, lam)}
+    assert {"placement", "touch", "node contact", "indentation"} <= names
+
+
+def test_a_point_foot_refuses_the_traction_reaction_model(anymal, foam):
+    with pytest.raises(StanceError, match=re.escape(
+        "left_front_foot on foam_top: a point foot's print needs the consistent reaction model "
+        "(its nodes follow the ball's centre, not the foot's turn)"
+    )):
+        build_problem(
+            anymal, foam.scene, foam.stance("front-feet-on-foam"),
+            PostureOptions(reaction_model="traction", contact_law="bonded"),
+        )
+
+
+@pytest.mark.parametrize("name, support", [("quadruped-walk", "step_top"), ("quadruped-foam", "foam_top")])
+def test_anymal_plans_its_front_feet_onto_a_step_or_foam_and_every_stance_verifies(anymal, name, support):
+    """Each foot lifts and lands, three feet always down; on foam, the front feet press it."""
+    from cbm.planner import plan
+
+    scenario = environments.load(name)
+    # A 2 s budget per posture solve: the plans' stances solve in under 0.7 s,
+    # while an unreachable candidate grinds for tens of seconds to its iteration limit.
+    result = plan(scenario, robot=anymal, time_limit=120, solver_options={"time_budget": 2.0})
+    assert result.success, result.reason
+    check = result.check(scenario, anymal)
+    assert check.ok, check.problems
+    feet = set(anymal.surfaces_with_role("foot"))
+    for planned in result.stances:
+        assert len(feet & set(planned.stance.robot_surfaces)) >= 3
+    last = {c.robot_surface: c.contact_print for c in result.stances[-1].stance}
+    assert last["left_front_foot"].surface == support and last["right_front_foot"].surface == support
+    moved = [
+        name for name in feet
+        if {c.robot_surface: c.contact_print for c in result.stances[0].stance}[name] != last[name]
+    ]
+    assert sorted(moved) == sorted(feet)
+    assert len(result.stances) >= 9  # each of the four feet lifted and placed again
+
+
+def test_anymal_steps_are_measured_from_where_its_reference_posture_puts_each_foot(anymal):
+    """A foot may land within half a leg of its reference place relative to the three others."""
+    from cbm.reach import ReachModel
+    from cbm.sampling import PrintSet
+    from environments import ContactPrint
+
+    reach = ReachModel.of(anymal)
+    legs = {limb.length for limb in reach.limbs.values()}
+    assert len(legs) == 1  # four equal legs, measured on the model
+    (leg,) = legs
+    nominal = {"left_front_foot": (0.363, 0.201), "right_front_foot": (0.363, -0.201),
+               "left_hind_foot": (-0.363, 0.201), "right_hind_foot": (-0.363, -0.201)}
+    np.testing.assert_allclose(reach.limbs["left_front_leg"].foot_in_support[:2], nominal["left_front_foot"], atol=1e-3)
+    others = {name: (np.array([*xy, 0.0]), np.array([1.0, 0.0, 0.0])) for name, xy in nominal.items() if name != "left_front_foot"}
+    step = 0.5 * leg  # ReachLimits.step_length, in legs
+    ahead = np.array([0.0, 0.9 * step, 1.1 * step])
+    origins = np.column_stack([0.363 + ahead, np.full(3, 0.201), np.zeros(3)])
+    candidates = PrintSet(
+        "left_front_foot", tuple(ContactPrint("floor", x, y, 0.0) for x, y, _ in origins), origins, np.tile([1.0, 0.0, 0.0], (3, 1))
+    )
+    assert reach.reachable_mask(candidates, others).tolist() == [True, True, False]
+    # The support rule: three of the four feet stay down.
+    assert reach.may_lift("left_front_foot", list(nominal))
+    assert not reach.may_lift("left_front_foot", list(others))
+
+
+def test_verify_catches_a_point_foot_force_reported_away_from_its_ball(anymal, solved):
+    problem, result = solved["start"]
+    forces = list(result.point_forces)
+    forces[0] = dataclasses.replace(forces[0], point=forces[0].point - np.array([0.0, 0.0, FOOT_RADIUS]))  # at the ground
+    moved = verify_problem(problem, dataclasses.replace(result, point_forces=tuple(forces)))
+    assert f"forces of {problem.contacts[0].label} are not applied at its ball's centre" in moved.reasons
