@@ -2,8 +2,8 @@
 
 Exit codes: 0 success (plan found, stance feasible), 1 no plan found or stance
 infeasible, 2 bad input (scenario, option or output folder), 130 interrupted
-(Ctrl-C), 141 output pipe closed (``cbm scenarios | head -1``: not an error, no
-traceback). Only the packages' own bad-input errors become code 2; anything else
+(Ctrl-C: ``cbm plan`` still writes the best partial plan found so far), 141
+output pipe closed (``cbm scenarios | head -1``: not an error, no traceback). Only the packages' own bad-input errors become code 2; anything else
 is a bug and ends with its traceback.
 
 Defaults shared with Python: ``cbm plan``'s budgets are :func:`cbm.plan`'s own
@@ -44,7 +44,8 @@ _EXIT_CODES = """exit codes:
   0    plan found (check: stance feasible, or plan.json verifies)
   1    no plan found (check: stance infeasible, or plan.json fails its check)
   2    bad input: unknown scenario, invalid scenario file or option, unusable --out
-  130  interrupted (Ctrl-C); nothing is written
+  130  interrupted (Ctrl-C): cbm plan writes the best partial plan so far, marked
+       unsuccessful; a second Ctrl-C while it writes leaves --out as it was
   141  output pipe closed early (e.g. piped into head)"""
 
 logger = logging.getLogger("cbm")
@@ -343,26 +344,37 @@ def _load_robot(args, scenario):
 
 def _plan(args):
     from .output import StagedOutput, write_outputs
-    from .planner import load_scenario, plan
+    from .planner import PlanInterrupted, load_scenario, plan
 
     scenario = load_scenario(args.scenario)
     robot = _load_robot(args, scenario)
     # Before the search: a bad --out must not cost a whole search, and the
     # temporary folder made here is where the files go.
     staged = StagedOutput(args.out, force=args.force)
+    interrupted = False
     try:
-        result = plan(
-            scenario,
-            robot=robot,
-            print_spacing=args.print_spacing,
-            max_expansions=args.max_expansions,
-            time_limit=args.time_limit,
-            seed=args.seed,
-            progress=not args.quiet,
-            workers=args.workers,
-        )
+        try:
+            result = plan(
+                scenario,
+                robot=robot,
+                print_spacing=args.print_spacing,
+                max_expansions=args.max_expansions,
+                time_limit=args.time_limit,
+                seed=args.seed,
+                progress=not args.quiet,
+                workers=args.workers,
+            )
+        except PlanInterrupted as stop:
+            if not stop.plan.stances:
+                raise  # not even the start solved: nothing worth writing
+            result, interrupted = stop.plan, True
+            print(
+                f"cbm plan: interrupted; writing the best partial plan ({len(result.stances)} stances), "
+                "Ctrl-C again to abandon it",
+                file=sys.stderr,
+            )
         motions = None
-        if args.motion:
+        if args.motion and not interrupted:
             from .motion import plan_motions
 
             motions = plan_motions(result, scenario, robot)
@@ -389,6 +401,8 @@ def _plan(args):
         if not motion.feasible:
             print(f"  motion {motion.index} -> {motion.index + 1} not found: {motion.reason}")
     print(f"  written to {args.out}: {len(files.all())} files, viewer {staged.final_path(files.viewer)}")
+    if interrupted:
+        return EXIT_INTERRUPTED
     if args.view:
         result.show(scenario, robot, motions or ())
     return EXIT_OK if result.success else EXIT_FAILED

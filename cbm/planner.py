@@ -21,11 +21,12 @@ from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .reach import ReachLimits, ReachModel
 from .sampling import obstacle_boxes, options_from_scenario, sample_prints
-from .search import SearchLimits, best_first_search
+from .search import SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 
 __all__ = [
     "plan",
+    "PlanInterrupted",
     "load_scenario",
     "StanceCheck",
     "PostureOracle",
@@ -76,6 +77,24 @@ def load_scenario(scenario):
 
 
 _OUT_OF_TIME = "time limit reached before this stance was solved"
+
+
+class PlanInterrupted(KeyboardInterrupt):
+    """Ctrl-C during :func:`plan`'s search, carrying the best partial plan so far.
+
+    A ``KeyboardInterrupt``: uncaught, it stops a program like any Ctrl-C.
+
+    Parameters
+    ----------
+    plan : Plan
+        ``success`` False, its reason saying it was interrupted; its stances
+        lead from the start towards the goal (none if the start was not yet
+        solved).
+    """
+
+    def __init__(self, plan):
+        super().__init__(plan.reason)
+        self.plan = plan
 
 
 @dataclass(frozen=True)
@@ -353,6 +372,8 @@ def plan(
         If the scenario has no start or no goal and none is given.
     environments.ScenarioError
         If a stance or the goal names a surface the robot lacks.
+    PlanInterrupted
+        On Ctrl-C during the search, with the best partial plan so far.
     """
     scenario = load_scenario(scenario)
     scene = scenario.scene
@@ -418,12 +439,24 @@ def plan(
             submit=None if pool is None else pool.submit,
             lookahead=workers,
         )
+    except SearchInterrupted as interrupted:
+        searched = interrupted.result
+        s = searched.statistics
+        reason = (
+            f"{searched.reason} after {s.expanded} stances expanded and {s.solver_calls} solver calls; "
+            "the stances are the best partial sequence found so far"
+        )
+        raise PlanInterrupted(_plan_of(searched, scenario, robot, prints, reason)) from None
     finally:
         if bar is not None:
             bar.close()
         if pool is not None:
             pool.close()
+    return _plan_of(searched, scenario, robot, prints, searched.reason)
 
+
+def _plan_of(searched, scenario, robot, prints, reason):
+    """The Plan of a search result: its path's stances with their postures and the statistics."""
     planned = []
     for index, (stance, check) in enumerate(zip(searched.path, searched.results)):
         move = ""
@@ -457,7 +490,7 @@ def plan(
     ]
     return Plan(
         searched.success,
-        searched.reason,
+        reason,
         tuple(planned),
         statistics,
         scenario.name,

@@ -28,13 +28,36 @@ __all__ = [
     "SearchStatistics",
     "SearchResult",
     "best_first_search",
+    "SearchInterrupted",
     "NO_FEASIBLE_NEIGHBOUR",
+    "INTERRUPTED",
 ]
 
 logger = logging.getLogger(__name__)
 
 #: Reason given when the open list empties before a goal is reached.
 NO_FEASIBLE_NEIGHBOUR = "no feasible neighbour"
+
+#: Reason of the partial result carried by :class:`SearchInterrupted`.
+INTERRUPTED = "interrupted (Ctrl-C)"
+
+
+class SearchInterrupted(KeyboardInterrupt):
+    """Ctrl-C during a search, carrying the best partial result found so far.
+
+    A ``KeyboardInterrupt``, so a program that does not look for it stops as
+    on any Ctrl-C; one that does can keep the work done (``cbm plan`` writes it).
+
+    Parameters
+    ----------
+    result : SearchResult
+        ``success`` False, reason :data:`INTERRUPTED`, ``path`` the best
+        partial path (possibly empty if the start was not yet checked).
+    """
+
+    def __init__(self, result):
+        super().__init__(INTERRUPTED)
+        self.result = result
 
 
 @dataclass(frozen=True)
@@ -207,6 +230,12 @@ def best_first_search(
     -------
     SearchResult
 
+    Raises
+    ------
+    SearchInterrupted
+        On Ctrl-C (``KeyboardInterrupt``) during the search, with the best
+        partial result so far.
+
     Examples
     --------
     >>> from types import SimpleNamespace
@@ -363,6 +392,10 @@ def best_first_search(
                 on_expand(statistics())
     except _BudgetExhausted as exhausted:
         return finish(False, f"budget exhausted: {exhausted.limit}", best[2] if best else None)
+    except KeyboardInterrupt:
+        # Every node on the way to ``best`` has its answer in the cache and its
+        # parent in came_from before ``best`` names it, wherever the interrupt falls.
+        raise SearchInterrupted(finish(False, INTERRUPTED, best[2] if best else None)) from None
     finally:
         if ahead is not None and ahead.pending:
             logger.info("%d oracle calls started ahead were not used", len(ahead.pending))

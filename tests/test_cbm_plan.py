@@ -234,3 +234,25 @@ def test_each_rejection_reason_has_its_cause(reason, cause):
     from cbm.rejections import cause_of
 
     assert cause_of(reason) == cause
+
+
+def test_ctrl_c_in_a_solve_raises_with_the_partial_plan_so_far(scenario, robot):
+    from cbm.planner import PlanInterrupted
+
+    complete = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100)
+
+    class InterruptedOracle(SyntheticOracle):
+        def __call__(self, stance, parent, parent_check):
+            if len(self.calls) == 3:
+                raise KeyboardInterrupt
+            return super().__call__(stance, parent, parent_check)
+
+    oracle = InterruptedOracle()
+    with pytest.raises(PlanInterrupted) as stopped:
+        plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=100)
+    partial = stopped.value.plan
+    assert not partial.success
+    assert partial.reason.startswith("interrupted (Ctrl-C) after 3 stances expanded and 3 solver calls")
+    # The same seed walks the same way: the partial plan is the complete plan's beginning.
+    assert [p.stance for p in partial.stances] == [p.stance for p in complete.stances[: len(partial.stances)]]
+    assert 1 <= len(partial.stances) <= 3

@@ -7,7 +7,7 @@ from dataclasses import dataclass
 import networkx as nx
 import pytest
 
-from cbm.search import NO_FEASIBLE_NEIGHBOUR, SearchLimits, best_first_search
+from cbm.search import INTERRUPTED, NO_FEASIBLE_NEIGHBOUR, SearchInterrupted, SearchLimits, best_first_search
 
 
 @dataclass(frozen=True)
@@ -160,11 +160,103 @@ def test_unreachable_goal_ends_with_no_feasible_neighbour_and_the_best_partial_p
     assert result.statistics.expanded <= 100
 
 
+class InterruptingOracle(CountingOracle):
+    """Feasible answers until ``node`` is given, where Ctrl-C arrives."""
+
+    def __init__(self, node, **kwargs):
+        super().__init__(**kwargs)
+        self.node = node
+
+    def __call__(self, node, parent, parent_result):
+        if node == self.node:
+            raise KeyboardInterrupt
+        return super().__call__(node, parent, parent_result)
+
+
+def test_ctrl_c_during_a_solve_carries_the_best_partial_path_so_far():
+    # s and a (h=1) are solved and expanded; Ctrl-C falls in the goal's solve.
+    with pytest.raises(SearchInterrupted) as stopped:
+        search_graph(diamond(), "s", "goal", InterruptingOracle("goal"))
+    result = stopped.value.result
+    assert isinstance(stopped.value, KeyboardInterrupt)
+    assert not result.success and result.reason == INTERRUPTED
+    assert result.path == ("s", "a")
+    assert [r.warm_start for r in result.results] == ["s", "a"]
+    assert result.statistics.solver_calls == 2 and result.statistics.expanded == 2
+
+
+def test_ctrl_c_before_the_start_is_solved_carries_an_empty_path():
+    with pytest.raises(SearchInterrupted) as stopped:
+        search_graph(diamond(), "s", "goal", InterruptingOracle("s"))
+    assert stopped.value.result.path == () and stopped.value.result.results == ()
+
+
 def test_infeasible_start_is_reported():
     result = search_graph(diamond(), "s", "goal", CountingOracle(infeasible={"s"}))
     assert not result.success
     assert result.reason == "start infeasible: s rejected"
     assert result.path == ()
+
+
+def counters(result):
+    """The search's counters, without its times."""
+    counts = result.statistics.to_dict()
+    return {k: counts[k] for k in ("expanded", "generated", "solver_calls", "cache_hits")}
+
+
+def test_statistics_count_every_expansion_child_solve_and_cache_hit_exactly():
+    # s -> a (infeasible), s -> b -> c -> goal, and b, c both lead back to a:
+    # pops s, a, b, c, goal (5 solves); s, b, c expanded with 2 children each;
+    # a is met again as a known infeasible child of b and of c (2 cache hits).
+    g = diamond()
+    g.remove_edge("a", "goal")
+    g.add_edges_from([("b", "a"), ("c", "a")])
+    oracle = CountingOracle(infeasible={"a"})
+    result = search_graph(g, "s", "goal", oracle)
+    assert result.path == ("s", "b", "c", "goal")
+    assert counters(result) == {"expanded": 3, "generated": 6, "solver_calls": 5, "cache_hits": 2}
+    assert sum(oracle.calls.values()) == 5
+
+
+def test_a_node_queued_twice_before_its_solve_is_solved_once_then_a_cache_hit():
+    # x and y both queue z (infeasible) before it pops: z pops twice, solved the first time.
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 3.0}), ("x", {"h": 1.0}), ("y", {"h": 1.5}), ("z", {"h": 2.0})])
+    g.add_edges_from([("s", "x"), ("s", "y"), ("x", "z"), ("y", "z")])
+    oracle = CountingOracle(infeasible={"z"})
+    result = search_graph(g, "s", "goal", oracle)
+    assert result.reason == NO_FEASIBLE_NEIGHBOUR and oracle.calls["z"] == 1
+    assert counters(result) == {"expanded": 3, "generated": 4, "solver_calls": 4, "cache_hits": 1}
+
+
+@pytest.mark.parametrize("weight, path", [(1.0, ("s", "a1", "a2")), (2.0, ("s", "b"))], ids=["w1", "w2"])
+def test_priority_adds_the_path_cost_weight_per_move(weight, path):
+    # Two goals: a2 two moves away (h=1.0), b one move away (h=2.5). With a unit step,
+    # a2's priority is 1.0 + 2w and b's 2.5 + w: a2 pops first iff w < 1.5.
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 3.0}), ("a1", {"h": 1.5}), ("a2", {"h": 1.0}), ("b", {"h": 2.5})])
+    g.add_edges_from([("s", "a1"), ("a1", "a2"), ("s", "b")])
+    def search(**costs):
+        return best_first_search(
+            "s",
+            neighbours=lambda n: [(m, (n, m)) for m in g.successors(n)],
+            oracle=CountingOracle(),
+            heuristic=lambda n: g.nodes[n]["h"],
+            is_goal=lambda n: n in ("a2", "b"),
+            **costs,
+        )
+
+    assert search(path_cost_weight=weight).path == path
+    # Each move costing `weight` with a weight of 1 pops alike.
+    assert search(step_cost=lambda parent, child, move: weight, path_cost_weight=1.0).path == path
+
+
+def test_statistics_times_lie_within_the_call():
+    before = time.perf_counter()
+    result = search_graph(diamond(), "s", "goal", CountingOracle(delay=0.01))
+    elapsed = time.perf_counter() - before
+    assert 0.03 <= result.statistics.time <= elapsed  # 3 oracle calls (s, a, goal) of 10 ms each
+    assert 0.0 <= result.statistics.cpu_time <= time.process_time()
 
 
 def test_no_node_is_given_to_the_oracle_twice():

@@ -345,3 +345,21 @@ def test_deformable_top_frame_points_out_of_the_body_and_collision_uses_its_rest
     objects = dict(scene.collision_objects())
     probe = fcl.CollisionObject(fcl.Sphere(0.05), fcl.Transform(np.eye(3), np.array([0.0, -0.16, 0.5])))
     assert fcl.distance(objects["cube"], probe, fcl.DistanceRequest(), fcl.DistanceResult()) == pytest.approx(0.15, abs=1e-6)
+
+
+@pytest.mark.parametrize("margin", [0.0, 0.1, -0.05], ids=["boundary", "shrunk", "grown"])
+def test_points_in_a_turned_moved_square_are_those_at_least_the_margin_from_every_edge(margin):
+    from environments.geometry import points_in_convex_polygon
+
+    # A 1 m square turned by 0.7 rad and moved off the origin; in its own frame a
+    # point (u, v) is inside the shrunk square iff min(u, 1 - u, v, 1 - v) >= margin.
+    turn = rotation_about_z(0.7)[:2, :2]
+    offset = np.array([2.0, -1.0])
+    corners = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
+    polygon = corners @ turn.T + offset
+    uv = np.random.default_rng(0).uniform(-0.3, 1.3, size=(2000, 2))
+    depth = np.min(np.column_stack([uv[:, 0], 1.0 - uv[:, 0], uv[:, 1], 1.0 - uv[:, 1]]), axis=1)
+    away = np.abs(depth - margin) > 1e-9  # no point on the shrunk boundary itself
+    inside = points_in_convex_polygon(polygon, uv @ turn.T + offset, margin)
+    assert np.array_equal(inside[away], (depth >= margin)[away])
+    assert points_in_convex_polygon(polygon, polygon.mean(axis=0), margin) is True

@@ -561,3 +561,20 @@ def test_verify_refuses_a_link_sliding_beyond_the_small_slip_bound(robot, deform
     check = verify_problem(tight, result)
     assert not check.ok
     assert any(f"m over node" in r and "beyond the small-slip bound 0.001 m" in r for r in check.reasons), check.reasons
+
+
+def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_tolerance(robot):
+    # A negative tolerance asks for clearance: the closest pair of a feasible
+    # stance, at distance d > 0, passes a demand of d / 2 and fails one of 2 d.
+    from stances.problem import PostureOptions, build_problem
+    from stances.verify import VerificationTolerances, verify_problem
+
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    result = solve(robot, scenario.scene, stance)
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions())
+    closest = verify_problem(problem, result).measures["closest_distance"]
+    assert 0.0 < closest < np.inf
+    assert verify_problem(problem, result, VerificationTolerances(penetration=-0.5 * closest)).ok
+    check = verify_problem(problem, result, VerificationTolerances(penetration=-2.0 * closest))
+    assert not check.ok and all(reason.startswith("collision between ") for reason in check.reasons)
