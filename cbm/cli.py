@@ -170,6 +170,13 @@ def build_parser():
         "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"
     )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
+    plan.add_argument(
+        "--motion",
+        action="store_true",
+        help="also plan the quasi-static motion between consecutive stances (trajectory.csv, trajectory.npz, "
+        "played by viewer.html); each sample is a verified posture solve",
+    )
+    plan.add_argument("--view", action="store_true", help="show the plan in meshcat (pip install meshcat)")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
     _add_robot_option(plan)
 
@@ -206,6 +213,7 @@ def build_parser():
     check.add_argument("--stance", help="name of the stance in the scenario (required unless checking a plan)")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
+    check.add_argument("--view", action="store_true", help="show the stance in meshcat (pip install meshcat)")
     _add_robot_option(check)
     return parser
 
@@ -365,7 +373,12 @@ def _plan(args):
                 "Ctrl-C again to abandon it",
                 file=sys.stderr,
             )
-        files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures)
+        motions = None
+        if args.motion and not interrupted:
+            from .motion import plan_motions
+
+            motions = plan_motions(result, scenario, robot)
+        files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures, motions=motions)
         staged.publish()
     except BaseException:
         # Interrupted, failed or refused: leave --out as it was.
@@ -384,9 +397,14 @@ def _plan(args):
         print(f"  {total} stances rejected: {causes}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
+    for motion in motions or ():
+        if not motion.feasible:
+            print(f"  motion {motion.index} -> {motion.index + 1} not found: {motion.reason}")
     print(f"  written to {args.out}: {len(files.all())} files, viewer {staged.final_path(files.viewer)}")
     if interrupted:
         return EXIT_INTERRUPTED
+    if args.view:
+        result.show(scenario, robot, motions or ())
     return EXIT_OK if result.success else EXIT_FAILED
 
 
@@ -436,6 +454,11 @@ def _check(args):
     if args.out is not None:
         path = _check_picture(scenario, robot, stance, result, args)
         print(f"  picture written to {path}")
+    if args.view:
+        from .plan import Plan, PlannedStance, PlanStatistics
+
+        planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result, args.stance)
+        Plan(check.feasible, verdict, (planned,), PlanStatistics(), scenario.name).show(scenario, robot)
     return EXIT_OK if check.feasible else EXIT_FAILED
 
 
@@ -455,14 +478,17 @@ def _check_picture(scenario, robot, stance, result, args):
     from .display import plan_bounds, scene_edges, stance_display
     from .plan import PlannedStance
     from .render import force_scale, render_stance
+    from .robot_mesh import robot_meshes
 
     planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
-    display = stance_display(planned, scenario.scene, robot, f"{scenario.name}: {args.stance}")
+    meshes = robot_meshes(robot)
+    display = stance_display(planned, scenario.scene, robot, f"{scenario.name}: {args.stance}", meshes)
     bounds = plan_bounds([display])
     args.out.mkdir(parents=True, exist_ok=True)
     path = args.out / f"{args.stance}.png"
     render_stance(
-        display, path, edges=scene_edges(scenario.scene, bounds), bounds=bounds, scale=force_scale([display])
+        display, path, edges=scene_edges(scenario.scene, bounds), bounds=bounds, scale=force_scale([display]),
+        meshes=meshes,
     )
     for obj in scenario.scene.deformable_objects:
         if obj.name in result.deformations:

@@ -21,6 +21,7 @@ __all__ = [
     "stance_display",
     "plan_bounds",
     "contact_colours",
+    "ROBOT_RGB",
 ]
 
 # Colours of the robot surfaces by role, in declaration order within a role
@@ -31,6 +32,9 @@ _ROLE_COLOURS = {
     "hand": ("#17becf", "#ff7f0e", "#bcbd22", "#7f7f7f"),
 }
 _UNKNOWN_COLOUR = "#2ca02c"
+#: The robot's colour in the page and the pictures (red, green, blue in 0..255): a
+#: light steel blue, apart from the prints', the forces' and viridis' colours.
+ROBOT_RGB = (150, 165, 200)
 
 # Edges of a unit cube's 8 corners, indexed as bits (x, y, z).
 _CUBE_EDGES = np.array(
@@ -84,6 +88,10 @@ class StanceDisplay:
         Every deformable object, deformed by this stance.
     colours : dict of str to str
         Colour of each robot surface in ``polygons``, ``"#rrggbb"``.
+    robot_transforms : (g, 4, 4) float
+        Placement of each of the robot's visual meshes
+        (:class:`cbm.robot_mesh.RobotMeshes`), world frame; empty when the
+        robot is drawn as its stick figure only.
     """
 
     label: str
@@ -93,6 +101,7 @@ class StanceDisplay:
     forces: np.ndarray
     deformables: tuple = field(default=())
     colours: dict = field(default_factory=dict)
+    robot_transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
 
 
 def contact_colours(robot):
@@ -206,7 +215,7 @@ def _deformable_display(obj, displacements):
     return DeformableDisplay(obj.name, vertices, remapped.reshape(triangles.shape), magnitude)
 
 
-def stance_display(planned, scene, robot, label=""):
+def stance_display(planned, scene, robot, label="", meshes=None):
     """Display data of one planned stance.
 
     Parameters
@@ -217,6 +226,8 @@ def stance_display(planned, scene, robot, label=""):
     robot : stances Robot
     label : str
         Title.
+    meshes : cbm.robot_mesh.RobotMeshes, optional
+        The robot's visual meshes, placed at the stance's posture.
 
     Returns
     -------
@@ -251,6 +262,7 @@ def stance_display(planned, scene, robot, label=""):
         force_points=np.array(points, dtype=float).reshape(-1, 3),
         forces=np.array(forces, dtype=float).reshape(-1, 3),
         deformables=deformables,
+        robot_transforms=np.zeros((0, 4, 4)) if meshes is None else meshes.transforms(robot.model, planned.q),
     )
 
 

@@ -15,6 +15,8 @@ from fem.io import write_pvd
 
 from .display import plan_bounds, scene_edges, stance_display
 from .errors import CbmError
+from .robot_mesh import robot_meshes
+from .trajectory import plan_trajectory, write_trajectory
 from .viewer import viewer_data, write_viewer
 
 __all__ = ["OutputFiles", "write_outputs", "stance_labels", "OutputDirectoryError", "StagedOutput"]
@@ -40,6 +42,9 @@ class OutputFiles:
     series : Path or None
         ``plan.pvd``, the meshes as a ParaView time series (time = stance
         number, one part per deformable object); None without soft bodies.
+    trajectory : tuple of Path
+        ``trajectory.csv`` and ``trajectory.npz`` (:mod:`cbm.trajectory`),
+        when motions were given.
     """
 
     plan: Path
@@ -47,11 +52,12 @@ class OutputFiles:
     meshes: tuple
     viewer: Path
     series: Path | None = None
+    trajectory: tuple = ()
 
     def all(self):
         """Every path, plan first."""
         series = () if self.series is None else (self.series,)
-        return (self.plan, *self.pictures, *self.meshes, *series, self.viewer)
+        return (self.plan, *self.pictures, *self.meshes, *series, *self.trajectory, self.viewer)
 
 
 def stance_labels(plan):
@@ -62,7 +68,7 @@ def stance_labels(plan):
     )
 
 
-def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
+def write_outputs(plan, scenario, robot, out_dir, *, pictures=True, motions=None):
     """Write a plan's files into a directory (created if needed).
 
     Parameters
@@ -75,6 +81,9 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
     out_dir : path-like
     pictures : bool
         Also draw one PNG per stance (the slowest part).
+    motions : sequence of cbm.motion.Motion, optional
+        The motions between the stances (:func:`cbm.motion.plan_motions`):
+        written as a joint trajectory and played by the viewer.
 
     Returns
     -------
@@ -85,14 +94,16 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
     scene = scenario.scene
     plan_path = plan.save(out / "plan.json")
     labels = stance_labels(plan)
-    displays = [stance_display(p, scene, robot, label) for p, label in zip(plan.stances, labels)]
+    meshes = robot_meshes(robot)
+    displays = [stance_display(p, scene, robot, label, meshes) for p, label in zip(plan.stances, labels)]
     bounds = plan_bounds(displays) if displays else np.array([[-1.0, -1.0, 0.0], [1.0, 1.0, 2.0]])
     edges = scene_edges(scene, bounds)
-    from .render import force_scale  # matplotlib only once needed
+    from .render import camera_azimuth, force_scale  # matplotlib only once needed
 
     scale = force_scale(displays)
+    azimuth = camera_azimuth(displays)
     legend = _round_newtons(0.25 / scale)
-    meshes, datasets = [], []
+    vtu_paths, datasets = [], []
     for index, planned in enumerate(plan.stances):
         for part, obj in enumerate(scene.deformable_objects):
             u = planned.deformations.get(obj.name)
@@ -100,7 +111,7 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
                 u = np.zeros_like(np.asarray(obj.mesh.nodes, dtype=float))
             path = out / f"stance_{index:02d}_{obj.name}.vtu"
             obj.write_vtu(path, u)
-            meshes.append(path)
+            vtu_paths.append(path)
             datasets.append((index, part, path))
     series = None
     if datasets:
@@ -115,13 +126,25 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True):
         )
         for index, display in enumerate(displays):
             path = out / f"stance_{index:02d}.png"
-            render_stance(display, path, edges=edges, bounds=bounds, scale=scale, max_displacement=top)
+            render_stance(display, path, edges=edges, bounds=bounds, scale=scale, max_displacement=top,
+                          meshes=meshes, azimuth=azimuth)
             picture_paths.append(path)
     status = "success" if plan.success else f"failed: {plan.reason}"
-    data = viewer_data(f"{plan.scenario_name} ({status})", displays, edges, bounds, scale, legend)
+    played, trajectory_paths = [], ()
+    if motions is not None:
+        trajectory = plan_trajectory(plan, motions)
+        trajectory_paths = write_trajectory(trajectory, out / "trajectory")
+        for motion in motions:
+            if motion.feasible and meshes is not None:
+                interior = motion.configurations[1:-1]
+                times = np.cumsum(motion.durations())[: len(interior)]
+                played.append({"from": motion.index, "moving": motion.moving_surface, "times": times,
+                               "transforms": [meshes.transforms(robot.model, q) for q in interior]})
+    data = viewer_data(f"{plan.scenario_name} ({status})", displays, edges, bounds, scale, legend, meshes=meshes,
+                       motions=played, camera_azimuth=azimuth)
     viewer_path = write_viewer(out / "viewer.html", data)
-    logger.info("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(meshes))
-    return OutputFiles(plan_path, tuple(picture_paths), tuple(meshes), viewer_path, series)
+    logger.info("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(vtu_paths))
+    return OutputFiles(plan_path, tuple(picture_paths), tuple(vtu_paths), viewer_path, series, trajectory_paths)
 
 
 def _round_newtons(value):

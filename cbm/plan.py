@@ -386,6 +386,46 @@ class Plan:
         return PlanCheck(not problems, tuple(problems))
 
 
+    def show(self, scenario=None, robot=None, motions=(), viewer=None, play=True, **timing):
+        """Open the plan in meshcat (an optional dependency) and step through it once.
+
+        Parameters
+        ----------
+        scenario, robot : optional
+            As for :meth:`check`.
+        motions : sequence of cbm.motion.Motion, optional
+            Played between the stances.
+        viewer : meshcat.Visualizer, optional
+            Default: a new one, with its own local server (its address is logged).
+        play : bool
+            Step through the stances (else stay on the first).
+        **timing
+            ``stance_seconds``, ``sample_seconds`` of :meth:`cbm.live.LiveView.play`.
+
+        Returns
+        -------
+        cbm.live.LiveView
+
+        Raises
+        ------
+        cbm.live.LiveViewUnavailable
+            If meshcat is not installed (the message says how to install it).
+        """
+        import stances
+
+        from .live import LiveView, meshcat_module
+
+        meshcat_module()  # before loading anything: a missing meshcat is said at once
+        if scenario is None:
+            scenario = self.scenario()
+        if robot is None:
+            robot = stances.Robot.load(self.robot.get("source") or scenario.robot)
+        view = LiveView(self, scenario, robot, motions, viewer)
+        logger.info("plan shown in meshcat at %s", view.url)
+        if play:
+            view.play(**timing)
+        return view
+
     def scenario(self):
         """The scenario planned: the embedded YAML read again, else the built-in one by name.
 

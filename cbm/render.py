@@ -13,7 +13,12 @@ import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 
-__all__ = ["render_stance", "force_scale"]
+from .display import ROBOT_RGB  # noqa: E402
+
+__all__ = ["render_stance", "force_scale", "camera_azimuth", "MIN_ARROW"]
+
+#: Shortest arrow drawn, metres: a palm's few newtons stay visible (its label gives the value).
+MIN_ARROW = 0.06
 
 logger = logging.getLogger(__name__)
 
@@ -37,7 +42,8 @@ def force_scale(displays, length=0.4):
     return length / largest if largest > 0 else 1e-3
 
 
-def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_displacement=None):
+def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_displacement=None, meshes=None,
+                  azimuth=None):
     """Draw one stance and save it as a PNG.
 
     Parameters
@@ -54,11 +60,21 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
         Arrow metres per newton.
     max_displacement : float, optional
         Top of the colour scale, metres (shared by a plan's pictures).
+    meshes : cbm.robot_mesh.RobotMeshes, optional
+        The robot's visual meshes, placed by ``display.robot_transforms``;
+        without them the stick figure is drawn.
+    azimuth : float, optional
+        Camera azimuth, degrees (one for a plan's pictures); default
+        :func:`camera_azimuth` of this display.
     """
     figure = plt.figure(figsize=(8, 7), dpi=90)
     axes = figure.add_subplot(projection="3d")
+    # Drawn in this order (zorder), not sorted by depth: the camera is on the
+    # robot's side of the soft bodies (camera_azimuth), and the forces and
+    # prints, small and important, stay on top of the robot's legs.
+    axes.computed_zorder = False
     for name, lines in (edges or {}).items():
-        axes.add_collection3d(Line3DCollection(lines, colors="0.55", linewidths=0.8))
+        axes.add_collection3d(Line3DCollection(lines, colors="0.55", linewidths=0.8, zorder=0))
     mappable = None
     top = max_displacement
     if top is None:
@@ -72,19 +88,28 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
             facecolors=colormap(norm(face_values)),
             edgecolors="none",
             alpha=0.9,
+            zorder=1,
         )
         axes.add_collection3d(faces)
         mappable = cm.ScalarMappable(norm=norm, cmap=colormap)
-    axes.add_collection3d(Line3DCollection(display.segments, colors="k", linewidths=2.0))
-    joints = display.segments.reshape(-1, 3)
-    axes.scatter(joints[:, 0], joints[:, 1], joints[:, 2], s=4, c="k", depthshade=False)
+    if azimuth is None:
+        azimuth = camera_azimuth([display])
+    elevation = 18.0
+    if meshes is not None and len(display.robot_transforms):
+        _draw_robot(axes, meshes, display.robot_transforms, azimuth, elevation)
+    else:
+        axes.add_collection3d(Line3DCollection(display.segments, colors="k", linewidths=2.0, zorder=2))
+        joints = display.segments.reshape(-1, 3)
+        axes.scatter(joints[:, 0], joints[:, 1], joints[:, 2], s=4, c="k", depthshade=False)
     for robot_surface, polygon in display.polygons.items():
         colour = display.colours.get(robot_surface, "tab:green")
-        patch = Poly3DCollection([polygon], facecolors=colour, edgecolors=colour, alpha=0.6)
+        patch = Poly3DCollection([polygon], facecolors=colour, edgecolors=colour, alpha=0.6, zorder=3)
         axes.add_collection3d(patch)
         axes.plot([], [], color=colour, linewidth=6, label=robot_surface)
     if len(display.forces):
-        arrows = display.forces * scale
+        magnitudes = np.linalg.norm(display.forces, axis=1)
+        lengths = np.maximum(magnitudes * scale, MIN_ARROW)
+        arrows = display.forces / np.maximum(magnitudes, 1e-12)[:, None] * lengths[:, None]
         axes.quiver(
             display.force_points[:, 0],
             display.force_points[:, 1],
@@ -93,11 +118,15 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
             arrows[:, 1],
             arrows[:, 2],
             color="tab:purple",
-            linewidth=1.5,
-            arrow_length_ratio=0.15,
+            linewidth=2.0,
+            arrow_length_ratio=0.2,
+            zorder=4,
         )
+        for tip, magnitude in zip(display.force_points + arrows, magnitudes):
+            axes.text(*tip, f" {magnitude:.0f} N", color="tab:purple", fontsize=8, fontweight="bold", zorder=5)
         reference = _round_force(0.25 / scale)
-        axes.plot([], [], color="tab:purple", label=f"contact force (arrow {reference * scale:.2f} m = {reference:g} N)")
+        axes.plot([], [], color="tab:purple",
+                  label=f"contact force (arrow {reference * scale:.2f} m = {reference:g} N, at least {MIN_ARROW} m)")
     if bounds is not None:
         _equal_axes(axes, bounds)
     axes.set_xlabel("x (m)")
@@ -105,7 +134,7 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     axes.set_zlabel("z (m)")
     axes.set_title(display.label, fontsize=10)
     axes.legend(loc="upper left", fontsize=8)
-    axes.view_init(elev=18, azim=_camera_azimuth(display))
+    axes.view_init(elev=elevation, azim=azimuth)
     if mappable is not None:
         colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
         colorbar.set_label("displacement (mm)")
@@ -115,22 +144,44 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     return path
 
 
-def _camera_azimuth(display) -> float:
-    """Camera azimuth, degrees, on the robot's side of the soft bodies.
+def camera_azimuth(displays) -> float:
+    """Camera azimuth, degrees, on the robot's side of the soft bodies, for a whole plan.
 
     matplotlib sorts whole collections by depth, so a soft body between the
-    camera and the robot would be drawn over it: look from the robot's side,
-    a quarter turn off the line joining them. Without soft bodies, the usual
-    front-left three-quarter view.
+    camera and the robot would be drawn over it: look from the robot's side
+    (its mean position over the plan), a quarter turn off the line joining
+    them. Without soft bodies, the usual front-left three-quarter view.
+
+    Parameters
+    ----------
+    displays : sequence of StanceDisplay
     """
-    if not display.deformables or not len(display.segments):
+    displays = [d for d in displays if len(d.segments)]
+    if not displays or not displays[0].deformables:
         return -60.0
-    robot_centre = display.segments.reshape(-1, 3).mean(axis=0)
-    bodies_centre = np.mean([d.vertices.mean(axis=0) for d in display.deformables], axis=0)
+    robot_centre = np.concatenate([d.segments.reshape(-1, 3) for d in displays]).mean(axis=0)
+    bodies_centre = np.mean([d.vertices.mean(axis=0) for d in displays[0].deformables], axis=0)
     away = robot_centre[:2] - bodies_centre[:2]
     if np.linalg.norm(away) < 1e-9:
         return -60.0
     return float(np.degrees(np.arctan2(away[1], away[0]))) - 45.0
+
+
+def _draw_robot(axes, meshes, transforms, azimuth, elevation):
+    """The robot's meshes, flat-shaded by a light at the camera (one collection: sorted by depth)."""
+    vertices, offset, triangles = [], 0, []
+    for mesh, transform in zip(meshes.meshes, transforms):
+        vertices.append(mesh.vertices @ transform[:3, :3].T + transform[:3, 3])
+        triangles.append(mesh.triangles + offset)
+        offset += len(mesh.vertices)
+    faces = np.concatenate(vertices)[np.concatenate(triangles)]
+    normals = np.cross(faces[:, 1] - faces[:, 0], faces[:, 2] - faces[:, 0])
+    normals /= np.maximum(np.linalg.norm(normals, axis=1, keepdims=True), 1e-15)
+    a, e = np.radians(azimuth), np.radians(elevation)
+    towards_camera = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
+    light = 0.45 + 0.55 * np.abs(normals @ towards_camera)
+    colours = np.clip(np.outer(light, np.asarray(ROBOT_RGB) / 255.0), 0.0, 1.0)
+    axes.add_collection3d(Poly3DCollection(faces, facecolors=colours, edgecolors="none", zorder=2))
 
 
 def _round_force(value):

@@ -121,6 +121,12 @@ class PostureOptions:
         Deformable supports: each print's resultant force stays within this
         fraction of its (inner) friction pyramid, so that a print is never all
         at the point of sliding (1 gives the paper's bonded model exactly).
+    max_slip : float
+        Deformable supports with Coulomb contact: how far a link point may
+        slide over its print node, metres (0.02: less than the default mesh's
+        node spacing of 22.5 mm). Contact is solved on the nodes under the
+        declared print (small slip, as small strain); a link sliding farther
+        would touch other nodes.
     max_strain_rows : int
         Deformable supports: at most this many tets (the most strained ones
         near the prints) bound their principal strains in each QP; the bound
@@ -159,6 +165,7 @@ class PostureOptions:
     contact_law: str = "coulomb"
     min_normal_force: float = 0.0
     friction_margin: float = 0.8
+    max_slip: float = 0.02
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False

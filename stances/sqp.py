@@ -50,7 +50,7 @@ _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is 
 
 
 def _unit(label: str) -> str:
-    if label.startswith("placement"):
+    if label.startswith(("placement", "path")):
         return "m or rad"
     if label.startswith("static equilibrium"):
         return "N or N m"
@@ -480,7 +480,7 @@ def problem_point_forces(problem, linearization, q) -> tuple:
     )
 
 
-def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> PostureResult:
+def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), **options) -> PostureResult:
     """Find a statically feasible posture holding a stance.
 
     Parameters
@@ -496,6 +496,13 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> Pos
         (unless the iterate reached is already feasible and verified). Setup
         and the final verification are not interrupted: a planner's time limit
         holds to within one of those.
+    constraints : sequence, optional
+        Extra constraints, each an object with ``blocks(problem, iterate)``
+        returning :class:`~stances.blocks.ConstraintBlock` rows (as the pieces
+        of :mod:`stances.terms`), added to every problem this call solves
+        (e.g. a free link held on a path while the robot moves between
+        stances). :func:`stances.verify` knows nothing of them: check them
+        yourself.
     **options
         Fields of :class:`~stances.problem.PostureOptions`.
 
@@ -514,12 +521,19 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> Pos
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
     options = posture_options(options)
-    problem = build_problem(robot, scene, stance, options)
+    constraints = tuple(constraints)
+
+    def build(options):
+        built = build_problem(robot, scene, stance, options)
+        built.constraints.extend(constraints)
+        return built
+
+    problem = build(options)
     warm_iterations = 0
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
-        rigid = build_problem(robot, scene, stance, replace(options, deformable_as_rigid=True, **loose))
+        rigid = build(replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init, deadline=deadline)
         q_init, warm_iterations = warm.q, warm.iterations
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
@@ -534,7 +548,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, **options) -> Pos
             # From the rigid posture the prints barely touch: nodes in lift-off
             # give a solver no force gradient. The bonded model presses every
             # node, so its posture is where Coulomb contact starts well.
-            bonded = build_problem(robot, scene, stance, replace(options, contact_law="bonded", **loose))
+            bonded = build(replace(options, contact_law="bonded", **loose))
             warm = solve_problem(bonded, q_init, deadline=deadline)
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):

@@ -315,7 +315,7 @@ def fake_planning(monkeypatch):
         calls.append("plan")
         return Result()
 
-    def write_outputs(result, scenario, robot, out, pictures=True):
+    def write_outputs(result, scenario, robot, out, pictures=True, motions=None):
         from cbm.output import OutputFiles
 
         (Path(out) / "plan.json").write_text("{}")
@@ -380,7 +380,7 @@ def test_failure_while_writing_leaves_the_previous_plan_in_place(tmp_path, fake_
     out.mkdir()
     (out / "plan.json").write_text('{"old": true}')
 
-    def half_written(result, scenario, robot, folder, pictures=True):
+    def half_written(result, scenario, robot, folder, pictures=True, motions=None):
         (Path(folder) / "plan.json").write_text("{}")
         raise KeyboardInterrupt  # Ctrl-C between the plan and the viewer
 

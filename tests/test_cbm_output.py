@@ -21,13 +21,18 @@ def chromium_binary():
     return shutil.which("chromium") or shutil.which("chromium-browser")
 
 
-def page_status(path, tmp_path):
-    """The page's body data-status after loading in headless Chromium."""
-    command = [
+def chromium(tmp_path, *arguments):
+    """Headless Chromium's command line, with a private profile."""
+    return [
         chromium_binary(), "--headless", "--no-sandbox", "--disable-gpu", "--disable-background-networking",
         "--disable-component-update", "--disable-sync", "--no-first-run", f"--user-data-dir={tmp_path / 'chromium'}",
-        "--virtual-time-budget=5000", "--dump-dom", path.resolve().as_uri(),
+        "--virtual-time-budget=5000", *arguments,
     ]
+
+
+def page_status(path, tmp_path):
+    """The page's body data-status after loading in headless Chromium."""
+    command = chromium(tmp_path, "--dump-dom", path.resolve().as_uri())
     dom = subprocess.run(command, capture_output=True, text=True, timeout=60).stdout
     start = dom.find("<body")
     assert start >= 0, f"no <body> in Chromium's dump: {dom[:300]!r}"
@@ -259,12 +264,47 @@ def test_viewer_page_is_self_contained_and_embeds_every_stance(synthetic_plan, s
     assert dent == pytest.approx(0.012, rel=1e-3)
     assert {p["robot_surface"] for p in data["stances"][1]["polygons"]} == {"left_sole", "right_sole"}
     assert data["stances"][0]["forces"] and data["stances"][0]["segments"]
+    # The robot's own meshes, placed per stance: as many placements as meshes.
+    meshes = data["robot"]["meshes"]
+    assert len(meshes) > 40 and all(len(s["robot"]) == len(meshes) for s in data["stances"])
+    assert len(page) < 3_000_000
 
 
 @pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
 def test_viewer_page_draws_without_errors_in_headless_chromium(synthetic_plan, scenario, robot, tmp_path):
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
     assert page_status(files.viewer, tmp_path) == "ok"
+
+
+def page_screenshot(path, tmp_path, fragment=""):
+    """(h, w, 3) float in [0, 1]: the page drawn by headless Chromium in a 960 x 720 window."""
+    import matplotlib.image
+
+    picture = tmp_path / f"screenshot{len(list(tmp_path.glob('screenshot*')))}.png"
+    command = chromium(tmp_path, "--window-size=960,720", f"--screenshot={picture}", path.resolve().as_uri() + fragment)
+    subprocess.run(command, capture_output=True, text=True, timeout=60)
+    return matplotlib.image.imread(picture)[:, :, :3]
+
+
+@pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
+def test_viewer_draws_the_robot_from_its_meshes_where_it_stands(synthetic_plan, scenario, robot, tmp_path):
+    """Screenshots with the robot shown and hidden (#hide=robot): what differs is the robot, in its colour."""
+    from cbm.display import ROBOT_RGB
+
+    files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
+    shown, hidden = page_screenshot(files.viewer, tmp_path), page_screenshot(files.viewer, tmp_path, "#hide=robot")
+    robot_pixels = np.abs(shown - hidden).max(axis=2) > 0.1
+    rows, columns = np.nonzero(robot_pixels)
+    height, width = robot_pixels.shape
+    # A standing humanoid: tall (over a quarter of the window), narrower than tall, near the middle.
+    assert rows.max() - rows.min() > 0.25 * height
+    assert columns.max() - columns.min() < rows.max() - rows.min()
+    assert 0.25 * width < columns.mean() < 0.75 * width
+    # Drawn in the robot's shaded colour: its channels in the robot's proportions.
+    colour = shown[robot_pixels]
+    expected = np.asarray(ROBOT_RGB, float) / np.max(ROBOT_RGB)
+    ratios = colour / np.maximum(colour.max(axis=1, keepdims=True), 1e-9)
+    assert np.mean(np.all(np.abs(ratios - expected) < 0.06, axis=1)) > 0.7
 
 
 @pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
@@ -416,3 +456,16 @@ def test_cli_check_of_a_plan_file_reports_what_fails(synthetic_plan, tmp_path, c
 def test_cli_check_of_a_scenario_needs_a_stance(capsys):
     assert main(["check", "cross-soft-block"]) == 2
     assert "scenario 'cross-soft-block' needs --stance; stances: beyond, both-on-foam" in capsys.readouterr().err
+
+
+def test_every_visual_geometry_is_drawn_even_from_files_trimesh_cannot_read():
+    """Romeo's visuals are COLLADA files (trimesh needs pycollada): they come from pinocchio's copy."""
+    from cbm.robot_mesh import robot_meshes, visual_model
+
+    romeo = stances.Robot.load("romeo")
+    meshes = robot_meshes(romeo)
+    assert [m.name for m in meshes.meshes] == [g.name for g in visual_model(romeo).geometryObjects]
+    assert 0 < meshes.triangle_count <= 40_000
+    vertices, _ = meshes.posed(romeo.model, romeo.reference_configuration)
+    height = vertices[:, 2].max() - vertices[:, 2].min()
+    assert 1.2 < height < 1.6  # Romeo is 1.4 m tall

@@ -71,6 +71,9 @@ def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scen
     assert check.measures[f"smallest node normal force on {name}"] >= -1e-6
     assert check.measures[f"cone margin on {name}"] >= -1e-6
     assert check.measures[f"largest strain of {name}"] <= 0.05 + 1e-6
+    # Small slip: no link point slides farther than 2 cm over its print node
+    # (hand-on-soft-cube was once accepted with its palm turned 76 degrees).
+    assert check.measures[f"largest slip on {name}"] <= PostureOptions().max_slip + 1e-6
     # The support deforms as much as it is loaded: a soft print that carries
     # weight moves the nodes, one that only touches (a palm whose load the
     # strong legs take, by the torque-usage term) leaves them at rest.
@@ -542,6 +545,22 @@ def test_a_robot_surface_with_a_bad_polygon_is_a_stance_error():
 
     with pytest.raises(StanceError, match=r"robot surface 'palm': polygon must be \(k, 2\) with k >= 3, got shape \(2, 2\)"):
         RobotSurface("palm", "wrist", [[0.0, 0.0], [1.0, 0.0]])
+
+
+def test_verify_refuses_a_link_sliding_beyond_the_small_slip_bound(robot, deformable_results):
+    """The same accepted palm stance, checked with a 1 mm slip bound: its palm's
+    link points slide farther over their nodes, and verify says so."""
+    from stances.verify import verify_problem
+
+    result = deformable_results["hand-on-cube"]
+    scenario = coarse_scenario("hand-on-cube")
+    (name,) = result.deformations
+    slip = verify_problem(build_problem(robot, scenario.scene, result.stance), result).measures[f"largest slip on {name}"]
+    assert slip > 1e-3  # the palm slides on the soft cube at all
+    tight = build_problem(robot, scenario.scene, result.stance, PostureOptions(max_slip=1e-3))
+    check = verify_problem(tight, result)
+    assert not check.ok
+    assert any(f"m over node" in r and "beyond the small-slip bound 0.001 m" in r for r in check.reasons), check.reasons
 
 
 def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_tolerance(robot):

@@ -8,6 +8,8 @@ from importlib import resources
 
 import numpy as np
 
+from ..display import ROBOT_RGB
+
 __all__ = ["viewer_data", "viewer_page", "write_viewer"]
 
 # Positions to 0.01 mm and displacements to 1 nm keep the page small and exact enough to look at.
@@ -18,7 +20,13 @@ def _rounded(array, digits=_DIGITS):
     return np.round(np.asarray(array, dtype=float), digits).tolist()
 
 
-def viewer_data(title, displays, edges, bounds, force_scale, force_legend):
+def _transforms(transforms):
+    """(g, 4, 4) placements as rows of their 12 top numbers (rotation rows, translation)."""
+    return _rounded(np.asarray(transforms, dtype=float).reshape(-1, 4, 4)[:, :3, :].reshape(-1, 12))
+
+
+def viewer_data(title, displays, edges, bounds, force_scale, force_legend, *, meshes=None, motions=(),
+                camera_azimuth=-60.0, grid_spacing=0.25):
     """Plain data drawn by the page.
 
     Parameters
@@ -35,13 +43,29 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend):
         Arrow metres per newton.
     force_legend : float
         Force shown in the legend, newtons.
+    meshes : cbm.robot_mesh.RobotMeshes, optional
+        The robot's visual meshes; each display's ``robot_transforms`` places
+        them. Without them the page draws the stick figure.
+    motions : sequence of dict
+        Motions between stances: ``from`` (stance index), ``moving`` (robot
+        surface), ``times`` (k,) seconds and ``transforms`` (k, g, 4, 4), the
+        meshes' placements at each interior sample.
+    camera_azimuth : float
+        Initial camera azimuth, degrees (one camera for the whole plan).
+    grid_spacing : float
+        Ground grid step, metres.
 
     Returns
     -------
     dict
         JSON-ready: ``title``, ``bounds``, ``boxes``, ``force_scale``,
-        ``force_legend``, ``max_displacement`` (metres) and ``stances`` (each:
-        ``label``, ``segments``, ``polygons``, ``forces``, ``deformables``).
+        ``force_legend``, ``max_displacement`` (metres), ``robot`` (``meshes``,
+        each ``vertices`` in its mesh frame and ``triangles``),
+        ``robot_colour``, ``camera_azimuth`` (rad), ``grid_spacing``,
+        ``grid_height``, ``stances`` (each: ``label``, ``segments``,
+        ``robot`` (placements as 12 numbers, row-major 3 x 4), ``polygons``,
+        ``forces``, ``deformables``) and ``motions`` (``from``, ``moving``,
+        ``times``, ``robot``: placements per sample).
     """
     max_displacement = max(
         (float(d.magnitude.max()) for s in displays for d in s.deformables if len(d.magnitude)), default=0.0
@@ -52,6 +76,7 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend):
             {
                 "label": display.label,
                 "segments": _rounded(display.segments),
+                "robot": _transforms(display.robot_transforms),
                 "polygons": [
                     {"robot_surface": name, "points": _rounded(points), "colour": display.colours.get(name, "#2ca02c")}
                     for name, points in display.polygons.items()
@@ -78,7 +103,23 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend):
         "force_scale": float(force_scale),
         "force_legend": float(force_legend),
         "max_displacement": max_displacement,
+        "robot": {
+            "meshes": [] if meshes is None else [
+                # 0.1 mm: far below the decimation's centimetre.
+                {"name": m.name, "vertices": _rounded(m.vertices, 4), "triangles": np.asarray(m.triangles).tolist()}
+                for m in meshes.meshes
+            ]
+        },
+        "robot_colour": list(ROBOT_RGB),
+        "camera_azimuth": float(np.radians(camera_azimuth)),
+        "grid_spacing": float(grid_spacing),
+        "grid_height": 0.0,  # the floor: world z = 0 by convention
         "stances": stances,
+        "motions": [
+            {"from": int(m["from"]), "moving": str(m["moving"]), "times": _rounded(m["times"], 3),
+             "robot": [_transforms(t) for t in m["transforms"]]}
+            for m in motions
+        ],
     }
 
 

@@ -1,0 +1,334 @@
+"""Quasi-static motion between consecutive stances of a plan.
+
+Two consecutive stances differ by one contact: the robot adds it (a limb
+reaches a new print) or removes it (a limb leaves one). Every other contact,
+the *support*, is held throughout. A motion is a sequence of postures, each a
+posture problem of the support alone (:func:`stances.solve`: static
+equilibrium, torque and joint limits, friction cones, collision avoidance, the
+soft bodies' FEM forces) with one more constraint: the moving limb's contact
+frame sits on a waypoint of a path from where it is in the first stance to
+where it is in the second, lifted along the print's normal by a clearance so
+that it leaves and reaches its print squarely instead of sliding over it.
+Each sample is solved warm-started from the previous one (small steps of a
+continuation) and verified by :func:`stances.verify` as a stance of the
+support; the motion starts at the first stance's posture and ends at the
+second's.
+
+What is not sampled: touch-down and lift-off themselves, the last few
+millimetres where the limb meets its print and the load moves onto it (or off
+it). Those happen between the stance's own posture, verified with the
+contact, and the nearest lifted sample, verified without it.
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, replace
+
+import numpy as np
+import pinocchio as pin
+
+from stances.blocks import PLACEMENT_ACCURACY, equality
+from stances.contacts import placement_residual
+
+from .errors import CbmError
+from .step_path import RAMP, halfway, keep_clear, lifted_path
+
+__all__ = [
+    "FramePlacementConstraint",
+    "Motion",
+    "MotionError",
+    "plan_motion",
+    "plan_motions",
+    "verify_motion",
+]
+
+logger = logging.getLogger(__name__)
+
+#: A sample's frame may miss its waypoint by this much (m and rad), as
+#: stances.verify's placements: the SQP meets these rows to PLACEMENT_ACCURACY (1e-7).
+PATH_TOLERANCE = 1e-6
+
+
+class MotionError(CbmError):
+    """Stances that no motion joins (not differing by one contact, no posture)."""
+
+
+@dataclass(frozen=True, eq=False)
+class FramePlacementConstraint:
+    """A robot frame placed at a target (6 equality rows), as a posture-problem constraint.
+
+    Parameters
+    ----------
+    frame : str
+        Frame of ``robot.model``.
+    transform_frame_to_world : (4, 4) float
+        Where the frame must be, world frame, metres.
+    label : str
+        Names the rows in an infeasible answer's reason.
+    """
+
+    frame: str
+    transform_frame_to_world: np.ndarray
+    label: str = "path"
+
+    def __post_init__(self):
+        transform = np.array(self.transform_frame_to_world, dtype=float)
+        if transform.shape != (4, 4):
+            raise MotionError(f"transform_frame_to_world must be (4, 4), got {transform.shape}")
+        transform.setflags(write=False)
+        object.__setattr__(self, "transform_frame_to_world", transform)
+
+    def blocks(self, problem, iterate):
+        """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement)."""
+        model, data = problem.robot.model, problem.data
+        frame_id = model.getFrameId(self.frame)
+        residual, jlog = placement_residual(data, frame_id, pin.SE3(self.transform_frame_to_world))
+        jacobian = np.zeros((6, problem.n_step))
+        jacobian[:, : model.nv] = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
+        labels = [f"{self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")]
+        return [equality("frame path", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
+
+    def error(self, robot, q):
+        """Largest translation (m) or rotation (rad) error of the frame at ``q``."""
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+        error = pin.SE3(self.transform_frame_to_world).actInv(data.oMf[robot.model.getFrameId(self.frame)])
+        residual = pin.log6(error).vector
+        return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
+
+
+@dataclass(frozen=True, eq=False)
+class Motion:
+    """A quasi-static motion from stance ``index`` of a plan to the next.
+
+    Parameters
+    ----------
+    index : int
+        The stance the motion leaves.
+    moving_surface : str
+        Robot surface that reaches or leaves its print.
+    support : environments Stance
+        The contacts held throughout (those both stances share).
+    configurations : (k, nq) float
+        Postures, the first stance's ``q`` first and the second's last;
+        between them, one per waypoint (fewer if the motion failed).
+    targets : (k - 2, 4, 4) float
+        Where the moving surface's frame is held at each interior sample, world
+        (the path's waypoints, and any halfway waypoints the solves needed).
+    results : tuple of stances PostureResult
+        The support's posture solve of each interior sample.
+    feasible : bool
+        Whether every waypoint was reached by a verified posture.
+    reason : str
+        Why not (empty when feasible).
+    """
+
+    index: int
+    moving_surface: str
+    support: object
+    configurations: np.ndarray
+    targets: np.ndarray
+    results: tuple
+    feasible: bool
+    reason: str = ""
+
+    def __post_init__(self):
+        for name in ("configurations", "targets"):
+            array = np.array(getattr(self, name), dtype=float)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+
+    def durations(self, joint_speed=0.5, base_speed=0.1):
+        """Time between consecutive samples, seconds, at nominal speeds.
+
+        The motion is quasi-static: any slower timing keeps it balanced.
+
+        Parameters
+        ----------
+        joint_speed : float
+            Largest joint speed, rad/s.
+        base_speed : float
+            Largest speed of the base, m/s.
+
+        Returns
+        -------
+        (k - 1,) float
+        """
+        q = self.configurations
+        joints = np.abs(np.diff(q[:, 7:], axis=0)).max(axis=1, initial=0.0) / joint_speed
+        base = np.linalg.norm(np.diff(q[:, :3], axis=0), axis=1) / base_speed
+        return np.maximum(np.maximum(joints, base), 0.05)
+
+
+def _moving_contact(before, after):
+    """The contact two stances do not share, and the support they share."""
+    a, b = set(before.contacts), set(after.contacts)
+    if len(a ^ b) != 1:
+        raise MotionError(
+            f"a motion joins stances that differ by exactly one contact; these differ by {len(a ^ b)}: "
+            f"{sorted(c.robot_surface for c in a ^ b)}"
+        )
+    (moving,) = a ^ b
+    support = before if len(before) < len(after) else after
+    return moving, support
+
+
+def _frame_placement(robot, q, frame):
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    return data.oMf[robot.model.getFrameId(frame)].homogeneous
+
+
+def _options_of(planned):
+    """The posture options a planned stance was solved with (its result records them)."""
+    statistics = getattr(planned.result, "statistics", None) or {}
+    return dict(statistics.get("options", {}))
+
+
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=0.2, max_splits=2,
+                solver_options=None):
+    """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
+
+    Parameters
+    ----------
+    plan : cbm.Plan
+    index : int
+        Stance the motion leaves.
+    scenario : environments Scenario
+    robot : stances Robot
+    samples : int
+        Waypoints of the moving limb across (:func:`cbm.step_path.lifted_path`; two more,
+        straight above each end, make ``samples + 2`` interior postures).
+    clearance : float
+        Lift of the moving limb off its print, metres, along the print's normal.
+    clear_distance : float
+        While crossing, the moving frame keeps this far (metres, across the
+        normal) from the origin of each support print (:func:`cbm.step_path.keep_clear`):
+        0.2 m lets a Talos sole pass beside the other.
+    max_splits : int
+        Waypoints no posture reaches from the previous sample are retried from
+        a waypoint halfway (a shorter continuation step), at most this many
+        times per motion.
+    solver_options : dict, optional
+        Posture options; default those the arriving stance was solved with.
+
+    Returns
+    -------
+    Motion
+        Solved sample after sample; it stops at the first waypoint no verified
+        posture reaches (``feasible`` False and the solver's ``reason``).
+
+    Raises
+    ------
+    MotionError
+        If ``index`` does not name a pair of stances, or they do not differ by
+        exactly one contact.
+    """
+    from .planner import posture_api
+
+    if not 0 <= index < len(plan.stances) - 1:
+        raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
+    before, after = plan.stances[index], plan.stances[index + 1]
+    moving, support = _moving_contact(before.stance, after.stance)
+    frame = robot.surface(moving.robot_surface).frame
+    start = _frame_placement(robot, before.q, frame)
+    end = _frame_placement(robot, after.q, frame)
+    normal = scenario.scene.transform_print_to_world(moving.contact_print)[:3, 2]
+    targets = lifted_path(start, end, normal, clearance, samples)
+    # Only the waypoints that move across: those above either end stay where they are.
+    s = np.arange(samples + 2) / (samples + 1)
+    crossing = (s > RAMP) & (s < 1.0 - RAMP)
+    support_points = [scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in support]
+    targets[crossing] = keep_clear(targets[crossing], support_points, normal, clear_distance)
+    options = _options_of(after) if solver_options is None else dict(solver_options)
+    solve, verify = posture_api()
+    q, configurations, results, reached, reason = before.q, [before.q], [], [], ""
+    pending, last, splits = list(targets), start, 0
+    while pending:
+        target = pending[0]
+        constraint = FramePlacementConstraint(frame, target, f"path of {moving.robot_surface} (sample {len(results) + 1})")
+        result = solve(robot, scenario.scene, support, q_init=q, constraints=(constraint,), **options)
+        if result.feasible:
+            verification = verify(robot, scenario.scene, support, result, **options)
+            if not verification.ok:
+                result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
+        if result.feasible:
+            q, last = result.q, pending.pop(0)
+            configurations.append(q)
+            results.append(result)
+            reached.append(target)
+        elif splits < max_splits:
+            # A shorter step of the continuation: the waypoint halfway from the last one reached.
+            pending.insert(0, halfway(last, target))
+            splits += 1
+        else:
+            reason = f"sample {len(results) + 1} (of {len(targets)} waypoints, {splits} halved): {result.reason}"
+            logger.info("motion %d -> %d stops at %s", index, index + 1, reason)
+            break
+    feasible = not reason
+    if feasible:
+        configurations.append(after.q)
+    return Motion(index, moving.robot_surface, support, np.array(configurations),
+                  np.array(reached).reshape(-1, 4, 4), tuple(results), feasible, reason)
+
+
+def plan_motions(plan, scenario, robot, **options):
+    """The motion between every pair of consecutive stances of a plan.
+
+    Parameters
+    ----------
+    plan, scenario, robot
+        As :func:`plan_motion`.
+    **options
+        Keyword arguments of :func:`plan_motion`.
+
+    Returns
+    -------
+    tuple of Motion
+        ``len(plan.stances) - 1`` motions, in order.
+    """
+    return tuple(plan_motion(plan, i, scenario, robot, **options) for i in range(len(plan.stances) - 1))
+
+
+def verify_motion(motion, plan, scenario, robot, solver_options=None):
+    """Check a motion again, sample by sample, independently of its solves.
+
+    Parameters
+    ----------
+    motion : Motion
+    plan : cbm.Plan
+        The plan it joins two stances of.
+    scenario : environments Scenario
+    robot : stances Robot
+    solver_options : dict, optional
+        As given to :func:`plan_motion`.
+
+    Returns
+    -------
+    list of str
+        Problems, one line each; empty if the motion starts and ends on its
+        stances' postures, every interior sample verifies as a stance of the
+        support (:func:`stances.verify`) and holds its frame on its waypoint.
+    """
+    from .planner import posture_api
+
+    verify = posture_api()[1]
+    after = plan.stances[motion.index + 1]
+    options = _options_of(after) if solver_options is None else dict(solver_options)
+    problems = []
+    ends = [(0, plan.stances[motion.index].q)] + ([(-1, after.q)] if motion.feasible else [])
+    for position, q in ends:
+        if not np.array_equal(motion.configurations[position], q):
+            problems.append(f"sample {position} is not the posture of its stance")
+    frame = robot.surface(motion.moving_surface).frame
+    for k, (result, target) in enumerate(zip(motion.results, motion.targets)):
+        if not np.array_equal(result.q, motion.configurations[k + 1]):
+            problems.append(f"sample {k + 1}: its result is not its posture")
+        verification = verify(robot, scenario.scene, motion.support, result, **options)
+        if not verification.ok:
+            problems.append(f"sample {k + 1}: " + "; ".join(map(str, verification.reasons)))
+        error = FramePlacementConstraint(frame, target).error(robot, result.q)
+        if error > PATH_TOLERANCE:
+            problems.append(f"sample {k + 1}: {motion.moving_surface} is {error:.3g} m or rad off its path")
+    return problems

@@ -1,0 +1,127 @@
+"""A plan's motion as one joint trajectory, written as CSV and NPZ for replay elsewhere."""
+
+from __future__ import annotations
+
+import csv
+import json
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from .errors import CbmError
+
+__all__ = ["JointTrajectory", "plan_trajectory", "write_trajectory"]
+
+
+@dataclass(frozen=True, eq=False)
+class JointTrajectory:
+    """Postures in time: the stances of a plan and the motions between them.
+
+    Parameters
+    ----------
+    names : tuple of str
+        Coordinate names of ``q`` (``Plan.robot["configuration_names"]``):
+        the free flyer's x, y, z (m, world), quaternion qx, qy, qz, qw, then
+        one angle per joint (rad).
+    times : (k,) float
+        Seconds from the first stance, increasing.
+    q : (k, nq) float
+        Configurations.
+    stance : (k,) int
+        Index of the plan's stance a sample is the posture of, -1 between stances.
+    segment : (k,) int
+        Index of the stance a sample leaves (its motion), or is.
+    locked_joints : dict of str to tuple of float
+        Joints held at fixed values, not in ``q`` (the robot's full URDF
+        configuration adds them).
+    """
+
+    names: tuple
+    times: np.ndarray
+    q: np.ndarray
+    stance: np.ndarray
+    segment: np.ndarray
+    locked_joints: dict
+
+    def __post_init__(self):
+        for name, dtype in (("times", float), ("q", float), ("stance", int), ("segment", int)):
+            array = np.array(getattr(self, name), dtype=dtype)
+            array.setflags(write=False)
+            object.__setattr__(self, name, array)
+        if self.q.ndim != 2 or self.q.shape[1] != len(self.names) or len(self.times) != len(self.q):
+            raise CbmError(
+                f"a trajectory needs q of shape (k, {len(self.names)}) and k times; got q {self.q.shape} and "
+                f"{len(self.times)} times"
+            )
+        if np.any(np.diff(self.times) <= 0):
+            raise CbmError("trajectory times must increase")
+
+
+def plan_trajectory(plan, motions, **speeds):
+    """Join a plan's stances and the motions between them into one trajectory.
+
+    A motion that failed (``feasible`` False) adds none of its samples: the
+    trajectory jumps from its stance to the next one there.
+
+    Parameters
+    ----------
+    plan : cbm.Plan
+    motions : sequence of cbm.motion.Motion
+        One per pair of consecutive stances, in order.
+    **speeds
+        Keyword arguments of :meth:`cbm.motion.Motion.durations`.
+
+    Returns
+    -------
+    JointTrajectory
+    """
+    if len(motions) != max(len(plan.stances) - 1, 0):
+        raise CbmError(f"{len(plan.stances)} stances need {len(plan.stances) - 1} motions, got {len(motions)}")
+    q, stance, segment, steps = [plan.stances[0].q], [0], [0], []
+    for index, motion in enumerate(motions):
+        if motion.feasible:
+            samples = motion.configurations[1:]
+            steps.extend(motion.durations(**speeds))
+        else:
+            samples = np.array([plan.stances[index + 1].q])
+            steps.append(1.0)
+        q.extend(samples)
+        stance.extend([-1] * (len(samples) - 1) + [index + 1])
+        segment.extend([index] * (len(samples) - 1) + [index + 1])
+    times = np.concatenate([[0.0], np.cumsum(steps)])
+    names = tuple(plan.robot.get("configuration_names") or (f"q{i}" for i in range(len(q[0]))))
+    locked = {name: tuple(values) for name, values in plan.robot.get("locked_joints", {}).items()}
+    return JointTrajectory(names, times, np.array(q), stance, segment, locked)
+
+
+def write_trajectory(trajectory, stem):
+    """Write a trajectory as ``<stem>.csv`` and ``<stem>.npz``.
+
+    The CSV has one header row ``time, stance, segment, <names...>`` and one
+    row per sample; the NPZ holds ``times``, ``q``, ``stance``, ``segment``,
+    ``names`` and ``locked_joints`` (a JSON string), readable without pickle.
+
+    Parameters
+    ----------
+    trajectory : JointTrajectory
+    stem : path-like
+        Path without suffix.
+
+    Returns
+    -------
+    tuple of Path
+        The CSV and the NPZ.
+    """
+    stem = Path(stem)
+    csv_path, npz_path = stem.with_suffix(".csv"), stem.with_suffix(".npz")
+    with open(csv_path, "w", newline="") as stream:
+        writer = csv.writer(stream)
+        writer.writerow(["time", "stance", "segment", *trajectory.names])
+        for t, s, g, q in zip(trajectory.times, trajectory.stance, trajectory.segment, trajectory.q):
+            writer.writerow([f"{t:.6f}", int(s), int(g), *(repr(float(v)) for v in q)])
+    np.savez(
+        npz_path, times=trajectory.times, q=trajectory.q, stance=trajectory.stance, segment=trajectory.segment,
+        names=np.array(trajectory.names), locked_joints=np.array(json.dumps(trajectory.locked_joints)),
+    )
+    return csv_path, npz_path

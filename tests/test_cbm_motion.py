@@ -1,0 +1,173 @@
+"""Quasi-static motions between the stances of a short plan, and their joint trajectory."""
+
+import csv
+import json
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import stances
+from environments.stance import Contact, ContactPrint
+
+from cbm.motion import FramePlacementConstraint, MotionError, plan_motion, plan_motions, verify_motion
+from cbm.step_path import lifted_path
+from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from cbm.trajectory import plan_trajectory, write_trajectory
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return stances.Robot.load("talos")
+
+
+@pytest.fixture(scope="module")
+def scenario():
+    return environments.load("stand")
+
+
+@pytest.fixture(scope="module")
+def step_plan(robot, scenario):
+    """A step: both soles down, right sole lifted, right sole 15 cm ahead (each solved and verified)."""
+    both = scenario.stance("stand")
+    left = both.without("right_sole")
+    ahead = left.with_contact(Contact("right_sole", ContactPrint("floor", 0.15, -0.085)))
+    planned, q = [], None
+    for stance in (both, left, ahead):
+        result = stances.solve(robot, scenario.scene, stance, q_init=q)
+        assert result.feasible, result.reason
+        q = result.q
+        planned.append(PlannedStance(stance, result.q, result.point_forces, {}, result, move=""))
+    return Plan(True, "goal reached", planned, PlanStatistics(), "stand",
+                robot=robot_description(robot), scenario_source=scenario_source(scenario))
+
+
+@pytest.fixture(scope="module")
+def motions(step_plan, scenario, robot):
+    return plan_motions(step_plan, scenario, robot, samples=3)
+
+
+def test_every_motion_sample_verifies_and_joins_its_two_stances(step_plan, motions, scenario, robot):
+    assert [m.moving_surface for m in motions] == ["right_sole", "right_sole"]
+    for index, motion in enumerate(motions):
+        assert motion.feasible, motion.reason
+        assert len(motion.configurations) == 3 + 2 + 2  # two stances, three across, two straight above the ends
+        np.testing.assert_array_equal(motion.configurations[0], step_plan.stances[index].q)
+        np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[index + 1].q)
+        assert motion.support == step_plan.stances[1].stance  # the left sole alone holds the robot
+        assert verify_motion(motion, step_plan, scenario, robot) == []
+        for result in motion.results:
+            # Checked here as a stance of the support, independently of the motion code.
+            assert stances.verify(robot, scenario.scene, motion.support, result).ok
+
+
+def test_the_moving_sole_is_lifted_clear_of_the_floor_between_its_prints(motions, robot):
+    frame = robot.model.getFrameId(robot.surface("right_sole").frame)
+    data = robot.model.createData()
+    for motion, on_print in zip(motions, [0, -1]):  # leaves its print, then reaches the new one
+        heights = []
+        for q in motion.configurations[1:-1]:
+            pin.framesForwardKinematics(robot.model, data, q)
+            heights.append(data.oMf[frame].translation[2])
+        # 1.5 cm straight above the print, higher elsewhere (the floor is z = 0, the sole frame on the sole).
+        assert heights[on_print] == pytest.approx(0.015, abs=1e-6)
+        assert min(heights) >= 0.015 - 1e-6 and max(heights) >= 0.05
+
+
+def test_verify_motion_reports_a_sample_moved_off_its_path(step_plan, motions, scenario, robot):
+    motion = motions[1]
+    result = motion.results[2]
+    q = np.array(result.q)
+    q[2] += 0.01  # the whole robot 1 cm up: the left sole leaves its print
+    broken = replace(motion, results=motion.results[:2] + (replace(result, q=q),) + motion.results[3:])
+    problems = verify_motion(broken, step_plan, scenario, robot)
+    assert problems[0] == "sample 3: its result is not its posture"
+    assert problems[1].startswith("sample 3: left_sole on floor is off its print by 0.01 m")  # stances.verify
+    assert problems[2] == "sample 3: right_sole is 0.01 m or rad off its path"
+    assert len(problems) == 3
+
+
+def test_a_motion_needs_stances_that_differ_by_one_contact(step_plan, scenario, robot):
+    skipping = replace(step_plan, stances=(step_plan.stances[0], step_plan.stances[2]))
+    with pytest.raises(MotionError) as raised:
+        plan_motion(skipping, 0, scenario, robot)
+    assert str(raised.value) == (
+        "a motion joins stances that differ by exactly one contact; these differ by 2: ['right_sole', 'right_sole']"
+    )
+    with pytest.raises(MotionError, match="stance 2 has no next stance: the plan has 3 stances"):
+        plan_motion(step_plan, 2, scenario, robot)
+
+
+def test_path_constraint_jacobian_matches_finite_differences(robot, scenario):
+    problem = stances.build_problem(robot, scenario.scene, scenario.stance("stand").without("right_sole"))
+    rng = np.random.default_rng(3)
+    q = pin.integrate(robot.model, robot.reference_configuration, 0.1 * rng.standard_normal(robot.model.nv))
+    target = np.eye(4)
+    target[:3, 3] = [0.1, -0.1, 0.05]
+    constraint = FramePlacementConstraint(robot.surface("right_sole").frame, target)
+
+    def rows(q):
+        iterate = problem.iterate(q, np.zeros(problem.n_variables))
+        return constraint.blocks(problem, iterate)[0]
+
+    analytic = rows(q).jacobian[:, : robot.model.nv]
+    step = 1e-6
+    numeric = np.column_stack([
+        (rows(pin.integrate(robot.model, q, step * e)).value - rows(pin.integrate(robot.model, q, -step * e)).value)
+        / (2 * step)
+        for e in np.eye(robot.model.nv)
+    ])
+    np.testing.assert_allclose(analytic, numeric, atol=1e-6)
+
+
+def test_lifted_path_goes_up_turns_while_crossing_and_comes_down():
+    start, end = np.eye(4), np.eye(4)
+    end[:3, :3] = pin.exp3(np.array([0.0, 0.0, 0.6]))
+    end[:3, 3] = [0.3, 0.0, 0.1]
+    path = lifted_path(start, end, [0.0, 0.0, 2.0], 0.05, 5)
+    angles = np.array([pin.log3(p[:3, :3])[2] for p in path])
+    progress = path[:, 0, 3] / 0.3
+    # The turn goes with the crossing: none while rising, all of it once across.
+    np.testing.assert_allclose(angles, 0.6 * progress, atol=1e-12)
+    np.testing.assert_allclose(progress[[0, 1, -2, -1]], [0, 0, 1, 1], atol=1e-12)
+    # 1.5 cm above each end, crossing 5 cm above the higher one.
+    np.testing.assert_allclose(path[[0, -1], 2, 3], [0.015, 0.115])
+    assert path[3, 2, 3] == pytest.approx(0.15)
+    assert np.all(path[progress > 0, 2, 3] >= 0.115 - 1e-12)  # never lower than touch-down once moving across
+
+
+def test_trajectory_files_name_the_joints_and_replay_the_plan(step_plan, motions, tmp_path):
+    trajectory = plan_trajectory(step_plan, motions)
+    csv_path, npz_path = write_trajectory(trajectory, tmp_path / "trajectory")
+    with open(csv_path) as stream:
+        rows = list(csv.reader(stream))
+    assert rows[0] == ["time", "stance", "segment", *step_plan.robot["configuration_names"]]
+    assert len(rows) == 1 + 1 + 2 * 6  # the first stance, then each motion's samples and its arriving stance
+    read = np.load(npz_path)
+    np.testing.assert_array_equal(read["q"], np.array([[float(v) for v in row[3:]] for row in rows[1:]]))
+    assert list(read["names"]) == step_plan.robot["configuration_names"]
+    assert json.loads(str(read["locked_joints"])) == {k: list(v) for k, v in step_plan.robot["locked_joints"].items()}
+    assert np.all(np.diff(read["times"]) > 0)
+    stance_rows = np.flatnonzero(read["stance"] >= 0)
+    assert read["stance"][stance_rows].tolist() == [0, 1, 2]
+    for index, row in zip(range(3), stance_rows):
+        np.testing.assert_array_equal(read["q"][row], step_plan.stances[index].q)
+
+
+def test_outputs_write_the_trajectory_and_the_viewer_plays_the_motions(step_plan, motions, scenario, robot, tmp_path):
+    from cbm.output import write_outputs
+    from test_cbm_output import chromium_binary, page_status
+
+    files = write_outputs(step_plan, scenario, robot, tmp_path, pictures=False, motions=motions)
+    assert [p.name for p in files.trajectory] == ["trajectory.csv", "trajectory.npz"]
+    page = files.viewer.read_text()
+    start = page.index('type="application/json">') + len('type="application/json">')
+    data = json.loads(page[start: page.index("</script>", start)])
+    meshes = len(data["robot"]["meshes"])
+    assert [(m["from"], m["moving"], len(m["robot"])) for m in data["motions"]] == [(0, "right_sole", 5), (1, "right_sole", 5)]
+    assert all(len(pose) == meshes for m in data["motions"] for pose in m["robot"])
+    assert all(np.all(np.diff(m["times"]) > 0) for m in data["motions"])
+    if chromium_binary() is not None:
+        assert page_status(files.viewer, tmp_path) == "ok"
