@@ -81,6 +81,11 @@ TARGETS = {
     ],
 }
 
+#: Tests left out of every run: a flaky test kills mutants that do nothing. This one
+#: names a different set of conflicting rows now and then under load (seen in two
+#: of five forked runs of the unmutated tests on a loaded machine), so it cannot judge a mutant.
+FLAKY = ("tests/test_stances_solve.py::test_print_out_of_reach_is_infeasible_with_a_reason",)
+
 _COMPARISON_SWAPS = {ast.Lt: ast.LtE, ast.LtE: ast.Lt, ast.Gt: ast.GtE, ast.GtE: ast.Gt, ast.Eq: ast.NotEq, ast.NotEq: ast.Eq}
 _BINARY_SWAPS = {ast.Add: (ast.Sub, "sign"), ast.Sub: (ast.Add, "sign"), ast.Mult: (ast.Div, "factor"), ast.Div: (ast.Mult, "factor")}
 _SKIPPED_KEYWORDS = {"stacklevel", "maxsize", "indent", "prefix"}
@@ -216,9 +221,10 @@ def _copy_tree(destination):
     shutil.copy(ROOT / "pyproject.toml", destination / "pyproject.toml")
 
 
-def _run_pytest(tree, module, tests, timeout):
-    """Run the tests in a forked child on ``tree``; ``(outcome, seconds)``."""
-    arguments = ["-x", "-q", "-p", "no:cacheprovider", "--no-header", "-W", "ignore", module, *tests]
+def _run_pytest(tree, module, tests, timeout, log=os.devnull):
+    """Run the tests in a forked child on ``tree``, output to ``log``; ``(outcome, seconds)``."""
+    deselected = [argument for test in FLAKY for argument in ("--deselect", test)]
+    arguments = ["-x", "-q", "-p", "no:cacheprovider", "--no-header", "-W", "ignore", *deselected, module, *tests]
     started = time.perf_counter()
     pid = os.fork()
     if pid == 0:  # the child: its own process group, so a timeout kills its subprocesses too
@@ -228,9 +234,9 @@ def _run_pytest(tree, module, tests, timeout):
             sys.path.insert(0, str(tree))
             os.environ["PYTHONPATH"] = str(tree)
             os.environ["PYTHONDONTWRITEBYTECODE"] = "1"
-            devnull = os.open(os.devnull, os.O_WRONLY)
-            os.dup2(devnull, 1)
-            os.dup2(devnull, 2)
+            output = os.open(log, os.O_WRONLY | os.O_CREAT | os.O_TRUNC, 0o644)
+            os.dup2(output, 1)
+            os.dup2(output, 2)
             import pytest
 
             code = pytest.main(arguments)
@@ -303,6 +309,8 @@ EQUIVALENT = {
         "order is unique, so the tuple comparison is decided before the node",
     ("cbm/search.py", "Lt -> LtE", "if best is None or (h, order) < best[:2]:"):
         "order is unique, so the two tuples are never equal",
+    ("fem/contact.py", "500 -> 501", "def _gauss_seidel(c_local, u_local, mu, sweeps=500, tolerance=1e-12):"):
+        "a cap on sweeps that stop on their tolerance; one sweep more moves nothing a test can see",
     ("fem/patch.py", "0 -> 1", "idx = np.flatnonzero(in_print >= 0)"):
         "up to round-off: without the exact identity row, print node 0 gets C_PP S_P = I to about 1e-12",
 }
@@ -428,11 +436,10 @@ def main(argv=None):
         # tree may change during a run.
         _copy_tree(tree)
     chosen, totals = _sample(args.modules, args.per_module, args.seed, args.whole, trees[0])
-    sampled = (
-        "every mutant"
-        if args.per_module is None
-        else f"{args.per_module} mutants per module, sampled with seed {args.seed}; every mutant of {', '.join(args.whole)}"
-    )
+    whole = [module for module in args.whole if module in args.modules]
+    sampled = "every mutant" if args.per_module is None else f"{args.per_module} mutants per module, sampled with seed {args.seed}"
+    if args.per_module is not None and whole:
+        sampled += f"; every mutant of {', '.join(whole)}"
     note = (
         f"{len(chosen)} of {sum(totals.values())} mutants run ({sampled}); `python bench/mutation.py` "
         "(strings, tolerances below 1e-5, logging and argument checks are not mutated; see its docstring)."
@@ -473,9 +480,11 @@ def main(argv=None):
             groups[tuple(TARGETS[module])].append(module)
         baselines = {}
         for tests, modules in groups.items():
-            outcome, seconds = _run_pytest(trees[0], modules[0], [*modules[1:], *tests], timeout=3600)
+            log = scratch / "baseline.log"
+            outcome, seconds = _run_pytest(trees[0], modules[0], [*modules[1:], *tests], timeout=3600, log=log)
             if outcome != "passed":
-                raise SystemExit(f"the unmutated tests of {', '.join(modules)} do not pass ({outcome}); fix them first")
+                tail = "\n".join(log.read_text().splitlines()[-30:])
+                raise SystemExit(f"the unmutated tests of {', '.join(modules)} do not pass ({outcome}); fix them first\n{tail}")
             baselines.update(dict.fromkeys(modules, seconds))
             print(f"baseline {', '.join(modules)}: {seconds:.1f} s", flush=True)
         args.records.parent.mkdir(parents=True, exist_ok=True)

@@ -363,3 +363,16 @@ def test_points_in_a_turned_moved_square_are_those_at_least_the_margin_from_ever
     inside = points_in_convex_polygon(polygon, uv @ turn.T + offset, margin)
     assert np.array_equal(inside[away], (depth >= margin)[away])
     assert points_in_convex_polygon(polygon, polygon.mean(axis=0), margin) is True
+
+
+def test_polygon_centroid_is_the_area_weighted_mean_of_its_triangles_centroids():
+    from environments.geometry import polygon_area, polygon_centroid
+
+    # A convex quadrilateral whose centroid is not its vertices' mean, split along a diagonal.
+    quad = np.array([[0.0, 0.0], [2.0, 0.0], [1.5, 1.0], [0.0, 3.0]]) + [0.7, -0.4]
+    halves = [quad[[0, 1, 2]], quad[[0, 2, 3]]]
+    areas = np.array([polygon_area(t) for t in halves])
+    expected = sum(a * t.mean(axis=0) for a, t in zip(areas, halves)) / areas.sum()
+    assert np.allclose(polygon_centroid(quad), expected, rtol=0.0, atol=1e-12)
+    assert not np.allclose(expected, quad.mean(axis=0), atol=1e-3)
+    assert np.allclose(polygon_centroid(quad[:3]), quad[:3].mean(axis=0), rtol=0.0, atol=1e-12)

@@ -578,3 +578,20 @@ def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_toleran
     assert verify_problem(problem, result, VerificationTolerances(penetration=-0.5 * closest)).ok
     check = verify_problem(problem, result, VerificationTolerances(penetration=-2.0 * closest))
     assert not check.ok and all(reason.startswith("collision between ") for reason in check.reasons)
+
+
+def test_verify_rejects_rigid_contact_forces_outside_their_friction_cone(robot):
+    import dataclasses
+
+    from stances.results import PointForce
+
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    result = solve(robot, scenario.scene, stance)
+    # Every print faces up (floor, table top): a sideways push twice the normal
+    # force is outside any cone of friction below 2.
+    assert all(c.friction < 2.0 for c in scenario.scene.surfaces.values())
+    pushed = tuple(PointForce(p.frame, p.point, p.force + [2.0 * abs(p.force[2]) + 1.0, 0.0, 0.0]) for p in result.point_forces)
+    check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=pushed))
+    assert not check.ok
+    assert any("leaves its friction cone by" in reason for reason in check.reasons), check.reasons
