@@ -341,6 +341,21 @@ def _round_up(value: float) -> str:
     return f"{math.ceil(value / scale - 1e-9) * scale:.3g}"
 
 
+def _fine_spacing(resolution) -> float:
+    """The fine spacing h, metres, of a preset name or a number (see :data:`RESOLUTIONS`)."""
+    if isinstance(resolution, str):
+        if resolution not in RESOLUTIONS:
+            raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
+        return RESOLUTIONS[resolution]
+    try:
+        fine = float(resolution)
+    except (TypeError, ValueError):
+        fine = math.nan
+    if not (math.isfinite(fine) and fine > 0.0):
+        raise SceneError(f"resolution must be one of {', '.join(RESOLUTIONS)} or a spacing > 0 in metres, got {resolution!r}")
+    return fine
+
+
 def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
 
@@ -388,19 +403,7 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     size = readonly_array(size, (3,), "soft box size")
     if np.any(size <= 0.0):
         raise SceneError(f"soft box size must be > 0 on every axis, got {size.tolist()}")
-    if isinstance(resolution, str):
-        if resolution not in RESOLUTIONS:
-            raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
-        fine = RESOLUTIONS[resolution]
-    else:
-        try:
-            fine = float(resolution)
-        except (TypeError, ValueError):
-            fine = math.nan
-        if not (math.isfinite(fine) and fine > 0.0):
-            raise SceneError(
-                f"resolution must be one of {', '.join(RESOLUTIONS)} or a spacing > 0 in metres, got {resolution!r}"
-            )
+    fine = _fine_spacing(resolution)
     half = 0.5 * size[:2]
     if refine is None:
         region = np.array([-half, half])
@@ -490,21 +493,6 @@ def soft_box(
         deformable=True,
     )
     return obj, top
-
-
-def _fine_spacing(resolution) -> float:
-    """The fine spacing h, metres, of a preset name or a number (see :data:`RESOLUTIONS`)."""
-    if isinstance(resolution, str):
-        if resolution not in RESOLUTIONS:
-            raise SceneError(f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres")
-        return RESOLUTIONS[resolution]
-    try:
-        fine = float(resolution)
-    except (TypeError, ValueError):
-        fine = math.nan
-    if not (math.isfinite(fine) and fine > 0.0):
-        raise SceneError(f"resolution must be one of {', '.join(RESOLUTIONS)} or a spacing > 0 in metres, got {resolution!r}")
-    return fine
 
 
 def _breakpoint_coordinates(breakpoints, fine: float) -> np.ndarray:

@@ -167,7 +167,8 @@ class SqpOutcome:
     qp_time : float
         Seconds spent in the QP solver.
     feasible : bool
-        Whether the largest scaled violation is within the feasibility tolerance.
+        Whether every row is within the feasibility tolerance (scaled) or its
+        block's own ``accuracy`` (:meth:`Linearization.met`).
     reason : str
         Empty when feasible; otherwise the worst row, by how much, why the
         iterations stopped, and the rows no step can meet together.
@@ -236,7 +237,6 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
             torque_weight = options.torque_weight
             linearization = problem.linearize(q, lam, torque_weight)
-        merit = linearization.objective + penalty * violation
         matrices = elastic_qp(linearization, penalty)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
@@ -311,7 +311,6 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         ):
             status = "converged"
             break
-    violation, _ = linearization.max_violation()
     feasible = linearization.met(tolerance)
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
@@ -361,7 +360,6 @@ def _result(problem, outcome, elapsed) -> PostureResult:
     """The answer at the SQP's last iterate, checked by :func:`stances.verify` when feasible."""
     from .verify import verify_problem
 
-    model = problem.robot.model
     q, lam, linearization, feasible = outcome.q, outcome.lam, outcome.linearization, outcome.feasible
     violation, _ = linearization.max_violation()
     # An iterate that stopped just short of the SQP's tolerance (a floor of the QP's
@@ -584,7 +582,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
     kept only if :func:`stances.verify` (Signorini and Coulomb at every node, on
     the full FEM model) accepts it, otherwise the modes are read again at the new
     posture. If that does not settle, the SQP runs again with modes updated at
-    every linearisation, without a cap, from where the first stage stopped.
+    every linearisation, without a cap, from where the held-mode attempts began.
     """
     model = problem.robot.model
     deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]

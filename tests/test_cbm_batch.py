@@ -3,15 +3,11 @@
 import json
 
 import numpy as np
+import pyarrow.parquet as pq  # the batch extra is part of the test extra: a broken install fails here
 import pytest
-
-import stances
 
 from cbm.batch import BatchFileError, read_checks, run_check
 from cbm.cli import main
-
-pytest.importorskip("distributed", reason="batch checks need the 'batch' extra (Dask distributed)")
-pq = pytest.importorskip("pyarrow.parquet", reason="batch checks need the 'batch' extra (pyarrow)")
 
 BATCH = """
 solver_options: {max_iterations: 40}
@@ -34,7 +30,7 @@ def batch_file(tmp_path_factory):
     return path
 
 
-def test_a_local_cluster_of_two_workers_answers_like_checks_run_one_by_one(batch_file, tmp_path, capsys):
+def test_a_local_cluster_of_two_workers_answers_like_checks_run_one_by_one(batch_file, tmp_path, capsys, robot):
     checks, options = read_checks(batch_file)
     one_by_one = [run_check(check, options) for check in checks]
     assert main(["batch", str(batch_file), "--out", str(tmp_path), "--workers", "2", "--quiet"]) == 0
@@ -50,7 +46,7 @@ def test_a_local_cluster_of_two_workers_answers_like_checks_run_one_by_one(batch
         assert np.array_equal(np.array(row["forces"]).reshape(-1, 3), expected.forces)
         assert row["force_frames"] == list(expected.force_frames)
     # A feasible answer holds the robot up: its contact forces carry its weight (1e-6 relative: solver tolerance).
-    weight = stances.Robot.load("talos").mass * 9.81
+    weight = robot.mass * 9.81
     for row in table:
         if row["feasible"]:
             assert np.array(row["forces"]).sum(axis=0)[2] == pytest.approx(weight, rel=1e-6)

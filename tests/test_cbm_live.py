@@ -35,17 +35,15 @@ def test_missing_meshcat_is_a_clear_error_that_says_how_to_install_it(monkeypatc
     )
 
 
-def test_plan_show_puts_the_robot_meshes_soft_body_prints_and_forces_in_meshcat(tmp_path):
+def test_plan_show_puts_the_robot_meshes_soft_body_prints_and_forces_in_meshcat(tmp_path, robot):
     """The live view (an optional feature for users; meshcat is in the test extra, so
     a broken meshcat install fails here instead of skipping)."""
     import meshcat
     import environments
-    import stances
 
     from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
     from cbm.robot_mesh import visual_model
 
-    robot = stances.Robot.load("talos")
     scenario = environments.load("cross-soft-block")
     foam = scenario.scene.deformable_objects[0]
     stance = scenario.stances["right-on-foam"]

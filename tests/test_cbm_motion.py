@@ -19,11 +19,6 @@ from cbm.trajectory import plan_trajectory, write_trajectory
 
 
 @pytest.fixture(scope="module")
-def robot():
-    return stances.Robot.load("talos")
-
-
-@pytest.fixture(scope="module")
 def scenario():
     return environments.load("stand")
 
