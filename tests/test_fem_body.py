@@ -15,7 +15,6 @@ from fem import (
     box_mesh,
     nodes_in_polygon,
     read_mesh,
-    tensor_mesh,
     von_mises,
     write_pvd,
 )

@@ -10,7 +10,7 @@ import pinocchio as pin
 import pytest
 
 import environments
-from clearance import CONTACT_GEOMETRY, robot_clearances
+from clearance import robot_clearances
 from conftest import coarse_scenario
 from stances import Robot, StanceError
 from stances.collision import contact_exclusions

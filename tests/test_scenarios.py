@@ -7,7 +7,6 @@ import numpy as np
 import pytest
 import trimesh
 
-import environments
 from environments import ScenarioError, SceneError, load, scenario_names
 from stances.description import builtin_robot_names
 

@@ -3,8 +3,6 @@ like the soft box of that size, a Talos sole stands on one, and bad input is ref
 
 from __future__ import annotations
 
-import textwrap
-
 import numpy as np
 import pytest
 import trimesh

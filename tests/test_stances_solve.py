@@ -560,7 +560,7 @@ def test_verify_refuses_a_link_sliding_beyond_the_small_slip_bound(robot, deform
     tight = build_problem(robot, scenario.scene, result.stance, PostureOptions(max_slip=1e-3))
     check = verify_problem(tight, result)
     assert not check.ok
-    assert any(f"m over node" in r and "beyond the small-slip bound 0.001 m" in r for r in check.reasons), check.reasons
+    assert any("m over node" in r and "beyond the small-slip bound 0.001 m" in r for r in check.reasons), check.reasons
 
 
 def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_tolerance(robot):
