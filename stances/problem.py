@@ -142,6 +142,11 @@ class PostureOptions:
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
+    constraint_curvature : bool
+        Add the curvature of the rigid placement and collision rows, weighted
+        by the previous QP's multipliers, to the QP's Hessian (made convex;
+        see :mod:`stances.curvature`): the SQP's model becomes the
+        Lagrangian's, not the objective's alone.
     """
 
     posture_weight: float = 1.0
@@ -170,6 +175,7 @@ class PostureOptions:
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
     rigid_warm_start: bool = True
+    constraint_curvature: bool = False
 
     def __post_init__(self) -> None:
         if self.reaction_model not in ("consistent", "traction"):
