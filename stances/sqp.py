@@ -49,7 +49,8 @@ _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
 # The constraints' curvature (PostureOptions.constraint_curvature), see _with_curvature:
-_CURVATURE_PHASE = 0.1  # scaled violation below which it enters the QP (measured: from the start, no gain)
+_CURVATURE_PHASE = 0.1  # scaled violation below which it may enter the QP (from the start: no fewer iterations)
+_SLOW_CONTRACTION = 0.4  # step length ratio of Gauss-Newton beyond which it is switched on
 _FLOOR = 0.25  # fraction of the Gauss-Newton curvature the Lagrangian's may not go below
 _AUGMENTATION = 1e-2  # sigma, objective units per squared scaled row
 
@@ -236,6 +237,12 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     qp_time = 0.0
     curvature = ConstraintCurvature(problem.robot.model) if options.constraint_curvature else None
     multipliers = None  # of the last QP's rows, by label
+    # Where Gauss-Newton converges fast (most stances: stand, foot-on-block) the
+    # curvature costs more (1-3 ms a Hessian) than it saves; it is switched on,
+    # for good, once two full steps in the local phase shrink by less than
+    # _SLOW_CONTRACTION.
+    slow = False
+    local_steps = []  # lengths of full steps in the local phase
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
             status, iteration = _OUT_OF_TIME, iteration - 1
@@ -248,9 +255,10 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             # those of another problem (measured: a step of 0.15 rad off).
             multipliers = None
         # The QP's model: the objective's Hessian, plus the constraints'
-        # curvature once the multipliers of a previous QP are known.
+        # curvature once the multipliers of a previous QP are known (and
+        # Gauss-Newton was seen to crawl).
         curved = model = linearization
-        if multipliers is not None and violation <= _CURVATURE_PHASE:
+        if multipliers is not None and slow and violation <= _CURVATURE_PHASE:
             curved, model = _with_curvature(curvature, q, linearization, multipliers)
         matrices = elastic_qp(curved, penalty)
         tic = time.perf_counter()
@@ -293,6 +301,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             continue
         previous_objective = linearization.objective
         q, lam, linearization = accepted
+        if curvature is not None and not slow and torque_weight == options.torque_weight:
+            local_steps.append(float(np.max(np.abs(step[:nv]))) if alpha == 1.0 else np.inf)
+            slow = len(local_steps) >= 2 and local_steps[-1] > _SLOW_CONTRACTION * local_steps[-2]
         stalled = 0
         new_violation, worst_label = linearization.max_violation()
         logger.debug(
