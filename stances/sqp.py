@@ -178,6 +178,8 @@ class SqpOutcome:
     reason : str
         Empty when feasible; otherwise the worst row, by how much, why the
         iterations stopped, and the rows no step can meet together.
+    curved_iterations : int
+        Iterations whose QP had the constraints' curvature in its Hessian.
     """
 
     q: np.ndarray
@@ -189,6 +191,7 @@ class SqpOutcome:
     qp_time: float
     feasible: bool
     reason: str
+    curved_iterations: int = 0
 
 
 def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
@@ -235,13 +238,14 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     linearization = problem.linearize(q, lam, torque_weight)
     iteration = 0
     qp_time = 0.0
-    curvature = ConstraintCurvature(problem.robot.model) if options.constraint_curvature else None
-    multipliers = None  # of the last QP's rows, by label
+    curvature = None  # a ConstraintCurvature, made on first use
+    last_qp = None  # (linearization, proxsuite multipliers) of the last QP, for the curvature's weights
     # Where Gauss-Newton converges fast (most stances: stand, foot-on-block) the
     # curvature costs more (1-3 ms a Hessian) than it saves; it is switched on,
     # for good, once two full steps in the local phase shrink by less than
     # _SLOW_CONTRACTION.
     slow = False
+    curved_iterations = 0
     local_steps = []  # lengths of full steps in the local phase
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
@@ -253,13 +257,15 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             linearization = problem.linearize(q, lam, torque_weight)
             # The usage term moves the loads: the last QP's multipliers are
             # those of another problem (measured: a step of 0.15 rad off).
-            multipliers = None
+            last_qp = None
         # The QP's model: the objective's Hessian, plus the constraints'
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
         curved = model = linearization
-        if multipliers is not None and slow and violation <= _CURVATURE_PHASE:
-            curved, model = _with_curvature(curvature, q, linearization, multipliers)
+        if slow and last_qp is not None and violation <= _CURVATURE_PHASE:
+            curvature = curvature or ConstraintCurvature(problem.robot.model)
+            curved, model = _with_curvature(curvature, q, linearization, row_multipliers(*last_qp))
+            curved_iterations += 1
         matrices = elastic_qp(curved, penalty)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
@@ -269,8 +275,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         x = workspace.solve(*matrices, accuracy=accuracy)
         qp_time += time.perf_counter() - tic
         step, elastic = x[:-1], max(x[-1], 0.0)
-        if curvature is not None:
-            multipliers = row_multipliers(curved, workspace.multipliers)
+        last_qp = (curved, workspace.multipliers)
         predicted = _predicted_decrease(model, step, elastic, penalty, violation)
         if linearization.met(tolerance) and (
             np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
@@ -301,7 +306,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             continue
         previous_objective = linearization.objective
         q, lam, linearization = accepted
-        if curvature is not None and not slow and torque_weight == options.torque_weight:
+        if options.constraint_curvature and not slow and torque_weight == options.torque_weight:
             local_steps.append(float(np.max(np.abs(step[:nv]))) if alpha == 1.0 else np.inf)
             slow = len(local_steps) >= 2 and local_steps[-1] > _SLOW_CONTRACTION * local_steps[-2]
         stalled = 0
@@ -343,7 +348,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
-    return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason)
+    return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations)
 
 
 def _with_curvature(curvature, q, linearization, multipliers):
@@ -470,7 +475,7 @@ def _result(problem, outcome, elapsed) -> PostureResult:
         limits=problem.limit_usage(q, linearization.torques[6:]),
         statistics={
             "status": outcome.status, "qp_time": outcome.qp_time, "penalty": outcome.penalty,
-            "lambda": lam.tolist(), "violation": violation,
+            "lambda": lam.tolist(), "violation": violation, "curvature_iterations": outcome.curved_iterations,
         },
     )
     if feasible or nearly:
