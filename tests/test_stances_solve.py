@@ -23,6 +23,7 @@ DEFORMABLE = [
     ("step-on-cube", "step-on-cube"),
     ("hand-on-soft-cube", "hand-on-soft-cube"),
     ("foot-and-hand-on-foam", "foot-and-hand"),  # a sole and a palm on one soft body
+    ("hand-on-coarse-cube", "hand-on-cube"),  # the paper's coarse mesh: a print of 4 nodes
 ]
 
 
