@@ -15,7 +15,6 @@ one, CPU seconds, one BLAS thread.
 
 from __future__ import annotations
 
-import datetime
 import os
 import statistics
 import sys
@@ -29,7 +28,7 @@ os.environ["SOFTCBM_CACHE"] = "off"
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from bench_deformable import setup_seconds, timed_solve  # noqa: E402
-from benchmark_info import code_version, machine  # noqa: E402
+from benchmark_info import write_report  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
@@ -67,17 +66,13 @@ def main() -> None:
                 f"| {'yes' if result.feasible else 'no: ' + result.reason[:60]} |"
             )
             print(lines[-1], flush=True)
-    header = (
-        "# Setup of a soft body at about 8k and 50k nodes\n\n"
-        f"{datetime.date.today()}, {code_version()}; {machine()}. Total run time {time.perf_counter() - started:.0f} s.\n\n"
-        "Stance `hand-on-cube` with the 1 m cube meshed at the spacing h (refined where the palm lands).\n\n"
+    write_report(
+        RESULT,
+        "Setup of a soft body at about 8k and 50k nodes",
+        started,
+        "Stance `hand-on-cube` with the 1 m cube meshed at the spacing h (refined where the palm lands).",
+        lines,
     )
-    text_out = header + "\n".join(lines) + "\n"
-    print(text_out)
-    os.makedirs(os.path.dirname(RESULT), exist_ok=True)
-    with open(RESULT, "w") as handle:
-        handle.write(text_out)
-
 
 if __name__ == "__main__":
     main()
