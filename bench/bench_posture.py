@@ -322,8 +322,8 @@ def main():
         ipopt_text = (
             f"IPOPT: `casadi.nlpsol(\"ipopt\")` ({IPOPT_VERSION}, MUMPS) over the same x and the same functions, wrapped as one "
             "`casadi.Callback` with a Jacobian callback (exact Jacobians) and, as Hessian of the Lagrangian, "
-            "the objective's Gauss-Newton Hessian (the SQP's curvature; the problem has no constraint "
-            "second derivatives), options "
+            "the objective's Gauss-Newton Hessian (the SQP's with constraint_curvature=False; the "
+            "constraints' second derivatives are left out), options "
             + ", ".join(f"{k} {v}" for k, v in IPOPT_OPTIONS.items() if k not in ("print_level", "sb"))
             + "; its time includes building the casadi solver."
         )
@@ -358,8 +358,8 @@ Per scenario:
 
 {chr(10).join(scenario_rows)}
 
-`constraint_curvature=True`: the same SQP on the same stances, solved right after the
-default one, with the placement and collision rows' curvature, weighted by the previous QP's
+`constraint_curvature=True`: the same SQP on the same stances, solved right after the one
+with `constraint_curvature=False`, with the placement and collision rows' curvature, weighted by the previous QP's
 multipliers, in the QP's Hessian (`stances/curvature.py`). Mean iterations over the
 {len(cases)} stances: {np.mean(ours["it"]):.2f} without, {np.mean(curved["it"]):.2f} with; total CPU
 of the {len(cases)} solves: {1e3 * np.sum(ours["cpu"]):.0f} ms without, {1e3 * np.sum(curved["cpu"]):.0f} ms with.

@@ -144,9 +144,12 @@ class PostureOptions:
         meaningful near the print, so this homotopy makes solves reliable.
     constraint_curvature : bool
         Add the curvature of the rigid placement and collision rows, weighted
-        by the previous QP's multipliers, to the QP's Hessian (made convex;
-        see :mod:`stances.curvature`): the SQP's model becomes the
-        Lagrangian's, not the objective's alone.
+        by the previous QP's multipliers, to the QP's Hessian (kept convex;
+        see :mod:`stances.curvature`) once the iterate is near feasible and
+        the Gauss-Newton steps are seen to shrink slowly: the SQP's model
+        becomes the Lagrangian's, not the objective's alone (60 random rigid
+        stances: 7.0 iterations on average instead of 8.5, hand-on-table 9.5
+        instead of 14). False: the objective's Gauss-Newton Hessian only.
     """
 
     posture_weight: float = 1.0
@@ -175,7 +178,7 @@ class PostureOptions:
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
     rigid_warm_start: bool = True
-    constraint_curvature: bool = False
+    constraint_curvature: bool = True
 
     def __post_init__(self) -> None:
         if self.reaction_model not in ("consistent", "traction"):

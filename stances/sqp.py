@@ -6,8 +6,9 @@ Each iteration linearises the problem (:mod:`stances.problem`), solves
     s.t.   lower - t s <= value + J x <= upper + t s     (every constraint row)
            step bounds on x,  t >= 0
 
-for the step ``x = (dq, dlambda)`` and one elastic variable ``t``: the QP is
-always feasible, and ``t > 0`` says by how much (in units of each row's scale
+for the step ``x = (dq, dlambda)`` and one elastic variable ``t`` (``H``: the
+objective's Gauss-Newton Hessian, plus the constraints' curvature near a solution,
+see :func:`_with_curvature`): the QP is always feasible, and ``t > 0`` says by how much (in units of each row's scale
 ``s``) the linearised constraints cannot be met. A backtracking line search on
 the exact-penalty merit ``f + rho * max violation`` makes the iteration
 globally convergent; ``rho`` grows when the QP prefers to stay infeasible.
