@@ -308,8 +308,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         previous_objective = linearization.objective
         q, lam, linearization = accepted
         if options.constraint_curvature and not slow and torque_weight == options.torque_weight:
-            local_steps.append(float(np.max(np.abs(step[:nv]))) if alpha == 1.0 else np.inf)
-            slow = len(local_steps) >= 2 and local_steps[-1] > _SLOW_CONTRACTION * local_steps[-2]
+            # Two full steps in a row: a damped one says the model is off, not slow.
+            local_steps = local_steps[-1:] + [float(np.max(np.abs(step[:nv])))] if alpha == 1.0 else []
+            slow = len(local_steps) == 2 and local_steps[1] > _SLOW_CONTRACTION * local_steps[0]
         stalled = 0
         new_violation, worst_label = linearization.max_violation()
         logger.debug(
