@@ -1,0 +1,142 @@
+"""Benchmark the cheap checks before posture solves (cbm.prefilter): on and off.
+
+For each scenario, ``cbm.plan`` with the prefilter on and off, same budgets:
+oracle answers, stances rejected by each check, posture solves actually run
+(retries included), wall and CPU time, and whether the two plans are the same
+sequence of moves. With ``--audit SCENARIO`` it also plans once more with an
+oracle that solves every stance AND runs the prefilter on it, and counts the
+stances the prefilter rejects but the solver accepts (must be 0).
+
+Writes a markdown table to ``bench/results/prefilter.md`` (with the load
+average). Run from the repository root, one run at a time on a shared machine::
+
+    nice -n 10 .venv/bin/python bench/bench_prefilter.py --time-limit 120 --audit cross-two-mats
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import platform
+import time
+from pathlib import Path
+
+import environments
+import stances
+
+from cbm.planner import PostureOracle, plan
+from cbm.prefilter import Prefilter
+
+SCENARIOS = ("cross-soft-block", "climb-with-soft-support", "cross-two-mats")
+
+
+def run(scenario_name, robot, prefilter, time_limit, max_expansions):
+    scenario = environments.load(scenario_name)
+    oracle = PostureOracle(robot, scenario.scene, deadline=time.perf_counter() + time_limit, prefilter=prefilter)
+    result = plan(scenario, robot=robot, time_limit=time_limit, max_expansions=max_expansions, oracle=oracle)
+    s = result.statistics
+    return {
+        "scenario": scenario_name,
+        "prefilter": "on" if prefilter else "off",
+        "success": "yes" if result.success else f"no ({result.reason})",
+        "stances": len(result.stances),
+        "moves": tuple(p.move for p in result.stances),
+        "expanded": s.expanded,
+        "answers": s.solver_calls,
+        "rejected": ", ".join(f"{n} {name}" for name, n in s.prefiltered.items()) or "0",
+        "solves": oracle.solves,
+        "time": s.time,
+        "cpu": s.cpu_time,
+    }
+
+
+class AuditOracle:
+    """Solves every stance (prefilter off) and also asks the prefilter; records disagreements."""
+
+    def __init__(self, robot, scene, deadline):
+        self.oracle = PostureOracle(robot, scene, deadline=deadline, prefilter=False)
+        self.prefilter = Prefilter(robot, scene)
+        self.rejected, self.wrongly_rejected = [], []
+
+    def __call__(self, stance, parent=None, parent_check=None):
+        rejection = self.prefilter(stance)
+        check = self.oracle(stance, parent, parent_check)
+        if rejection is not None:
+            self.rejected.append((stance, rejection, check.feasible, check.reason))
+            if check.feasible:
+                self.wrongly_rejected.append((stance, rejection))
+        return check
+
+
+def audit(scenario_name, robot, time_limit, max_expansions):
+    scenario = environments.load(scenario_name)
+    oracle = AuditOracle(robot, scenario.scene, time.perf_counter() + time_limit)
+    result = plan(scenario, robot=robot, time_limit=time_limit, max_expansions=max_expansions, oracle=oracle)
+    return result, oracle
+
+
+def table(rows):
+    columns = ("scenario", "prefilter", "success", "stances", "expanded", "answers", "rejected", "solves", "time", "cpu")
+    lines = [
+        "| scenario | prefilter | success | stances | expanded | oracle answers | rejected before solving | posture solves | wall s | CPU s |",
+        "|---|---|---|---|---|---|---|---|---|---|",
+    ]
+    for row in rows:
+        cells = [f"{row[c]:.1f}" if c in ("time", "cpu") else str(row[c]) for c in columns]
+        lines.append("| " + " | ".join(cells) + " |")
+    return "\n".join(lines)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--time-limit", type=float, default=120.0)
+    parser.add_argument("--max-expansions", type=int, default=200)
+    parser.add_argument("--scenarios", nargs="*", default=list(SCENARIOS))
+    parser.add_argument("--audit", default=None, metavar="SCENARIO")
+    parser.add_argument("--out", type=Path, default=Path("bench/results/prefilter.md"))
+    args = parser.parse_args()
+    rows, same = [], {}
+    for name in args.scenarios:
+        robot = stances.Robot.load(environments.load(name).robot)
+        pair = []
+        for prefilter in (True, False):
+            load = os.getloadavg()[0]
+            row = run(name, robot, prefilter, args.time_limit, args.max_expansions)
+            row["load"] = load
+            print(row)
+            pair.append(row)
+        same[name] = pair[0]["moves"] == pair[1]["moves"]
+        rows.extend(pair)
+    text = [
+        "# Cheap checks before posture solves (cbm.prefilter), on and off",
+        "",
+        f"`python bench/bench_prefilter.py --time-limit {args.time_limit:g} --max-expansions {args.max_expansions}`, "
+        f"{platform.python_implementation()} {platform.python_version()}, {os.cpu_count()} cores shared; "
+        "1-minute load average before each run: " + ", ".join(f"{r['scenario']} {r['prefilter']} {r['load']:.2f}" for r in rows) + ".",
+        "",
+        "Oracle answers are the search's `solver_calls` (every stance checked); posture solves are the "
+        "`stances.solve` calls actually run (a cold retry after a failed warm start counts twice).",
+        "",
+        table(rows),
+        "",
+        "Same sequence of moves with and without the prefilter: "
+        + ", ".join(f"{name} {'yes' if ok else 'no'}" for name, ok in same.items())
+        + " (a plan that hit its time limit can differ: the filtered run gets further in the same time).",
+    ]
+    if args.audit:
+        robot = stances.Robot.load(environments.load(args.audit).robot)
+        result, oracle = audit(args.audit, robot, args.time_limit, args.max_expansions)
+        text += [
+            "",
+            f"Audit on {args.audit} (every stance solved, prefilter asked too; {result.statistics.solver_calls} "
+            f"stances, {result.reason}): the prefilter rejected {len(oracle.rejected)}, of which the solver "
+            f"accepted {len(oracle.wrongly_rejected)}.",
+        ]
+        for stance, rejection, feasible, reason in oracle.rejected:
+            text.append(f"- {rejection.rejected_by}: {rejection.reason} | solver: {'feasible' if feasible else reason[:160]}")
+    args.out.write_text("\n".join(text) + "\n")
+    print("\n".join(text))
+
+
+if __name__ == "__main__":
+    main()
