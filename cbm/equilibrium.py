@@ -41,7 +41,7 @@ Solved with :func:`scipy.optimize.linprog` (HiGHS, deterministic).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -160,29 +160,28 @@ class EquilibriumFilter:
     robot : stances Robot
         Its total mass (pinocchio's model) and contact surfaces.
     scene : environments Scene
-    solver_options : dict, optional
-        The keyword arguments given to ``stances.solve``; its posture options
-        (contact law, indentation and slip bounds, ``min_normal_force``,
-        ``deformable_as_rigid``) shape the LP.
+    options : stances PostureOptions, optional
+        The options ``stances.solve`` runs with (default: its defaults):
+        contact law, indentation and slip bounds, ``min_normal_force`` and
+        ``deformable_as_rigid`` shape the LP.
 
     Examples
     --------
     >>> import environments, stances
     >>> scenario = environments.load("step-on-cube")
     >>> check = EquilibriumFilter(stances.Robot.load(scenario.robot), scenario.scene)
-    >>> check(scenario.start)
+    >>> check(scenario.stance("step-on-cube"))
     ''
     """
 
-    def __init__(self, robot, scene, solver_options=None):
+    def __init__(self, robot, scene, options=None):
         from stances.problem import PostureOptions
 
-        names = {f.name for f in fields(PostureOptions)}
-        self.options = PostureOptions(**{k: v for k, v in dict(solver_options or {}).items() if k in names})
+        self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
         self.mass = float(pin.computeTotalMass(robot.model))
-        self.weight = self.mass * 9.81
+        self.weight = self.mass * float(np.linalg.norm(robot.model.gravity.linear))
         self.com_bounds = com_distance_bounds(robot)
 
     def __call__(self, stance) -> str:

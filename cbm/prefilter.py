@@ -12,7 +12,7 @@ nodes are refused by :func:`stances.solve` before its SQP.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from .equilibrium import EquilibriumFilter
 from .print_collision import PrintCollisionFilter
@@ -51,9 +51,14 @@ class Prefilter:
     """
 
     def __init__(self, robot, scene, solver_options=None):
+        from stances.problem import PostureOptions
+
+        # The solve's other keyword arguments (time_budget, constraints) do not shape the checks.
+        names = {f.name for f in fields(PostureOptions)}
+        options = PostureOptions(**{k: v for k, v in dict(solver_options or {}).items() if k in names})
         self.checks = (
-            (FILTERS[0], PrintCollisionFilter(robot, scene, solver_options)),
-            (FILTERS[1], EquilibriumFilter(robot, scene, solver_options)),
+            (FILTERS[0], PrintCollisionFilter(robot, scene, options)),
+            (FILTERS[1], EquilibriumFilter(robot, scene, options)),
         )
 
     def __call__(self, stance):

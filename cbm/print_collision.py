@@ -19,8 +19,6 @@ freely) place nothing and are left to the solver.
 
 from __future__ import annotations
 
-from dataclasses import fields
-
 import numpy as np
 import pinocchio as pin
 
@@ -44,25 +42,24 @@ class PrintCollisionFilter:
     ----------
     robot : stances Robot
     scene : environments Scene
-    solver_options : dict, optional
-        Keyword arguments of ``stances.solve``; ``self_collision`` and
-        ``deformable_as_rigid`` are read.
+    options : stances PostureOptions, optional
+        The options ``stances.solve`` runs with (default: its defaults):
+        ``self_collision`` and ``deformable_as_rigid`` are read.
 
     Examples
     --------
     >>> import environments, stances
     >>> scenario = environments.load("step-on-cube")
     >>> check = PrintCollisionFilter(stances.Robot.load(scenario.robot), scenario.scene)
-    >>> check(scenario.start)
+    >>> check(scenario.stance("step-on-cube"))
     ''
     """
 
-    def __init__(self, robot, scene, solver_options=None):
+    def __init__(self, robot, scene, options=None):
         from stances.collision import CollisionChecker
         from stances.problem import PostureOptions
 
-        names = {f.name for f in fields(PostureOptions)}
-        self.options = PostureOptions(**{k: v for k, v in dict(solver_options or {}).items() if k in names})
+        self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
         self._checker = CollisionChecker(robot, scene.collision_objects(), margin=0.0, self_collision=self.options.self_collision)
