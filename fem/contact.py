@@ -449,14 +449,19 @@ def _mode_system(c_local, modes, directions, gains, mu, scale):
     blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
     lifted_rows = np.flatnonzero(np.repeat(lifted, 3))
     matrix[lifted_rows, lifted_rows] = 1.0
-    for k in np.flatnonzero(slipping):
-        d, gain, s = directions[k], gains[k], 0.5 * (scale[k, 0] + scale[k, 1])
-        projector = np.eye(2) - np.outer(d, d)
-        rows = slice(3 * k, 3 * k + 2)
-        matrix[rows] = gain * s * projector @ c_local[rows]
-        matrix[rows, rows] += (1.0 - gain) * np.eye(2) + gain * np.outer(d, d)
-        matrix[rows, 3 * k + 2] -= mu[k] * d
-        blocks[k, :2, :2] = gain * s * projector
+    nodes = np.flatnonzero(slipping)
+    if nodes.size:
+        d = directions[nodes]  # (k, 2)
+        outer = np.einsum("ki,kj->kij", d, d)
+        weight = gains[nodes] * 0.5 * (scale[nodes, 0] + scale[nodes, 1])  # k s per node
+        projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
+        rows = (3 * nodes[:, None] + np.arange(2)).ravel()  # the tangential rows
+        matrix[rows] = np.einsum("kij,kjc->kic", projected, c_local[rows].reshape(len(nodes), 2, -1)).reshape(len(rows), -1)
+        own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
+        columns = 3 * nodes[:, None] + np.arange(2)
+        matrix[columns[:, :, None], columns[:, None, :]] += own
+        matrix[columns, (3 * nodes + 2)[:, None]] -= mu[nodes][:, None] * d
+        blocks[nodes, :2, :2] = projected
     return matrix, blocks
 
 
