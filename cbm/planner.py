@@ -22,7 +22,7 @@ from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
-from .sampling import obstacle_boxes, options_from_scenario, sample_prints
+from .sampling import obstacle_boxes, options_from_scenario, sample_prints, with_prints
 from .search import SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 
@@ -424,6 +424,7 @@ def plan(
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
     print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
+    print_sets = with_prints(print_sets, goal.contacts, scene.surfaces)
     prints = sum(len(s) for s in print_sets.values())
     logger.info(
         "%s: %d prints sampled (spacing %.3f m, %d angles)",

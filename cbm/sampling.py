@@ -325,6 +325,43 @@ def sample_prints(surfaces, robot_surfaces, options=SamplingOptions(), obstacles
     return sets
 
 
+def with_prints(print_sets, contacts, surfaces):
+    """The print sets with the prints of given contacts added where the grid missed them.
+
+    A goal that names its prints (``goal: {stance: ...}``) is reachable only if
+    those exact prints are candidates; a print off the sampling grid (the palm of
+    ``hand-on-cube`` at y = 0.05 on a 0.1 m grid) would otherwise leave the search
+    wandering among neighbours that never equal the goal.
+
+    Parameters
+    ----------
+    print_sets : dict of str to PrintSet
+        As :func:`sample_prints` returns.
+    contacts : iterable of environments Contact
+        Contacts whose prints must be candidates (robot surfaces not in
+        ``print_sets`` are skipped: the planner does not move them).
+    surfaces : mapping of str to environments ContactSurface
+
+    Returns
+    -------
+    dict of str to PrintSet
+        The same sets, each missing print appended (deterministic order).
+    """
+    out = dict(print_sets)
+    for contact in contacts:
+        current = out.get(contact.robot_surface)
+        if current is None or contact.contact_print in current.prints:
+            continue
+        p = contact.contact_print
+        transform = surfaces[p.surface].transform_print_to_world(p.x, p.y, p.theta)
+        origins = np.vstack([current.origins_in_world, transform[:3, 3]])
+        x_axes = np.vstack([current.x_axes_in_world, transform[:3, 0]])
+        origins.setflags(write=False)
+        x_axes.setflags(write=False)
+        out[contact.robot_surface] = PrintSet(contact.robot_surface, current.prints + (p,), origins, x_axes)
+    return out
+
+
 def contacts_in_world(stance, surfaces):
     """World placement of a stance's prints.
 
@@ -393,6 +430,7 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
 
 
 __all__ += [
+    "with_prints",
     "contacts_in_world",
     "options_from_scenario",
     "obstacle_boxes",

@@ -12,7 +12,7 @@ from environments.surfaces import ContactSurface, rectangle
 from conftest import ARM_REACH, LEG, hand_made_biped
 from stances.robot import RobotSurface
 
-from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints
+from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints, with_prints
 from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
 
 ROBOT, REACH = hand_made_biped()
@@ -185,3 +185,19 @@ def test_scenario_options_set_spacing_angles_and_region():
     assert options.theta_values == pytest.approx((0.0, math.pi / 2))
     assert (options.region_lower, options.region_upper) == ((0.0, 1.0), (2.0, 3.0))
     assert options_from_scenario({"print_spacing": 0.2}, spacing=0.05).spacing == 0.05
+
+
+def test_a_goal_print_off_the_grid_becomes_a_candidate_once(surfaces):
+    """A goal naming a print between grid points (hand-on-cube's palm at y = 0.05 on a
+    0.1 m grid) is added to its surface's candidates, at its world placement."""
+    sets = sample_prints(surfaces, {"left_palm": ROBOT["left_palm"]}, SamplingOptions(spacing=0.1, theta_values=(0.0,)))
+    goal = ContactPrint("block_top", 0.05, -0.03, 0.2)
+    assert goal not in sets["left_palm"].prints
+    contact = Contact("left_palm", goal)
+    added = with_prints(sets, [contact, Contact("right_sole", ContactPrint("floor", 0.0, 0.0, 0.0))], surfaces)
+    assert added["left_palm"].prints == sets["left_palm"].prints + (goal,)  # appended, order kept
+    assert "right_sole" not in added  # a surface the planner does not move is left alone
+    placed = surfaces["block_top"].transform_print_to_world(0.05, -0.03, 0.2)
+    np.testing.assert_allclose(added["left_palm"].origins_in_world[-1], placed[:3, 3], atol=1e-15)
+    np.testing.assert_allclose(added["left_palm"].x_axes_in_world[-1], placed[:3, 0], atol=1e-15)
+    assert with_prints(added, [contact], surfaces)["left_palm"].prints == added["left_palm"].prints  # once
