@@ -24,6 +24,7 @@ Run from the repository root::
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import json
 import os
 import sys
@@ -71,10 +72,12 @@ def scene_source(name):
     return str(path) if path.is_file() else name
 
 
-def load_scene(name):
-    """``(scenario, seconds to load it)``."""
+def load_scene(name, defaults=False):
+    """``(scenario, seconds to load it)``; with ``defaults``, its planner options dropped."""
     started = time.perf_counter()
     scenario = environments.load(scene_source(name))
+    if defaults:
+        scenario = dataclasses.replace(scenario, options={})
     return scenario, time.perf_counter() - started
 
 
@@ -100,15 +103,16 @@ def run_once(scenario, robot, seed, time_limit):
     }
 
 
-def run_suite(names, seeds, time_limit, records, save):
+def run_suite(names, seeds, time_limit, records, save, defaults=False):
     """Plan every scene and its twin for each seed, skipping runs already in ``records``."""
     robots = {}
     loaded = {}
     done = {(r["scene"], r["variant"], r["seed"]) for r in records}
+    planned = set()
     for seed in seeds:
         for name in names:
             if name not in loaded:
-                scenario, seconds = load_scene(name)
+                scenario, seconds = load_scene(name, defaults)
                 twin = rigid_twin(scenario) if scenario.scene.deformable_objects else None
                 loaded[name] = (scenario, twin, seconds)
             scenario, twin, seconds = loaded[name]
@@ -120,8 +124,13 @@ def run_suite(names, seeds, time_limit, records, save):
                 if (name, variant, seed) in done:
                     continue
                 record = run_once(which, robot, seed, time_limit)
+                # The first plan of a soft scene in this process computes the compliance
+                # columns its prints need (or reads them from fem's disk cache); later
+                # seeds reuse them: recorded, so the two can be told apart.
+                first = (name, variant) not in planned
+                planned.add((name, variant))
                 record.update(scene=name, variant=variant, load_seconds=seconds, time_limit=time_limit,
-                              options=sorted(scenario.options), soft=twin is not None)
+                              options=sorted(scenario.options), soft=twin is not None, first_in_process=first)
                 records.append(record)
                 save(records)
                 print(
@@ -261,6 +270,8 @@ def main(argv=None):
     parser.add_argument("--out", type=Path, default=RESULTS / "suite.md")
     parser.add_argument("--fresh", action="store_true", help="ignore the runs already in --results")
     parser.add_argument("--table-only", action="store_true", help="write the table of --results, plan nothing")
+    parser.add_argument("--defaults", action="store_true",
+                        help="drop every scene's planner options (use other --results and --out files)")
     args = parser.parse_args(argv)
     names = [n for n in args.scenes.split(",") if n]
     unknown = [n for n in names if scene_source(n) == n and n not in environments.scenario_names()]
@@ -269,14 +280,14 @@ def main(argv=None):
     records = []
     if args.results.is_file() and not args.fresh:
         records = json.loads(args.results.read_text())["runs"]
-    header = f"`bench/bench_suite.py`, {code_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {machine()}."
+    header = f"`bench/bench_suite.py{' --defaults' if args.defaults else ''}`, {code_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {machine()}."
 
     def save(runs):
         args.results.parent.mkdir(parents=True, exist_ok=True)
         args.results.write_text(json.dumps({"header": header, "runs": runs}, indent=1))
 
     if not args.table_only:
-        records = run_suite(names, range(args.seeds), args.time_limit, records, save)
+        records = run_suite(names, range(args.seeds), args.time_limit, records, save, args.defaults)
     text = report(records, names, header)
     args.out.parent.mkdir(parents=True, exist_ok=True)
     args.out.write_text(text)
