@@ -179,7 +179,7 @@ def table(records, names):
     header = (
         "| scene | soft | success | wall median / p90 (s) | CPU median / p90 (s) | solver calls | stances "
         "| twin success | twin wall median / p90 (s) | twin CPU median / p90 (s) | twin solver calls | twin stances "
-        "| soft / rigid median wall |"
+        "| soft / rigid median, wall (CPU) |"
     )
     lines = [header, "|" + "---|" * 13]
     for name in names:
@@ -189,7 +189,9 @@ def table(records, names):
         soft = runs[0]["soft"]
         scene = summary([r for r in runs if r["variant"] == "scene"])
         twin = summary([r for r in runs if r["variant"] == "twin"]) if soft else scene
-        ratio = "-" if not soft or twin is None else f"{scene['wall_median'] / twin['wall_median']:.2f}"
+        ratio = "-" if not soft or twin is None else (
+            f"{scene['wall_median'] / twin['wall_median']:.2f} ({scene['cpu_median'] / twin['cpu_median']:.2f})"
+        )
         twin_cells = _cells(twin) if soft else ["(itself)"] + [""] * 4
         if not soft:
             ratio = "1 (rigid)"
@@ -277,10 +279,13 @@ def main(argv=None):
     unknown = [n for n in names if scene_source(n) == n and n not in environments.scenario_names()]
     if unknown:
         parser.error(f"unknown scenes {unknown}; suite scenes: {', '.join(SCENES)}")
-    records = []
+    records, saved_header = [], None
     if args.results.is_file() and not args.fresh:
-        records = json.loads(args.results.read_text())["runs"]
+        saved = json.loads(args.results.read_text())
+        records, saved_header = saved["runs"], saved.get("header")
     header = f"`bench/bench_suite.py{' --defaults' if args.defaults else ''}`, {code_version()}, {time.strftime('%Y-%m-%d %H:%M UTC', time.gmtime())}; {machine()}."
+    if args.table_only and saved_header is not None:
+        header = saved_header  # the runs' own commit, date and load, not this call's
 
     def save(runs):
         args.results.parent.mkdir(parents=True, exist_ok=True)

@@ -140,4 +140,4 @@ def test_the_suite_table_reports_the_misses_against_the_targets():
         "- a (scene), seed 1: budget exhausted: time_limit; rejected: 3 torque limit"
     ]
     row = SUITE.table(records, ["a"]).splitlines()[-1]
-    assert row.startswith("| a | yes | 50 % of 2 | 17.0 / 27.4 |") and row.endswith("| 6.80 |")
+    assert row.startswith("| a | yes | 50 % of 2 | 17.0 / 27.4 |") and row.endswith("| 6.80 (1.00) |")
