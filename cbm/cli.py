@@ -169,6 +169,11 @@ def build_parser():
     plan.add_argument(
         "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"
     )
+    plan.add_argument(
+        "--no-prefilter",
+        action="store_true",
+        help="solve every stance, without the cheap checks that reject impossible ones first (benchmarks)",
+    )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument(
         "--motion",
@@ -363,6 +368,7 @@ def _plan(args):
                 seed=args.seed,
                 progress=not args.quiet,
                 workers=args.workers,
+                prefilter=not args.no_prefilter,
             )
         except PlanInterrupted as stop:
             if not stop.plan.stances:
@@ -391,6 +397,9 @@ def _plan(args):
         f"  {s.expanded} stances expanded, {s.solver_calls} solver calls, "
         f"{s.cache_hits} cache hits, {s.time:.1f} s wall, {s.cpu_time:.1f} s CPU"
     )
+    if s.prefiltered:
+        checks = ", ".join(f"{count} by {name}" for name, count in s.prefiltered.items())
+        print(f"  {sum(s.prefiltered.values())} of the solver calls rejected before solving: {checks}")
     if result.rejections:
         total = sum(entry["count"] for entry in result.rejections.values())
         causes = ", ".join(f"{entry['count']} {cause}" for cause, entry in result.rejections.items())

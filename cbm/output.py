@@ -11,7 +11,7 @@ from pathlib import Path
 
 import numpy as np
 
-from fem.io import write_pvd
+from fem.io import write_pvd, write_surface
 
 from .display import plan_bounds, scene_edges, stance_display
 from .errors import CbmError
@@ -41,10 +41,16 @@ class OutputFiles:
         ``viewer.html``.
     series : Path or None
         ``plan.pvd``, the meshes as a ParaView time series (time = stance
-        number, one part per deformable object); None without soft bodies.
+        number, one part per deformable object and one for the robot); None
+        without soft bodies or robot meshes.
     trajectory : tuple of Path
         ``trajectory.csv`` and ``trajectory.npz`` (:mod:`cbm.trajectory`),
         when motions were given.
+    robot : tuple of Path
+        ``stance_XX_robot.vtu``, one per stance: the robot's visual meshes
+        (decimated as in the viewer) at the stance's posture, world frame, so
+        ParaView shows robot and soft bodies together; empty when the robot
+        has no visual meshes.
     """
 
     plan: Path
@@ -53,11 +59,12 @@ class OutputFiles:
     viewer: Path
     series: Path | None = None
     trajectory: tuple = ()
+    robot: tuple = ()
 
     def all(self):
         """Every path, plan first."""
         series = () if self.series is None else (self.series,)
-        return (self.plan, *self.pictures, *self.meshes, *series, *self.trajectory, self.viewer)
+        return (self.plan, *self.pictures, *self.meshes, *self.robot, *series, *self.trajectory, self.viewer)
 
 
 def stance_labels(plan):
@@ -113,6 +120,13 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True, motions=None
             obj.write_vtu(path, u)
             vtu_paths.append(path)
             datasets.append((index, part, path))
+    robot_paths = []
+    if meshes is not None:
+        for index, planned in enumerate(plan.stances):
+            path = out / f"stance_{index:02d}_robot.vtu"
+            write_surface(path, *meshes.posed(robot.model, planned.q))
+            robot_paths.append(path)
+            datasets.append((index, len(scene.deformable_objects), path))
     series = None
     if datasets:
         series = out / "plan.pvd"
@@ -144,7 +158,8 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True, motions=None
                        motions=played, camera_azimuth=azimuth)
     viewer_path = write_viewer(out / "viewer.html", data)
     logger.info("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(vtu_paths))
-    return OutputFiles(plan_path, tuple(picture_paths), tuple(vtu_paths), viewer_path, series, trajectory_paths)
+    return OutputFiles(plan_path, tuple(picture_paths), tuple(vtu_paths), viewer_path, series, trajectory_paths,
+                       tuple(robot_paths))
 
 
 def _round_newtons(value):

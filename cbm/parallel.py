@@ -108,7 +108,7 @@ class _WarmStart:
         self.q = q
 
 
-def _start_worker(recipe, solver_options, retry_cold, deadline):
+def _start_worker(recipe, solver_options, retry_cold, deadline, prefilter=True):
     from .planner import PostureOracle
 
     # Ctrl-C reaches the whole process group: the planner handles it and ends the pool.
@@ -117,7 +117,9 @@ def _start_worker(recipe, solver_options, retry_cold, deadline):
     try:
         robot, scene = recipe.build()
         _settle_collision_queries(robot, scene)
-        _ORACLE = PostureOracle(robot, scene, solver_options, retry_cold=retry_cold, deadline=deadline)
+        _ORACLE = PostureOracle(
+            robot, scene, solver_options, retry_cold=retry_cold, deadline=deadline, prefilter=prefilter
+        )
     except Exception as error:  # noqa: BLE001 - sent to the planner: a pool restarts a worker whose start raises, forever
         _ORACLE = error
 
@@ -150,7 +152,7 @@ def _check(stance, parent_q):
         raise CbmError(f"a worker process could not build the robot and scene: {_ORACLE}") from _ORACLE
     check = _ORACLE(stance, None, None if parent_q is None else _WarmStart(parent_q))
     result = None if check.result is None else portable(check.result)
-    return StanceCheck(check.feasible, check.reason, result)
+    return StanceCheck(check.feasible, check.reason, result, check.rejected_by)
 
 
 class _Answer:
@@ -170,7 +172,7 @@ class _Answer:
         if check.result is None:
             return check
         result = restore_deformations(self._pool.robot, self._pool.scene, check.result)
-        return type(check)(check.feasible, check.reason, result)
+        return type(check)(check.feasible, check.reason, result, check.rejected_by)
 
 
 class PosturePool:
@@ -191,6 +193,8 @@ class PosturePool:
     deadline : float, optional
         ``time.perf_counter()`` value (a system-wide monotonic clock on Linux
         and macOS, so the workers read it as this process does).
+    prefilter : bool
+        As :class:`~cbm.planner.PostureOracle`'s.
 
     Notes
     -----
@@ -198,13 +202,13 @@ class PosturePool:
     still solving a stance the search no longer needs.
     """
 
-    def __init__(self, workers, scenario, robot, solver_options=None, retry_cold=True, deadline=None):
+    def __init__(self, workers, scenario, robot, solver_options=None, retry_cold=True, deadline=None, prefilter=True):
         recipe = WorldRecipe.of(scenario, robot)
         self.robot, self.scene = robot, scenario.scene
         self.workers = check_workers(workers)
         context = multiprocessing.get_context("spawn")
         self._pool = context.Pool(
-            workers, _start_worker, (recipe, dict(solver_options or {}), retry_cold, deadline)
+            workers, _start_worker, (recipe, dict(solver_options or {}), retry_cold, deadline, prefilter)
         )
 
     def submit(self, stance, parent=None, parent_check=None):

@@ -185,9 +185,15 @@ class PlanStatistics(SearchStatistics):
     prints : int
         Prints sampled (all robot surfaces); the other fields are
         :class:`~cbm.search.SearchStatistics`'.
+    prefiltered : dict of str to int
+        Stances rejected without a posture solve, by the cheap check that
+        rejected them (``StanceCheck.rejected_by``); they are among the
+        ``solver_calls`` (oracle answers), so the posture solves were
+        ``solver_calls - sum(prefiltered.values())``.
     """
 
     prints: int = 0
+    prefiltered: dict = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

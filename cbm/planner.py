@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import logging
 import time
+from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
@@ -19,6 +20,7 @@ from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
 from .rejections import summarise
+from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import obstacle_boxes, options_from_scenario, sample_prints
 from .search import SearchInterrupted, SearchLimits, best_first_search
@@ -108,12 +110,16 @@ class StanceCheck:
     reason : str
         Why not, if infeasible.
     result : stances PostureResult or None
-        The solver's result (None if the solver raised).
+        The solver's result (None if the solver raised or was not run).
+    rejected_by : str
+        Name of the cheap check that rejected the stance without a posture
+        solve (:mod:`cbm.prefilter`), ``""`` if it was solved.
     """
 
     feasible: bool
     reason: str
     result: Any = None
+    rejected_by: str = ""
 
 
 def posture_api():
@@ -149,20 +155,32 @@ class PostureOracle:
         ``time.perf_counter()`` value after which no solve runs on: each solve
         gets the time left as its ``time_budget``, so a planner's time limit
         holds during a solve too.
+    prefilter : bool
+        Before solving, reject the stances that no posture can hold, found by
+        checks of milliseconds (:class:`cbm.prefilter.Prefilter`: links that
+        rigid prints place inside something, static equilibrium of the
+        contact set); such a stance gets an infeasible answer without result,
+        ``rejected_by`` naming the check. Off: every stance is solved (for
+        benchmarks).
     """
 
-    def __init__(self, robot, scene, solver_options=None, retry_cold=True, deadline=None):
+    def __init__(self, robot, scene, solver_options=None, retry_cold=True, deadline=None, prefilter=True):
         self.robot = robot
         self.scene = scene
         self.solver_options = dict(solver_options or {})
         self.retry_cold = retry_cold
         self.deadline = deadline
         self.solves = 0  # posture solves, retries included
+        self.prefilter = bool(prefilter)
+        self._filter = None  # built on first use: its setup reads the robot's mass and tree
 
     def __call__(self, stance, parent=None, parent_check=None):
         """Check one stance; ``parent_check`` gives the warm start."""
         if self._time_left() == 0.0:
             return StanceCheck(False, _OUT_OF_TIME)
+        rejection = self._prefiltered(stance)
+        if rejection is not None:
+            return StanceCheck(False, rejection.reason, None, rejected_by=rejection.rejected_by)
         starts = []
         if parent_check is not None and parent_check.result is not None:
             starts.append(parent_check.result.q)
@@ -174,6 +192,20 @@ class PostureOracle:
             if check.feasible:
                 break
         return check
+
+    def _prefiltered(self, stance):
+        """The prefilter's :class:`~cbm.prefilter.Rejection` of ``stance``, None to solve it."""
+        if not self.prefilter:
+            return None
+        from environments.errors import SceneError
+        from stances.errors import StanceError
+
+        if self._filter is None:
+            self._filter = Prefilter(self.robot, self.scene, self.solver_options)
+        try:
+            return self._filter(stance)
+        except (StanceError, SceneError):
+            return None  # a malformed stance: the solve reports it as it always has
 
     def _time_left(self):
         """Seconds left before the deadline (0.0 once past it), None without one."""
@@ -315,6 +347,7 @@ def plan(
     eager=False,
     oracle=None,
     workers=1,
+    prefilter=True,
 ):
     """Plan a sequence of stances from the scenario's start to its goal.
 
@@ -408,9 +441,9 @@ def plan(
         raise CbmError("workers > 1 runs the posture oracle in worker processes; a custom oracle= needs workers=1")
     if oracle is None:
         deadline = None if time_limit is None else time.perf_counter() + time_limit
-        oracle = PostureOracle(robot, scene, solver_options, deadline=deadline)
+        oracle = PostureOracle(robot, scene, solver_options, deadline=deadline, prefilter=prefilter)
         if workers > 1:
-            pool = PosturePool(workers, scenario, robot, solver_options, deadline=deadline)
+            pool = PosturePool(workers, scenario, robot, solver_options, deadline=deadline, prefilter=prefilter)
 
     bar = None
     on_expand = None
@@ -474,6 +507,9 @@ def _plan_of(searched, scenario, robot, prints, reason):
             )
         )
     s = searched.statistics
+    answers = [attributes["result"] for _, attributes in searched.graph.nodes(data=True)]
+    prefiltered = Counter(getattr(a, "rejected_by", "") for a in answers if a is not None)
+    prefiltered.pop("", None)
     statistics = PlanStatistics(
         expanded=s.expanded,
         generated=s.generated,
@@ -482,6 +518,7 @@ def _plan_of(searched, scenario, robot, prints, reason):
         prints=prints,
         time=s.time,
         cpu_time=s.cpu_time,
+        prefiltered=dict(sorted(prefiltered.items())),
     )
     rejected = [
         getattr(attributes["result"], "reason", "") or "rejected"
@@ -513,9 +550,10 @@ def initial_configuration(robot, scene, stance):
     -------
     (nq,) float
         ``robot.reference_configuration`` with its free flyer translated so
-        that the mid-point of its feet (surfaces of its support role) lies
-        over the mid-point of the stance's foot prints (or of all prints
-        without a foot) and turned to their mean heading about world z.
+        that the mid-point of the feet (surfaces of its support role) the
+        stance uses lies over the mid-point of their prints (without a foot in
+        the stance: all its feet over all its prints) and turned to their mean
+        heading about world z.
     """
     import pinocchio as pin
 
@@ -524,10 +562,14 @@ def initial_configuration(robot, scene, stance):
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
     feet = robot.surfaces_with_role(robot.support.role)
-    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in feet], axis=0)
-    contacts = [c for c in stance if c.robot_surface in feet] or list(stance)
+    contacts = [c for c in stance if c.robot_surface in feet]
+    # The same feet on both sides: a quadruped on three feet puts those three
+    # over their prints, not the mid-point of all four.
+    used = [c.robot_surface for c in contacts] or list(feet)
+    contacts = contacts or list(stance)
     if not contacts:
         return q
+    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in used], axis=0)
     transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]
     target = np.mean([t[:3, 3] for t in transforms], axis=0)
     heading = np.mean([t[:3, 0] for t in transforms], axis=0)

@@ -182,3 +182,35 @@ def _call_meshio(function, *args, **kwargs):
             f"{said or 'meshio gave up without a reason'} (is the file complete and in the format its "
             "extension says?)"
         ) from None
+
+
+def write_surface(path: str | os.PathLike, points, triangles) -> None:
+    """Write a triangle surface (e.g. a robot's meshes placed in the world) with meshio.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Output file; the format follows the extension (``.vtu`` for ParaView).
+    points : (v, 3) float
+        Vertices, metres.
+    triangles : (t, 3) int
+        Rows of indices into ``points``.
+
+    Raises
+    ------
+    MeshError
+        On arrays of the wrong shape, indices out of range, or a format meshio cannot write.
+    """
+    import meshio
+
+    points = np.asarray(points, dtype=float)
+    triangles = np.asarray(triangles)
+    if points.ndim != 2 or points.shape[1] != 3 or triangles.ndim != 2 or triangles.shape[1] != 3:
+        raise MeshError(f"points must be (v, 3) and triangles (t, 3), got {points.shape} and {triangles.shape}")
+    if triangles.size and (triangles.min() < 0 or triangles.max() >= len(points)):
+        raise MeshError(f"triangle indices must lie in 0..{len(points) - 1}")
+    out = meshio.Mesh(points, [("triangle", triangles.astype(np.int64))])
+    try:
+        _call_meshio(meshio.write, os.fspath(path), out)
+    except Exception as exc:
+        raise MeshError(f"meshio cannot write {os.fspath(path)!r}: {exc}") from exc

@@ -310,6 +310,7 @@ def fake_planning(monkeypatch):
         class statistics:  # noqa: N801 - stands in for PlanStatistics
             expanded = solver_calls = cache_hits = 0
             time = cpu_time = 0.0
+            prefiltered = {}
 
     def plan(*args, **kwargs):
         calls.append("plan")

@@ -122,7 +122,7 @@ def test_cli_plan_writes_every_file(tmp_path, capsys):
     count = len(loaded.stances)
     expected = {"plan.json", "plan.pvd", "viewer.html"}
     expected |= {f"stance_{i:02d}.png" for i in range(count)}
-    expected |= {f"stance_{i:02d}_foam.vtu" for i in range(count)}
+    expected |= {f"stance_{i:02d}_foam.vtu" for i in range(count)} | {f"stance_{i:02d}_robot.vtu" for i in range(count)}
     assert {p.name for p in out.iterdir()} == expected
     assert "plan found" in printed
     if chromium_binary() is not None:

@@ -89,7 +89,7 @@ def test_outputs_write_every_file(synthetic_plan, scenario, robot, tmp_path):
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path / "out")
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
     expected = ["plan.json", "plan.pvd", "viewer.html"] + [f"stance_{i:02d}.png" for i in range(4)]
-    expected += [f"stance_{i:02d}_foam.vtu" for i in range(4)]
+    expected += [f"stance_{i:02d}_foam.vtu" for i in range(4)] + [f"stance_{i:02d}_robot.vtu" for i in range(4)]
     assert names == sorted(expected)
     assert all(p.stat().st_size > 0 for p in files.all())
     assert Plan.load(files.plan).to_dict() == synthetic_plan.to_dict()
@@ -113,8 +113,28 @@ def test_pvd_plays_the_plan_one_stance_per_time_step(synthetic_plan, scenario, r
     entries = [e.attrib for e in ElementTree.parse(files.series).getroot().iter("DataSet")]
     assert [(e["timestep"], e["part"], e["file"]) for e in entries] == [
         (str(i), "0", f"stance_{i:02d}_foam.vtu") for i in range(4)
-    ]
+    ] + [(str(i), "1", f"stance_{i:02d}_robot.vtu") for i in range(4)]
     assert all((tmp_path / e["file"]).is_file() for e in entries)
+
+
+def test_robot_vtu_is_the_robot_at_each_stance_in_world(synthetic_plan, scenario, robot, tmp_path):
+    """ParaView overlays robot and soft body: each stance's robot file holds the visual
+    meshes placed at that stance's posture, in the world frame."""
+    import meshio
+
+    from cbm.robot_mesh import robot_meshes
+
+    files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
+    assert [p.name for p in files.robot] == [f"stance_{i:02d}_robot.vtu" for i in range(4)]
+    meshes = robot_meshes(robot)
+    for planned, path in zip(synthetic_plan.stances, files.robot):
+        points, triangles = meshes.posed(robot.model, planned.q)
+        read = meshio.read(path)
+        np.testing.assert_allclose(read.points, points, atol=1e-12)
+        np.testing.assert_array_equal(read.cells_dict["triangle"], triangles)
+    # Standing on the floor: the lowest vertex of the robot is at the floor, not below it or far above.
+    lowest = meshio.read(files.robot[0]).points[:, 2].min()
+    assert -0.01 < lowest < 0.01
 
 
 SLANTED_SOFT_BOX = """

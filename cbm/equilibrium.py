@@ -1,0 +1,306 @@
+"""Cheap rejection before a posture solve: static equilibrium of the contact set.
+
+Most stances a planner checks are infeasible, and a posture solve (an SQP) of
+an infeasible stance is its most expensive answer. Whether ANY posture can
+hold a stance is bounded by a small linear program, as RB-PRM's centroidal
+check does: can contact forces, each inside its friction cone and applied
+where the stance's prints are, balance the robot's weight with its centre of
+mass somewhere the robot can put it? If not, no posture solve can succeed,
+and the stance is rejected at the cost of one LP (about a millisecond).
+
+The LP is a relaxation of what :func:`stances.solve` and :func:`stances.verify`
+require, so it never rejects a stance they accept:
+
+- Rigid prints: a force at each vertex of the robot surface's polygon (a point
+  foot: one at its ball's centre) inside the OUTER linearised friction
+  pyramid ``|f . t_i| <= mu f . n``, which contains the exact Coulomb cone
+  that :func:`stances.verify` checks (and the solver's inscribed pyramid).
+- Soft prints (:mod:`stances.deformable`): the forces act at the print nodes'
+  link points. At rest every node lies in the print polygon (a point foot's:
+  at its ball's centre), and a force at a point of a polygon is a convex
+  combination of the same force at its vertices, so the node forces add up to
+  vertex forces with the same resultant and moment; with the ``coulomb`` and
+  ``sticking`` laws each node force is inside its own cone (verified per node),
+  so the vertex forces are too. The link points move from rest with the body:
+  the moment of that motion is at most ``r |f|`` per force, ``r`` the margin of
+  :func:`soft_print_margin`, and enters as a bounded slack. With the
+  ``bonded`` law only each print's resultant is in its cone (node forces may
+  twist the print freely): its moment is left free.
+- The centre of mass: world gravity is vertical, so only its horizontal
+  position enters the moments. It lies within :func:`com_distance_bounds` of
+  every contact surface's frame (a bound from the kinematic tree that holds in
+  every configuration; a soft print's frame may move by the margin too),
+  relaxed to the circumscribed octagon.
+
+Newton-Euler in the world, with ``W = m g``:
+``sum_i f_i = (0, 0, W)`` and ``sum_i p_i x f_i + c x (0, 0, -W) + s = 0``,
+linear in the forces ``f``, the centre of mass ``c`` and the soft slacks ``s``.
+Solved with :func:`scipy.optimize.linprog` (HiGHS, deterministic).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import pinocchio as pin
+from scipy.optimize import linprog
+
+__all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
+
+#: How every rejection's reason starts (cbm.rejections files it under balance).
+EQUILIBRIUM_IMPOSSIBLE = "static equilibrium impossible for the contact set"
+
+# Joints that keep their origin in place (rotations about it): segment lengths
+# between joint origins are then the same in every configuration.
+_FIXED_ORIGIN_JOINTS = ("JointModelR", "JointModelSpherical")
+# Directions of the octagon around each disc of reachable centres of mass.
+_OCTAGON = np.array([[math.cos(a), math.sin(a)] for a in np.arange(4) * math.pi / 4])
+
+
+def com_distance_bounds(robot) -> dict:
+    """How far the centre of mass can be from each contact surface's frame.
+
+    For a body ``k`` of mass ``m_k`` whose centre of mass is reached from the
+    surface's frame through a chain of joint origins, ``|x_k - p| <= L_k``,
+    the chain's summed segment lengths (the same in every configuration when
+    every joint turns about its origin). Hence ``|c - p| <= sum_k m_k L_k / m``.
+
+    Parameters
+    ----------
+    robot : stances Robot
+
+    Returns
+    -------
+    dict of str to float
+        Robot surface -> bound, metres; ``inf`` for every surface if the model
+        has a joint that moves its origin (prismatic, planar) below the root.
+    """
+    model = robot.model
+    for joint in model.joints[2:]:
+        if not joint.shortname().startswith(_FIXED_ORIGIN_JOINTS):
+            return {name: math.inf for name in robot.surfaces}
+    segment = np.array([np.linalg.norm(placement.translation) for placement in model.jointPlacements])
+    masses = np.array([inertia.mass for inertia in model.inertias])
+    levers = np.array([np.linalg.norm(inertia.lever) for inertia in model.inertias])
+    chains = [_chain(model, joint) for joint in range(model.njoints)]
+    bounds = {}
+    for name, surface in robot.surfaces.items():
+        frame = model.frames[robot.frame_id(surface.frame)]
+        start = chains[frame.parentJoint]
+        lengths = np.zeros(model.njoints)
+        for body in range(1, model.njoints):
+            common = set(start) & set(chains[body])
+            path = [j for j in start if j not in common] + [j for j in chains[body] if j not in common]
+            lengths[body] = segment[path].sum() + levers[body]
+        bounds[name] = float(np.linalg.norm(frame.placement.translation) + masses @ lengths / masses.sum())
+    return bounds
+
+
+def _chain(model, joint):
+    """Joints from ``joint`` up to the universe (0), inclusive."""
+    chain = [joint]
+    while chain[-1] != 0:
+        chain.append(model.parents[chain[-1]])
+    return chain
+
+
+def soft_print_margin(deformable_object, normal_in_world, options) -> float:
+    """How far a loaded print node's link point can move from its rest position, metres.
+
+    The sum of the indentation bound (``max_indentation``, else
+    ``indentation_limit`` times the body's thickness along the print normal),
+    the slip bound of the ``coulomb`` law (``max_slip``) and ``2 strain_limit
+    H``: the tangential displacement of a surface node of a body of thickness
+    ``H`` held at its far side whose shear strains stay within the strain
+    bound that :func:`stances.verify` checks. An estimate, not a theorem (a
+    body held at its sides, or bulging, can exceed it); it only widens the LP.
+
+    Parameters
+    ----------
+    deformable_object : environments DeformableObject
+    normal_in_world : (3,) float
+        The print's outward normal, world frame.
+    options : stances PostureOptions
+    """
+    rotation = np.asarray(deformable_object.transform_body_to_world, dtype=float)[:3, :3]
+    thickness = float(np.ptp(deformable_object.body.mesh.nodes @ (rotation.T @ normal_in_world)))
+    indentation = options.max_indentation if options.max_indentation is not None else options.indentation_limit * thickness
+    slip = options.max_slip if options.contact_law == "coulomb" else 0.0
+    return float(indentation + slip + 2.0 * deformable_object.strain_limit * thickness)
+
+
+@dataclass(frozen=True)
+class _PrintForces:
+    """One print as the LP sees it.
+
+    points : (k, 3) float, world frame, where its k forces act;
+    rotation : (3, 3) float, print frame axes as columns (z: normal);
+    origin : (3,) float, world, the robot surface frame's origin on the print;
+    margin : float, metres the points may move (soft), 0 for rigid;
+    free_moment : bool, the bonded law: only the resultant is in the cone.
+    """
+
+    label: str
+    robot_surface: str
+    points: np.ndarray
+    rotation: np.ndarray
+    origin: np.ndarray
+    friction: float
+    margin: float = 0.0
+    free_moment: bool = False
+
+
+class EquilibriumFilter:
+    """Rejects stances that no posture can hold in static equilibrium.
+
+    Parameters
+    ----------
+    robot : stances Robot
+        Its total mass (pinocchio's model) and contact surfaces.
+    scene : environments Scene
+    options : stances PostureOptions, optional
+        The options ``stances.solve`` runs with (default: its defaults):
+        contact law, indentation and slip bounds, ``min_normal_force`` and
+        ``deformable_as_rigid`` shape the LP.
+
+    Examples
+    --------
+    >>> import environments, stances
+    >>> scenario = environments.load("step-on-cube")
+    >>> check = EquilibriumFilter(stances.Robot.load(scenario.robot), scenario.scene)
+    >>> check(scenario.stance("step-on-cube"))
+    ''
+    """
+
+    def __init__(self, robot, scene, options=None):
+        from stances.problem import PostureOptions
+
+        self.options = options if options is not None else PostureOptions()
+        self.robot = robot
+        self.scene = scene
+        self.mass = float(pin.computeTotalMass(robot.model))
+        self.weight = self.mass * float(np.linalg.norm(robot.model.gravity.linear))
+        self.com_bounds = com_distance_bounds(robot)
+
+    def __call__(self, stance) -> str:
+        """``""`` if the stance may be held, else why not (starting with :data:`EQUILIBRIUM_IMPOSSIBLE`).
+
+        Raises
+        ------
+        environments.SceneError, stances.StanceError
+            For a print on an unknown surface or an unknown robot surface (as
+            ``stances.solve`` would).
+        """
+        prints = [self._print_forces(contact) for contact in stance]
+        if not prints:
+            return ""
+        if _feasible(prints, self.com_bounds, self.options.min_normal_force / self.weight, moments=True):
+            return ""
+        labels = ", ".join(p.label for p in prints)
+        if not _feasible(prints, self.com_bounds, self.options.min_normal_force / self.weight, moments=False):
+            return (
+                f"{EQUILIBRIUM_IMPOSSIBLE}: the friction cones of {labels} cannot carry the robot's weight "
+                f"({self.mass:.1f} kg) whatever the posture"
+            )
+        return (
+            f"{EQUILIBRIUM_IMPOSSIBLE}: no centre of mass within the robot's reach of {labels} "
+            "balances the moments of forces inside their friction cones"
+        )
+
+    def _print_forces(self, contact) -> _PrintForces:
+        contact_print = contact.contact_print
+        surface = self.scene.surface(contact_print.surface)
+        robot_surface = self.robot.surface(contact.robot_surface)
+        transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
+        rotation, origin = transform[:3, :3], transform[:3, 3]
+        if robot_surface.is_point:
+            origin = origin + robot_surface.radius * rotation[:, 2]  # the ball's centre, where its force acts
+            points = origin[None]
+        else:
+            points = robot_surface.vertices_in_frame @ rotation.T + origin
+        label = f"{contact.robot_surface} on {surface.name}"
+        if not surface.deformable or self.options.deformable_as_rigid:
+            return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction))
+        body = self.scene.deformable_of_surface(surface.name)
+        return _PrintForces(
+            label,
+            contact.robot_surface,
+            points,
+            rotation,
+            origin,
+            float(surface.friction),
+            soft_print_margin(body, rotation[:, 2], self.options),
+            self.options.contact_law == "bonded",
+        )
+
+
+def _feasible(prints, com_bounds, min_normal, moments) -> bool:
+    """Whether the equilibrium LP of ``prints`` has a solution (forces in units of the weight).
+
+    Unknowns: each print's point forces (3 per point, world), the centre of
+    mass's horizontal offset from the prints' mean origin (2), each soft
+    print's moment slack (3). A solver failure other than infeasibility
+    counts as feasible: the filter only rejects what it proved.
+    """
+    centre = np.mean([p.origin for p in prints], axis=0)
+    counts = [3 * len(p.points) for p in prints]
+    force_columns = np.cumsum([0] + counts)
+    n_forces = force_columns[-1]
+    com = n_forces
+    slack = com + 2
+    n = slack + 3 * len(prints)
+    equalities = np.zeros((6, n))
+    inequalities = []
+    for index, p in enumerate(prints):
+        columns = slice(force_columns[index], force_columns[index + 1])
+        k = len(p.points)
+        equalities[:3, columns] = np.tile(np.eye(3), k)
+        equalities[3:, columns] = np.hstack([pin.skew(point - centre) for point in p.points])
+        normal, tangents = p.rotation[:, 2], p.rotation[:, :2].T
+        # Rows on one point force (3,): pushing, and inside the outer pyramid.
+        pyramid = [-normal] + [sign * t - p.friction * normal for t in tangents for sign in (1.0, -1.0)]
+        normal_sum = np.zeros(n)
+        normal_sum[columns] = np.tile(normal, k)
+        rows = pyramid[:1] if p.free_moment else pyramid
+        for point in range(k):
+            for row in rows:
+                line = np.zeros(n)
+                line[force_columns[index] + 3 * point : force_columns[index] + 3 * point + 3] = row
+                inequalities.append((line, 0.0))
+        if p.free_moment:
+            for row in pyramid[1:]:  # the resultant in the pyramid
+                line = np.zeros(n)
+                line[columns] = np.tile(row, k)
+                inequalities.append((line, 0.0))
+        if min_normal > 0:
+            inequalities.append((-normal_sum, -min_normal))
+        moment_slack = slice(slack + 3 * index, slack + 3 * index + 3)
+        equalities[3:, moment_slack] = np.eye(3)
+        if not p.free_moment:
+            # |s_axis| <= margin * |f|, |f| <= sqrt(1 + 2 mu^2) f.n in the outer pyramid.
+            reach = p.margin * math.sqrt(1.0 + 2.0 * p.friction**2) * normal_sum
+            for axis in range(3):
+                for sign in (1.0, -1.0):
+                    line = -reach.copy()
+                    line[slack + 3 * index + axis] = sign
+                    inequalities.append((line, 0.0))
+        bound = com_bounds.get(p.robot_surface, math.inf) + p.margin
+        if moments and math.isfinite(bound):
+            offset = (p.origin - centre)[:2]
+            for direction in _OCTAGON:
+                for sign in (1.0, -1.0):
+                    line = np.zeros(n)
+                    line[com : com + 2] = sign * direction
+                    inequalities.append((line, bound + sign * direction @ offset))
+    # c x (0, 0, -1) = (-c_y, c_x, 0) about the centre.
+    equalities[3, com + 1] = -1.0
+    equalities[4, com] = 1.0
+    target = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 0.0])
+    if not moments:
+        equalities, target = equalities[:3], target[:3]
+    a_ub = np.array([line for line, _ in inequalities])
+    b_ub = np.array([value for _, value in inequalities])
+    result = linprog(np.zeros(n), A_ub=a_ub, b_ub=b_ub, A_eq=equalities, b_eq=target, bounds=(None, None), method="highs")
+    return result.status != 2  # 2: proven infeasible
