@@ -154,15 +154,48 @@ def summary(name, successes, times, cpu_times, iterations):
     )
 
 
-def solve_ours(robot, scene, stance):
+def solve_ours(robot, scene, stance, **options):
     """The library's SQP: (result, wall seconds incl. build and verify, CPU seconds of the
     solve incl. its final verify, CPU seconds incl. build too)."""
     tic, cpu_tic = time.perf_counter(), time.process_time()
-    problem = build_problem(robot, scene, stance, PostureOptions())
+    problem = build_problem(robot, scene, stance, PostureOptions(**options))
     cpu_start = time.process_time()
     result = solve_problem(problem)
     cpu_end = time.process_time()
     return result, time.perf_counter() - tic, cpu_end - cpu_start, cpu_end - cpu_tic
+
+
+def soft_stances():
+    """(scenario name, scenario, stance name) of every built-in stance with a print on a soft surface."""
+    for scenario_name in environments.scenario.scenario_names():
+        scenario = environments.load(scenario_name)
+        for stance_name, stance in scenario.stances.items():
+            if any(scenario.scene.surface(c.contact_print.surface).deformable for c in stance):
+                yield scenario_name, scenario, stance_name
+
+
+def soft_section():
+    """The built-in soft stances solved with and without the constraints' curvature, as markdown."""
+    rows = [
+        "| stance | curvature | verified | iterations (+ warm starts) | CPU s |",
+        "|---|---|---|---|---|",
+    ]
+    robots = {}
+    for scenario_name, scenario, stance_name in soft_stances():
+        if scenario.robot not in robots:
+            robots[scenario.robot] = stances.Robot.load(scenario.robot)
+        robot = robots[scenario.robot]
+        stance = scenario.stance(stance_name)
+        solve(robot, scenario.scene, stance)  # pays the setup (mesh, factorisation, compliance)
+        for curvature in (False, True):
+            cpu = time.process_time()
+            result = solve(robot, scenario.scene, stance, constraint_curvature=curvature)
+            cpu = time.process_time() - cpu
+            warm = result.statistics.get("rigid_warm_start_iterations", 0)
+            rows.append(f"| {scenario_name}/{stance_name} | {'on' if curvature else 'off'} "
+                        f"| {'yes' if result.feasible else 'NO: ' + result.reason} "
+                        f"| {result.iterations} (+{warm}) | {cpu:.2f} |")
+    return "Built-in soft stances (`stances.solve`, one solve after a first that pays the setup):\n\n" + "\n".join(rows)
 
 
 def qp_section(robot):
@@ -203,17 +236,25 @@ def main():
         solve_ipopt(robot, cases[0][1], cases[0][2])
 
     ours = {"ok": [], "time": [], "cpu": [], "wall": [], "cpu_all": [], "it": []}
+    # The same SQP with the constraints' curvature in its Hessian (PostureOptions.constraint_curvature).
+    curved = {"ok": [], "time": [], "cpu": [], "it": []}
     baselines = {"SLSQP": [], "IPOPT": []}
     failures = []
     per_scenario = {}
     for index, (scenario_name, scene, stance) in enumerate(cases):
-        result, wall, cpu, cpu_all = solve_ours(robot, scene, stance)
+        result, wall, cpu, cpu_all = solve_ours(robot, scene, stance, constraint_curvature=False)
         ours["cpu_all"].append(cpu_all)
         ours["ok"].append(result.feasible)
         ours["time"].append(result.solve_time)
         ours["cpu"].append(cpu)
         ours["wall"].append(wall)
         ours["it"].append(result.iterations)
+        result_curved, _, cpu_curved, _ = solve_ours(robot, scene, stance, constraint_curvature=True)
+        for key, value in (("ok", result_curved.feasible), ("time", result_curved.solve_time),
+                           ("cpu", cpu_curved), ("it", result_curved.iterations)):
+            curved[key].append(value)
+        if not result_curved.feasible:
+            failures.append(f"- stances.solve with curvature, stance {index} ({scenario_name}): {result_curved.reason}")
         runs = {"SLSQP": solve_slsqp(robot, scene, stance)}
         if solve_ipopt is not None:
             runs["IPOPT"] = solve_ipopt(robot, scene, stance)
@@ -221,12 +262,16 @@ def main():
             baselines[name].append(run)
             if not run.ok:
                 failures.append(f"- {name}, stance {index} ({scenario_name}): {run.why}")
-        per_scenario.setdefault(scenario_name, []).append((result.feasible, cpu, runs))
+        per_scenario.setdefault(scenario_name, []).append(
+            (result.feasible, cpu, runs, result.iterations, result_curved.feasible, cpu_curved, result_curved.iterations)
+        )
         if not result.feasible:
             failures.append(f"- stances.solve, stance {index} ({scenario_name}): {result.reason} {stance.to_dict()}")
         print(
             f"{index:3d} {scenario_name:14s} ours {'ok ' if result.feasible else 'NO '} "
             f"{1e3 * cpu:7.1f} ms CPU {result.iterations:3d} it"
+            f" | curvature {'ok ' if result_curved.feasible else 'NO '} {1e3 * cpu_curved:7.1f} ms CPU"
+            f" {result_curved.iterations:3d} it"
             + "".join(
                 f" | {name} {'ok ' if run.ok else 'NO '} {1e3 * run.cpu_seconds:7.1f} ms CPU {run.iterations:3d} it"
                 f" viol {run.violation:.1e}"
@@ -238,8 +283,9 @@ def main():
     rows = [
         "| method | success | median ms | p90 ms | median CPU ms | p90 CPU ms | median iterations |",
         "|---|---|---|---|---|---|---|",
-        summary("stances.solve (SQP, proxsuite)", ours["ok"], ours["time"], ours["cpu"], ours["it"]),
+        summary("stances.solve (SQP, proxsuite), constraint_curvature=False", ours["ok"], ours["time"], ours["cpu"], ours["it"]),
         summary("stances.solve, incl. build + verify", ours["ok"], ours["wall"], ours["cpu_all"], ours["it"]),
+        summary("stances.solve, constraint_curvature=True", curved["ok"], curved["time"], curved["cpu"], curved["it"]),
         _baseline_rows("scipy SLSQP, same problem functions", baselines["SLSQP"]),
     ]
     if solve_ipopt is not None:
@@ -247,13 +293,16 @@ def main():
     table = "\n".join(rows)
     methods = ["SLSQP"] + (["IPOPT"] if solve_ipopt is not None else [])
     scenario_rows = [
-        "| scenario | stances | ours success | ours median CPU ms"
+        "| scenario | stances | ours success | ours median CPU ms | ours mean iterations"
+        " | with curvature: success | median CPU ms | mean iterations"
         + "".join(f" | {m} success | {m} median CPU ms" for m in methods) + " |",
-        "|---|---|---|---" + "|---|---" * len(methods) + "|",
+        "|---|---|---|---|---|---|---|---" + "|---|---" * len(methods) + "|",
     ]
     for name, entries in per_scenario.items():
         line = (f"| {name} | {len(entries)} | {np.mean([e[0] for e in entries]):.0%} "
-                f"| {1e3 * np.median([e[1] for e in entries]):.1f}")
+                f"| {1e3 * np.median([e[1] for e in entries]):.1f} | {np.mean([e[3] for e in entries]):.2f} "
+                f"| {np.mean([e[4] for e in entries]):.0%} | {1e3 * np.median([e[5] for e in entries]):.1f} "
+                f"| {np.mean([e[6] for e in entries]):.2f}")
         for m in methods:
             runs = [e[2][m] for e in entries]
             line += f" | {np.mean([r.ok for r in runs]):.0%} | {1e3 * np.median([r.cpu_seconds for r in runs]):.1f}"
@@ -273,8 +322,8 @@ def main():
         ipopt_text = (
             f"IPOPT: `casadi.nlpsol(\"ipopt\")` ({IPOPT_VERSION}, MUMPS) over the same x and the same functions, wrapped as one "
             "`casadi.Callback` with a Jacobian callback (exact Jacobians) and, as Hessian of the Lagrangian, "
-            "the objective's Gauss-Newton Hessian (the SQP's curvature; the problem has no constraint "
-            "second derivatives), options "
+            "the objective's Gauss-Newton Hessian (the SQP's with constraint_curvature=False; the "
+            "constraints' second derivatives are left out), options "
             + ", ".join(f"{k} {v}" for k, v in IPOPT_OPTIONS.items() if k not in ("print_level", "sb"))
             + "; its time includes building the casadi solver."
         )
@@ -308,6 +357,14 @@ A success is a final posture that passes `stances.verify.verify_problem` (for ev
 Per scenario:
 
 {chr(10).join(scenario_rows)}
+
+`constraint_curvature=True`: the same SQP on the same stances, solved right after the one
+with `constraint_curvature=False`, with the placement and collision rows' curvature, weighted by the previous QP's
+multipliers, in the QP's Hessian (`stances/curvature.py`). Mean iterations over the
+{len(cases)} stances: {np.mean(ours["it"]):.2f} without, {np.mean(curved["it"]):.2f} with; total CPU
+of the {len(cases)} solves: {1e3 * np.sum(ours["cpu"]):.0f} ms without, {1e3 * np.sum(curved["cpu"]):.0f} ms with.
+
+{soft_section()}
 
 Targets (stances.solve):
 

@@ -48,6 +48,14 @@ class ConstraintBlock:
         rows (its scaled feasibility tolerance when that is looser). Unlike
         ``slack`` it leaves the violation, hence the merit function, as it is:
         only the stopping test reads it.
+    second_order : callable, optional
+        ``second_order(model, data, weights) -> (nv,)``: the rows' weighted
+        Jacobian ``sum_i weights_i grad c_i`` in the configuration columns, at
+        whatever configuration ``data`` holds (kinematics, joint Jacobians and
+        frame placements computed), with the rows' own geometry held as at this
+        linearisation. :mod:`stances.curvature` differences it into the rows'
+        second derivatives. None: the rows' curvature is left out of the SQP's
+        Hessian.
     """
 
     name: str
@@ -59,6 +67,7 @@ class ConstraintBlock:
     labels: tuple
     slack: float = 0.0
     accuracy: float = 0.0
+    second_order: object = None
 
     def __post_init__(self) -> None:
         rows = len(self.value)
@@ -92,11 +101,12 @@ class ConstraintBlock:
 PLACEMENT_ACCURACY = 1e-7
 
 
-def equality(name, value, jacobian, scale, labels, accuracy=0.0) -> ConstraintBlock:
+def equality(name, value, jacobian, scale, labels, accuracy=0.0, second_order=None) -> ConstraintBlock:
     """Rows ``value + jacobian @ step = 0``, met within ``accuracy`` (rows' units)."""
     zeros = np.zeros(len(value))
     return ConstraintBlock(
-        name, np.asarray(value, float), jacobian, zeros, zeros, scale, tuple(labels), accuracy=accuracy
+        name, np.asarray(value, float), jacobian, zeros, zeros, scale, tuple(labels), accuracy=accuracy,
+        second_order=second_order,
     )
 
 

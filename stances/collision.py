@@ -243,6 +243,7 @@ class CollisionChecker:
         self._geometry = _robot_geometry(robot)
         model = robot.model
         self._support = _support_columns(model)
+        self._geometry_index = None  # geometry name -> index, made on first use
 
         self.scene_names, self._scene_shapes, self._scene_placements, bounds = [], [], [], []
         for entry in scene_objects:
@@ -425,11 +426,11 @@ class CollisionChecker:
         return [pair for pair in measured if pair is not None]
 
     def _measure(
-        self, query, a, placement_a, shape_b, placement_b, name_b, joint_b, center_a, reference_b
+        self, query, a, placement_a, shape_b, placement_b, name_b, joint_b, center_a, reference_b, margin=None
     ) -> CollisionPair | None:
         geometry = self._geometry
         distance = query.distance(geometry.shapes[a], placement_a, shape_b, placement_b)
-        if distance > self.margin:
+        if distance > (self.margin if margin is None else margin):
             return None
         point_a, point_b, normal = query.witness()
         if not distance >= -_DEEPEST:
@@ -475,21 +476,95 @@ class CollisionChecker:
         """
         if len(pairs) == 0:
             return np.zeros((0, model.nv))
-        # data.J stacks the motion subspaces in the world frame: a column moves
-        # a world point p at v + omega x p. A point of joint i only sees the
-        # columns of i's ancestors, hence the support mask.
-        jacobian_world = pin.computeJointJacobians(model, data)
-        linear, angular = jacobian_world[:3], jacobian_world[3:]
         normal = np.array([pair.normal for pair in pairs])
         point_a = np.array([pair.point_a for pair in pairs])
         point_b = np.array([pair.point_b for pair in pairs])
         joint_a = np.array([pair.joint_a for pair in pairs])
         joint_b = np.array([pair.joint_b for pair in pairs])
+        return self._rows(pin.computeJointJacobians(model, data), normal, point_a, point_b, joint_a, joint_b)
+
+    def _rows(self, jacobian_world, normal, point_a, point_b, joint_a, joint_b) -> np.ndarray:
+        """(k, nv) ``n^T (J_a(p_a) - J_b(p_b))`` from ``data.J``; points (k, 3), world frame."""
+        # data.J stacks the motion subspaces in the world frame: a column moves
+        # a world point p at v + omega x p. A point of joint i only sees the
+        # columns of i's ancestors, hence the support mask.
+        linear, angular = jacobian_world[:3], jacobian_world[3:]
         # n . (v + omega x p) = n . v + (p x n) . omega
         along_normal = normal @ linear
-        rows_a = along_normal + np.cross(point_a, normal) @ angular
-        rows_b = along_normal + np.cross(point_b, normal) @ angular
+        rows_a = along_normal + _cross(point_a, normal) @ angular
+        rows_b = along_normal + _cross(point_b, normal) @ angular
         return self._support[joint_a] * rows_a - self._support[joint_b] * rows_b
+
+    def remeasured_rows(self, model, data, pairs) -> np.ndarray:
+        """The same geometry pairs' distance rows at another configuration, measured again.
+
+        :mod:`stances.curvature` differences these rows into the distances'
+        second derivatives: new witness points and normal at each
+        configuration, so the turning of the normal (a face of one link
+        against a corner of the other) is in them. Pairs are measured whatever
+        their distance (no margin), so a row exists at every nearby configuration.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+        data : pinocchio.Data
+            Joint placements (``data.oMi``) and ``data.J``
+            (``pin.computeJointJacobians``) at the configuration.
+        pairs : list of CollisionPair
+            From :meth:`pairs` at some configuration.
+
+        Returns
+        -------
+        (len(pairs), nv) float
+        """
+        geometry = self._geometry
+        if self._geometry_index is None:
+            self._geometry_index = {name: i for i, name in enumerate(geometry.names)}
+        index = self._geometry_index
+        query = DistanceQuery()
+        measured = []
+        for pair in pairs:
+            a = index[pair.name_a]
+            placement_a = self._placement(data, a)
+            if pair.is_self_collision:
+                b = index[pair.name_b]
+                shape_b, placement_b = geometry.shapes[b], self._placement(data, b)
+                reference_b = placement_b.getTranslation()
+            else:
+                b = self.scene_names.index(pair.name_b)
+                shape_b, placement_b = self._scene_shapes[b], self._scene_placements[b]
+                reference_b = np.clip(placement_a.getTranslation(), *self._scene_bounds[b])
+            measured.append(
+                self._measure(
+                    query, a, placement_a, shape_b, placement_b, pair.name_b, pair.joint_b,
+                    placement_a.getTranslation(), reference_b, margin=np.inf,
+                )
+            )
+        return self._rows(
+            data.J,
+            np.array([pair.normal for pair in measured]),
+            np.array([pair.point_a for pair in measured]),
+            np.array([pair.point_b for pair in measured]),
+            np.array([pair.joint_a for pair in measured]),
+            np.array([pair.joint_b for pair in measured]),
+        )
+
+    def _placement(self, data, index):
+        """coal placement of robot geometry ``index`` at the joint placements in ``data``."""
+        geometry = self._geometry
+        joint = data.oMi[int(geometry.joints[index])]
+        rotation = joint.rotation @ geometry.rotation_geometry_to_joint[index]
+        translation = joint.rotation @ geometry.translation_geometry_to_joint[index] + joint.translation
+        return coal.Transform3s(rotation, translation)
+
+
+def _cross(a, b) -> np.ndarray:
+    """Row-wise cross products of (k, 3) arrays (np.cross costs some 50 us of overhead a call)."""
+    return np.column_stack([
+        a[:, 1] * b[:, 2] - a[:, 2] * b[:, 1],
+        a[:, 2] * b[:, 0] - a[:, 0] * b[:, 2],
+        a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0],
+    ])
 
 
 def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, include_parent_joint=False):

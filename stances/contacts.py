@@ -136,7 +136,7 @@ class RigidContact:
         return np.zeros((self.generators.shape[0], model.nv)), self.generators
 
     def blocks(self, model, data, lam, columns, offset):
-        """Placement equalities (6 rows), print frame.
+        """Placement equalities (6 rows; a point foot's 3), print frame.
 
         Parameters
         ----------
@@ -145,15 +145,24 @@ class RigidContact:
         offset : int
             Column of this contact's first variable (its rows do not use them).
         """
-        residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
-        frame_jacobian = pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
-        jacobian = np.zeros((6, columns))
-        jacobian[:, : model.nv] = jlog @ frame_jacobian
-        labels = [
-            f"placement of {self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")
-        ]
+        residual, jacobian_q = self._placement(model, data)
+        jacobian = np.zeros((len(residual), columns))
+        jacobian[:, : model.nv] = jacobian_q
+        labels = [f"placement of {self.label} ({axis})" for axis in self._placement_axes]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement)]
+
+    _placement_axes = ("x", "y", "z", "roll", "pitch", "yaw")
+
+    def _placement(self, model, data):
+        """Placement residual (6,) and its Jacobian (6, nv) at the kinematics in ``data``."""
+        residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
+        return residual, jlog @ pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
+
+    def _weighted_placement(self, model, data, weights) -> np.ndarray:
+        """(nv,) ``weights @ jacobian`` of the placement rows at the kinematics in ``data``
+        (their ``second_order``, see :mod:`stances.curvature`)."""
+        return weights @ self._placement(model, data)[1]
 
     def cost(self, model, data, lam, options, columns, offset):
         """No objective term of its own (lambda's is the problem's force term)."""
@@ -252,13 +261,11 @@ class PointContact(RigidContact):
         """(1, 3): the force acts at the ball's centre, the contact frame's origin."""
         return np.zeros((1, 3))
 
-    def blocks(self, model, data, lam, columns, offset):
-        """Placement equalities of the ball's centre (3 rows), print frame."""
-        residual, jacobian_q = point_placement_residual(model, data, self.frame_id, self.print_placement, self.radius)
-        jacobian = np.zeros((3, columns))
-        jacobian[:, : model.nv] = jacobian_q
-        labels = [f"placement of {self.label} ({axis})" for axis in ("x", "y", "z")]
-        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
+    _placement_axes = ("x", "y", "z")
+
+    def _placement(self, model, data):
+        """Placement residual of the ball's centre (3,), print frame, and its Jacobian (3, nv)."""
+        return point_placement_residual(model, data, self.frame_id, self.print_placement, self.radius)
 
     def _verify_placement(self, data, tolerances, measures) -> list:
         """The ball's centre ``radius`` above the print origin, along its normal."""

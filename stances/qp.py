@@ -14,6 +14,7 @@ from .qp_backend import proxsuite
 
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _WARM_QP_ITERATIONS = 60
+_INACTIVE_MULTIPLIER = 1e-8  # QP multipliers (objective units per scaled row) below this are zero
 
 
 class QPWorkspace:
@@ -24,6 +25,10 @@ class QPWorkspace:
     iterations : int
         proxsuite iterations spent by the last :meth:`solve`, an abandoned warm
         start included.
+    multipliers : (m + n,) float
+        proxsuite's multipliers of the last answer: the rows of ``inequality``,
+        then the box bounds; positive where an upper bound holds, negative
+        where a lower one does (``H x + g + C^T z = 0``).
     """
 
     # proxsuite's automatic choice factorises the primal system H + C^T C / mu
@@ -43,6 +48,7 @@ class QPWorkspace:
         self.qp = None
         self.shape = None
         self.iterations = 0
+        self.multipliers = np.zeros(0)
 
     def _fresh(self, shape):
         dense = proxsuite.proxqp.dense
@@ -103,7 +109,7 @@ class QPWorkspace:
             self.qp.solve()
             self.iterations += self.qp.results.info.iter
             if self.qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
-                return np.array(self.qp.results.x)
+                return self._answer()
         # First solve, a change of size, or a warm start that did not finish.
         self.qp = self._fresh(shape)
         self.qp.settings.eps_abs = accuracy
@@ -111,6 +117,10 @@ class QPWorkspace:
         self.qp.init(*data)
         self.qp.solve()
         self.iterations += self.qp.results.info.iter
+        return self._answer()
+
+    def _answer(self) -> np.ndarray:
+        self.multipliers = np.array(self.qp.results.z)
         return np.array(self.qp.results.x)
 
 
@@ -120,7 +130,7 @@ def elastic_qp(linearization, penalty):
     Each finite bound of a row gives one QP row (an equality gives two), so
     one-sided constraints (collisions, no adhesion) cost a single row.
     """
-    value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
+    jacobian, lower_gap, upper_gap, scale, has_lower, has_upper = _scaled_rows(linearization)
     n = len(linearization.gradient)
     hessian = np.zeros((n + 1, n + 1))
     # A small regularisation keeps the QP strictly convex in directions the
@@ -128,14 +138,6 @@ def elastic_qp(linearization, penalty):
     hessian[:n, :n] = linearization.hessian + 1e-8 * np.eye(n)
     hessian[n, n] = 1e-8
     gradient = np.append(linearization.gradient, penalty)
-    # Rows are divided by their scale: every row then reads in "violations
-    # that matter", the elastic variable enters with coefficient one, and
-    # rows in newtons no longer dwarf rows in metres (proxsuite stalls on that).
-    jacobian = jacobian / scale[:, None]
-    lower_gap = (lower - value) / scale
-    upper_gap = (upper - value) / scale
-    has_upper = np.isfinite(upper_gap)
-    has_lower = np.isfinite(lower_gap)
     upper_rows = np.hstack([jacobian[has_upper], -np.ones((has_upper.sum(), 1))])
     lower_rows = np.hstack([jacobian[has_lower], np.ones((has_lower.sum(), 1))])
     inequality = np.vstack([upper_rows, lower_rows])
@@ -146,4 +148,49 @@ def elastic_qp(linearization, penalty):
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
 
 
-__all__ = ["QPWorkspace", "elastic_qp"]
+def _scaled_rows(linearization):
+    """The stacked rows divided by their scale, the gaps to their bounds and which bounds are finite."""
+    value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
+    # Rows are divided by their scale: every row then reads in "violations
+    # that matter", the elastic variable enters with coefficient one, and
+    # rows in newtons no longer dwarf rows in metres (proxsuite stalls on that).
+    if jacobian is None:
+        jacobian = np.zeros((0, len(linearization.gradient)))
+    lower_gap = (lower - value) / scale
+    upper_gap = (upper - value) / scale
+    return jacobian / scale[:, None], lower_gap, upper_gap, scale, np.isfinite(lower_gap), np.isfinite(upper_gap)
+
+
+def row_multipliers(linearization, multipliers) -> dict:
+    """The multiplier of each constraint row of a linearisation, from its elastic QP's answer.
+
+    Parameters
+    ----------
+    linearization : Linearization
+        What :func:`elastic_qp` was given.
+    multipliers : (rows + n + 1,) float
+        :attr:`QPWorkspace.multipliers` after solving that QP.
+
+    Returns
+    -------
+    dict
+        Row label -> multiplier ``y``, in objective units per row unit: the
+        QP's stationarity reads ``grad f + sum_i y_i grad c_i = 0`` (with the
+        bounds' terms), so ``y_i > 0`` where an upper bound holds and ``< 0``
+        where a lower one does; an equality's two QP rows add up.
+    """
+    _, _, _, scale, has_lower, has_upper = _scaled_rows(linearization)
+    uppers = int(has_upper.sum())
+    rows = np.zeros(len(scale))
+    rows[has_upper] += multipliers[:uppers]
+    rows[has_lower] += multipliers[uppers : uppers + int(has_lower.sum())]
+    # proxsuite leaves specks (1e-70 to 1e-9) on inactive rows; a row that
+    # weighs nothing should cost nothing downstream.
+    rows[np.abs(rows) < _INACTIVE_MULTIPLIER] = 0.0
+    # The QP's rows are c_i / s_i: their multiplier is y_i s_i.
+    rows /= scale
+    labels = [label for block in linearization.blocks if len(block) for label in block.labels]
+    return dict(zip(labels, rows))
+
+
+__all__ = ["QPWorkspace", "elastic_qp", "row_multipliers"]

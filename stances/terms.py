@@ -247,14 +247,23 @@ class CollisionConstraint:
         jacobian = np.zeros((self.rows, problem.n_step))
         lower = np.full(self.rows, -np.inf)
         labels = ["(inactive collision row)"] * self.rows
+        second_order = None
         if pairs:
             jacobian[: len(pairs), : model.nv] = self.checker.jacobian_rows(model, data, pairs)
             for i, pair in enumerate(pairs):
                 value[i] = pair.distance
                 lower[i] = self.distance
                 labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
+            checker, count = self.checker, len(pairs)
+
+            def second_order(model, moved, weights):
+                # Only the pairs that weigh are measured again (a few of the 20).
+                used = np.flatnonzero(weights[:count])
+                return weights[used] @ checker.remeasured_rows(model, moved, [pairs[i] for i in used])
+
         return [
             ConstraintBlock(
-                "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4
+                "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4,
+                second_order=second_order,
             )
         ]

@@ -6,7 +6,8 @@ with an objective and constraint rows written out by hand. The loop sees the
 same interface as on a robot (``options``, ``variable_lower``, ``robot.model``,
 ``linearize``); the answers are checked against the closed-form optimum and its
 Lagrange multipliers, recovered from the stationarity of the final
-linearisation (the loop itself does not return multipliers).
+linearisation (the loop itself does not return multipliers) and read from the
+QP's answer.
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import pytest
 
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization, PostureOptions
+from stances.qp import QPWorkspace, elastic_qp, row_multipliers
 from stances.sqp import run_sqp
 
 
@@ -46,12 +48,14 @@ class ToyProblem:
         ``(q, lam) -> list of ConstraintBlock``, Jacobians in ``(dq, dlam)``.
     n_variables : int
         m, the number of force variables.
+    constraint_curvature : bool
+        The SQP option (off: the QP's Hessian is the objective's alone).
     """
 
-    def __init__(self, objective, rows, n_variables=0):
+    def __init__(self, objective, rows, n_variables=0, constraint_curvature=False):
         self.robot = PointRobot(point_model())
         # No torque-usage phase: the toy has no torques.
-        self.options = PostureOptions(torque_weight=0.0)
+        self.options = PostureOptions(torque_weight=0.0, constraint_curvature=constraint_curvature)
         self.variable_lower = np.zeros(n_variables)
         self._objective, self._rows = objective, rows
 
@@ -80,8 +84,13 @@ RADIUS = 1.0
 
 
 def on_the_sphere(q, lam):
-    """``|q|^2 - RADIUS^2 = 0``."""
-    return [equality("sphere", np.array([q @ q - RADIUS**2]), 2.0 * q[None, :], 1.0, ["on the sphere"])]
+    """``|q|^2 - RADIUS^2 = 0``, with its curvature: ``sum_i y_i grad c_i`` at any point is ``2 y q``."""
+    return [
+        equality(
+            "sphere", np.array([q @ q - RADIUS**2]), 2.0 * q[None, :], 1.0, ["on the sphere"],
+            second_order=lambda model, data, weights: 2.0 * weights[0] * data.oMi[1].translation,
+        )
+    ]
 
 
 START = np.array([0.3, -0.5, 0.9])
@@ -135,6 +144,24 @@ def test_closest_point_on_a_sphere_at_the_rate_its_hessian_predicts(distance):
     assert np.all(ratios <= rate + 5e-3), (ratios, rate)
 
 
+@pytest.mark.parametrize("distance", [1.6, 0.5], ids=["outside-rate-0.6", "inside-rate-0.5"])
+def test_constraint_curvature_reaches_the_sphere_optimum_in_fewer_iterations(distance):
+    """With the constraint's curvature (2 y I, y of either sign) the QP's Hessian is the
+    Lagrangian's, (1 + 2y) I: Newton's method, converging faster than the objective's
+    Hessian alone (linear rate |2y|: 0.6 outside, 0.5 inside) and to a tighter answer."""
+    target = distance * np.array([1.0, 2.0, 2.0]) / 3.0
+    optimum = RADIUS * target / np.linalg.norm(target)
+    outcomes = {}
+    for curvature in (False, True):
+        problem = ToyProblem(squared_distance_to(target), on_the_sphere, constraint_curvature=curvature)
+        outcomes[curvature] = run_sqp(problem, START, np.zeros(0), limit=100)
+        assert outcomes[curvature].feasible and outcomes[curvature].status == "converged"
+    plain, curved = outcomes[False], outcomes[True]
+    assert curved.iterations < plain.iterations
+    assert curved.iterations <= 10  # 14 and 18 without (measured)
+    assert np.linalg.norm(curved.q - optimum) < 1e-6 < np.linalg.norm(plain.q - optimum)
+
+
 # Force variables and an inequality: min 1/2 |q - a|^2 + 1/2 |lam - c|^2
 # s.t. sum(q) + sum(lam) = S, q_z <= CAP, lam >= 0.
 TARGET = np.array([0.2, -0.1, 0.8, 0.4, -0.2])  # (a, c)
@@ -183,6 +210,12 @@ def test_quadratic_problem_with_active_bounds_is_solved_exactly(q_start, lam_sta
     estimate, *_ = np.linalg.lstsq(active.T, -gradient, rcond=None)
     np.testing.assert_allclose(estimate, multipliers, atol=1e-8)
     assert np.linalg.norm(active.T @ estimate + gradient) < 1e-8
+    # The QP's own multipliers at the optimum, per row label, in the same convention.
+    workspace = QPWorkspace()
+    workspace.solve(*elastic_qp(outcome.linearization, 100.0), accuracy=1e-10)
+    rows = row_multipliers(outcome.linearization, workspace.multipliers)
+    assert rows["sum of q and lam"] == pytest.approx(multipliers[0], abs=1e-7)
+    assert rows["q_z cap"] == pytest.approx(multipliers[1], abs=1e-7)
 
 
 def contradicting_rows(q, lam):

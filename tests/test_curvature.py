@@ -1,0 +1,147 @@
+"""The constraints' curvature (:mod:`stances.curvature`) against second differences of the rows' values."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+from stances.curvature import ConstraintCurvature, bounded_below
+from stances.problem import PostureOptions, build_problem
+
+SEED = 20261122
+
+
+@pytest.fixture(scope="module")
+def hand_on_table(robot):
+    scenario = environments.load("hand-on-table")
+    return build_problem(robot, scenario.scene, scenario.stances["hand-on-table"], PostureOptions())
+
+
+def random_configuration(robot, rng, size=0.1):
+    return pin.integrate(robot.model, robot.reference_configuration, size * rng.standard_normal(robot.model.nv))
+
+
+def second_differences(model, q, value, step, columns=None):
+    """(..., c, c) central second differences of ``dq -> value(q (+) dq)`` at 0, values
+    only, along the tangent ``columns`` (all by default)."""
+    nv = model.nv
+    columns = np.arange(nv) if columns is None else np.asarray(columns)
+    basis = step * np.eye(nv)[columns]
+
+    def at(dq):
+        return np.asarray(value(pin.integrate(model, q, dq)), float)
+
+    count = len(columns)
+    hessian = np.zeros(at(np.zeros(nv)).shape + (count, count))
+    for i in range(count):
+        for j in range(i, count):
+            hessian[..., i, j] = hessian[..., j, i] = (
+                at(basis[i] + basis[j]) - at(basis[i] - basis[j]) - at(basis[j] - basis[i]) + at(-basis[i] - basis[j])
+            ) / (4.0 * step**2)
+    return hessian
+
+
+def test_placement_curvature_matches_second_differences_of_the_residuals(robot, hand_on_table):
+    """sum_i y_i d2 c_i for the 18 placement rows (log6 of each contact frame vs its print)
+    at a random posture and random multipliers: within 1e-5 of second differences of the
+    residuals' values (measured 1.5e-6: the forward difference's step of 1e-5 times the
+    third derivative; the second differences' steps of 1e-4 leave 1e-8)."""
+    rng = np.random.default_rng(SEED)
+    model, problem = robot.model, hand_on_table
+    q = random_configuration(robot, rng)
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    blocks = [block for block in linearization.blocks if block.name == "placement"]
+    assert len(blocks) == 3 and all(block.second_order is not None for block in blocks)
+    weights = [rng.standard_normal(len(block)) for block in blocks]
+    data = model.createData()
+
+    def weighted_residuals(configuration):
+        pin.framesForwardKinematics(model, data, configuration)
+        return sum(w @ contact._placement(model, data)[0] for contact, w in zip(problem.contacts, weights))
+
+    expected = second_differences(model, q, weighted_residuals, 1e-4)
+    hessian = ConstraintCurvature(model).hessian(q, blocks, weights)
+    assert np.abs(expected).max() > 0.1  # the rows are curved: the test can fail
+    np.testing.assert_allclose(hessian, expected, rtol=0, atol=1e-5)
+    np.testing.assert_array_equal(hessian, hessian.T)
+
+
+def test_collision_curvature_matches_second_differences_of_the_distances(robot, hand_on_table):
+    """Each collision row's curvature (its pair measured again along the differences)
+    against second differences of the distance the checker reports (full broad and
+    narrow phase), pair by pair, for the pairs whose distance is smooth there.
+
+    A distance between convex hulls has kinks where its closest features are
+    degenerate (parallel faces: the wrist sensor against the forearm at this
+    posture); there a second derivative does not exist and the second
+    differences depend on their step. Such pairs are told apart by comparing two
+    steps, and left out; the rest agree within 2e-5 plus 1e-3 of the pair's
+    largest curvature, per entry (the forward difference's step of 1e-5 times the
+    third derivative; measured 3e-6 on most pairs, 1.7e-4 of 0.73 on the soles' hulls)."""
+    rng = np.random.default_rng(SEED + 1)
+    model, problem = robot.model, hand_on_table
+    checker = problem.collision_checker
+    q = random_configuration(robot, rng, 0.05)
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    (block,) = [block for block in linearization.blocks if block.name == "collision"]
+    # Pairs clearly apart (penetration depths come from another algorithm, EPA).
+    rows = [i for i, label in enumerate(block.labels) if label.startswith("collision") and block.value[i] > 1e-3]
+    data = model.createData()
+
+    def distances(configuration):
+        pin.forwardKinematics(model, data, configuration)
+        measured = {f"collision between {p.name_a} and {p.name_b}": p.distance for p in checker.pairs(model, data)}
+        return [measured[block.labels[i]] for i in rows]
+
+    # Twelve of the 34 tangent columns (the free flyer's rotation, legs, torso, arms), to keep
+    # the test fast; every entry among them is compared.
+    columns = np.sort(np.concatenate([[3, 4], rng.choice(np.arange(6, model.nv), 10, replace=False)]))
+    fine = second_differences(model, q, distances, 1e-4, columns)
+    coarse = second_differences(model, q, distances, 3e-4, columns)
+    smooth = [k for k in range(len(rows)) if np.abs(fine[k] - coarse[k]).max() < 1e-4]
+    assert len(smooth) >= 8, (len(smooth), len(rows))
+    curvature = ConstraintCurvature(model)
+    for k in smooth:
+        weights = np.zeros(len(block))
+        weights[rows[k]] = 1.0
+        hessian = curvature.hessian(q, [block], [weights])[np.ix_(columns, columns)]
+        tolerance = 2e-5 + 1e-3 * np.abs(fine[k]).max()
+        np.testing.assert_allclose(hessian, fine[k], rtol=0, atol=tolerance, err_msg=block.labels[rows[k]])
+    assert max(np.abs(fine[k]).max() for k in smooth) > 0.1  # the distances are curved: the test can fail
+
+
+def test_rows_without_second_order_or_weight_add_no_curvature(robot, hand_on_table):
+    q = robot.reference_configuration
+    problem = hand_on_table
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    weights = [np.ones(len(block)) if block.second_order is None else np.zeros(len(block))
+               for block in linearization.blocks]
+    assert any(block.second_order is None for block in linearization.blocks)
+    np.testing.assert_array_equal(ConstraintCurvature(robot.model).hessian(q, linearization.blocks, weights), 0.0)
+
+
+@pytest.mark.parametrize("floor", [0.1, 0.25, 1.0])
+def test_bounded_curvature_keeps_the_floor_and_only_cuts_what_breaks_it(floor):
+    """reference + bounded >= floor * reference (generalised eigenvalues >= floor), with the
+    curvature on the first block only; a curvature that already complies comes back unchanged."""
+    rng = np.random.default_rng(SEED)
+    n, k = 12, 7
+    root = rng.standard_normal((n, n))
+    reference = root @ root.T + 0.1 * np.eye(n)
+    raw = rng.standard_normal((k, k))
+    curvature = 20.0 * (raw + raw.T)
+    bounded = bounded_below(curvature, reference, floor)
+    full = reference.copy()
+    full[:k, :k] += bounded
+    lower = np.linalg.cholesky(reference)
+    inverse = np.linalg.inv(lower)
+    relative = np.linalg.eigvalsh(inverse @ full @ inverse.T)
+    assert relative[0] == pytest.approx(floor, abs=1e-9)  # this curvature breaks the floor: cut to it
+    # The cut is the least one: along directions the curvature keeps above the floor, unchanged.
+    unchanged = reference.copy()
+    unchanged[:k, :k] += curvature
+    assert np.linalg.eigvalsh(inverse @ unchanged @ inverse.T)[-1] == pytest.approx(relative[-1], rel=1e-9)
+    gentle = 0.01 * np.eye(k)
+    assert bounded_below(gentle, reference, floor) is gentle
