@@ -169,6 +169,13 @@ def build_parser():
     plan.add_argument(
         "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"
     )
+    plan.add_argument(
+        "--terrain-weight",
+        type=float,
+        default=None,
+        help="metres of goal distance per joule stored in soft supports: > 0 prefers stiff, shallow prints "
+        "(default: the scenario's terrain_weight option, else 0)",
+    )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument(
         "--motion",
@@ -363,6 +370,7 @@ def _plan(args):
                 seed=args.seed,
                 progress=not args.quiet,
                 workers=args.workers,
+                terrain_weight=args.terrain_weight,
             )
         except PlanInterrupted as stop:
             if not stop.plan.stances:
