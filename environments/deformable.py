@@ -32,6 +32,7 @@ __all__ = [
     "soft_blocks",
     "RESOLUTIONS",
     "soft_box_coordinates",
+    "grid_coordinates",
     "DEFAULT_STRAIN_LIMIT",
     "MAX_SOFT_BOX_NODES",
 ]
@@ -420,6 +421,67 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     return xs, ys, zs
 
 
+def grid_coordinates(size, grid) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """A soft box's tensor-mesh coordinates given by hand, checked against its size.
+
+    For a mesh a user (or a paper) chose: e.g. the paper's coarse 1 m cube, with
+    grid lines where the palm's edges land so that its print holds mesh nodes.
+
+    Parameters
+    ----------
+    size : (3,) float
+        Side lengths, metres.
+    grid : (3,) sequence of 1-D float sequences
+        ``[xs, ys, zs]``, metres, body frame (base centre, z up): strictly
+        increasing, ``xs`` from ``-size[0] / 2`` to ``size[0] / 2``, ``ys`` likewise,
+        ``zs`` from 0 to ``size[2]``.
+
+    Returns
+    -------
+    xs, ys, zs : 1-D float arrays
+
+    Raises
+    ------
+    SceneError
+        Not three sequences, fewer than two values on an axis, values not strictly
+        increasing or not finite, ends that do not match the box, or more than
+        :data:`MAX_SOFT_BOX_NODES` nodes.
+
+    Examples
+    --------
+    >>> xs, ys, zs = grid_coordinates((1, 1, 1), [[-0.5, 0, 0.5], [-0.5, 0.5], [0, 0.4, 1]])
+    >>> xs.size * ys.size * zs.size
+    18
+    """
+    size = readonly_array(size, (3,), "soft box size")
+    if not isinstance(grid, (list, tuple)) or len(grid) != 3:
+        raise SceneError(f"grid must be three lists of coordinates [xs, ys, zs], got {grid!r}")
+    ends = [(-0.5 * size[0], 0.5 * size[0]), (-0.5 * size[1], 0.5 * size[1]), (0.0, size[2])]
+    out = []
+    for axis, (values, (low, high)) in enumerate(zip(grid, ends)):
+        name = "xyz"[axis]
+        try:
+            coordinates = np.array(values, dtype=float)
+        except (TypeError, ValueError):
+            raise SceneError(f"grid {name}s must be a list of numbers, got {values!r}") from None
+        if coordinates.ndim != 1 or coordinates.size < 2 or not np.all(np.isfinite(coordinates)):
+            raise SceneError(f"grid {name}s must be a list of at least two finite numbers, got {values!r}")
+        if np.any(np.diff(coordinates) <= 0.0):
+            raise SceneError(f"grid {name}s must be strictly increasing, got {coordinates.tolist()}")
+        tolerance = 1e-9 * max(float(size.max()), 1.0)
+        if abs(coordinates[0] - low) > tolerance or abs(coordinates[-1] - high) > tolerance:
+            raise SceneError(
+                f"grid {name}s must run from {low:g} to {high:g} m (the box's faces, body frame: base centre, "
+                f"z up), got {coordinates[0]:g} to {coordinates[-1]:g}"
+            )
+        coordinates[[0, -1]] = low, high
+        out.append(coordinates)
+    nodes = out[0].size * out[1].size * out[2].size
+    if nodes > MAX_SOFT_BOX_NODES:
+        raise SceneError(f"grid gives {nodes} nodes, more than the limit of {MAX_SOFT_BOX_NODES}; use fewer grid lines")
+    return tuple(out)
+
+
 def soft_box(
     name: str,
     size,
@@ -430,6 +492,7 @@ def soft_box(
     yaw: float = 0.0,
     friction: float = DEFAULT_FRICTION,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
+    grid=None,
 ) -> tuple[DeformableObject, ContactSurface]:
     """A deformable box standing on the floor, base fixed, top face a contact surface.
 
@@ -461,6 +524,9 @@ def soft_box(
         Friction coefficient of the top surface.
     strain_limit : float
         Largest principal strain allowed in a stance (see :class:`DeformableObject`).
+    grid : (3,) sequence of 1-D float sequences, optional
+        The mesh's grid lines given by hand (see :func:`grid_coordinates`), in
+        place of ``resolution`` and ``refine``.
 
     Returns
     -------
@@ -474,7 +540,12 @@ def soft_box(
     """
     fem = _fem()
     size = readonly_array(size, (3,), f"object {name!r} size")
-    xs, ys, zs = soft_box_coordinates(size, resolution, refine)
+    if grid is None:
+        xs, ys, zs = soft_box_coordinates(size, resolution, refine)
+    elif refine is not None:
+        raise SceneError(f"object {name!r}: give either grid or refine, not both (grid fixes every grid line)")
+    else:
+        xs, ys, zs = grid_coordinates(size, grid)
     mesh = fem.tensor_mesh(xs, ys, zs)
     fixed_nodes = np.flatnonzero(np.asarray(mesh.nodes)[:, 2] <= 1e-9 * float(size[2]))
     body = fem.DeformableBody(mesh, material, fixed_nodes)

@@ -41,7 +41,7 @@ OBJECT_KEYS = {
     "floor": ("name", "type", "size", "friction"),
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
     "soft_box": (
-        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "friction", "strain_limit",
+        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "grid", "friction", "strain_limit",
         "floating",
     ),
     "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "floating"),
@@ -400,6 +400,7 @@ class _Reader:
             if not (isinstance(refine, list) and len(refine) == 2 and all(isinstance(r, list) and len(r) == 2 for r in refine)):
                 raise self.error(join_key(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
             refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
+        grid = self.grid(item, key)
         material = self.material(item, key)
         obj, top = soft_box(
             name,
@@ -408,11 +409,29 @@ class _Reader:
             material,
             resolution=resolution,
             refine=refine,
+            grid=grid,
             yaw=math.radians(self.number(item, "yaw_deg", key, 0.0)),
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
         )
         return obj, [top]
+
+    def grid(self, item: Mapping, key: str):
+        """A soft box's hand-given grid lines ``{x: [...], y: [...], z: [...]}``, or None."""
+        if "grid" not in item:
+            return None
+        where = join_key(key, "grid")
+        for other in ("resolution", "refine"):
+            if other in item:
+                raise self.error(where, f"a grid fixes every grid line: remove {other!r} or the grid")
+        grid = self.mapping(item["grid"], where, ("x", "y", "z"), ("x", "y", "z"))
+        lines = []
+        for axis in "xyz":
+            values = grid[axis]
+            if not isinstance(values, list):
+                raise self.error(join_key(where, axis), f"must be a list of numbers, got {kind_of(values)}")
+            lines.append([self.to_number(v, f"{join_key(where, axis)}[{i}]") for i, v in enumerate(values)])
+        return lines
 
     def resolution(self, item: Mapping, key: str):
         resolution = item.get("resolution", "default")

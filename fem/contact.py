@@ -2,28 +2,32 @@
 
 A print's nodes are pressed by points of rigid indenters (robot links). Each node
 either sticks to its indenter point, slips along the surface with its force on
-the friction bound, or lifts off with no force. On the print's compliance
-``C = [K_NN^-1]_PP`` the conditions read, per node, in its frame (t1, t2, n: the
-outward normal):
+the friction bound against its slip, or lifts off with no force. On the print's
+compliance ``C = [K_NN^-1]_PP`` the conditions read, per node, in its frame (t1,
+t2, n: the outward normal):
 
     r = U + C phi                      relative motion of the indenter point w.r.t. the node
     phi_n >= 0,  r_n >= 0,  phi_n r_n = 0                      (Signorini: push, no penetration)
-    |phi_ti| <= b = mu' phi_n;  |phi_ti| < b  =>  r_ti = 0;
-    |phi_ti| = b  =>  phi_ti r_ti <= 0                         (Coulomb, per tangent axis)
+    |phi_t| <= mu phi_n;  |phi_t| < mu phi_n  =>  r_t = 0;
+    |phi_t| = mu phi_n  =>  phi_t = -mu phi_n r_t / |r_t|      (Coulomb, isotropic)
 
-with ``phi`` the force ON THE INDENTER and ``U`` the indenter points' displacement
-from rest. The friction law is the inner pyramid ``mu' = mu / sqrt(2)`` per
-tangent axis, so every force lies inside the exact cone ``|phi_t| <= mu phi_n``.
-The normal and tangential laws are not associated (a slipping node does not
-open a gap), as Coulomb's law wants.
+with ``phi`` the force ON THE INDENTER, ``phi_t`` its tangential part and ``U``
+the indenter points' displacement from rest. The cone is the exact circular one,
+and a slipping node's friction is exactly opposite its slip (maximum
+dissipation). The normal and tangential laws are not associated (a slipping node
+does not open a gap), as Coulomb's law wants.
 
-The problem is solved exactly by a primal-dual active-set iteration: guess each
-node's mode, solve the linear system the modes define, update the modes from the
-complementarity functions, repeat until they stop changing. For fixed modes the
-forces are linear in U, ``phi = L U``: L is the exact Jacobian wherever the
-contact set does not change, and ``L = -C^-1`` (the bonded answer) when every
-node sticks. As friction grows every node sticks (bonded); with zero friction
-the tangential forces vanish (frictionless).
+Written as fixed points of projections (Alart and Curnier), with per-dof scales s,
+``phi_n = max(0, phi_n - s r_n)`` and ``phi_t = proj_{|.| <= mu phi_n}(phi_t - s r_t)``,
+the problem is solved by a semismooth Newton method (a primal-dual active set):
+read each node's mode from the current iterate, solve the law linearised there,
+repeat until the modes repeat and every slipping node's friction is on its bound.
+The law is positively homogeneous in (phi, U), so each linearised law is linear
+in U: for fixed modes the forces satisfy ``M phi = -B U``, and ``L = -M^-1 B``
+taken at the answer is the exact Jacobian ``d phi / d U`` wherever the contact
+set does not change. ``L = -C^-1`` (the bonded answer) when every node sticks. As
+friction grows every node sticks (bonded); with zero friction the tangential
+forces vanish (frictionless).
 """
 
 from __future__ import annotations
@@ -42,7 +46,6 @@ __all__ = [
 ]
 
 STICK, SLIP, LIFT = 0, 1, 2
-_PYRAMID = 1.0 / np.sqrt(2.0)
 _MAX_ITERATIONS = 60
 
 
@@ -56,18 +59,19 @@ class PrintContact:
         Forces of the nodes ON THE INDENTERS, newtons, body frame.
     relative : (p, 3) float
         Motion of each indenter point relative to its node, ``U - u``, metres, body frame.
-    modes : (p, 2) int
-        Per node and tangent axis: ``STICK``, ``SLIP`` or ``LIFT``.
-    signs : (p, 2) float
-        Direction of each slipping force (+1 or -1 along the tangent), 0 otherwise.
+    modes : (p,) int
+        Per node: ``STICK``, ``SLIP`` or ``LIFT``.
+    directions : (p, 2) float
+        Unit direction (t1, t2) of each slipping node's friction on the indenter,
+        opposite its slip; 0 for the other nodes.
     iterations : int
-        Active-set iterations used (0: the modes were given).
+        Newton (active-set) iterations used (0: the modes were given).
     """
 
     forces: np.ndarray
     relative: np.ndarray
     modes: np.ndarray
-    signs: np.ndarray
+    directions: np.ndarray
     iterations: int
     _system: tuple = field(repr=False, compare=False)
 
@@ -88,9 +92,9 @@ class PrintContact:
         -------
         (3p, k) float, newtons per unit of ``matrix``.
         """
-        factor, select, frames, _ = self._system
+        factor, blocks, frames, _ = self._system
         local = _to_nodes(frames, np.asarray(matrix, dtype=float))
-        return _to_body(frames, -scipy.linalg.lu_solve(factor, select[:, None] * local, check_finite=False))
+        return _to_body(frames, -scipy.linalg.lu_solve(factor, _apply_blocks(blocks, local), check_finite=False))
 
     @cached_property
     def jacobian(self) -> np.ndarray:
@@ -99,13 +103,18 @@ class PrintContact:
 
     @property
     def n_stick(self) -> int:
-        """Nodes sticking on both tangent axes."""
-        return int(np.sum((self.modes == STICK).all(axis=1)))
+        """Nodes sticking."""
+        return int(np.sum(self.modes == STICK))
+
+    @property
+    def n_slip(self) -> int:
+        """Nodes slipping."""
+        return int(np.sum(self.modes == SLIP))
 
     @property
     def n_lift(self) -> int:
         """Nodes lifted off."""
-        return int(np.sum(self.modes[:, 0] == LIFT))
+        return int(np.sum(self.modes == LIFT))
 
 
 def _to_nodes(frames: np.ndarray, vectors: np.ndarray) -> np.ndarray:
@@ -125,11 +134,12 @@ class PrintContactSystem:
 
     The compliance, the node frames and the friction of a print system do not
     change while a posture solver moves the links: only the indenter motions U
-    do. Each contact set (the modes of the nodes) defines one linear system,
-    whose LU factorisation is kept, so that a solver holding the modes, or
-    coming back to a set it met, pays a triangular solve instead of a
-    factorisation (measured: a 26 ms factorisation per linearisation on two
-    soles of the cross-two-mats scene).
+    do. A contact set without slipping nodes defines one linear system, whose LU
+    factorisation is kept, so that a solver holding the set, or coming back to
+    it, pays a triangular solve instead of a factorisation (measured: a 26 ms
+    factorisation per linearisation on two soles of the cross-two-mats scene).
+    Slipping nodes make the system depend on their slip directions, so sets with
+    slip are factorised at each solve.
 
     Parameters
     ----------
@@ -157,7 +167,7 @@ class PrintContactSystem:
             raise FemError(
                 f"shapes do not match: compliance {c.shape}, frames {frames.shape} (expected (3p, 3p), (p, 3, 3))"
             )
-        mu = np.broadcast_to(np.asarray(friction, dtype=float), (p,)) * _PYRAMID
+        mu = np.array(np.broadcast_to(np.asarray(friction, dtype=float), (p,)))
         if np.any(mu < 0) or np.any(np.isnan(mu)):
             raise FemError("friction coefficients must be >= 0")
         self.n_nodes = p
@@ -171,37 +181,38 @@ class PrintContactSystem:
         self._kept = kept
         self._factors = OrderedDict()
 
-    def solve(self, displacements, initial_modes=None, initial_signs=None) -> PrintContact:
+    def solve(self, displacements, initial_modes=None, initial_directions=None) -> PrintContact:
         """The contact state under indenter motions U, modes found (see :func:`solve_print_contact`)."""
         u_local = self._local_motion(displacements)
         p = self.n_nodes
-        modes = (
-            np.zeros((p, 2), dtype=int) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p, 2)
+        modes = np.full(p, STICK) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p)
+        directions = (
+            np.zeros((p, 2)) if initial_directions is None else np.array(initial_directions, dtype=float).reshape(p, 2)
         )
-        signs = np.zeros((p, 2)) if initial_signs is None else np.array(initial_signs, dtype=float).reshape(p, 2)
-        result = self._active_set(u_local, modes, signs)
+        result = self._newton(u_local, modes, directions)
         if result is None:
             # The active set cycled (seen on prints where many nodes sit at the
             # stick/slip boundary): projected Gauss-Seidel finds the contact state,
-            # then the active set restarts from its modes.
-            modes, signs = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
-            result = self._active_set(u_local, modes, signs)
+            # then the semismooth Newton restarts from its modes.
+            modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
+            result = self._newton(u_local, modes, directions)
             if result is None:
                 raise FemError(
                     "the print's contact did not settle, even from a Gauss-Seidel solution; "
                     "this is a bug worth reporting with the print's compliance and displacements"
                 )
-        phi, r, modes, signs, iteration = result
-        return self._state(phi, r, modes, signs, iteration, True)
+        phi, r, modes, directions, system, iterations = result
+        return self._state(phi, r, modes, directions, system, iterations, True)
 
-    def with_modes(self, displacements, modes, signs) -> PrintContact:
+    def with_modes(self, displacements, modes, directions) -> PrintContact:
         """The contact state with every node's mode imposed (see :func:`print_contact_with_modes`)."""
         u_local = self._local_motion(displacements)
-        modes, signs = np.asarray(modes, dtype=int), np.asarray(signs, dtype=float)
-        phi, r = self._forces(u_local, modes, signs)
-        new_modes, new_signs = _update_modes(phi, r, self.scale, self.mu)
-        settled = bool(np.array_equal(new_modes, modes) and np.array_equal(new_signs, signs))
-        return self._state(phi, r, modes, signs, 0, settled)
+        modes = np.asarray(modes, dtype=int).reshape(self.n_nodes)
+        directions = np.asarray(directions, dtype=float).reshape(self.n_nodes, 2)
+        phi, r, directions, system = self._held(u_local, modes, directions)
+        new_modes, new_directions, _ = _update_modes(phi, r, self.scale, self.mu)
+        settled = bool(np.array_equal(new_modes, modes))
+        return self._state(phi, r, modes, directions, system, 0, settled)
 
     def _local_motion(self, displacements) -> np.ndarray:
         u = np.asarray(displacements, dtype=float)
@@ -209,49 +220,84 @@ class PrintContactSystem:
             raise FemError(f"displacements must have shape ({self.n_nodes}, 3), got {u.shape}")
         return _to_nodes(self.frames, u.ravel()).reshape(-1, 3)
 
-    def _factor(self, modes, signs):
-        """LU factor and selector of the mode system, kept for the next time."""
-        key = modes.tobytes() + signs.tobytes()
-        if key in self._factors:
+    def _system(self, modes, directions, gains):
+        """LU factor and right-hand-side blocks of the linearised law (kept when no node slips)."""
+        slipping = bool(np.any(modes == SLIP))
+        key = modes.tobytes()
+        if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
-        matrix, select = _mode_system(self.c_local, modes, signs, self.mu)
-        entry = (scipy.linalg.lu_factor(matrix, check_finite=False), select)
-        self._factors[key] = entry
-        if len(self._factors) > self._kept:
-            self._factors.popitem(last=False)
+        matrix, rhs_blocks = _mode_system(self.c_local, modes, directions, gains, self.mu, self.scale)
+        entry = (scipy.linalg.lu_factor(matrix, check_finite=False), rhs_blocks)
+        if not slipping:
+            self._factors[key] = entry
+            if len(self._factors) > self._kept:
+                self._factors.popitem(last=False)
         return entry
 
-    def _forces(self, u_local, modes, signs):
-        """Node forces and relative motions (node frames) for fixed modes."""
-        factor, select = self._factor(modes, signs)
-        phi = scipy.linalg.lu_solve(factor, -(select * u_local.ravel()), check_finite=False).reshape(-1, 3)
-        r = (u_local.ravel() + self.c_local @ phi.ravel()).reshape(-1, 3)
-        return phi, r
+    def _forces(self, u_local, system):
+        """Node forces and relative motions (node frames) of one linearised law."""
+        factor, rhs_blocks = system
+        phi = scipy.linalg.lu_solve(factor, -_apply_blocks(rhs_blocks, u_local.ravel()), check_finite=False)
+        r = u_local.ravel() + self.c_local @ phi
+        return phi.reshape(-1, 3), r.reshape(-1, 3)
 
-    def _active_set(self, u_local, modes, signs):
-        """Primal-dual active-set iterations from given modes; None if they cycle."""
-        seen = set()
+    def _newton(self, u_local, modes, directions):
+        """Semismooth Newton (primal-dual active set) from given modes; None if it does not settle.
+
+        Each step solves the law linearised at the current iterate, with the modes
+        read from it; it stops when the modes repeat and every slipping node's
+        friction has reached its bound against its slip (to 1e-10 of the largest
+        force), then polishes the answer with one more step.
+        """
+        gains = np.zeros(self.n_nodes)
         for iteration in range(1, _MAX_ITERATIONS + 1):
-            phi, r = self._forces(u_local, modes, signs)
-            new_modes, new_signs = _update_modes(phi, r, self.scale, self.mu)
-            if np.array_equal(new_modes, modes) and np.array_equal(new_signs, signs):
-                return phi, r, modes, signs, iteration
-            key = new_modes.tobytes() + new_signs.tobytes()
-            if key in seen:
-                return None
-            seen.add(key)
-            modes, signs = new_modes, new_signs
+            system = self._system(modes, directions, gains)
+            phi, r = self._forces(u_local, system)
+            new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
+            if np.array_equal(new_modes, modes) and _slip_settled(phi, r, self.scale, new_modes, self.mu):
+                # Linearised at the answer itself: L below is the exact Jacobian.
+                system = self._system(new_modes, new_directions, new_gains)
+                phi, r, new_directions = self._polished(u_local, new_modes, new_directions, system, phi, r)
+                return phi, r, new_modes, new_directions, system, iteration
+            modes, directions, gains = new_modes, new_directions, new_gains
         return None
 
-    def _state(self, phi, r, modes, signs, iterations, settled) -> PrintContact:
-        factor, select = self._factor(modes, signs)
+    def _held(self, u_local, modes, directions):
+        """Forces with the modes held: Newton on the slip directions only."""
+        gains = np.zeros(self.n_nodes)
+        for _ in range(_MAX_ITERATIONS):
+            system = self._system(modes, directions, gains)
+            phi, r = self._forces(u_local, system)
+            new_directions, new_gains = _slip_directions(phi, r, self.scale, self.mu, modes, directions)
+            if _slip_settled(phi, r, self.scale, modes, self.mu):
+                system = self._system(modes, new_directions, new_gains)
+                phi, r, new_directions = self._polished(u_local, modes, new_directions, system, phi, r)
+                return phi, r, new_directions, system
+            directions, gains = new_directions, new_gains
+        return phi, r, directions, system
+
+    def _polished(self, u_local, modes, directions, system, phi, r):
+        """One more Newton step from a settled answer with slipping nodes.
+
+        Settling stops at 1e-10 of the largest force; the Newton step from there
+        (quadratic) leaves round-off, so that finite differences of the forces
+        through solves at nearby motions see their derivative, not the tolerance.
+        """
+        if not np.any(modes == SLIP):
+            return phi, r, directions
+        new_phi, new_r = self._forces(u_local, system)
+        new_directions, _ = _slip_directions(new_phi, new_r, self.scale, self.mu, modes, directions)
+        return new_phi, new_r, new_directions
+
+    def _state(self, phi, r, modes, directions, system, iterations, settled) -> PrintContact:
+        factor, rhs_blocks = system
         forces = _to_body(self.frames, phi.ravel()).reshape(-1, 3)
         relative = _to_body(self.frames, r.ravel()).reshape(-1, 3)
-        return PrintContact(forces, relative, modes, signs, iterations, (factor, select, self.frames, settled))
+        return PrintContact(forces, relative, modes, directions, iterations, (factor, rhs_blocks, self.frames, settled))
 
 
-def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_signs=None) -> PrintContact:
+def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_directions=None) -> PrintContact:
     """Signorini-Coulomb contact of a print under imposed indenter motions.
 
     Parameters
@@ -266,9 +312,9 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
         Rows t1, t2, n of each node's frame, body frame; n the outward normal.
     friction : (p,) float
         Coulomb coefficient mu of each node (>= 0; ``np.inf`` for bonded).
-    initial_modes : (p, 2) int, optional
+    initial_modes : (p,) int, optional
         Modes to start from (e.g. the previous call's): warm start.
-    initial_signs : (p, 2) float, optional
+    initial_directions : (p, 2) float, optional
         Slip directions going with ``initial_modes``.
 
     Returns
@@ -294,8 +340,8 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     >>> c = np.diag([2e-5, 2e-5, 1e-5] * 2)
     >>> frames = np.tile(np.eye(3), (2, 1, 1))
     >>> state = solve_print_contact(c, [[0, 0, -1e-3], [0, 0, 1e-3]], frames, [np.inf, np.inf])
-    >>> state.forces[0].round(6).tolist(), state.modes[1].tolist()   # the second node lifts off
-    ([0.0, 0.0, 100.0], [2, 2])
+    >>> state.forces[0].round(6).tolist(), int(state.modes[1]) == LIFT   # the second node lifts off
+    ([0.0, 0.0, 100.0], True)
     """
     c = np.asarray(compliance, dtype=float)
     u = np.asarray(displacements, dtype=float)
@@ -306,11 +352,11 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
             f"shapes do not match: compliance {c.shape}, displacements {u.shape}, frames {frames.shape} "
             "(expected (3p, 3p), (p, 3), (p, 3, 3))"
         )
-    return PrintContactSystem(c, frames, friction).solve(u, initial_modes, initial_signs)
+    return PrintContactSystem(c, frames, friction).solve(u, initial_modes, initial_directions)
 
 
-def print_contact_with_modes(compliance, displacements, frames, friction, modes, signs) -> PrintContact:
-    """The contact state with every node's mode imposed: linear in U, no mode update.
+def print_contact_with_modes(compliance, displacements, frames, friction, modes, directions) -> PrintContact:
+    """The contact state with every node's mode imposed: smooth in U, no mode update.
 
     A solver that has found which nodes stick, slip and lift can hold that set while it
     converges (the forces are then smooth in U), and check at the end with
@@ -321,22 +367,24 @@ def print_contact_with_modes(compliance, displacements, frames, friction, modes,
     ----------
     compliance, displacements, frames, friction
         As :func:`solve_print_contact`.
-    modes : (p, 2) int
-    signs : (p, 2) float
-        As returned by :func:`solve_print_contact`.
+    modes : (p,) int
+    directions : (p, 2) float
+        As returned by :func:`solve_print_contact`; slipping nodes' directions are
+        a starting guess (they follow U).
 
     Returns
     -------
     PrintContact
     """
-    return PrintContactSystem(compliance, frames, friction).with_modes(displacements, modes, signs)
+    return PrintContactSystem(compliance, frames, friction).with_modes(displacements, modes, directions)
 
 
 def _gauss_seidel(c_local, u_local, mu, sweeps=500, tolerance=1e-12):
-    """Projected Gauss-Seidel on the nodes: normal push, then tangential friction box.
+    """Projected Gauss-Seidel on the nodes: normal push, then tangential friction disc.
 
     Returns (p, 3) forces in node frames. Each sweep solves every dof for its own
-    relative motion with the others held, and projects on its admissible set.
+    relative motion with the others held, and projects each node's tangential
+    force on its disc ``|phi_t| <= mu phi_n``.
     """
     p = u_local.shape[0]
     phi = np.zeros(3 * p)
@@ -352,77 +400,124 @@ def _gauss_seidel(c_local, u_local, mu, sweeps=500, tolerance=1e-12):
                 largest = max(largest, abs(new - phi[n]))
                 phi[n] = new
             bound = mu[k] * phi[n] if phi[n] > 0.0 else 0.0
-            for t in (3 * k, 3 * k + 1):
-                new = float(np.clip(phi[t] - r[t] / diagonal[t], -bound, bound))
-                if new != phi[t]:
-                    r += c_local[:, t] * (new - phi[t])
-                    largest = max(largest, abs(new - phi[t]))
-                    phi[t] = new
+            # One step length for both tangents (the larger compliance): the
+            # fixed point of a disc projection is then Coulomb's, friction against slip.
+            step = 1.0 / max(diagonal[3 * k], diagonal[3 * k + 1])
+            tangential = phi[3 * k : 3 * k + 2] - step * r[3 * k : 3 * k + 2]
+            size = float(np.hypot(*tangential))
+            if size > bound:
+                tangential *= bound / size
+            for axis, t in enumerate((3 * k, 3 * k + 1)):
+                if tangential[axis] != phi[t]:
+                    r += c_local[:, t] * (tangential[axis] - phi[t])
+                    largest = max(largest, abs(tangential[axis] - phi[t]))
+                    phi[t] = tangential[axis]
         if largest <= tolerance * max(np.abs(phi).max(), 1e-300):
             break
     return phi.reshape(p, 3)
 
 
 def _modes_of(phi, mu):
-    """Modes and slip signs read off a contact solution."""
+    """Modes and slip directions read off a contact solution."""
     p = phi.shape[0]
-    modes = np.full((p, 2), STICK)
-    signs = np.zeros((p, 2))
-    bound = _friction_bound(phi[:, 2], mu)
-    for axis in range(2):
-        slipping = np.abs(phi[:, axis]) >= bound * (1.0 - 1e-9)
-        modes[slipping, axis] = SLIP
-        signs[slipping, axis] = np.sign(phi[slipping, axis])
-    lifted = phi[:, 2] <= 0.0
-    modes[lifted] = LIFT
-    signs[lifted] = 0.0
-    return modes, signs
+    modes = np.full(p, STICK)
+    directions = np.zeros((p, 2))
+    size = np.hypot(phi[:, 0], phi[:, 1])
+    slipping = (size >= _friction_bound(phi[:, 2], mu) * (1.0 - 1e-9)) & (size > 0.0)
+    modes[slipping] = SLIP
+    directions[slipping] = phi[slipping, :2] / size[slipping, None]
+    modes[phi[:, 2] <= 0.0] = LIFT
+    directions[modes == LIFT] = 0.0
+    return modes, directions
 
 
-def _mode_system(c_local, modes, signs, mu):
-    """The linear system ``matrix @ phi = -select * U`` (node frames) of fixed modes.
+def _mode_system(c_local, modes, directions, gains, mu, scale):
+    """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames).
 
-    Returns the (3p, 3p) matrix and the (3p,) 0/1 selector of the rows that
-    hold a relative motion to zero (sticking and touching dofs).
+    Sticking nodes: ``r = U + C phi = 0``; lifted: ``phi = 0``; slipping:
+    ``r_n = 0`` and ``phi_t = mu phi_n d(tau)``, ``tau = phi_t - s r_t``, linearised
+    about the iterate's direction ``d`` with gain ``k = mu phi_n / |tau|``: the exact
+    (semismooth) Newton step, which is linear in (phi, U) because the law is
+    positively homogeneous. Returns the (3p, 3p) matrix and (p, 3, 3) blocks.
     """
     p = modes.shape[0]
-    lifted = modes[:, 0] == LIFT
-    # Rows (3p,): which law each dof obeys.
-    mode_of_dof = np.where(lifted[:, None], LIFT, np.column_stack([modes, np.full(p, STICK)])).ravel()
-    motion_rows = mode_of_dof == STICK  # r = 0: the compliance row
+    lifted, slipping = modes == LIFT, modes == SLIP
+    motion_rows = np.repeat(~lifted, 3)  # a row of C: r = 0 on that dof (sticking, or normal of slipping)
+    motion_rows.reshape(p, 3)[slipping, :2] = False
     matrix = np.where(motion_rows[:, None], c_local, 0.0)
-    others = np.flatnonzero(~motion_rows)
-    matrix[others, others] = 1.0  # lifted: phi = 0; slipping: phi_t - s mu' phi_n = 0
-    slipping = np.flatnonzero(mode_of_dof == SLIP)
-    node = slipping // 3
-    matrix[slipping, 3 * node + 2] = -signs.ravel()[slipping - node] * mu[node]
-    return matrix, motion_rows.astype(float)
+    blocks = np.zeros((p, 3, 3))
+    blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
+    lifted_rows = np.flatnonzero(np.repeat(lifted, 3))
+    matrix[lifted_rows, lifted_rows] = 1.0
+    for k in np.flatnonzero(slipping):
+        d, gain, s = directions[k], gains[k], 0.5 * (scale[k, 0] + scale[k, 1])
+        projector = np.eye(2) - np.outer(d, d)
+        rows = slice(3 * k, 3 * k + 2)
+        matrix[rows] = gain * s * projector @ c_local[rows]
+        matrix[rows, rows] += (1.0 - gain) * np.eye(2) + gain * np.outer(d, d)
+        matrix[rows, 3 * k + 2] -= mu[k] * d
+        blocks[k, :2, :2] = gain * s * projector
+    return matrix, blocks
+
+
+def _apply_blocks(blocks, vectors) -> np.ndarray:
+    """(p, 3, 3) blocks times stacked (3p,) or (3p, m) vectors."""
+    p = blocks.shape[0]
+    return np.einsum("pij,pj...->pi...", blocks, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
 
 def _friction_bound(normal, mu):
-    """``mu' phi_n`` of pushing nodes, 0 elsewhere (and no NaN from ``inf * 0``)."""
+    """``mu phi_n`` of pushing nodes, 0 elsewhere (and no NaN from ``inf * 0``)."""
     pushing = normal > 0.0
     return np.where(pushing, mu * np.where(pushing, normal, 1.0), 0.0)
 
 
+def _trial(phi, r, scale):
+    """Per node the trial friction ``tau = phi_t - s r_t`` (one scale s per node: isotropic)."""
+    s = 0.5 * (scale[:, 0] + scale[:, 1])
+    return phi[:, :2] - s[:, None] * r[:, :2]
+
+
+def _slip_directions(phi, r, scale, mu, modes, directions):
+    """Slip directions and Newton gains ``mu phi_n / |tau|`` of slipping nodes (others: unchanged, 0)."""
+    tau = _trial(phi, r, scale)
+    size = np.hypot(tau[:, 0], tau[:, 1])
+    moving = (modes == SLIP) & (size > 0.0)
+    new = np.where(moving[:, None], tau / np.where(moving, size, 1.0)[:, None], directions)
+    gains = np.where(moving, mu * phi[:, 2] / np.where(moving, size, 1.0), 0.0)
+    gains = np.where(np.isfinite(gains), gains, 0.0)
+    return new, gains
+
+
 def _update_modes(phi, r, scale, mu):
-    """Modes from the complementarity functions of Signorini and Coulomb."""
+    """Modes, slip directions and Newton gains from the complementarity functions of Signorini and Coulomb."""
     p = phi.shape[0]
-    modes = np.zeros((p, 2), dtype=int)
-    signs = np.zeros((p, 2))
     # Contact where the normal force minus the scaled gap is not negative (a
     # node exactly at the surface touches: its bonded Jacobian tells a solver
     # that pressing makes force).
     contact = phi[:, 2] - scale[:, 2] * r[:, 2] >= 0.0
     bound = _friction_bound(phi[:, 2], mu)
-    for axis in range(2):
-        trial = phi[:, axis] - scale[:, axis] * r[:, axis]
-        slipping = np.abs(trial) > bound
-        modes[:, axis] = np.where(slipping, SLIP, STICK)
-        signs[:, axis] = np.where(slipping, np.sign(trial), 0.0)
-    modes[~contact] = LIFT
-    signs[~contact] = 0.0
-    # A bound of zero with infinite friction never arises; mu = inf means stick.
-    modes[np.isinf(mu) & contact] = STICK
-    signs[np.isinf(mu) & contact] = 0.0
-    return modes, signs
+    tau = _trial(phi, r, scale)
+    size = np.hypot(tau[:, 0], tau[:, 1])
+    # mu = inf means stick (a bound of inf is never exceeded).
+    slipping = contact & (size > bound)
+    modes = np.where(contact, np.where(slipping, SLIP, STICK), LIFT)
+    directions = np.where(slipping[:, None], tau / np.where(slipping, size, 1.0)[:, None], 0.0)
+    gains = np.where(slipping, bound / np.where(slipping, size, 1.0), 0.0)
+    return modes, directions, gains
+
+
+def _slip_settled(phi, r, scale, modes, mu) -> bool:
+    """Whether every slipping node's friction is ``mu phi_n`` along its trial direction (to 1e-10 of the largest force).
+
+    With the modes from that same trial (``|tau| > mu phi_n``) this is Coulomb's
+    slip: on the bound, against the relative motion ``r_t = -(|tau| - mu phi_n) / s * tau / |tau|``.
+    """
+    slipping = modes == SLIP
+    if not slipping.any():
+        return True
+    tau = _trial(phi, r, scale)[slipping]
+    size = np.hypot(tau[:, 0], tau[:, 1])
+    direction = tau / np.where(size > 0.0, size, 1.0)[:, None]
+    residual = phi[slipping, :2] - (mu[slipping] * phi[slipping, 2])[:, None] * direction
+    return bool(np.abs(residual).max() <= 1e-10 * max(float(np.abs(phi).max()), 1e-300))

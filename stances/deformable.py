@@ -40,8 +40,10 @@ the six rigid modes of each link.
 How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
 
 - ``"coulomb"`` (default): R is the mode-fixed Jacobian L of
-  :func:`fem.solve_print_contact` (each node sticks, slips on its friction bound or
-  lifts off, solved on the condensed compliance). It is evaluated at
+  :func:`fem.solve_print_contact` (each node sticks, slips with its friction on the
+  circular cone's bound exactly against its slip, or lifts off, solved on the
+  condensed compliance; the forces are positively homogeneous in U, ``f = L U``,
+  with L their exact Jacobian for fixed modes). It is evaluated at
   ``U~ = U + G A^-1 (W - G^T R_c U)``, for which ``L U~`` is the formula above, so
   the forces stay continuous when nodes change mode. Each print must press (its
   mean height not above the rest surface) and keep its resultant inside
@@ -260,9 +262,9 @@ class DeformableContact:
         self.normals_in_body = normals_in_body
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
-        self._modes = None  # (modes, signs) of the last contact solve: its warm start
+        self._modes = None  # (modes, slip directions) of the last contact solve: its warm start
         self._contact_system = None  # fem.PrintContactSystem, built on the first Coulomb solve
-        self._frozen = None  # (modes, signs) held fixed by freeze_modes
+        self._frozen = None  # (modes, slip directions) held fixed by freeze_modes
         if options.max_indentation is not None:
             self.max_indentation = float(options.max_indentation)
         else:
@@ -344,8 +346,8 @@ class DeformableContact:
                 state = self._contact_system.with_modes(corrected, *self._frozen)
             else:
                 warm = (None, None) if self._modes is None else self._modes
-                state = self._contact_system.solve(corrected, initial_modes=warm[0], initial_signs=warm[1])
-                self._modes = (state.modes, state.signs)
+                state = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
+                self._modes = (state.modes, state.directions)
             # Only L applied to a few directions is needed, not L itself.
             applied = state.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))
             distribution = applied[:, : self.n_variables]  # D = L G A^-1
@@ -714,18 +716,33 @@ class DeformableContact:
         if np.abs(open_gap).max() > gap_tolerance:
             node = int(self.node_ids[int(np.argmax(np.abs(open_gap)))])
             reasons.append(f"node {node} of {name} pushes across a gap of {np.abs(open_gap).max():.3g} m")
-        bound = self.node_mu * _PYRAMID * np.maximum(phi[:, 2], 0.0)
-        for axis in range(2):
-            sticking = pressed & (np.abs(phi[:, axis]) < bound - force_tolerance)
-            slip = np.where(sticking, np.abs(relative[:, axis]), 0.0)
-            if slip.max() > gap_tolerance:
-                node = int(self.node_ids[int(np.argmax(slip))])
-                reasons.append(f"node {node} of {name} slips {slip.max():.3g} m while its force is inside the cone")
-            # A node that slips must be pulled back by friction: force against the motion.
-            along = np.where(np.abs(relative[:, axis]) > gap_tolerance, phi[:, axis] * np.sign(relative[:, axis]), 0.0)
-            if along.max() > force_tolerance:
-                node = int(self.node_ids[int(np.argmax(along))])
-                reasons.append(f"friction at node {node} of {name} pushes along its slip ({along.max():.3g} N) instead of against it")
+        # Coulomb, isotropic: a node inside its cone sticks; a node that slips has
+        # its friction on the bound, exactly against its slip (maximum dissipation).
+        bound = self.node_mu * np.maximum(phi[:, 2], 0.0)
+        friction = phi[:, :2]
+        tangential = relative[:, :2]
+        size = np.linalg.norm(friction, axis=1)
+        slip = np.linalg.norm(tangential, axis=1)
+        sticking = pressed & (size < bound - force_tolerance)
+        stuck_slip = np.where(sticking, slip, 0.0)
+        if stuck_slip.max() > gap_tolerance:
+            node = int(self.node_ids[int(np.argmax(stuck_slip))])
+            reasons.append(f"node {node} of {name} slips {stuck_slip.max():.3g} m while its force is inside the cone")
+        moving = slip > gap_tolerance
+        against = -tangential / np.where(moving, slip, 1.0)[:, None]
+        expected = np.where(np.isfinite(bound), bound, 0.0)[:, None] * against
+        wrong = np.where(moving & np.isfinite(bound), np.linalg.norm(friction - expected, axis=1), 0.0)
+        measures[f"largest friction error of slipping nodes on {name}"] = float(wrong.max(initial=0.0))
+        # The motions are known to gap_tolerance, so a slip s is known in direction
+        # to about gap_tolerance / s radians: the friction may turn that much.
+        allowed = force_tolerance + bound * gap_tolerance / np.where(moving, slip, 1.0)
+        excess = np.where(moving & np.isfinite(bound), wrong - allowed, 0.0)
+        if excess.max(initial=0.0) > 0.0:
+            node = int(np.argmax(excess))
+            reasons.append(
+                f"friction at node {int(self.node_ids[node])} of {name} is not mu f_n against its slip "
+                f"(off by {wrong[node]:.3g} N: {size[node]:.3g} N, bound {bound[node]:.3g} N, slip {slip[node]:.3g} m)"
+            )
         return reasons
 
     def _check_cones(self, forces, tolerances, measures) -> list:

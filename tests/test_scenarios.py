@@ -18,6 +18,7 @@ EXPECTED = {
     "hand-on-cube",
     "step-on-cube",
     "hand-on-soft-cube",
+    "hand-on-coarse-cube",
     "cross-soft-block",
     "climb-with-soft-support",
     "foot-and-hand-on-foam",
@@ -68,7 +69,8 @@ def _inside_object(scene, object_name, point):
         nodes = obj.points_in_world(obj.mesh.nodes)[np.asarray(obj.mesh.tets)]
         edges = nodes[:, 1:] - nodes[:, :1]
         barycentric = np.linalg.solve(edges.transpose(0, 2, 1), (point - nodes[:, 0])[:, :, None])[:, :, 0]
-        return bool(np.any(np.all(barycentric > 0.0, axis=1) & (barycentric.sum(axis=1) < 1.0)))
+        # Closed tets: a point on a face shared by two tets (a grid line) is inside.
+        return bool(np.any(np.all(barycentric >= -1e-12, axis=1) & (barycentric.sum(axis=1) <= 1.0 + 1e-12)))
     mesh = obj.mesh_in_world()
     offsets = np.einsum("ij,ij->i", mesh.face_normals, mesh.triangles[:, 0])
     assert mesh.is_convex
@@ -274,3 +276,64 @@ def test_soft_box_material_errors_name_the_material_key(tmp_path):
     assert scenario.scene.deformable("cube").body.material.young_modulus == 1e6
     with pytest.raises(ScenarioError, match=r"objects\[2\].resolution: unknown resolution 'fine'"):
         load(write(tmp_path, soft.replace("coarse", "fine")))
+
+
+def test_the_paper_like_coarse_cube_has_its_grid_and_the_palm_print_on_its_nodes(loaded):
+    """hand-on-coarse-cube: 180 nodes and 600 tets (the paper's 166 and 570), the
+    palm's print on grid lines, so its four corners are the print's nodes."""
+    scenario = loaded("hand-on-coarse-cube")
+    cube = scenario.scene.deformable("cube")
+    assert cube.body.mesh.nodes.shape == (180, 3) and cube.body.mesh.tets.shape == (600, 4)
+    default = loaded("hand-on-cube")
+    assert scenario.stance("hand-on-cube") == default.stance("hand-on-cube")
+    np.testing.assert_array_equal(cube.transform_body_to_world, default.scene.deformable("cube").transform_body_to_world)
+    # The palm's print (10 x 7 cm at x = -0.40, y = 0.05 on the top): its corners.
+    top = cube.body.mesh.nodes[cube.body.mesh.nodes[:, 2] == 1.0]
+    corners = {(x, y) for x in (-0.45, -0.35) for y in (0.015, 0.085)}
+    assert corners <= {tuple(np.round(p[:2], 9)) for p in top}
+
+
+SOFT_GRID = """\
+objects:
+  - {name: floor, type: floor}
+  - name: cube
+    type: soft_box
+    size: [1.0, 1.0, 0.5]
+    center: [1.0, 0.0, 0.25]
+    material: {E: 1.0e+6, nu: 0.4}
+    grid: {x: [-0.5, 0.0, 0.5], y: [-0.5, 0.1, 0.5], z: [0.0, 0.2, 0.5]}
+stances:
+  stand:
+    left_sole: {surface: floor, x: 0.0, y: 0.085}
+    right_sole: {surface: floor, x: 0.0, y: -0.085}
+"""
+
+
+def test_a_soft_box_grid_gives_its_grid_lines(tmp_path):
+    cube = load(write(tmp_path, SOFT_GRID)).scene.deformable("cube")
+    nodes = cube.body.mesh.nodes
+    assert nodes.shape == (27, 3)
+    for axis, lines in enumerate(([-0.5, 0.0, 0.5], [-0.5, 0.1, 0.5], [0.0, 0.2, 0.5])):
+        np.testing.assert_array_equal(np.unique(nodes[:, axis]), lines)
+
+
+@pytest.mark.parametrize(
+    "old, new, key, message",
+    [
+        ("x: [-0.5, 0.0, 0.5]", "x: [-0.5, 0.0, 0.4]", "objects[1]", "grid xs must run from -0.5 to 0.5 m"),
+        ("z: [0.0, 0.2, 0.5]", "z: [0.0, 0.3, 0.2, 0.5]", "objects[1]", "grid zs must be strictly increasing, got [0.0, 0.3, 0.2, 0.5]"),
+        ("y: [-0.5, 0.1, 0.5]", "y: [0.5]", "objects[1]", "grid ys must be a list of at least two finite numbers"),
+        ("y: [-0.5, 0.1, 0.5]", "y: 0.5", "objects[1].grid.y", "must be a list of numbers, got float 0.5"),
+        ("y: [-0.5, 0.1, 0.5]", "y: [-0.5, wide, 0.5]", "objects[1].grid.y[1]", "must be a number, got 'wide'"),
+        (", z: [0.0, 0.2, 0.5]}", "}", "objects[1].grid", "missing key 'z'"),
+        ("    grid:", "    resolution: coarse\n    grid:", "objects[1].grid",
+         "a grid fixes every grid line: remove 'resolution' or the grid"),
+    ],
+    ids=["wrong-end", "not-increasing", "one-line", "not-a-list", "not-a-number", "missing-axis", "with-resolution"],
+)
+def test_a_bad_soft_box_grid_is_refused_naming_the_key(tmp_path, old, new, key, message):
+    assert old in SOFT_GRID
+    with pytest.raises(ScenarioError) as info:
+        load(write(tmp_path, SOFT_GRID.replace(old, new)))
+    assert info.value.key == key
+    assert message in str(info.value)

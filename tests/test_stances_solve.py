@@ -23,6 +23,7 @@ DEFORMABLE = [
     ("step-on-cube", "step-on-cube"),
     ("hand-on-soft-cube", "hand-on-soft-cube"),
     ("foot-and-hand-on-foam", "foot-and-hand"),  # a sole and a palm on one soft body
+    ("hand-on-coarse-cube", "hand-on-cube"),  # the paper's coarse mesh: a print of 4 nodes
 ]
 
 
@@ -595,3 +596,31 @@ def test_verify_rejects_rigid_contact_forces_outside_their_friction_cone(robot):
     check = verify(robot, scenario.scene, stance, dataclasses.replace(result, point_forces=pushed))
     assert not check.ok
     assert any("leaves its friction cone by" in reason for reason in check.reasons), check.reasons
+
+
+def test_verify_coulomb_check_wants_slip_friction_on_the_bound_against_the_slip(robot):
+    """verify's node check, fed one slipping node: friction mu f_n against the slip
+    passes; the same friction turned 45 degrees (on the cone, as an inner friction
+    pyramid's corner would put it) or short of the bound is refused, naming the node."""
+    from stances.verify import VerificationTolerances
+
+    scenario = coarse_scenario("hand-on-cube")
+    problem = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"))
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    p, mu = len(contact.node_ids), float(contact.node_mu[0])
+    relative = np.zeros((p, 3))  # node frames: t1, t2, n
+    relative[0, :2] = [3e-4, 4e-4]  # node 0 slides 0.5 mm
+    phi = np.zeros((p, 3))
+    phi[:, 2] = 10.0
+    against = -relative[0, :2] / np.linalg.norm(relative[0, :2])
+
+    def reasons(friction):
+        phi[0, :2] = friction
+        return contact._check_coulomb(phi, relative, VerificationTolerances(), {})
+
+    assert reasons(mu * 10.0 * against) == []
+    turn = np.array([[np.cos(np.pi / 4), -np.sin(np.pi / 4)], [np.sin(np.pi / 4), np.cos(np.pi / 4)]])
+    label = f"friction at node {int(contact.node_ids[0])} of cube is not mu f_n against its slip"
+    for friction in (turn @ (mu * 10.0 * against), 0.5 * mu * 10.0 * against):
+        found = reasons(friction)
+        assert any(reason.startswith(label) for reason in found), found
