@@ -23,7 +23,6 @@ is paid by a first solve and not counted.
 
 from __future__ import annotations
 
-import datetime
 import os
 import sys
 import tempfile
@@ -38,7 +37,7 @@ import pinocchio as pin  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchmark_info import code_version, machine  # noqa: E402
+from benchmark_info import write_report  # noqa: E402
 
 import environments  # noqa: E402
 from environments.deformable import RESOLUTIONS  # noqa: E402
@@ -147,20 +146,15 @@ def main() -> None:
                 f"| {np.abs(answer['q'] - ref['q']).max():.3g} | {answer['strain']:.2g} | {answer['iterations']} "
                 f"| {answer['seconds']:.2f} |"
             )
-    total = time.perf_counter() - started
-    header = (
-        "# The paper's coarse cube against converged meshes\n\n"
-        f"{datetime.date.today()}, {code_version()}; {machine()}. Total run time {total:.0f} s.\n\n"
+    write_report(
+        RESULT,
+        "The paper's coarse cube against converged meshes",
+        started,
         "Stance `hand-on-cube` (paper Fig. 4): both soles on the floor, right palm on the 1 m cube (E = 1e6 Pa, "
         "nu = 0.4). \"vs h / 2\": relative to the mesh refined twice. The 5 mm press moves every print node the "
-        "same 5 mm down (fem only); the stance columns are `stances.solve`'s verified answers.\n\n"
+        "same 5 mm down (fem only); the stance columns are `stances.solve`'s verified answers.",
+        lines,
     )
-    text = header + "\n".join(lines) + "\n"
-    print(text)
-    os.makedirs(os.path.dirname(RESULT), exist_ok=True)
-    with open(RESULT, "w") as handle:
-        handle.write(text)
-
 
 if __name__ == "__main__":
     main()

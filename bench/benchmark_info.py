@@ -2,9 +2,11 @@
 
 from __future__ import annotations
 
+import datetime
 import os
 import platform
 import subprocess
+import time
 
 
 def machine() -> str:
@@ -38,3 +40,21 @@ def code_version() -> str:
         return "unknown commit"
     edited = sorted({line[3:] for line in dirty if line.strip()})
     return f"commit {commit}" + (f", uncommitted edits in {', '.join(edited)}" if edited else "")
+
+
+def write_report(path: str, title: str, started: float, preamble: str, lines: list) -> str:
+    """A benchmark's markdown report: title, date, code, machine and run time, preamble, table.
+
+    Printed and written to ``path`` (its folder made if needed); ``started`` is the
+    ``time.perf_counter()`` of the run's start. Returns the text.
+    """
+    text = (
+        f"# {title}\n\n"
+        f"{datetime.date.today()}, {code_version()}; {machine()}. Total run time {time.perf_counter() - started:.0f} s.\n\n"
+        f"{preamble}\n\n" + "\n".join(lines) + "\n"
+    )
+    print(text)
+    os.makedirs(os.path.dirname(path) or ".", exist_ok=True)
+    with open(path, "w") as handle:
+        handle.write(text)
+    return text

@@ -518,9 +518,10 @@ def initial_configuration(robot, scene, stance):
     -------
     (nq,) float
         ``robot.reference_configuration`` with its free flyer translated so
-        that the mid-point of its feet (surfaces of its support role) lies
-        over the mid-point of the stance's foot prints (or of all prints
-        without a foot) and turned to their mean heading about world z.
+        that the mid-point of the feet (surfaces of its support role) the
+        stance uses lies over the mid-point of their prints (without a foot in
+        the stance: all its feet over all its prints) and turned to their mean
+        heading about world z.
     """
     import pinocchio as pin
 
@@ -529,10 +530,14 @@ def initial_configuration(robot, scene, stance):
     data = model.createData()
     pin.framesForwardKinematics(model, data, q)
     feet = robot.surfaces_with_role(robot.support.role)
-    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in feet], axis=0)
-    contacts = [c for c in stance if c.robot_surface in feet] or list(stance)
+    contacts = [c for c in stance if c.robot_surface in feet]
+    # The same feet on both sides: a quadruped on three feet puts those three
+    # over their prints, not the mid-point of all four.
+    used = [c.robot_surface for c in contacts] or list(feet)
+    contacts = contacts or list(stance)
     if not contacts:
         return q
+    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in used], axis=0)
     transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]
     target = np.mean([t[:3, 3] for t in transforms], axis=0)
     heading = np.mean([t[:3, 0] for t in transforms], axis=0)

@@ -291,3 +291,18 @@ def test_verify_catches_a_point_foot_force_reported_away_from_its_ball(anymal, s
     forces[0] = dataclasses.replace(forces[0], point=forces[0].point - np.array([0.0, 0.0, FOOT_RADIUS]))  # at the ground
     moved = verify_problem(problem, dataclasses.replace(result, point_forces=tuple(forces)))
     assert f"forces of {problem.contacts[0].label} are not applied at its ball's centre" in moved.reasons
+
+
+def test_a_cold_start_puts_the_stance_feet_over_their_prints(anymal, walk):
+    """On three feet, the reference posture is moved so that those three feet's
+    mid-point lies over their prints' mid-point (it once matched all four feet's)."""
+    from cbm.planner import initial_configuration
+
+    stance = walk.stance("three-feet")
+    assert len(stance.contacts) == 3
+    q = initial_configuration(anymal, walk.scene, stance)
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, q)
+    feet = np.mean([data.oMf[anymal.frame_id(anymal.surface(c.robot_surface).frame)].translation for c in stance], axis=0)
+    prints = np.mean([walk.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in stance], axis=0)
+    np.testing.assert_allclose(feet[:2], prints[:2], atol=1e-9)
