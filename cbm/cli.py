@@ -174,6 +174,13 @@ def build_parser():
         action="store_true",
         help="solve every stance, without the cheap checks that reject impossible ones first (benchmarks)",
     )
+    plan.add_argument(
+        "--terrain-weight",
+        type=float,
+        default=None,
+        help="metres of goal distance per joule stored in soft supports: > 0 prefers stiff, shallow prints "
+        "(default: the scenario's terrain_weight option, else 0)",
+    )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
     plan.add_argument(
         "--motion",
@@ -369,6 +376,7 @@ def _plan(args):
                 progress=not args.quiet,
                 workers=args.workers,
                 prefilter=not args.no_prefilter,
+                terrain_weight=args.terrain_weight,
             )
         except PlanInterrupted as stop:
             if not stop.plan.stances:

@@ -25,6 +25,7 @@ from .reach import ReachLimits, ReachModel
 from .sampling import obstacle_boxes, options_from_scenario, sample_prints, with_prints
 from .search import SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
+from .terrain import TerrainCost, terrain_weight as _terrain_weight
 
 __all__ = [
     "plan",
@@ -348,6 +349,7 @@ def plan(
     oracle=None,
     workers=1,
     prefilter=True,
+    terrain_weight=None,
 ):
     """Plan a sequence of stances from the scenario's start to its goal.
 
@@ -392,6 +394,13 @@ def plan(
         expansion's candidates) ahead, in parallel; the plan is the same, bit
         for bit, for any number. Needs a scenario read from YAML and a robot
         from ``stances.Robot.load``, and the built-in oracle.
+    terrain_weight : float, optional
+        Metres of goal distance per joule of elastic energy stored in the soft
+        supports, added to the priority for each stance of a path
+        (:mod:`cbm.terrain`): 0 ignores the terrain, a large weight avoids soft
+        ground where a rigid way exists. Default: the scenario's
+        ``terrain_weight`` option, else 0 (then plans are those of a search
+        without the term, bit for bit).
 
     Returns
     -------
@@ -402,13 +411,15 @@ def plan(
     Raises
     ------
     CbmError
-        If the scenario has no start or no goal and none is given.
+        If the scenario has no start or no goal and none is given, or
+        ``terrain_weight`` is not a finite number >= 0.
     environments.ScenarioError
         If a stance or the goal names a surface the robot lacks.
     PlanInterrupted
         On Ctrl-C during the search, with the best partial plan so far.
     """
     scenario = load_scenario(scenario)
+    weight = _terrain_weight(getattr(scenario, "options", None), terrain_weight)
     scene = scenario.scene
     goal = goal if goal is not None else scenario.goal
     if goal is None:
@@ -465,6 +476,7 @@ def plan(
             heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
             is_goal=lambda stance: goal.is_satisfied(stance, scene),
             path_cost_weight=path_cost,
+            node_cost=TerrainCost(weight) if weight > 0 else None,
             limits=limits,
             eager=eager,
             shuffle_neighbours=True,
@@ -511,16 +523,8 @@ def _plan_of(searched, scenario, robot, prints, reason):
     answers = [attributes["result"] for _, attributes in searched.graph.nodes(data=True)]
     prefiltered = Counter(getattr(a, "rejected_by", "") for a in answers if a is not None)
     prefiltered.pop("", None)
-    statistics = PlanStatistics(
-        expanded=s.expanded,
-        generated=s.generated,
-        solver_calls=s.solver_calls,
-        cache_hits=s.cache_hits,
-        prints=prints,
-        time=s.time,
-        cpu_time=s.cpu_time,
-        prefiltered=dict(sorted(prefiltered.items())),
-    )
+    # Every search counter, whatever SearchStatistics holds, the prints and the prefilter's rejections.
+    statistics = PlanStatistics(**s.to_dict(), prints=prints, prefiltered=dict(sorted(prefiltered.items())))
     rejected = [
         getattr(attributes["result"], "reason", "") or "rejected"
         for _, attributes in searched.graph.nodes(data=True)

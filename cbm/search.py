@@ -6,6 +6,13 @@ when a node is popped from the open list rather than when it is generated, so a
 search that goes straight to the goal pays one solve per stance of the path,
 not one per neighbour. Every answer is cached: no node is ever given to the
 oracle twice.
+
+A node may also carry a cost known only from its answer (``node_cost``: the
+planner's terrain cost, from the stance's deformation). The search stays exact
+by lazy re-evaluation, as lazy weighted A* does for edge costs: a node is queued
+with 0 for its own cost (a lower bound), and when it is popped and answered, if
+its true cost is higher, it is queued again with its true priority instead of
+being goal-tested or expanded.
 """
 
 from __future__ import annotations
@@ -13,6 +20,7 @@ from __future__ import annotations
 import heapq
 import itertools
 import logging
+import math
 import random
 import time
 import dataclasses
@@ -103,6 +111,9 @@ class SearchStatistics:
         Calls to the feasibility oracle.
     cache_hits : int
         Oracle requests answered from the cache instead.
+    requeued : int
+        Nodes queued again with their true priority once their answer gave
+        them a positive ``node_cost`` (lazy re-evaluation; no oracle call).
     time : float
         Wall time of the search, seconds.
     cpu_time : float
@@ -114,6 +125,7 @@ class SearchStatistics:
     generated: int = 0
     solver_calls: int = 0
     cache_hits: int = 0
+    requeued: int = 0
     time: float = 0.0
     cpu_time: float = 0.0
 
@@ -164,6 +176,7 @@ def best_first_search(
     is_goal: Callable[[Any], bool],
     step_cost: Callable[[Any, Any, Any], float] | None = None,
     path_cost_weight: float = 0.0,
+    node_cost: Callable[[Any, Any], float] | None = None,
     limits: SearchLimits = SearchLimits(),
     eager: bool = False,
     shuffle_neighbours: bool = False,
@@ -175,10 +188,22 @@ def best_first_search(
     """Search from ``start`` to a goal node through feasible nodes only.
 
     Nodes are popped in increasing order of
-    ``heuristic(node) + path_cost_weight * cost_from_start``, ties broken by
-    insertion order. A popped node is given to the oracle (warm start: its
-    parent and the parent's answer) unless the cache already knows it;
-    infeasible nodes are dropped, feasible ones are goal-tested then expanded.
+    ``heuristic(node) + path_cost_weight * cost_from_start + node_costs``
+    (``node_costs``: the sum of ``node_cost`` over the path's nodes, the node
+    included), ties broken by insertion order. A popped node is given to the
+    oracle (warm start: its parent and the parent's answer) unless the cache
+    already knows it; infeasible nodes are dropped, feasible ones are
+    goal-tested then expanded.
+
+    With ``node_cost``, a node whose answer is not yet known is queued with 0
+    for its own node cost. Invariant: every queued entry's priority is at most
+    the true priority of the path it stands for, and a node is goal-tested or
+    expanded only from an entry holding its true priority: an entry popped
+    before its node's cost was counted, if that cost is positive, is queued
+    again with it (counted as ``requeued``). So the node expanded is always
+    one of least true priority among the queued paths, as if every cost had
+    been known from the start (up to the order of ties), while the oracle is
+    still called only on popped nodes.
 
     Parameters
     ----------
@@ -198,6 +223,11 @@ def best_first_search(
         ``step_cost(parent, child, move)``; 1 per move by default.
     path_cost_weight : float
         Weight of the cost from the start in the priority; 0 is greedy.
+    node_cost : callable, optional
+        ``node_cost(node, answer)`` for a feasible node: a cost known only from
+        its oracle answer (the planner's terrain cost), >= 0 and finite, in the
+        priority's units (not weighted by ``path_cost_weight``), added to every
+        path through the node; called once per node. None: 0 everywhere.
     limits : SearchLimits
         Budgets.
     eager : bool
@@ -232,6 +262,9 @@ def best_first_search(
 
     Raises
     ------
+    CbmError
+        If ``path_cost_weight`` is negative, or ``node_cost`` returns a negative
+        or non-finite value (a lower bound of 0 would then be wrong).
     SearchInterrupted
         On Ctrl-C (``KeyboardInterrupt``) during the search, with the best
         partial result so far.
@@ -267,8 +300,9 @@ def best_first_search(
     came_from: dict = {}
     closed: set = set()
     h_of: dict = {}
+    own_cost_of: dict = {}
     graph = nx.DiGraph()
-    counts = {"expanded": 0, "generated": 0, "solver_calls": 0, "cache_hits": 0}
+    counts = {"expanded": 0, "generated": 0, "solver_calls": 0, "cache_hits": 0, "requeued": 0}
     best = None  # (h, order, node) of the feasible node closest to the goal
 
     def statistics():
@@ -280,6 +314,27 @@ def best_first_search(
         if node not in h_of:
             h_of[node] = float(heuristic(node))
         return h_of[node]
+
+    def own_cost(node, answer):
+        """``node_cost`` of a feasible node, checked and computed once."""
+        if node not in own_cost_of:
+            value = float(node_cost(node, answer))
+            if not (math.isfinite(value) and value >= 0.0):
+                raise CbmError(f"node_cost must return a finite value >= 0, got {value!r} for node {node!r}")
+            own_cost_of[node] = value
+        return own_cost_of[node]
+
+    def push(node, parent, cost, path_node_costs):
+        """Queue ``node`` reached from ``parent``; ``path_node_costs`` sums the node costs up to ``parent``.
+
+        The entry is settled (its priority true) if the node's own cost is
+        known; otherwise it counts 0 for it, a lower bound (see the invariant).
+        """
+        settled, total = node_cost is None, path_node_costs
+        if not settled and node in cache:
+            settled, total = True, path_node_costs + own_cost(node, cache[node])
+        priority = heuristic_of(node) + path_cost_weight * cost + total
+        heapq.heappush(heap, (priority, next(counter), node, parent, cost, total, settled))
 
     def budget_exceeded(before_solve):
         if limits.time_limit is not None and time.perf_counter() - started > limits.time_limit:
@@ -336,13 +391,13 @@ def best_first_search(
 
     ahead = _Lookahead(submit, lookahead, cache, closed) if submit is not None else None
     graph.add_node(start, status="open", result=None, h=heuristic_of(start))
-    heapq.heappush(heap, (heuristic_of(start), next(counter), start, None, 0.0))
+    push(start, None, 0.0, 0.0)
     try:
         while heap:
             exceeded = budget_exceeded(before_solve=False)
             if exceeded is not None:
                 raise _BudgetExhausted(exceeded)
-            _, order, node, parent, cost = heapq.heappop(heap)
+            _, order, node, parent, cost, node_costs, settled = heapq.heappop(heap)
             if node in closed:
                 continue
             if eager and node in cache:
@@ -353,6 +408,12 @@ def best_first_search(
                 if parent is None:
                     reason = getattr(answer, "reason", "") or "rejected by the oracle"
                     return finish(False, f"start infeasible: {reason}", None)
+                continue
+            if not settled and own_cost(node, answer) > 0.0:
+                # Its true priority is higher than the one it was popped with:
+                # queue it again with that priority before any goal test or expansion.
+                counts["requeued"] += 1
+                push(node, parent, cost, node_costs)
                 continue
             came_from.setdefault(node, parent)
             h = heuristic_of(node)
@@ -385,9 +446,7 @@ def best_first_search(
                 if eager and child not in cache:
                     if not evaluate(child, node).feasible:
                         continue
-                child_cost = cost + float(step_cost(node, child, move))
-                priority = heuristic_of(child) + path_cost_weight * child_cost
-                heapq.heappush(heap, (priority, next(counter), child, node, child_cost))
+                push(child, node, cost + float(step_cost(node, child, move)), node_costs)
             if on_expand is not None:
                 on_expand(statistics())
     except _BudgetExhausted as exhausted:
@@ -431,7 +490,8 @@ class _Lookahead:
         seen = set()
         # The heap's entries in pop order; only a node's first entry is the one
         # the search would pop, its later ones are skipped as closed or cached.
-        for _, _, node, parent, _ in heapq.nsmallest(4 * self.size + len(self.pending), heap):
+        for entry in heapq.nsmallest(4 * self.size + len(self.pending), heap):
+            node, parent = entry[2], entry[3]
             if running >= self.size:
                 break
             if node in seen or node in self.closed or node in self.cache:

@@ -23,6 +23,7 @@ SCENARIO_OPTIONS = {
     "print_margin": "a number >= 0, metres: distance prints keep inside their surface",
     "sampling_region": "a mapping {lower: [x, y], upper: [x, y]}, metres, world frame, lower <= upper",
     "robot_surfaces": "a non-empty list of robot surface names, e.g. [left_sole, right_sole]",
+    "terrain_weight": "a number >= 0, metres of goal distance per joule of the soft supports' deformation energy",
 }
 
 
@@ -55,7 +56,7 @@ def validate_options(options, path=None) -> dict:
     >>> validate_options({"print_spacin": 0.1})
     Traceback (most recent call last):
     ...
-    environments.errors.ScenarioError: <scenario>: options.print_spacin: unknown option 'print_spacin'; valid options: print_spacing, theta_values_deg, print_margin, sampling_region, robot_surfaces
+    environments.errors.ScenarioError: <scenario>: options.print_spacin: unknown option 'print_spacin'; valid options: print_spacing, theta_values_deg, print_margin, sampling_region, robot_surfaces, terrain_weight
     """
     if options is None:
         return {}
@@ -69,7 +70,7 @@ def validate_options(options, path=None) -> dict:
         expected = SCENARIO_OPTIONS[name]
         if name == "print_spacing":
             checked[name] = _number(value, path, key, expected, lambda v: v > 0.0)
-        elif name == "print_margin":
+        elif name in ("print_margin", "terrain_weight"):
             checked[name] = _number(value, path, key, expected, lambda v: v >= 0.0)
         elif name == "theta_values_deg":
             if not isinstance(value, (list, tuple)) or not value:

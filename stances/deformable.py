@@ -633,7 +633,8 @@ class DeformableContact:
         bonded laws). ``traction``: the forces are recomputed from the link
         placement with eq. (44). Then the friction cones (per node, or of each
         print's resultant for ``bonded``), the indentation and the strain over
-        every tet of the body are checked. ``forces`` are finite
+        every tet of the body are checked. The body's elastic energy under the
+        forces is measured too (``deformation energy of <name>``, joules). ``forces`` are finite
         (:func:`stances.verify.verify_problem` refuses any other first).
         """
         name = self.deformable_object.name
@@ -676,6 +677,10 @@ class DeformableContact:
         reasons.extend(self._check_cones(forces, tolerances, measures))
         depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
+        # Elastic energy stored in the body, joules: by Clapeyron's theorem 1/2 F.U over
+        # the loaded nodes equals 1/2 U^T K U, the bilinear form of eq. (6) at w = u
+        # (>= 0; exact for the consistent forces). The planner's terrain cost reads it.
+        measures[f"deformation energy of {name}"] = float(0.5 * np.sum(-forces_body * field[self.node_ids]))
         if depth > self.max_indentation + tolerances.deformable_placement:
             reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
         strain, tet = body.largest_principal_strain(field)

@@ -46,15 +46,24 @@ def search(**options):
     )
 
 
+def answer_cost(node, answer):
+    """A node cost read from the answer, as the planner's terrain cost is (0 on a third of the nodes)."""
+    return 0.7 * (answer.value % 3.0)
+
+
+@pytest.mark.parametrize("node_cost", [None, answer_cost], ids=["no-node-cost", "node-cost"])
 @pytest.mark.parametrize("eager", [False, True], ids=["lazy", "eager"])
 @pytest.mark.parametrize("lookahead", [1, 2, 5])
-def test_search_solving_ahead_consumes_the_answers_a_serial_search_computes(lookahead, eager):
-    serial = search(eager=eager)
+def test_search_solving_ahead_consumes_the_answers_a_serial_search_computes(lookahead, eager, node_cost):
+    serial = search(eager=eager, node_cost=node_cost)
     oracle = WarmStartedOracle()
     with ThreadPoolExecutor(2) as pool:
-        ahead = search(eager=eager, submit=lambda *args: pool.submit(oracle, *args), lookahead=lookahead)
+        ahead = search(
+            eager=eager, node_cost=node_cost, submit=lambda *args: pool.submit(oracle, *args), lookahead=lookahead
+        )
     assert serial.success and ahead.success
     assert ahead.path == serial.path
+    assert ahead.statistics.requeued == serial.statistics.requeued
     assert [(r.value, r.parent) for r in ahead.results] == [(r.value, r.parent) for r in serial.results]
     assert ahead.statistics.solver_calls == serial.statistics.solver_calls
     assert ahead.statistics.expanded == serial.statistics.expanded

@@ -1,12 +1,15 @@
 """Best-first search on tiny hand-made graphs with synthetic feasibility oracles."""
 
 import collections
+import random
+import re
 import time
 from dataclasses import dataclass
 
 import networkx as nx
 import pytest
 
+from cbm.errors import CbmError
 from cbm.search import INTERRUPTED, NO_FEASIBLE_NEIGHBOUR, SearchInterrupted, SearchLimits, best_first_search
 
 
@@ -315,3 +318,158 @@ def test_expand_callback_sees_growing_counts():
     seen = []
     search_graph(diamond(), "s", "goal", CountingOracle(infeasible={"a"}), on_expand=seen.append)
     assert [s.expanded for s in seen] == [1, 2, 3]
+
+
+# ------------------------------------------- node costs known only from the answer
+class RecordingNeighbours:
+    """Successors in a graph, recording the order in which nodes are expanded."""
+
+    def __init__(self, graph):
+        self.graph = graph
+        self.expanded = []
+
+    def __call__(self, node):
+        self.expanded.append(node)
+        return [(m, (node, m)) for m in self.graph.successors(node)]
+
+
+def search_with_node_costs(graph, start, goal, costs, oracle=None, **kwargs):
+    neighbours = RecordingNeighbours(graph)
+    oracle = oracle if oracle is not None else CountingOracle()
+    result = best_first_search(
+        start,
+        neighbours=neighbours,
+        oracle=oracle,
+        heuristic=lambda n: float(graph.nodes[n].get("h", 0.0)),
+        is_goal=lambda n: n == goal,
+        node_cost=lambda node, answer: costs.get(answer.warm_start, 0.0),
+        **kwargs,
+    )
+    return result, neighbours.expanded, oracle
+
+
+def soft_shortcut_graph():
+    #      soft(h=1, node cost 2) -> goal
+    # s -<
+    #      firm1(h=2) -> firm2(h=1) -> goal
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 3}), ("soft", {"h": 1}), ("firm1", {"h": 2}), ("firm2", {"h": 1}), ("goal", {"h": 0})])
+    g.add_edges_from([("s", "soft"), ("s", "firm1"), ("soft", "goal"), ("firm1", "firm2"), ("firm2", "goal")])
+    return g
+
+
+@pytest.mark.parametrize("soft_cost, path", [(0.0, ("s", "soft", "goal")), (2.0, ("s", "firm1", "firm2", "goal"))],
+                         ids=["free", "costly"])
+@pytest.mark.parametrize("eager", [False, True], ids=["lazy", "eager"])
+def test_a_node_cost_known_from_the_answer_changes_the_path_exactly(soft_cost, path, eager):
+    # With a unit step and weight 1: via soft 1 + 1 + cost (popped at h + g = 2 + cost),
+    # via firm1 and firm2 3 + 0: soft is taken iff its cost is below 1.
+    result, expanded, oracle = search_with_node_costs(
+        soft_shortcut_graph(), "s", "goal", {"soft": soft_cost}, path_cost_weight=1.0, eager=eager
+    )
+    assert result.success and result.path == path
+    if soft_cost > 0:
+        # Lazy: solved first (its estimate 1 + 1 beats firm1's 2 + 1), found costly,
+        # queued again and never expanded. Eager: its cost is known when it is queued.
+        assert oracle.calls["soft"] == 1 and "soft" not in expanded
+        assert result.graph.nodes["soft"]["status"] == "feasible"
+        assert result.statistics.requeued == (0 if eager else 1)
+
+
+def test_a_node_whose_true_cost_is_higher_is_not_expanded_before_cheaper_ones():
+    # s's children by heuristic: x (1), y (2), z (3); x's own cost 5 makes its true
+    # priority 1 + 1 + 5 = 7, above y's 3 and z's 4: x is solved first (on its
+    # estimate 2), but y and z are expanded before it. Only x leads to the goal.
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 4}), ("x", {"h": 1}), ("y", {"h": 2}), ("z", {"h": 3}), ("goal", {"h": 0})])
+    g.add_edges_from([("s", "x"), ("s", "y"), ("s", "z"), ("x", "goal")])
+    solved = []
+    oracle = CountingOracle()
+
+    def recording_oracle(node, parent, parent_result):
+        solved.append(node)
+        return oracle(node, parent, parent_result)
+
+    result, expanded, _ = search_with_node_costs(g, "s", "goal", {"x": 5.0}, oracle=recording_oracle,
+                                                 path_cost_weight=1.0)
+    assert result.path == ("s", "x", "goal")
+    assert solved == ["s", "x", "y", "z", "goal"]
+    assert expanded == ["s", "y", "z", "x"]
+    assert result.statistics.requeued == 1 and max(oracle.calls.values()) == 1
+
+
+def test_a_costly_goal_is_not_returned_before_a_cheaper_goal():
+    # Two goals one move away: g1 (h 0, cost 3) and g2 (h 0.5, cost 0).
+    g = nx.DiGraph()
+    g.add_nodes_from([("s", {"h": 1}), ("g1", {"h": 0}), ("g2", {"h": 0.5})])
+    g.add_edges_from([("s", "g1"), ("s", "g2")])
+    result = best_first_search(
+        "s",
+        neighbours=lambda n: [(m, (n, m)) for m in g.successors(n)],
+        oracle=CountingOracle(),
+        heuristic=lambda n: g.nodes[n]["h"],
+        is_goal=lambda n: n in ("g1", "g2"),
+        node_cost=lambda node, answer: 3.0 if node == "g1" else 0.0,
+    )
+    assert result.path == ("s", "g2")
+
+
+def test_node_costs_are_computed_once_per_node_and_added_along_the_path():
+    # A grid where every node costs its answer's x coordinate: "s" reaches (2, 2)
+    # through many parents; each cost is asked for once.
+    grid = nx.grid_2d_graph(3, 3).to_directed()
+    asked = collections.Counter()
+
+    def cost(node, answer):
+        asked[node] += 1
+        return 0.25 * node[0]
+
+    result = best_first_search(
+        (0, 0),
+        neighbours=lambda n: [(m, (n, m)) for m in grid.successors(n)],
+        oracle=CountingOracle(),
+        heuristic=lambda n: 0.0,
+        is_goal=lambda n: n == (2, 2),
+        node_cost=cost,
+        path_cost_weight=1.0,
+    )
+    assert max(asked.values()) == 1
+    # Uniform cost: 4 moves and the x costs 0.25 * (0 + 0 + 0 + 1 + 2) at least, reached
+    # by moving along y first (costs 0, 0, 0, then 0.25, 0.5).
+    assert result.path == ((0, 0), (0, 1), (0, 2), (1, 2), (2, 2))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_lazy_node_costs_expand_as_a_search_that_knew_them_from_the_start(seed):
+    # Random graphs, heuristics, infeasible nodes and node costs: folding each
+    # node's cost into the step reaching it (known in advance) must expand the
+    # same nodes in the same order and return the same path.
+    rng = random.Random(seed)
+    g = nx.gnp_random_graph(40, 0.12, seed=seed, directed=True)
+    for n in g:
+        g.nodes[n]["h"] = rng.uniform(0.0, 3.0)
+    costs = {n: (rng.uniform(0.0, 2.0) if rng.random() < 0.5 else 0.0) for n in g if n != 0}
+    infeasible = {n for n in g if n != 0 and rng.random() < 0.15}
+    goal = max(g, key=lambda n: nx.shortest_path_length(g, 0, n) if nx.has_path(g, 0, n) else -1)
+    lazy, lazy_expanded, _ = search_with_node_costs(
+        g, 0, goal, costs, oracle=CountingOracle(infeasible), path_cost_weight=1.0
+    )
+    neighbours = RecordingNeighbours(g)
+    known = best_first_search(
+        0,
+        neighbours=neighbours,
+        oracle=CountingOracle(infeasible),
+        heuristic=lambda n: g.nodes[n]["h"],
+        is_goal=lambda n: n == goal,
+        step_cost=lambda parent, child, move: 1.0 + costs.get(child, 0.0),
+        path_cost_weight=1.0,
+    )
+    assert lazy.reason == known.reason
+    assert lazy.path == known.path
+    assert lazy_expanded == neighbours.expanded
+
+
+@pytest.mark.parametrize("value", [-0.5, float("nan"), float("inf")], ids=["negative", "nan", "inf"])
+def test_a_node_cost_that_is_not_a_finite_non_negative_number_is_refused(value):
+    with pytest.raises(CbmError, match=re.escape(f"node_cost must return a finite value >= 0, got {value!r} for node 'a'")):
+        search_with_node_costs(diamond(), "s", "goal", {"a": value}, path_cost_weight=1.0)
