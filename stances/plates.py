@@ -37,24 +37,33 @@ class PlateDeclaration:
     ----------
     thickness : float
         Plate thickness along the surface normal, metres (> 0).
-    replaces : str
-        Name prefix of the frames the plate replaces (e.g. ``"gripper_left_"``):
-        the collision geometries attached to them are removed, and so is their
-        inertia from the link's. Empty: nothing is replaced.
+    replaces : str or sequence of str
+        Name prefix, or prefixes, of the frames the plate replaces (e.g.
+        ``"gripper_left_"``; Romeo's ``["RFinger", "RThumb"]``): the collision
+        geometries attached to them are removed, and so is their inertia from
+        the link's. Empty: nothing is replaced. Stored as a tuple of prefixes.
     mass : float, optional
         Plate mass, kilograms. ``None`` gives it the replaced frames' total
         mass, so that the robot's total mass is unchanged.
     """
 
     thickness: float
-    replaces: str = ""
+    replaces: tuple = ()
     mass: float | None = None
 
     def __post_init__(self) -> None:
         if not (isinstance(self.thickness, (int, float)) and math.isfinite(self.thickness) and self.thickness > 0.0):
             raise StanceError(f"plate thickness must be a finite number of metres > 0, got {self.thickness!r}")
-        if not isinstance(self.replaces, str):
-            raise StanceError(f"plate 'replaces' must be a frame-name prefix (str), got {self.replaces!r}")
+        if isinstance(self.replaces, str):  # one prefix; "" replaces nothing
+            prefixes = (self.replaces,) if self.replaces else ()
+        else:
+            prefixes = self.replaces
+        if not isinstance(prefixes, (list, tuple)) or not all(isinstance(prefix, str) and prefix for prefix in prefixes):
+            raise StanceError(
+                f"plate 'replaces' must be a frame-name prefix or a list of non-empty prefixes, got {self.replaces!r}"
+            )
+        # A tuple: str.startswith takes one.
+        object.__setattr__(self, "replaces", tuple(prefixes))
         if self.mass is not None and not (
             isinstance(self.mass, (int, float)) and math.isfinite(self.mass) and self.mass >= 0.0
         ):
@@ -146,8 +155,8 @@ def replaced_inertia(model, joint: int, prefix: str) -> pin.Inertia:
         ``buildReducedModel`` leave them.
     joint : int
         Joint carrying the plate.
-    prefix : str
-        Name prefix of the replaced frames; empty replaces nothing.
+    prefix : str or tuple of str
+        Name prefix (or prefixes) of the replaced frames; empty replaces nothing.
 
     Returns
     -------
@@ -241,7 +250,7 @@ def mount_plate(model, collision_model, joint: int, mount_in_joint: pin.SE3, pol
     eigenvalues = np.linalg.eigvalsh(link.inertia)
     if link.mass <= 0.0 or eigenvalues.min() < -1e-12:
         raise StanceError(
-            f"removing the inertia of the frames {plate.replaces!r}* from {model.names[joint]} leaves "
+            f"removing the inertia of the frames {' '.join(p + '*' for p in plate.replaces)} from {model.names[joint]} leaves "
             f"mass {link.mass:.6g} kg and rotational inertia eigenvalues {np.round(eigenvalues, 9).tolist()}; "
             "check the prefix"
         )
