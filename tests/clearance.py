@@ -13,13 +13,21 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-# The geometry that forms each Talos surface, written out here rather than read
-# from the robot: a palm touches with its plate only, a sole with the foot mesh.
+# The geometry that forms each surface of Talos and Romeo, written out here rather
+# than read from the robot: a palm touches with its plate only, a sole with the foot mesh.
 CONTACT_GEOMETRY = {
-    "left_palm": ("left_palm_plate",),
-    "right_palm": ("right_palm_plate",),
-    "left_sole": ("leg_left_6_link_0",),
-    "right_sole": ("leg_right_6_link_0",),
+    "talos": {
+        "left_palm": ("left_palm_plate",),
+        "right_palm": ("right_palm_plate",),
+        "left_sole": ("leg_left_6_link_0",),
+        "right_sole": ("leg_right_6_link_0",),
+    },
+    "romeo": {
+        "left_palm": ("left_palm_plate",),
+        "right_palm": ("right_palm_plate",),
+        "left_sole": ("l_ankle_0",),
+        "right_sole": ("r_ankle_0",),
+    },
 }
 
 
@@ -81,7 +89,7 @@ def robot_clearances(robot, scene, stance, q, deformations=None) -> dict:
     touching = {
         (geometry, scene.surface(contact.contact_print.surface).object_name)
         for contact in stance
-        for geometry in CONTACT_GEOMETRY[contact.robot_surface]
+        for geometry in CONTACT_GEOMETRY[robot.name][contact.robot_surface]
     }
     geometry_model = robot.collision_model.copy()
     geometry_model.removeAllCollisionPairs()

@@ -205,13 +205,19 @@ def _palm_stances():
 PALM_STANCES = _palm_stances()
 
 
+@pytest.fixture(scope="module")
+def romeo():
+    return Robot.load("romeo")
+
+
 @pytest.mark.parametrize("scenario_name, stance_name", PALM_STANCES, ids=[f"{a}/{b}" for a, b in PALM_STANCES])
-def test_only_the_contact_geometry_comes_near_a_support(robot, scenario_name, stance_name):
+def test_only_the_contact_geometry_comes_near_a_support(robot, romeo, scenario_name, stance_name):
     """In every accepted palm stance, each robot geometry but a surface's own is at
     least collision_distance from every scene object: the solver's fcl hulls
     cannot hide a wrist inside the table, coal on the full meshes would see it.
     Soft objects are measured at rest (what the solver keeps clear) and deformed."""
     scenario = coarse_scenario(scenario_name)
+    robot = {"talos": robot, "romeo": romeo}[scenario.robot]
     stance = scenario.stance(stance_name)
     result = solve(robot, scenario.scene, stance)
     if not result.feasible:
@@ -226,6 +232,35 @@ def test_only_the_contact_geometry_comes_near_a_support(robot, scenario_name, st
         clearances = robot_clearances(robot, scenario.scene, stance, result.q, deformations)
         close = {pair: distance for pair, distance in clearances.items() if distance < minimum}
         assert not close, close
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_romeo_palm_is_a_plate_in_place_of_the_fingers_just_past_the_palm_mesh(romeo, side):
+    """Romeo's hand mesh is domed on both faces, so its locked fingers and thumb
+    (massless in the URDF) give way to a plate: the robot keeps its URDF mass,
+    the plate is the palm's only contact geometry, and on the full mesh the palm
+    lies exactly a plate thickness behind the contact plane."""
+    palm, letter = f"{side}_palm", side[0].upper()
+    surface = romeo.surface(palm)
+    assert (surface.role, surface.limb) == ("hand", f"{side}_arm")
+    assert surface.contact_geometries == (f"{palm}_plate",)
+    model, collision_model = romeo.model, romeo.collision_model
+    joint = model.frames[romeo.frame_id(surface.frame)].parentJoint
+    assert model.names[joint] == f"{letter}WristPitch"
+    names = [geometry.name for geometry in collision_model.geometryObjects]
+    assert not [name for name in names if name.startswith((f"{letter}Finger", f"{letter}Thumb"))]
+    others = [g.name for g in collision_model.geometryObjects if g.parentJoint == joint and g.name != f"{palm}_plate"]
+    assert others == [f"{side[0]}_wrist_0"]
+    assert _distance_to_half_space_below(romeo, others[0], surface.frame) == pytest.approx(THICKNESS, abs=1e-6)
+    # The plate under the palm's centre: 8 cm along the fingers, 6 cm across.
+    plate = collision_model.geometryObjects[collision_model.getGeometryId(f"{palm}_plate")]
+    np.testing.assert_allclose(plate.geometry.halfSide, [0.04, 0.03, 0.5 * THICKNESS])
+    np.testing.assert_allclose(model.frames[romeo.frame_id(surface.frame)].placement.translation[:2], [0.065, 0.0])
+    description = read_description("romeo")
+    urdf_mass = sum(
+        float(mass.get("value")) for mass in ElementTree.parse(description.urdf).getroot().iter("mass")
+    )
+    assert romeo.mass == pytest.approx(urdf_mass, abs=1e-9)
 
 
 def test_clearance_helper_measures_a_mesh_object_like_its_box(robot):

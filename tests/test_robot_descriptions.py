@@ -28,6 +28,20 @@ def romeo():
     return Robot.load("romeo")
 
 
+@pytest.fixture(scope="module")
+def feet_only_romeo_file(tmp_path_factory):
+    """Romeo's description without its palms: a robot that stands but has no hand."""
+    data = yaml.safe_load((BUILTIN_DIRECTORY / "romeo.yaml").read_text())
+    data["surfaces"] = {name: surface for name, surface in data["surfaces"].items() if surface["role"] == "foot"}
+    data["limbs"] = {limb: joint for limb, joint in data["limbs"].items() if limb.endswith("_leg")}
+    return _write(tmp_path_factory.mktemp("feet_only") / "romeo.yaml", data)
+
+
+@pytest.fixture(scope="module")
+def feet_only_romeo(feet_only_romeo_file):
+    return Robot.load(feet_only_romeo_file)
+
+
 @pytest.mark.parametrize("name", BUILTIN)
 def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo):
     loaded = {"talos": robot, "romeo": romeo}[name]
@@ -200,7 +214,7 @@ def test_an_unknown_robot_name_lists_the_builtin_robots():
         Robot.load("tals")
 
 
-def test_a_stance_naming_a_surface_the_robot_lacks_is_refused_before_planning(romeo):
+def test_a_stance_naming_a_surface_the_robot_lacks_is_refused_before_planning(feet_only_romeo):
     path = environments.builtin_scenario_path("hand-on-table")
     line = next(i for i, text in enumerate(path.read_text().splitlines(), 1) if text.strip().startswith("right_palm:"))
     expected = (
@@ -208,11 +222,11 @@ def test_a_stance_naming_a_surface_the_robot_lacks_is_refused_before_planning(ro
         "robot 'romeo'; its surfaces: left_sole, right_sole"
     )
     with pytest.raises(ScenarioError) as caught:
-        plan("hand-on-table", robot=romeo)
+        plan("hand-on-table", robot=feet_only_romeo)
     assert str(caught.value) == expected
 
 
-def test_a_goal_region_naming_a_surface_the_robot_lacks_is_refused(romeo):
+def test_a_goal_region_naming_a_surface_the_robot_lacks_is_refused(feet_only_romeo):
     scenario = environments.load_string(
         textwrap.dedent(
             """
@@ -226,17 +240,20 @@ def test_a_goal_region_naming_a_surface_the_robot_lacks_is_refused(romeo):
         "<scenario>:4: goal.regions[0].robot_surface: robot surface 'left_hand' is not a surface of robot 'romeo'; "
         "its surfaces: left_sole, right_sole"
     )):
-        scenario.check_robot_surfaces(romeo.surfaces, "robot 'romeo'")
+        scenario.check_robot_surfaces(feet_only_romeo.surfaces, "robot 'romeo'")
 
 
-def test_the_command_line_takes_a_robot_and_refuses_a_scenario_it_cannot_stand(capsys):
-    assert main(["check", "hand-on-table", "--stance", "stand", "--robot", "romeo"]) == EXIT_BAD_INPUT
+def test_the_command_line_takes_a_robot_and_refuses_a_scenario_it_cannot_stand(capsys, feet_only_romeo_file):
+    assert main(["check", "hand-on-table", "--stance", "stand", "--robot", str(feet_only_romeo_file)]) == EXIT_BAD_INPUT
     error = capsys.readouterr().err
     assert "robot surface 'right_palm' is not a surface of robot 'romeo'; its surfaces: left_sole, right_sole" in error
     assert main(["robots"]) == 0
     listed = capsys.readouterr().out
     assert all(name in listed for name in BUILTIN)
     assert "left_palm (hand, left_arm)" in listed
+    # Romeo's palms as well as Talos's.
+    romeo_entry = listed[listed.index("romeo"):]
+    assert "right_palm (hand, right_arm)" in romeo_entry[: romeo_entry.index("talos")]
 
 
 def test_a_scenario_naming_a_missing_robot_file_is_a_scenario_error(tmp_path):
@@ -281,7 +298,7 @@ def test_the_reach_model_bounds_every_posture_and_is_measured_once(robot):
         np.testing.assert_allclose(reach.limbs[left].root_in_support, mirrored, atol=1e-3)
 
 
-def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(romeo):
+def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(feet_only_romeo):
     from environments.goal import Goal, GoalRegion
 
     from cbm.errors import CbmError
@@ -290,4 +307,4 @@ def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(romeo)
     with pytest.raises(CbmError, match=re.escape(
         "the goal names robot surface 'right_palm', not a surface of robot 'romeo'; its surfaces: left_sole, right_sole"
     )):
-        plan("stand", goal=goal, robot=romeo)
+        plan("stand", goal=goal, robot=feet_only_romeo)

@@ -12,7 +12,7 @@ import pytest
 import environments
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
-from stances import ConfigurationError, FrameNotFound, PostureResult, StanceError
+from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve, solve_problem
 from stances.verify import verify
@@ -24,6 +24,7 @@ DEFORMABLE = [
     ("hand-on-soft-cube", "hand-on-soft-cube"),
     ("foot-and-hand-on-foam", "foot-and-hand"),  # a sole and a palm on one soft body
     ("hand-on-coarse-cube", "hand-on-cube"),  # the paper's coarse mesh: a print of 4 nodes
+    ("romeo-hand-on-soft-cube", "hand-on-soft-cube"),  # the second humanoid, its palm plate
 ]
 
 
@@ -32,11 +33,24 @@ def _palm_depth(result, name="cube"):
 
 
 @pytest.fixture(scope="module")
-def deformable_results(robot):
+def deformable_robots(robot):
+    """The robot each DEFORMABLE scenario names, loaded once (Talos from the session)."""
+    loaded = {"talos": robot}
+    robots = {}
+    for scenario_name, _ in DEFORMABLE:
+        name = coarse_scenario(scenario_name).robot
+        if name not in loaded:
+            loaded[name] = Robot.load(name)
+        robots[scenario_name] = loaded[name]
+    return robots
+
+
+@pytest.fixture(scope="module")
+def deformable_results(deformable_robots):
     results = {}
     for scenario_name, stance_name in DEFORMABLE:
         scenario = coarse_scenario(scenario_name)
-        results[scenario_name] = solve(robot, scenario.scene, scenario.stance(stance_name))
+        results[scenario_name] = solve(deformable_robots[scenario_name], scenario.scene, scenario.stance(stance_name))
     return results
 
 
@@ -57,7 +71,8 @@ def test_rigid_scenario_solves_and_verifies(robot, scenario_name, stance_name):
 
 
 @pytest.mark.parametrize("scenario_name, stance_name", DEFORMABLE, ids=[d[0] for d in DEFORMABLE])
-def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scenario_name, stance_name):
+def test_deformable_scenario_solves_and_verifies(deformable_robots, deformable_results, scenario_name, stance_name):
+    robot = deformable_robots[scenario_name]
     result = deformable_results[scenario_name]
     assert result.feasible, result.reason
     scenario = coarse_scenario(scenario_name)
@@ -87,6 +102,8 @@ def test_deformable_scenario_solves_and_verifies(robot, deformable_results, scen
         assert np.abs(field).max() < 1e-9 + 1e-5 * max(load, 0.0)
     if scenario_name == "step-on-cube":
         assert load > 100.0  # a sole on the cube carries part of the weight
+    if scenario_name == "romeo-hand-on-soft-cube":
+        assert load > 1.0  # Romeo's palm plate leans on the cube, not only touches it
     if scenario_name == "foot-and-hand-on-foam":
         # Both links press the one body, each a real support.
         for surface in ("right_sole", "right_palm"):
@@ -495,24 +512,24 @@ def test_verify_rejects_rigid_contact_forces_that_are_not_finite(robot):
     assert check.reasons == (f"a contact force on {nan[0].frame} is not finite",)
 
 
-def test_every_built_in_stance_keeps_its_margins_and_reports_them(robot, deformable_results):
+def test_every_built_in_stance_keeps_its_margins_and_reports_them(robot, deformable_robots, deformable_results):
     """No accepted posture of the built-in stances goes past its effort or joint
     margin; a joint the stance holds on its margin is named in result.limits."""
-    model = robot.model
-    lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
     results = dict(deformable_results)
     for scenario_name, stance_name in RIGID:
         scenario = environments.load(scenario_name)
         results[scenario_name] = solve(robot, scenario.scene, scenario.stance(stance_name))
     for name, result in results.items():
+        solved_by = deformable_robots.get(name, robot)
+        lower, upper = solved_by.model.lowerPositionLimit[7:], solved_by.model.upperPositionLimit[7:]
         assert result.feasible, (name, result.reason)
-        usage = np.abs(result.torques) / robot.effort_limits
+        usage = np.abs(result.torques) / solved_by.effort_limits
         clearance = np.minimum(result.q[7:] - lower, upper - result.q[7:]) / (upper - lower)
         assert usage.max() <= 0.9 + 1e-6, name
         assert clearance.min() >= 0.02 - 1e-9, name
         named = {entry.split()[2] for entry in result.limits["at_margin"]}
-        on_margin = {robot.actuated_joint_names[i] for i in np.flatnonzero(clearance <= 0.02 + 1e-5)}
-        on_margin |= {robot.actuated_joint_names[i] for i in np.flatnonzero(usage >= 0.9 - 1e-5)}
+        on_margin = {solved_by.actuated_joint_names[i] for i in np.flatnonzero(clearance <= 0.02 + 1e-5)}
+        on_margin |= {solved_by.actuated_joint_names[i] for i in np.flatnonzero(usage >= 0.9 - 1e-5)}
         assert named == on_margin, name
 
 
