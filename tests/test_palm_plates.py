@@ -177,7 +177,11 @@ def test_geometry_reach_of_primitives_is_exact(robot):
 
 
 @pytest.mark.parametrize(
-    "plate", [dict(thickness=0.0), dict(thickness=-0.01), dict(thickness=float("nan")), dict(thickness=0.01, mass=-1.0)]
+    "plate",
+    [
+        dict(thickness=0.0), dict(thickness=-0.01), dict(thickness=float("nan")), dict(thickness=0.01, mass=-1.0),
+        dict(thickness=0.01, replaces=["RFinger", ""]), dict(thickness=0.01, replaces=3),
+    ],
 )
 def test_bad_plates_are_rejected(plate):
     with pytest.raises(StanceError, match="plate"):

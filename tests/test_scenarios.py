@@ -23,6 +23,7 @@ EXPECTED = {
     "climb-with-soft-support",
     "foot-and-hand-on-foam",
     "quadruped-walk",
+    "romeo-hand-on-soft-cube",
 }
 
 
