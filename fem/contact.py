@@ -149,7 +149,8 @@ class PrintContactSystem:
     frames : (p, 3, 3) float
         Rows t1, t2, n of each node's frame, body frame; n the outward normal.
     friction : (p,) float
-        Coulomb coefficient mu of each node (>= 0; ``np.inf`` for bonded).
+        Coulomb coefficient mu of each node (>= 0; ``np.inf``: sticks wherever it presses, see
+        :func:`solve_print_contact`).
     kept : int
         Factorisations kept (the most recently used).
 
@@ -196,6 +197,13 @@ class PrintContactSystem:
             # then the semismooth Newton restarts from its modes.
             modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
             result = self._newton(u_local, modes, directions)
+            if result is None and np.isinf(self.mu).any():
+                # As mu grows, a node can keep a finite tangential force while its
+                # normal force goes to zero; with mu = inf no contact state exists.
+                raise FemError(
+                    "with infinite friction this motion has no contact state: a node would hold a tangential "
+                    "force with no normal force (it slips at any finite friction); give a finite friction coefficient"
+                )
             if result is None:
                 raise FemError(
                     "the print's contact did not settle, even from a Gauss-Seidel solution; "
@@ -311,7 +319,9 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     frames : (p, 3, 3) float
         Rows t1, t2, n of each node's frame, body frame; n the outward normal.
     friction : (p,) float
-        Coulomb coefficient mu of each node (>= 0; ``np.inf`` for bonded).
+        Coulomb coefficient mu of each node (>= 0; ``np.inf``: the node sticks
+        wherever it presses, bonded; a motion that would leave a node a tangential
+        force with no normal force then has no contact state, a ``FemError``).
     initial_modes : (p,) int, optional
         Modes to start from (e.g. the previous call's): warm start.
     initial_directions : (p, 2) float, optional

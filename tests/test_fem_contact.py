@@ -236,3 +236,14 @@ def test_held_modes_forces_have_the_returned_jacobian_with_slip_directions_follo
     far = system.with_modes(moved, state.modes, state.directions)
     assert not np.allclose(held.jacobian @ moved.ravel(), far.forces.ravel(), rtol=0.0, atol=1e-6 * np.abs(far.forces).max())
     assert np.allclose(far.jacobian @ moved.ravel(), far.forces.ravel(), rtol=0.0, atol=1e-9 * np.abs(far.forces).max())
+
+
+def test_infinite_friction_without_a_contact_state_is_refused_with_the_reason(pad):
+    """Pressed, slid and turned, one node slips at any finite friction with its normal
+    force going to zero (mu = 1e6 still solves); at mu = inf no state exists, and the
+    error says so instead of reporting a bug."""
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.001, 0.002, -0.003], [0.04, -0.02, 0.02], patch.points.mean(axis=0))
+    assert fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, 1e6)).n_slip == 1
+    with pytest.raises(fem.FemError, match="with infinite friction this motion has no contact state"):
+        fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
