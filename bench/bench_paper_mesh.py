@@ -37,7 +37,7 @@ import pinocchio as pin  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
-from benchmark_info import write_report  # noqa: E402
+from benchmark_info import scenario_at_resolution, write_report  # noqa: E402
 
 import environments  # noqa: E402
 from environments.deformable import RESOLUTIONS  # noqa: E402
@@ -52,14 +52,7 @@ RESULT = os.path.join(os.path.dirname(__file__), "results", "paper_mesh.md")
 
 def meshes(directory: str) -> list:
     """(label, scenario) for the coarse, default and refined meshes of the same cube."""
-    default_file = os.path.join(os.path.dirname(environments.__file__), "scenarios", "hand-on-cube.yaml")
-    with open(default_file) as handle:
-        text = handle.read()
-    if "resolution: default" not in text:
-        raise RuntimeError(f"{default_file} no longer says 'resolution: default'; update this benchmark")
-    refined = os.path.join(directory, "hand-on-cube-h2.yaml")
-    with open(refined, "w") as handle:
-        handle.write(text.replace("resolution: default", f"resolution: {RESOLUTIONS['default'] / 2}"))
+    refined = scenario_at_resolution("hand-on-cube", RESOLUTIONS["default"] / 2, directory)
     return [
         ("paper-like, 6 x 6 x 5 grid lines", environments.load("hand-on-coarse-cube")),
         ("default (h = 22.5 mm)", environments.load("hand-on-cube")),

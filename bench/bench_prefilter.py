@@ -18,14 +18,21 @@ from __future__ import annotations
 import argparse
 import os
 import platform
+import sys
 import time
 from pathlib import Path
 
-import environments
-import stances
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
-from cbm.planner import PostureOracle, plan
-from cbm.prefilter import Prefilter
+import environments  # noqa: E402
+import stances  # noqa: E402
+# A floor and a rigid wall whose sides are contact surfaces (friction 0.3): random
+# stances there put feet into the wall, palms alone on it, feet on its sides.
+from test_cbm_prefilter import WALL_SCENE  # noqa: E402
+
+from cbm.planner import PostureOracle, plan  # noqa: E402
+from cbm.prefilter import Prefilter  # noqa: E402
 
 SCENARIOS = ("cross-soft-block", "climb-with-soft-support", "cross-two-mats")
 
@@ -73,20 +80,6 @@ def audit(scenario_name, robot, time_limit, max_expansions):
     oracle = AuditOracle(robot, scenario.scene, time.perf_counter() + time_limit)
     result = plan(scenario, robot=robot, time_limit=time_limit, max_expansions=max_expansions, oracle=oracle)
     return result, oracle
-
-
-# A floor and a rigid wall whose sides are contact surfaces (friction 0.3): random
-# stances there put feet into the wall, palms alone on it, feet on its sides.
-WALL_SCENE = """
-robot: talos
-objects:
-  - {name: floor, type: floor}
-  - {name: wall, type: box, size: [0.2, 2.0, 1.6], center: [0.5, 0.0, 0.8], friction: 0.3, side_surfaces: true}
-stances:
-  stand:
-    left_sole: {surface: floor, x: 0.0, y: 0.085}
-    right_sole: {surface: floor, x: 0.0, y: -0.085}
-"""
 
 
 def random_wall_stances(count, seed):

@@ -28,7 +28,7 @@ os.environ["SOFTCBM_CACHE"] = "off"
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 from bench_deformable import setup_seconds, timed_solve  # noqa: E402
-from benchmark_info import write_report  # noqa: E402
+from benchmark_info import scenario_at_resolution, write_report  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
@@ -40,9 +40,6 @@ RESULT = os.path.join(os.path.dirname(__file__), "results", "setup_sizes.md")
 def main() -> None:
     started = time.perf_counter()
     robot = stances.Robot.load("talos")
-    text = environments.builtin_scenario_path("hand-on-cube").read_text()
-    if "resolution: default" not in text:
-        raise RuntimeError("hand-on-cube.yaml no longer says 'resolution: default'; update this benchmark")
     lines = [
         "| cube spacing h (m) | nodes | setup s: no cache | setup s: disk cache | cache MB | solve CPU s (median of 3) "
         "| iterations | verified |",
@@ -50,9 +47,7 @@ def main() -> None:
     ]
     with tempfile.TemporaryDirectory() as directory:
         for spacing in SPACINGS:
-            path = os.path.join(directory, f"hand-on-cube-{spacing}.yaml")
-            with open(path, "w") as handle:
-                handle.write(text.replace("resolution: default", f"resolution: {spacing}"))
+            path = scenario_at_resolution("hand-on-cube", spacing, directory)
             fresh, cached, megabytes = setup_seconds(path, "hand-on-cube")
             scenario = environments.load(path)
             stance = scenario.stance("hand-on-cube")

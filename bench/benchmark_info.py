@@ -8,6 +8,8 @@ import platform
 import subprocess
 import time
 
+import environments
+
 
 def machine() -> str:
     """CPU count and model, Python, BLAS threads and load: what a timing depends on."""
@@ -58,3 +60,18 @@ def write_report(path: str, title: str, started: float, preamble: str, lines: li
     with open(path, "w") as handle:
         handle.write(text)
     return text
+
+
+def scenario_at_resolution(name: str, resolution: float, directory: str) -> str:
+    """A built-in scenario's file with its soft meshes at another spacing, written in ``directory``.
+
+    The built-in file's ``resolution: default`` lines become ``resolution: <resolution>``
+    (metres); returns the new file's path, for ``environments.load`` or a fresh process.
+    """
+    text = environments.builtin_scenario_path(name).read_text()
+    if "resolution: default" not in text:
+        raise RuntimeError(f"{name}.yaml no longer says 'resolution: default'; update this benchmark")
+    path = os.path.join(directory, f"{name}-{resolution:g}.yaml")
+    with open(path, "w") as handle:
+        handle.write(text.replace("resolution: default", f"resolution: {resolution}"))
+    return path
