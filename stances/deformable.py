@@ -65,8 +65,10 @@ from typing import Any
 
 import numpy as np
 import pinocchio as pin
+import scipy.linalg
 
 from .blocks import ConstraintBlock, equality
+from .contacts import friction_cone_generators
 from .errors import StanceError
 from .statics import PointLoads, point_jacobians, points_in_world
 
@@ -108,6 +110,44 @@ class PrintSpec:
         transform = np.array(self.transform_print_to_world, dtype=float)
         transform.setflags(write=False)
         object.__setattr__(self, "transform_print_to_world", transform)
+
+
+# Weight of a point foot's moment in W, relative to the force term: the rigid point
+# contact has no moment variable; this keeps the QP strictly convex in W (proxsuite
+# stalls at its iteration cap without it).
+_POINT_MOMENT_WEIGHT = 0.1
+
+
+def rigid_force_metric(surface, friction: float) -> np.ndarray:
+    """The rigid contact's force term as a quadratic form in its wrench.
+
+    A rigid contact's force variables are the cone coefficients ``c >= 0`` of
+    :func:`~stances.contacts.friction_cone_generators` at its polygon's vertices,
+    weighed by ``|c|^2``; the least ``|c|^2`` that gives the wrench ``W`` about the
+    print origin is ``W^T (B B^T)^-1 W`` (B: the wrench of each coefficient, 6 x 4k),
+    the metric a soft print's ``W`` is weighed with.
+
+    Parameters
+    ----------
+    surface : stances.robot.ContactSurface
+        The robot surface; a point foot's moment, which its rigid contact has not,
+        is weighed by ``_POINT_MOMENT_WEIGHT``.
+    friction : float
+        Friction coefficient of the print.
+
+    Returns
+    -------
+    (6, 6) float
+        Per N^2 (force rows) and (N m)^2 (moment rows), print frame.
+    """
+    edges = friction_cone_generators(friction)  # (4, 3), print frame
+    if surface.is_point:
+        metric = np.zeros((6, 6))
+        metric[:3, :3] = np.linalg.inv(edges.T @ edges)
+        metric[3:, 3:] = _POINT_MOMENT_WEIGHT * np.eye(3)
+        return metric
+    wrenches = np.vstack([np.hstack([edges, np.cross(vertex, edges)]) for vertex in surface.vertices_in_frame])  # (4k, 6)
+    return np.linalg.inv(wrenches.T @ wrenches)
 
 
 def _skew_rows(points: np.ndarray) -> np.ndarray:
@@ -251,6 +291,13 @@ class DeformableContact:
             to_print[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = rotation.T
         self.fit = to_print @ a_inverse @ self.generalised  # (6L, 3p): U -> best-fit rigid motion
         self.compliance_rows = -to_print @ a_inverse  # d residual / d W
+        # The force term weighs W as the rigid contact's weighs the least cone
+        # coefficients that give it, so that as E -> inf the objective, and with it the
+        # posture, tends to the rigid support's.
+        self.force_metric = to_print.T @ scipy.linalg.block_diag(*
+            [rigid_force_metric(robot.surface(spec.robot_surface), friction)
+             for spec, friction in zip(self.prints, self.friction)]
+        ) @ to_print
         self._print_rotations_in_body = print_rotations_in_body
 
         # Per-node frames: normal and tangents of each node's print, world.
@@ -592,16 +639,55 @@ class DeformableContact:
         )
 
     def cost(self, model, data, w, options, columns, offset):
-        """Deformation term of the objective: ``w/2 |f|^2`` (paper note 2)."""
+        """The prints' terms of the objective: value, gradient and Gauss-Newton Hessian.
+
+        - Force term: ``force_weight / 2 W^T M W``, M the rigid contact's metric
+          (:func:`rigid_force_metric`), so that a stiff print weighs its load as a rigid
+          one does.
+        - Deformation term (paper note 2): with ``deformation_cost="energy"``
+          (default) the elastic energy the body stores, ``1/2 f^T C f`` (C: the
+          condensed compliance of the print nodes), weighed per joule; it vanishes as
+          E grows, so the posture tends to the rigid support's. ``"force"``: the
+          paper's ``1/2 |f|^2`` of the nodal reactions, per N^2.
+        """
+        n_w = self.n_variables
+        gradient, hessian = np.zeros(columns), np.zeros((columns, columns))
+        weighted = options.force_weight * (self.force_metric @ w)
+        value = 0.5 * float(w @ weighted)
+        gradient[offset : offset + n_w] = weighted
+        hessian[offset : offset + n_w, offset : offset + n_w] = options.force_weight * self.force_metric
         weight = options.deformation_weight
         if weight == 0.0:
-            return None
-        _, _, forces, d_forces_dq, d_forces_dw, _, _ = self._state(model, data, w)
-        stacked = forces.reshape(-1)
-        jacobian = np.zeros((stacked.size, columns))
+            return value, gradient, hessian
+        _, _, forces, d_forces_dq, d_forces_dw, nodes, d_nodes = self._state(model, data, w)
+        jacobian = np.zeros((forces.size, columns))
         jacobian[:, : model.nv] = d_forces_dq
-        jacobian[:, offset : offset + self.n_variables] = d_forces_dw
-        return 0.5 * weight * float(stacked @ stacked), weight * jacobian.T @ stacked, weight * jacobian.T @ jacobian
+        jacobian[:, offset : offset + n_w] = d_forces_dw
+        if options.deformation_cost == "force":
+            stacked = forces.reshape(-1)
+            return (value + 0.5 * weight * float(stacked @ stacked), gradient + weight * jacobian.T @ stacked,
+                    hessian + weight * jacobian.T @ jacobian)
+        # C f: the print nodes' displacement under the forces, body frame, negated
+        # (``nodes`` is -C f_body except under the traction model, which has no compliance form).
+        forces_body = forces @ self.rotation_body
+        if self.method == "traction":
+            compliant = self.patch.compliance @ forces_body.reshape(-1)
+            d_compliant = self.patch.compliance @ self._body_rows(jacobian)
+        else:
+            compliant = -nodes
+            d_compliant = np.zeros((forces.size, columns))
+            d_compliant[:, : model.nv] = -d_nodes[:, : model.nv]
+            d_compliant[:, offset : offset + n_w] = -d_nodes[:, model.nv :]
+        jacobian_body = self._body_rows(jacobian)
+        return (
+            value + 0.5 * weight * float(forces_body.reshape(-1) @ compliant),
+            gradient + weight * jacobian_body.T @ compliant,
+            hessian + 0.5 * weight * (jacobian_body.T @ d_compliant + d_compliant.T @ jacobian_body),
+        )
+
+    def _body_rows(self, rows: np.ndarray) -> np.ndarray:
+        """Stacked per-node world 3-vectors' rows (3p, m) turned into the body frame."""
+        return np.einsum("ji,pjm->pim", self.rotation_body, rows.reshape(-1, 3, rows.shape[1])).reshape(rows.shape)
 
     def displacement_field(self, model, data, forces) -> np.ndarray:
         """Displacement of every node of the body, metres, body frame (eq. 36).

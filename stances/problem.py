@@ -42,11 +42,9 @@ from .terms import (
 )
 
 
-# Weight of a soft print's generalised force W relative to the force term: enough to
-# keep the QP strictly convex in W (proxsuite stalls at its iteration cap without it),
-# small enough not to push load off soft prints (the deformation term weighs their
-# node forces).
-_GENERALISED_FORCE_WEIGHT = 0.1
+# Default weights of the deformation term, by ``deformation_cost``: per joule of
+# stored elastic energy, per N^2 of nodal reaction (the paper's).
+DEFORMATION_WEIGHTS = {"energy": 1.0, "force": 1e-5}
 _FORCE_STEP_IN_WEIGHTS = 10.0  # bound on a force variable's step, in robot weights
 
 
@@ -72,9 +70,14 @@ class PostureOptions:
         checks the full limits; the result reports the usage.
     joint_margin : float
         Fraction of each joint's range kept free at both ends.
-    deformation_weight : float
-        Weight of the squared norm of the deformable reaction forces (paper
-        note 2), per N^2.
+    deformation_cost : {"energy", "force"}
+        The deformation term of the objective (paper note 2): ``"energy"``
+        (default) the elastic energy stored in the soft bodies, which vanishes as
+        they stiffen, so the posture tends to the rigid support's; ``"force"``
+        the paper's squared norm of the nodal reaction forces.
+    deformation_weight : float, optional
+        Its weight: per joule for ``"energy"`` (default 1), per N^2 for
+        ``"force"`` (default 1e-5).
     reaction_model : {"consistent", "traction"}
         How deformable supports react (see :mod:`fem`).
     max_iterations : int
@@ -160,7 +163,8 @@ class PostureOptions:
     torque_weight: float = 1.0
     effort_margin: float = 0.1
     joint_margin: float = 0.02
-    deformation_weight: float = 1e-5
+    deformation_cost: str = "energy"
+    deformation_weight: float | None = None
     reaction_model: str = "consistent"
     max_iterations: int = 100
     trust_region: float = 0.3
@@ -187,6 +191,14 @@ class PostureOptions:
             raise StanceError(
                 f"reaction_model must be 'consistent' or 'traction', got {self.reaction_model!r}"
             )
+        if self.deformation_cost not in DEFORMATION_WEIGHTS:
+            raise StanceError(
+                f"deformation_cost must be one of {tuple(DEFORMATION_WEIGHTS)}, got {self.deformation_cost!r}"
+            )
+        if self.deformation_weight is None:
+            object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
+        if not self.deformation_weight >= 0.0:
+            raise StanceError(f"deformation_weight must be >= 0, got {self.deformation_weight}")
         if self.contact_law not in LAWS:
             raise StanceError(f"contact_law must be one of {LAWS}, got {self.contact_law!r}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
@@ -299,10 +311,10 @@ class PostureProblem:
             load_start += len(contact.loads)
         self.n_variables = start
         self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
-        # The force term spreads the rigid contacts' cone coefficients; it weighs a
-        # soft print's generalised force W lightly (see _GENERALISED_FORCE_WEIGHT).
+        # The force term spreads the rigid contacts' cone coefficients; a soft print
+        # weighs its generalised force W itself (DeformableContact.cost).
         self.force_weights = np.concatenate(
-            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else _GENERALISED_FORCE_WEIGHT) for c in contacts]
+            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else 0.0) for c in contacts]
         ) if contacts else np.zeros(0)
         model = robot.model
         self.posture_weights = np.full(model.nv, options.posture_weight)

@@ -714,7 +714,8 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
 def _changed(options) -> dict:
     """The options that differ from their defaults: what a result records, so that
     a later check (``Plan.check``) verifies with what the stance was solved with."""
-    return {f.name: getattr(options, f.name) for f in fields(options) if getattr(options, f.name) != f.default}
+    defaults = type(options)()  # resolved defaults (a weight may follow another option)
+    return {f.name: getattr(options, f.name) for f in fields(options) if getattr(options, f.name) != getattr(defaults, f.name)}
 
 
 def _time_budget(value) -> float:

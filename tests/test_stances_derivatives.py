@@ -78,6 +78,12 @@ def _problems(robot):
         "hand-on-cube",
         {"reaction_model": "traction", "contact_law": "bonded"},
     )
+    yield (
+        "deformable hand-on-cube (paper's force term)",
+        coarse_scenario("hand-on-cube"),
+        "hand-on-cube",
+        {"deformation_cost": "force", "deformation_weight": 1e-3},
+    )
     yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
     # Two soles on one foam block: one coupled contact system.
     yield "coupled both-on-foam (coulomb)", coarse_scenario("cross-soft-block"), "both-on-foam", {}
