@@ -445,7 +445,7 @@ def plan(
         len(sampling.theta_values),
     )
     reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
-    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model)
+    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts)
     feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None

@@ -54,6 +54,14 @@ class StanceNeighbours:
         The scene's surfaces (to place the stance's prints in the world).
     reach : cbm.reach.ReachModel
         The robot's reach and support rule.
+    required : iterable of environments Contact, optional
+        The goal's own contacts: a hand's print among them stays a candidate, and a
+        hand holding one is not asked to stay within reach when feet move, even
+        where the reach model would prune. The model measures an arm from its
+        shoulder at the reference posture and a leaning torso reaches farther
+        (the palms of hand-on-table and foot-and-hand-on-foam lie 0.69 m from that
+        shoulder, past the model's 0.66 m): without this, those goals could never
+        be generated. The posture solve decides.
 
     Notes
     -----
@@ -62,10 +70,14 @@ class StanceNeighbours:
     :meth:`cbm.reach.ReachModel.reachable_mask`.
     """
 
-    def __init__(self, print_sets, surfaces, reach):
+    def __init__(self, print_sets, surfaces, reach, required=()):
         self.print_sets = dict(print_sets)
         self.surfaces = surfaces
         self.reach = reach
+        # Hands' (robot surface, print) pairs the reach model leaves alone.
+        self.required = {
+            (c.robot_surface, c.contact_print) for c in required if reach.roles.get(c.robot_surface) != reach.support_role
+        }
         self.pruned = 0  # candidate prints removed by reach pruning so far
 
     def __call__(self, stance):
@@ -97,7 +109,11 @@ class StanceNeighbours:
         if placed is None:
             placed = contacts_in_world(stance, self.surfaces)
         print_set = self.print_sets[robot_surface]
-        mask = self.reach.reachable_mask(print_set, placed)
+        # A hand on a required print is not asked to stay within the model's reach.
+        held = {c.robot_surface for c in stance if (c.robot_surface, c.contact_print) in self.required}
+        mask = self.reach.reachable_mask(print_set, {rs: p for rs, p in placed.items() if rs not in held})
+        if any(self.reach.roles.get(rs) == self.reach.support_role for rs in placed):
+            mask |= [(robot_surface, p) in self.required for p in print_set.prints]
         self.pruned += int(len(mask) - np.count_nonzero(mask))
         return [
             (

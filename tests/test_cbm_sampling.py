@@ -201,3 +201,44 @@ def test_a_goal_print_off_the_grid_becomes_a_candidate_once(surfaces):
     np.testing.assert_allclose(added["left_palm"].origins_in_world[-1], placed[:3, 3], atol=1e-15)
     np.testing.assert_allclose(added["left_palm"].x_axes_in_world[-1], placed[:3, 0], atol=1e-15)
     assert with_prints(added, [contact], surfaces)["left_palm"].prints == added["left_palm"].prints  # once
+
+
+def test_goal_hand_prints_stay_candidates_beyond_the_reach_model(surfaces):
+    # The wall's print farthest from the left shoulder: beyond the model's arm reach.
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.05))
+    walls = [i for i, p in enumerate(sets["left_palm"].prints) if p.surface == "wall"]
+    shoulder = np.array([0.0, 0.2, 1.35])
+    far = max(walls, key=lambda i: np.linalg.norm(sets["left_palm"].origins_in_world[i] - shoulder))
+    assert np.linalg.norm(sets["left_palm"].origins_in_world[far] - shoulder) > ARM_REACH
+    goal_palm = Contact("left_palm", sets["left_palm"].prints[far])
+    start = feet_together()
+
+    def palm_prints(neighbours, stance):
+        return {m.contact_print for _, m in neighbours(stance) if m.robot_surface == "left_palm"}
+
+    assert goal_palm.contact_print not in palm_prints(StanceNeighbours(sets, surfaces, REACH), start)
+    required = StanceNeighbours(sets, surfaces, REACH, required=[goal_palm])
+    assert goal_palm.contact_print in palm_prints(required, start)
+    # The other prints beyond reach stay pruned.
+    assert palm_prints(required, start) == palm_prints(StanceNeighbours(sets, surfaces, REACH), start) | {
+        goal_palm.contact_print
+    }
+    # Feet move under a hand held on the goal print as if it were free; a hand on
+    # any other print keeps them within its reach.
+    held = start.with_contact(goal_palm).without("right_sole")
+    free = start.without("right_sole")
+
+    def sole_prints(neighbours, stance):
+        return {m.contact_print for _, m in neighbours(stance) if m.robot_surface == "right_sole"}
+
+    assert sole_prints(required, held) == sole_prints(required, free)
+    assert sole_prints(StanceNeighbours(sets, surfaces, REACH), held) < sole_prints(required, held)
+
+
+def test_goal_foot_prints_get_no_reach_exemption(surfaces):
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
+    far_sole = Contact("right_sole", ContactPrint("floor", 0.9, -0.1, 0.0))  # beyond a step
+    sets = with_prints(sets, [far_sole], surfaces)
+    neighbours = StanceNeighbours(sets, surfaces, REACH, required=[far_sole])
+    moves = neighbours(feet_together().without("right_sole"))
+    assert far_sole.contact_print not in {m.contact_print for _, m in moves if m.robot_surface == "right_sole"}
