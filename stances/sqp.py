@@ -39,6 +39,12 @@ logger = logging.getLogger(__name__)
 
 _MAX_PENALTY = 1e8
 _STAGNATION_WINDOW = 8
+# Feasible iterates whose line search keeps cutting the step below this many
+# times in a row stop: the QP's model no longer predicts the objective (a
+# warm start at its loose tolerance crawled 70 iterations at alpha 1/256 on a
+# climb stance, for an objective change of 4 %).
+_CRAWL_ALPHA = 1.0 / 16.0
+_CRAWL_STEPS = 3
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
 _RESTORATION_PENALTY = 1e6
@@ -248,6 +254,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     slow = False
     curved_iterations = 0
     local_steps = []  # lengths of full steps in the local phase
+    crawling = 0  # feasible iterations in a row with a step cut below _CRAWL_ALPHA
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
             status, iteration = _OUT_OF_TIME, iteration - 1
@@ -339,10 +346,12 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # along the constraints, would keep the merit moving for 5-10 more
         # iterations (hand-on-table: 19 iterations, now 11) for a posture that
         # moves by 1e-5 rad.
+        crawling = crawling + 1 if linearization.met(tolerance) and alpha < _CRAWL_ALPHA else 0
         if linearization.met(tolerance) and (
             alpha * np.max(np.abs(step[:nv])) < 1e-6
             or abs(previous_objective - linearization.objective)
             < options.optimality_tolerance * (1.0 + abs(previous_objective))
+            or crawling >= _CRAWL_STEPS
         ):
             status = "converged"
             break

@@ -641,3 +641,16 @@ def test_verify_coulomb_check_wants_slip_friction_on_the_bound_against_the_slip(
     for friction in (turn @ (mu * 10.0 * against), 0.5 * mu * 10.0 * against):
         found = reasons(friction)
         assert any(reason.startswith(label) for reason in found), found
+
+
+def test_a_feasible_warm_start_that_crawls_stops(robot):
+    # The rigid warm start (tolerance 1e-3) of this climb stance was feasible after 8
+    # iterations, then crawled 70 more with its line search at alpha 1/256 (3.1 s).
+    scenario = coarse_scenario("climb-with-soft-support")
+    stance = Stance((
+        Contact("right_palm", ContactPrint("cube_top", -0.15, 0.15)),
+        Contact("right_sole", ContactPrint("floor", 0.2, -0.1)),
+    ))
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    assert result.statistics["rigid_warm_start_iterations"] <= 30
