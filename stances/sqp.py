@@ -31,7 +31,7 @@ import pinocchio as pin
 from .errors import StanceError
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
-from .qp import QPWorkspace, elastic_qp, row_multipliers
+from .qp import QPWorkspace, elastic_qp, objective_scale, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .threads import single_threaded_blas
 
@@ -251,7 +251,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     iteration = 0
     qp_time = 0.0
     curvature = None  # a ConstraintCurvature, made on first use
-    last_qp = None  # (linearization, proxsuite multipliers) of the last QP, for the curvature's weights
+    last_qp = None  # (linearization, proxsuite multipliers, penalty) of the last QP, for the curvature's weights
     # Where Gauss-Newton converges fast (most stances: stand, foot-on-block) the
     # curvature costs more (1-3 ms a Hessian) than it saves; it is switched on,
     # for good, once two full steps in the local phase shrink by less than
@@ -284,11 +284,11 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
         # solution are cheap, and near it the outer loop keeps converging fast.
-        accuracy = float(np.clip(0.01 * violation, 1e-9, 1e-6))
+        accuracy = float(np.clip(0.01 * violation, 1e-9, 1e-6)) / objective_scale(penalty)
         x = workspace.solve(*matrices, accuracy=accuracy)
         qp_time += time.perf_counter() - tic
         step, elastic = x[:-1], max(x[-1], 0.0)
-        last_qp = (curved, workspace.multipliers)
+        last_qp = (curved, workspace.multipliers, penalty)
         predicted = _predicted_decrease(model, step, elastic, penalty, violation)
         if linearization.met(tolerance) and (
             np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
