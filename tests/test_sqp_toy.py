@@ -21,6 +21,7 @@ import pytest
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization, PostureOptions
 from stances.qp import QPWorkspace, elastic_qp, row_multipliers
+from stances import sqp
 from stances.sqp import run_sqp
 
 
@@ -250,3 +251,52 @@ def test_contradicting_rows_are_named_together():
     outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=100)
     clause = outcome.reason.split("; no step meets together: ")[1]
     assert sorted(clause.split(", ")) == ["q_x at 0", "q_x at 1"]
+
+
+def below_a_kink(q, lam):
+    """``|q_x| + 1/2 <= 0``: no point meets it, and its linearisation, exact on either
+    side of ``q_x = 0``, is wrong across it, so every full step overshoots the kink."""
+    return [
+        ConstraintBlock(
+            "kink", np.array([abs(q[0]) + 0.5]), np.array([[np.sign(q[0]), 0.0, 0.0]]), -np.inf, 0.0, 1.0,
+            ("kink at q_x = 0",),
+        )
+    ]
+
+
+def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
+    """From q_x = 0.005 each QP step (-0.3, the trust region) overshoots the kink: the
+    line search cuts it to 1/32, then to 1/256 (the violation falls from 0.505 by
+    less than 0.005), and the loop ends after _CRAWL_STEPS such iterations with the
+    violation still 0.5. Without the test it stalled after 7 iterations (four
+    line searches finding no step, ten trial linearisations each)."""
+    problem = ToyProblem(squared_distance_to(np.array([0.0, 0.3, 0.4])), below_a_kink)
+    outcome = run_sqp(problem, np.array([0.005, 0.0, 0.0]), np.zeros(0), limit=100)
+    assert not outcome.feasible
+    assert outcome.status == sqp._NO_PROGRESS
+    assert outcome.iterations == sqp._CRAWL_STEPS < 7
+    assert abs(outcome.q[0]) < 0.005
+    assert outcome.reason.startswith(
+        "kink at q_x = 0 violated by 0.5 N (no progress toward feasibility: the line search cut 3 steps "
+        f"in a row below 1/16 after {outcome.iterations} iterations)"
+    )
+
+
+def test_a_qp_without_a_finite_answer_ends_the_solve_as_infeasible(monkeypatch):
+    """A QP answer with NaN (proxsuite diverging at a huge penalty) is no step: the
+    iterate is returned as an infeasible answer, not passed to the next linearisation."""
+    problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), contradicting_rows)
+    solve = QPWorkspace.solve
+    calls = []
+
+    def diverging(self, *matrices, **settings):
+        calls.append(1)
+        x = solve(self, *matrices, **settings)
+        return x if len(calls) < 3 else np.full_like(x, np.nan)
+
+    monkeypatch.setattr(QPWorkspace, "solve", diverging)
+    start = np.zeros(3)
+    outcome = run_sqp(problem, start, np.zeros(0), limit=100)
+    assert not outcome.feasible and outcome.status == sqp._QP_FAILED
+    assert np.all(np.isfinite(outcome.q))
+    assert "(the QP solver returned no finite step after 3 iterations)" in outcome.reason
