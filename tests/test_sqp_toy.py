@@ -280,6 +280,9 @@ def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
         "kink at q_x = 0 violated by 0.5 N (no progress toward feasibility: the line search cut 3 steps "
         f"in a row below 1/16 after {outcome.iterations} iterations)"
     )
+    # The stop keeps no state between solves: the same input gives the same answer, bit for bit.
+    again = run_sqp(problem, np.array([0.005, 0.0, 0.0]), np.zeros(0), limit=100)
+    assert again.q.tobytes() == outcome.q.tobytes() and again.reason == outcome.reason
 
 
 def test_a_qp_without_a_finite_answer_ends_the_solve_as_infeasible(monkeypatch):

@@ -14,6 +14,7 @@ from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.problem import PostureOptions, build_problem
+from stances import sqp
 from stances.sqp import solve, solve_problem
 from stances.verify import verify
 
@@ -674,3 +675,22 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
     assert result.statistics["status"].startswith("converging too slowly: ")
     assert "% an iteration after " in result.reason
     assert "no step meets together: " in result.reason and "_ADAPTER_0 and floor" in result.reason
+
+
+def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reason(robot):
+    # One sole on the floor, the right palm on the foam's ledge behind it: held rigid,
+    # the right ankle sinks into the foam and each step toward clearing it is cut
+    # below 1/16 (the distance's linearisation turns a corner). Without the
+    # no-progress stop the rigid warm start stalled after 11 iterations, the last
+    # four of them line searches of ten trial linearisations finding no step.
+    scenario = environments.load("foot-and-hand-on-foam")
+    stance = Stance((
+        Contact("left_sole", ContactPrint("floor", 0.0, 0.085)),
+        Contact("right_palm", ContactPrint("foam_ledge", -0.195, 0.018)),
+    ))
+    result = solve(robot, scenario.scene, stance)
+    assert not result.feasible
+    assert result.statistics["status"] == sqp._NO_PROGRESS
+    assert result.iterations <= 9
+    assert result.reason.startswith("held rigid, collision between leg_right_6_link_0 and foam violated by ")
+    assert "m (no progress toward feasibility: the line search cut 3 steps in a row below 1/16 after " in result.reason
