@@ -75,9 +75,12 @@ class ConstraintBlock:
         rows = len(self.value)
         for attribute in ("lower", "upper", "scale"):
             given = getattr(self, attribute)
-            # A scalar bound is the common case: np.full costs a tenth of np.broadcast_to
-            # (a linearisation makes some thirty blocks, a solve hundreds of them).
-            if np.ndim(given) == 0:
+            # np.broadcast_to costs ten times these (a linearisation makes some
+            # thirty blocks, a solve thousands of them).
+            if isinstance(given, np.ndarray) and given.dtype == float and given.shape == (rows,):
+                array = given.view()
+                array.setflags(write=False)
+            elif np.ndim(given) == 0:
                 array = np.full(rows, float(given))
                 array.setflags(write=False)
             else:

@@ -61,6 +61,7 @@ there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -545,14 +546,9 @@ class DeformableContact:
             jacobian = np.zeros((self.n_variables, columns))
             jacobian[:, :nv] = self.fit @ d_displacements
             jacobian[:, w_columns] = self.compliance_rows
-        labels = [
-            f"placement of {spec.label} ({axis}, elastic)"
-            for spec in self.prints
-            for axis in ("x", "y", "z", "roll", "pitch", "yaw")
-        ]
-        blocks.append(equality("placement", residual, jacobian, 1e-2, labels))
+        labels = self._labels
+        blocks.append(equality("placement", residual, jacobian, 1e-2, labels["placement"]))
 
-        name = self.deformable_object.name
         if derivatives:
             d_forces = np.zeros((p, 3, columns))
             d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
@@ -573,35 +569,31 @@ class DeformableContact:
                 jacobian = np.zeros((len(self.prints), columns))
                 for i in range(len(self.prints)):
                     jacobian[i, :nv] = d_heights[self.print_of_node == i].mean(axis=0)
-            labels = tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints)
             # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
-            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels, slack=1e-8))
+            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels["touch"], slack=1e-8))
             blocks.append(self._slip_block(displacements, d_displacements, nodes, d_nodes_full, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
-            values, jacobians, labels = self._resultant_rows(forces, d_forces)
-            blocks.append(ConstraintBlock("node contact", values, jacobians, 0.0, np.inf, 1.0, labels))
+            values, jacobians = self._resultant_rows(forces, d_forces)
+            blocks.append(ConstraintBlock("node contact", values, jacobians, 0.0, np.inf, 1.0, labels["resultant"]))
         else:
             # Bonded nodes push; each node's force stays in its own (inner) friction
             # pyramid ("sticking"), or only each print's resultant does ("bonded").
             values = [np.einsum("pj,pj->p", self.normals, forces)]
             jacobians = [np.einsum("pj,pjc->pc", self.normals, d_forces)] if derivatives else None
-            labels = [f"no adhesion at node {n} of {name}" for n in self.node_ids]
             if self.law == "sticking":
                 faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
                 values.append(np.einsum("pkj,pj->pk", faces, forces).reshape(-1))
                 if derivatives:
                     jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
-                labels.extend(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
             else:
                 resultant = self._resultant_rows(forces, d_forces)
                 values.append(resultant[0])
                 if derivatives:
                     jacobians.append(resultant[1])
-                labels.extend(resultant[2])
             blocks.append(ConstraintBlock(
                 "node contact", np.concatenate(values), np.vstack(jacobians) if derivatives else None,
-                0.0, np.inf, 1.0, tuple(labels),
+                0.0, np.inf, 1.0, labels["node contact"],
             ))
 
         # Indentation of the body's print nodes along their normal, bounded
@@ -611,10 +603,7 @@ class DeformableContact:
         if derivatives:
             jacobian = -np.einsum("pj,pjc->pc", self.normals_in_body, d_nodes_full.reshape(p, 3, columns))
         blocks.append(
-            ConstraintBlock(
-                "indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2,
-                tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
-            )
+            ConstraintBlock("indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2, labels["indentation"])
         )
         strain = self._strain_block(nodes, d_nodes_full, columns)
         if strain is not None:
@@ -653,11 +642,35 @@ class DeformableContact:
             -_PYRAMID * self.max_slip, _PYRAMID * self.max_slip, 1e-2, labels,
         )
 
+    @cached_property
+    def _labels(self) -> dict:
+        """Row labels that do not change between linearisations, by block (made once)."""
+        name = self.deformable_object.name
+        resultant = tuple(f"friction cone of the resultant of {spec.label} ({s})" for spec in self.prints for s in _SIDES)
+        if self.law == "coulomb":
+            node_contact = resultant
+        else:
+            node_contact = tuple(f"no adhesion at node {n} of {name}" for n in self.node_ids) + (
+                tuple(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
+                if self.law == "sticking" else resultant
+            )
+        return {
+            "placement": tuple(
+                f"placement of {spec.label} ({axis}, elastic)"
+                for spec in self.prints
+                for axis in ("x", "y", "z", "roll", "pitch", "yaw")
+            ),
+            "touch": tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints),
+            "resultant": resultant,
+            "node contact": node_contact,
+            "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
+        }
+
     def _resultant_rows(self, forces, d_forces):
-        """Each print's resultant inside ``friction_margin`` times its inner pyramid (4 rows each);
-        jacobians None when ``d_forces`` (p, 3, columns) is."""
-        values, jacobians, labels = [], [], []
-        for i, spec in enumerate(self.prints):
+        """Each print's resultant inside ``friction_margin`` times its inner pyramid (4 rows
+        each, labels ``_labels["resultant"]``); jacobians None when ``d_forces`` (p, 3, columns) is."""
+        values, jacobians = [], []
+        for i in range(len(self.prints)):
             rows = self.print_of_node == i
             rotation = self.print_placements[i].rotation
             mu = self.friction_margin * self.friction[i]
@@ -665,8 +678,7 @@ class DeformableContact:
             values.append(face @ forces[rows].sum(axis=0))
             if d_forces is not None:
                 jacobians.append(face @ d_forces[rows].sum(axis=0))
-            labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in _SIDES)
-        return np.concatenate(values), np.vstack(jacobians) if d_forces is not None else None, tuple(labels)
+        return np.concatenate(values), np.vstack(jacobians) if d_forces is not None else None
 
     @staticmethod
     def _pyramid_faces(normals, tangents, friction):
@@ -691,24 +703,31 @@ class DeformableContact:
             return None
         strain_map = self.patch.strain_map  # (T', 6, 3p)
         voigt = strain_map @ u
-        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt))
+        # The Frobenius norm of a strain tensor bounds its principal strains: the
+        # tets below the activation by that norm are left out of the (costly)
+        # eigendecomposition, which is per tet, so the others' answers are unchanged.
+        frobenius = np.sqrt(np.sum(voigt[:, :3] ** 2, axis=1) + 0.5 * np.sum(voigt[:, 3:] ** 2, axis=1))
+        screened = np.flatnonzero(frobenius >= (1.0 - 1e-9) * _STRAIN_ACTIVATION * self.strain_limit)
+        if screened.size == 0:
+            return None
+        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt[screened]))
         largest, smallest = values[:, 2], values[:, 0]
         ratio = np.maximum(largest, -smallest) / self.strain_limit
-        candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)
+        candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)  # indices into screened
         if candidates.size == 0:
             return None
         chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
         tets = self.patch.neighbour_tets
         rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
-        for t in chosen.tolist():
+        for k, t in zip(chosen.tolist(), screened[chosen].tolist()):
             for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),
                                                           (0, -self.strain_limit, np.inf, "compression")):
                 if d_u is not None:
-                    v = vectors[t, :, which]
+                    v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
                     rows_jacobian.append((weights @ strain_map[t]) @ d_u)
-                rows_value.append(values[t, which])
+                rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)
                 labels.append(f"strain bound ({name}) of tet {int(tets[t])} of {self.deformable_object.name}")

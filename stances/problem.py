@@ -356,10 +356,11 @@ class PostureProblem:
         lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
         keep = options.joint_margin * (upper - lower)
         self.q_lower, self.q_upper = lower + keep, upper - keep
-        self.effort = (1.0 - options.effort_margin) * robot.effort_limits
+        self.effort_limits = robot.effort_limits  # (nv - 6,) N m, read at every linearisation
+        self.effort = (1.0 - options.effort_margin) * self.effort_limits
         self.force_step = _FORCE_STEP_IN_WEIGHTS * robot.mass * 9.81  # N, bound on a force variable's step
         # The pieces linearize stacks, in this order (rows and costs), see stances.terms.
-        self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint()]
+        self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint.for_robot(robot, options.effort_margin)]
         if options.min_normal_force > 0:
             self.constraints.append(NormalLoadConstraint(options.min_normal_force))
         self.constraints.append(ContactConstraints())

@@ -139,7 +139,7 @@ class TorqueUsageCost:
     weight: float
 
     def evaluate(self, problem, iterate):
-        limits = problem.robot.effort_limits
+        limits = problem.effort_limits
         usage = iterate.tau[6:] / limits
         excess = np.sign(usage) * np.maximum(np.abs(usage) - FREE_USAGE, 0.0)
         value = 0.5 * self.weight * float(excess @ excess)
@@ -172,6 +172,9 @@ class ContactCosts:
         return value, gradient, hessian
 
 
+_EQUILIBRIUM_LABELS = tuple(f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz"))
+
+
 @dataclass(frozen=True)
 class EquilibriumConstraint:
     """Static equilibrium of the free flyer (49): six rows, scale 10 N or N m, so
@@ -179,21 +182,34 @@ class EquilibriumConstraint:
     well scaled."""
 
     def blocks(self, problem, iterate):
-        labels = [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")]
         jacobian = iterate.tau_jacobian[:6] if iterate.derivatives else None
-        return [equality("equilibrium", iterate.tau[:6], jacobian, 10.0, labels)]
+        return [equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS)]
 
 
 @dataclass(frozen=True)
 class TorqueLimitConstraint:
-    """Torque limits (47), less the effort margin (``problem.effort``)."""
+    """Torque limits (47), less the effort margin (``problem.effort``).
+
+    Parameters
+    ----------
+    labels : tuple of str
+        One per actuated joint (:meth:`for_robot`): made once, not at every
+        linearisation.
+    """
+
+    labels: tuple
+
+    @classmethod
+    def for_robot(cls, robot, effort_margin: float) -> "TorqueLimitConstraint":
+        """The constraint with its rows' labels, for ``robot`` and a margin (fraction of the limits)."""
+        suffix = f" less its {100 * effort_margin:g} % margin" if effort_margin else ""
+        return cls(tuple(f"torque limit of {name}{suffix}" for name in robot.actuated_joint_names))
 
     def blocks(self, problem, iterate):
-        margin = problem.options.effort_margin
-        suffix = f" less its {100 * margin:g} % margin" if margin else ""
-        labels = tuple(f"torque limit of {name}{suffix}" for name in problem.robot.actuated_joint_names)
         jacobian = iterate.tau_jacobian[6:] if iterate.derivatives else None
-        return [ConstraintBlock("torque limit", iterate.tau[6:], jacobian, -problem.effort, problem.effort, 1.0, labels)]
+        return [
+            ConstraintBlock("torque limit", iterate.tau[6:], jacobian, -problem.effort, problem.effort, 1.0, self.labels)
+        ]
 
 
 @dataclass(frozen=True)
