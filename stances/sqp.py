@@ -453,8 +453,13 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     scaled violation is ``violation``); ``(q, lam, linearization)`` and the step
     length accepted, or ``(None, alpha)`` when no length down to 1e-3 does.
 
-    Trials are judged on values alone (``problem.evaluate``: no Jacobians, the
-    same numbers); only the accepted point is linearised.
+    The full step is linearised at once: it is accepted in most line searches
+    (hand-on-soft-cube: 33 of 49 trials, most of them first ones), and judging it
+    on values first cost more than the linearisation saved (measured: no gain
+    overall, the 60 random rigid stances slower). Shorter trials are judged on
+    values alone (``problem.evaluate``: no Jacobians, the same numbers); only the
+    accepted one is then linearised, reusing the evaluation's collision distances
+    and contact solves.
     """
     model, nv = problem.robot.model, problem.robot.model.nv
     tolerance = problem.options.feasibility_tolerance
@@ -463,7 +468,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     while alpha >= 1e-3:
         q_try = pin.integrate(model, q, alpha * step[:nv])
         lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
-        trial = problem.evaluate(q_try, lam_try, torque_weight)
+        trial = (problem.linearize if alpha == 1.0 else problem.evaluate)(q_try, lam_try, torque_weight)
         trial_violation, _ = trial.max_violation()
         trial_merit = trial.objective + penalty * trial_violation
         # The second test is a filter-style escape from the Maratos effect: near
@@ -473,7 +478,9 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
             alpha == 1.0 and violation > tolerance and trial_violation < 0.5 * violation
             and trial.objective <= linearization.objective + 1e-3 * (1.0 + abs(linearization.objective))
         ):
-            return (q_try, lam_try, problem.linearize(q_try, lam_try, torque_weight)), alpha
+            if alpha != 1.0:
+                trial = problem.linearize(q_try, lam_try, torque_weight)
+            return (q_try, lam_try, trial), alpha
         alpha *= 0.5
     return None, alpha
 
