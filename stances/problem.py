@@ -501,8 +501,12 @@ class PostureProblem:
         """Objective and constraint values at ``(q, lam)``, without Jacobians.
 
         The same numbers as :meth:`linearize` gives (objective, every row's
-        value, forces and torques), for a fraction of its cost: what a line
-        search's trial points need. Parameters are those of :meth:`linearize`.
+        value, forces and torques), bit for bit, for about two thirds of its
+        cost (measured in the built-in soft stances' solves: 2.1 against 3.2 ms):
+        what a line search's shortened trials need. What the pieces compute
+        that a linearisation at the same point can reuse (collision distances,
+        soft contact solves) is kept for it. Parameters are those of
+        :meth:`linearize`.
 
         Returns
         -------

@@ -626,7 +626,8 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     constraints : sequence, optional
         Extra constraints, each an object with ``blocks(problem, iterate)``
         returning :class:`~stances.blocks.ConstraintBlock` rows (as the pieces
-        of :mod:`stances.terms`), added to every problem this call solves
+        of :mod:`stances.terms`; with ``iterate.derivatives`` False only the
+        rows' values are read), added to every problem this call solves
         (e.g. a free link held on a path while the robot moves between
         stances). :func:`stances.verify` knows nothing of them: check them
         yourself.
