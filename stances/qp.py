@@ -15,6 +15,20 @@ from .qp_backend import proxsuite
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _WARM_QP_ITERATIONS = 60
 _INACTIVE_MULTIPLIER = 1e-8  # QP multipliers (objective units per scaled row) below this are zero
+_PENALTY_REFERENCE = 1e2  # the SQP's first elastic penalty (PostureOptions.elastic_penalty)
+
+
+def objective_scale(penalty: float) -> float:
+    """What the elastic QP's objective is divided by: its penalty over 1e2, at least 1.
+
+    An infeasible stance drives the SQP's penalty to 1e6-1e8, where the elastic
+    variable's cost outweighs the step's curvature by up to 1e16: proxsuite then
+    spent 0.2-1.1 s on a QP of 99 variables, at its iteration limits (a two-palm
+    stance of hand-on-table: 8 s for 15 iterations). Dividing the objective keeps
+    the penalty the QP sees at 1e2 and changes no answer; the multipliers come
+    out divided by the same factor (:func:`row_multipliers` takes it back).
+    """
+    return max(1.0, float(penalty) / _PENALTY_REFERENCE)
 
 
 class QPWorkspace:
@@ -138,6 +152,9 @@ def elastic_qp(linearization, penalty):
     hessian[:n, :n] = linearization.hessian + 1e-8 * np.eye(n)
     hessian[n, n] = 1e-8
     gradient = np.append(linearization.gradient, penalty)
+    scale_down = objective_scale(penalty)
+    hessian /= scale_down
+    gradient /= scale_down
     upper_rows = np.hstack([jacobian[has_upper], -np.ones((has_upper.sum(), 1))])
     lower_rows = np.hstack([jacobian[has_lower], np.ones((has_lower.sum(), 1))])
     inequality = np.vstack([upper_rows, lower_rows])
@@ -161,7 +178,7 @@ def _scaled_rows(linearization):
     return jacobian / scale[:, None], lower_gap, upper_gap, scale, np.isfinite(lower_gap), np.isfinite(upper_gap)
 
 
-def row_multipliers(linearization, multipliers) -> dict:
+def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> dict:
     """The multiplier of each constraint row of a linearisation, from its elastic QP's answer.
 
     Parameters
@@ -170,6 +187,9 @@ def row_multipliers(linearization, multipliers) -> dict:
         What :func:`elastic_qp` was given.
     multipliers : (rows + n + 1,) float
         :attr:`QPWorkspace.multipliers` after solving that QP.
+    penalty : float
+        The elastic penalty of that QP (its objective was divided by
+        :func:`objective_scale` of it).
 
     Returns
     -------
@@ -184,6 +204,7 @@ def row_multipliers(linearization, multipliers) -> dict:
     rows = np.zeros(len(scale))
     rows[has_upper] += multipliers[:uppers]
     rows[has_lower] += multipliers[uppers : uppers + int(has_lower.sum())]
+    rows *= objective_scale(penalty)  # the QP's objective was divided by it
     # proxsuite leaves specks (1e-70 to 1e-9) on inactive rows; a row that
     # weighs nothing should cost nothing downstream.
     rows[np.abs(rows) < _INACTIVE_MULTIPLIER] = 0.0
@@ -193,4 +214,4 @@ def row_multipliers(linearization, multipliers) -> dict:
     return dict(zip(labels, rows))
 
 
-__all__ = ["QPWorkspace", "elastic_qp", "row_multipliers"]
+__all__ = ["QPWorkspace", "elastic_qp", "objective_scale", "row_multipliers"]

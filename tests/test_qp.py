@@ -68,3 +68,32 @@ def test_a_warm_started_workspace_gives_the_cold_answer():
     cold = QPWorkspace().solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
     assert np.allclose(warm, cold, atol=1e-6)
     assert np.allclose(warm[:2], [0.4, 0.8], atol=1e-6)
+
+
+def test_a_large_penalty_divides_the_objective_and_changes_neither_answer_nor_multipliers():
+    """At penalty 1e6 the QP's objective is divided by 1e4: the same step, and the
+    multipliers, taken back to objective units, are those of the undivided QP."""
+    from stances.qp import objective_scale, row_multipliers
+
+    lin = _linearization([
+        equality("sum", np.array([-1.0]), np.array([[1.0, 1.0]]), 1.0, ["x0 + x1 = 1"]),
+        ConstraintBlock("cap", np.zeros(1), np.array([[1.0, 0.0]]), -np.inf, 0.2, 1.0, ("x0 <= 0.2",)),
+    ])
+    lin.gradient[:] = [0.3, -0.1]
+    assert objective_scale(1e6) == 1e4 and objective_scale(50.0) == 1.0
+    divided = QPWorkspace()
+    x = divided.solve(*elastic_qp(lin, penalty=1e6), accuracy=1e-12)
+    hessian, gradient, *rest = elastic_qp(lin, penalty=1e6)
+    whole = QPWorkspace()
+    y = whole.solve(hessian * 1e4, gradient * 1e4, *rest, accuracy=1e-9)
+    np.testing.assert_allclose(x, y, atol=1e-7)
+    np.testing.assert_allclose(x[:2], [0.2, 0.8], atol=1e-7)  # feasible: no elastic
+    scaled = row_multipliers(lin, divided.multipliers, penalty=1e6)
+    unscaled = row_multipliers(lin, whole.multipliers, penalty=1e2)
+    assert scaled.keys() == unscaled.keys()
+    for label in scaled:
+        assert scaled[label] == pytest.approx(unscaled[label], rel=1e-5, abs=1e-7)
+    # Stationarity in objective units: H x + g + J^T y = 0 on the two rows.
+    jacobian = np.array([[1.0, 1.0], [1.0, 0.0]])
+    multipliers = np.array([scaled["x0 + x1 = 1"], scaled["x0 <= 0.2"]])
+    np.testing.assert_allclose(x[:2] + lin.gradient + jacobian.T @ multipliers, 0.0, atol=1e-6)
