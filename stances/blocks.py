@@ -31,8 +31,10 @@ class ConstraintBlock:
         Family of the rows ("placement", "equilibrium", "torque limit", ...).
     value : (r,) float
         Constraint function at the current iterate.
-    jacobian : (r, n) float
-        Derivative with respect to the step (dq, dlambda).
+    jacobian : (r, n) float or None
+        Derivative with respect to the step (dq, dlambda); None for rows
+        evaluated without it (:meth:`stances.problem.PostureProblem.evaluate`,
+        the line search's trials).
     lower, upper : (r,) float
         Bounds; ``-inf`` / ``inf`` where one-sided; equal for equalities.
     scale : (r,) float
@@ -72,12 +74,22 @@ class ConstraintBlock:
     def __post_init__(self) -> None:
         rows = len(self.value)
         for attribute in ("lower", "upper", "scale"):
-            array = np.broadcast_to(np.asarray(getattr(self, attribute), dtype=float), (rows,))
+            given = getattr(self, attribute)
+            # np.broadcast_to costs ten times these (a linearisation makes some
+            # thirty blocks, a solve thousands of them).
+            if isinstance(given, np.ndarray) and given.dtype == float and given.shape == (rows,):
+                array = given.view()
+                array.setflags(write=False)
+            elif np.ndim(given) == 0:
+                array = np.full(rows, float(given))
+                array.setflags(write=False)
+            else:
+                array = np.broadcast_to(np.asarray(given, dtype=float), (rows,))
             object.__setattr__(self, attribute, array)
-        if self.jacobian.shape[0] != rows or len(self.labels) != rows:
+        if (self.jacobian is not None and self.jacobian.shape[0] != rows) or len(self.labels) != rows:
             raise ValueError(
-                f"block {self.name!r}: {rows} values, jacobian {self.jacobian.shape}, "
-                f"{len(self.labels)} labels"
+                f"block {self.name!r}: {rows} values, jacobian "
+                f"{None if self.jacobian is None else self.jacobian.shape}, {len(self.labels)} labels"
             )
 
     def __len__(self) -> int:

@@ -22,9 +22,12 @@ small interface to the problem builder:
 - ``n_variables`` and ``variable_lower``: its force variables and their lower bounds;
 - ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
 - ``force_jacobians(model, data, lam)``: their derivatives in q and its variables;
-- ``blocks(model, data, lam, columns, offset)``: its own constraint rows (its
-  variables start at column ``offset``);
-- ``cost(model, data, lam, options, columns, offset)``: its objective term, or None;
+- ``blocks(model, data, lam, columns, offset, derivatives=True)``: its own
+  constraint rows (its variables start at column ``offset``; without
+  derivatives, values only: ``jacobian`` None);
+- ``cost(model, data, lam, options, columns, offset, derivatives=True)``: its
+  objective term ``(value, gradient, Hessian)`` (without derivatives
+  ``(value, None, None)``), or None;
 - ``verify(...)``: its independent checks.
 """
 
@@ -135,7 +138,7 @@ class RigidContact:
         """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
         return np.zeros((self.generators.shape[0], model.nv)), self.generators
 
-    def blocks(self, model, data, lam, columns, offset):
+    def blocks(self, model, data, lam, columns, offset, derivatives=True):
         """Placement equalities (6 rows; a point foot's 3), print frame.
 
         Parameters
@@ -144,10 +147,15 @@ class RigidContact:
             Width of the step vector (nv + m).
         offset : int
             Column of this contact's first variable (its rows do not use them).
+        derivatives : bool
+            False: the rows' values only (frame placements computed), ``jacobian`` None.
         """
-        residual, jacobian_q = self._placement(model, data)
-        jacobian = np.zeros((len(residual), columns))
-        jacobian[:, : model.nv] = jacobian_q
+        if derivatives:
+            residual, jacobian_q = self._placement(model, data)
+            jacobian = np.zeros((len(residual), columns))
+            jacobian[:, : model.nv] = jacobian_q
+        else:
+            residual, jacobian = self._placement_residual(data), None
         labels = [f"placement of {self.label} ({axis})" for axis in self._placement_axes]
         # 1 cm / 10 mrad: the size of a placement error that matters.
         return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement)]
@@ -159,12 +167,16 @@ class RigidContact:
         residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
         return residual, jlog @ pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
 
+    def _placement_residual(self, data) -> np.ndarray:
+        """Placement residual (6,) alone, at the frame placements in ``data``."""
+        return pin.log6(self.print_placement.actInv(data.oMf[self.frame_id])).vector
+
     def _weighted_placement(self, model, data, weights) -> np.ndarray:
         """(nv,) ``weights @ jacobian`` of the placement rows at the kinematics in ``data``
         (their ``second_order``, see :mod:`stances.curvature`)."""
         return weights @ self._placement(model, data)[1]
 
-    def cost(self, model, data, lam, options, columns, offset):
+    def cost(self, model, data, lam, options, columns, offset, derivatives=True):
         """No objective term of its own (lambda's is the problem's force term)."""
         return None
 
@@ -199,8 +211,7 @@ class RigidContact:
 
     def _verify_placement(self, data, tolerances, measures) -> list:
         """The surface frame on the print frame: translation and rotation errors."""
-        error = self.print_placement.actInv(data.oMf[self.frame_id])
-        residual = pin.log6(error).vector
+        residual = self._placement_residual(data)
         translation, rotation = np.abs(residual[:3]).max(), np.abs(residual[3:]).max()
         measures[f"placement error of {self.label}"] = float(max(translation, rotation))
         if max(translation, rotation) > tolerances.placement:
@@ -231,11 +242,16 @@ def point_placement_residual(model, data, frame_id: int, transform_print_to_worl
     jacobian : (3, nv) float
         Its derivative for a tangent step.
     """
+    jacobian = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+    residual = _point_residual(data, frame_id, transform_print_to_world, radius)
+    return residual, transform_print_to_world.rotation.T @ jacobian
+
+
+def _point_residual(data, frame_id, transform_print_to_world, radius) -> np.ndarray:
+    """(3,) the residual of :func:`point_placement_residual`, without its Jacobian."""
     rotation = transform_print_to_world.rotation
     centre = data.oMf[frame_id].translation
-    residual = rotation.T @ (centre - transform_print_to_world.translation) - np.array([0.0, 0.0, radius])
-    jacobian = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
-    return residual, rotation.T @ jacobian
+    return rotation.T @ (centre - transform_print_to_world.translation) - np.array([0.0, 0.0, radius])
 
 
 class PointContact(RigidContact):
@@ -266,6 +282,10 @@ class PointContact(RigidContact):
     def _placement(self, model, data):
         """Placement residual of the ball's centre (3,), print frame, and its Jacobian (3, nv)."""
         return point_placement_residual(model, data, self.frame_id, self.print_placement, self.radius)
+
+    def _placement_residual(self, data) -> np.ndarray:
+        """Placement residual of the ball's centre (3,) alone, at the frame placements in ``data``."""
+        return _point_residual(data, self.frame_id, self.print_placement, self.radius)
 
     def _verify_placement(self, data, tolerances, measures) -> list:
         """The ball's centre ``radius`` above the print origin, along its normal."""

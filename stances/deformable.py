@@ -61,6 +61,7 @@ there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -148,6 +149,32 @@ def rigid_force_metric(surface, friction: float) -> np.ndarray:
         return metric
     wrenches = np.vstack([np.hstack([edges, np.cross(vertex, edges)]) for vertex in surface.vertices_in_frame])  # (4k, 6)
     return np.linalg.inv(wrenches.T @ wrenches)
+
+
+@dataclass(frozen=True)
+class _PrintValues:
+    """A deformable contact's state at one iterate, without derivatives.
+
+    Attributes
+    ----------
+    displacements : (p, 3) float
+        U imposed by the link points, metres, body frame (eq. 29).
+    forces : (p, 3) float
+        Node forces on the robot, newtons, world frame.
+    forces_body : (3p,) float
+        The same, stacked, body frame.
+    nodes : (3p,) float
+        The body's own print-node displacements, metres, body frame.
+    solved : object
+        What the derivatives reuse: the Coulomb contact solve (fem.PrintContact),
+        the traction model's (reaction matrix, turned normals), or None.
+    """
+
+    displacements: np.ndarray
+    forces: np.ndarray
+    forces_body: np.ndarray
+    nodes: np.ndarray
+    solved: Any
 
 
 def _skew_rows(points: np.ndarray) -> np.ndarray:
@@ -318,8 +345,11 @@ class DeformableContact:
             # Thickness of the body along each print's normal, from its mesh.
             heights = [np.ptp(body.mesh.nodes @ (r[:, 2])) for r in print_rotations_in_body]
             self.max_indentation = float(options.indentation_limit * min(heights))
+        # The iterate's values (_PrintValues) and derivatives, memoised by _values.
+        self._load_joints = [int(joint) for joint in np.unique(self.loads.joints)]
         self._cache_key = None
         self._cache = None
+        self._derivatives = None
 
     # -- kinematics of the prints -------------------------------------------
     def _displacements(self, data) -> np.ndarray:
@@ -340,17 +370,15 @@ class DeformableContact:
         rest = self.patch.triangle_normals
         return np.einsum("tij,tj->ti", np.array(relative)[owner], rest)
 
-    def _reaction_now(self, model, data, displacements, d_displacements):
-        """Bonded laws: the reaction map R, ``R U`` and R's own q-derivative term.
-
-        fem's reaction matrix; its normals turn with the links for ``traction`` (eq. 63).
-        """
-        if self.method != "traction":
-            return self.reaction, self.reaction @ displacements.reshape(-1), np.zeros_like(d_displacements)
+    def _traction_reaction(self, data):
+        """Traction: fem's reaction matrix with each print's normals turned with its
+        link (eq. 63), and those normals (T, 3), body frame."""
         normals = self._turned_normals(data)
-        reaction = np.asarray(self.patch.reaction_matrix("traction", normals=normals))
-        forces = reaction @ displacements.reshape(-1)
-        # eq. (63), first term: each triangle's normal turns with its link, dn = omega x n.
+        return np.asarray(self.patch.reaction_matrix("traction", normals=normals)), normals
+
+    def _turning_derivative(self, model, data, displacements, normals) -> np.ndarray:
+        """Traction: (3p, nv) the q-derivative of ``R(q) U`` through the turning normals
+        (eq. 63, first term: each triangle's normal turns with its link, dn = omega x n)."""
         per_triangle = np.asarray(self.patch.traction_normal_derivative(displacements))  # (T, 3, 3)
         skews = _skew_rows(normals)
         per_triangle_omega = -np.einsum("tij,tjk->tik", per_triangle, skews)
@@ -363,19 +391,22 @@ class DeformableContact:
         out = np.zeros((len(self.node_ids), 3, model.nv))
         for corner in range(3):
             np.add.at(out, self.patch.triangles[:, corner], d)
-        return reaction, forces, out.reshape(3 * len(self.node_ids), -1)
+        return out.reshape(3 * len(self.node_ids), -1)
 
-    def _state(self, model, data, w):
-        """U, dU/dq, forces (world) and their derivatives in q and W at the iterate."""
+    def _values(self, model, data, w) -> _PrintValues:
+        """U, the forces (world) and the body's print displacement at the iterate.
+
+        Memoised on the link placements and ``w``: a linearisation's pieces (forces,
+        rows, cost) read it several times, and the line search's accepted trial is
+        linearised at the same point, whose contact solve is then reused (so the
+        contact modes the next solve starts from are the same either way).
+        """
         w = np.asarray(w, dtype=float)
-        joints = np.unique(self.loads.joints)
-        key = (id(data), b"".join(data.oMi[int(j)].homogeneous.tobytes() for j in joints), w.tobytes())
+        key = (id(data), b"".join(data.oMi[j].homogeneous.tobytes() for j in self._load_joints), w.tobytes())
         if self._cache_key == key:
             return self._cache
-        nv, p = model.nv, len(self.node_ids)
+        p = len(self.node_ids)
         displacements = self._displacements(data)
-        jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
-        d_displacements = np.einsum("ji,pjv->piv", self.rotation_body, jacobians).reshape(-1, nv)
         u = displacements.reshape(-1)
         # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
         if self.law == "coulomb":
@@ -390,37 +421,65 @@ class DeformableContact:
                 # SQP holds a set or comes back to it at most linearisations.
                 self._contact_system = fem.PrintContactSystem(self.patch.compliance, self.node_frames, self.node_mu)
             if self._frozen is not None:
-                state = self._contact_system.with_modes(corrected, *self._frozen)
+                solved = self._contact_system.with_modes(corrected, *self._frozen)
             else:
                 warm = (None, None) if self._modes is None else self._modes
-                state = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
-                self._modes = (state.modes, state.directions)
-            # Only L applied to a few directions is needed, not L itself.
-            applied = state.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))
-            distribution = applied[:, : self.n_variables]  # D = L G A^-1
-            nonrigid_dq = applied[:, self.n_variables :] - distribution @ (self.generalised @ d_displacements)
-            forces_body = state.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U
-            d_forces_body = np.hstack([nonrigid_dq, distribution])
+                solved = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
+                self._modes = (solved.modes, solved.directions)
+            forces_body = solved.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U
         else:
-            reaction, elastic, d_turn = self._reaction_now(model, data, displacements, d_displacements)
+            if self.method == "traction":
+                solved = self._traction_reaction(data)
+                elastic = solved[0] @ u
+            else:
+                solved, elastic = None, self.reaction @ u
             distribution = self.distribution
-            nonrigid = self.nonrigid if self.method != "traction" else reaction - distribution @ self.generalised
             forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
-            d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
-        rotation = self.rotation_body
-        forces = (forces_body.reshape(p, 3)) @ rotation.T
-        d_forces = np.einsum("ij,pjv->piv", rotation, d_forces_body.reshape(p, 3, -1)).reshape(3 * p, -1)
+        forces = (forces_body.reshape(p, 3)) @ self.rotation_body.T
         # The body's own print displacement: the compliance under the forces (the link
         # points' U only where the nodes stick; traction has no compliance form).
+        nodes = u if self.method == "traction" else -self.patch.compliance @ forces_body
+        self._cache_key = key
+        self._cache = _PrintValues(displacements, forces, forces_body, nodes, solved)
+        self._derivatives = None
+        return self._cache
+
+    def _state(self, model, data, w):
+        """U, dU/dq, forces (world) and their derivatives in q and W, the body's print
+        displacement and its derivative, at the iterate (joint Jacobians computed)."""
+        values = self._values(model, data, w)
+        if self._derivatives is None:
+            self._derivatives = self._derive(model, data, values)
+        d_displacements, d_forces_dq, d_forces_dw, d_nodes = self._derivatives
+        return values.displacements, d_displacements, values.forces, d_forces_dq, d_forces_dw, values.nodes, d_nodes
+
+    def _derive(self, model, data, values):
+        """dU/dq (3p, nv), d forces / dq (3p, nv), d forces / dW (3p, 6L) and the
+        body's print displacement's derivative (3p, nv + 6L) at the iterate of ``values``."""
+        nv, p = model.nv, len(self.node_ids)
+        jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
+        d_displacements = np.einsum("ji,pjv->piv", self.rotation_body, jacobians).reshape(-1, nv)
+        if self.law == "coulomb":
+            # Only L applied to a few directions is needed, not L itself.
+            applied = values.solved.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))
+            distribution = applied[:, : self.n_variables]  # D = L G A^-1
+            nonrigid_dq = applied[:, self.n_variables :] - distribution @ (self.generalised @ d_displacements)
+            d_forces_body = np.hstack([nonrigid_dq, distribution])
+        else:
+            distribution = self.distribution
+            if self.method == "traction":
+                reaction, normals = values.solved
+                nonrigid = reaction - distribution @ self.generalised
+                d_turn = self._turning_derivative(model, data, values.displacements, normals)
+            else:
+                nonrigid, d_turn = self.nonrigid, np.zeros_like(d_displacements)
+            d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
+        d_forces = np.einsum("ij,pjv->piv", self.rotation_body, d_forces_body.reshape(p, 3, -1)).reshape(3 * p, -1)
         if self.method == "traction":
-            nodes = displacements.reshape(-1)
             d_nodes = np.hstack([d_displacements, np.zeros((3 * p, self.n_variables))])
         else:
-            nodes = -self.patch.compliance @ forces_body
             d_nodes = -self.patch.compliance @ d_forces_body
-        self._cache_key = key
-        self._cache = (displacements, d_displacements, forces, d_forces[:, :nv], d_forces[:, nv:], nodes, d_nodes)
-        return self._cache
+        return d_displacements, d_forces[:, :nv], d_forces[:, nv:], d_nodes
 
     # -- contact set ---------------------------------------------------------
     def freeze_modes(self, model, data, w) -> None:
@@ -430,7 +489,7 @@ class DeformableContact:
         fast; :func:`stances.verify` still checks Signorini and Coulomb at the answer.
         """
         self.release_modes()
-        self._state(model, data, w)
+        self._values(model, data, w)
         self._frozen = self._modes
         self._cache_key = None
 
@@ -450,14 +509,14 @@ class DeformableContact:
 
     def forces(self, model, data, w) -> np.ndarray:
         """(p, 3) world forces of the print nodes on the robot, newtons (eq. 44)."""
-        return self._state(model, data, w)[2]
+        return self._values(model, data, w).forces
 
     def force_jacobians(self, model, data, w):
         """d forces / d q (3p, nv) and d forces / d W (3p, 6L)."""
         state = self._state(model, data, w)
         return state[3], state[4]
 
-    def blocks(self, model, data, w, columns, offset):
+    def blocks(self, model, data, w, columns, offset, derivatives=True):
         """Elastic placement, per-node no adhesion and friction, indentation, strain.
 
         Parameters
@@ -466,88 +525,92 @@ class DeformableContact:
             Width of the step vector (nv + m).
         offset : int
             Column of this contact's first variable in the step vector.
+        derivatives : bool
+            False: the rows' values only (``jacobian`` None), without the
+            print points' Jacobians nor the contact solve's derivative.
         """
-        displacements, d_displacements, forces, d_forces_dq, d_forces_dw, nodes, d_nodes = self._state(model, data, w)
+        values = self._values(model, data, w)
+        displacements, forces, nodes = values.displacements, values.forces, values.nodes
         nv, p = model.nv, len(self.node_ids)
         w_columns = slice(offset, offset + self.n_variables)
         blocks = []
+        # Derivatives in the full step (None: values only).
+        d_displacements = d_forces = d_nodes_full = jacobian = None
+        if derivatives:
+            _, d_displacements, _, d_forces_dq, d_forces_dw, _, d_nodes = self._state(model, data, w)
 
         # Compliance form of the placement (see the module docstring).
         u = displacements.reshape(-1)
         residual = self.fit @ u + self.compliance_rows @ w
-        jacobian = np.zeros((self.n_variables, columns))
-        jacobian[:, :nv] = self.fit @ d_displacements
-        jacobian[:, w_columns] = self.compliance_rows
-        labels = [
-            f"placement of {spec.label} ({axis}, elastic)"
-            for spec in self.prints
-            for axis in ("x", "y", "z", "roll", "pitch", "yaw")
-        ]
-        blocks.append(equality("placement", residual, jacobian, 1e-2, labels))
+        if derivatives:
+            jacobian = np.zeros((self.n_variables, columns))
+            jacobian[:, :nv] = self.fit @ d_displacements
+            jacobian[:, w_columns] = self.compliance_rows
+        labels = self._labels
+        blocks.append(equality("placement", residual, jacobian, 1e-2, labels["placement"]))
 
-        name = self.deformable_object.name
-        d_forces = np.zeros((p, 3, columns))
-        d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
-        d_forces[:, :, w_columns] = d_forces_dw.reshape(p, 3, -1)
-        d_nodes_full = np.zeros((3 * p, columns))
-        d_nodes_full[:, :nv] = d_nodes[:, :nv]
-        d_nodes_full[:, w_columns] = d_nodes[:, nv:]
+        if derivatives:
+            d_forces = np.zeros((p, 3, columns))
+            d_forces[:, :, :nv] = d_forces_dq.reshape(p, 3, nv)
+            d_forces[:, :, w_columns] = d_forces_dw.reshape(p, 3, -1)
+            d_nodes_full = np.zeros((3 * p, columns))
+            d_nodes_full[:, :nv] = d_nodes[:, :nv]
+            d_nodes_full[:, w_columns] = d_nodes[:, nv:]
         if self.law == "coulomb":
             # The contact solve keeps every node admissible; each link must still
             # press its print (on average not above the rest surface), or it is
             # not in contact.
             heights = np.einsum("pj,pj->p", displacements, self.normals_in_body)
-            d_heights = np.einsum("pj,pjv->pv", self.normals_in_body, d_displacements.reshape(p, 3, nv))
-            value, jacobian = np.zeros(len(self.prints)), np.zeros((len(self.prints), columns))
+            value, jacobian = np.zeros(len(self.prints)), None
             for i in range(len(self.prints)):
-                rows = self.print_of_node == i
-                value[i] = heights[rows].mean()
-                jacobian[i, :nv] = d_heights[rows].mean(axis=0)
-            labels = tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints)
+                value[i] = heights[self.print_of_node == i].mean()
+            if derivatives:
+                d_heights = np.einsum("pj,pjv->pv", self.normals_in_body, d_displacements.reshape(p, 3, nv))
+                jacobian = np.zeros((len(self.prints), columns))
+                for i in range(len(self.prints)):
+                    jacobian[i, :nv] = d_heights[self.print_of_node == i].mean(axis=0)
             # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
-            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels, slack=1e-8))
-            blocks.append(self._slip_block(displacements, d_displacements, nodes, d_nodes, columns, offset))
+            blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels["touch"], slack=1e-8))
+            blocks.append(self._slip_block(displacements, d_displacements, nodes, d_nodes_full, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
-            values, jacobians, labels = self._resultant_rows(forces, d_forces)
-            blocks.append(ConstraintBlock("node contact", values, jacobians, 0.0, np.inf, 1.0, labels))
+            values, jacobians = self._resultant_rows(forces, d_forces)
+            blocks.append(ConstraintBlock("node contact", values, jacobians, 0.0, np.inf, 1.0, labels["resultant"]))
         else:
             # Bonded nodes push; each node's force stays in its own (inner) friction
             # pyramid ("sticking"), or only each print's resultant does ("bonded").
-            push = np.einsum("pj,pj->p", self.normals, forces)
-            push_jacobian = np.einsum("pj,pjc->pc", self.normals, d_forces)
-            values, jacobians = [push], [push_jacobian]
-            labels = [f"no adhesion at node {n} of {name}" for n in self.node_ids]
+            values = [np.einsum("pj,pj->p", self.normals, forces)]
+            jacobians = [np.einsum("pj,pjc->pc", self.normals, d_forces)] if derivatives else None
             if self.law == "sticking":
                 faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
                 values.append(np.einsum("pkj,pj->pk", faces, forces).reshape(-1))
-                jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
-                labels.extend(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
+                if derivatives:
+                    jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
             else:
                 resultant = self._resultant_rows(forces, d_forces)
                 values.append(resultant[0])
-                jacobians.append(resultant[1])
-                labels.extend(resultant[2])
-            blocks.append(
-                ConstraintBlock("node contact", np.concatenate(values), np.vstack(jacobians), 0.0, np.inf, 1.0, tuple(labels))
-            )
+                if derivatives:
+                    jacobians.append(resultant[1])
+            blocks.append(ConstraintBlock(
+                "node contact", np.concatenate(values), np.vstack(jacobians) if derivatives else None,
+                0.0, np.inf, 1.0, labels["node contact"],
+            ))
 
         # Indentation of the body's print nodes along their normal, bounded
         # relative to the body's thickness.
         depth = -np.einsum("pj,pj->p", nodes.reshape(p, 3), self.normals_in_body)
-        jacobian = -np.einsum("pj,pjc->pc", self.normals_in_body, d_nodes_full.reshape(p, 3, columns))
+        jacobian = None
+        if derivatives:
+            jacobian = -np.einsum("pj,pjc->pc", self.normals_in_body, d_nodes_full.reshape(p, 3, columns))
         blocks.append(
-            ConstraintBlock(
-                "indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2,
-                tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
-            )
+            ConstraintBlock("indentation", depth, jacobian, -np.inf, self.max_indentation, 1e-2, labels["indentation"])
         )
         strain = self._strain_block(nodes, d_nodes_full, columns)
         if strain is not None:
             blocks.append(strain)
         return blocks
 
-    def _slip_block(self, displacements, d_displacements, nodes, d_nodes, columns, offset) -> ConstraintBlock:
+    def _slip_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
         """Small slip: the largest tangential motions of link points over their nodes.
 
         Coulomb contact is solved on the nodes under the declared print; a link
@@ -556,38 +619,66 @@ class DeformableContact:
         from their link points). Each tangential component of the
         ``_SLIP_ROWS`` largest slips is kept within ``max_slip / sqrt(2)``, so
         that the slip itself (what verify checks) is within ``max_slip``; a
-        fixed row count lets the QP warm-start.
+        fixed row count lets the QP warm-start. ``d_displacements`` (3p, nv) and
+        ``d_nodes`` (3p, columns), in the full step, are None for values only.
         """
-        nv, p = d_displacements.shape[1], len(self.node_ids)
+        p = len(self.node_ids)
         relative = displacements.reshape(-1) - nodes  # link point minus node, body frame
-        d_relative = np.zeros((3 * p, columns))
-        d_relative[:, :nv] = d_displacements - d_nodes[:, :nv]
-        d_relative[:, offset : offset + self.n_variables] = -d_nodes[:, nv:]
         tangential = np.einsum("pij,pj->pi", self.node_frames[:, :2], relative.reshape(p, 3))
-        d_tangential = np.einsum("pij,pjc->pic", self.node_frames[:, :2], d_relative.reshape(p, 3, columns))
         chosen = np.argsort(-np.linalg.norm(tangential, axis=1), kind="stable")[: min(_SLIP_ROWS, p)]
         rows = len(chosen)
+        jacobian = None
+        if d_displacements is not None:
+            d_relative = -d_nodes
+            d_relative[:, : d_displacements.shape[1]] += d_displacements
+            d_tangential = np.einsum("pij,pjc->pic", self.node_frames[:, :2], d_relative.reshape(p, 3, columns))
+            jacobian = d_tangential[chosen].reshape(2 * rows, columns)
         labels = tuple(
             f"slip at node {int(self.node_ids[i])} of {self.deformable_object.name} ({axis})"
             for i in chosen for axis in ("t1", "t2")
         )
         return ConstraintBlock(
-            "slip", tangential[chosen].reshape(-1), d_tangential[chosen].reshape(2 * rows, columns),
+            "slip", tangential[chosen].reshape(-1), jacobian,
             -_PYRAMID * self.max_slip, _PYRAMID * self.max_slip, 1e-2, labels,
         )
 
+    @cached_property
+    def _labels(self) -> dict:
+        """Row labels that do not change between linearisations, by block (made once)."""
+        name = self.deformable_object.name
+        resultant = tuple(f"friction cone of the resultant of {spec.label} ({s})" for spec in self.prints for s in _SIDES)
+        if self.law == "coulomb":
+            node_contact = resultant
+        else:
+            node_contact = tuple(f"no adhesion at node {n} of {name}" for n in self.node_ids) + (
+                tuple(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
+                if self.law == "sticking" else resultant
+            )
+        return {
+            "placement": tuple(
+                f"placement of {spec.label} ({axis}, elastic)"
+                for spec in self.prints
+                for axis in ("x", "y", "z", "roll", "pitch", "yaw")
+            ),
+            "touch": tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints),
+            "resultant": resultant,
+            "node contact": node_contact,
+            "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
+        }
+
     def _resultant_rows(self, forces, d_forces):
-        """Each print's resultant inside ``friction_margin`` times its inner pyramid (4 rows each)."""
-        values, jacobians, labels = [], [], []
-        for i, spec in enumerate(self.prints):
+        """Each print's resultant inside ``friction_margin`` times its inner pyramid (4 rows
+        each, labels ``_labels["resultant"]``); jacobians None when ``d_forces`` (p, 3, columns) is."""
+        values, jacobians = [], []
+        for i in range(len(self.prints)):
             rows = self.print_of_node == i
             rotation = self.print_placements[i].rotation
             mu = self.friction_margin * self.friction[i]
             face = self._pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [mu])[0]  # (4, 3)
             values.append(face @ forces[rows].sum(axis=0))
-            jacobians.append(face @ d_forces[rows].sum(axis=0))
-            labels.extend(f"friction cone of the resultant of {spec.label} ({s})" for s in _SIDES)
-        return np.concatenate(values), np.vstack(jacobians), tuple(labels)
+            if d_forces is not None:
+                jacobians.append(face @ d_forces[rows].sum(axis=0))
+        return np.concatenate(values), np.vstack(jacobians) if d_forces is not None else None
 
     @staticmethod
     def _pyramid_faces(normals, tangents, friction):
@@ -604,7 +695,7 @@ class DeformableContact:
         """Largest and smallest principal strains of the most strained tets near the prints.
 
         ``u`` (3p,) are the body's print-node displacements, ``d_u`` (3p, columns)
-        their derivative in the step.
+        their derivative in the step (None: values only).
         """
         import fem
 
@@ -612,34 +703,42 @@ class DeformableContact:
             return None
         strain_map = self.patch.strain_map  # (T', 6, 3p)
         voigt = strain_map @ u
-        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt))
+        # The Frobenius norm of a strain tensor bounds its principal strains: the
+        # tets below the activation by that norm are left out of the (costly)
+        # eigendecomposition, which is per tet, so the others' answers are unchanged.
+        frobenius = np.sqrt(np.sum(voigt[:, :3] ** 2, axis=1) + 0.5 * np.sum(voigt[:, 3:] ** 2, axis=1))
+        screened = np.flatnonzero(frobenius >= (1.0 - 1e-9) * _STRAIN_ACTIVATION * self.strain_limit)
+        if screened.size == 0:
+            return None
+        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt[screened]))
         largest, smallest = values[:, 2], values[:, 0]
         ratio = np.maximum(largest, -smallest) / self.strain_limit
-        candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)
+        candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)  # indices into screened
         if candidates.size == 0:
             return None
         chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
         tets = self.patch.neighbour_tets
         rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
-        for t in chosen.tolist():
+        for k, t in zip(chosen.tolist(), screened[chosen].tolist()):
             for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),
                                                           (0, -self.strain_limit, np.inf, "compression")):
-                v = vectors[t, :, which]
-                # d lambda = v^T dE v; Voigt with engineering shears.
-                weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                row = (weights @ strain_map[t]) @ d_u
-                rows_value.append(values[t, which])
-                rows_jacobian.append(row)
+                if d_u is not None:
+                    v = vectors[k, :, which]
+                    # d lambda = v^T dE v; Voigt with engineering shears.
+                    weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
+                    rows_jacobian.append((weights @ strain_map[t]) @ d_u)
+                rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)
                 labels.append(f"strain bound ({name}) of tet {int(tets[t])} of {self.deformable_object.name}")
         return ConstraintBlock(
-            "strain", np.array(rows_value), np.array(rows_jacobian), np.array(lower), np.array(upper),
+            "strain", np.array(rows_value), None if d_u is None else np.array(rows_jacobian), np.array(lower), np.array(upper),
             self.strain_limit, tuple(labels),
         )
 
-    def cost(self, model, data, w, options, columns, offset):
-        """The prints' terms of the objective: value, gradient and Gauss-Newton Hessian.
+    def cost(self, model, data, w, options, columns, offset, derivatives=True):
+        """The prints' terms of the objective: value, gradient and Gauss-Newton Hessian
+        (``(value, None, None)`` without ``derivatives``).
 
         - Force term: ``force_weight / 2 W^T M W``, M the rigid contact's metric
           (:func:`rigid_force_metric`), so that a stiff print weighs its load as a rigid
@@ -651,36 +750,45 @@ class DeformableContact:
           paper's ``1/2 |f|^2`` of the nodal reactions, per N^2.
         """
         n_w = self.n_variables
-        gradient, hessian = np.zeros(columns), np.zeros((columns, columns))
         weighted = options.force_weight * (self.force_metric @ w)
         value = 0.5 * float(w @ weighted)
-        gradient[offset : offset + n_w] = weighted
-        hessian[offset : offset + n_w, offset : offset + n_w] = options.force_weight * self.force_metric
+        gradient = hessian = None
+        if derivatives:
+            gradient, hessian = np.zeros(columns), np.zeros((columns, columns))
+            gradient[offset : offset + n_w] = weighted
+            hessian[offset : offset + n_w, offset : offset + n_w] = options.force_weight * self.force_metric
         weight = options.deformation_weight
         if weight == 0.0:
             return value, gradient, hessian
-        _, _, forces, d_forces_dq, d_forces_dw, nodes, d_nodes = self._state(model, data, w)
-        jacobian = np.zeros((forces.size, columns))
-        jacobian[:, : model.nv] = d_forces_dq
-        jacobian[:, offset : offset + n_w] = d_forces_dw
+        values = self._values(model, data, w)
+        forces, nodes = values.forces, values.nodes
+        if derivatives:
+            _, _, _, d_forces_dq, d_forces_dw, _, d_nodes = self._state(model, data, w)
+            jacobian = np.zeros((forces.size, columns))
+            jacobian[:, : model.nv] = d_forces_dq
+            jacobian[:, offset : offset + n_w] = d_forces_dw
         if options.deformation_cost == "force":
             stacked = forces.reshape(-1)
-            return (value + 0.5 * weight * float(stacked @ stacked), gradient + weight * jacobian.T @ stacked,
-                    hessian + weight * jacobian.T @ jacobian)
+            value = value + 0.5 * weight * float(stacked @ stacked)
+            if not derivatives:
+                return value, None, None
+            return value, gradient + weight * jacobian.T @ stacked, hessian + weight * jacobian.T @ jacobian
         # C f: the print nodes' displacement under the forces, body frame, negated
         # (``nodes`` is -C f_body except under the traction model, which has no compliance form).
         forces_body = forces @ self.rotation_body
+        compliant = self.patch.compliance @ forces_body.reshape(-1) if self.method == "traction" else -nodes
+        value = value + 0.5 * weight * float(forces_body.reshape(-1) @ compliant)
+        if not derivatives:
+            return value, None, None
         if self.method == "traction":
-            compliant = self.patch.compliance @ forces_body.reshape(-1)
             d_compliant = self.patch.compliance @ self._body_rows(jacobian)
         else:
-            compliant = -nodes
             d_compliant = np.zeros((forces.size, columns))
             d_compliant[:, : model.nv] = -d_nodes[:, : model.nv]
             d_compliant[:, offset : offset + n_w] = -d_nodes[:, model.nv :]
         jacobian_body = self._body_rows(jacobian)
         return (
-            value + 0.5 * weight * float(forces_body.reshape(-1) @ compliant),
+            value,
             gradient + weight * jacobian_body.T @ compliant,
             hessian + 0.5 * weight * (jacobian_body.T @ d_compliant + d_compliant.T @ jacobian_body),
         )

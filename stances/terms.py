@@ -8,6 +8,12 @@ their Jacobians), and returns its value with its exact Jacobian in the step
 - a cost returns ``(value, gradient (n,), Gauss-Newton Hessian (n, n))``;
 - a constraint returns :class:`~stances.blocks.ConstraintBlock` rows.
 
+An iterate built without derivatives (``Iterate.derivatives`` False, what
+:meth:`~stances.problem.PostureProblem.evaluate` gives a line search's trial
+points) asks for values only: a cost returns ``(value, None, None)``, a
+constraint its rows with ``jacobian`` None, each skipping the work its
+Jacobian alone needs. The values are the same numbers either way.
+
 :meth:`stances.problem.PostureProblem.linearize` only builds the iterate and
 stacks the pieces; the contact models (rigid, deformable) add their own rows
 and costs through the same two calls. Equation numbers are the paper's.
@@ -51,20 +57,25 @@ class Iterate:
         Force variables.
     forces : (k, 3) float
         Contact forces ON the robot, world frame, newtons.
-    force_jacobian : (3k, n) float
-        Their derivative in the step.
+    force_jacobian : (3k, n) float or None
+        Their derivative in the step (None: values only).
     tau : (nv,) float
         ``g(q) - sum J^T f``: free-flyer wrench residual, then joint torques, N m.
-    tau_jacobian : (nv, n) float
-        Its derivative in the step.
+    tau_jacobian : (nv, n) float or None
+        Its derivative in the step (None: values only).
     """
 
     q: np.ndarray
     lam: np.ndarray
     forces: np.ndarray
-    force_jacobian: np.ndarray
+    force_jacobian: np.ndarray | None
     tau: np.ndarray
-    tau_jacobian: np.ndarray
+    tau_jacobian: np.ndarray | None
+
+    @property
+    def derivatives(self) -> bool:
+        """Whether the pieces must return Jacobians (False: values only)."""
+        return self.tau_jacobian is not None
 
 
 @dataclass(frozen=True)
@@ -76,12 +87,15 @@ class PostureCost:
         model, n = problem.robot.model, problem.n_step
         nv = model.nv
         error = pin.difference(model, problem.reference, iterate.q)
+        value = 0.5 * float(error @ (problem.posture_weights * error))
+        if not iterate.derivatives:
+            return value, None, None
         d_error = pin.dDifference(model, problem.reference, iterate.q, pin.ARG1)
         weights = problem.posture_weights
         gradient, hessian = np.zeros(n), np.zeros((n, n))
         gradient[:nv] = d_error.T @ (weights * error)
         hessian[:nv, :nv] = d_error.T @ (weights[:, None] * d_error)
-        return 0.5 * float(error @ (weights * error)), gradient, hessian
+        return value, gradient, hessian
 
 
 @dataclass(frozen=True)
@@ -99,10 +113,13 @@ class ForceCost:
     def evaluate(self, problem, iterate):
         n, nv = problem.n_step, problem.robot.model.nv
         weights = self.weight * problem.force_weights
+        value = 0.5 * float(iterate.lam @ (weights * iterate.lam))
+        if not iterate.derivatives:
+            return value, None, None
         gradient, hessian = np.zeros(n), np.zeros((n, n))
         gradient[nv:] = weights * iterate.lam
         hessian[nv:, nv:] = np.diag(weights)
-        return 0.5 * float(iterate.lam @ (weights * iterate.lam)), gradient, hessian
+        return value, gradient, hessian
 
 
 @dataclass(frozen=True)
@@ -122,12 +139,15 @@ class TorqueUsageCost:
     weight: float
 
     def evaluate(self, problem, iterate):
-        limits = problem.robot.effort_limits
+        limits = problem.effort_limits
         usage = iterate.tau[6:] / limits
         excess = np.sign(usage) * np.maximum(np.abs(usage) - FREE_USAGE, 0.0)
+        value = 0.5 * self.weight * float(excess @ excess)
+        if not iterate.derivatives:
+            return value, None, None
         d_excess = (excess != 0.0)[:, None] * iterate.tau_jacobian[6:] / limits[:, None]
         return (
-            0.5 * self.weight * float(excess @ excess),
+            value,
             self.weight * (d_excess.T @ excess),
             self.weight * (d_excess.T @ d_excess),
         )
@@ -139,14 +159,20 @@ class ContactCosts:
 
     def evaluate(self, problem, iterate):
         model, data, n, nv = problem.robot.model, problem.data, problem.n_step, problem.robot.model.nv
-        value, gradient, hessian = 0.0, np.zeros(n), np.zeros((n, n))
+        derivatives = iterate.derivatives
+        value = 0.0
+        gradient, hessian = (np.zeros(n), np.zeros((n, n))) if derivatives else (None, None)
         for contact, s in zip(problem.contacts, problem.variable_slices):
-            term = contact.cost(model, data, iterate.lam[s], problem.options, n, nv + s.start)
+            term = contact.cost(model, data, iterate.lam[s], problem.options, n, nv + s.start, derivatives)
             if term is not None:
                 value += term[0]
-                gradient += term[1]
-                hessian += term[2]
+                if derivatives:
+                    gradient += term[1]
+                    hessian += term[2]
         return value, gradient, hessian
+
+
+_EQUILIBRIUM_LABELS = tuple(f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz"))
 
 
 @dataclass(frozen=True)
@@ -156,22 +182,33 @@ class EquilibriumConstraint:
     well scaled."""
 
     def blocks(self, problem, iterate):
-        labels = [f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz")]
-        return [equality("equilibrium", iterate.tau[:6], iterate.tau_jacobian[:6], 10.0, labels)]
+        jacobian = iterate.tau_jacobian[:6] if iterate.derivatives else None
+        return [equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS)]
 
 
 @dataclass(frozen=True)
 class TorqueLimitConstraint:
-    """Torque limits (47), less the effort margin (``problem.effort``)."""
+    """Torque limits (47), less the effort margin (``problem.effort``).
+
+    Parameters
+    ----------
+    labels : tuple of str
+        One per actuated joint (:meth:`for_robot`): made once, not at every
+        linearisation.
+    """
+
+    labels: tuple
+
+    @classmethod
+    def for_robot(cls, robot, effort_margin: float) -> "TorqueLimitConstraint":
+        """The constraint with its rows' labels, for ``robot`` and a margin (fraction of the limits)."""
+        suffix = f" less its {100 * effort_margin:g} % margin" if effort_margin else ""
+        return cls(tuple(f"torque limit of {name}{suffix}" for name in robot.actuated_joint_names))
 
     def blocks(self, problem, iterate):
-        margin = problem.options.effort_margin
-        suffix = f" less its {100 * margin:g} % margin" if margin else ""
-        labels = tuple(f"torque limit of {name}{suffix}" for name in problem.robot.actuated_joint_names)
+        jacobian = iterate.tau_jacobian[6:] if iterate.derivatives else None
         return [
-            ConstraintBlock(
-                "torque limit", iterate.tau[6:], iterate.tau_jacobian[6:], -problem.effort, problem.effort, 1.0, labels
-            )
+            ConstraintBlock("torque limit", iterate.tau[6:], jacobian, -problem.effort, problem.effort, 1.0, self.labels)
         ]
 
 
@@ -192,16 +229,19 @@ class NormalLoadConstraint:
         value, jacobian, labels = [], [], []
         for contact, loads in zip(problem.contacts, problem.load_slices):
             normals = contact.load_normals
-            rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
+            if iterate.derivatives:
+                rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
             for i, label in enumerate(contact.print_labels):
                 mine = contact.load_prints == i
                 value.append(float(np.einsum("pj,pj->", normals[mine], iterate.forces[loads][mine])))
-                jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
+                if iterate.derivatives:
+                    jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
                 labels.append(f"normal load of {label}")
         count = len(value)
         return [
             ConstraintBlock(
-                "normal load", np.array(value), np.array(jacobian), np.full(count, self.minimum),
+                "normal load", np.array(value), np.array(jacobian) if iterate.derivatives else None,
+                np.full(count, self.minimum),
                 np.full(count, np.inf), 1.0, tuple(labels),
             )
         ]
@@ -215,7 +255,7 @@ class ContactConstraints:
         model, data, n, nv = problem.robot.model, problem.data, problem.n_step, problem.robot.model.nv
         out = []
         for contact, s in zip(problem.contacts, problem.variable_slices):
-            out.extend(contact.blocks(model, data, iterate.lam[s], n, nv + s.start))
+            out.extend(contact.blocks(model, data, iterate.lam[s], n, nv + s.start, iterate.derivatives))
         return out
 
 
@@ -242,11 +282,22 @@ class CollisionConstraint:
 
     def blocks(self, problem, iterate):
         model, data = problem.robot.model, problem.data
-        pairs = sorted(self.checker.pairs(model, data), key=lambda p: p.distance)[: self.rows]
         value = np.zeros(self.rows)
-        jacobian = np.zeros((self.rows, problem.n_step))
         lower = np.full(self.rows, -np.inf)
         labels = ["(inactive collision row)"] * self.rows
+        if not iterate.derivatives:
+            # Distances alone: no witness points (line-search trials).
+            distances, names = self.checker.closest_distances(model, data, self.rows)
+            value[: len(distances)] = distances
+            lower[: len(distances)] = self.distance
+            labels[: len(names)] = [f"collision between {a} and {b}" for a, b in names]
+            return [
+                ConstraintBlock(
+                    "collision", value, None, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4
+                )
+            ]
+        pairs = self.checker.closest_pairs(model, data, self.rows)
+        jacobian = np.zeros((self.rows, problem.n_step))
         second_order = None
         if pairs:
             jacobian[: len(pairs), : model.nv] = self.checker.jacobian_rows(model, data, pairs)

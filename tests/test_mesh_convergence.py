@@ -89,6 +89,18 @@ class PrintStudy:
         top = self.size[2]
         return np.array([[-hx, -hy, top], [hx, -hy, top], [hx, hy, top], [-hx, hy, top]])
 
+    def placed_polygon(self, offset: float, angle_deg: float) -> np.ndarray:
+        """(4, 3) float, metres, body frame: the print moved off the lattice.
+
+        Rotated by ``angle_deg`` about its centre, then shifted by ``offset`` pitches
+        along x and half that along y, so its edges cross grid lines at places that
+        change with ``offset``.
+        """
+        angle = math.radians(angle_deg)
+        rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+        corners = self.polygon_in_body[:, :2] @ rotation.T + offset * DEFAULT * np.array([1.0, 0.5])
+        return np.column_stack([corners, self.polygon_in_body[:, 2]])
+
     def expected_print_nodes(self, level: int) -> int:
         """Nodes of a lattice-aligned print on the mesh refined ``level`` times."""
         cx, cy = (2**level * c for c in self.print_cells)
@@ -282,12 +294,59 @@ def test_default_mesh_print_force_changes_by_under_20_percent_when_refined_twice
 
 @pytest.mark.xfail(
     strict=True,
-    reason="a rigid print's force on linear tets at the default 22.5 mm still changes by 7-18 % "
-    "from h to h/2 (bench/results/mesh_convergence.md); 5 % needs h of 8-18 mm",
+    reason="a print whose edges lie on grid lines takes a whole extra row of nodes on each side (its "
+    "effective edge half a cell out), the worst case of a print's placement: 7-18 % from h to h/2 "
+    "(bench/results/mesh_convergence.md); generic placements are the tests below",
 )
 def test_default_mesh_print_force_is_within_target_of_twice_refined_mesh(mat_sole_forces):
     change = abs(mat_sole_forces[1] / mat_sole_forces[0] - 1.0)
     assert change < TARGET, f"force changes by {change:.1%} from h to h/2"
+
+
+# A print landing anywhere: rotated 30 degrees and shifted by 0, 1/6, ..., 5/6 of a pitch
+# (along x, half that along y), so its edges cross grid lines at changing places.
+PLACEMENT_OFFSETS = tuple(k / 6 for k in range(6))
+PLACEMENT_ANGLE = 30.0  # degrees
+
+
+@pytest.fixture(scope="module", params=[MAT_SOLE, MAT_PALM], ids=["sole", "palm"])
+def placed_forces(request):
+    """(2, 6) float, newtons: the placed prints' forces at h and h / 2, and the study."""
+    study = request.param
+    forces = []
+    for level in (0, 1):
+        body = study.body_at(level)
+        forces.append([indentation_force(body, study.placed_polygon(o, PLACEMENT_ANGLE))[0] for o in PLACEMENT_OFFSETS])
+    return study, np.array(forces)
+
+
+def test_default_mesh_force_averaged_over_placements_is_within_target_of_twice_refined_mesh(placed_forces):
+    # Measured +2.4 % (sole) and +0.0 % (palm). Node-in-polygon selection puts a print's
+    # effective edge half a cell out when the edge lies on a node row and up to half a
+    # cell in otherwise; over placements the two balance. (A selection inset by 0.25 h
+    # also changes by only 2-3 % here, but lies 7.7 % below the limit: the test on the
+    # limit below catches it.)
+    _, forces = placed_forces
+    change = forces[1].mean() / forces[0].mean() - 1.0
+    assert abs(change) < TARGET, f"mean force over placements changes by {change:.1%} from h to h/2: {forces.round(1)}"
+
+
+def test_placement_scatter_of_the_print_force_shrinks_with_the_cell(placed_forces):
+    # A row of nodes entering or leaving the print moves its edge by about a cell: the
+    # scatter over placements is O(h). Measured 4.5 % -> 1.4 % (sole), 16 % -> 3.2 % (palm).
+    _, forces = placed_forces
+    scatter = np.ptp(forces, axis=1) / forces.mean(axis=1)
+    assert scatter[1] < scatter[0] / 1.5, f"scatter over placements at h, h/2: {scatter.round(3)}"
+
+
+def test_default_mesh_sole_force_averaged_over_placements_is_within_target_of_the_limit(mat_sole_forces):
+    # The limit is the Richardson extrapolation of the aligned print (h, h/2, h/4): the
+    # same rectangle, whose converged force does not depend on the lattice. Measured +4.05 %.
+    _, limit = richardson(mat_sole_forces)
+    body = MAT_SOLE.body_at(0)
+    forces = [indentation_force(body, MAT_SOLE.placed_polygon(o, PLACEMENT_ANGLE))[0] for o in PLACEMENT_OFFSETS]
+    error = np.mean(forces) / limit - 1.0
+    assert abs(error) < TARGET, f"mean default-mesh force {np.mean(forces):.1f} N, limit {limit:.1f} N ({error:+.1%})"
 
 
 def test_refining_only_the_layers_changes_the_cube_palm_force_by_under_5_percent():

@@ -4,7 +4,7 @@ A toy problem is a point in space (a pinocchio model with one translation
 joint, so ``pin.integrate`` is plain addition) plus optional force variables,
 with an objective and constraint rows written out by hand. The loop sees the
 same interface as on a robot (``options``, ``variable_lower``, ``robot.model``,
-``linearize``); the answers are checked against the closed-form optimum and its
+``linearize``, ``evaluate``); the answers are checked against the closed-form optimum and its
 Lagrange multipliers, recovered from the stationarity of the final
 linearisation (the loop itself does not return multipliers) and read from the
 QP's answer.
@@ -69,6 +69,10 @@ class ToyProblem:
         return Linearization(
             value, gradient, hessian, self._rows(q, lam), step_lower, step_upper, np.zeros((0, 3)), np.zeros(0)
         )
+
+    def evaluate(self, q, lam, torque_weight=None) -> Linearization:
+        # The line search reads only the objective and the rows' values.
+        return self.linearize(q, lam, torque_weight)
 
 
 def squared_distance_to(target):

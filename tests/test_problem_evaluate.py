@@ -1,0 +1,89 @@
+"""The values-only evaluation a line search uses (PostureProblem.evaluate) against the
+full linearisation: the same numbers, bit for bit, at random points of rigid and soft
+stances, in either order (the pieces memoise what a linearisation then reuses)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+from conftest import coarse_scenario
+
+from stances.problem import PostureOptions, build_problem
+
+CASES = {
+    "rigid-palm-on-table": ("hand-on-table", "hand-on-table", {}),
+    "soft-palm-coulomb": ("hand-on-soft-cube", "hand-on-soft-cube", {}),
+    "soft-feet-and-palm-on-a-stepped-foam-mesh": ("foot-and-hand-on-foam", "foot-and-hand", {}),
+    "soft-palm-traction-bonded-min-load": (
+        "hand-on-soft-cube", "hand-on-soft-cube",
+        dict(contact_law="bonded", reaction_model="traction", min_normal_force=5.0, deformation_cost="force"),
+    ),
+}
+
+
+def assert_same_values(evaluation, linearization):
+    assert evaluation.objective == linearization.objective
+    assert [b.labels for b in evaluation.blocks] == [b.labels for b in linearization.blocks]
+    for values_only, full in zip(evaluation.blocks, linearization.blocks):
+        assert values_only.jacobian is None
+        assert full.jacobian is not None
+        np.testing.assert_array_equal(values_only.value, full.value, err_msg=full.name)
+        np.testing.assert_array_equal(values_only.lower, full.lower, err_msg=full.name)
+        np.testing.assert_array_equal(values_only.upper, full.upper, err_msg=full.name)
+    np.testing.assert_array_equal(evaluation.forces, linearization.forces)
+    np.testing.assert_array_equal(evaluation.torques, linearization.torques)
+    assert evaluation.max_violation() == linearization.max_violation()
+    assert evaluation.met(1e-7) == linearization.met(1e-7)
+
+
+@pytest.mark.parametrize("case", list(CASES), ids=list(CASES))
+def test_values_only_evaluation_equals_the_linearisation_values(robot, case):
+    scenario_name, stance_name, options = CASES[case]
+    scenario = coarse_scenario(scenario_name)
+    problem = build_problem(robot, scenario.scene, scenario.stance(stance_name), PostureOptions(**options))
+    rng = np.random.default_rng(7)
+    start = robot.reference_configuration
+    violated = 0
+    for k in range(4):
+        # Postures 0.05 rad around the reference: rows violated, collision pairs
+        # within reach, soft prints pressed, lifted or slipping.
+        q = problem.check_configuration(pin.integrate(robot.model, start, 0.05 * rng.standard_normal(robot.nv)))
+        lam = problem.initial_variables(q) + rng.uniform(0.0, 20.0, problem.n_variables)
+        torque_weight = [None, 0.0, 1.0, 3.0][k]
+        # Either order: the evaluation first (the line search: the accepted trial is
+        # then linearised at the same point), or the linearisation first.
+        if k % 2 == 0:
+            evaluation = problem.evaluate(q, lam, torque_weight)
+            linearization = problem.linearize(q, lam, torque_weight)
+        else:
+            linearization = problem.linearize(q, lam, torque_weight)
+            evaluation = problem.evaluate(q, lam, torque_weight)
+        assert_same_values(evaluation, linearization)
+        violated += linearization.max_violation()[0] > 0.0
+    assert violated  # the points are not all trivially feasible
+
+
+def test_closest_distances_and_pairs_are_the_closest_of_all_pairs(robot):
+    """closest_distances / closest_pairs (the line search's and the linearisation's
+    collision rows) are the first rows of every pair sorted by distance, including
+    pairs against a non-convex mesh (a stepped foam block, boxed in parts)."""
+    scenario = coarse_scenario("foot-and-hand-on-foam")
+    problem = build_problem(robot, scenario.scene, scenario.stance("foot-and-hand"))
+    checker, model, data = problem.collision_checker, robot.model, problem.data
+    everything = checker.with_exclusions(checker.exclude, margin=10.0)  # no broad-phase cut
+    rng = np.random.default_rng(11)
+    for _ in range(3):
+        q = pin.integrate(model, robot.reference_configuration, 0.1 * rng.standard_normal(robot.nv))
+        pin.framesForwardKinematics(model, data, q)
+        expected = sorted(
+            (p for p in everything.pairs(model, data) if p.distance <= checker.margin), key=lambda p: p.distance
+        )[:20]
+        distances, names = checker.closest_distances(model, data, 20)
+        pairs = checker.closest_pairs(model, data, 20)
+        assert names == [(p.name_a, p.name_b) for p in expected] == [(p.name_a, p.name_b) for p in pairs]
+        np.testing.assert_array_equal(distances, [p.distance for p in expected])
+        for pair, reference in zip(pairs, expected):
+            assert pair.distance == reference.distance
+            np.testing.assert_array_equal(pair.point_a, reference.point_a)
+            np.testing.assert_array_equal(pair.normal, reference.normal)
