@@ -14,9 +14,24 @@ from pathlib import Path
 from cbm.cli import EXIT_INTERRUPTED
 from cbm.plan import Plan
 
-# The benchmark's long walk (30+ stances) plans for tens of seconds; its first
-# expansions take about a second.
-SCENARIO = str(Path(__file__).resolve().parent.parent / "bench" / "scenes" / "long-walk.yaml")
+# A goal across a 3 m gap: no plan exists, so with an unbounded expansion budget the
+# search runs (hundreds of rigid stances, 300 s by default) until interrupted. A
+# real scenario that plans, even a long walk, may finish before Ctrl-C arrives.
+SCENARIO = """\
+robot: talos
+objects:
+  - {name: floor, type: floor, size: [3.0, 0.8]}
+  - {name: far, type: box, size: [1.0, 0.8, 0.1], center: [5.0, 0.0, 0.05]}
+stances:
+  start:
+    left_sole: {surface: floor, x: 0.0, y: 0.085}
+    right_sole: {surface: floor, x: 0.0, y: -0.085}
+start: start
+goal:
+  regions:
+    - {robot_surface: left_sole, lower: [4.6, -0.4], upper: [5.4, 0.4]}
+    - {robot_surface: right_sole, lower: [4.6, -0.4], upper: [5.4, 0.4]}
+"""
 
 
 def _wait_for(stream, marker, timeout):
@@ -38,8 +53,11 @@ def test_ctrl_c_during_the_search_writes_the_best_partial_plan_and_exits_130(tmp
     out = tmp_path / "results"
     root = Path(__file__).resolve().parent.parent
     environment = {**os.environ, "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
+    scenario = tmp_path / "gap.yaml"
+    scenario.write_text(SCENARIO)
     child = subprocess.Popen(
-        [sys.executable, "-m", "cbm", "plan", SCENARIO, "--out", str(out), "--no-pictures"],
+        [sys.executable, "-m", "cbm", "plan", str(scenario), "--out", str(out), "--no-pictures",
+         "--max-expansions", "100000"],
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env=environment,
@@ -65,4 +83,4 @@ def test_ctrl_c_during_the_search_writes_the_best_partial_plan_and_exits_130(tmp
     plan = Plan.load(out / "plan.json")
     assert len(plan.stances) >= 1 and plan.stances[0].move == ""
     # Published through the temporary folder: nothing else is left beside --out.
-    assert [p.name for p in tmp_path.iterdir()] == ["results"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["gap.yaml", "results"]
