@@ -33,7 +33,7 @@ import pinocchio as pin
 from .errors import StanceError
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
-from .qp import QPWorkspace, elastic_qp, objective_scale, row_multipliers
+from .qp import QPWorkspace, elastic_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .threads import single_threaded_blas
 
@@ -46,7 +46,6 @@ _STAGNATION_WINDOW = 8
 # iterations left, ends the solve (an infeasible quadruped stance fell 2 % an
 # iteration for 87 iterations of 170 ms QPs, 17 s, and never got there).
 _SLOW_PENALTY = 1e6
-_FINEST_QP_ACCURACY = 1e-12
 # Feasible iterates whose line search keeps cutting the step below this many
 # times in a row stop: the QP's model no longer predicts the objective (a
 # warm start at its loose tolerance crawled 70 iterations at alpha 1/256 on a
@@ -307,9 +306,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
         # solution are cheap, and near it the outer loop keeps converging fast.
-        # The objective is divided by objective_scale: so is the accuracy, down to
-        # 1e-12 (at 1e-14 and below, penalty 1e8, proxsuite returned NaN).
-        accuracy = max(float(np.clip(0.01 * violation, 1e-9, 1e-6)) / objective_scale(penalty), _FINEST_QP_ACCURACY)
+        accuracy = float(np.clip(0.01 * violation, 1e-9, 1e-6))
         x = workspace.solve(*matrices, accuracy=accuracy)
         qp_time += time.perf_counter() - tic
         if not np.all(np.isfinite(x)):

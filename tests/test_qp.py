@@ -80,7 +80,7 @@ def test_a_large_penalty_divides_the_objective_and_changes_neither_answer_nor_mu
         ConstraintBlock("cap", np.zeros(1), np.array([[1.0, 0.0]]), -np.inf, 0.2, 1.0, ("x0 <= 0.2",)),
     ])
     lin.gradient[:] = [0.3, -0.1]
-    assert objective_scale(1e6) == 1e4 and objective_scale(50.0) == 1.0
+    assert objective_scale(1e6) == 1e4 and objective_scale(1e5) == 1.0 and objective_scale(50.0) == 1.0
     divided = QPWorkspace()
     x = divided.solve(*elastic_qp(lin, penalty=1e6), accuracy=1e-12)
     hessian, gradient, *rest = elastic_qp(lin, penalty=1e6)
