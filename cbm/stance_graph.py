@@ -74,10 +74,16 @@ class StanceNeighbours:
         self.print_sets = dict(print_sets)
         self.surfaces = surfaces
         self.reach = reach
-        # Hands' (robot surface, print) pairs the reach model leaves alone.
+        # Hands' (robot surface, print) pairs the reach model leaves alone, and
+        # their indices in the print sets (found once: the sets hold thousands).
         self.required = {
             (c.robot_surface, c.contact_print) for c in required if reach.roles.get(c.robot_surface) != reach.support_role
         }
+        self.required_indices = {}
+        for robot_surface, contact_print in self.required:
+            prints = self.print_sets[robot_surface].prints if robot_surface in self.print_sets else ()
+            if contact_print in prints:
+                self.required_indices.setdefault(robot_surface, []).append(prints.index(contact_print))
         self.pruned = 0  # candidate prints removed by reach pruning so far
 
     def __call__(self, stance):
@@ -113,7 +119,7 @@ class StanceNeighbours:
         held = {c.robot_surface for c in stance if (c.robot_surface, c.contact_print) in self.required}
         mask = self.reach.reachable_mask(print_set, {rs: p for rs, p in placed.items() if rs not in held})
         if any(self.reach.roles.get(rs) == self.reach.support_role for rs in placed):
-            mask |= [(robot_surface, p) in self.required for p in print_set.prints]
+            mask[self.required_indices.get(robot_surface, [])] = True
         self.pruned += int(len(mask) - np.count_nonzero(mask))
         return [
             (

@@ -762,36 +762,32 @@ class DeformableContact:
             return value, gradient, hessian
         values = self._values(model, data, w)
         forces, nodes = values.forces, values.nodes
-        if derivatives:
-            _, _, _, d_forces_dq, d_forces_dw, _, d_nodes = self._state(model, data, w)
-            jacobian = np.zeros((forces.size, columns))
-            jacobian[:, : model.nv] = d_forces_dq
-            jacobian[:, offset : offset + n_w] = d_forces_dw
         if options.deformation_cost == "force":
             stacked = forces.reshape(-1)
             value = value + 0.5 * weight * float(stacked @ stacked)
-            if not derivatives:
-                return value, None, None
-            return value, gradient + weight * jacobian.T @ stacked, hessian + weight * jacobian.T @ jacobian
-        # C f: the print nodes' displacement under the forces, body frame, negated
-        # (``nodes`` is -C f_body except under the traction model, which has no compliance form).
-        forces_body = forces @ self.rotation_body
-        compliant = self.patch.compliance @ forces_body.reshape(-1) if self.method == "traction" else -nodes
-        value = value + 0.5 * weight * float(forces_body.reshape(-1) @ compliant)
+        else:
+            # C f: the print nodes' displacement under the forces, body frame, negated
+            # (``nodes`` is -C f_body except under the traction model, which has no compliance form).
+            forces_body = forces @ self.rotation_body
+            compliant = self.patch.compliance @ forces_body.reshape(-1) if self.method == "traction" else -nodes
+            value = value + 0.5 * weight * float(forces_body.reshape(-1) @ compliant)
         if not derivatives:
             return value, None, None
-        if self.method == "traction":
-            d_compliant = self.patch.compliance @ self._body_rows(jacobian)
+        # Derivatives in the columns the forces move with (q, then this contact's W),
+        # not across the whole step.
+        _, _, _, d_forces_dq, d_forces_dw, _, d_nodes = self._state(model, data, w)
+        jacobian = np.hstack([d_forces_dq, d_forces_dw])  # (3p, nv + 6L), world
+        if options.deformation_cost == "force":
+            term_gradient, term_hessian = jacobian.T @ stacked, jacobian.T @ jacobian
         else:
-            d_compliant = np.zeros((forces.size, columns))
-            d_compliant[:, : model.nv] = -d_nodes[:, : model.nv]
-            d_compliant[:, offset : offset + n_w] = -d_nodes[:, model.nv :]
-        jacobian_body = self._body_rows(jacobian)
-        return (
-            value,
-            gradient + weight * jacobian_body.T @ compliant,
-            hessian + 0.5 * weight * (jacobian_body.T @ d_compliant + d_compliant.T @ jacobian_body),
-        )
+            jacobian_body = self._body_rows(jacobian)
+            d_compliant = self.patch.compliance @ jacobian_body if self.method == "traction" else -d_nodes
+            term_gradient = jacobian_body.T @ compliant
+            term_hessian = 0.5 * (jacobian_body.T @ d_compliant + d_compliant.T @ jacobian_body)
+        moved = np.r_[0 : model.nv, offset : offset + n_w]
+        gradient[moved] += weight * term_gradient
+        hessian[np.ix_(moved, moved)] += weight * term_hessian
+        return value, gradient, hessian
 
     def _body_rows(self, rows: np.ndarray) -> np.ndarray:
         """Stacked per-node world 3-vectors' rows (3p, m) turned into the body frame."""
