@@ -202,6 +202,40 @@ class ContactPatch:
             ``u_e = map[t] @ U_P.ravel()`` with ``u = C[:, P] S_P U_P``: exactly U_P at
             the print nodes and 0 at fixed nodes. Independent of the Young modulus.
         """
+        g, rows = self._node_displacement_map(tet_ids)
+        return g[rows].reshape(rows.shape[0], 12, -1)
+
+    @cached_property
+    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+        """(3q, 3p) displacement map of the :attr:`neighbour_tets`' q nodes, (T', 4) their
+        rows, and (T', 6, 12) the tets' strain matrices."""
+        g, rows = self._node_displacement_map(self.neighbour_tets)
+        return g.reshape(-1, g.shape[2]), rows, self._body._strain_matrices[self.neighbour_tets]
+
+    def neighbour_strains(self, displacements) -> np.ndarray:
+        """Voigt strains of the :attr:`neighbour_tets` under print displacements (eq. 24).
+
+        Equal to ``strain_map @ U_P.ravel()``, through the tets' nodes: a tet has
+        4 nodes and 6 strains, and about 2.5 tets share a node, so this is about 6
+        times fewer operations (it runs at every evaluation of a soft stance).
+
+        Parameters
+        ----------
+        displacements : (3p,) float
+            Print node displacements U_P, metres, body frame.
+
+        Returns
+        -------
+        (T', 6) float
+            Voigt strains (engineering shears), dimensionless.
+        """
+        g, rows, b = self._neighbour_nodes
+        nodal = (g @ np.asarray(displacements, dtype=float)).reshape(-1, 3)[rows].reshape(rows.shape[0], 12)
+        return np.einsum("tik,tk->ti", b, nodal)
+
+    def _node_displacement_map(self, tet_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(q, 3, 3p) displacements of some tets' q nodes per unit print displacement
+        (eq. 36), and (T, 4) each tet's nodes as rows of it."""
         body = self._body
         tets = body.mesh.tets[tet_ids]
         nodes, rows = np.unique(tets, return_inverse=True)
@@ -214,7 +248,7 @@ class ContactPatch:
         for axis in range(3):  # exact identity rows at the print nodes
             g[idx, axis, 3 * in_print[idx] + axis] = 1.0
         g[body.fixed_mask[nodes]] = 0.0
-        return g[rows].reshape(rows.shape[0], 12, -1)
+        return g, rows
 
     @cached_property
     def strain_map(self) -> np.ndarray:

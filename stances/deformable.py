@@ -701,8 +701,7 @@ class DeformableContact:
 
         if self.max_strain_rows == 0:
             return None
-        strain_map = self.patch.strain_map  # (T', 6, 3p)
-        voigt = strain_map @ u
+        voigt = self.patch.neighbour_strains(u)  # (T', 6)
         # The Frobenius norm of a strain tensor bounds its principal strains: the
         # tets below the activation by that norm are left out of the (costly)
         # eigendecomposition, which is per tet, so the others' answers are unchanged.
@@ -726,7 +725,7 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append((weights @ strain_map[t]) @ d_u)
+                    rows_jacobian.append((weights @ self.patch.strain_map[t]) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)

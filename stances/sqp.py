@@ -62,6 +62,13 @@ _CRAWL_STEPS = 3
 # perturbed planner stances: their crawls (three such cuts in a row) all began
 # below a violation of 7e-4; infeasible solves crawled at 0.05-7 and then
 # stalled (four line searches finding no step, 1-2 s on soft scenes).
+# A feasible iterate that no step of the next _NO_GAIN_ITERATIONS beats by more than
+# _NO_GAIN relative objective ends the SQP (at that iterate): near a node's mode
+# switch the steps cycle between it and barely infeasible neighbours (measured on
+# a two-sole stance of the turn scene: 14 iterations cycling, 1.4 s, objective
+# moving by 1e-5).
+_NO_GAIN = 1e-5
+_NO_GAIN_ITERATIONS = 4
 _HOPELESS_VIOLATION = 1e-2
 _HOPELESS_PROGRESS = 0.5
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
@@ -137,16 +144,16 @@ def _conflict(linearization, penalty) -> str:
     return f"; no step meets together: {', '.join(labels)}"
 
 
-def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None) -> PostureResult:
+def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem` (one BLAS thread).
 
     See :func:`_solve_problem`.
     """
     with single_threaded_blas():
-        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline)
+        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline, check)
 
 
-def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None) -> PostureResult:
+def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem`.
 
     Parameters
@@ -161,6 +168,11 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     deadline : float, optional
         ``time.perf_counter()`` value after which no new iteration starts; the
         iterate reached is still checked, so a feasible one is kept.
+    check : bool, optional
+        Run :func:`stances.verify` on a feasible answer and compute the soft
+        bodies' displacement fields (default). A warm start, whose answer is
+        only a starting posture, skips both: on a soft body they load the full
+        FEM model and cost 10-30 ms.
 
     Returns
     -------
@@ -177,7 +189,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     )
     limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
     outcome = run_sqp(problem, q, lam, limit, deadline)
-    return _result(problem, outcome, time.perf_counter() - start)
+    return _result(problem, outcome, time.perf_counter() - start, check)
 
 
 @dataclass(frozen=True)
@@ -282,6 +294,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     local_steps = []  # lengths of full steps in the local phase
     crawling = 0  # feasible iterations in a row with a step cut below _CRAWL_ALPHA
     crawls, crawl_start = 0, np.inf  # the same, far from feasible, and the violation where they began
+    best, best_iteration = None, 0  # the best feasible (q, lam, linearization) seen, and when
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
             status, iteration = _OUT_OF_TIME, iteration - 1
@@ -404,6 +417,17 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         ):
             status = "converged"
             break
+        if linearization.met(tolerance) and (
+            best is None or linearization.objective < best[2].objective - _NO_GAIN * (1.0 + abs(best[2].objective))
+        ):
+            best, best_iteration = (q, lam, linearization), iteration
+        elif best is not None and iteration - best_iteration >= _NO_GAIN_ITERATIONS:
+            q, lam, linearization = best
+            status = "converged"
+            break
+    if best is not None and not linearization.met(tolerance):
+        # Stopped (iteration limit, time) at an infeasible iterate after a feasible one.
+        q, lam, linearization = best
     feasible = linearization.met(tolerance)
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
@@ -520,8 +544,9 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     return None, alpha
 
 
-def _result(problem, outcome, elapsed) -> PostureResult:
-    """The answer at the SQP's last iterate, checked by :func:`stances.verify` when feasible."""
+def _result(problem, outcome, elapsed, check=True) -> PostureResult:
+    """The answer at the SQP's last iterate, checked by :func:`stances.verify` when
+    feasible (and ``check``; an unchecked answer keeps the SQP's own verdict)."""
     from .verify import verify_problem
 
     q, lam, linearization, feasible = outcome.q, outcome.lam, outcome.linearization, outcome.feasible
@@ -531,7 +556,8 @@ def _result(problem, outcome, elapsed) -> PostureResult:
     # independent check, whose tolerances are physical: it alone decides.
     nearly = not feasible and violation <= _NEARLY_FEASIBLE * problem.options.feasibility_tolerance
     point_forces = problem_point_forces(problem, linearization, q)
-    deformations = deformation_fields(problem, q, point_forces)
+    # A warm start's answer (not checked) is a starting posture only: no FEM field.
+    deformations = deformation_fields(problem, q, point_forces) if check else {}
     result = PostureResult(
         feasible=feasible,
         q=q,
@@ -548,7 +574,7 @@ def _result(problem, outcome, elapsed) -> PostureResult:
             "lambda": lam.tolist(), "violation": violation, "curvature_iterations": outcome.curved_iterations,
         },
     )
-    if feasible or nearly:
+    if check and (feasible or nearly):
         verification = verify_problem(problem, result)
         if verification.ok:
             result = _with(result, verification=verification, feasible=True, reason="")
@@ -697,7 +723,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
-        warm = solve_problem(rigid, q_init, deadline=deadline)
+        warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
         q_init, warm_iterations = warm.q, warm.iterations
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
@@ -712,7 +738,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
             # give a solver no force gradient. The bonded model presses every
             # node, so its posture is where Coulomb contact starts well.
             bonded = build(replace(options, contact_law="bonded", **loose))
-            warm = solve_problem(bonded, q_init, deadline=deadline)
+            warm = solve_problem(bonded, q_init, deadline=deadline, check=False)
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
         result = _solve_coulomb(problem, q_init, deadline)
