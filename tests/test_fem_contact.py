@@ -247,3 +247,44 @@ def test_infinite_friction_without_a_contact_state_is_refused_with_the_reason(pa
     assert fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, 1e6)).n_slip == 1
     with pytest.raises(fem.FemError, match="with infinite friction this motion has no contact state"):
         fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
+
+
+@pytest.mark.parametrize("n_slip, n_lift", [(0, 0), (3, 0), (4, 6), (10, 2)])
+def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_lift):
+    """The linearised law with a few slipping and lifted nodes, solved through C^-1 and a
+    capacitance matrix (Woodbury), equals numpy's dense solve of the same matrix: a
+    vector (refined) to 1e-12 and a block of columns (the Jacobian's) to 1e-9."""
+    from fem.contact import _LowRankFactor, _compliance_rows, _mode_system
+
+    _, patch, frames = pad
+    system = fem.PrintContactSystem(patch.compliance, frames, np.full(patch.n_nodes, MU))
+    rng = np.random.default_rng(n_slip + 10 * n_lift)
+    p = patch.n_nodes
+    modes = np.full(p, fem.STICK)
+    chosen = rng.choice(p, n_slip + n_lift, replace=False)
+    modes[chosen[:n_slip]], modes[chosen[n_slip:]] = fem.SLIP, fem.LIFT
+    angles = rng.uniform(0.0, 2.0 * np.pi, p)
+    directions = np.where((modes == fem.SLIP)[:, None], np.column_stack([np.cos(angles), np.sin(angles)]), 0.0)
+    gains = np.where(modes == fem.SLIP, rng.uniform(0.2, 0.9, p), 0.0)
+    matrix, _ = _mode_system(system.c_local, modes, directions, gains, system.mu, system.scale)
+    rows = np.flatnonzero(~_compliance_rows(modes))
+    assert rows.size == 2 * n_slip + 3 * n_lift
+    inverse = np.linalg.inv(system.c_local)
+    factor = _LowRankFactor(matrix, inverse, rows, matrix[rows] - system.c_local[rows])
+    vector, block = rng.normal(size=3 * p), rng.normal(size=(3 * p, 5))
+    exact_vector, exact_block = np.linalg.solve(matrix, vector), np.linalg.solve(matrix, block)
+    assert np.abs(factor.solve(vector) - exact_vector).max() <= 1e-12 * np.abs(exact_vector).max()
+    assert np.abs(factor.solve(block) - exact_block).max() <= 1e-9 * np.abs(exact_block).max()
+
+
+def test_a_slipping_print_is_solved_through_the_low_rank_path_with_the_same_answer(pad):
+    """A sheared print with a few slipping nodes goes through the low-rank factorisation
+    (C^-1 computed), and its forces obey Signorini and Coulomb in the full system."""
+    body, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    displacements = _rigid_motion(patch.points, [0.002, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    system = fem.PrintContactSystem(patch.compliance, frames, mu)
+    state = system.solve(displacements)
+    assert 0 < state.n_slip and 2 * state.n_slip + 3 * state.n_lift <= 0.25 * 3 * patch.n_nodes
+    assert system._inverse is not None
+    _check_signorini_coulomb(body, patch, displacements, state, MU)

@@ -84,6 +84,8 @@ def test_strain_map_matches_the_strain_of_the_full_field(block):
     field = body.displacement_field(patch, displacements)
     expected = body.strain(field)[patch.neighbour_tets]
     assert np.allclose(patch.strain_map @ displacements.ravel(), expected, atol=1e-10)
+    # The per-evaluation path, through the tets' nodes, gives the full field's strains too.
+    assert np.allclose(patch.neighbour_strains(displacements.ravel()), expected, atol=1e-10)
 
 
 def test_strain_map_does_not_depend_on_the_young_modulus(block):

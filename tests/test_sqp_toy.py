@@ -309,3 +309,45 @@ def test_a_qp_without_a_finite_answer_ends_the_solve_as_infeasible(monkeypatch):
     assert not outcome.feasible and outcome.status == sqp._QP_FAILED
     assert np.all(np.isfinite(outcome.q))
     assert "(the QP solver returned no finite step after 3 iterations)" in outcome.reason
+
+
+def _cycling_problem(feasible_until=np.inf):
+    """A flat objective, 1 +- 2e-6 as q_x steps by 0.01 (each value within 1e-5 of the
+    others), whose reported gradient always asks for a step; the row ``q_x <=
+    feasible_until`` turns infeasible past it. The line search is replaced by steps
+    of +0.01 in q_x: what a solve cycling across a print node's mode switch sees."""
+
+    def objective(q, lam):
+        value = 1.0 + 2e-6 * np.cos(np.pi * round(q[0] / 0.01))
+        return value, np.array([-1.0, 0.0, 0.0]), np.eye(3)
+
+    def rows(q, lam):
+        return [ConstraintBlock("bound", np.array([q[0]]), np.array([[1.0, 0.0, 0.0]]), -np.inf, feasible_until, 1.0,
+                                ("q_x bound",))]
+
+    return ToyProblem(objective, rows)
+
+
+def _steps_of_one_hundredth(problem, q, lam, *args):
+    q_next = q + np.array([0.01, 0.0, 0.0])
+    return (q_next, lam, problem.linearize(q_next, lam)), 1.0
+
+
+def test_feasible_iterates_that_no_step_improves_end_the_solve_at_the_best(monkeypatch):
+    """Feasible iterates whose objective moves by 2e-6 without falling by 1e-5: after
+    _NO_GAIN_ITERATIONS iterations without a better one the SQP stops, converged, at
+    the first (the best) of them, instead of running to its iteration limit."""
+    monkeypatch.setattr(sqp, "_line_search", _steps_of_one_hundredth)
+    outcome = run_sqp(_cycling_problem(), np.zeros(3), np.zeros(0), limit=100)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1 + sqp._NO_GAIN_ITERATIONS
+    assert outcome.q[0] == pytest.approx(0.01, abs=1e-12)  # the first accepted iterate, objective 1 - 2e-6
+    assert outcome.linearization.objective == pytest.approx(1.0 - 2e-6, abs=1e-12)
+
+
+def test_an_infeasible_last_iterate_gives_way_to_the_best_feasible_one(monkeypatch):
+    """At the iteration limit on an infeasible iterate, the best feasible one seen is the answer."""
+    monkeypatch.setattr(sqp, "_line_search", _steps_of_one_hundredth)
+    outcome = run_sqp(_cycling_problem(feasible_until=0.025), np.zeros(3), np.zeros(0), limit=3)
+    assert outcome.iterations == 3 and outcome.feasible and outcome.reason == ""
+    assert outcome.q[0] == pytest.approx(0.01, abs=1e-12)
