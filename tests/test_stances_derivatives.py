@@ -105,8 +105,9 @@ def linearised_problems(robot):
         problem = build_problem(robot, scenario.scene, stance, PostureOptions(min_normal_force=5.0, **options))
         for contact in problem.contacts:
             if contact.kind == "deformable":
-                # A tiny bound activates the strain rows, so they are checked too.
+                # Tiny bounds activate the strain and indentation rows, so they are checked too.
                 contact.strain_limit = 1e-5
+                contact.max_indentation = 1e-6
         rng = np.random.default_rng(7)
         q = pin.integrate(robot.model, warm.q, 2e-3 * rng.normal(size=robot.nv))
         lam = problem.initial_variables(q) + rng.uniform(1.0, 50.0, size=problem.n_variables)

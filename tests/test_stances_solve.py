@@ -401,6 +401,34 @@ def test_strain_bound_is_kept_and_reported(robot):
     assert any("exceeds its bound 0.002" in reason for reason in check.reasons), check.reasons
 
 
+def test_indentation_bound_is_kept_with_rows_for_the_deep_nodes_only(robot):
+    """The indentation rows enter the QP only for nodes deeper than half the bound;
+    a bound below the free print's depth is still kept (or the stance refused for it)."""
+    scenario = environments.load("step-on-cube")
+    stance = scenario.stance("step-on-cube")
+    free = solve(robot, scenario.scene, stance)
+    assert free.feasible, free.reason
+    depth = free.verification.measures["indentation of cube"]
+    # The sole sinks nearly flat: a bound of 3x its depth leaves no node above half of
+    # it, one of 0.8x puts every node there.
+    for bound, expected in ((3.0 * depth, 0), (0.8 * depth, None)):
+        problem = build_problem(robot, scenario.scene, stance, PostureOptions(max_indentation=bound))
+        (contact,) = [c for c in problem.contacts if c.kind == "deformable"]
+        linearization = problem.linearize(free.q, problem.initial_variables(free.q))
+        (rows,) = [b for b in linearization.blocks if b.name == "indentation"]
+        model, data = problem.robot.model, problem.data
+        node_depths = -np.einsum("pj,pj->p", contact.displacements(model, data), contact.normals_in_body)
+        deep = np.flatnonzero(node_depths >= 0.5 * bound)
+        assert deep.size == (contact.node_ids.size if expected is None else expected)
+        assert rows.labels == tuple(f"indentation bound at node {n} of cube" for n in contact.node_ids[deep])
+        assert np.allclose(rows.value, node_depths[deep])
+    bounded = solve(robot, scenario.scene, stance, max_indentation=bound)
+    if bounded.feasible:
+        assert bounded.verification.measures["indentation of cube"] <= bound + 1e-6
+    else:
+        assert "indent" in bounded.reason
+
+
 def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
     """Soles 1.1 m apart, one on each mat: out of the legs' reach already held rigid;
     the soft solve is skipped, and the reason says so."""
