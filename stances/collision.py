@@ -130,6 +130,7 @@ class _RobotGeometry:
     box_half: np.ndarray  # (g, 3) metres, its half sides
     shapes: tuple  # coal.Convex hulls and primitives, geometry frame
     self_pairs: np.ndarray  # (p, 2) int geometry indices, SRDF-allowed
+    support: np.ndarray  # (njoints, nv) bool, see _support_columns
 
 
 # One conversion per Robot instance: hulls take tens of milliseconds, and the
@@ -170,6 +171,7 @@ def _robot_geometry(robot) -> _RobotGeometry:
         box_half=np.array([0.5 * (high - low) for low, high in boxes]).reshape(-1, 3),
         shapes=tuple(shapes),
         self_pairs=self_pairs,
+        support=_support_columns(robot.model),
     )
     _GEOMETRY_CACHE[robot] = geometry
     return geometry
@@ -261,7 +263,7 @@ class CollisionChecker:
         self._robot = robot
         self._geometry = _robot_geometry(robot)
         model = robot.model
-        self._support = _support_columns(model)
+        self._support = self._geometry.support  # once per robot: a Python loop over the joints
         self._geometry_index = None  # geometry name -> index, made on first use
         self._last_distances = None  # (key, measured) of the last _distances
 
