@@ -86,6 +86,12 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return text
 
 
+def _shortened(text, limit=240):
+    """One line of at most ``limit`` characters."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
 def _version():
     from importlib.metadata import PackageNotFoundError, version
 
@@ -127,7 +133,7 @@ def build_parser():
     """The argument parser of ``cbm``."""
     parser = _Parser(
         prog="cbm",
-        description="Contact-before-motion planning for Talos on rigid and soft supports.",
+        description="Contact-before-motion planning for legged robots (humanoids, quadrupeds) on rigid and soft supports.",
         epilog=_EXIT_CODES,
         formatter_class=_HelpFormatter,
     )
@@ -412,6 +418,9 @@ def _plan(args):
         total = sum(entry["count"] for entry in result.rejections.values())
         causes = ", ".join(f"{entry['count']} {cause}" for cause, entry in result.rejections.items())
         print(f"  {total} stances rejected: {causes}")
+        if not result.success:
+            for cause, entry in result.rejections.items():
+                print(f"    {cause}, e.g. {_shortened(entry['example'])}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
     for motion in motions or ():

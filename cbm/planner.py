@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -22,7 +22,7 @@ from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
-from .sampling import obstacle_boxes, options_from_scenario, sample_prints, with_prints
+from .sampling import default_print_spacing, obstacle_boxes, options_from_scenario, sample_prints, with_prints
 from .search import SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 from .terrain import TerrainCost, terrain_weight as _terrain_weight
@@ -432,7 +432,10 @@ def plan(
 
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)
+    reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
     sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
+    if print_spacing is None and "print_spacing" not in (getattr(scenario, "options", None) or {}):
+        sampling = replace(sampling, spacing=default_print_spacing(reach_model.step_length))
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
     print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
     print_sets = with_prints(print_sets, goal.contacts, scene.surfaces)
@@ -444,7 +447,6 @@ def plan(
         sampling.spacing,
         len(sampling.theta_values),
     )
-    reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts)
     feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)

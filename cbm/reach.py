@@ -267,6 +267,12 @@ class ReachModel:
             limits=limits,
         )
 
+    @property
+    def step_length(self) -> float:
+        """The longest step of the shortest leg (a limb carrying a support-role surface), metres."""
+        legs = [self.limbs[limb].length for name, limb in self.limbs_of.items() if self.roles[name] == self.support_role]
+        return self.limits.step_length * min(legs)
+
     def supports(self, robot_surfaces) -> list:
         """The surfaces among ``robot_surfaces`` that hold the robot up (its support role)."""
         return [name for name in robot_surfaces if self.roles.get(name) == self.support_role]

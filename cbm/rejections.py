@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-__all__ = ["CAUSES", "cause_of", "summarise"]
+__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "summarise"]
 
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
@@ -25,6 +25,12 @@ CAUSES = (
     ("soft support (indentation, strain, contact)", ("indentation", "strain", "touch", "contact of")),
     ("normal load", ("normal load",)),
 )
+# Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
+INPUT_CAUSES = (
+    ("soft mesh too coarse for the print", (" mesh node(s); at least",)),
+    ("prints overlap", ("prints of ",)),
+    ("print off its surface", ("lies off surface",)),
+)
 _QUALIFIERS = ("held rigid, ", "print unreachable: ")
 
 
@@ -37,8 +43,13 @@ def cause_of(reason: str) -> str:
     'reach (placement)'
     >>> cause_of("torque limit of arm_right_2_joint less its 10 % margin violated by 3.1 N m")
     'torque limit'
+    >>> cause_of("StanceError: the print of right_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed")
+    'soft mesh too coarse for the print'
     """
     text = str(reason)
+    for cause, fragments in INPUT_CAUSES:
+        if any(fragment in text for fragment in fragments):
+            return cause
     for qualifier in _QUALIFIERS:
         if text.startswith(qualifier):
             text = text[len(qualifier):]

@@ -385,6 +385,28 @@ def contacts_in_world(stance, surfaces):
     return placed
 
 
+#: Grid steps per step length in the default print spacing.
+_STEPS_PER_STRIDE = 4
+
+
+def default_print_spacing(step_length: float) -> float:
+    """The print grid step when neither the user nor the scenario sets one, metres.
+
+    A quarter of the robot's longest step, at most :attr:`SamplingOptions.spacing`'s
+    default (0.1 m): a step then reaches several grid points in every direction
+    (measured: Solo-12, whose step is 0.17 m, found no way onto a foam patch in
+    200 expansions on the 0.1 m grid nor on a 0.056 m one, and planned in
+    0.5-0.8 s on 0.05, 0.045 and 0.042 m ones).
+    Talos (0.41 m step) keeps 0.1 m, Romeo (0.34 m) gets 0.085 m.
+
+    Parameters
+    ----------
+    step_length : float
+        Metres (:attr:`cbm.reach.ReachModel.step_length`).
+    """
+    return min(SamplingOptions.spacing, float(step_length) / _STEPS_PER_STRIDE)
+
+
 def options_from_scenario(scenario_options: Mapping | None, spacing=None):
     """Sampling options from a scenario's ``options`` and a user override.
 
@@ -433,6 +455,7 @@ __all__ += [
     "with_prints",
     "contacts_in_world",
     "options_from_scenario",
+    "default_print_spacing",
     "obstacle_boxes",
     "count_candidate_prints",
     "check_print_budget",

@@ -245,7 +245,7 @@ class DeformableContact:
                 raise StanceError(
                     f"the print of {spec.label} holds {len(ids)} mesh node(s); at least "
                     f"{MINIMUM_PRINT_NODES} are needed: refine the mesh of {deformable_object.name!r} "
-                    "where prints land"
+                    "where prints land (a scenario's soft_box takes resolution and refine)"
                 )
             for other, other_ids in zip(self.prints, node_sets):
                 shared = np.intersect1d(ids, other_ids)

@@ -29,6 +29,15 @@ A description is a small YAML file; the built-in ones ship in ``stances/robots/`
         point: {radius: 0.031}            # in place of polygon, metres
         geometries: [LF_FOOT_0]           # optional: the collision geometries that touch
     checked_pairs: [[arm_left_5_link_0, wrist_left_ft_link_0]]   # optional
+    ignored_pairs: [[base_link_0, FL_UPPER_LEG_0]]                 # optional
+
+Self-collision is checked between the robot's convex hulls on the pairs the SRDF
+leaves enabled, plus ``checked_pairs``, minus ``ignored_pairs``. Pairs whose hulls
+already touch or overlap at the reference posture are not checked either (a
+hull holds its mesh, so two links that never meet can have hulls that do: Solo-12's
+base and upper legs overlap by 4 mm standing; MoveIt's setup assistant disables
+pairs colliding in the default posture the same way); ``Robot.ignored_pairs`` lists
+both kinds, and a pair named in ``checked_pairs`` is always checked.
 
 A surface is a polygon (a sole, a palm: a rigid contact holds it with 6
 placement equalities and a friction pyramid at each vertex) or a point foot (a
@@ -265,6 +274,8 @@ class RobotDescription:
         Contacts every stance keeps.
     checked_pairs : tuple of (str, str)
         Collision geometry pairs checked although the SRDF disables them.
+    ignored_pairs : tuple of (str, str)
+        Collision geometry pairs not checked although the SRDF enables them.
     description : str
         Free text.
     path : Path or None
@@ -281,6 +292,7 @@ class RobotDescription:
     reference_posture: str = "half_sitting"
     support: SupportRule = SupportRule()
     checked_pairs: tuple = ()
+    ignored_pairs: tuple = ()
     description: str = ""
     path: Path | None = field(default=None, compare=False)
 
@@ -395,7 +407,7 @@ def read_description(name_or_file) -> RobotDescription:
 
 _TOP_KEYS = (
     "name", "description", "model", "locked_joints", "reference_posture", "support", "limbs", "surfaces",
-    "checked_pairs",
+    "checked_pairs", "ignored_pairs",
 )
 _SURFACE_KEYS = ("role", "limb", "link", "xyz", "rpy_deg", "polygon", "point", "plate", "geometries")
 
@@ -421,6 +433,18 @@ class _Reader:
         if not isinstance(value, list):
             raise self.error(key, f"must be a list of names, got {kind_of(value)}")
         return tuple(self.string(item, f"{key}[{index}]") for index, item in enumerate(value))
+
+    def geometry_pairs(self, value, key: str) -> tuple:
+        """A list of [name, name] collision geometry pairs, as a tuple of 2-tuples."""
+        if not isinstance(value, list):
+            raise self.error(key, f"must be a list of [geometry, geometry] pairs, got {kind_of(value)}")
+        pairs = []
+        for index, pair in enumerate(value):
+            names = self.strings(pair, f"{key}[{index}]")
+            if len(names) != 2:
+                raise self.error(f"{key}[{index}]", f"must be a pair of collision geometry names, got {pair!r}")
+            pairs.append(names)
+        return tuple(pairs)
 
     def numbers(self, value, key: str, length: int) -> list:
         if not isinstance(value, list) or len(value) != length:
@@ -448,12 +472,10 @@ class _Reader:
             raise self.error("surfaces", f"must be a non-empty mapping of surface names to surfaces, got {kind_of(surfaces_data)}")
         surfaces = tuple(self.surface(str(surface), item, limbs) for surface, item in surfaces_data.items())
         support_data = self.mapping(top.get("support", {}), "support", ("role", "keep"))
-        pairs = []
-        for index, pair in enumerate(top.get("checked_pairs", [])):
-            names = self.strings(pair, f"checked_pairs[{index}]")
-            if len(names) != 2:
-                raise self.error(f"checked_pairs[{index}]", f"must be a pair of collision geometry names, got {pair!r}")
-            pairs.append(names)
+        pairs = {key: self.geometry_pairs(top.get(key, []), key) for key in ("checked_pairs", "ignored_pairs")}
+        both = set(pairs["checked_pairs"]) & {p for pair in pairs["ignored_pairs"] for p in (pair, pair[::-1])}
+        if both:
+            raise self.error("ignored_pairs", f"pairs both checked and ignored: {sorted(both)}")
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.error("description", f"must be text, got {kind_of(description)}")
@@ -469,7 +491,8 @@ class _Reader:
                 locked_joints=self.strings(top.get("locked_joints", []), "locked_joints"),
                 reference_posture=self.string(top.get("reference_posture", "half_sitting"), "reference_posture"),
                 support=support,
-                checked_pairs=tuple(pairs),
+                checked_pairs=pairs["checked_pairs"],
+                ignored_pairs=pairs["ignored_pairs"],
                 description=" ".join(description.split()),
                 path=self.path,
             )

@@ -37,6 +37,7 @@ from .description import (
     example_robot_data_share,
     read_description,
 )
+from .collision import hull_overlaps, ignore_self_pairs
 from .errors import FrameNotFound, StanceError
 from .plates import PlateDeclaration, mount_plate, plate_geometry
 
@@ -206,6 +207,8 @@ class Robot:
         self.limbs = dict(limbs) if limbs is not None else {}
         self.support = support
         self.source = ""
+        # Self-collision pairs the SRDF enables but that are not checked (see from_urdf).
+        self.ignored_pairs = ()
 
     @classmethod
     def load(cls, name_or_file="talos") -> "Robot":
@@ -258,6 +261,7 @@ class Robot:
                 locked_joints=description.locked_joints,
                 reference_posture=description.reference_posture,
                 checked_pairs=description.checked_pairs,
+                ignored_pairs=description.ignored_pairs,
                 limbs=description.limbs,
                 support=description.support,
             )
@@ -283,6 +287,7 @@ class Robot:
         checked_pairs=(),
         limbs=None,
         support=SupportRule(),
+        ignored_pairs=(),
     ) -> "Robot":
         """Build a robot from URDF and SRDF files with declared contact surfaces.
 
@@ -307,6 +312,11 @@ class Robot:
         checked_pairs : iterable of (str, str)
             Collision geometry pairs to check although the SRDF disables them
             (pairs a robot's postures can bring into contact).
+        ignored_pairs : iterable of (str, str)
+            Collision geometry pairs not to check although the SRDF enables
+            them. Pairs whose convex hulls touch or overlap at the reference
+            posture are not checked either (unless in ``checked_pairs``); both
+            kinds end up in :attr:`ignored_pairs`.
         limbs : mapping of str to str, optional
             Limb name -> root joint. Default: each surface's limb starts at
             the joint after the last branching of the kinematic tree above the
@@ -384,11 +394,16 @@ class Robot:
         collision_model.addAllCollisionPairs()
         pin.removeCollisionPairs(model, collision_model, str(srdf), False)
         geometry_names = [geometry.name for geometry in collision_model.geometryObjects]
-        for first, second in checked_pairs:
+        for first, second in (*checked_pairs, *ignored_pairs):
             for geometry_name in (first, second):
                 if geometry_name not in geometry_names:
                     raise FrameNotFound("collision geometry", geometry_name, geometry_names)
+        for first, second in checked_pairs:
             collision_model.addCollisionPair(
+                pin.CollisionPair(geometry_names.index(first), geometry_names.index(second))
+            )
+        for first, second in ignored_pairs:
+            collision_model.removeCollisionPair(
                 pin.CollisionPair(geometry_names.index(first), geometry_names.index(second))
             )
 
@@ -411,7 +426,12 @@ class Robot:
                 declaration.radius,
             )
         limb_roots = _limb_roots(model, robot_surfaces, limbs)
-        return cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
+        robot = cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
+        checked = {frozenset(pair) for pair in checked_pairs}
+        overlapping = [pair for pair in hull_overlaps(robot, q_reference) if frozenset(pair) not in checked]
+        ignore_self_pairs(robot, overlapping)
+        robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs) + tuple(overlapping)
+        return robot
 
     @property
     def nq(self) -> int:

@@ -227,6 +227,11 @@ def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
         ("time limit reached before this stance was solved", "time"),
         ("time budget of 2 s spent before convergence: collision between a and b", "time"),
         ("verification failed: joint limit exceeded by 0.1 rad", "verification"),
+        ("StanceError: the print of right_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed: "
+         "refine the mesh of 'foam' where prints land", "soft mesh too coarse for the print"),
+        ("StanceError: the prints of left_sole on foam_top and right_sole on foam_top overlap (3 shared mesh node(s))",
+         "prints overlap"),
+        ("StanceError: the print of left_sole at (0.400, 0.000) lies off surface 'floor'", "print off its surface"),
         ("something new", "other"),
     ],
 )

@@ -191,6 +191,14 @@ BAD_DESCRIPTIONS = {
         lambda d: d["surfaces"]["left_sole"].update(geometries=["no_such_geometry"]),
         "robot surface 'left_sole': unknown collision geometry 'no_such_geometry'; known collision geometrys: ",
     ),
+    "pair both checked and ignored": (
+        lambda d: d.update(ignored_pairs=[d["checked_pairs"][0][::-1]]),
+        "ignored_pairs: pairs both checked and ignored: [('arm_left_5_link_0', 'wrist_left_ft_link_0')]",
+    ),
+    "unknown ignored geometry": (
+        lambda d: d.update(ignored_pairs=[["no_such_geometry", "base_link_0"]]),
+        "unknown collision geometry 'no_such_geometry'; known collision geometrys: ",
+    ),
     "unknown key": (
         lambda d: d["surfaces"]["left_sole"].update(colour="red"),
         "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, point, plate, geometries",
@@ -308,3 +316,77 @@ def test_a_goal_given_to_plan_naming_a_surface_the_robot_lacks_is_refused(feet_o
         "the goal names robot surface 'right_palm', not a surface of robot 'romeo'; its surfaces: left_sole, right_sole"
     )):
         plan("stand", goal=goal, robot=feet_only_romeo)
+
+
+SOLO = {
+    "name": "solo12",
+    "description": "ODRI Solo-12 quadruped with ball feet of 16 mm radius (a robot that is not built in).",
+    "model": {"example_robot_data": "solo_description", "urdf": "robots/solo12.urdf", "srdf": "srdf/solo.srdf"},
+    "reference_posture": "standing",
+    "support": {"role": "foot", "keep": 3},
+    "limbs": {"left_front_leg": "FL_HAA", "right_front_leg": "FR_HAA", "left_hind_leg": "HL_HAA", "right_hind_leg": "HR_HAA"},
+    "surfaces": {
+        f"{side}_{end}_foot": {
+            "role": "foot", "limb": f"{side}_{end}_leg", "link": f"{prefix}_FOOT", "point": {"radius": 0.016},
+            "geometries": [f"{prefix}_FOOT_0"],
+        }
+        for side, end, prefix in (("left", "front", "FL"), ("right", "front", "FR"), ("left", "hind", "HL"), ("right", "hind", "HR"))
+    },
+}
+
+SOLO_FOAM = """
+robot: solo12.yaml
+objects:
+  - {name: floor, type: floor}
+  - name: foam
+    type: soft_box
+    size: [0.3, 0.6, 0.04]
+    center: [0.45, 0.0, 0.02]
+    material: {E: 2.0e+5, nu: 0.4, rho: 100.0}
+    RESOLUTION
+stances:
+  start:
+    left_front_foot: {surface: floor, x: 0.195, y: 0.169}
+    right_front_foot: {surface: floor, x: 0.195, y: -0.169}
+    left_hind_foot: {surface: floor, x: -0.195, y: 0.169}
+    right_hind_foot: {surface: floor, x: -0.195, y: -0.169}
+start: start
+goal:
+  regions:
+    - {robot_surface: left_front_foot, lower: [0.33, -0.3], upper: [0.6, 0.3]}
+    - {robot_surface: right_front_foot, lower: [0.33, -0.3], upper: [0.6, 0.3]}
+"""
+
+
+def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_path):
+    """Solo-12, described in a short file as a new user would: its base and upper-leg
+    hulls overlap by 4 mm standing, so those pairs are not checked (else no stance
+    holds); the default print grid follows its 0.17 m step (0.042 m, not 0.1 m); the
+    front feet reach the foam, every stance verifies. On the foam's default mesh a
+    ball's print holds 2 nodes: the plan fails and says so, and how to fix it."""
+    _write(tmp_path / "solo12.yaml", SOLO)
+    robot = Robot.load(tmp_path / "solo12.yaml")
+    overlap = {frozenset(("base_link_0", f"{leg}_UPPER_LEG_0")) for leg in ("FL", "FR", "HL", "HR")}
+    assert {frozenset(pair) for pair in robot.ignored_pairs} == overlap
+    checked = {frozenset(robot.collision_model.geometryObjects[i].name for i in (p.first, p.second))
+               for p in robot.collision_model.collisionPairs}
+    assert not overlap & checked and len(checked) > 100
+    assert ReachModel.of(robot).step_length == pytest.approx(0.169, abs=1e-3)
+
+    fine = tmp_path / "solo-foam.yaml"
+    fine.write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.012"))
+    scenario = environments.load(fine)
+    result = plan(scenario, robot=robot, max_expansions=30, time_limit=120.0)
+    assert result.success, result.reason
+    assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
+    assert any(c.contact_print.surface == "foam_top" for c in result.stances[-1].stance)
+    assert result.check(scenario).ok
+
+    coarse = tmp_path / "solo-coarse.yaml"
+    coarse.write_text(SOLO_FOAM.replace("RESOLUTION", ""))
+    failed = plan(environments.load(coarse), robot=robot, max_expansions=8, time_limit=120.0)
+    assert not failed.success
+    assert "soft mesh too coarse for the print" in failed.rejections
+    assert "refine the mesh of 'foam' where prints land (a scenario's soft_box takes resolution and refine)" in (
+        failed.rejections["soft mesh too coarse for the print"]["example"]
+    )
