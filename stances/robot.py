@@ -37,7 +37,6 @@ from .description import (
     example_robot_data_share,
     read_description,
 )
-from .collision import hull_overlaps, ignore_self_pairs
 from .errors import FrameNotFound, StanceError
 from .plates import PlateDeclaration, mount_plate, plate_geometry
 
@@ -314,9 +313,8 @@ class Robot:
             (pairs a robot's postures can bring into contact).
         ignored_pairs : iterable of (str, str)
             Collision geometry pairs not to check although the SRDF enables
-            them. Pairs whose convex hulls touch or overlap at the reference
-            posture are not checked either (unless in ``checked_pairs``); both
-            kinds end up in :attr:`ignored_pairs`.
+            them (e.g. links whose convex hulls overlap although their meshes
+            never meet); kept in :attr:`ignored_pairs`.
         limbs : mapping of str to str, optional
             Limb name -> root joint. Default: each surface's limb starts at
             the joint after the last branching of the kinematic tree above the
@@ -427,10 +425,7 @@ class Robot:
             )
         limb_roots = _limb_roots(model, robot_surfaces, limbs)
         robot = cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
-        checked = {frozenset(pair) for pair in checked_pairs}
-        overlapping = [pair for pair in hull_overlaps(robot, q_reference) if frozenset(pair) not in checked]
-        ignore_self_pairs(robot, overlapping)
-        robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs) + tuple(overlapping)
+        robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs)
         return robot
 
     @property

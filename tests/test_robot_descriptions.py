@@ -324,6 +324,8 @@ SOLO = {
     "model": {"example_robot_data": "solo_description", "urdf": "robots/solo12.urdf", "srdf": "srdf/solo.srdf"},
     "reference_posture": "standing",
     "support": {"role": "foot", "keep": 3},
+    # Their hulls overlap by 4 mm standing (the meshes never meet).
+    "ignored_pairs": [["base_link_0", f"{leg}_UPPER_LEG_0"] for leg in ("FL", "FR", "HL", "HR")],
     "limbs": {"left_front_leg": "FL_HAA", "right_front_leg": "FR_HAA", "left_hind_leg": "HL_HAA", "right_hind_leg": "HR_HAA"},
     "surfaces": {
         f"{side}_{end}_foot": {
@@ -360,33 +362,46 @@ goal:
 
 def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_path):
     """Solo-12, described in a short file as a new user would: its base and upper-leg
-    hulls overlap by 4 mm standing, so those pairs are not checked (else no stance
+    hulls overlap by 4 mm standing, so the file ignores those pairs (else no stance
     holds); the default print grid follows its 0.17 m step (0.042 m, not 0.1 m); the
-    front feet reach the foam, every stance verifies. On the foam's default mesh a
-    ball's print holds 2 nodes: the plan fails and says so, and how to fix it."""
+    front feet reach the foam and the saved plan verifies again. On the foam's default
+    mesh a ball's print holds 2 nodes: the plan fails and says so, and how to fix it.
+
+    Run through the command line in child processes: planning with this robot in the
+    test process changed a later Talos solve's path (tests/test_stances_solve.py's
+    crawling climb stance, infeasible after it, feasible alone): a process-history
+    dependence not yet found, reported in the issue."""
+    import subprocess
+    import sys
+
     _write(tmp_path / "solo12.yaml", SOLO)
-    robot = Robot.load(tmp_path / "solo12.yaml")
-    overlap = {frozenset(("base_link_0", f"{leg}_UPPER_LEG_0")) for leg in ("FL", "FR", "HL", "HR")}
-    assert {frozenset(pair) for pair in robot.ignored_pairs} == overlap
-    checked = {frozenset(robot.collision_model.geometryObjects[i].name for i in (p.first, p.second))
-               for p in robot.collision_model.collisionPairs}
-    assert not overlap & checked and len(checked) > 100
-    assert ReachModel.of(robot).step_length == pytest.approx(0.169, abs=1e-3)
+    (tmp_path / "solo-foam.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.012"))
+    (tmp_path / "solo-coarse.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", ""))
 
-    fine = tmp_path / "solo-foam.yaml"
-    fine.write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.012"))
-    scenario = environments.load(fine)
-    result = plan(scenario, robot=robot, max_expansions=30, time_limit=120.0)
-    assert result.success, result.reason
-    assert scenario.goal.is_satisfied(result.stances[-1].stance, scenario.scene)
-    assert any(c.contact_print.surface == "foam_top" for c in result.stances[-1].stance)
-    assert result.check(scenario).ok
+    def cbm(*arguments):
+        return subprocess.run([sys.executable, "-m", "cbm", *arguments], capture_output=True, text=True, timeout=300)
 
-    coarse = tmp_path / "solo-coarse.yaml"
-    coarse.write_text(SOLO_FOAM.replace("RESOLUTION", ""))
-    failed = plan(environments.load(coarse), robot=robot, max_expansions=8, time_limit=120.0)
-    assert not failed.success
-    assert "soft mesh too coarse for the print" in failed.rejections
-    assert "refine the mesh of 'foam' where prints land (a scenario's soft_box takes resolution and refine)" in (
-        failed.rejections["soft mesh too coarse for the print"]["example"]
-    )
+    found = cbm("plan", str(tmp_path / "solo-foam.yaml"), "--out", str(tmp_path / "out"), "--no-pictures",
+                "--max-expansions", "30", "--quiet")
+    assert found.returncode == 0, found.stdout + found.stderr
+    assert "plan found" in found.stdout and "on foam_top" in found.stdout
+    checked = cbm("check", str(tmp_path / "out" / "plan.json"))
+    assert checked.returncode == 0 and "every stance verifies" in checked.stdout, checked.stdout + checked.stderr
+
+    failed = cbm("plan", str(tmp_path / "solo-coarse.yaml"), "--out", str(tmp_path / "coarse"), "--no-pictures",
+                 "--max-expansions", "8", "--quiet")
+    assert failed.returncode == 1, failed.stdout + failed.stderr
+    assert "soft mesh too coarse for the print, e.g. StanceError: the print of" in failed.stdout
+    assert "(a scenario's soft_box takes resolution and refine)" in failed.stdout
+
+
+def test_ignored_pairs_are_not_checked(tmp_path):
+    """A description's ignored_pairs leave the collision model and are listed on the robot."""
+    data = _talos_data()
+    data["ignored_pairs"] = [["base_link_0", "leg_left_3_link_0"]]
+    robot = Robot.load(_write(tmp_path / "talos.yaml", data))
+    names = [g.name for g in robot.collision_model.geometryObjects]
+    pairs = {frozenset((names[p.first], names[p.second])) for p in robot.collision_model.collisionPairs}
+    assert robot.ignored_pairs == (("base_link_0", "leg_left_3_link_0"),)
+    assert frozenset(("base_link_0", "leg_left_3_link_0")) not in pairs
+    assert len(pairs) == len(Robot.load("talos").collision_model.collisionPairs) - 1
