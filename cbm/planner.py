@@ -11,7 +11,7 @@ from __future__ import annotations
 import logging
 import time
 from collections import Counter
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -433,9 +433,9 @@ def plan(
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)
     reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
-    sampling = options_from_scenario(getattr(scenario, "options", None), print_spacing)
-    if print_spacing is None and "print_spacing" not in (getattr(scenario, "options", None) or {}):
-        sampling = replace(sampling, spacing=default_print_spacing(reach_model.step_length))
+    sampling = options_from_scenario(
+        getattr(scenario, "options", None), print_spacing, default_print_spacing(reach_model.step_length)
+    )
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
     print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
     print_sets = with_prints(print_sets, goal.contacts, scene.surfaces)

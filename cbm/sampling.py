@@ -407,7 +407,7 @@ def default_print_spacing(step_length: float) -> float:
     return min(SamplingOptions.spacing, float(step_length) / _STEPS_PER_STRIDE)
 
 
-def options_from_scenario(scenario_options: Mapping | None, spacing=None):
+def options_from_scenario(scenario_options: Mapping | None, spacing=None, default_spacing=None):
     """Sampling options from a scenario's ``options`` and a user override.
 
     Parameters
@@ -419,6 +419,10 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
         :data:`environments.options.SCENARIO_OPTIONS`.
     spacing : float, optional
         User's spacing, metres; wins over the scenario's.
+    default_spacing : float, optional
+        Metres, when neither the user nor the scenario gives one (e.g.
+        :func:`default_print_spacing` of the robot's step); else
+        :class:`SamplingOptions`' own default.
 
     Returns
     -------
@@ -440,6 +444,8 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None):
         kwargs["spacing"] = float(spacing)
     elif "print_spacing" in scenario_options:
         kwargs["spacing"] = scenario_options["print_spacing"]
+    elif default_spacing is not None:
+        kwargs["spacing"] = float(default_spacing)
     if "theta_values_deg" in scenario_options:
         kwargs["theta_values"] = tuple(math.radians(t) for t in scenario_options["theta_values_deg"])
     region = scenario_options.get("sampling_region")

@@ -206,7 +206,7 @@ class ContactPatch:
         return g[rows].reshape(rows.shape[0], 12, -1)
 
     @cached_property
-    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray]:
+    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(3q, 3p) displacement map of the :attr:`neighbour_tets`' q nodes, (T', 4) their
         rows, and (T', 6, 12) the tets' strain matrices."""
         g, rows = self._node_displacement_map(self.neighbour_tets)

@@ -52,6 +52,13 @@ _SLOW_PENALTY = 1e6
 # climb stance, for an objective change of 4 %).
 _CRAWL_ALPHA = 1.0 / 16.0
 _CRAWL_STEPS = 3
+# A feasible iterate that no step of the next _NO_GAIN_ITERATIONS beats by more than
+# _NO_GAIN relative objective ends the SQP (at that iterate): near a node's mode
+# switch the steps cycle between it and barely infeasible neighbours (measured on
+# a two-sole stance of the turn scene: 14 iterations cycling, 1.4 s, objective
+# moving by 1e-5).
+_NO_GAIN = 1e-5
+_NO_GAIN_ITERATIONS = 4
 # Far from feasible (scaled violation above _HOPELESS_VIOLATION: 0.1 mm, 0.01 N),
 # iterations whose line search cuts the step below _CRAWL_ALPHA (or finds no
 # step) _CRAWL_STEPS times in a row, with the violation falling by less than
@@ -62,13 +69,6 @@ _CRAWL_STEPS = 3
 # perturbed planner stances: their crawls (three such cuts in a row) all began
 # below a violation of 7e-4; infeasible solves crawled at 0.05-7 and then
 # stalled (four line searches finding no step, 1-2 s on soft scenes).
-# A feasible iterate that no step of the next _NO_GAIN_ITERATIONS beats by more than
-# _NO_GAIN relative objective ends the SQP (at that iterate): near a node's mode
-# switch the steps cycle between it and barely infeasible neighbours (measured on
-# a two-sole stance of the turn scene: 14 iterations cycling, 1.4 s, objective
-# moving by 1e-5).
-_NO_GAIN = 1e-5
-_NO_GAIN_ITERATIONS = 4
 _HOPELESS_VIOLATION = 1e-2
 _HOPELESS_PROGRESS = 0.5
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)

@@ -185,6 +185,10 @@ def test_scenario_options_set_spacing_angles_and_region():
     assert options.theta_values == pytest.approx((0.0, math.pi / 2))
     assert (options.region_lower, options.region_upper) == ((0.0, 1.0), (2.0, 3.0))
     assert options_from_scenario({"print_spacing": 0.2}, spacing=0.05).spacing == 0.05
+    # The robot's default serves only when neither the user nor the scenario gives a spacing.
+    assert options_from_scenario({"print_spacing": 0.2}, default_spacing=0.04).spacing == 0.2
+    assert options_from_scenario({}, spacing=0.05, default_spacing=0.04).spacing == 0.05
+    assert options_from_scenario({}, default_spacing=0.04).spacing == 0.04
 
 
 def test_a_goal_print_off_the_grid_becomes_a_candidate_once(surfaces):
