@@ -51,7 +51,7 @@ from .errors import StanceError
 
 import coal  # pinocchio's collision library since pinocchio 3.4 (hpp-fcl before, other names)
 
-__all__ = ["CollisionSetupError", "DistanceQuery", "robot_shape", "scene_shape", "world_bounds", "world_boxes"]
+__all__ = ["CollisionSetupError", "DistanceQuery", "box_shape", "robot_shape", "scene_shape", "world_bounds", "world_boxes"]
 
 
 class CollisionSetupError(StanceError):
@@ -66,6 +66,20 @@ def _convex(vertices: np.ndarray, faces: np.ndarray):
     triangles = coal.StdVec_Triangle()
     triangles.extend([coal.Triangle(int(i), int(j), int(k)) for i, j, k in faces])
     return coal.Convex(points, triangles)
+
+
+def box_shape(side) -> "coal.Convex":
+    """A box of sides ``side`` (3,), metres, centred at its origin, as a ``coal.Convex``.
+
+    Not ``coal.Box``: coal 3.0's box support function inflates the box's lower
+    half-sides by 1e-10 or not depending on the first direction it is ever asked
+    about in the process (a ``static const`` set from that call's argument), so
+    every box distance afterwards, 1e-11 to 4e-11 m apart between processes,
+    depended on which box query came first; the solver then took other
+    iterations. A polytope's support has no such state, and GJK is exact on it.
+    """
+    box = trimesh.creation.box(extents=np.asarray(side, dtype=float))
+    return _convex(box.vertices, box.faces)
 
 
 def _mesh_points(geometry_object) -> np.ndarray:
@@ -128,7 +142,7 @@ def robot_shape(geometry_object):
         return coal.Sphere(shape.radius), np.zeros(3), float(shape.radius)
     if kind == "Box":
         half = np.asarray(shape.halfSide, dtype=float)
-        return coal.Box(*(2.0 * half)), np.zeros(3), float(np.linalg.norm(half))
+        return box_shape(2.0 * half), np.zeros(3), float(np.linalg.norm(half))
     if kind == "Cylinder":
         radius = float(np.hypot(shape.radius, shape.halfLength))
         return coal.Cylinder(shape.radius, 2.0 * shape.halfLength), np.zeros(3), radius
@@ -218,8 +232,11 @@ def scene_shape(name: str, collision_object):
     """
     if isinstance(collision_object, coal.CollisionObject):
         placement = collision_object.getTransform()
+        shape = collision_object.collisionGeometry()
+        if isinstance(shape, coal.Box):
+            shape = box_shape(2.0 * np.asarray(shape.halfSide, dtype=float))
         return (
-            collision_object.collisionGeometry(),
+            shape,
             np.array(placement.getRotation()),
             np.array(placement.getTranslation()),
         )
@@ -232,7 +249,7 @@ def scene_shape(name: str, collision_object):
     rotation = np.array(collision_object.getRotation(), dtype=float)
     translation = np.array(collision_object.getTranslation(), dtype=float)
     if isinstance(geometry, fcl.Box):
-        shape = coal.Box(*np.asarray(geometry.side, dtype=float))
+        shape = box_shape(geometry.side)
     elif isinstance(geometry, fcl.Sphere):
         shape = coal.Sphere(float(geometry.radius))
     elif isinstance(geometry, fcl.Cylinder):

@@ -63,3 +63,40 @@ def test_a_solve_with_constraint_curvature_in_two_fresh_processes_is_identical()
     assert outputs[0].startswith("True")
     assert int(outputs[0].split()[-1]) > 0  # the curvature was used
     assert outputs[0] == outputs[1]
+
+
+DISTANCE_SCRIPT = """
+import sys
+import coal, fcl, numpy as np, pinocchio as pin
+import stances
+from stances.collision import CollisionChecker
+if {prime!r}:
+    # Another user of coal in the process asks a box for its support first, along a
+    # direction with no zero component (coal 3.0 keeps state from that first call).
+    request = coal.DistanceRequest()
+    request.gjk_initial_guess = coal.GJKInitialGuess.CachedGuess
+    request.cached_gjk_guess = np.array([1.0, 2.0, 3.0])
+    coal.distance(coal.Box(1.0, 1.0, 1.0), coal.Transform3s(), coal.Box(1.0, 1.0, 1.0),
+                  coal.Transform3s(np.eye(3), np.array([2.0, 0.3, 0.2])), request, coal.DistanceResult())
+robot = stances.Robot.load("talos")
+cube = fcl.CollisionObject(fcl.Box(0.8, 0.8, 0.9), fcl.Transform(np.array([0.4, -0.6, 0.45])))
+checker = CollisionChecker(robot, [("cube", cube)], margin=1.0, self_collision=True)
+data = robot.model.createData()
+q = robot.reference_configuration.copy()
+q[2] += 0.3
+pin.forwardKinematics(robot.model, data, q)
+print(*[float(pair.distance).hex() for pair in checker.pairs(robot.model, data)])
+"""
+
+
+def test_distances_do_not_depend_on_an_earlier_box_query_in_the_process():
+    """Robot and scene boxes (palm plates, cubes) are measured with no state left by earlier queries."""
+    outputs = [
+        subprocess.run(
+            [sys.executable, "-c", DISTANCE_SCRIPT.format(prime=prime)],
+            capture_output=True, text=True, check=True, timeout=300,
+        ).stdout.split()
+        for prime in (False, True)
+    ]
+    assert len(outputs[0]) > 20  # hulls to the cube, and palm plates to the arms
+    assert outputs[0] == outputs[1]
