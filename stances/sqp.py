@@ -402,6 +402,14 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # The QP kept some violation although the merit could trade it: raise rho.
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY:
             penalty *= 10.0
+        elif linearization.met(tolerance) and penalty > options.elastic_penalty:
+            # Feasible: the penalty raised on the way (up to 1e7) now weighs a
+            # violation below the tolerance a million times the objective, and
+            # the line search cut every step whose curvature raised it a little
+            # (the Maratos effect): 40 iterations at alpha 1/4 crawling along the
+            # constraints (turn's rigid warm start). Back to the first penalty;
+            # the rule above raises it again if feasibility is lost.
+            penalty = options.elastic_penalty
         # Feasible (each row within its tolerance): the objective alone says
         # whether a step still improves. The violations left are below what
         # matters, and penalty times their change, as the SQP creeps linearly
