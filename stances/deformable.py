@@ -68,6 +68,8 @@ import numpy as np
 import pinocchio as pin
 import scipy.linalg
 
+import fem
+
 from .blocks import ConstraintBlock, equality
 from .contacts import friction_cone_generators
 from .errors import StanceError
@@ -210,8 +212,6 @@ class DeformableContact:
     kind = "deformable"
 
     def __init__(self, robot, deformable_object, prints, options):
-        import fem
-
         self.deformable_object = deformable_object
         self.method = options.reaction_model
         self.max_strain_rows = int(options.max_strain_rows)
@@ -414,8 +414,6 @@ class DeformableContact:
         u = displacements.reshape(-1)
         # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
         if self.law == "coulomb":
-            import fem
-
             # Contact is solved at U corrected by the rigid motion that W stands
             # for, U + G A^-1 (W - G^T R_c U): then f = L U~ = D W + (L - D G^T R_c) U
             # exactly, and stays continuous in (q, W) when the nodes change modes.
@@ -703,8 +701,6 @@ class DeformableContact:
         ``u`` (3p,) are the body's print-node displacements, ``d_u`` (3p, columns)
         their derivative in the step (None: values only).
         """
-        import fem
-
         if self.max_strain_rows == 0:
             return None
         voigt = self.patch.neighbour_strains(u)  # (T', 6)

@@ -40,6 +40,7 @@ every hull above a floor against its lowest mesh vertex.
 
 from __future__ import annotations
 
+import functools
 import math
 import weakref
 
@@ -78,7 +79,14 @@ def box_shape(side) -> "coal.Convex":
     depended on which box query came first; the solver then took other
     iterations. A polytope's support has no such state, and GJK is exact on it.
     """
-    box = trimesh.creation.box(extents=np.asarray(side, dtype=float))
+    return _box_shape(*(float(length) for length in side))
+
+
+@functools.lru_cache(maxsize=256)
+def _box_shape(x: float, y: float, z: float):
+    # One shape per size: a polytope holds no query state, so scenes and checkers
+    # share it (a checker is built per stance, with every box of the scene).
+    box = trimesh.creation.box(extents=(x, y, z))
     return _convex(box.vertices, box.faces)
 
 

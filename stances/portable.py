@@ -12,7 +12,9 @@ from __future__ import annotations
 from dataclasses import replace
 from functools import cache
 
+from .problem import build_problem
 from .results import LazyDeformations, PostureResult
+from .sqp import deformation_fields, posture_options
 
 __all__ = ["portable", "restore_deformations"]
 
@@ -51,9 +53,6 @@ def restore_deformations(robot, scene, result: PostureResult) -> PostureResult:
     -------
     PostureResult
     """
-    from .problem import build_problem
-    from .sqp import deformation_fields, posture_options
-
     stance = result.stance
     names = [obj.name for obj in _touched(scene, stance)]
     if not names:

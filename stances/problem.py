@@ -24,6 +24,7 @@ import pinocchio as pin
 
 from environments.errors import SceneError
 
+from .collision import CollisionChecker, contact_exclusions
 from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
@@ -637,8 +638,6 @@ def _collision_checker(robot, scene, exclusions, options):
     exclusions : list of (str, str)
         (robot contact frame, scene object name) pairs in contact by design.
     """
-    from .collision import CollisionChecker, contact_exclusions
-
     excluded = []
     for frame, object_name in exclusions:
         excluded.extend(contact_exclusions(robot, frame, object_name))

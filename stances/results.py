@@ -7,6 +7,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from environments import Stance
+
 
 def _readonly(array) -> np.ndarray:
     array = np.array(array, dtype=float)
@@ -167,8 +169,6 @@ class PostureResult:
         KeyError, TypeError, ValueError
             If ``data`` is not a ``to_dict`` form.
         """
-        from environments import Stance
-
         return cls(
             feasible=bool(data["feasible"]),
             q=data["q"],

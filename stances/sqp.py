@@ -35,7 +35,9 @@ from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
+from .statics import points_in_world
 from .threads import single_threaded_blas
+from .verify import verify_problem
 
 logger = logging.getLogger(__name__)
 
@@ -555,8 +557,6 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
 def _result(problem, outcome, elapsed, check=True) -> PostureResult:
     """The answer at the SQP's last iterate, checked by :func:`stances.verify` when
     feasible (and ``check``; an unchecked answer keeps the SQP's own verdict)."""
-    from .verify import verify_problem
-
     q, lam, linearization, feasible = outcome.q, outcome.lam, outcome.linearization, outcome.feasible
     violation, _ = linearization.max_violation()
     # An iterate that stopped just short of the SQP's tolerance (a floor of the QP's
@@ -664,8 +664,6 @@ def _with(result, **changes) -> PostureResult:
 
 def problem_point_forces(problem, linearization, q) -> tuple:
     """Point forces of a linearised problem's contacts at ``q``, in the world frame."""
-    from .statics import points_in_world
-
     model, data = problem.robot.model, problem.data
     pin.framesForwardKinematics(model, data, q)  # the last linearisation may have been a rejected trial
     points = points_in_world(data, problem.loads)

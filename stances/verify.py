@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from .collision import CollisionChecker, contact_exclusions
+from .problem import PostureOptions, build_problem
 from .results import Verification
 
 
@@ -147,16 +149,12 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     Verification
         ``ok`` with the measured residuals, or the list of failed checks.
     """
-    from .problem import PostureOptions, build_problem
-
     problem = build_problem(robot, scene, stance, PostureOptions(**options))
     return verify_problem(problem, result, deformed_surfaces=True)
 
 
 def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> list:
     """Penetrations of robot links into the deformed supports (contact link excluded)."""
-    from .collision import CollisionChecker, contact_exclusions
-
     reasons = []
     for contact in problem.contacts:
         if contact.kind != "deformable":
