@@ -177,6 +177,36 @@ def _robot_geometry(robot) -> _RobotGeometry:
     return geometry
 
 
+def hull_overlaps(robot, q) -> list:
+    """Self-collision pairs whose convex hulls touch or overlap at configuration ``q``.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    q : (nq,) float
+
+    Returns
+    -------
+    list of (str, str)
+        Geometry names, in the collision model's pair order.
+    """
+    checker = CollisionChecker(robot, [], margin=0.0)
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, np.asarray(q, dtype=float))
+    return [(pair.name_a, pair.name_b) for pair in checker.pairs(robot.model, data) if pair.is_self_collision]
+
+
+def ignore_self_pairs(robot, pairs) -> None:
+    """Stop checking self-collision pairs, given by geometry names, on ``robot``
+    (its collision model and the checker's cached geometry)."""
+    if not pairs:
+        return
+    names = [geometry.name for geometry in robot.collision_model.geometryObjects]
+    for first, second in pairs:
+        robot.collision_model.removeCollisionPair(pin.CollisionPair(names.index(first), names.index(second)))
+    _GEOMETRY_CACHE.pop(robot, None)  # its self pairs were read from the collision model
+
+
 def _support_columns(model) -> np.ndarray:
     """(njoints, nv) bool: columns of ``data.J`` that move each joint (its ancestors')."""
     mask = np.zeros((model.njoints, model.nv), dtype=bool)

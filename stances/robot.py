@@ -20,12 +20,14 @@ machine is hard-coded).
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
 
+from .collision import hull_overlaps, ignore_self_pairs
 from .description import (
     BUILTIN_DIRECTORY,
     ROLES,
@@ -39,6 +41,8 @@ from .description import (
 )
 from .errors import FrameNotFound, StanceError
 from .plates import PlateDeclaration, mount_plate, plate_geometry
+
+logger = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -313,8 +317,9 @@ class Robot:
             (pairs a robot's postures can bring into contact).
         ignored_pairs : iterable of (str, str)
             Collision geometry pairs not to check although the SRDF enables
-            them (e.g. links whose convex hulls overlap although their meshes
-            never meet); kept in :attr:`ignored_pairs`.
+            them. Pairs whose convex hulls touch or overlap at the reference
+            posture are not checked either (unless in ``checked_pairs``); both
+            kinds end up in :attr:`ignored_pairs`.
         limbs : mapping of str to str, optional
             Limb name -> root joint. Default: each surface's limb starts at
             the joint after the last branching of the kinematic tree above the
@@ -425,7 +430,16 @@ class Robot:
             )
         limb_roots = _limb_roots(model, robot_surfaces, limbs)
         robot = cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
-        robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs)
+        checked = {frozenset(pair) for pair in checked_pairs}
+        overlapping = [pair for pair in hull_overlaps(robot, q_reference) if frozenset(pair) not in checked]
+        ignore_self_pairs(robot, overlapping)
+        if overlapping:
+            logger.warning(
+                "%s: %d self-collision pairs whose convex hulls already touch at the reference posture are "
+                "not checked: %s (list them in checked_pairs to check them anyway)",
+                name, len(overlapping), ", ".join(f"{a}-{b}" for a, b in overlapping),
+            )
+        robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs) + tuple(overlapping)
         return robot
 
     @property

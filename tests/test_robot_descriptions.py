@@ -367,10 +367,7 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     front feet reach the foam and the saved plan verifies again. On the foam's default
     mesh a ball's print holds 2 nodes: the plan fails and says so, and how to fix it.
 
-    Run through the command line in child processes: planning with this robot in the
-    test process changed a later Talos solve's path (tests/test_stances_solve.py's
-    crawling climb stance, infeasible after it, feasible alone): a process-history
-    dependence not yet found, reported in the issue."""
+    Run through the command line in child processes, as a user would."""
     import subprocess
     import sys
 
@@ -393,6 +390,30 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     assert failed.returncode == 1, failed.stdout + failed.stderr
     assert "soft mesh too coarse for the print, e.g. StanceError: the print of" in failed.stdout
     assert "(a scenario's soft_box takes resolution and refine)" in failed.stdout
+
+
+def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_path, caplog):
+    """Without ignored_pairs, Solo-12's four base/upper-leg pairs (hulls 4 mm into each
+    other standing) are left out at load, listed on the robot and in a warning; a pair
+    in checked_pairs stays checked."""
+    data = {key: value for key, value in SOLO.items() if key != "ignored_pairs"}
+    overlap = {frozenset(("base_link_0", f"{leg}_UPPER_LEG_0")) for leg in ("FL", "FR", "HL", "HR")}
+    with caplog.at_level("WARNING", logger="stances.robot"):
+        robot = Robot.load(_write(tmp_path / "solo12.yaml", data))
+    assert {frozenset(pair) for pair in robot.ignored_pairs} == overlap
+    names = [g.name for g in robot.collision_model.geometryObjects]
+    checked = {frozenset((names[p.first], names[p.second])) for p in robot.collision_model.collisionPairs}
+    assert not overlap & checked and len(checked) > 100
+    assert "4 self-collision pairs whose convex hulls already touch at the reference posture" in caplog.text
+    assert "base_link_0-FL_UPPER_LEG_0" in caplog.text
+
+    data["checked_pairs"] = [["base_link_0", "FL_UPPER_LEG_0"]]
+    kept = Robot.load(_write(tmp_path / "solo12-checked.yaml", data))
+    assert {frozenset(pair) for pair in kept.ignored_pairs} == overlap - {frozenset(("base_link_0", "FL_UPPER_LEG_0"))}
+    names = [g.name for g in kept.collision_model.geometryObjects]
+    assert frozenset(("base_link_0", "FL_UPPER_LEG_0")) in {
+        frozenset((names[p.first], names[p.second])) for p in kept.collision_model.collisionPairs
+    }
 
 
 def test_ignored_pairs_are_not_checked(tmp_path):
