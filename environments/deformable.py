@@ -18,6 +18,7 @@ import numpy as np
 
 from .errors import SceneError
 from .geometry import (
+    CollisionShape,
     pose_from_center_yaw,
     readonly_array,
     transform_from_rotation_translation,
@@ -155,8 +156,8 @@ class DeformableObject:
         """Boundary triangles at rest, ``(T, 3, 3)`` metres, world frame."""
         return self.deformed_surface(np.zeros_like(self.mesh.nodes))
 
-    def deformed_collision_object(self, displacements):
-        """The deformed boundary as an FCL mesh, world frame, for clearance checks.
+    def deformed_collision_object(self, displacements) -> CollisionShape:
+        """The deformed boundary as a triangle mesh, world frame, for clearance checks.
 
         Parameters
         ----------
@@ -165,16 +166,12 @@ class DeformableObject:
 
         Returns
         -------
-        fcl.CollisionObject
+        environments.geometry.CollisionShape
+            A mesh whose vertices are in the world frame (identity placement).
         """
-        import fcl
-
-        from .geometry import bvh_model
-
         triangles = self.deformed_surface(displacements)  # validates the shape
         vertices = triangles.reshape(-1, 3)
-        faces = np.arange(len(vertices)).reshape(-1, 3)
-        return fcl.CollisionObject(bvh_model(vertices, faces), fcl.Transform())
+        return CollisionShape(np.eye(4), vertices=vertices, triangles=np.arange(len(vertices)).reshape(-1, 3))
 
     def deformed_surface(self, displacements) -> np.ndarray:
         """Boundary triangles of the deformed body, for pictures.

@@ -8,13 +8,14 @@ of vertices, convex and counter-clockwise.
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 
-import fcl
 import numpy as np
 
 from .errors import SceneError
 
 __all__ = [
+    "CollisionShape",
     "readonly_array",
     "rotation_about_z",
     "transform_from_rotation_translation",
@@ -246,44 +247,60 @@ def wrap_angle(theta: float) -> float:
     return math.remainder(float(theta), 2.0 * math.pi)
 
 
-class MeshModel(fcl.BVHModel):
-    """An FCL triangle-mesh model that keeps its vertices and triangles.
+@dataclass(frozen=True, eq=False)
+class CollisionShape:
+    """A scene object's collision geometry, placed in the world: a box or a triangle mesh.
 
-    python-fcl does not give a model's triangles back; the posture solver's
-    collision checker rebuilds the mesh in another library (coal) from these.
-
-    Attributes
-    ----------
-    vertices : (n, 3) float, read-only
-        Metres, in the frame the model is placed from.
-    triangles : (t, 3) int, read-only
-        Vertex indices.
-    """
-
-
-def bvh_model(vertices, triangles) -> MeshModel:
-    """An FCL triangle-mesh model.
+    Plain data: the posture solver's collision checker (``stances``) builds its
+    own shapes from it. Compared by identity (a scene builds each once).
 
     Parameters
     ----------
-    vertices : (n, 3) float
-        Metres, in the frame the model will be placed from.
-    triangles : (t, 3) int
-        Vertex indices.
+    transform_shape_to_world : (4, 4) float
+        Placement of the shape's frame, metres.
+    box_size : (3,) float, optional
+        Side lengths of a box centred at the shape frame's origin, metres.
+    vertices : (n, 3) float, optional
+        Mesh vertices, metres, shape frame (with ``triangles``; no ``box_size``).
+    triangles : (t, 3) int, optional
+        Vertex indices of the mesh's triangles.
 
-    Returns
-    -------
-    MeshModel
-        An ``fcl.BVHModel`` that also keeps ``vertices`` and ``triangles``.
+    Raises
+    ------
+    SceneError
+        Neither or both of a box and a mesh, or malformed arrays.
     """
-    vertices = np.array(vertices, dtype=float)
-    triangles = np.array(triangles, dtype=np.int32)
-    model = MeshModel()
-    model.beginModel(len(vertices), len(triangles))
-    model.addSubModel(vertices, triangles)
-    model.endModel()
-    vertices.setflags(write=False)
-    triangles.setflags(write=False)
-    model.vertices = vertices
-    model.triangles = triangles
-    return model
+
+    transform_shape_to_world: np.ndarray
+    box_size: np.ndarray | None = None
+    vertices: np.ndarray | None = None
+    triangles: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        transform = validate_rigid_transform(self.transform_shape_to_world, "transform_shape_to_world")
+        object.__setattr__(self, "transform_shape_to_world", transform)
+        is_mesh = self.vertices is not None or self.triangles is not None
+        if (self.box_size is None) == (not is_mesh):
+            raise SceneError("a collision shape is either a box (box_size) or a mesh (vertices and triangles)")
+        if self.box_size is not None:
+            size = readonly_array(self.box_size, (3,), "box_size")
+            if np.any(size <= 0.0):
+                raise SceneError(f"box_size must be 3 positive lengths, metres, got {size.tolist()}")
+            object.__setattr__(self, "box_size", size)
+            return
+        vertices = readonly_array(self.vertices, (None, 3), "vertices")
+        triangles = readonly_array(self.triangles, (None, 3), "triangles", dtype=np.int64)
+        if len(triangles) == 0 or triangles.min() < 0 or triangles.max() >= len(vertices):
+            raise SceneError(
+                f"triangles must index the {len(vertices)} vertices (0 to {len(vertices) - 1}), "
+                f"got {len(triangles)} triangles"
+                + (f" with indices {triangles.min()} to {triangles.max()}" if len(triangles) else "")
+            )
+        object.__setattr__(self, "vertices", vertices)
+        object.__setattr__(self, "triangles", triangles)
+
+    def __repr__(self) -> str:
+        origin = ", ".join(f"{v:.4g}" for v in self.transform_shape_to_world[:3, 3])
+        if self.box_size is not None:
+            return f"CollisionShape(box {' x '.join(f'{v:.4g}' for v in self.box_size)} m at ({origin}))"
+        return f"CollisionShape(mesh of {len(self.triangles)} triangles at ({origin}))"

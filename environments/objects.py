@@ -40,7 +40,7 @@ class RigidObject:
         Rigid placement of the object frame.
     box_size : (3,) float or None
         Side lengths, metres, when the object is a box centred on its frame
-        (collision then uses an exact ``fcl.Box``).
+        (collision then uses an exact box).
     """
 
     name: str

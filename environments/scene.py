@@ -6,21 +6,16 @@ from collections.abc import Mapping, Sequence
 from functools import cached_property
 from types import MappingProxyType
 
-import fcl
 import numpy as np
 
 from .deformable import DeformableObject
 from .errors import SceneError, known_names
-from .geometry import bvh_model
+from .geometry import CollisionShape
 from .objects import RigidObject
 from .stance import Contact, ContactPrint
 from .surfaces import ContactSurface
 
 __all__ = ["Scene"]
-
-
-def _fcl_transform(transform: np.ndarray) -> fcl.Transform:
-    return fcl.Transform(np.array(transform[:3, :3]), np.array(transform[:3, 3]))
 
 
 class Scene:
@@ -194,29 +189,30 @@ class Scene:
             )
 
     @cached_property
-    def _collision_objects(self) -> tuple[tuple[str, fcl.CollisionObject], ...]:
+    def _collision_objects(self) -> tuple[tuple[str, CollisionShape], ...]:
         placed = []
         for obj in self._rigid:
             if obj.box_size is not None:
-                geometry = fcl.Box(*(float(v) for v in obj.box_size))
+                shape = CollisionShape(obj.transform_object_to_world, box_size=obj.box_size)
             else:
-                geometry = bvh_model(obj.mesh.vertices, obj.mesh.faces)
-            placed.append((obj.name, fcl.CollisionObject(geometry, _fcl_transform(obj.transform_object_to_world))))
+                shape = CollisionShape(obj.transform_object_to_world, vertices=obj.mesh.vertices, triangles=obj.mesh.faces)
+            placed.append((obj.name, shape))
         for obj in self._deformable:
-            placed.append((obj.name, _rest_collision_object(obj)))
+            placed.append((obj.name, _rest_collision_shape(obj)))
         return tuple(placed)
 
-    def collision_objects(self) -> list[tuple[str, fcl.CollisionObject]]:
-        """FCL objects of every object at rest, placed in the world (built once, cached).
+    def collision_objects(self) -> list[tuple[str, CollisionShape]]:
+        """The collision geometry of every object at rest, placed in the world (built once, cached).
 
-        Rigid boxes are ``fcl.Box``, other rigid meshes ``fcl.BVHModel``; a
-        deformable object is its rest shape: a ``fcl.Box`` when its mesh fills its
-        bounding box, otherwise its boundary triangles as a ``fcl.BVHModel``.
+        Rigid boxes are boxes, other rigid objects their triangle meshes; a
+        deformable object is its rest shape: a box when its mesh fills its
+        bounding box, otherwise its boundary triangles.
 
         Returns
         -------
-        list of (str, fcl.CollisionObject)
-            Object name and its FCL object. Do not move the FCL objects: they are shared.
+        list of (str, environments.geometry.CollisionShape)
+            Object name and its shape, in the order of the scene's objects
+            (rigid ones first).
         """
         return list(self._collision_objects)
 
@@ -226,18 +222,14 @@ class Scene:
         )
 
 
-def _rest_collision_object(obj: DeformableObject) -> fcl.CollisionObject:
+def _rest_collision_shape(obj: DeformableObject) -> CollisionShape:
     nodes = np.asarray(obj.mesh.nodes, dtype=float)
     low, high = nodes.min(axis=0), nodes.max(axis=0)
     volume = float(np.sum(obj.mesh.volumes))
     if abs(volume - np.prod(high - low)) <= 1e-6 * np.prod(high - low):
         transform_box_to_body = np.eye(4)
         transform_box_to_body[:3, 3] = 0.5 * (low + high)
-        geometry = fcl.Box(*(high - low))
-        return fcl.CollisionObject(geometry, _fcl_transform(obj.transform_body_to_world @ transform_box_to_body))
+        return CollisionShape(obj.transform_body_to_world @ transform_box_to_body, box_size=high - low)
     # Its own boundary, not the convex hull: a hull would fill a soft step's
     # re-entrant corner where a foot on its tread stands.
-    vertices = np.asarray(obj.mesh.nodes, dtype=float)
-    return fcl.CollisionObject(
-        bvh_model(vertices, np.asarray(obj.mesh.surface_triangles)), _fcl_transform(obj.transform_body_to_world)
-    )
+    return CollisionShape(obj.transform_body_to_world, vertices=nodes, triangles=np.asarray(obj.mesh.surface_triangles))

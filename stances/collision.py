@@ -13,8 +13,9 @@ its measured accuracy). Robot meshes become the ``coal.Convex`` convex hull of
 their mesh file once, at construction: GJK on a hull is faster than on a
 triangle soup and its distance varies smoothly with the posture, which the
 linearisation needs; the hull is conservative (it contains the mesh).
-Primitives stay primitives. Scene objects, python-fcl objects built by
-``environments``, are rebuilt as coal shapes once per checker.
+Primitives stay primitives. Scene objects, plain boxes and meshes from
+``environments`` (:class:`~environments.geometry.CollisionShape`), become coal
+shapes (built once per shape and shared).
 
 Because a python-level coal call still costs microseconds, a numpy broad phase
 runs first over all pairs at once: each robot geometry is bounded by a sphere
@@ -242,7 +243,7 @@ class CollisionChecker:
     robot : stances.Robot
         Robot whose ``collision_model`` gives the geometry and the allowed
         self-collision pairs.
-    scene_objects : iterable of (str, fcl.CollisionObject or coal.CollisionObject)
+    scene_objects : iterable of (str, environments.geometry.CollisionShape or coal.CollisionObject)
         Named static scene objects placed in the world frame (what
         ``scene.collision_objects()`` returns), rebuilt once as coal shapes
         (see :func:`stances.narrow_phase.scene_shape`). Names must be unique
@@ -267,10 +268,13 @@ class CollisionChecker:
 
     Examples
     --------
-    >>> import fcl, numpy as np, pinocchio as pin
+    >>> import numpy as np, pinocchio as pin
+    >>> from environments.geometry import CollisionShape
     >>> from stances import Robot
     >>> robot = Robot.load("talos")
-    >>> floor = fcl.CollisionObject(fcl.Box(4.0, 4.0, 0.1), fcl.Transform(np.array([0, 0, -0.05])))
+    >>> floor_to_world = np.eye(4)
+    >>> floor_to_world[2, 3] = -0.05
+    >>> floor = CollisionShape(floor_to_world, box_size=(4.0, 4.0, 0.1))
     >>> checker = CollisionChecker(
     ...     robot, [("floor", floor)],
     ...     exclude=contact_exclusions(robot, "left_sole", "floor")
@@ -301,7 +305,7 @@ class CollisionChecker:
         for entry in scene_objects:
             if len(entry) != 2:
                 raise CollisionSetupError(
-                    "scene_objects must be (name, fcl.CollisionObject) pairs, got "
+                    "scene_objects must be (name, CollisionShape or coal.CollisionObject) pairs, got "
                     f"{entry!r}"
                 )
             name, collision_object = entry

@@ -6,8 +6,9 @@ overlap, so one query gives the signed distance, the witness points and the
 separating direction. A robot mesh becomes the ``coal.Convex`` convex hull of
 its mesh file (conservative: it contains the mesh; its distance varies
 smoothly with the posture, which the linearisation needs); primitives stay
-primitives. Scene objects arrive as python-fcl objects built by
-``environments`` and are rebuilt once as coal shapes (:func:`scene_shape`).
+primitives. Scene objects arrive as plain shapes from ``environments``
+(:class:`~environments.geometry.CollisionShape`: boxes and triangle meshes) and are
+built once as coal shapes (:func:`scene_shape`).
 
 Accuracy, measured on Talos with coal 3.0.3 (20 random postures, 0.3 rad
 normal perturbations of half sitting; every pair within 10 m of a floor slab, a
@@ -44,9 +45,10 @@ import functools
 import math
 import weakref
 
-import fcl
 import numpy as np
 import trimesh
+
+from environments.geometry import CollisionShape
 
 from .errors import StanceError
 
@@ -163,67 +165,46 @@ def robot_shape(geometry_object):
     )
 
 
-# Meshes converted once per fcl model: scenes keep their fcl objects, and the
+# Meshes converted once per scene shape: scenes keep their shapes, and the
 # solver builds a checker per stance.
 _MESH_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
-def _mesh_shape(name, geometry):
-    """coal shape of an fcl mesh that kept its ``vertices`` and ``triangles``."""
-    try:
-        cached = _MESH_CACHE.get(geometry)
-    except TypeError:  # not weak-referenceable: convert every time
-        cached = None
+def _mesh_shape(shape):
+    """coal shape of a :class:`~environments.geometry.CollisionShape` mesh."""
+    cached = _MESH_CACHE.get(shape)
     if cached is not None:
         return cached
-    vertices = getattr(geometry, "vertices", None)
-    triangles = getattr(geometry, "triangles", None)
-    if vertices is None or triangles is None:
-        raise CollisionSetupError(
-            f"scene object {name!r} is an fcl mesh without its vertices and triangles "
-            "(python-fcl does not return them); build it with environments.geometry.bvh_model"
-        )
-    vertices = np.asarray(vertices, dtype=float)
-    triangles = np.asarray(triangles, dtype=int)
+    vertices = np.asarray(shape.vertices, dtype=float)
+    triangles = np.asarray(shape.triangles, dtype=int)
     mesh = trimesh.Trimesh(vertices, triangles)
     if mesh.is_watertight and mesh.is_convex:
         # A closed convex mesh is its hull: as a solid it gets a penetration depth.
         hull = trimesh.convex.convex_hull(vertices)
-        shape = _convex(hull.vertices, hull.faces)
+        converted = _convex(hull.vertices, hull.faces)
     else:
-        shape = coal.BVHModelOBBRSS()
-        shape.beginModel(len(triangles), len(vertices))
-        shape.addVertices(vertices)
-        shape.addTriangles(triangles)
-        shape.endModel()
-    try:
-        _MESH_CACHE[geometry] = shape
-    except TypeError:
-        pass
-    return shape
+        converted = coal.BVHModelOBBRSS()
+        converted.beginModel(len(triangles), len(vertices))
+        converted.addVertices(vertices)
+        converted.addTriangles(triangles)
+        converted.endModel()
+    _MESH_CACHE[shape] = converted
+    return converted
 
 
-def _fcl_geometry(collision_object):
-    """The python geometry object of an fcl object (python-fcl hands it back in results)."""
-    probe = fcl.CollisionObject(fcl.Sphere(1.0), fcl.Transform(np.array([1.0e6, 0.0, 0.0])))
-    result = fcl.DistanceResult()
-    fcl.distance(collision_object, probe, fcl.DistanceRequest(), result)
-    return result.o1
-
-
-def scene_shape(name: str, collision_object):
+def scene_shape(name: str, scene_object):
     """coal shape and world placement of a static scene object.
 
     Parameters
     ----------
     name : str
         Object name, for messages.
-    collision_object : fcl.CollisionObject or coal.CollisionObject
-        Placed in the world frame. fcl boxes, spheres, cylinders, capsules and
-        cones are rebuilt exactly; fcl meshes must keep their ``vertices`` and
-        ``triangles`` (``environments.geometry.bvh_model`` does) and become a
+    scene_object : environments.geometry.CollisionShape or coal.CollisionObject
+        Placed in the world frame (what ``Scene.collision_objects`` gives). A
+        box becomes a box polytope (:func:`box_shape`); a mesh a
         ``coal.Convex`` when closed and convex, a ``coal.BVHModelOBBRSS``
-        otherwise.
+        otherwise. A coal object is taken as it is (a ``coal.Box`` as a box
+        polytope).
 
     Returns
     -------
@@ -236,44 +217,22 @@ def scene_shape(name: str, collision_object):
     Raises
     ------
     CollisionSetupError
-        Unsupported object or fcl geometry type.
+        Another type of object.
     """
-    if isinstance(collision_object, coal.CollisionObject):
-        placement = collision_object.getTransform()
-        shape = collision_object.collisionGeometry()
+    if isinstance(scene_object, coal.CollisionObject):
+        placement = scene_object.getTransform()
+        shape = scene_object.collisionGeometry()
         if isinstance(shape, coal.Box):
             shape = box_shape(2.0 * np.asarray(shape.halfSide, dtype=float))
-        return (
-            shape,
-            np.array(placement.getRotation()),
-            np.array(placement.getTranslation()),
-        )
-    if not isinstance(collision_object, fcl.CollisionObject):
+        return shape, np.array(placement.getRotation()), np.array(placement.getTranslation())
+    if not isinstance(scene_object, CollisionShape):
         raise CollisionSetupError(
-            f"scene object {name!r} must be an fcl.CollisionObject or a coal.CollisionObject, "
-            f"got {type(collision_object).__name__}"
+            f"scene object {name!r} must be an environments.geometry.CollisionShape or a "
+            f"coal.CollisionObject, got {type(scene_object).__name__}"
         )
-    geometry = _fcl_geometry(collision_object)
-    rotation = np.array(collision_object.getRotation(), dtype=float)
-    translation = np.array(collision_object.getTranslation(), dtype=float)
-    if isinstance(geometry, fcl.Box):
-        shape = box_shape(geometry.side)
-    elif isinstance(geometry, fcl.Sphere):
-        shape = coal.Sphere(float(geometry.radius))
-    elif isinstance(geometry, fcl.Cylinder):
-        shape = coal.Cylinder(float(geometry.radius), float(geometry.lz))
-    elif isinstance(geometry, fcl.Capsule):
-        shape = coal.Capsule(float(geometry.radius), float(geometry.lz))
-    elif isinstance(geometry, fcl.Cone):
-        shape = coal.Cone(float(geometry.radius), float(geometry.lz))
-    elif isinstance(geometry, fcl.BVHModel):
-        shape = _mesh_shape(name, geometry)
-    else:
-        raise CollisionSetupError(
-            f"scene object {name!r} has fcl geometry {type(geometry).__name__}; supported: "
-            "Box, Sphere, Cylinder, Capsule, Cone and meshes from environments.geometry.bvh_model"
-        )
-    return shape, rotation, translation
+    transform = scene_object.transform_shape_to_world
+    shape = box_shape(scene_object.box_size) if scene_object.box_size is not None else _mesh_shape(scene_object)
+    return shape, np.array(transform[:3, :3]), np.array(transform[:3, 3])
 
 
 def world_bounds(shape, rotation, translation) -> np.ndarray:

@@ -7,13 +7,28 @@ import os
 import shutil
 import tempfile
 
+import coal
+import numpy as np
 import pytest
 
 import environments
 from stances import Robot
+from stances.narrow_phase import DistanceQuery, scene_shape
 
 
 _CACHE_DIRECTORY = None
+
+
+def sphere(radius, center):
+    """A ball scene object of ``radius`` at ``center``, metres, world frame (a coal object)."""
+    return coal.CollisionObject(coal.Sphere(float(radius)), coal.Transform3s(np.eye(3), np.asarray(center, dtype=float)))
+
+
+def scene_distance(a, b) -> float:
+    """Signed distance, metres, between two placed scene objects, measured as the
+    posture solver measures them (``stances.narrow_phase``)."""
+    placed = [scene_shape(name, shape) for name, shape in (("a", a), ("b", b))]
+    return DistanceQuery().distance(*(item for s, r, t in placed for item in (s, coal.Transform3s(r, t))))
 
 
 def pytest_configure(config):

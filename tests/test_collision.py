@@ -2,11 +2,12 @@
 
 from __future__ import annotations
 
-import fcl
+import coal
 import numpy as np
 import pinocchio as pin
 import pytest
 
+from environments.geometry import CollisionShape
 from stances import Robot, StanceError
 from stances.collision import (
     CollisionChecker,
@@ -31,10 +32,17 @@ def robot():
     return Robot.load("talos")
 
 
+def box(size, center, rotation=np.eye(3)):
+    """A box scene shape of sides ``size`` centred at ``center``, metres, world frame."""
+    box_to_world = np.eye(4)
+    box_to_world[:3, :3], box_to_world[:3, 3] = rotation, center
+    return CollisionShape(box_to_world, box_size=size)
+
+
 @pytest.fixture(scope="module")
 def floor():
     """A 10 m x 10 m slab whose top face is the plane z = 0."""
-    return fcl.CollisionObject(fcl.Box(10.0, 10.0, 0.1), fcl.Transform(np.array([0.0, 0.0, -0.05])))
+    return box((10.0, 10.0, 0.1), (0.0, 0.0, -0.05))
 
 
 @pytest.fixture(scope="module")
@@ -129,7 +137,7 @@ def test_bad_setup_raises_a_stance_error(robot, floor, exclude, scene_names):
 
 def test_broad_phase_keeps_every_pair_within_margin(robot, floor, data):
     rng = np.random.default_rng(3)
-    table = fcl.CollisionObject(fcl.Box(0.6, 0.8, 0.8), fcl.Transform(np.array([0.45, 0.0, 0.4])))
+    table = box((0.6, 0.8, 0.8), (0.45, 0.0, 0.4))
     scene = [("floor", floor), ("table", table)]
     narrow_only = CollisionChecker(robot, scene, margin=10.0)
     for _ in range(5):
@@ -166,7 +174,7 @@ def test_sphere_beside_the_wrist_cylinder_gives_the_analytic_distance(robot, dat
     sphere_radius, gap = 0.03, 0.012
     # On the cylinder's local x axis, level with its centre: a side contact.
     center = cylinder_to_world.act(np.array([radius + sphere_radius + gap, 0.0, 0.0]))
-    ball = fcl.CollisionObject(fcl.Sphere(sphere_radius), fcl.Transform(center))
+    ball = coal.CollisionObject(coal.Sphere(sphere_radius), coal.Transform3s(np.eye(3), center))
     checker = CollisionChecker(robot, [("ball", ball)], margin=0.1, self_collision=False)
     pair = by_names(checker.pairs(robot.model, data))[("wrist_left_ft_tool_link_0", "ball")]
     # GJK on curved shapes stops at its tolerance, well under a micrometre.
@@ -183,10 +191,9 @@ def test_penetration_gives_negative_distance_and_a_separating_normal(robot, data
     depth = 0.01
     side = np.array([geometry.geometry.radius + 0.1 - depth, 0.0, 0.0])
     box_center = cylinder_to_world.act(side)
-    box = fcl.CollisionObject(
-        fcl.Box(0.2, 0.2, 0.2), fcl.Transform(cylinder_to_world.rotation, box_center)
+    checker = CollisionChecker(
+        robot, [("box", box((0.2, 0.2, 0.2), box_center, cylinder_to_world.rotation))], margin=0.1, self_collision=False
     )
-    checker = CollisionChecker(robot, [("box", box)], margin=0.1, self_collision=False)
     pair = by_names(checker.pairs(robot.model, data))[("wrist_left_ft_tool_link_0", "box")]
     assert pair.distance == pytest.approx(-depth, abs=1e-6)
     # Moving the box against the normal (i.e. the cylinder along it) separates them.
@@ -222,7 +229,7 @@ def test_left_and_right_distances_mirror_each_other(robot, floor, data):
 
 def test_jacobian_rows_match_finite_differences_on_the_manifold(robot, floor, data):
     rng = np.random.default_rng(11)
-    table = fcl.CollisionObject(fcl.Box(0.6, 0.8, 0.8), fcl.Transform(np.array([0.45, 0.0, 0.5])))
+    table = box((0.6, 0.8, 0.8), (0.45, 0.0, 0.5))
     checker = CollisionChecker(robot, [("floor", floor), ("table", table)], margin=0.3)
     model = robot.model
     q = pin.integrate(model, robot.reference_configuration, 0.1 * rng.standard_normal(model.nv))

@@ -67,8 +67,9 @@ def test_a_solve_with_constraint_curvature_in_two_fresh_processes_is_identical()
 
 DISTANCE_SCRIPT = """
 import sys
-import coal, fcl, numpy as np, pinocchio as pin
+import coal, numpy as np, pinocchio as pin
 import stances
+from environments.geometry import CollisionShape
 from stances.collision import CollisionChecker
 if {prime!r}:
     # Another user of coal in the process asks a box for its support first, along a
@@ -79,7 +80,9 @@ if {prime!r}:
     coal.distance(coal.Box(1.0, 1.0, 1.0), coal.Transform3s(), coal.Box(1.0, 1.0, 1.0),
                   coal.Transform3s(np.eye(3), np.array([2.0, 0.3, 0.2])), request, coal.DistanceResult())
 robot = stances.Robot.load("talos")
-cube = fcl.CollisionObject(fcl.Box(0.8, 0.8, 0.9), fcl.Transform(np.array([0.4, -0.6, 0.45])))
+cube_to_world = np.eye(4)
+cube_to_world[:3, 3] = [0.4, -0.6, 0.45]
+cube = CollisionShape(cube_to_world, box_size=(0.8, 0.8, 0.9))
 checker = CollisionChecker(robot, [("cube", cube)], margin=1.0, self_collision=True)
 data = robot.model.createData()
 q = robot.reference_configuration.copy()

@@ -2,12 +2,12 @@
 
 import math
 
-import fcl
 import numpy as np
 import pytest
 
 import environments
 import fem
+from conftest import scene_distance, sphere
 from environments import (
     Contact,
     ContactPrint,
@@ -196,25 +196,26 @@ def test_scene_refuses_a_surface_on_an_unknown_object():
         Scene("s", [ground], [], [stray])
 
 
-def test_fcl_distance_between_two_boxes_equals_the_analytic_gap():
+def test_distance_between_two_box_objects_equals_the_analytic_gap():
     a = box("a", (0.4, 0.4, 0.4), center=(0.0, 0.0, 1.0))
     b = box("b", (0.2, 0.6, 0.2), center=(0.55, 0.1, 1.05), yaw=0.0)
     scene = Scene("boxes", [a, b], [], [])
     objects = dict(scene.collision_objects())
-    result = fcl.DistanceResult()
-    distance = fcl.distance(objects["a"], objects["b"], fcl.DistanceRequest(), result)
+    assert objects["a"].box_size.tolist() == [0.4, 0.4, 0.4]
+    distance = scene_distance(objects["a"], objects["b"])
     # Faces x = 0.2 and x = 0.45 face each other and overlap in y and z.
     assert distance == pytest.approx(0.25, abs=1e-9)
     assert scene.collision_objects()[0][1] is objects["a"]  # built once
 
 
-def test_fcl_mesh_objects_collide_like_their_boxes():
+def test_mesh_objects_collide_like_their_boxes():
     import trimesh
 
     mesh = environments.mesh_object("m", trimesh.creation.box(extents=(0.4, 0.4, 0.4)), center=(0, 0, 1))
     b = box("b", (0.2, 0.2, 0.2), center=(0.0, 0.0, 1.5))
     objects = dict(Scene("s", [mesh, b], [], []).collision_objects())
-    distance = fcl.distance(objects["m"], objects["b"], fcl.DistanceRequest(), fcl.DistanceResult())
+    assert objects["m"].box_size is None and len(objects["m"].triangles) == 12
+    distance = scene_distance(objects["m"], objects["b"])
     assert distance == pytest.approx(0.2, abs=1e-6)
 
 
@@ -343,8 +344,8 @@ def test_deformable_top_frame_points_out_of_the_body_and_collision_uses_its_rest
     scene = Scene("s", [ground], [obj], box_surfaces(ground, top_name="floor") + [top])
     assert scene.deformable_of_surface("cube_top") is obj
     objects = dict(scene.collision_objects())
-    probe = fcl.CollisionObject(fcl.Sphere(0.05), fcl.Transform(np.eye(3), np.array([0.0, -0.16, 0.5])))
-    assert fcl.distance(objects["cube"], probe, fcl.DistanceRequest(), fcl.DistanceResult()) == pytest.approx(0.15, abs=1e-6)
+    assert objects["cube"].box_size is not None
+    assert scene_distance(objects["cube"], sphere(0.05, (0.0, -0.16, 0.5))) == pytest.approx(0.15, abs=1e-6)
 
 
 @pytest.mark.parametrize("margin", [0.0, 0.1, -0.05], ids=["boundary", "shrunk", "grown"])

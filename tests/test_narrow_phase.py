@@ -2,18 +2,25 @@
 
 from __future__ import annotations
 
-import fcl
 import numpy as np
 import pinocchio as pin
 import pytest
 import trimesh
 
-from environments.geometry import bvh_model
+from environments.errors import SceneError
+from environments.geometry import CollisionShape
 from stances.collision import CollisionChecker
 from stances.narrow_phase import CollisionSetupError, DistanceQuery, box_shape, coal, robot_shape, scene_shape
 
 # Meshes of several sizes (small wrist link to large torso) and mirrored limbs.
 MESHES = ["torso_2_link_0", "arm_left_4_link_0", "arm_right_5_link_0", "leg_left_1_link_0", "head_2_link_0"]
+
+
+def placed_at(translation):
+    """(4, 4) placement translated by ``translation``, metres."""
+    transform = np.eye(4)
+    transform[:3, 3] = translation
+    return transform
 
 
 def hull_of(robot, name):
@@ -95,7 +102,7 @@ def test_hull_to_floor_distance_is_the_lowest_hull_vertex(robot):
     # the slab is the height of its lowest vertex: brute force on the vertices.
     rng = np.random.default_rng(2)
     model, data = robot.model, robot.model.createData()
-    floor = fcl.CollisionObject(fcl.Box(10.0, 10.0, 0.1), fcl.Transform(np.array([0.0, 0.0, -0.05])))
+    floor = CollisionShape(placed_at((0.0, 0.0, -0.05)), box_size=(10.0, 10.0, 0.1))
     checker = CollisionChecker(robot, [("floor", floor)], margin=10.0, self_collision=False)
     hulls = {
         geometry.name: hull_of(robot, geometry.name)[1]
@@ -126,36 +133,42 @@ def test_hull_to_floor_distance_is_the_lowest_hull_vertex(robot):
 
 def test_scene_meshes_become_convex_or_triangle_shapes():
     box = trimesh.creation.box(extents=(0.4, 0.3, 0.2))
-    convex = fcl.CollisionObject(bvh_model(box.vertices, box.faces), fcl.Transform(np.array([1.0, 0.0, 0.0])))
+    convex = CollisionShape(placed_at((1.0, 0.0, 0.0)), vertices=box.vertices, triangles=box.faces)
     shape, _, translation = scene_shape("block", convex)
     assert isinstance(shape, coal.Convex)
     np.testing.assert_allclose(translation, [1.0, 0.0, 0.0])
+    assert scene_shape("block", convex)[0] is shape  # built once per scene shape
     # An open mesh (the box without its top) stays a triangle mesh.
-    open_box = fcl.CollisionObject(bvh_model(box.vertices, box.faces[2:]), fcl.Transform())
+    open_box = CollisionShape(np.eye(4), vertices=box.vertices, triangles=box.faces[2:])
     assert isinstance(scene_shape("tray", open_box)[0], coal.BVHModelOBBRSS)
 
 
-def test_opaque_fcl_meshes_are_refused_with_a_remedy():
-    plain = fcl.BVHModel()
-    plain.beginModel(3, 1)
-    plain.addSubModel(np.eye(3), np.array([[0, 1, 2]]))
-    plain.endModel()
-    with pytest.raises(CollisionSetupError, match="bvh_model"):
-        scene_shape("sheet", fcl.CollisionObject(plain, fcl.Transform()))
+def test_other_scene_objects_are_refused_with_what_is_accepted():
+    with pytest.raises(CollisionSetupError, match="must be an environments.geometry.CollisionShape or a coal.CollisionObject, got tuple"):
+        scene_shape("sheet", (np.eye(3), np.zeros(3)))
 
 
-def test_scene_box_from_fcl_measures_like_the_same_coal_box(robot):
-    # Same checker answers whether the scene arrives as fcl or coal objects.
+def test_malformed_collision_shapes_are_refused_with_the_reason():
+    with pytest.raises(SceneError, match="either a box"):
+        CollisionShape(np.eye(4))
+    with pytest.raises(SceneError, match="box_size must be 3 positive lengths"):
+        CollisionShape(np.eye(4), box_size=(1.0, 0.0, 1.0))
+    with pytest.raises(SceneError, match="triangles must index the 3 vertices"):
+        CollisionShape(np.eye(4), vertices=np.eye(3), triangles=[[0, 1, 3]])
+
+
+def test_a_scene_box_measures_like_the_same_coal_box(robot):
+    # Same checker answers whether the scene arrives as a scene shape or a coal object.
     data = robot.model.createData()
     pin.forwardKinematics(robot.model, data, robot.reference_configuration)
     center = np.array([0.45, 0.0, 0.5])
-    from_fcl = CollisionChecker(
-        robot, [("table", fcl.CollisionObject(fcl.Box(0.6, 0.8, 0.8), fcl.Transform(center)))], margin=10.0
-    )
+    from_scene = CollisionChecker(robot, [("table", CollisionShape(placed_at(center), box_size=(0.6, 0.8, 0.8)))], margin=10.0)
     from_coal = CollisionChecker(
         robot, [("table", coal.CollisionObject(coal.Box(0.6, 0.8, 0.8), coal.Transform3s(np.eye(3), center)))],
         margin=10.0,
     )
-    for one, other in zip(from_fcl.pairs(robot.model, data), from_coal.pairs(robot.model, data)):
+    pairs = from_scene.pairs(robot.model, data)
+    assert len(pairs) > 10
+    for one, other in zip(pairs, from_coal.pairs(robot.model, data)):
         assert (one.name_a, one.name_b) == (other.name_a, other.name_b)
         assert one.distance == other.distance

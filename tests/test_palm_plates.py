@@ -217,7 +217,7 @@ def romeo():
 @pytest.mark.parametrize("scenario_name, stance_name", PALM_STANCES, ids=[f"{a}/{b}" for a, b in PALM_STANCES])
 def test_only_the_contact_geometry_comes_near_a_support(robot, romeo, scenario_name, stance_name):
     """In every accepted palm stance, each robot geometry but a surface's own is at
-    least collision_distance from every scene object: the solver's fcl hulls
+    least collision_distance from every scene object: the solver's convex hulls
     cannot hide a wrist inside the table, coal on the full meshes would see it.
     Soft objects are measured at rest (what the solver keeps clear) and deformed."""
     scenario = coarse_scenario(scenario_name)

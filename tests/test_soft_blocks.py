@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import textwrap
 
-import fcl
 import numpy as np
 import pytest
 
 import environments
 import fem
+from conftest import scene_distance, sphere
 from environments import ScenarioError, SceneError
 from environments.deformable import soft_blocks
 from fem_reference import direct_reactions
@@ -89,9 +89,7 @@ def test_the_collision_shape_keeps_the_re_entrant_corner_free(step):
     obj, surfaces = step
     scene = environments.Scene("step", [], [obj], surfaces)
     (name, foam), = scene.collision_objects()
-    probe = fcl.CollisionObject(fcl.Sphere(0.05), fcl.Transform(np.array([-0.05, -0.275, 0.4])))
-    result = fcl.DistanceResult()
-    distance = fcl.distance(foam, probe, fcl.DistanceRequest(), result)
+    distance = scene_distance(foam, sphere(0.05, (-0.05, -0.275, 0.4)))
     assert name == "foam"
     assert distance == pytest.approx(0.4 - 0.1 - 0.05, abs=1e-6)  # down to the tread
 
