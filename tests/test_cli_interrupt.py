@@ -61,6 +61,10 @@ def test_ctrl_c_during_the_search_writes_the_best_partial_plan_and_exits_130(tmp
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         env=environment,
+        # A shell starts background jobs with SIGINT ignored, and the child would
+        # inherit that (then Python installs no KeyboardInterrupt handler): the
+        # test sends Ctrl-C as a terminal would, so the child starts with the default.
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     try:
         # The progress bar shows "solves=" once the start is solved and expanded,
