@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import logging
+import textwrap
 
 import matplotlib
 
@@ -11,6 +12,7 @@ matplotlib.use("Agg")  # files only: never open a window, work without a display
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib import cm, colors  # noqa: E402
+from matplotlib.ticker import MaxNLocator  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 
 from .display import ROBOT_RGB  # noqa: E402
@@ -22,6 +24,9 @@ MIN_ARROW = 0.06
 
 logger = logging.getLogger(__name__)
 
+# Title characters per line: a move's label ("place right_sole on foam_top at x ...
+# in foam_top's frame") ran past the figure's left edge on one line.
+_TITLE_WIDTH = 64
 
 
 def force_scale(displays, length=0.4):
@@ -132,13 +137,16 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     axes.set_xlabel("x (m)")
     axes.set_ylabel("y (m)")
     axes.set_zlabel("z (m)")
-    axes.set_title(display.label, fontsize=10)
+    for axis in (axes.xaxis, axes.yaxis, axes.zaxis):
+        # An axis seen nearly end-on squeezed a dozen overlapping tick labels.
+        axis.set_major_locator(MaxNLocator(5))
+    axes.set_title(textwrap.fill(display.label, _TITLE_WIDTH), fontsize=10)
     axes.legend(loc="upper left", fontsize=8)
     axes.view_init(elev=elevation, azim=azimuth)
     if mappable is not None:
         colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
         colorbar.set_label("displacement (mm)")
-    figure.savefig(path)
+    figure.savefig(path, bbox_inches="tight", pad_inches=0.15)
     plt.close(figure)
     logger.debug("picture written to %s", path)
     return path
