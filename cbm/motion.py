@@ -28,6 +28,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+import stances
 from stances.blocks import PLACEMENT_ACCURACY, equality
 from stances.contacts import placement_residual
 
@@ -225,8 +226,6 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
         If ``index`` does not name a pair of stances, or they do not differ by
         exactly one contact.
     """
-    from .planner import posture_api
-
     if not 0 <= index < len(plan.stances) - 1:
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
     before, after = plan.stances[index], plan.stances[index + 1]
@@ -242,7 +241,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
     support_points = [scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in support]
     targets[crossing] = keep_clear(targets[crossing], support_points, normal, clear_distance)
     options = _options_of(after) if solver_options is None else dict(solver_options)
-    solve, verify = posture_api()
+    solve, verify = stances.solve, stances.verify
     q, configurations, results, reached, reason = before.q, [before.q], [], [], ""
     pending, last, splits = list(targets), start, 0
     while pending:
@@ -311,9 +310,7 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
         stances' postures, every interior sample verifies as a stance of the
         support (:func:`stances.verify`) and holds its frame on its waypoint.
     """
-    from .planner import posture_api
-
-    verify = posture_api()[1]
+    verify = stances.verify
     after = plan.stances[motion.index + 1]
     options = _options_of(after) if solver_options is None else dict(solver_options)
     problems = []

@@ -20,8 +20,11 @@ from typing import Any
 
 import numpy as np
 
+import environments
+import stances
+from environments.scenario import SCENARIO_DIRECTORY
 from environments.stance import Stance
-from stances.results import PointForce
+from stances.results import PointForce, PostureResult
 
 from .errors import PlanFileError
 from .search import SearchStatistics
@@ -359,10 +362,6 @@ class Plan:
         -------
         PlanCheck
         """
-        import stances
-
-        from .planner import posture_api
-
         if scenario is None:
             scenario = self.scenario()
         if robot is None:
@@ -375,7 +374,7 @@ class Plan:
                 problems.append(f"stance {index}: no solver result to verify")
                 continue
             if verify is None:
-                verify = posture_api()[1]
+                verify = stances.verify
             # What the plan shows is what is checked.
             shown = replace(result, q=planned.q, point_forces=planned.point_forces)
             options = dict(getattr(result, "statistics", {}).get("options", {}))
@@ -417,8 +416,6 @@ class Plan:
         cbm.live.LiveViewUnavailable
             If meshcat is not installed (the message says how to install it).
         """
-        import stances
-
         from .live import LiveView, meshcat_module
 
         meshcat_module()  # before loading anything: a missing meshcat is said at once
@@ -442,8 +439,6 @@ class Plan:
             gone), or there is no embedded text and no built-in scenario of
             that name.
         """
-        import environments
-
         text = self.scenario_source.get("text")
         if text is None:
             return environments.load(self.scenario_name)
@@ -525,8 +520,6 @@ def scenario_source(scenario):
         code) and ``transform_body_to_world`` ((4, 4) float of each soft body,
         by object name).
     """
-    from environments.scenario import SCENARIO_DIRECTORY
-
     path = getattr(scenario, "path", None)
     built_in = path is not None and Path(path).resolve().parent == SCENARIO_DIRECTORY
     return {
@@ -557,8 +550,6 @@ def _rebuild_result(data):
     """A stances PostureResult from its ``to_dict`` form, else the dict itself."""
     if data is None:
         return None
-    from stances.results import PostureResult
-
     try:
         return PostureResult.from_dict(data)
     except (KeyError, TypeError, ValueError) as error:

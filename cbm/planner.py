@@ -9,12 +9,21 @@ neighbours of a stance (:mod:`cbm.stance_graph`), the posture solver of
 from __future__ import annotations
 
 import logging
+import os
 import time
 from collections import Counter
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
+from tqdm import tqdm
+
+import environments
+import stances
+from environments.errors import SceneError
+from fem.errors import FemError
+from stances.errors import StanceError
 
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
@@ -67,10 +76,6 @@ def load_scenario(scenario):
     environments.ScenarioError
         If the file exists but is not a valid scenario.
     """
-    import os
-
-    import environments
-
     if not isinstance(scenario, (str, os.PathLike)):
         return scenario
     names = environments.scenario_names()
@@ -124,19 +129,9 @@ class StanceCheck:
 
 
 def posture_api():
-    """``(solve, verify)`` of :mod:`stances`.
-
-    Taken from the package's public names, or from the modules defining them
-    while the package does not re-export them yet.
-    """
-    import stances
-
-    solve = getattr(stances, "solve", None)
-    verify = getattr(stances, "verify", None)
-    if solve is None or verify is None or not callable(verify):
-        from stances.sqp import solve
-        from stances.verify import verify
-    return solve, verify
+    """``(solve, verify)`` of :mod:`stances`: the oracle's solver and its independent
+    check, looked up at call time (tests put a failing solver in their place)."""
+    return stances.solve, stances.verify
 
 
 class PostureOracle:
@@ -198,9 +193,6 @@ class PostureOracle:
         """The prefilter's :class:`~cbm.prefilter.Rejection` of ``stance``, None to solve it."""
         if not self.prefilter:
             return None
-        from environments.errors import SceneError
-        from stances.errors import StanceError
-
         if self._filter is None:
             self._filter = Prefilter(self.robot, self.scene, self.solver_options)
         try:
@@ -224,10 +216,6 @@ class PostureOracle:
             options["time_budget"] = min(left, options.get("time_budget") or np.inf)
         self.solves += 1
         logger.debug("solving %s", stance.to_dict())
-        from environments.errors import SceneError
-        from fem.errors import FemError
-        from stances.errors import StanceError
-
         try:
             result = solve(self.robot, self.scene, stance, q_init=q_init, **options)
         except (StanceError, SceneError, FemError) as error:
@@ -305,8 +293,6 @@ def check_robot_surfaces(scenario, robot, goal=None):
     CbmError
         For ``goal``: naming the surface and the robot's surfaces.
     """
-    import environments
-
     if isinstance(scenario, environments.Scenario):
         scenario.check_robot_surfaces(robot.surfaces, f"robot {robot.name!r}")
     if goal is not None:
@@ -428,8 +414,6 @@ def plan(
     if start is None:
         raise CbmError(f"scenario {scenario.name!r} has no start stance; pass start=")
     if robot is None:
-        import stances
-
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)
     reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
@@ -462,8 +446,6 @@ def plan(
     bar = None
     on_expand = None
     if progress:
-        from tqdm import tqdm
-
         bar = tqdm(total=max_expansions, desc=f"planning {scenario.name}", unit="stance", leave=False)
 
         def on_expand(statistics):
@@ -562,8 +544,6 @@ def initial_configuration(robot, scene, stance):
         the stance: all its feet over all its prints) and turned to their mean
         heading about world z.
     """
-    import pinocchio as pin
-
     q = np.array(robot.reference_configuration, dtype=float)
     model = robot.model
     data = model.createData()
