@@ -39,6 +39,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
+from .dense import spd_inverse
 from .errors import FemError
 
 __all__ = [
@@ -308,12 +309,7 @@ class PrintContactSystem:
         if not np.any(modes == SLIP) or rows.size > _LOW_RANK_ROWS * matrix.shape[0]:
             return _DenseFactor(matrix)
         if self._inverse is None:
-            upper, info = scipy.linalg.lapack.dpotrf(self.c_local, lower=0)
-            if info == 0:
-                upper, info = scipy.linalg.lapack.dpotri(upper, lower=0)
-            if info != 0:
-                raise FemError(f"the print's compliance is not positive definite (LAPACK info {info})")
-            self._inverse = np.triu(upper) + np.triu(upper, 1).T
+            self._inverse = spd_inverse(self.c_local, "the print's compliance")
         factor = _LowRankFactor(matrix, self._inverse, rows, matrix[rows] - self.c_local[rows])
         # Woodbury is exact in exact arithmetic; a badly conditioned update
         # (not seen) would show here, and the dense factorisation then serves.

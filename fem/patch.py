@@ -7,6 +7,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from .dense import single_threaded_blas
 from .errors import FemError, PrintError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -182,13 +183,16 @@ class ContactPatch:
         complement of K_FF. Symmetric positive definite. ``S_P @ U_P`` are the forces
         the robot applies to the body to impose U_P.
         """
-        # numpy's LAPACK, not scipy.linalg: scipy's bundled multithreaded OpenBLAS was
-        # measured 100x slower on these small matrices on a busy 2-core machine.
-        try:
-            np.linalg.cholesky(self.compliance)
-        except np.linalg.LinAlgError as exc:
-            raise PrintError("the print compliance is not positive definite") from exc
-        s = np.linalg.inv(self.compliance)
+        # A Cholesky check, then numpy's general inverse, on one BLAS thread. LAPACK's
+        # potri (spd_inverse) takes a third of the work but rounds otherwise, and
+        # those last bits sent a stiff support's Coulomb solve (step-on-cube at
+        # E = 1e10) to a posture with the soft sole unloaded; measured, not understood.
+        with single_threaded_blas():
+            try:
+                np.linalg.cholesky(self.compliance)
+            except np.linalg.LinAlgError as exc:
+                raise PrintError("the print compliance is not positive definite") from exc
+            s = np.linalg.inv(self.compliance)
         s = 0.5 * (s + s.T)
         s.setflags(write=False)
         return s

@@ -13,6 +13,8 @@ import numpy as np
 import pytest
 
 import fem
+from fem.dense import spd_inverse
+from fem.errors import PrintError
 
 MU = 0.5
 
@@ -288,3 +290,15 @@ def test_a_slipping_print_is_solved_through_the_low_rank_path_with_the_same_answ
     assert 0 < state.n_slip and 2 * state.n_slip + 3 * state.n_lift <= 0.25 * 3 * patch.n_nodes
     assert system._inverse is not None
     _check_signorini_coulomb(body, patch, displacements, state, MU)
+
+
+def test_spd_inverse_matches_the_general_inverse_and_refuses_an_indefinite_matrix():
+    rng = np.random.default_rng(3)
+    a = rng.standard_normal((40, 40))
+    spd = a @ a.T + 40.0 * np.eye(40)
+    inverse = spd_inverse(spd, "a test matrix")
+    np.testing.assert_allclose(inverse, np.linalg.inv(spd), rtol=1e-12, atol=1e-15)
+    assert np.array_equal(inverse, inverse.T)
+    indefinite = spd - 80.0 * np.eye(40) * (np.arange(40) == 7)
+    with pytest.raises(PrintError, match=r"^a test matrix is not positive definite \(LAPACK info 8\)$"):
+        spd_inverse(indefinite, "a test matrix", PrintError)
