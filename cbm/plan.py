@@ -366,19 +366,16 @@ class Plan:
             scenario = self.scenario()
         if robot is None:
             robot = stances.Robot.load(self.robot.get("source") or scenario.robot)
-        verify = None
         problems = []
         for index, planned in enumerate(self.stances):
             result = planned.result
             if result is None or isinstance(result, dict):
                 problems.append(f"stance {index}: no solver result to verify")
                 continue
-            if verify is None:
-                verify = stances.verify
             # What the plan shows is what is checked.
             shown = replace(result, q=planned.q, point_forces=planned.point_forces)
             options = dict(getattr(result, "statistics", {}).get("options", {}))
-            verification = verify(robot, scenario.scene, planned.stance, shown, **options)
+            verification = stances.verify(robot, scenario.scene, planned.stance, shown, **options)
             if not verification.ok:
                 problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):

@@ -34,7 +34,7 @@ def single_threaded_blas():
         yield
 
 
-def spd_inverse(matrix: np.ndarray, what: str, error: type[FemError] = FemError) -> np.ndarray:
+def spd_inverse(matrix: np.ndarray, what: str) -> np.ndarray:
     """Inverse of a symmetric positive definite matrix, through its Cholesky factor.
 
     LAPACK ``potrf`` then ``potri`` on one thread: a third of the work of a
@@ -46,8 +46,6 @@ def spd_inverse(matrix: np.ndarray, what: str, error: type[FemError] = FemError)
         Symmetric positive definite (its upper triangle is read).
     what : str
         What the matrix is, for the error message.
-    error : type
-        The :class:`~fem.errors.FemError` subclass raised when it is not.
 
     Returns
     -------
@@ -57,12 +55,12 @@ def spd_inverse(matrix: np.ndarray, what: str, error: type[FemError] = FemError)
     Raises
     ------
     FemError
-        (``error``) If ``matrix`` is not positive definite.
+        If ``matrix`` is not positive definite.
     """
     with single_threaded_blas():
         upper, info = scipy.linalg.lapack.dpotrf(matrix, lower=0)
         if info == 0:
             upper, info = scipy.linalg.lapack.dpotri(upper, lower=0)
     if info != 0:
-        raise error(f"{what} is not positive definite (LAPACK info {info})")
+        raise FemError(f"{what} is not positive definite (LAPACK info {info})")
     return np.triu(upper) + np.triu(upper, 1).T

@@ -45,7 +45,7 @@ attached to its link.
 from __future__ import annotations
 
 import weakref
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -158,9 +158,6 @@ def _robot_geometry(robot) -> _RobotGeometry:
         centers.append(center)
         radii.append(radius)
         shapes.append(shape)
-    self_pairs = np.array(
-        [(pair.first, pair.second) for pair in collision_model.collisionPairs], dtype=int
-    ).reshape(-1, 2)
     geometry = _RobotGeometry(
         names=tuple(names),
         joints=np.array(joints, dtype=int),
@@ -171,7 +168,7 @@ def _robot_geometry(robot) -> _RobotGeometry:
         box_center=np.array([0.5 * (low + high) for low, high in boxes]).reshape(-1, 3),
         box_half=np.array([0.5 * (high - low) for low, high in boxes]).reshape(-1, 3),
         shapes=tuple(shapes),
-        self_pairs=self_pairs,
+        self_pairs=_self_pairs(collision_model),
         support=_support_columns(robot.model),
     )
     _GEOMETRY_CACHE[robot] = geometry
@@ -205,7 +202,14 @@ def ignore_self_pairs(robot, pairs) -> None:
     names = [geometry.name for geometry in robot.collision_model.geometryObjects]
     for first, second in pairs:
         robot.collision_model.removeCollisionPair(pin.CollisionPair(names.index(first), names.index(second)))
-    _GEOMETRY_CACHE.pop(robot, None)  # its self pairs were read from the collision model
+    cached = _GEOMETRY_CACHE.get(robot)
+    if cached is not None:  # keep its hulls (tens of milliseconds), read its pairs again
+        _GEOMETRY_CACHE[robot] = replace(cached, self_pairs=_self_pairs(robot.collision_model))
+
+
+def _self_pairs(collision_model) -> np.ndarray:
+    """(p, 2) int: the geometry indices of the collision model's enabled pairs."""
+    return np.array([(pair.first, pair.second) for pair in collision_model.collisionPairs], dtype=int).reshape(-1, 2)
 
 
 def _support_columns(model) -> np.ndarray:

@@ -30,13 +30,14 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import pinocchio as pin
 
+from fem.dense import single_threaded_blas
+
 from .errors import StanceError
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
-from .threads import single_threaded_blas
 from .verify import verify_problem
 
 logger = logging.getLogger(__name__)

@@ -12,6 +12,7 @@ import environments
 import stances
 from environments.errors import ScenarioError
 from stances import Robot, RobotDescriptionError, RobotNotFound
+from stances.collision import _robot_geometry
 from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
 
 from cbm.cli import EXIT_BAD_INPUT, main
@@ -404,6 +405,8 @@ def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_
     names = [g.name for g in robot.collision_model.geometryObjects]
     checked = {frozenset((names[p.first], names[p.second])) for p in robot.collision_model.collisionPairs}
     assert not overlap & checked and len(checked) > 100
+    # The checker's cached geometry (hulls kept from the load) reads the pairs left.
+    assert len(_robot_geometry(robot).self_pairs) == len(robot.collision_model.collisionPairs)
     assert "4 self-collision pairs whose convex hulls already touch at the reference posture" in caplog.text
     assert "base_link_0-FL_UPPER_LEG_0" in caplog.text
 
