@@ -31,8 +31,8 @@ from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
-from .sampling import default_print_spacing, obstacle_boxes, options_from_scenario, sample_prints, with_prints
-from .search import SearchInterrupted, SearchLimits, best_first_search
+from .sampling import default_headings, default_print_spacing, obstacle_boxes, options_from_scenario, sample_prints, with_prints
+from .search import DEFAULT_MAX_EXPANSIONS, DEFAULT_TIME_LIMIT, SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 from .terrain import TerrainCost, terrain_weight as _terrain_weight
 
@@ -55,15 +55,6 @@ logger = logging.getLogger(__name__)
 #: Path cost per move, metres of goal distance: small, so the search stays
 #: greedy towards the goal but prefers fewer moves among equally close stances.
 DEFAULT_PATH_COST = 0.02
-
-#: Stances expanded at most, for :func:`plan` and ``cbm plan`` alike.
-DEFAULT_MAX_EXPANSIONS = 200
-
-#: Seconds of search at most, for :func:`plan` and ``cbm plan`` alike: enough for
-#: the default expansions on the built-in scenarios (cross-two-mats spends its
-#: 200 expansions in about 140 s on 2 cores).
-DEFAULT_TIME_LIMIT = 300.0
-
 
 def load_scenario(scenario):
     """A scenario from a name, a path, or a Scenario (returned as is).
@@ -352,7 +343,10 @@ def plan(
         Default: ``stances.Robot.load(scenario.robot)``.
     print_spacing : float, optional
         Print grid step, metres; default the scenario's ``print_spacing``
-        option, else 0.1 m.
+        option, else a quarter of the robot's step, at most 0.1 m. The print
+        headings are the scenario's ``theta_values_deg``, else the start's and
+        the goal's foot headings and enough between them for the feet to turn
+        (:func:`cbm.sampling.default_headings`).
     max_expansions, max_solver_calls : int or None
         Search budgets (None: unlimited).
     time_limit : float or None
@@ -417,8 +411,12 @@ def plan(
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)
     reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
+    feet = reach_model.supports(robot.surfaces)
+    headings = default_headings(
+        tuple(start) + tuple(goal.contacts), scene.surfaces, feet, reach_model.limits.max_foot_yaw_difference
+    )
     sampling = options_from_scenario(
-        getattr(scenario, "options", None), print_spacing, default_print_spacing(reach_model.step_length)
+        getattr(scenario, "options", None), print_spacing, default_print_spacing(reach_model.step_length), headings
     )
     usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
     print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
@@ -432,7 +430,6 @@ def plan(
         len(sampling.theta_values),
     )
     neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts)
-    feet = reach_model.supports(robot.surfaces)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None
     if check_workers(workers) > 1 and oracle is not None:

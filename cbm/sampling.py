@@ -17,6 +17,7 @@ from typing import Mapping
 
 import numpy as np
 
+from environments.geometry import wrap_angle
 from environments.stance import ContactPrint
 
 from .errors import CbmError
@@ -407,7 +408,103 @@ def default_print_spacing(step_length: float) -> float:
     return min(SamplingOptions.spacing, float(step_length) / _STEPS_PER_STRIDE)
 
 
-def options_from_scenario(scenario_options: Mapping | None, spacing=None, default_spacing=None):
+#: Headings closer than this (radians) are one heading.
+_SAME_HEADING = 1e-9
+
+
+def _yaw(axis) -> float | None:
+    """Angle of a world vector's horizontal projection about world z, radians; None if vertical."""
+    if math.hypot(axis[0], axis[1]) < 1e-6:
+        return None
+    return math.atan2(axis[1], axis[0])
+
+
+def _distinct(angles):
+    """Sorted angles, each kept once (angles closer than :data:`_SAME_HEADING` are one)."""
+    kept = []
+    for angle in sorted(angles):
+        if not kept or angle - kept[-1] >= _SAME_HEADING:
+            kept.append(angle)
+    return kept
+
+
+def _arc(yaws, max_step):
+    """Yaws on the shortest arc through all of ``yaws``, consecutive ones at most ``max_step`` apart.
+
+    The arc leaves out the largest gap between neighbouring yaws around the circle,
+    so a turn from 170 to -170 degrees goes through 180, not through 0.
+    """
+    ordered = _distinct(wrap_angle(y) for y in yaws)
+    gaps = [(ordered[(i + 1) % len(ordered)] - y) % (2.0 * math.pi) for i, y in enumerate(ordered)]
+    first = (int(np.argmax(gaps)) + 1) % len(ordered)  # the arc starts after its largest gap
+    unwrapped = [ordered[first]]
+    for k in range(1, len(ordered)):
+        unwrapped.append(unwrapped[0] + (ordered[(first + k) % len(ordered)] - ordered[first]) % (2.0 * math.pi))
+    filled = [unwrapped[0]]
+    for a, b in zip(unwrapped, unwrapped[1:]):
+        steps = max(1, math.ceil((b - a) / max_step - 1e-9))
+        filled.extend(a + (b - a) * k / steps for k in range(1, steps + 1))
+    return filled
+
+
+def default_headings(contacts, surfaces, feet, max_step, options=SamplingOptions()):
+    """Print headings to sample when neither the user nor the scenario lists any, radians.
+
+    The feet must turn from the start's headings to the goal's, and two feet differ
+    by at most ``max_step`` in heading (:attr:`cbm.reach.ReachLimits.max_foot_yaw_difference`),
+    so the headings sampled are the world headings of the start's and the goal's
+    foot prints and, between them, enough evenly spaced ones that consecutive
+    headings are at most ``max_step`` apart (start at 0 and goal at 90 degrees with
+    a 45 degree bound: 0, 45, 90). A plan whose feet keep one heading samples that
+    heading only, as a single heading of 0 did before. Each heading is given in
+    the frame of every surface a foot may stand on (a surface's ``theta`` is about
+    its own x axis), so a yawed box gets the same world headings as the floor.
+
+    Parameters
+    ----------
+    contacts : iterable of environments Contact
+        The start's and the goal's contacts.
+    surfaces : mapping of str to environments ContactSurface
+        The scene's surfaces.
+    feet : collection of str
+        Robot surfaces that are feet (only their headings are followed).
+    max_step : float
+        Radians, > 0.
+    options : SamplingOptions
+        Its ``max_sole_tilt`` says which surfaces take feet.
+
+    Returns
+    -------
+    tuple of float
+        Sorted headings in (-pi, pi], radians, surface frames; ``(0.0,)`` when no
+        foot print has a heading (no feet among the contacts).
+    """
+    if not (math.isfinite(max_step) and max_step > 0):
+        raise CbmError(f"the largest heading step must be a positive angle in radians, got {max_step!r}")
+    yaws = []
+    for contact in contacts:
+        if contact.robot_surface not in feet:
+            continue
+        p = contact.contact_print
+        yaw = _yaw(np.asarray(surfaces[p.surface].transform_print_to_world(p.x, p.y, p.theta))[:3, 0])
+        if yaw is not None:
+            yaws.append(yaw)
+    if not yaws:
+        return (0.0,)
+    headings = _arc(yaws, max_step)
+    thetas = []
+    for surface in surfaces.values():
+        if not _faces_feet(surface, options):
+            continue
+        own = _yaw(np.asarray(surface.transform_surface_to_world, dtype=float)[:3, 0]) or 0.0
+        for heading in headings:
+            theta = wrap_angle(heading - own)
+            theta = math.pi if theta <= _SAME_HEADING - math.pi else theta  # ContactPrint's range, (-pi, pi]
+            thetas.append(0.0 if abs(theta) < _SAME_HEADING else theta)
+    return tuple(_distinct(thetas)) or (0.0,)
+
+
+def options_from_scenario(scenario_options: Mapping | None, spacing=None, default_spacing=None, default_thetas=None):
     """Sampling options from a scenario's ``options`` and a user override.
 
     Parameters
@@ -422,6 +519,10 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None, defaul
     default_spacing : float, optional
         Metres, when neither the user nor the scenario gives one (e.g.
         :func:`default_print_spacing` of the robot's step); else
+        :class:`SamplingOptions`' own default.
+    default_thetas : tuple of float, optional
+        Radians, when the scenario lists no ``theta_values_deg`` (e.g.
+        :func:`default_headings` of the start and goal); else
         :class:`SamplingOptions`' own default.
 
     Returns
@@ -448,6 +549,8 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None, defaul
         kwargs["spacing"] = float(default_spacing)
     if "theta_values_deg" in scenario_options:
         kwargs["theta_values"] = tuple(math.radians(t) for t in scenario_options["theta_values_deg"])
+    elif default_thetas is not None:
+        kwargs["theta_values"] = tuple(default_thetas)
     region = scenario_options.get("sampling_region")
     if region is not None:
         kwargs["region_lower"] = tuple(region["lower"])
@@ -462,6 +565,7 @@ __all__ += [
     "contacts_in_world",
     "options_from_scenario",
     "default_print_spacing",
+    "default_headings",
     "obstacle_boxes",
     "count_candidate_prints",
     "check_print_budget",

@@ -39,6 +39,8 @@ __all__ = [
     "SearchInterrupted",
     "NO_FEASIBLE_NEIGHBOUR",
     "INTERRUPTED",
+    "DEFAULT_MAX_EXPANSIONS",
+    "DEFAULT_TIME_LIMIT",
 ]
 
 logger = logging.getLogger(__name__)
@@ -68,6 +70,15 @@ class SearchInterrupted(KeyboardInterrupt):
         self.result = result
 
 
+#: Stances expanded at most, for :class:`SearchLimits`, :func:`cbm.plan` and ``cbm plan`` alike.
+DEFAULT_MAX_EXPANSIONS = 200
+
+#: Seconds of search at most, for :class:`SearchLimits`, :func:`cbm.plan` and
+#: ``cbm plan`` alike: enough for the default expansions on the built-in scenarios
+#: (cross-two-mats spends its 200 expansions in about 140 s on 2 cores).
+DEFAULT_TIME_LIMIT = 300.0
+
+
 @dataclass(frozen=True)
 class SearchLimits:
     """Budgets of one search; ``None`` means unlimited.
@@ -84,9 +95,9 @@ class SearchLimits:
         each posture solve the time left).
     """
 
-    max_expansions: int | None = 200
-    max_solver_calls: int | None = 2000
-    time_limit: float | None = 120.0
+    max_expansions: int | None = DEFAULT_MAX_EXPANSIONS
+    max_solver_calls: int | None = None
+    time_limit: float | None = DEFAULT_TIME_LIMIT
 
     def __post_init__(self):
         for name in ("max_expansions", "max_solver_calls"):

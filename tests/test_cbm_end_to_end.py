@@ -1,6 +1,7 @@
 """End to end with the real posture solver: planning the built-in multi-step scenarios, the CLI."""
 
 import json
+import math
 import os
 import shutil
 import subprocess
@@ -157,4 +158,16 @@ def test_hand_on_table_plans_with_defaults():
     result = plan(scenario)
     assert result.success, result.reason
     assert [s.stance for s in result.stances] == [scenario.stance("stand"), scenario.stance("hand-on-table")]
+    assert result.check(scenario).ok
+
+
+def test_a_quarter_turn_plans_with_default_headings():
+    """bench/scenes/turn.yaml lists no headings: the planner samples the start's (0),
+    the goal's (90 degrees) and 45 between them, and the feet turn on the soft mat."""
+    scenario = environments.load(Path(__file__).parents[1] / "bench" / "scenes" / "turn.yaml")
+    assert "theta_values_deg" not in scenario.options
+    result = plan(scenario, time_limit=120)
+    assert result.success, result.reason
+    headings = {round(math.degrees(c.contact_print.theta)) for s in result.stances for c in s.stance}
+    assert headings == {0, 45, 90}
     assert result.check(scenario).ok

@@ -12,6 +12,7 @@ from environments.surfaces import ContactSurface, rectangle
 from conftest import ARM_REACH, LEG, hand_made_biped
 from stances.robot import RobotSurface
 
+from cbm.errors import CbmError
 from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints, with_prints
 from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
 
@@ -246,3 +247,48 @@ def test_goal_foot_prints_get_no_reach_exemption(surfaces):
     neighbours = StanceNeighbours(sets, surfaces, REACH, required=[far_sole])
     moves = neighbours(feet_together().without("right_sole"))
     assert far_sole.contact_print not in {m.contact_print for _, m in moves if m.robot_surface == "right_sole"}
+
+
+def _feet(*thetas_deg, surface="floor"):
+    return tuple(
+        Contact(name, ContactPrint(surface, 0.0, y, math.radians(t)))
+        for name, y, t in zip(("left_sole", "right_sole"), (0.1, -0.1), thetas_deg)
+    )
+
+
+def test_default_headings_follow_the_feet_from_start_to_goal():
+    from cbm.sampling import default_headings
+
+    floor = {"floor": ContactSurface("floor", "floor", rectangle(2.0, 1.2), np.eye(4))}
+    feet = ("left_sole", "right_sole")
+    step = math.radians(45.0)
+    # No turn: the one heading of the feet, exactly 0 (the planner's old default).
+    assert default_headings(_feet(0, 0) + _feet(0, 0), floor, feet, step) == (0.0,)
+    # A quarter turn with 45 degree steps: 0, 45, 90 (the goal's own theta exactly).
+    assert default_headings(_feet(0, 0) + _feet(90, 90), floor, feet, step) == (0.0, math.pi / 4, math.pi / 2)
+    # Steps are even and never larger than the bound: 0 to 100 degrees in three.
+    got = default_headings(_feet(0, 0) + _feet(100, 100), floor, feet, step)
+    assert np.degrees(got) == pytest.approx([0.0, 100 / 3, 200 / 3, 100.0])
+    # Across +-180 degrees the short way: 170 -> 180 -> -170, not through 0.
+    got = default_headings(_feet(170, 170) + _feet(-170, -170), floor, feet, math.radians(15.0))
+    assert np.degrees(got) == pytest.approx([-170.0, 170.0, 180.0])
+    # Only feet count: a palm's heading adds nothing.
+    palm = (Contact("left_palm", ContactPrint("floor", 0.5, 0.0, 1.0)),)
+    assert default_headings(_feet(0, 0) + palm, floor, feet, step) == (0.0,)
+    assert default_headings(palm, floor, feet, step) == (0.0,)
+    with pytest.raises(CbmError, match="largest heading step must be a positive angle"):
+        default_headings(_feet(0, 0), floor, feet, 0.0)
+
+
+def test_default_headings_are_world_headings_on_a_yawed_surface(surfaces):
+    """On a box turned by 0.3 rad the same world headings read 0.3 rad less; a wall takes no feet."""
+    from cbm.sampling import default_headings
+
+    got = default_headings(_feet(0, 0) + _feet(90, 90), surfaces, ("left_sole", "right_sole"), math.radians(45.0))
+    expected = sorted({*(math.radians(t) for t in (0, 45, 90)), *(math.radians(t) - 0.3 for t in (0, 45, 90))})
+    assert got == pytest.approx(expected)
+    # Sampled on the box with those thetas, the prints' x axes point along the world headings.
+    options = SamplingOptions(spacing=0.1, theta_values=got)
+    sets = sample_prints({"block_top": surfaces["block_top"]}, {"left_sole": ROBOT["left_sole"]}, options)
+    yaws = {round(math.degrees(math.atan2(a[1], a[0])), 6) for a in sets["left_sole"].x_axes_in_world}
+    assert {0.0, 45.0, 90.0} <= yaws

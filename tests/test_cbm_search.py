@@ -473,3 +473,21 @@ def test_lazy_node_costs_expand_as_a_search_that_knew_them_from_the_start(seed):
 def test_a_node_cost_that_is_not_a_finite_non_negative_number_is_refused(value):
     with pytest.raises(CbmError, match=re.escape(f"node_cost must return a finite value >= 0, got {value!r} for node 'a'")):
         search_with_node_costs(diamond(), "s", "goal", {"a": value}, path_cost_weight=1.0)
+
+
+def test_the_search_has_the_planners_defaults():
+    """One set of defaults: the search's own budgets and seed are those `cbm.plan` and
+    `cbm plan` use, the values the README quotes (200 expansions, 300 s, seed 0)."""
+    import inspect
+
+    from cbm.planner import plan
+
+    limits = SearchLimits()
+    assert (limits.max_expansions, limits.max_solver_calls, limits.time_limit) == (200, None, 300.0)
+    planner = inspect.signature(plan).parameters
+    assert (planner["max_expansions"].default, planner["max_solver_calls"].default, planner["time_limit"].default) == (
+        limits.max_expansions,
+        limits.max_solver_calls,
+        limits.time_limit,
+    )
+    assert inspect.signature(best_first_search).parameters["seed"].default == planner["seed"].default == 0

@@ -181,3 +181,19 @@ def test_a_soft_stance_is_the_same_without_cache_cold_and_warm(tmp_path):
     assert uncached[0] == "True"
     assert uncached == cold == warm
     assert (uncached_factorised, cold_factorised, warm_factorised) == ("True", "True", "False")
+
+
+@pytest.mark.parametrize("index", [-1, "n"], ids=["negative", "past-the-end"])
+def test_a_stiffness_entry_with_column_indices_out_of_range_is_rebuilt(mesh, cache, index):
+    """A well-formed entry under the right key whose sparse indices point outside the
+    matrix (a foreign or tampered file) is not read: K is assembled again."""
+    expected = make_body(mesh, False).stiffness
+    body = make_body(mesh, cache)
+    k = body.stiffness
+    indices = k.indices.copy()
+    indices[len(indices) // 2] = mesh.n_dofs if index == "n" else index
+    cache.store(body.cache_key, "stiffness", {"data": k.data, "indices": indices, "indptr": k.indptr})
+    assert cache.load(body.cache_key, "stiffness") is not None  # the entry itself passes the cache's checks
+    rebuilt = make_body(mesh, cache).stiffness
+    assert rebuilt.shape == expected.shape and (rebuilt != expected).nnz == 0
+    assert np.array_equal(rebuilt.indices, expected.indices)
