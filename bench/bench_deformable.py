@@ -18,9 +18,10 @@ Each answer is verified
 (``result.feasible`` includes :func:`stances.verify`, which loads the full FEM model with
 the reported forces and checks Signorini and Coulomb at every node).
 
-Table 2, the stiffness sweep: ``step-on-cube`` with the cube's Young modulus from 1e4 to
-1e11 Pa, against the rigid support: the soft sole's force and the posture's distance to
-the rigid answer.
+Tables 2 and 3, the stiffness sweeps: ``step-on-cube`` and ``hand-on-cube`` with the
+cube's Young modulus from 1e4 to 1e11 Pa, against the rigid support: the force of the link
+on the soft cube and the posture's distance to the rigid answer. ``--sweeps`` runs these
+alone and writes ``bench/results/stiffness.md``.
 """
 
 from __future__ import annotations
@@ -161,20 +162,24 @@ def _mode_counts(robot, scenario, stance, result):
     return " / ".join(str(c) for c in counts)
 
 
-def stiffness_table(robot):
-    text = environments.builtin_scenario_path("step-on-cube").read_text()
-    base = environments.load_string(text, name="step-on-cube")
-    stance = base.stance("step-on-cube")
+#: Stiffness sweeps: (scenario, stance, what touches the soft cube), its E = 1e6 Pa set to each of STIFFNESS.
+SWEEPS = (("step-on-cube", "step-on-cube", "sole"), ("hand-on-cube", "hand-on-cube", "palm"))
+
+
+def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft_link="sole"):
+    text = environments.builtin_scenario_path(name).read_text()
+    base = environments.load_string(text, name=name)
+    stance = base.stance(stance_name)
     _, rigid = timed_solve(robot, base.scene, stance, deformable_as_rigid=True)
     runs = []
     for young_modulus in STIFFNESS:
-        scenario = environments.load_string(text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}"), name="step-on-cube")
+        scenario = environments.load_string(text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}"), name=name)
         timed_solve(robot, scenario.scene, stance)  # setup
         seconds, result = timed_solve(robot, scenario.scene, stance)
         runs.append((young_modulus, seconds, result, soft_forces(robot, result, scenario.scene)))
-        print(f"E = {young_modulus:.0e}: {result.feasible}, {seconds:.2f} s", flush=True)
+        print(f"{name} E = {young_modulus:.0e}: {result.feasible}, {seconds:.2f} s", flush=True)
     stiffest = runs[-1][3]
-    rows = ["| E (Pa) | feasible | CPU s | iterations (+ warm starts) | soft sole force (N) | change to E = 1e11 | "
+    rows = [f"| E (Pa) | feasible | CPU s | iterations (+ warm starts) | soft {soft_link} force (N) | change to E = 1e11 | "
             "posture vs rigid support (max abs q) | largest strain |",
             "|---|---|---|---|---|---|---|---|"]
     rows.append(f"| rigid support | {rigid.feasible} | - | {rigid.iterations} | "
@@ -202,12 +207,15 @@ def main():
         "",
     ]
     print("\n".join(header), flush=True)
-    rows = stance_table(robot)
-    sweep_header = ["", "## Stiffness sweep (step-on-cube: left sole on a rigid block, right sole on the cube)", ""]
-    print("\n".join(sweep_header), flush=True)
-    sweep = stiffness_table(robot)
-    text = "\n".join(header + rows + sweep_header + sweep) + "\n"
-    path = os.path.join(os.path.dirname(__file__), "results", "deformable.md")
+    sweeps_only = "--sweeps" in sys.argv[1:]
+    rows = [] if sweeps_only else stance_table(robot)
+    sweeps = []
+    for name, stance_name, soft_link in SWEEPS:
+        sweep_header = ["", f"## Stiffness sweep ({name}: the {soft_link} on the soft cube)", ""]
+        print("\n".join(sweep_header), flush=True)
+        sweeps += sweep_header + stiffness_table(robot, name, stance_name, soft_link)
+    text = "\n".join(header + rows + sweeps) + "\n"
+    path = os.path.join(os.path.dirname(__file__), "results", "stiffness.md" if sweeps_only else "deformable.md")
     with open(path, "w") as handle:
         handle.write(text)
 

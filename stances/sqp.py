@@ -726,12 +726,14 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
 
     problem = build(options)
     warm_iterations = 0
+    rigid_posture = None
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
         q_init, warm_iterations = warm.q, warm.iterations
+        rigid_posture = warm.q
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
@@ -749,6 +751,20 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
         result = _solve_coulomb(problem, q_init, deadline)
+        if not result.feasible and rigid_posture is not None and result.statistics["status"] != _OUT_OF_TIME:
+            # The bonded posture can be a poor start on a stiff body: bonded nodes
+            # cannot lift, so a palm that rests on its edge under Coulomb contact is
+            # held flat there, with another load split (hand-on-cube at E = 1e10 Pa:
+            # 208 N on the palm bonded, 93 N under Coulomb), and at nanometre
+            # displacements the SQP cannot walk from one to the other (it stopped
+            # with no progress at 1e10 and 1e11 Pa). From the rigid posture, a stiff
+            # body presses back within nanometres: the same stance then converges
+            # (hand-on-cube: 14 and 25 iterations). On soft bodies the bonded start
+            # is the one that works (two soles on mats: from the rigid posture the
+            # equilibrium rows stall), so it stays first and this is the fallback.
+            retry = _solve_coulomb(problem, rigid_posture, deadline)
+            iterations = result.iterations + retry.iterations
+            result = _with(retry if retry.feasible else result, iterations=iterations)
     else:
         result = solve_problem(problem, q_init, deadline=deadline)
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))

@@ -169,6 +169,22 @@ def test_stiffer_cube_tends_to_the_rigid_contact(robot):
     assert np.allclose(rigid_total, stiff_total, atol=1e-4)
 
 
+def test_a_palm_on_a_stiff_cube_is_held_under_coulomb_contact(robot):
+    """hand-on-cube from steel to ten times steel: the Coulomb solve converges and verifies
+    (Signorini-Coulomb at every node on the full FEM model), the palm keeps its share of
+    the load, and that share has settled. At 1e11 Pa the solve from the bonded posture
+    stopped with no progress (the bonded palm is held flat with another load split); the
+    fallback from the rigid posture holds it."""
+    palms = []
+    for young_modulus in (1e10, 1e11):
+        scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
+        result = solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
+        assert result.feasible, (young_modulus, result.reason)
+        palms.append(sum(p.force for p in result.point_forces if p.frame == robot.surface("right_palm").frame))
+    assert palms[0][2] > 50.0 and palms[1][2] > 50.0  # the palm helps hold the robot, as on a rigid cube
+    assert np.linalg.norm(palms[1] - palms[0]) < 0.05 * np.linalg.norm(palms[0]), palms
+
+
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
     scenario = environments.load("stand")
     stance = Stance(
