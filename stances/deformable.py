@@ -22,20 +22,31 @@ for ``consistent``; eq. 44 for ``traction``).
 Compliance form. Written as ``f = R U(q)`` the contact is hopelessly
 ill-conditioned for stiff bodies (R grows like E: a nanometre of posture moves
 the forces by newtons). Each link's print instead gets a 6-vector variable
-``W_l``, the generalised force ``G_l^T R_c U`` of its nodes (G: the nodes' rigid
-motion basis about the print origin, body frame; ``R_c = -S_P`` the consistent
+``W_l``, its generalised force ``G_l^T R_c G_l xi_l`` (G: the nodes' rigid motion
+basis about the print origin, body frame; ``R_c = -S_P`` the consistent
 reaction), and with ``A = G^T R_c G`` (symmetric negative definite),
 ``D = R G A^-1``:
 
-    placement (6 rows per link):   A^-1 G^T R_c U(q) - A^-1 W = 0
-    node forces:                   f(q, W) = D W + (R - D G^T R_c) U(q)
+    placement (6 rows per link):   xi(q) - A^-1 W = 0
+    node forces:                   f(W) = R (G A^-1 W + r(A^-1 W)) = D W + R r(A^-1 W)
 
-Where the placement rows hold, ``f = R U(q)`` exactly (the bonded FEM answer).
-``D`` and ``A^-1 G^T R_c`` do not depend on E, ``R - D G^T R_c`` annihilates rigid
-motions of the prints, so every row stays well scaled for any stiffness, and
-as ``E -> inf`` (``A^-1 -> 0``) the placement rows become the rigid contact's.
-This is the compliance-based contact of Duriez, Dubois and Kheddar, reduced to
-the six rigid modes of each link.
+``xi(q) = (t, theta)`` is the link's motion from its nominal placement (the
+print origin's translation and the rotation vector of the turn, body frame), and
+``r(theta)_n = (exp(theta) - I - [theta]x) x_n`` is what a finite turn moves the
+points beyond the linear ``theta x x_n`` that G holds: the link points move
+exactly by ``U(q) = G xi(q) + r(theta(q))``. Where the placement rows hold,
+``f = R U(q)``, the bonded FEM answer, exactly. The forces are functions of W
+alone: D does not depend on E and r is second order in the turn ``A^-1 W``,
+which vanishes with the compliance, so every row stays well scaled for any
+stiffness, and as ``E -> inf`` (``A^-1 -> 0``) the placement rows become the
+rigid contact's. This is the compliance-based contact of Duriez, Dubois and
+Kheddar, reduced to the six rigid modes of each link. (Until 2026-11-26 the
+forces were ``D W + (R - D G^T R_c) U(q)``, equal where the rows hold; but at an
+iterate that had not met them, the second term carried r of the link's actual
+turn: tens of nanometres of bending for a palm still turned by 1e-3 rad, more
+than a steel-stiff body gives, and Coulomb solves on stiff bodies failed or
+depended on last bits.) The traction model (eq. 44, turned normals) keeps its
+posture-dependent reaction: ``f = R(q) U(q) + D (W - A xi(q))``.
 
 How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
 
@@ -44,8 +55,8 @@ How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
   circular cone's bound exactly against its slip, or lifts off, solved on the
   condensed compliance; the forces are positively homogeneous in U, ``f = L U``,
   with L their exact Jacobian for fixed modes). It is evaluated at
-  ``U~ = U + G A^-1 (W - G^T R_c U)``, for which ``L U~`` is the formula above, so
-  the forces stay continuous when nodes change mode. Each print must press (its
+  ``U~ = G A^-1 W + r(A^-1 W)``, the motion the link points have where the rows
+  hold, so the forces stay continuous in W when nodes change mode. Each print must press (its
   mean height not above the rest surface) and keep its resultant inside
   ``friction_margin`` of its pyramid.
 - ``"sticking"``: bonded nodes, each pushing and inside its own friction pyramid.
@@ -298,6 +309,11 @@ class DeformableContact:
             basis[rows, :, 6 * i + 3 : 6 * i + 6] = -_skew_rows(rest[rows] - origin)
             print_rotations_in_body.append(self.rotation_body.T @ placement.rotation)
         self.basis = basis.reshape(3 * p, -1)
+        # Each node about its print's origin, body frame: the levers of G's rotations.
+        origins = np.array([(pl.translation - body_placement.translation) @ body_placement.rotation
+                            for pl in self.print_placements]).reshape(-1, 3)
+        self.levers = rest - origins[self.print_of_node]
+        self.point_prints = np.array([i for i, _ in point_rests], dtype=np.int64)
         # The rigid modes are split off with the consistent stiffness (always
         # symmetric positive definite); the traction model reuses that split.
         self.reaction = np.asarray(self.patch.reaction_matrix(self.method))  # rest normals
@@ -309,18 +325,16 @@ class DeformableContact:
                 f"refine the mesh of {deformable_object.name!r} under the prints"
             )
         a_inverse = np.linalg.inv(a)
+        self.a = a
         self.a_inverse = a_inverse
         self.rigid_motion = self.basis @ a_inverse  # (3p, 6L): W -> rigid motion of the nodes
         self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
-        self.generalised = self.basis.T @ self.consistent  # (6L, 3p): U -> W at the placement
-        # R0 - D G^T R_c: the forces of the prints' non-rigid motion (zero on rigid motions).
-        self.nonrigid = self.reaction - self.distribution @ self.generalised
         # Rows of the placement residual in each print's own axes (x, y, normal).
         to_print = np.zeros((6 * n_prints, 6 * n_prints))
         for i, rotation in enumerate(print_rotations_in_body):
             to_print[6 * i : 6 * i + 3, 6 * i : 6 * i + 3] = rotation.T
             to_print[6 * i + 3 : 6 * i + 6, 6 * i + 3 : 6 * i + 6] = rotation.T
-        self.fit = to_print @ a_inverse @ self.generalised  # (6L, 3p): U -> best-fit rigid motion
+        self.to_print = to_print
         self.compliance_rows = -to_print @ a_inverse  # d residual / d W
         # The force term weighs W as the rigid contact's weighs the least cone
         # coefficients that give it, so that as E -> inf the objective, and with it the
@@ -359,6 +373,62 @@ class DeformableContact:
     def _displacements(self, data) -> np.ndarray:
         """(p, 3) U imposed by the link points, metres, body frame (eq. 29)."""
         return (points_in_world(data, self.loads) - self.link_points_at_rest) @ self.rotation_body
+
+    def _motion(self, model, data, displacements, d_displacements=None):
+        """Each print's link motion from its nominal placement, xi = (translation, rotation
+        vector), body frame, about the print's origin (6L,), and d xi / dq (6L, nv).
+
+        The link's points move exactly by ``G xi + r(theta)`` (:meth:`_rotation_residue`).
+        A point foot's print translates with the ball's centre and does not turn
+        (theta = 0). ``d_displacements`` (3p, nv), when given, asks for the derivative.
+        """
+        n = len(self.prints)
+        xi = np.zeros(6 * n)
+        d_xi = None if d_displacements is None else np.zeros((6 * n, model.nv))
+        to_body = self.rotation_body.T
+        for i, (frame_id, placement) in enumerate(zip(self.frame_ids, self.print_placements)):
+            if i in self.point_prints:
+                node = int(np.flatnonzero(self.print_of_node == i)[0])
+                xi[6 * i : 6 * i + 3] = displacements[node]
+                if d_xi is not None:
+                    d_xi[6 * i : 6 * i + 3] = d_displacements[3 * node : 3 * node + 3]
+                continue
+            link = data.oMf[frame_id]
+            turn = link.rotation @ placement.rotation.T  # world
+            xi[6 * i : 6 * i + 3] = to_body @ (link.translation - placement.translation)
+            xi[6 * i + 3 : 6 * i + 6] = to_body @ pin.log3(turn)
+            if d_xi is not None:
+                jacobian = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)
+                d_xi[6 * i : 6 * i + 3] = to_body @ jacobian[:3]
+                # A world angular velocity w turns ``turn`` into exp(w) turn = turn exp(turn^T w).
+                d_xi[6 * i + 3 : 6 * i + 6] = to_body @ pin.Jlog3(turn) @ turn.T @ jacobian[3:]
+        return xi, d_xi
+
+    def _rotations_of(self, w) -> np.ndarray:
+        """(p, 3) the rotation vector that W stands for at each node's print, body frame
+        (zero on a point foot's print)."""
+        theta = (self.a_inverse @ w).reshape(-1, 6)[:, 3:].copy()
+        theta[self.point_prints] = 0.0
+        return theta[self.print_of_node]
+
+    def _rotation_residue(self, w) -> np.ndarray:
+        """(3p,) ``r = (exp(theta) - I - [theta]x) x``: what a finite turn theta of a link
+        moves its points beyond the linear ``theta x x`` that G holds, at the turn W
+        stands for (``A^-1 W``); second order in theta, so a vanishing term on a stiff
+        body, but millimetres of a palm's tilt on foam."""
+        theta, x = self._rotations_of(w), self.levers
+        turned = np.array([pin.exp3(t) @ lever for t, lever in zip(theta, x)]) if len(x) else np.zeros((0, 3))
+        return (turned - x - np.cross(theta, x)).reshape(-1)
+
+    def _rotation_residue_derivative(self, w) -> np.ndarray:
+        """(3p, 6L) d :meth:`_rotation_residue` / dW."""
+        theta, x = self._rotations_of(w), self.levers
+        rows = self.a_inverse.reshape(-1, 6, self.n_variables)[:, 3:, :].copy()  # (L, 3, 6L)
+        rows[self.point_prints] = 0.0
+        # d(exp(t) x) = -exp(t) [x]x Jr(t) dt (Jr: exp's right Jacobian); d(t x x) = -[x]x dt.
+        skews = _skew_rows(x)
+        d_theta = np.array([s - pin.exp3(t) @ s @ pin.Jexp3(t) for t, s in zip(theta, skews)]).reshape(-1, 3, 3)
+        return np.einsum("pij,pjk->pik", d_theta, rows[self.print_of_node]).reshape(3 * len(x), -1)
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
@@ -412,12 +482,15 @@ class DeformableContact:
         p = len(self.node_ids)
         displacements = self._displacements(data)
         u = displacements.reshape(-1)
-        # f = D W + R(q) U - D G^T R_c U, which is R(q) U where the placement rows hold.
+        # Where the placement rows hold (xi(q) = A^-1 W), the link points' motion is
+        # U = G A^-1 W + r(A^-1 W): the nodes are given that motion, a function of W
+        # alone, so the forces never see a posture that the rows have not yet met
+        # (on a stiff body, r of a link still turned by 1e-3 rad would be tens of
+        # nanometres of bending, far more than the nanometres the body gives).
+        imposed = self.rigid_motion @ w + self._rotation_residue(w)
         if self.law == "coulomb":
-            # Contact is solved at U corrected by the rigid motion that W stands
-            # for, U + G A^-1 (W - G^T R_c U): then f = L U~ = D W + (L - D G^T R_c) U
-            # exactly, and stays continuous in (q, W) when the nodes change modes.
-            corrected = (u + self.basis @ (self.a_inverse @ (w - self.generalised @ u))).reshape(-1, 3)
+            # Contact solved at that motion: f = L U~, continuous in W when nodes change modes.
+            corrected = imposed.reshape(-1, 3)
             if self._contact_system is None:
                 # It keeps the factorisation of each contact set it meets: the
                 # SQP holds a set or comes back to it at most linearisations.
@@ -431,12 +504,13 @@ class DeformableContact:
             forces_body = solved.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U
         else:
             if self.method == "traction":
+                # Eq. (44) at the link points' own motion, turned normals included, with
+                # the rows' residual carried by D: R(q) U + D (W - A xi(q)).
                 solved = self._traction_reaction(data)
-                elastic = solved[0] @ u
+                xi, _ = self._motion(model, data, displacements)
+                forces_body = solved[0] @ u + self.distribution @ (w - self.a @ xi)
             else:
-                solved, elastic = None, self.reaction @ u
-            distribution = self.distribution
-            forces_body = distribution @ w + elastic - distribution @ (self.generalised @ u)
+                solved, forces_body = None, self.reaction @ imposed  # D W + R r
         forces = (forces_body.reshape(p, 3)) @ self.rotation_body.T
         # The body's own print displacement: the compliance under the forces (the link
         # points' U only where the nodes stick; traction has no compliance form).
@@ -451,31 +525,30 @@ class DeformableContact:
         displacement and its derivative, at the iterate (joint Jacobians computed)."""
         values = self._values(model, data, w)
         if self._derivatives is None:
-            self._derivatives = self._derive(model, data, values)
+            self._derivatives = self._derive(model, data, values, w)
         d_displacements, d_forces_dq, d_forces_dw, d_nodes = self._derivatives
         return values.displacements, d_displacements, values.forces, d_forces_dq, d_forces_dw, values.nodes, d_nodes
 
-    def _derive(self, model, data, values):
+    def _derive(self, model, data, values, w):
         """dU/dq (3p, nv), d forces / dq (3p, nv), d forces / dW (3p, 6L) and the
         body's print displacement's derivative (3p, nv + 6L) at the iterate of ``values``."""
         nv, p = model.nv, len(self.node_ids)
         jacobians = point_jacobians(model, data, self.loads)  # (p, 3, nv) world
         d_displacements = np.einsum("ji,pjv->piv", self.rotation_body, jacobians).reshape(-1, nv)
-        if self.law == "coulomb":
-            # Only L applied to a few directions is needed, not L itself.
-            applied = values.solved.jacobian_dot(np.hstack([self.rigid_motion, d_displacements]))
-            distribution = applied[:, : self.n_variables]  # D = L G A^-1
-            nonrigid_dq = applied[:, self.n_variables :] - distribution @ (self.generalised @ d_displacements)
-            d_forces_body = np.hstack([nonrigid_dq, distribution])
+        if self.method == "traction":
+            reaction, normals = values.solved
+            _, d_xi = self._motion(model, data, values.displacements, d_displacements)
+            d_turn = self._turning_derivative(model, data, values.displacements, normals)
+            d_q = reaction @ d_displacements + d_turn - self.distribution @ (self.a @ d_xi)
+            d_forces_body = np.hstack([d_q, self.distribution])  # (3p, nv + 6L)
         else:
-            distribution = self.distribution
-            if self.method == "traction":
-                reaction, normals = values.solved
-                nonrigid = reaction - distribution @ self.generalised
-                d_turn = self._turning_derivative(model, data, values.displacements, normals)
+            # The imposed motion depends on W alone: the forces have no q-derivative.
+            d_imposed = self.rigid_motion + self._rotation_residue_derivative(np.asarray(w, dtype=float))
+            if self.law == "coulomb":
+                d_w = values.solved.jacobian_dot(d_imposed)  # only L applied to a few directions
             else:
-                nonrigid, d_turn = self.nonrigid, np.zeros_like(d_displacements)
-            d_forces_body = np.hstack([nonrigid @ d_displacements + d_turn, distribution])  # (3p, nv + 6L)
+                d_w = self.reaction @ d_imposed
+            d_forces_body = np.hstack([np.zeros((3 * p, nv)), d_w])
         d_forces = np.einsum("ij,pjv->piv", self.rotation_body, d_forces_body.reshape(p, 3, -1)).reshape(3 * p, -1)
         if self.method == "traction":
             d_nodes = np.hstack([d_displacements, np.zeros((3 * p, self.n_variables))])
@@ -502,8 +575,8 @@ class DeformableContact:
 
     # -- contact-model interface --------------------------------------------
     def initial_variables(self, model, data) -> np.ndarray:
-        """W consistent with the current placement: ``G^T R_c U(q)``."""
-        return self.generalised @ self._displacements(data).reshape(-1)
+        """W consistent with the current placement: ``A xi(q)``."""
+        return self.a @ self._motion(model, data, self._displacements(data))[0]
 
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
@@ -541,12 +614,12 @@ class DeformableContact:
         if derivatives:
             _, d_displacements, _, d_forces_dq, d_forces_dw, _, d_nodes = self._state(model, data, w)
 
-        # Compliance form of the placement (see the module docstring).
-        u = displacements.reshape(-1)
-        residual = self.fit @ u + self.compliance_rows @ w
+        # Compliance form of the placement (see the module docstring), in each print's axes.
+        xi, d_xi = self._motion(model, data, displacements, d_displacements)
+        residual = self.to_print @ xi + self.compliance_rows @ w
         if derivatives:
             jacobian = np.zeros((self.n_variables, columns))
-            jacobian[:, :nv] = self.fit @ d_displacements
+            jacobian[:, :nv] = self.to_print @ d_xi
             jacobian[:, w_columns] = self.compliance_rows
         labels = self._labels
         blocks.append(equality("placement", residual, jacobian, 1e-2, labels["placement"]))

