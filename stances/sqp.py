@@ -752,16 +752,15 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
         result = _solve_coulomb(problem, q_init, deadline)
         if not result.feasible and rigid_posture is not None and result.statistics["status"] != _OUT_OF_TIME:
-            # The bonded posture can be a poor start on a stiff body: bonded nodes
-            # cannot lift, so a palm that rests on its edge under Coulomb contact is
-            # held flat there, with another load split (hand-on-cube at E = 1e10 Pa:
-            # 208 N on the palm bonded, 93 N under Coulomb), and at nanometre
-            # displacements the SQP cannot walk from one to the other (it stopped
-            # with no progress at 1e10 and 1e11 Pa). From the rigid posture, a stiff
-            # body presses back within nanometres: the same stance then converges
-            # (hand-on-cube: 14 and 25 iterations). On soft bodies the bonded start
-            # is the one that works (two soles on mats: from the rigid posture the
-            # equilibrium rows stall), so it stays first and this is the fallback.
+            # The bonded posture can be a poor start: bonded nodes cannot lift, so a
+            # palm that rests on its edge under Coulomb contact is held flat there,
+            # with another load split (hand-on-cube at E = 1e10 Pa: 208 N on the palm
+            # bonded, 93 N under Coulomb). Before the print forces were functions of
+            # W alone (de927c5) this retry from the rigid posture was what made that
+            # stance solve at 1e10 and 1e11 Pa; since then no built-in or suite stance
+            # has needed it, and it stays as the second start. On soft bodies the
+            # bonded start is the one that works (two soles on mats: from the rigid
+            # posture the equilibrium rows stall), so it stays first.
             retry = _solve_coulomb(problem, rigid_posture, deadline)
             iterations = result.iterations + retry.iterations
             result = _with(retry if retry.feasible else result, iterations=iterations)
