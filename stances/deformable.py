@@ -313,6 +313,7 @@ class DeformableContact:
         origins = np.array([(pl.translation - body_placement.translation) @ body_placement.rotation
                             for pl in self.print_placements]).reshape(-1, 3)
         self.levers = rest - origins[self.print_of_node]
+        self._lever_skews = _skew_rows(self.levers)
         self.point_prints = np.array([i for i, _ in point_rests], dtype=np.int64)
         # The rigid modes are split off with the consistent stiffness (always
         # symmetric positive definite); the traction model reuses that split.
@@ -404,31 +405,34 @@ class DeformableContact:
                 d_xi[6 * i + 3 : 6 * i + 6] = to_body @ pin.Jlog3(turn) @ turn.T @ jacobian[3:]
         return xi, d_xi
 
-    def _rotations_of(self, w) -> np.ndarray:
-        """(p, 3) the rotation vector that W stands for at each node's print, body frame
-        (zero on a point foot's print)."""
+    def _print_turns(self, w):
+        """Each print's turn that W stands for (``A^-1 W``, body frame; none on a point
+        foot's print): rotation vectors (L, 3), rotations exp (L, 3, 3) and exp's right
+        Jacobians (L, 3, 3)."""
         theta = (self.a_inverse @ w).reshape(-1, 6)[:, 3:].copy()
         theta[self.point_prints] = 0.0
-        return theta[self.print_of_node]
+        return theta, np.array([pin.exp3(t) for t in theta]), np.array([pin.Jexp3(t) for t in theta])
 
     def _rotation_residue(self, w) -> np.ndarray:
         """(3p,) ``r = (exp(theta) - I - [theta]x) x``: what a finite turn theta of a link
         moves its points beyond the linear ``theta x x`` that G holds, at the turn W
         stands for (``A^-1 W``); second order in theta, so a vanishing term on a stiff
-        body, but millimetres of a palm's tilt on foam."""
-        theta, x = self._rotations_of(w), self.levers
-        turned = np.array([pin.exp3(t) @ lever for t, lever in zip(theta, x)]) if len(x) else np.zeros((0, 3))
-        return (turned - x - np.cross(theta, x)).reshape(-1)
+        body, but micrometres of a palm's tilt on foam."""
+        theta, turns, _ = self._print_turns(w)
+        owner, x = self.print_of_node, self.levers
+        turned = np.einsum("pij,pj->pi", turns[owner], x)
+        return (turned - x - np.cross(theta[owner], x)).reshape(-1)
 
     def _rotation_residue_derivative(self, w) -> np.ndarray:
         """(3p, 6L) d :meth:`_rotation_residue` / dW."""
-        theta, x = self._rotations_of(w), self.levers
+        theta, turns, right = self._print_turns(w)
+        owner = self.print_of_node
         rows = self.a_inverse.reshape(-1, 6, self.n_variables)[:, 3:, :].copy()  # (L, 3, 6L)
         rows[self.point_prints] = 0.0
         # d(exp(t) x) = -exp(t) [x]x Jr(t) dt (Jr: exp's right Jacobian); d(t x x) = -[x]x dt.
-        skews = _skew_rows(x)
-        d_theta = np.array([s - pin.exp3(t) @ s @ pin.Jexp3(t) for t, s in zip(theta, skews)]).reshape(-1, 3, 3)
-        return np.einsum("pij,pjk->pik", d_theta, rows[self.print_of_node]).reshape(3 * len(x), -1)
+        skews = self._lever_skews
+        d_theta = skews - turns[owner] @ skews @ right[owner]
+        return np.einsum("pij,pjk->pik", d_theta, rows[owner]).reshape(3 * len(owner), -1)
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
