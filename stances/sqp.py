@@ -726,14 +726,12 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
 
     problem = build(options)
     warm_iterations = 0
-    rigid_posture = None
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
         q_init, warm_iterations = warm.q, warm.iterations
-        rigid_posture = warm.q
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
@@ -751,19 +749,6 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
         result = _solve_coulomb(problem, q_init, deadline)
-        if not result.feasible and rigid_posture is not None and result.statistics["status"] != _OUT_OF_TIME:
-            # The bonded posture can be a poor start: bonded nodes cannot lift, so a
-            # palm that rests on its edge under Coulomb contact is held flat there,
-            # with another load split (hand-on-cube at E = 1e10 Pa: 208 N on the palm
-            # bonded, 93 N under Coulomb). Before the print forces were functions of
-            # W alone (de927c5) this retry from the rigid posture was what made that
-            # stance solve at 1e10 and 1e11 Pa; since then no built-in or suite stance
-            # has needed it, and it stays as the second start. On soft bodies the
-            # bonded start is the one that works (two soles on mats: from the rigid
-            # posture the equilibrium rows stall), so it stays first.
-            retry = _solve_coulomb(problem, rigid_posture, deadline)
-            iterations = result.iterations + retry.iterations
-            result = _with(retry if retry.feasible else result, iterations=iterations)
     else:
         result = solve_problem(problem, q_init, deadline=deadline)
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
