@@ -298,22 +298,20 @@ class DeformableContact:
         self.n_variables = 6 * n_prints
         self.variable_lower = np.full(self.n_variables, -np.inf)
 
-        # Rigid-motion basis G (3p, 6L), body frame, about each print's origin.
-        rest = body.mesh.nodes[self.node_ids]
+        # Rigid-motion basis G (3p, 6L), body frame, about each print's origin: each
+        # node's lever x from its print's origin turns with theta as theta x x = -[x]x theta.
+        origins = np.array([(pl.translation - body_placement.translation) @ body_placement.rotation
+                            for pl in self.print_placements]).reshape(-1, 3)
+        self.levers = body.mesh.nodes[self.node_ids] - origins[self.print_of_node]
+        self._lever_skews = _skew_rows(self.levers)
         basis = np.zeros((p, 3, 6 * n_prints))
         print_rotations_in_body = []
         for i, placement in enumerate(self.print_placements):
             rows = self.print_of_node == i
-            origin = (placement.translation - body_placement.translation) @ body_placement.rotation
             basis[rows, :, 6 * i : 6 * i + 3] = np.eye(3)
-            basis[rows, :, 6 * i + 3 : 6 * i + 6] = -_skew_rows(rest[rows] - origin)
+            basis[rows, :, 6 * i + 3 : 6 * i + 6] = -self._lever_skews[rows]
             print_rotations_in_body.append(self.rotation_body.T @ placement.rotation)
         self.basis = basis.reshape(3 * p, -1)
-        # Each node about its print's origin, body frame: the levers of G's rotations.
-        origins = np.array([(pl.translation - body_placement.translation) @ body_placement.rotation
-                            for pl in self.print_placements]).reshape(-1, 3)
-        self.levers = rest - origins[self.print_of_node]
-        self._lever_skews = _skew_rows(self.levers)
         self.point_prints = np.array([i for i, _ in point_rests], dtype=np.int64)
         # The rigid modes are split off with the consistent stiffness (always
         # symmetric positive definite); the traction model reuses that split.
@@ -329,6 +327,9 @@ class DeformableContact:
         self.a = a
         self.a_inverse = a_inverse
         self.rigid_motion = self.basis @ a_inverse  # (3p, 6L): W -> rigid motion of the nodes
+        # (L, 3, 6L): W -> each print's turn A^-1 W (none for a point foot, whose print does not turn).
+        self._turn_of_w = a_inverse.reshape(n_prints, 6, -1)[:, 3:, :].copy()
+        self._turn_of_w[self.point_prints] = 0.0
         self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
         # Rows of the placement residual in each print's own axes (x, y, normal).
         to_print = np.zeros((6 * n_prints, 6 * n_prints))
@@ -409,8 +410,7 @@ class DeformableContact:
         """Each print's turn that W stands for (``A^-1 W``, body frame; none on a point
         foot's print): rotation vectors (L, 3), rotations exp (L, 3, 3) and exp's right
         Jacobians (L, 3, 3)."""
-        theta = (self.a_inverse @ w).reshape(-1, 6)[:, 3:].copy()
-        theta[self.point_prints] = 0.0
+        theta = self._turn_of_w @ w
         return theta, np.array([pin.exp3(t) for t in theta]), np.array([pin.Jexp3(t) for t in theta])
 
     def _rotation_residue(self, w) -> np.ndarray:
@@ -427,12 +427,10 @@ class DeformableContact:
         """(3p, 6L) d :meth:`_rotation_residue` / dW."""
         theta, turns, right = self._print_turns(w)
         owner = self.print_of_node
-        rows = self.a_inverse.reshape(-1, 6, self.n_variables)[:, 3:, :].copy()  # (L, 3, 6L)
-        rows[self.point_prints] = 0.0
         # d(exp(t) x) = -exp(t) [x]x Jr(t) dt (Jr: exp's right Jacobian); d(t x x) = -[x]x dt.
         skews = self._lever_skews
         d_theta = skews - turns[owner] @ skews @ right[owner]
-        return np.einsum("pij,pjk->pik", d_theta, rows[owner]).reshape(3 * len(owner), -1)
+        return np.einsum("pij,pjk->pik", d_theta, self._turn_of_w[owner]).reshape(3 * len(owner), -1)
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
@@ -505,7 +503,7 @@ class DeformableContact:
                 warm = (None, None) if self._modes is None else self._modes
                 solved = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
                 self._modes = (solved.modes, solved.directions)
-            forces_body = solved.forces.reshape(-1)  # L U~ = D W + (L - D G^T R_c) U
+            forces_body = solved.forces.reshape(-1)  # L U~
         else:
             if self.method == "traction":
                 # Eq. (44) at the link points' own motion, turned normals included, with
