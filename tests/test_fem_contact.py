@@ -301,3 +301,27 @@ def test_spd_inverse_matches_the_general_inverse_and_refuses_an_indefinite_matri
     indefinite = spd - 80.0 * np.eye(40) * (np.arange(40) == 7)
     with pytest.raises(fem.FemError, match=r"^a test matrix is not positive definite \(LAPACK info 8\)$"):
         spd_inverse(indefinite, "a test matrix")
+
+
+def test_modes_read_off_a_gauss_seidel_solution_are_the_contact_state(pad):
+    """The fallback starts its Newton solve from the modes of a projected Gauss-Seidel
+    solution: a node whose normal force is projected to exactly zero is lifted off,
+    and the modes read are those of the solved state (stick, slip and lift all occur)."""
+    import scipy.linalg
+
+    from fem.contact import _gauss_seidel, _modes_of
+
+    _, patch, frames = pad
+    centre = patch.points.mean(axis=0)
+    displacements = _rigid_motion(patch.points, [0.002, 0.0, -0.002], [0.0, 0.03, 0.0], centre)
+    mu = np.full(patch.n_nodes, MU)
+    state = fem.solve_print_contact(patch.compliance, displacements, frames, mu)
+    rotation = scipy.linalg.block_diag(*frames)
+    phi = _gauss_seidel(rotation @ patch.compliance @ rotation.T, (rotation @ displacements.ravel()).reshape(-1, 3), mu)
+    modes, directions = _modes_of(phi, mu)
+    assert (phi[modes == fem.LIFT, 2] == 0.0).all() and (modes == fem.LIFT).any()
+    assert {fem.STICK, fem.SLIP, fem.LIFT} <= set(state.modes.tolist())
+    np.testing.assert_array_equal(modes, state.modes)
+    slipping = modes == fem.SLIP
+    np.testing.assert_allclose(directions[slipping], state.directions[slipping], atol=1e-6)
+    assert (directions[~slipping] == 0.0).all()
