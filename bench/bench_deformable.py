@@ -154,7 +154,9 @@ def _mode_counts(robot, scenario, stance, result):
         if contact.kind == "deformable":
             forces = np.array([p.force for p in result.point_forces[loads]]) @ contact.rotation_body
             field = contact.deformable_object.body.displacement_under_loads(contact.node_ids, -forces)
-            relative = np.einsum("pij,pj->pi", contact.node_frames, contact.displacements(robot.model, data) - field[contact.node_ids])
+            # Link point minus its node's coupling end (partly covered nodes stretch their coupling).
+            ends = field[contact.node_ids] - (contact.patch.coupling_compliance @ forces.reshape(-1)).reshape(-1, 3)
+            relative = np.einsum("pij,pj->pi", contact.node_frames, contact.displacements(robot.model, data) - ends)
             phi = np.einsum("pij,pj->pi", contact.node_frames, forces)
             lift = phi[:, 2] <= 1e-9 * np.abs(phi).max()
             slip = ~lift & (np.abs(relative[:, :2]).max(axis=1) > 1e-7)

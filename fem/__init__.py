@@ -17,7 +17,7 @@ from .material import LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
-from .prints import nodes_in_polygon
+from .prints import nodes_in_polygon, print_coverage
 from .solvers import available_solvers
 
 __all__ = [
@@ -47,6 +47,7 @@ __all__ = [
     "voigt_to_tensor_strain",
     "rotate_voigt",
     "nodes_in_polygon",
+    "print_coverage",
     "available_solvers",
     "PrintContact",
     "PrintContactSystem",

@@ -490,7 +490,7 @@ class DeformableBody:
         return self.compliance_block(node_ids, node_ids)
 
     # ------------------------------------------------------------ prints
-    def contact_patch(self, node_ids) -> ContactPatch:
+    def contact_patch(self, node_ids, coverage=None) -> ContactPatch:
         """The contact print P made of some surface nodes (eq. 27).
 
         Parameters
@@ -499,6 +499,9 @@ class DeformableBody:
             Surface, non-fixed, distinct node ids, p >= 3, e.g. from
             :func:`fem.nodes_in_polygon`. Their order sets the row order of every
             displacement and force array of the patch.
+        coverage : (p,) float, optional
+            Covered fraction of each node's cell (:func:`fem.print_coverage`); see
+            :class:`ContactPatch`.
 
         Returns
         -------
@@ -524,9 +527,11 @@ class DeformableBody:
         """
         ids = np.asarray(node_ids)
         key = ids.tobytes() + str(ids.dtype).encode() if ids.ndim == 1 else None
+        if key is not None and coverage is not None:
+            key += b"coverage" + np.asarray(coverage, dtype=float).tobytes()
         if key is not None and key in self._patches:
             return self._patches[key]
-        patch = ContactPatch(self, ids)
+        patch = ContactPatch(self, ids, coverage)
         if key is not None:
             self._patches[key] = patch
         return patch

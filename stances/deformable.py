@@ -236,7 +236,7 @@ class DeformableContact:
         self.prints = list(prints)
         self.label = " and ".join(p.label for p in self.prints)
 
-        node_sets, joints, points_in_joint, frames = [], [], [], []
+        node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
@@ -251,24 +251,46 @@ class DeformableContact:
             placement = pin.SE3(spec.transform_print_to_world)
             polygon_in_world = surface_model.vertices_in_frame @ placement.rotation.T + placement.translation
             polygon_in_body = (polygon_in_world - body_placement.translation) @ body_placement.rotation
-            ids = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
+            inside = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
+            if self.method == "consistent":
+                # Every node whose surface cell the polygon covers, coupled by the
+                # covered fraction (fem.ContactPatch): the print's force then does not
+                # jump as node rows enter or leave it.
+                ids, covered = fem.print_coverage(body.mesh, polygon_in_body, tolerance=1e-6)
+                ids = np.asarray(ids, dtype=np.int64)
+            else:
+                ids, covered = inside, np.ones(len(inside))
             if len(ids) < MINIMUM_PRINT_NODES:
                 raise StanceError(
                     f"the print of {spec.label} holds {len(ids)} mesh node(s); at least "
                     f"{MINIMUM_PRINT_NODES} are needed: refine the mesh of {deformable_object.name!r} "
                     "where prints land (a scenario's soft_box takes resolution and refine)"
                 )
-            for other, other_ids in zip(self.prints, node_sets):
-                shared = np.intersect1d(ids, other_ids)
+            for index, (other, other_ids) in enumerate(zip(self.prints, node_sets)):
+                shared = np.intersect1d(inside, insides[index])
                 if shared.size:
                     raise StanceError(
                         f"the prints of {other.label} and {spec.label} overlap ({shared.size} shared mesh "
                         f"node(s) of {deformable_object.name!r}): two links cannot press the same spot; "
                         "move one print"
                     )
+                # Prints closer than a cell share the cells between them: each such node
+                # follows the link covering more of it (the other's coverage is dropped).
+                shared, here, there = np.intersect1d(ids, other_ids, return_indices=True)
+                if shared.size:
+                    mine = covered[here] > coverages[index][there]
+                    keep_there = np.ones(len(other_ids), dtype=bool)
+                    keep_there[there[mine]] = False
+                    node_sets[index], coverages[index] = other_ids[keep_there], coverages[index][keep_there]
+                    joints[index], points_in_joint[index] = joints[index][keep_there], points_in_joint[index][keep_there]
+                    keep_here = np.ones(len(ids), dtype=bool)
+                    keep_here[here[~mine]] = False
+                    ids, covered = ids[keep_here], covered[keep_here]
             nodes_in_world = body.mesh.nodes[ids] @ body_placement.rotation.T + body_placement.translation
             nodes_in_print = (nodes_in_world - placement.translation) @ placement.rotation
             node_sets.append(ids)
+            coverages.append(covered)
+            insides.append(inside)
             joints.append(np.full(len(ids), frame.parentJoint))
             if surface_model.is_point:
                 # Every node of a ball's print follows the ball's centre, where its force acts.
@@ -276,18 +298,29 @@ class DeformableContact:
                 point_rests.append((len(node_sets) - 1, placement.translation + surface_model.radius * placement.rotation[:, 2]))
             else:
                 points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
-            frames.extend([surface_model.frame] * len(ids))
+            frames.append(surface_model.frame)
             self.frame_ids.append(frame_id)
             self.print_placements.append(placement)
             self.friction.append(float(spec.surface.friction))
 
+        for spec, ids in zip(self.prints, node_sets):
+            if len(ids) < MINIMUM_PRINT_NODES:
+                raise StanceError(
+                    f"the print of {spec.label} holds {len(ids)} mesh node(s) once the nodes it shares with "
+                    f"a neighbouring print go to that print; at least {MINIMUM_PRINT_NODES} are needed: move "
+                    f"the prints apart or refine the mesh of {deformable_object.name!r}"
+                )
         self.node_ids = np.concatenate(node_sets)
+        self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))
         self.print_labels = tuple(spec.label for spec in self.prints)
         self.load_prints = self.print_of_node
-        self.load_frames = tuple(frames)
-        self.patch = body.contact_patch(self.node_ids)
+        self.load_frames = tuple(frames[i] for i in self.print_of_node)
+        self.patch = body.contact_patch(self.node_ids, self.coverage if self.method == "consistent" else None)
+        # Partly covered nodes' series compliance D (fem.ContactPatch): a link point
+        # moves by its node's motion plus D times the force; None when every node is covered.
+        self._coupling = None if np.all(self.coverage == 1.0) else np.asarray(self.patch.coupling_compliance)
         self.nodes_in_world = body.mesh.nodes[self.node_ids] @ self.rotation_body.T + body_placement.translation
         # Where each node's link point is when the body is at rest: the node itself
         # for a polygon; the ball's centre, a radius above the print, for a point foot.
@@ -496,7 +529,7 @@ class DeformableContact:
             if self._contact_system is None:
                 # It keeps the factorisation of each contact set it meets: the
                 # SQP holds a set or comes back to it at most linearisations.
-                self._contact_system = fem.PrintContactSystem(self.patch.compliance, self.node_frames, self.node_mu)
+                self._contact_system = fem.PrintContactSystem(self.patch.link_compliance, self.node_frames, self.node_mu)
             if self._frozen is not None:
                 solved = self._contact_system.with_modes(corrected, *self._frozen)
             else:
@@ -648,7 +681,13 @@ class DeformableContact:
                     jacobian[i, :nv] = d_heights[self.print_of_node == i].mean(axis=0)
             # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
             blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels["touch"], slack=1e-8))
-            blocks.append(self._slip_block(displacements, d_displacements, nodes, d_nodes_full, columns))
+            # A link point slides over its node's coupling end: the node plus its coupling's stretch.
+            ends, d_ends = nodes, d_nodes_full
+            if self._coupling is not None:
+                ends = nodes - self._coupling @ values.forces_body
+                if derivatives:
+                    d_ends = d_nodes_full - self._coupling @ self._body_rows(d_forces.reshape(3 * p, columns))
+            blocks.append(self._slip_block(displacements, d_displacements, ends, d_ends, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
             values, jacobians = self._resultant_rows(forces, d_forces)
@@ -924,7 +963,11 @@ class DeformableContact:
             field = body.displacement_under_loads(self.node_ids, -forces_body)
         # Node frames: forces and relative motions (link point minus node) as (t1, t2, n).
         phi = np.einsum("pij,pj->pi", self.node_frames, forces_body)
-        relative = np.einsum("pij,pj->pi", self.node_frames, displacements - field[self.node_ids])
+        # Link point minus the node's coupling end (the node itself when fully covered).
+        ends = field[self.node_ids]
+        if self._coupling is not None:
+            ends = ends - (self._coupling @ forces_body.reshape(-1)).reshape(-1, 3)
+        relative = np.einsum("pij,pj->pi", self.node_frames, displacements - ends)
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])

@@ -27,7 +27,7 @@ import numpy as np
 import pytest
 
 from environments.deformable import RESOLUTIONS, soft_box_coordinates
-from fem import DeformableBody, LinearElasticMaterial, nodes_in_polygon, tensor_mesh
+from fem import DeformableBody, LinearElasticMaterial, nodes_in_polygon, print_coverage, tensor_mesh
 from fem.ordering import nested_dissection, node_adjacency
 from fem.solvers import factorize
 
@@ -292,15 +292,13 @@ def test_default_mesh_print_force_changes_by_under_20_percent_when_refined_twice
     assert change < 0.20, f"force changes by {change:.1%} from h to h/2"
 
 
-@pytest.mark.xfail(
-    strict=True,
-    reason="a print whose edges lie on grid lines takes a whole extra row of nodes on each side (its "
-    "effective edge half a cell out), the worst case of a print's placement: 7-18 % from h to h/2 "
-    "(bench/results/mesh_convergence.md); generic placements are the tests below",
-)
-def test_default_mesh_print_force_is_within_target_of_twice_refined_mesh(mat_sole_forces):
+def test_nodes_inside_an_aligned_print_miss_the_target_by_a_row_of_nodes(mat_sole_forces):
+    # The paper's print (the nodes inside the polygon, kept for the traction method): a
+    # print whose edges lie on grid lines takes a whole extra row of nodes on each side,
+    # its effective edge half a cell out. Measured 13.6 %. The covered print below,
+    # which the consistent model uses, meets the target at every placement.
     change = abs(mat_sole_forces[1] / mat_sole_forces[0] - 1.0)
-    assert change < TARGET, f"force changes by {change:.1%} from h to h/2"
+    assert change > TARGET, f"force changes by {change:.1%} from h to h/2"
 
 
 # A print landing anywhere: rotated 30 degrees and shifted by 0, 1/6, ..., 5/6 of a pitch
@@ -357,3 +355,44 @@ def test_refining_only_the_layers_changes_the_cube_palm_force_by_under_5_percent
     layers_halved = indentation_force(CUBE_PALM.body_at(0, depth_level=1), CUBE_PALM.polygon_in_body)[0]
     assert layers_halved < default
     assert default / layers_halved - 1.0 < 0.05, f"default {default:.1f} N, layers halved {layers_halved:.1f} N"
+
+
+# ------------------------------------------------------------------ covered prints
+def covered_print_force(body: DeformableBody, polygon_in_body) -> float:
+    """Vertical force on a rigid print pressed ``INDENTATION`` down, every node whose cell
+    it covers coupled by the covered fraction (``fem.print_coverage``, the consistent
+    model of the posture solver). Newtons, + z."""
+    ids, coverage = print_coverage(body.mesh, polygon_in_body)
+    patch = body.contact_patch(ids, coverage)
+    return float(patch.reaction_forces(np.tile([0.0, 0.0, -INDENTATION], (len(ids), 1)))[:, 2].sum())
+
+
+@pytest.fixture(scope="module", params=[MAT_SOLE, MAT_PALM], ids=["sole", "palm"])
+def covered_forces(request):
+    """(2, 7) float, newtons: the covered print's force at h and h / 2, lattice-aligned
+    first, then at the six placements of PLACEMENT_OFFSETS."""
+    study = request.param
+    polygons = [study.polygon_in_body] + [study.placed_polygon(o, PLACEMENT_ANGLE) for o in PLACEMENT_OFFSETS]
+    return np.array([[covered_print_force(study.body_at(level), p) for p in polygons] for level in (0, 1)])
+
+
+def test_default_mesh_print_force_is_within_target_of_twice_refined_mesh_at_every_placement(covered_forces):
+    # The issue's target, print by print. Measured 4.1-4.6 % (sole), 2.9-3.4 % (palm);
+    # the nodes inside the polygon gave 13.6 % and 17.8 % for the aligned prints.
+    change = covered_forces[0] / covered_forces[1] - 1.0
+    assert np.abs(change).max() < TARGET, f"force changes from h to h/2 by {change.round(3)}"
+
+
+def test_the_covered_print_force_barely_depends_on_its_placement(covered_forces):
+    # Measured 0.5 % (sole) and 1.3 % (palm) at h, where the nodes inside the polygon
+    # scatter by 26 % and 42 % (aligned included).
+    scatter = np.ptp(covered_forces, axis=1) / covered_forces.mean(axis=1)
+    assert scatter[0] < 0.02 and scatter[1] < 0.02, f"scatter over placements at h, h/2: {scatter.round(4)}"
+
+
+def test_the_covered_print_converges_to_the_nodes_limit(mat_sole_forces):
+    # Both models of the same rectangle tend to one continuum answer: the Richardson
+    # limit of the aligned node prints (h, h/2, h/4). Measured +5.3 % at h, +1.0 % at h/2.
+    _, limit = richardson(mat_sole_forces)
+    error = np.array([covered_print_force(MAT_SOLE.body_at(level), MAT_SOLE.polygon_in_body) for level in (0, 1)]) / limit - 1.0
+    assert abs(error[1]) < 0.02 and abs(error[1]) < abs(error[0]) < 0.08, error.round(4)

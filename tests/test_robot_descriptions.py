@@ -365,8 +365,10 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     """Solo-12, described in a short file as a new user would: its base and upper-leg
     hulls overlap by 4 mm standing, so the file ignores those pairs (else no stance
     holds); the default print grid follows its 0.17 m step (0.042 m, not 0.1 m); the
-    front feet reach the foam and the saved plan verifies again. On the foam's default
-    mesh a ball's print holds 2 nodes: the plan fails and says so, and how to fix it.
+    front feet reach the foam and the saved plan verifies again, on a fine mesh and on the
+    foam's default one (where 2 nodes lie inside a ball's print and more have cells it
+    covers in part). On a 10 cm mesh a ball's print covers no node's cell by 1 %: the plan
+    fails and says so, and how to fix it.
 
     Run through the command line in child processes, as a user would."""
     import subprocess
@@ -374,7 +376,8 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
 
     _write(tmp_path / "solo12.yaml", SOLO)
     (tmp_path / "solo-foam.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.012"))
-    (tmp_path / "solo-coarse.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", ""))
+    (tmp_path / "solo-default.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", ""))
+    (tmp_path / "solo-coarse.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.1"))
 
     def cbm(*arguments):
         return subprocess.run([sys.executable, "-m", "cbm", *arguments], capture_output=True, text=True, timeout=300)
@@ -384,6 +387,11 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     assert found.returncode == 0, found.stdout + found.stderr
     assert "plan found" in found.stdout and "on foam_top" in found.stdout
     checked = cbm("check", str(tmp_path / "out" / "plan.json"))
+    assert checked.returncode == 0 and "every stance verifies" in checked.stdout, checked.stdout + checked.stderr
+    default = cbm("plan", str(tmp_path / "solo-default.yaml"), "--out", str(tmp_path / "default"), "--no-pictures",
+                  "--max-expansions", "30", "--quiet")
+    assert default.returncode == 0 and "on foam_top" in default.stdout, default.stdout + default.stderr
+    checked = cbm("check", str(tmp_path / "default" / "plan.json"))
     assert checked.returncode == 0 and "every stance verifies" in checked.stdout, checked.stdout + checked.stderr
 
     failed = cbm("plan", str(tmp_path / "solo-coarse.yaml"), "--out", str(tmp_path / "coarse"), "--no-pictures",

@@ -127,11 +127,32 @@ def _rows(problem, q, lam):
     return rows
 
 
+def _value_noise(problem, q, lam, base, detours=4):
+    """Each row's change when evaluated again at the same point after other points.
+
+    The Coulomb contact solve starts from the contact modes of its last solve and
+    settles within a tolerance, so its forces (and every row they enter) repeat to
+    about 2e-12 of the largest force, not to the last bit (measured: 1.2-2.8e-10 N
+    on the coupled sole pair, largest node force 117 N). Central differences with
+    step EPS see that noise divided by EPS.
+    """
+    rng = np.random.default_rng(1)
+    noise = dict.fromkeys(base, 0.0)
+    for _ in range(detours):
+        _rows(problem, q, lam + 1e-3 * rng.standard_normal(len(lam)))
+        again = _rows(problem, q, lam)
+        for key in base:
+            if key in again:
+                noise[key] = max(noise[key], abs(again[key][0] - base[key][0]))
+    return noise
+
+
 def test_every_constraint_jacobian_matches_finite_differences(linearised_problems):
     names = set()
     for label, problem, q, lam in linearised_problems:
         model = problem.robot.model
         base = _rows(problem, q, lam)
+        noise = _value_noise(problem, q, lam, base)
         names.update(name for name, _ in base)
         keys = list(base)
         numeric = np.zeros((len(keys), problem.n_step))
@@ -154,10 +175,11 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             # Per row: relative to that row's own size, so a wrong small row cannot hide.
             size = max(np.abs(analytic).max(), 1e-8)
             error = np.abs(numeric[r, known] - analytic[known]).max()
-            # Plus 1e-10 absolute: the noise of central differences through the Coulomb
-            # contact solve, which settles to 1e-10 of its largest force (measured: 3-4e-11 on
-            # the sole pair's indentation rows, whose entries are about 2e-6).
-            assert error <= 2e-5 * size + 1e-10, f"{label}: {key} off by {error:.3g} (row size {size:.3g})"
+            # Plus the row's own repeat noise over EPS (zero for rows that do not pass
+            # through the Coulomb contact solve), times 4 as a few detours may not hit its
+            # worst case, and 1e-10 absolute.
+            tolerance = 2e-5 * size + 1e-10 + 4.0 * noise[key] / EPS
+            assert error <= tolerance, f"{label}: {key} off by {error:.3g} (row size {size:.3g}, noise {noise[key]:.2g})"
     assert {"placement", "touch", "node contact", "indentation", "strain", "equilibrium", "torque limit", "normal load"} <= names
 
 
