@@ -8,6 +8,15 @@ link, and the node displacements are the motion they impose (eq. 29):
 
     U_n(q) = R_b^T (y_n(q) - x_n),     y_n(q) = T_link(q) a_n      (body frame)
 
+The print's nodes (``reaction_model="consistent"``) are every surface node whose
+cell the robot's polygon covers, even in part (``fem.print_coverage``); a node
+covered by a fraction ``w < 1`` is coupled to its link point through a series
+compliance ``(1 - w) / w C_ii`` (``fem.ContactPatch``), so the link points move by
+``(C + D) f`` and the print's force does not jump as node rows enter or leave it.
+A partly covered node's link point is its rest position, at most a cell outside
+the polygon, where it carries a small share of the load. The ``traction`` model
+keeps the nodes inside the polygon.
+
 A point foot (a ball of radius r) presses the nodes under its print octagon,
 which circumscribes the ball's circle: its link points are all the ball's
 centre, ``x_n`` is replaced by the centre's rest position r above the print,
