@@ -16,10 +16,12 @@ require, so it never rejects a stance they accept:
   pyramid ``|f . t_i| <= mu f . n``, which contains the exact Coulomb cone
   that :func:`stances.verify` checks (and the solver's inscribed pyramid).
 - Soft prints (:mod:`stances.deformable`): the forces act at the print nodes'
-  link points. At rest every node lies in the print polygon (a point foot's:
-  at its ball's centre), and a force at a point of a polygon is a convex
-  combination of the same force at its vertices, so the node forces add up to
-  vertex forces with the same resultant and moment; with the ``coulomb`` and
+  link points. At rest a node lies in the print polygon, or (a partly covered
+  node, :func:`fem.print_coverage`) within its cell's reach of it, which joins
+  the margin below (a point foot's nodes: at its ball's centre), and a force at
+  a point of a polygon is a convex combination of the same force at its
+  vertices, so the node forces add up to vertex forces with the same resultant
+  and moment; with the ``coulomb`` and
   ``sticking`` laws each node force is inside its own cone (verified per node),
   so the vertex forces are too. The link points move from rest with the body:
   the moment of that motion is at most ``r |f|`` per force, ``r`` the margin of
@@ -46,6 +48,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 from scipy.optimize import linprog
+
+import fem
 
 __all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
 
@@ -224,6 +228,9 @@ class EquilibriumFilter:
         if not surface.deformable or self.options.deformable_as_rigid:
             return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction))
         body = self.scene.deformable_of_surface(surface.name)
+        reach = 0.0
+        if not robot_surface.is_point and self.options.reaction_model == "consistent":
+            reach = _covered_reach(body, points, rotation)
         return _PrintForces(
             label,
             contact.robot_surface,
@@ -231,9 +238,30 @@ class EquilibriumFilter:
             rotation,
             origin,
             float(surface.friction),
-            soft_print_margin(body, rotation[:, 2], self.options),
+            soft_print_margin(body, rotation[:, 2], self.options) + reach,
             self.options.contact_law == "bonded",
         )
+
+
+def _covered_reach(deformable_object, polygon_in_world, rotation) -> float:
+    """Metres: how far outside a soft print's polygon its partly covered nodes lie
+    (in the print plane), the farthest a node force acts from the polygon at rest."""
+    pose = np.asarray(deformable_object.transform_body_to_world, dtype=float)
+    in_body = (polygon_in_world - pose[:3, 3]) @ pose[:3, :3]
+    try:
+        ids, _ = fem.print_coverage(deformable_object.body.mesh, in_body, tolerance=1e-6)
+    except fem.FemError:
+        return 0.0  # stances.solve refuses such a print with its own reason
+    nodes = deformable_object.body.mesh.nodes[ids] @ pose[:3, :3].T + pose[:3, 3]
+    flat = (nodes - polygon_in_world[0]) @ rotation[:, :2]
+    corners = (polygon_in_world - polygon_in_world[0]) @ rotation[:, :2]
+    start, edge = corners, np.roll(corners, -1, axis=0) - corners
+    t = np.clip(((flat[:, None] - start) * edge).sum(axis=2) / (edge**2).sum(axis=1), 0.0, 1.0)
+    distance = np.linalg.norm(flat[:, None] - (start + t[..., None] * edge), axis=2).min(axis=1)
+    # Inside the (convex) polygon the nearest edge is no reach.
+    cross = edge[:, 0] * (flat[:, None, 1] - start[:, 1]) - edge[:, 1] * (flat[:, None, 0] - start[:, 0])
+    inside = (cross >= 0).all(axis=1) | (cross <= 0).all(axis=1)
+    return float(np.where(inside, 0.0, distance).max(initial=0.0))
 
 
 def _feasible(prints, com_bounds, min_normal, moments) -> bool:

@@ -171,3 +171,21 @@ def test_plan_is_the_same_with_and_without_the_prefilter(robot):
     assert solves_on + sum(on.statistics.prefiltered.values()) >= solves_off >= solves_on
     assert off.statistics.prefiltered == {}
     assert math.isfinite(on.statistics.time)
+
+
+def test_a_soft_prints_partly_covered_nodes_widen_its_margin_by_their_reach(robot):
+    # The solver's print takes nodes up to a cell outside the polygon (fem.print_coverage);
+    # the LP, a relaxation of the solver, must let forces act that far out.
+    from cbm.equilibrium import _covered_reach
+
+    scenario = environments.load("cross-soft-block")
+    check = EquilibriumFilter(robot, scenario.scene)
+    (contact,) = [c for c in scenario.stance("right-on-foam") if c.contact_print.surface == "foam_top"]
+    forces = check._print_forces(contact)
+    body = scenario.scene.deformable_of_surface("foam_top")
+    reach = _covered_reach(body, forces.points, forces.rotation)
+    spacing = 0.0225  # the default mesh's cells under prints
+    assert 0.0 < reach < spacing
+    assert forces.margin == pytest.approx(
+        cbm.equilibrium.soft_print_margin(body, forces.rotation[:, 2], check.options) + reach
+    )
