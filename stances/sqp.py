@@ -726,6 +726,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
 
     problem = build(options)
     warm_iterations = 0
+    lam_init = None
     if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
@@ -747,8 +748,13 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
             bonded = build(replace(options, contact_law="bonded", **loose))
             warm = solve_problem(bonded, q_init, deadline=deadline, check=False)
             q_init, warm_iterations = warm.q, warm_iterations + warm.iterations
+            # Its forces too (the same variables): W read off the posture instead,
+            # A xi(q), multiplies the warm start's placement error (loose, up to
+            # micrometres) by the body's stiffness: on a steel-stiff cube, thousands
+            # of newtons, from which the Coulomb stage did not recover.
+            lam_init = np.asarray(warm.statistics["lambda"])
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
-        result = _solve_coulomb(problem, q_init, deadline)
+        result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
     else:
         result = solve_problem(problem, q_init, deadline=deadline)
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
@@ -765,7 +771,7 @@ def _timed_out(result, time_budget) -> PostureResult:
     return _with(result, reason=f"time budget of {float(time_budget):g} s spent before convergence: {result.reason}")
 
 
-def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
+def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) -> PostureResult:
     """Coulomb prints: modes read at every linearisation, then, if that stalls, held.
 
     First the SQP runs for at most ``_FREE_ITERATIONS`` with each node's mode
@@ -785,7 +791,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3) -> PostureResult:
     model = problem.robot.model
     deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
     q = problem.check_configuration(q_init)
-    free = solve_problem(problem, q, max_iterations=_FREE_ITERATIONS, deadline=deadline)
+    free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
     hopeless = status in ("stagnated", _NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
