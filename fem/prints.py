@@ -9,12 +9,19 @@ that happen to lie inside it (see :class:`fem.ContactPatch`'s ``coverage``).
 
 from __future__ import annotations
 
+import weakref
+
 import numpy as np
 
 from .errors import PrintError
 from .mesh import TetMesh
 
 __all__ = ["nodes_in_polygon", "print_coverage"]
+
+# The prints met most recently on each mesh, by polygon: a planner asks for the same
+# print in every stance that keeps it, and a solve in each of its stages.
+_COVERAGE_CACHE: "weakref.WeakKeyDictionary[TetMesh, dict]" = weakref.WeakKeyDictionary()
+_COVERAGE_CACHE_SIZE = 256
 
 #: Nodes whose cell the polygon covers less than this are left out of a print: they
 #: would carry about a hundredth of a full node's share, and their large coupling
@@ -102,6 +109,7 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
         ``MINIMUM_COVERAGE``.
     coverage : (p,) float
         Covered fraction of each node's cell, in (0, 1]; 1 for a node well inside.
+        Both read-only: the answers for the 256 polygons last asked on a mesh are kept.
 
     Raises
     ------
@@ -116,6 +124,21 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     >>> ids.size, sorted(set(coverage.round(3).tolist()))   # corners (1 or 2 of 6 triangles), edges, centre
     (9, [0.167, 0.333, 0.5, 1.0])
     """
+    key = (np.asarray(polygon_in_body, dtype=float).tobytes(), float(tolerance))
+    cached = _COVERAGE_CACHE.setdefault(mesh, {})
+    if key in cached:
+        return cached[key]
+    ids, coverage = _print_coverage(mesh, polygon_in_body, tolerance)
+    ids.setflags(write=False)
+    coverage.setflags(write=False)
+    if len(cached) >= _COVERAGE_CACHE_SIZE:
+        cached.pop(next(iter(cached)))  # the oldest
+    cached[key] = (ids, coverage)
+    return ids, coverage
+
+
+def _print_coverage(mesh, polygon_in_body, tolerance):
+    """:func:`print_coverage`, computed."""
     centre, normal, basis, v = _polygon_frame(polygon_in_body, tolerance)
     twice_area = float(_cross(v, np.roll(v, -1, axis=0)).sum())
     if twice_area < 0.0:
@@ -130,6 +153,9 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     triangles, flat = triangles[keep], rel[keep] @ basis  # (T', 3), (T', 3, 2)
     cell_area = np.zeros(mesh.n_nodes)
     np.add.at(cell_area, triangles.ravel(), np.repeat(mesh.surface_areas[keep] / 3.0, 3))
+    # Only the triangles whose bounds meet the polygon's can hold covered quadrilaterals.
+    near = np.all((flat.max(axis=1) >= v.min(axis=0)) & (flat.min(axis=1) <= v.max(axis=0)), axis=1)
+    triangles, flat = triangles[near], flat[near]
     # Each triangle's three quadrilaterals (node, edge midpoint, centroid, edge midpoint),
     # counter-clockwise like the polygon.
     clockwise = _cross(flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]) < 0.0
@@ -147,8 +173,9 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     inside = (side >= -slack).all(axis=(1, 2))
     covered = np.zeros(len(quads))
     covered[inside] = _polygon_area(quads[inside])
+    corners = [(float(x), float(y)) for x, y in v]
     for q in np.flatnonzero(~inside & ~outside):
-        covered[q] = _polygon_area(_clip(quads[q], v)[None])[0]
+        covered[q] = _clipped_area(quads[q].tolist(), corners)
     area_in = np.zeros(mesh.n_nodes)
     np.add.at(area_in, owners, covered)
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -189,26 +216,36 @@ def _polygon_area(polygons: np.ndarray) -> np.ndarray:
     return 0.5 * _cross(polygons, np.roll(polygons, -1, axis=1)).sum(axis=1)
 
 
-def _clip(subject: np.ndarray, clip: np.ndarray) -> np.ndarray:
-    """Sutherland-Hodgman: the part of a convex polygon (m, 2) inside a convex
-    counter-clockwise polygon (k, 2), as an (m', 2) counter-clockwise polygon."""
-    points = list(subject)
-    for a, b in zip(clip, np.roll(clip, -1, axis=0)):
+def _clipped_area(subject: list, corners: list) -> float:
+    """Area of the part of a convex polygon (m points) inside a convex counter-clockwise
+    polygon (k points): Sutherland-Hodgman clipping, then the shoelace formula.
+
+    On Python floats: the polygons have a handful of vertices, where numpy's
+    per-call overhead would dominate.
+    """
+    points = [(float(x), float(y)) for x, y in subject]
+    for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
         if not points:
-            break
-        edge = b - a
+            return 0.0
+        ex, ey = bx - ax, by - ay
         kept = []
-        for i, current in enumerate(points):
-            previous = points[i - 1]
-            s_current, s_previous = _cross(edge, current - a), _cross(edge, previous - a)
+        px, py = points[-1]
+        s_previous = ex * (py - ay) - ey * (px - ax)
+        for cx, cy in points:
+            s_current = ex * (cy - ay) - ey * (cx - ax)
             if s_current >= 0.0:
                 if s_previous < 0.0:
-                    kept.append(previous + (current - previous) * (s_previous / (s_previous - s_current)))
-                kept.append(current)
+                    t = s_previous / (s_previous - s_current)
+                    kept.append((px + (cx - px) * t, py + (cy - py) * t))
+                kept.append((cx, cy))
             elif s_previous >= 0.0:
-                kept.append(previous + (current - previous) * (s_previous / (s_previous - s_current)))
+                t = s_previous / (s_previous - s_current)
+                kept.append((px + (cx - px) * t, py + (cy - py) * t))
+            px, py, s_previous = cx, cy, s_current
         points = kept
-    return np.array(points).reshape(-1, 2)
+    if len(points) < 3:
+        return 0.0
+    return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]))
 
 
 def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:
