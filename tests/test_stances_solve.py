@@ -10,6 +10,7 @@ import pinocchio as pin
 import pytest
 
 import environments
+import fem
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
@@ -394,6 +395,36 @@ def test_two_soles_on_one_print_spot_are_rejected(robot):
     )
     with pytest.raises(StanceError, match="overlap"):
         build_problem(robot, scenario.scene, stance)
+
+
+def test_soles_closer_than_a_cell_share_no_node_each_going_to_the_one_covering_it_more(robot):
+    # Sole polygons 0.13 m wide, 0.14 m apart: 1 cm between their edges, inside one
+    # cell row, whose nodes both prints cover in part.
+    scenario = coarse_scenario("cross-soft-block")
+    stance = Stance(
+        (
+            Contact("left_sole", ContactPrint("foam_top", 0.0, 0.07, 0.0)),
+            Contact("right_sole", ContactPrint("foam_top", 0.0, -0.07, 0.0)),
+        )
+    )
+    problem = build_problem(robot, scenario.scene, stance)
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    assert len(np.unique(soft.node_ids)) == len(soft.node_ids)
+    mesh = soft.deformable_object.body.mesh
+    each = []
+    for i, spec in enumerate(soft.prints):
+        placement = spec.transform_print_to_world
+        polygon = robot.surface(spec.robot_surface).vertices_in_frame @ placement[:3, :3].T + placement[:3, 3]
+        pose = soft.deformable_object.transform_body_to_world
+        ids, coverage = fem.print_coverage(mesh, (polygon - pose[:3, 3]) @ pose[:3, :3])
+        each.append(dict(zip(ids.tolist(), coverage.tolist())))
+    shared = set(each[0]) & set(each[1])
+    assert shared  # the prints reach into the same cells
+    for node in shared:
+        owner = 0 if each[0][node] > each[1][node] else 1
+        (position,) = np.flatnonzero(soft.node_ids == node)
+        assert soft.print_of_node[position] == owner
+        assert soft.coverage[position] == each[owner][node]
 
 
 def test_strain_bound_is_kept_and_reported(robot):
