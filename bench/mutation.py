@@ -66,6 +66,7 @@ TARGETS = {
     "fem/body.py": _FEM_TESTS,
     "fem/patch.py": _FEM_TESTS,
     "fem/contact.py": _FEM_TESTS,
+    "fem/prints.py": ["tests/test_fem_coverage.py"] + _FEM_TESTS,
     "stances/statics.py": _STANCE_TESTS,
     "stances/terms.py": _STANCE_TESTS,
     "stances/deformable.py": _STANCE_TESTS,
