@@ -138,3 +138,28 @@ def test_bad_coverage_is_refused_and_the_traction_method_takes_none(pad):
         pad.contact_patch(ids, np.where(coverage < 1.0, 0.0, 1.0))
     with pytest.raises(fem.PrintError, match="traction method"):
         pad.contact_patch(ids, coverage).reaction_matrix("traction")
+
+
+@pytest.mark.parametrize("sides", [5, 6, 8])
+def test_convex_polygons_of_any_vertex_count_are_covered_by_their_area(pad, sides):
+    # A point foot's print is an octagon: every vertex count must pass the convexity check.
+    angles = 2 * np.pi * np.arange(sides) / sides + 0.1
+    polygon = np.column_stack([0.2 + 0.07 * np.cos(angles), 0.2 + 0.07 * np.sin(angles), np.full(sides, TOP)])
+    ids, coverage = fem.print_coverage(pad.mesh, polygon)
+    area = 0.5 * sides * 0.07**2 * np.sin(2 * np.pi / sides)
+    covered = float((coverage * _top_cell_areas(pad.mesh)[ids]).sum())
+    assert covered == pytest.approx(area, abs=40 * MINIMUM_COVERAGE * 0.025**2)
+
+
+def test_nodes_in_a_concave_polygon_leave_out_its_notch(pad):
+    # An L: a node in the notch lies left of two of the polygon's edges (two crossings).
+    ell = np.array([[0.1, 0.1], [0.3, 0.1], [0.3, 0.2], [0.2, 0.2], [0.2, 0.3], [0.1, 0.3]])
+    ids = fem.nodes_in_polygon(pad.mesh, np.column_stack([ell, np.full(6, TOP)]))
+    points = pad.mesh.nodes[ids, :2]
+    notch = (points[:, 0] > 0.2 + 1e-9) & (points[:, 1] > 0.2 + 1e-9)
+    assert not notch.any()
+    top = np.flatnonzero(np.isclose(pad.mesh.nodes[:, 2], TOP))
+    grid = pad.mesh.nodes[top, :2]
+    in_box = np.all((grid >= 0.1 - 1e-9) & (grid <= 0.3 + 1e-9), axis=1)
+    in_notch = (grid[:, 0] > 0.2 + 1e-9) & (grid[:, 1] > 0.2 + 1e-9)
+    assert set(ids.tolist()) == set(top[in_box & ~in_notch].tolist())
