@@ -130,6 +130,20 @@ def convergence_table(results) -> tuple[str, float]:
     return "\n".join(lines), assumed
 
 
+def _limit(forces, assumed: float) -> float:
+    """The aligned print's extrapolated force: from three meshes, or two with the assumed order."""
+    return richardson(forces[:3])[1] if len(forces) >= 3 else richardson_two(forces[:2], assumed)
+
+
+def _bodies_that_fit(study, max_nodes: int):
+    """``(level, body)`` at h and h / 2, while the mesh has at most ``max_nodes`` nodes."""
+    for level in LEVELS[:2]:
+        xs, ys, zs = study.coordinates(level)
+        if xs.size * ys.size * zs.size > max_nodes:
+            return
+        yield level, study.body_at(level)
+
+
 def placement_table(results, assumed: float, max_nodes: int, log) -> str:
     """Markdown table of the placed prints' forces at each level that fits, against the limit."""
     header = ("| body | print | resolution h (m) | nodes | print nodes | mean force (N) | min - max (N) | scatter | "
@@ -137,13 +151,9 @@ def placement_table(results, assumed: float, max_nodes: int, log) -> str:
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for result in results:
         study, forces = result["study"], result["forces"]
-        limit = richardson(forces[:3])[1] if len(forces) >= 3 else richardson_two(forces[:2], assumed)
+        limit = _limit(forces, assumed)
         previous = None
-        for level in LEVELS[:2]:
-            xs, ys, zs = study.coordinates(level)
-            if xs.size * ys.size * zs.size > max_nodes:
-                break
-            body = study.body_at(level)
+        for level, body in _bodies_that_fit(study, max_nodes):
             placed = [indentation_force(body, study.placed_polygon(o, PLACEMENT_ANGLE)) for o in PLACEMENT_OFFSETS]
             values = np.array([force for force, _ in placed])
             counts = [nodes for _, nodes in placed]
@@ -168,14 +178,10 @@ def covered_table(results, assumed: float, max_nodes: int, log) -> str:
     lines = [header, "|" + "---|" * (header.count("|") - 1)]
     for result in results:
         study, forces = result["study"], result["forces"]
-        limit = richardson(forces[:3])[1] if len(forces) >= 3 else richardson_two(forces[:2], assumed)
+        limit = _limit(forces, assumed)
         polygons = [study.polygon_in_body] + [study.placed_polygon(o, PLACEMENT_ANGLE) for o in PLACEMENT_OFFSETS]
         previous = None
-        for level in LEVELS[:2]:
-            xs, ys, zs = study.coordinates(level)
-            if xs.size * ys.size * zs.size > max_nodes:
-                break
-            body = study.body_at(level)
+        for level, body in _bodies_that_fit(study, max_nodes):
             values = np.array([covered_print_force(body, polygon) for polygon in polygons])
             counts = [fem.print_coverage(body.mesh, polygon)[0].size for polygon in polygons]
             change = "" if previous is None else f"{np.abs(values / previous - 1).max():.1%}"
