@@ -14,6 +14,7 @@ import fem
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
+from stances.deformable import DeformableContact
 from stances.problem import PostureOptions, build_problem
 from stances import sqp
 from stances.sqp import solve, solve_problem
@@ -425,6 +426,47 @@ def test_soles_closer_than_a_cell_share_no_node_each_going_to_the_one_covering_i
         (position,) = np.flatnonzero(soft.node_ids == node)
         assert soft.print_of_node[position] == owner
         assert soft.coverage[position] == each[owner][node]
+
+
+def test_a_prints_resultant_pyramid_is_the_inner_square_of_its_cone():
+    """Each print's resultant is kept in |f . t_i| <= mu / sqrt(2) f . n on both tangent
+    axes, both signs (the square whose corners touch the Coulomb cone): a force just
+    inside each side passes every face, one just outside fails exactly one."""
+    rotation = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
+    normal, tangents, mu = rotation[:, 2], rotation[:, :2].T, 0.7
+    faces = DeformableContact._pyramid_faces(normal[None], tangents[None], [mu])[0]
+    side = mu / np.sqrt(2.0)
+    for tangent in tangents:
+        for sign in (1.0, -1.0):
+            assert np.all(faces @ (normal + sign * (1.0 - 1e-9) * side * tangent) >= 0.0)
+            assert np.sum(faces @ (normal + sign * (1.0 + 1e-6) * side * tangent) < 0.0) == 1
+    corner = normal + side * (tangents[0] - tangents[1])
+    assert np.isclose(np.linalg.norm(corner - normal), mu)  # on the cone
+    assert np.all(faces @ corner >= -1e-12)
+
+
+def test_strain_rows_go_to_the_tets_strained_most_in_compression_as_in_stretch(robot):
+    """A sole pressed straight down compresses the tets under it most: the strain rows go to the tets of largest principal strain magnitude, their
+    compression row reading the tet's smallest principal strain."""
+    scenario = coarse_scenario("step-on-cube")
+    problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions())
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    u = (-1e-3 * soft.normals_in_body).reshape(-1)  # every print node 1 mm into the body
+    principal = np.linalg.eigvalsh(fem.voigt_to_tensor_strain(soft.patch.neighbour_strains(u)))
+    magnitude = np.maximum(principal[:, 2], -principal[:, 0])
+    expected = np.argsort(-magnitude, kind="stable")[:3]
+    # The most strained tets are compressed, and are not the most stretched ones.
+    assert np.all(-principal[expected, 0] > principal[expected, 2])
+    assert set(expected).isdisjoint(np.argsort(-principal[:, 2], kind="stable")[:3])
+    soft.strain_limit = float(magnitude.max())
+    soft.max_strain_rows = 3
+    block = soft._strain_block(u, None, problem.n_step)
+    tets = soft.patch.neighbour_tets[expected]
+    assert block.labels == tuple(
+        f"strain bound ({kind}) of tet {t} of cube" for t in tets for kind in ("stretch", "compression")
+    )
+    np.testing.assert_allclose(block.value[1::2], principal[expected, 0], rtol=1e-12)
+    np.testing.assert_allclose(block.value[0::2], principal[expected, 2], rtol=1e-12)
 
 
 def test_strain_bound_is_kept_and_reported(robot):
