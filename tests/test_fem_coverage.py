@@ -163,3 +163,52 @@ def test_nodes_in_a_concave_polygon_leave_out_its_notch(pad):
     in_box = np.all((grid >= 0.1 - 1e-9) & (grid <= 0.3 + 1e-9), axis=1)
     in_notch = (grid[:, 0] > 0.2 + 1e-9) & (grid[:, 1] > 0.2 + 1e-9)
     assert set(ids.tolist()) == set(top[in_box & ~in_notch].tolist())
+
+
+def _counter_clockwise(corners):
+    """(k, 2) corners of a convex polygon, counter-clockwise."""
+    a, b = corners[1] - corners[0], corners[2] - corners[1]
+    return corners if a[0] * b[1] - a[1] * b[0] > 0.0 else corners[::-1]
+
+
+def _inside_convex(points, polygon):
+    """(n,) bool: 2-D points inside a convex counter-clockwise polygon (k, 2)."""
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    rel = points[:, None, :] - polygon[None]
+    return (edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0] >= 0.0).all(axis=1)
+
+
+def test_each_cells_covered_fraction_is_what_sampling_finds(pad):
+    """Monte Carlo on the top face, no quadrilaterals: a point of a triangle belongs to
+    the median-dual cell of the vertex with its largest barycentric coordinate. The
+    sampled covered fraction of every partly covered cell matches fem's exact clipping."""
+    polygon = _rectangle((0.2 + 0.004, 0.2 + 0.002), (0.1, 0.06), 17.0)
+    ids, coverage = fem.print_coverage(pad.mesh, polygon)
+    mesh, rng = pad.mesh, np.random.default_rng(11)
+    top = np.isclose(mesh.nodes[mesh.surface_triangles][:, :, 2], TOP).all(axis=1)
+    triangles = mesh.surface_triangles[top]
+    near = np.abs(mesh.nodes[triangles][:, :, :2].mean(axis=1) - 0.2).max(axis=1) < 0.16
+    # Cells whose every top triangle is sampled.
+    sampled = np.bincount(triangles[near].ravel(), minlength=mesh.n_nodes)
+    whole = (sampled > 0) & (sampled == np.bincount(triangles.ravel(), minlength=mesh.n_nodes))
+    triangles = triangles[near]
+    samples = 4000  # per triangle; triangles have equal areas on this grid
+    r1, r2 = rng.random((2, len(triangles), samples))
+    flip = r1 + r2 > 1.0
+    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
+    barycentric = np.stack([1.0 - r1 - r2, r1, r2], axis=2)  # (T, s, 3)
+    points = np.einsum("tsk,tkj->tsj", barycentric, mesh.nodes[triangles][:, :, :2]).reshape(-1, 2)
+    owner = np.take_along_axis(triangles, barycentric.argmax(axis=2), axis=1).ravel()
+    corners = _counter_clockwise(polygon[:, :2])
+    inside = _inside_convex(points, corners)
+    checked = 0
+    for node, w in zip(ids.tolist(), coverage):
+        mine = owner == node
+        if not whole[node] or w == 1.0:
+            continue
+        assert inside[mine].mean() == pytest.approx(w, abs=0.01)
+        checked += 1
+    assert checked >= 30  # the partly covered ring of a 0.2 x 0.12 m print on 25 mm cells
+    # Nodes of cells the polygon misses are left out.
+    for node in np.setdiff1d(np.flatnonzero(whole), ids).tolist():
+        assert inside[owner == node].mean() < MINIMUM_COVERAGE + 0.01
