@@ -65,14 +65,14 @@ def test_a_warm_body_reads_its_columns_instead_of_solving(mesh, cache):
     ids = nodes_in_polygon(mesh, SQUARE)
     make_body(mesh, cache).compliance_columns(ids)
     names = sorted(path.name for path in cache.path(make_body(mesh, cache).cache_key, "x").parent.iterdir())
-    assert names == sorted([f"columns-{node}.npz" for node in ids] + ["stiffness.npz"])
+    assert names == sorted([f"columns-{node}.entry" for node in ids] + ["stiffness.entry"])
     warm = make_body(mesh, cache)
     assert np.array_equal(warm.compliance_columns(ids), make_body(mesh, False).compliance_columns(ids))
     assert warm._factor is None
 
 
 def _flip_bytes_inside(path):
-    """Invert 100 bytes near the end of the array data (before the zip directory)."""
+    """Invert 100 bytes near the end of the array data."""
     data = bytearray(path.read_bytes())
     data[-400:-300] = bytes(b ^ 0xFF for b in data[-400:-300])
     path.write_bytes(bytes(data))
@@ -83,7 +83,7 @@ def _flip_bytes_inside(path):
     [
         pytest.param(lambda path: path.write_bytes(b""), id="empty"),
         pytest.param(lambda path: path.write_bytes(path.read_bytes()[: path.stat().st_size // 2]), id="truncated"),
-        pytest.param(lambda path: path.write_bytes(b"not an npz file at all" * 100), id="garbage"),
+        pytest.param(lambda path: path.write_bytes(b"not a cache entry at all" * 100), id="garbage"),
         pytest.param(_flip_bytes_inside, id="flipped-bytes"),
     ],
 )
@@ -99,6 +99,21 @@ def test_a_corrupt_cache_file_is_ignored_and_rebuilt(mesh, cache, damage):
     third = make_body(mesh, cache)
     assert outputs(third) == expected
     assert third._factor is None
+
+
+def test_an_entry_round_trips_its_arrays_exactly_and_refuses_a_header_that_overstates_them(cache):
+    arrays = {"columns": np.random.default_rng(2).normal(size=(7, 3)), "node": np.int64(4),
+              "indices": np.arange(5, dtype=np.int32)}
+    cache.store("0" * 64, "entry", arrays)
+    loaded = cache.load("0" * 64, "entry")
+    for key, value in arrays.items():
+        assert loaded[key].dtype == np.asarray(value).dtype and loaded[key].shape == np.shape(value)
+        assert np.array_equal(loaded[key], value) and not loaded[key].flags.writeable
+    # A header that promises more bytes than the file holds: ignored, and removed.
+    path = cache.path("0" * 64, "entry")
+    path.write_bytes(path.read_bytes().replace(b'"shape": [7, 3]', b'"shape": [9, 3]'))
+    assert cache.load("0" * 64, "entry") is None
+    assert not path.exists()
 
 
 def test_an_entry_written_for_other_inputs_is_ignored(mesh, cache):
