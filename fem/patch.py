@@ -122,6 +122,7 @@ class ContactPatch:
         local = np.full(mesh.n_nodes, -1, dtype=np.int64)
         local[ids] = np.arange(ids.size)
         self._local = local
+        self._tet_maps = {}  # neighbour tet position -> (12, 3p) map of its nodes (_tet_nodes_map)
         # eqs. (38)-(39): surface triangles whose three nodes are all in P.
         inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
         self._tri_global = np.flatnonzero(inside)
@@ -277,18 +278,32 @@ class ContactPatch:
         return g[rows].reshape(rows.shape[0], 12, -1)
 
     @cached_property
-    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(3q, 3p) displacement map of the :attr:`neighbour_tets`' q nodes, (T', 4) their
-        rows, and (T', 6, 12) the tets' strain matrices."""
-        g, rows = self._node_displacement_map(self.neighbour_tets)
-        return g.reshape(-1, g.shape[2]), rows, self._body._strain_matrices[self.neighbour_tets]
+    def _neighbour_nodes(self) -> tuple:
+        """What the :attr:`neighbour_tets`' strains are computed from, without the
+        (3q, 3p) map of their q nodes (a 30 ms product on a sole pair, more than a
+        planner's whole use of it): (q, 3, 3p) rows of ``C[:, P]`` at those nodes,
+        (T', 4) each tet's nodes as rows of them, (T', 6, 12) the tets' strain
+        matrices, (q,) each node's index in the print (-1 outside it) and (q,) which
+        nodes are fixed."""
+        body = self._body
+        tets = body.mesh.tets[self.neighbour_tets]
+        nodes, rows = np.unique(tets, return_inverse=True)
+        block, position = self._compliance_rows
+        return (
+            block[position[nodes]],
+            rows.reshape(tets.shape),
+            body._strain_matrices[self.neighbour_tets],
+            self._local[nodes],
+            body.fixed_mask[nodes],
+        )
 
     def neighbour_strains(self, displacements) -> np.ndarray:
         """Voigt strains of the :attr:`neighbour_tets` under print displacements (eq. 24).
 
-        Equal to ``strain_map @ U_P.ravel()``, through the tets' nodes: a tet has
-        4 nodes and 6 strains, and about 2.5 tets share a node, so this is about 6
-        times fewer operations (it runs at every evaluation of a soft stance).
+        Equal to ``strain_map @ U_P.ravel()``, through the tets' nodes: the nodes
+        move by ``C[:, P] S_P U_P`` (eq. 36; exactly U_P at the print nodes, 0 at fixed
+        ones), the force ``S_P U_P`` computed first, so that no (3q, 3p) map is formed
+        (it runs at every evaluation of a soft stance).
 
         Parameters
         ----------
@@ -300,9 +315,52 @@ class ContactPatch:
         (T', 6) float
             Voigt strains (engineering shears), dimensionless.
         """
-        g, rows, b = self._neighbour_nodes
-        nodal = (g @ np.asarray(displacements, dtype=float)).reshape(-1, 3)[rows].reshape(rows.shape[0], 12)
-        return np.einsum("tik,tk->ti", b, nodal)
+        block, rows, b, in_print, fixed = self._neighbour_nodes
+        u = np.asarray(displacements, dtype=float)
+        nodal = block.reshape(-1, block.shape[2]) @ (self.condensed_stiffness @ u)
+        nodal = nodal.reshape(-1, 3)
+        printed = in_print >= 0
+        nodal[printed] = u.reshape(-1, 3)[in_print[printed]]
+        nodal[fixed] = 0.0
+        return np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
+
+    def neighbour_strain_row(self, weights, tet: int) -> np.ndarray:
+        """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of one
+        neighbour tet's Voigt strains per unit print displacement.
+
+        Parameters
+        ----------
+        weights : (6,) float
+            Weights of the tet's Voigt strains (e.g. a principal strain's derivative).
+        tet : int
+            Position of the tet in :attr:`neighbour_tets`.
+
+        Returns
+        -------
+        (3p,) float, 1/m
+        """
+        _, _, b, _, _ = self._neighbour_nodes
+        return (np.asarray(weights, dtype=float) @ b[tet]) @ self._tet_nodes_map(tet)
+
+    def _tet_nodes_map(self, tet: int) -> np.ndarray:
+        """(12, 3p) displacements of one neighbour tet's nodes per unit print displacement
+        (eq. 36), kept: a solve's strain rows come back to the same few tets."""
+        known = self._tet_maps.get(tet)
+        if known is not None:
+            return known
+        block, rows, _, in_print, fixed = self._neighbour_nodes
+        corners = rows[tet]
+        out = (block[corners].reshape(12, -1) @ self.condensed_stiffness).reshape(4, 3, -1)
+        for corner, node in enumerate(corners.tolist()):
+            if fixed[node]:
+                out[corner] = 0.0
+            elif in_print[node] >= 0:  # exactly the print node's own motion
+                out[corner] = 0.0
+                out[corner][:, 3 * in_print[node] : 3 * in_print[node] + 3] = np.eye(3)
+        out = out.reshape(12, -1)
+        out.setflags(write=False)
+        self._tet_maps[tet] = out
+        return out
 
     def _node_displacement_map(self, tet_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(q, 3, 3p) displacements of some tets' q nodes per unit print displacement

@@ -850,7 +850,7 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append((weights @ self.patch.strain_map[t]) @ d_u)
+                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)

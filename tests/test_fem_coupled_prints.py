@@ -88,6 +88,26 @@ def test_strain_map_matches_the_strain_of_the_full_field(block):
     assert np.allclose(patch.neighbour_strains(displacements.ravel()), expected, atol=1e-10)
 
 
+def test_a_strain_row_of_one_tet_is_that_row_of_the_strain_map():
+    """What the posture solver's strain rows differentiate with, tet by tet and
+    without the full map: the tets around the print (nodes in it, free nodes, and,
+    on a block one tet thick, fixed ones) give the map's rows."""
+    mesh = fem.box_mesh((0.6, 0.4, 0.05), (12, 8, 1))
+    body = fem.DeformableBody(mesh, fem.LinearElasticMaterial(E, NU), np.flatnonzero(mesh.nodes[:, 2] == 0.0))
+    left = fem.nodes_in_polygon(mesh, [[0.05, 0.05, 0.05], [0.25, 0.05, 0.05], [0.25, 0.35, 0.05], [0.05, 0.35, 0.05]])
+    patch = body.contact_patch(left)
+    rng = np.random.default_rng(8)
+    tets = body.mesh.tets[patch.neighbour_tets]
+    on_base = np.flatnonzero(body.fixed_mask[tets].any(axis=1))
+    in_print = np.flatnonzero(np.isin(tets, left).any(axis=1))
+    chosen = np.unique(np.concatenate([on_base[:3], in_print[:3], rng.choice(len(tets), 4, replace=False)]))
+    assert on_base.size and in_print.size
+    for tet in chosen.tolist():
+        weights = rng.normal(size=6)
+        expected = weights @ patch.strain_map[tet]
+        assert np.allclose(patch.neighbour_strain_row(weights, tet), expected, rtol=1e-9, atol=1e-12 * np.abs(expected).max())
+
+
 def test_strain_map_does_not_depend_on_the_young_modulus(block):
     body, left, _ = block
     stiff = fem.DeformableBody(body.mesh, fem.LinearElasticMaterial(1e10, NU), body.fixed_nodes)
