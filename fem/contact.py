@@ -148,17 +148,25 @@ class _LowRankFactor:
     """A linearised law's matrix as the compliance with a few rows replaced (Woodbury).
 
     ``A = C + E V``, ``E`` the (n, r) columns of the identity at the replaced
-    rows ``R``, ``V = A[R] - C[R]``; with ``S = C^-1`` known,
+    rows ``R``, ``V = A[R] - C[R]`` (given: C and ``A[R]``); with ``S = C^-1`` known,
     ``A^-1 b = S b - S[:, R] (I + V S[:, R])^-1 V S b``: an (r, r)
     factorisation instead of an (n, n) one (a sole on a mat: r = 52 of n = 369).
     """
 
-    def __init__(self, matrix, inverse, rows, replaced):
-        self._matrix = matrix
+    def __init__(self, compliance, inverse, rows, new_rows):
+        self._compliance = compliance  # C: A is never formed
         self._inverse = inverse
+        self._rows = rows
+        self._new_rows = new_rows  # A[R], (r, n)
         self._columns = inverse[:, rows]  # S E, (n, r)
-        self._replaced = replaced  # V, (r, n)
-        self._lu = scipy.linalg.lu_factor(np.eye(rows.size) + replaced @ self._columns, check_finite=False) if rows.size else None
+        self._replaced = new_rows - compliance[rows]  # V, (r, n)
+        self._lu = scipy.linalg.lu_factor(np.eye(rows.size) + self._replaced @ self._columns, check_finite=False) if rows.size else None
+
+    def product(self, x):
+        """``A x``, x a vector: C's rows, and the replaced ones."""
+        y = self._compliance @ x
+        y[self._rows] = self._new_rows @ x
+        return y
 
     def solve(self, rhs):
         """``A^-1 rhs``; a vector (the forces) gets one step of iterative refinement.
@@ -169,7 +177,7 @@ class _LowRankFactor:
         """
         x = self._apply(rhs)
         if np.ndim(rhs) == 1:
-            x = x + self._apply(rhs - self._matrix @ x)
+            x = x + self._apply(rhs - self.product(x))
         return x
 
     def _apply(self, rhs):
@@ -289,33 +297,35 @@ class PrintContactSystem:
         if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
-        matrix, rhs_blocks = _mode_system(self.c_local, modes, directions, gains, self.mu, self.scale)
-        entry = (self._factor(matrix, modes), rhs_blocks)
+        rows, replaced, rhs_blocks = _mode_rows(self.c_local, modes, directions, gains, self.mu, self.scale)
+        entry = (self._factor(modes, rows, replaced), rhs_blocks)
         if not slipping:
             self._factors[key] = entry
             if len(self._factors) > self._kept:
                 self._factors.popitem(last=False)
         return entry
 
-    def _factor(self, matrix, modes):
-        """A factorisation of a linearised law's matrix: low rank where few rows differ from C.
+    def _factor(self, modes, rows, replaced):
+        """A factorisation of a linearised law's matrix (C with the ``rows`` replaced by
+        ``replaced``): low rank where few rows differ from C.
 
         Sets without slip are factorised once and kept (dense LU). Sets with slip
         are factorised at every solve, through ``C^-1`` (computed once, about two
-        LU factorisations). The choice depends on the modes alone, never on what
-        the system solved before: the same motion gives the same bits.
+        LU factorisations), without forming the matrix. The choice depends on the
+        modes alone, never on what the system solved before: the same motion gives
+        the same bits.
         """
-        rows = np.flatnonzero(~_compliance_rows(modes))
-        if not np.any(modes == SLIP) or rows.size > _LOW_RANK_ROWS * matrix.shape[0]:
-            return _DenseFactor(matrix)
+        n = self.c_local.shape[0]
+        if not np.any(modes == SLIP) or rows.size > _LOW_RANK_ROWS * n:
+            return _DenseFactor(_replace_rows(self.c_local, rows, replaced))
         if self._inverse is None:
             self._inverse = spd_inverse(self.c_local, "the print's compliance")
-        factor = _LowRankFactor(matrix, self._inverse, rows, matrix[rows] - self.c_local[rows])
+        factor = _LowRankFactor(self.c_local, self._inverse, rows, replaced)
         # Woodbury is exact in exact arithmetic; a badly conditioned update
         # (not seen) would show here, and the dense factorisation then serves.
-        ones = np.ones(matrix.shape[0])
-        if np.abs(factor.solve(matrix @ ones) - ones).max() > _LOW_RANK_CHECK:
-            return _DenseFactor(matrix)
+        ones = np.ones(n)
+        if np.abs(factor.solve(factor.product(ones)) - ones).max() > _LOW_RANK_CHECK:
+            return _DenseFactor(_replace_rows(self.c_local, rows, replaced))
         return factor
 
     def _forces(self, u_local, system):
@@ -523,30 +533,49 @@ def _mode_system(c_local, modes, directions, gains, mu, scale):
     ``r_n = 0`` and ``phi_t = mu phi_n d(tau)``, ``tau = phi_t - s r_t``, linearised
     about the iterate's direction ``d`` with gain ``k = mu phi_n / |tau|``: the exact
     (semismooth) Newton step, which is linear in (phi, U) because the law is
-    positively homogeneous. Returns the (3p, 3p) matrix and (p, 3, 3) blocks.
+    positively homogeneous. Returns the (3p, 3p) matrix and (p, 3, 3) blocks:
+    C with the rows of :func:`_mode_rows` replaced.
     """
+    rows, replaced, blocks = _mode_rows(c_local, modes, directions, gains, mu, scale)
+    return _replace_rows(c_local, rows, replaced), blocks
+
+
+def _replace_rows(c_local, rows, replaced):
+    """C with some rows replaced, (3p, 3p)."""
+    matrix = c_local.copy()
+    matrix[rows] = replaced
+    return matrix
+
+
+def _mode_rows(c_local, modes, directions, gains, mu, scale):
+    """The rows of the linearised law that are not C's (:func:`_mode_system`): their
+    indices (r,) (a lifted node's three, a slipping node's two tangential ones, in
+    order), their values (r, 3p), and the right-hand side's (p, 3, 3) blocks."""
     p = modes.shape[0]
     lifted, slipping = modes == LIFT, modes == SLIP
-    motion_rows = _compliance_rows(modes)
-    matrix = np.where(motion_rows[:, None], c_local, 0.0)
+    rows = np.flatnonzero(~_compliance_rows(modes))
+    replaced = np.zeros((rows.size, 3 * p))
     blocks = np.zeros((p, 3, 3))
     blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
     lifted_rows = np.flatnonzero(np.repeat(lifted, 3))
-    matrix[lifted_rows, lifted_rows] = 1.0
+    replaced[np.searchsorted(rows, lifted_rows), lifted_rows] = 1.0
     nodes = np.flatnonzero(slipping)
     if nodes.size:
         d = directions[nodes]  # (k, 2)
         outer = np.einsum("ki,kj->kij", d, d)
         weight = gains[nodes] * 0.5 * (scale[nodes, 0] + scale[nodes, 1])  # k s per node
         projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
-        rows = (3 * nodes[:, None] + np.arange(2)).ravel()  # the tangential rows
-        matrix[rows] = np.einsum("kij,kjc->kic", projected, c_local[rows].reshape(len(nodes), 2, -1)).reshape(len(rows), -1)
+        tangential = (3 * nodes[:, None] + np.arange(2)).ravel()  # the tangential rows
+        at = np.searchsorted(rows, tangential).reshape(len(nodes), 2)
+        replaced[at.ravel()] = np.einsum(
+            "kij,kjc->kic", projected, c_local[tangential].reshape(len(nodes), 2, -1)
+        ).reshape(len(tangential), -1)
         own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
         columns = 3 * nodes[:, None] + np.arange(2)
-        matrix[columns[:, :, None], columns[:, None, :]] += own
-        matrix[columns, (3 * nodes + 2)[:, None]] -= mu[nodes][:, None] * d
+        replaced[at[:, :, None], columns[:, None, :]] += own
+        replaced[at, (3 * nodes + 2)[:, None]] -= mu[nodes][:, None] * d
         blocks[nodes, :2, :2] = projected
-    return matrix, blocks
+    return rows, replaced, blocks
 
 
 def _compliance_rows(modes) -> np.ndarray:
