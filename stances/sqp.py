@@ -52,7 +52,9 @@ _SLOW_PENALTY = 1e6
 # Feasible iterates whose line search keeps cutting the step below this many
 # times in a row stop: the QP's model no longer predicts the objective (a
 # warm start at its loose tolerance crawled 70 iterations at alpha 1/256 on a
-# climb stance, for an objective change of 4 %).
+# climb stance, for an objective change of 4 %). Cuts from nearly feasible
+# iterates that a restoration step follows count too when they gain less than
+# _CRAWL_GAIN of the objective (see run_sqp).
 _CRAWL_ALPHA = 1.0 / 16.0
 _CRAWL_STEPS = 3
 # A feasible iterate that no step of the next _NO_GAIN_ITERATIONS beats by more than
@@ -68,6 +70,7 @@ _NO_GAIN_ITERATIONS = 4
 # stage: 20 iterations, 0.07 % of the objective, 2.9 s, to its iteration cap).
 _SLOW_GAIN = 1e-3
 _SLOW_GAIN_ITERATIONS = 8
+_CRAWL_GAIN = _SLOW_GAIN / _SLOW_GAIN_ITERATIONS  # relative objective gain an iteration below which a cut step crawls
 # Far from feasible (scaled violation above _HOPELESS_VIOLATION: 0.1 mm, 0.01 N),
 # iterations whose line search cuts the step below _CRAWL_ALPHA (or finds no
 # step) _CRAWL_STEPS times in a row, with the violation falling by less than
@@ -301,8 +304,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     slow = False
     curved_iterations = 0
     local_steps = []  # lengths of full steps in the local phase
-    crawling = 0  # iterations in a row from a nearly feasible iterate whose line search cut the step below _CRAWL_ALPHA
-    crawls, crawl_start = 0, np.inf  # the same, far from feasible, and the violation where they began
+    crawling = 0  # crawling iterations in a row near feasibility (see where it is counted)
+    crawls, crawl_start = 0, np.inf  # iterations in a row far from feasible whose step was cut below _CRAWL_ALPHA (or not found), and the violation where they began
     best, best_iteration = None, 0  # the best feasible (q, lam, linearization) seen, and when
     best_history = []  # the best feasible objective after each iteration once there is one
     for iteration in range(1, limit + 1):
@@ -427,15 +430,21 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # along the constraints, would keep the merit moving for 5-10 more
         # iterations (hand-on-table: 19 iterations, now 11) for a posture that
         # moves by 1e-5 rad.
-        # Counted on the optimality step's cut, whether or not a restoration step
-        # replaced it, from any nearly feasible iterate: near a node's mode switch the
-        # QP's step turned out 1e6 times too long (a full step's violation 1.1 from
-        # 1e-10), each cut to 1/256 landed just outside the tolerance and a
-        # restoration brought it back at alpha 1, which reset the count: the Coulomb
-        # stage of hand-on-cube took 8 such iterations, 11 contact solves each, for
-        # 0.03 % of the objective (to the slow-gain stop).
-        nearly_feasible = violation <= _NEARLY_FEASIBLE * tolerance
-        crawling = crawling + 1 if nearly_feasible and searched < _CRAWL_ALPHA else 0
+        # A crawl: a feasible iterate reached by a cut step; or, from any nearly
+        # feasible iterate, an optimality step cut below _CRAWL_ALPHA (whether or not
+        # a restoration step then replaced it) that gained next to nothing. Near a
+        # node's mode switch the QP's step turned out 1e6 times too long (a full
+        # step's violation 1.1 from 1e-10), each cut to 1/256 landed just outside the
+        # tolerance and a restoration brought it back at alpha 1, which reset a count
+        # of the first kind alone: the Coulomb stage of hand-on-cube took 8 such
+        # iterations, 11 contact solves each, for 0.03 % of the objective. The gain
+        # guard keeps that second kind from stopping a curved path that still
+        # improves (a point on a sphere: cut and restored, 0.3 % an iteration).
+        cut = searched < _CRAWL_ALPHA and violation <= _NEARLY_FEASIBLE * tolerance
+        gained = previous_objective - linearization.objective
+        crawling = crawling + 1 if (linearization.met(tolerance) and alpha < _CRAWL_ALPHA) or (
+            cut and gained < _CRAWL_GAIN * (1.0 + abs(previous_objective))
+        ) else 0
         if linearization.met(tolerance) and (
             alpha * np.max(np.abs(step[:nv])) < 1e-6
             or abs(previous_objective - linearization.objective)
