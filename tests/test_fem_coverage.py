@@ -179,12 +179,13 @@ def _inside_convex(points, polygon):
 
 
 def test_each_cells_covered_fraction_is_what_sampling_finds(pad):
-    """Monte Carlo on the top face, no quadrilaterals: a point of a triangle belongs to
-    the median-dual cell of the vertex with its largest barycentric coordinate. The
-    sampled covered fraction of every partly covered cell matches fem's exact clipping."""
+    """Sampling the top face on a fine lattice, no quadrilaterals: a point of a triangle
+    belongs to the median-dual cell of the vertex with its largest barycentric
+    coordinate. The sampled covered fraction of every partly covered cell matches fem's
+    exact clipping, and every cell kept is covered at least MINIMUM_COVERAGE."""
     polygon = _rectangle((0.2 + 0.004, 0.2 + 0.002), (0.1, 0.06), 17.0)
     ids, coverage = fem.print_coverage(pad.mesh, polygon)
-    mesh, rng = pad.mesh, np.random.default_rng(11)
+    mesh = pad.mesh
     top = np.isclose(mesh.nodes[mesh.surface_triangles][:, :, 2], TOP).all(axis=1)
     triangles = mesh.surface_triangles[top]
     near = np.abs(mesh.nodes[triangles][:, :, :2].mean(axis=1) - 0.2).max(axis=1) < 0.16
@@ -192,23 +193,28 @@ def test_each_cells_covered_fraction_is_what_sampling_finds(pad):
     sampled = np.bincount(triangles[near].ravel(), minlength=mesh.n_nodes)
     whole = (sampled > 0) & (sampled == np.bincount(triangles.ravel(), minlength=mesh.n_nodes))
     triangles = triangles[near]
-    samples = 4000  # per triangle; triangles have equal areas on this grid
-    r1, r2 = rng.random((2, len(triangles), samples))
-    flip = r1 + r2 > 1.0
-    r1, r2 = np.where(flip, 1.0 - r1, r1), np.where(flip, 1.0 - r2, r2)
-    barycentric = np.stack([1.0 - r1 - r2, r1, r2], axis=2)  # (T, s, 3)
+    # A shifted square lattice folded onto the triangle (u + v > 1 -> 1 - u, 1 - v): a
+    # uniform density whose points never tie two barycentric coordinates (the shifts
+    # 0.31 and 0.57 keep u = v, 2u + v = 1 and u + 2v = 1 off the lattice), 100^2 points
+    # a triangle (triangles have equal areas on this grid).
+    n = 100
+    u, v = np.meshgrid((np.arange(n) + 0.31) / n, (np.arange(n) + 0.57) / n, indexing="ij")
+    folded = u + v > 1.0
+    u, v = np.where(folded, 1.0 - u, u).ravel(), np.where(folded, 1.0 - v, v).ravel()
+    barycentric = np.broadcast_to(np.stack([1.0 - u - v, u, v], axis=1), (len(triangles), u.size, 3))
     points = np.einsum("tsk,tkj->tsj", barycentric, mesh.nodes[triangles][:, :, :2]).reshape(-1, 2)
     owner = np.take_along_axis(triangles, barycentric.argmax(axis=2), axis=1).ravel()
-    corners = _counter_clockwise(polygon[:, :2])
-    inside = _inside_convex(points, corners)
+    inside = _inside_convex(points, _counter_clockwise(polygon[:, :2]))
     checked = 0
     for node, w in zip(ids.tolist(), coverage):
-        mine = owner == node
-        if not whole[node] or w == 1.0:
+        if not whole[node]:
             continue
-        assert inside[mine].mean() == pytest.approx(w, abs=0.01)
-        checked += 1
+        sampled_w = inside[owner == node].mean()
+        assert sampled_w >= MINIMUM_COVERAGE - 0.002
+        if w < 1.0:
+            assert sampled_w == pytest.approx(w, abs=0.003)
+            checked += 1
     assert checked >= 30  # the partly covered ring of a 0.2 x 0.12 m print on 25 mm cells
     # Nodes of cells the polygon misses are left out.
     for node in np.setdiff1d(np.flatnonzero(whole), ids).tolist():
-        assert inside[owner == node].mean() < MINIMUM_COVERAGE + 0.01
+        assert inside[owner == node].mean() < MINIMUM_COVERAGE + 0.002

@@ -14,7 +14,6 @@ import fem
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
-from stances.deformable import DeformableContact
 from stances.problem import PostureOptions, build_problem
 from stances import sqp
 from stances.sqp import solve, solve_problem
@@ -428,26 +427,36 @@ def test_soles_closer_than_a_cell_share_no_node_each_going_to_the_one_covering_i
         assert soft.coverage[position] == each[owner][node]
 
 
-def test_a_prints_resultant_pyramid_is_the_inner_square_of_its_cone():
-    """Each print's resultant is kept in |f . t_i| <= mu / sqrt(2) f . n on both tangent
-    axes, both signs (the square whose corners touch the Coulomb cone): a force just
-    inside each side passes every face, one just outside fails exactly one."""
-    rotation = np.linalg.qr(np.random.default_rng(3).normal(size=(3, 3)))[0]
-    normal, tangents, mu = rotation[:, 2], rotation[:, :2].T, 0.7
-    faces = DeformableContact._pyramid_faces(normal[None], tangents[None], [mu])[0]
-    side = mu / np.sqrt(2.0)
+def test_a_prints_resultant_is_kept_in_the_inner_square_of_its_cone_less_the_margin(robot):
+    """Each print's resultant is kept in ``|f . t_i| <= margin mu / sqrt(2) f . n`` on both
+    tangent axes, both signs (the square whose corners touch the Coulomb cone, shrunk by
+    ``friction_margin``): a resultant just inside each side passes every row, one just
+    outside fails exactly one; the square's corner lies on the shrunk cone."""
+    scenario = coarse_scenario("step-on-cube")
+    problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions(friction_margin=0.7))
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    rotation = soft.print_placements[0].rotation
+    normal, tangents = rotation[:, 2], rotation[:, :2].T
+    side = 0.7 * soft.friction[0] / np.sqrt(2.0)
+
+    def rows(resultant):
+        forces = np.zeros((len(soft.node_ids), 3))
+        forces[:2] = 0.5 * resultant  # any split: the rows read the sum
+        return soft._resultant_rows(forces, None)[0]
+
     for tangent in tangents:
         for sign in (1.0, -1.0):
-            assert np.all(faces @ (normal + sign * (1.0 - 1e-9) * side * tangent) >= 0.0)
-            assert np.sum(faces @ (normal + sign * (1.0 + 1e-6) * side * tangent) < 0.0) == 1
+            assert np.all(rows(normal + sign * (1.0 - 1e-9) * side * tangent) >= 0.0)
+            assert np.sum(rows(normal + sign * (1.0 + 1e-6) * side * tangent) < 0.0) == 1
     corner = normal + side * (tangents[0] - tangents[1])
-    assert np.isclose(np.linalg.norm(corner - normal), mu)  # on the cone
-    assert np.all(faces @ corner >= -1e-12)
+    assert np.isclose(np.linalg.norm(corner - normal), 0.7 * soft.friction[0])
+    assert np.all(rows(corner) >= -1e-12)
 
 
 def test_strain_rows_go_to_the_tets_strained_most_in_compression_as_in_stretch(robot):
-    """A sole pressed straight down compresses the tets under it most: the strain rows go to the tets of largest principal strain magnitude, their
-    compression row reading the tet's smallest principal strain."""
+    """A sole pressed straight down compresses the tets under it most: the strain rows
+    go to the tets of largest principal strain magnitude, their compression row
+    reading the tet's smallest principal strain."""
     scenario = coarse_scenario("step-on-cube")
     problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions())
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
