@@ -298,6 +298,8 @@ class DeformableBody:
             if (
                 data.dtype == np.float64
                 and indptr.shape == (n + 1,)
+                and indptr[0] == 0
+                and bool(np.all(np.diff(indptr) >= 0))
                 and data.shape == indices.shape == (int(indptr[-1]),)
                 and (indices.size == 0 or (0 <= indices.min() and indices.max() < n))
             ):

@@ -278,7 +278,7 @@ class ContactPatch:
         return g[rows].reshape(rows.shape[0], 12, -1)
 
     @cached_property
-    def _neighbour_nodes(self) -> tuple:
+    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """What the :attr:`neighbour_tets`' strains are computed from, without the
         (3q, 3p) map of their q nodes (a 30 ms product on a sole pair, more than a
         planner's whole use of it): (q, 3, 3p) rows of ``C[:, P]`` at those nodes,

@@ -288,6 +288,9 @@ def test_a_slipping_print_is_solved_through_the_low_rank_path_with_the_same_answ
     state = system.solve(displacements)
     assert 0 < state.n_slip and 2 * state.n_slip + 3 * state.n_lift <= 0.25 * 3 * patch.n_nodes
     assert system._inverse is not None
+    from fem.contact import _LowRankFactor
+
+    assert isinstance(state._system[0], _LowRankFactor)  # not the dense fallback
     _check_signorini_coulomb(body, patch, displacements, state, MU)
 
 
