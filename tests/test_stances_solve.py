@@ -832,3 +832,28 @@ def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reas
     assert result.iterations <= 9
     assert result.reason.startswith("held rigid, collision between leg_right_6_link_0 and foam violated by ")
     assert "m (no progress toward feasibility: the line search cut 3 steps in a row below 1/16 after " in result.reason
+
+
+def test_verify_sums_point_forces_per_joint_as_a_loop_over_them_does(robot):
+    """verify's per-joint wrenches (summed in the world about each joint's origin) equal
+    a loop adding each point force, turned into its joint's frame, about its point."""
+    from stances.results import PointForce
+    from stances.verify import _external_forces
+
+    model, data = robot.model, robot.model.createData()
+    rng = np.random.default_rng(12)
+    pin.forwardKinematics(model, data, pin.integrate(model, robot.reference_configuration, 0.3 * rng.normal(size=model.nv)))
+    frames = [f.name for f in model.frames if f.name.endswith(("sole_link", "contact"))][:4]
+    assert len(frames) >= 2
+    point_forces = [PointForce(frames[i % len(frames)], rng.normal(size=3), rng.normal(scale=50.0, size=3)) for i in range(40)]
+    expected = [pin.Force.Zero() for _ in range(model.njoints)]
+    for p in point_forces:
+        joint = model.frames[model.getFrameId(p.frame)].parentJoint
+        local_force = data.oMi[joint].rotation.T @ p.force
+        local_point = data.oMi[joint].actInv(p.point)
+        expected[joint] = expected[joint] + pin.Force(local_force, np.cross(local_point, local_force))
+    got = _external_forces(model, data, point_forces)
+    scale = max(np.abs(e.vector).max() for e in expected)
+    for joint in range(model.njoints):
+        assert np.allclose(got[joint].vector, expected[joint].vector, atol=1e-12 * scale)
+    assert sum(np.abs(e.vector).max() > 0 for e in expected) >= 2
