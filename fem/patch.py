@@ -339,28 +339,18 @@ class ContactPatch:
         -------
         (3p,) float, 1/m
         """
-        _, _, b, _, _ = self._neighbour_nodes
+        b = self._neighbour_nodes[2]
         return (np.asarray(weights, dtype=float) @ b[tet]) @ self._tet_nodes_map(tet)
 
     def _tet_nodes_map(self, tet: int) -> np.ndarray:
         """(12, 3p) displacements of one neighbour tet's nodes per unit print displacement
         (eq. 36), kept: a solve's strain rows come back to the same few tets."""
         known = self._tet_maps.get(tet)
-        if known is not None:
-            return known
-        block, rows, _, in_print, fixed = self._neighbour_nodes
-        corners = rows[tet]
-        out = (block[corners].reshape(12, -1) @ self.condensed_stiffness).reshape(4, 3, -1)
-        for corner, node in enumerate(corners.tolist()):
-            if fixed[node]:
-                out[corner] = 0.0
-            elif in_print[node] >= 0:  # exactly the print node's own motion
-                out[corner] = 0.0
-                out[corner][:, 3 * in_print[node] : 3 * in_print[node] + 3] = np.eye(3)
-        out = out.reshape(12, -1)
-        out.setflags(write=False)
-        self._tet_maps[tet] = out
-        return out
+        if known is None:
+            known = self._tet_displacement_map(self.neighbour_tets[[tet]])[0]
+            known.setflags(write=False)
+            self._tet_maps[tet] = known
+        return known
 
     def _node_displacement_map(self, tet_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """(q, 3, 3p) displacements of some tets' q nodes per unit print displacement
