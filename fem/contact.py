@@ -526,20 +526,6 @@ def _modes_of(phi, mu):
     return modes, directions
 
 
-def _mode_system(c_local, modes, directions, gains, mu, scale):
-    """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames).
-
-    Sticking nodes: ``r = U + C phi = 0``; lifted: ``phi = 0``; slipping:
-    ``r_n = 0`` and ``phi_t = mu phi_n d(tau)``, ``tau = phi_t - s r_t``, linearised
-    about the iterate's direction ``d`` with gain ``k = mu phi_n / |tau|``: the exact
-    (semismooth) Newton step, which is linear in (phi, U) because the law is
-    positively homogeneous. Returns the (3p, 3p) matrix and (p, 3, 3) blocks:
-    C with the rows of :func:`_mode_rows` replaced.
-    """
-    rows, replaced, blocks = _mode_rows(c_local, modes, directions, gains, mu, scale)
-    return _replace_rows(c_local, rows, replaced), blocks
-
-
 def _replace_rows(c_local, rows, replaced):
     """C with some rows replaced, (3p, 3p)."""
     matrix = c_local.copy()
@@ -548,9 +534,25 @@ def _replace_rows(c_local, rows, replaced):
 
 
 def _mode_rows(c_local, modes, directions, gains, mu, scale):
-    """The rows of the linearised law that are not C's (:func:`_mode_system`): their
-    indices (r,) (a lifted node's three, a slipping node's two tangential ones, in
-    order), their values (r, 3p), and the right-hand side's (p, 3, 3) blocks."""
+    """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames),
+    the matrix being C with a few rows replaced (:func:`_replace_rows` forms it).
+
+    Sticking nodes: ``r = U + C phi = 0`` (C's rows); lifted: ``phi = 0``; slipping:
+    ``r_n = 0`` and ``phi_t = mu phi_n d(tau)``, ``tau = phi_t - s r_t``, linearised
+    about the iterate's direction ``d`` with gain ``k = mu phi_n / |tau|``: the exact
+    (semismooth) Newton step, which is linear in (phi, U) because the law is
+    positively homogeneous.
+
+    Returns
+    -------
+    rows : (r,) int
+        The replaced rows: a lifted node's three, a slipping node's two tangential
+        ones, in order.
+    replaced : (r, 3p) float
+        Their values.
+    blocks : (p, 3, 3) float
+        The right-hand side's blocks.
+    """
     p = modes.shape[0]
     lifted, slipping = modes == LIFT, modes == SLIP
     rows = np.flatnonzero(~_compliance_rows(modes))
