@@ -230,7 +230,7 @@ class EquilibriumFilter:
         body = self.scene.deformable_of_surface(surface.name)
         reach = 0.0
         if not robot_surface.is_point and self.options.reaction_model == "consistent":
-            reach = _covered_reach(body, points, rotation)
+            reach = _covered_reach(body, points)
         return _PrintForces(
             label,
             contact.robot_surface,
@@ -243,25 +243,15 @@ class EquilibriumFilter:
         )
 
 
-def _covered_reach(deformable_object, polygon_in_world, rotation) -> float:
+def _covered_reach(deformable_object, polygon_in_world) -> float:
     """Metres: how far outside a soft print's polygon its partly covered nodes lie
-    (in the print plane), the farthest a node force acts from the polygon at rest."""
+    (:func:`fem.coverage_reach`), the farthest a node force acts from the polygon at rest."""
     pose = np.asarray(deformable_object.transform_body_to_world, dtype=float)
     in_body = (polygon_in_world - pose[:3, 3]) @ pose[:3, :3]
     try:
-        ids, _ = fem.print_coverage(deformable_object.body.mesh, in_body, tolerance=1e-6)
+        return fem.coverage_reach(deformable_object.body.mesh, in_body, tolerance=1e-6)
     except fem.FemError:
         return 0.0  # stances.solve refuses such a print with its own reason
-    nodes = deformable_object.body.mesh.nodes[ids] @ pose[:3, :3].T + pose[:3, 3]
-    flat = (nodes - polygon_in_world[0]) @ rotation[:, :2]
-    corners = (polygon_in_world - polygon_in_world[0]) @ rotation[:, :2]
-    start, edge = corners, np.roll(corners, -1, axis=0) - corners
-    t = np.clip(((flat[:, None] - start) * edge).sum(axis=2) / (edge**2).sum(axis=1), 0.0, 1.0)
-    distance = np.linalg.norm(flat[:, None] - (start + t[..., None] * edge), axis=2).min(axis=1)
-    # Inside the (convex) polygon the nearest edge is no reach.
-    cross = edge[:, 0] * (flat[:, None, 1] - start[:, 1]) - edge[:, 1] * (flat[:, None, 0] - start[:, 0])
-    inside = (cross >= 0).all(axis=1) | (cross <= 0).all(axis=1)
-    return float(np.where(inside, 0.0, distance).max(initial=0.0))
 
 
 def _feasible(prints, com_bounds, min_normal, moments) -> bool:

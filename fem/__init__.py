@@ -17,7 +17,7 @@ from .material import LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
-from .prints import nodes_in_polygon, print_coverage
+from .prints import coverage_reach, nodes_in_polygon, print_coverage
 from .solvers import available_solvers
 
 __all__ = [
@@ -48,6 +48,7 @@ __all__ = [
     "rotate_voigt",
     "nodes_in_polygon",
     "print_coverage",
+    "coverage_reach",
     "available_solvers",
     "PrintContact",
     "PrintContactSystem",

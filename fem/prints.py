@@ -16,7 +16,7 @@ import numpy as np
 from .errors import PrintError
 from .mesh import TetMesh
 
-__all__ = ["nodes_in_polygon", "print_coverage"]
+__all__ = ["coverage_reach", "nodes_in_polygon", "print_coverage"]
 
 # The prints met most recently on each mesh, by polygon: a planner asks for the same
 # print in every stance that keeps it, and a solve in each of its stages.
@@ -76,11 +76,45 @@ def nodes_in_polygon(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) ->
         x_cross = a[:, 0] + (py - a[:, 1]) * (b[:, 0] - a[:, 0]) / (b[:, 1] - a[:, 1])
     inside = (straddles & (px < x_cross)).sum(axis=1) % 2 == 1
     # Distance to each edge segment, so boundary nodes count within tolerance.
-    edge = b - a
-    t = np.clip(((p[:, None, :] - a) * edge).sum(axis=2) / (edge**2).sum(axis=1), 0.0, 1.0)
-    nearest = a + t[:, :, None] * edge
-    on_boundary = (np.linalg.norm(p[:, None, :] - nearest, axis=2) <= tolerance).any(axis=1)
+    on_boundary = (_edge_distances(p, v) <= tolerance).any(axis=1)
     return np.sort(candidates[inside | on_boundary])
+
+
+def coverage_reach(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> float:
+    """How far outside a convex polygon the nodes of its :func:`print_coverage` lie.
+
+    A partly covered node may lie up to a cell outside the polygon; its force acts
+    there. This is the largest such distance, in the polygon's plane.
+
+    Parameters
+    ----------
+    mesh, polygon_in_body, tolerance
+        As :func:`print_coverage`.
+
+    Returns
+    -------
+    float
+        Metres; 0 when every node lies in the polygon.
+
+    Raises
+    ------
+    PrintError
+        As :func:`print_coverage`.
+    """
+    ids, _ = print_coverage(mesh, polygon_in_body, tolerance)
+    centre, _, basis, v = _polygon_frame(polygon_in_body, tolerance)
+    p = (mesh.nodes[ids] - centre) @ basis  # (n, 2)
+    side = _cross(np.roll(v, -1, axis=0) - v, p[:, None, :] - v)  # (n, k)
+    inside = (side >= 0.0).all(axis=1) | (side <= 0.0).all(axis=1)  # a convex polygon, either orientation
+    return float(np.where(inside, 0.0, _edge_distances(p, v).min(axis=1)).max(initial=0.0))
+
+
+def _edge_distances(points: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """(n, k) distances of 2-D points (n, 2) to each edge segment of a polygon (k, 2)."""
+    edge = np.roll(v, -1, axis=0) - v
+    t = np.clip(((points[:, None, :] - v) * edge).sum(axis=2) / (edge**2).sum(axis=1), 0.0, 1.0)
+    nearest = v + t[:, :, None] * edge
+    return np.linalg.norm(points[:, None, :] - nearest, axis=2)
 
 
 def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:

@@ -183,7 +183,7 @@ def test_a_soft_prints_partly_covered_nodes_widen_its_margin_by_their_reach(robo
     (contact,) = [c for c in scenario.stance("right-on-foam") if c.contact_print.surface == "foam_top"]
     forces = check._print_forces(contact)
     body = scenario.scene.deformable_of_surface("foam_top")
-    reach = _covered_reach(body, forces.points, forces.rotation)
+    reach = _covered_reach(body, forces.points)
     spacing = 0.0225  # the default mesh's cells under prints
     assert 0.0 < reach < spacing
     assert forces.margin == pytest.approx(

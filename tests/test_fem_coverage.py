@@ -83,6 +83,19 @@ def test_coverage_moves_continuously_with_the_polygon(pad):
     assert changed.size == 0 or max(before[1].min(), after[1].min()) < 2e-3
 
 
+def test_the_reach_is_how_far_outside_the_polygon_its_covered_nodes_lie(pad):
+    # Top nodes every 25 mm. x from 0.11 to 0.31: the nodes at x = 0.10 cover a tenth of
+    # their cell and lie 10 mm outside; those at 0.325 cover nothing. y from 0.14 to
+    # 0.26: no node row beyond it is covered (their cells end at 0.1375 and 0.2625).
+    rectangle = np.array([[0.11, 0.14, TOP], [0.31, 0.14, TOP], [0.31, 0.26, TOP], [0.11, 0.26, TOP]])
+    assert fem.coverage_reach(pad.mesh, rectangle) == pytest.approx(0.01, abs=1e-12)
+    assert fem.coverage_reach(pad.mesh, rectangle[::-1]) == pytest.approx(0.01, abs=1e-12)
+    on_nodes = np.array([[0.1, 0.15, TOP], [0.3, 0.15, TOP], [0.3, 0.25, TOP], [0.1, 0.25, TOP]])
+    assert fem.coverage_reach(pad.mesh, on_nodes) == pytest.approx(0.0, abs=1e-12)  # every covered node on or in it
+    # Turned, the ring lies up to a cell's half-diagonal out.
+    assert 0.0 < fem.coverage_reach(pad.mesh, _rectangle((0.2, 0.2), (0.1, 0.06), 17.0)) < 0.025 * math.sqrt(0.5) + 1e-12
+
+
 def test_a_concave_polygon_is_refused(pad):
     arrow = np.array([[0.1, 0.1, TOP], [0.3, 0.1, TOP], [0.2, 0.15, TOP], [0.3, 0.3, TOP], [0.1, 0.3, TOP]])
     with pytest.raises(fem.PrintError, match="not convex"):
