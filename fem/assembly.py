@@ -7,7 +7,7 @@ import scipy.sparse as sp
 
 from .errors import MaterialError
 from .material import LinearElasticMaterial
-from .mesh import TetMesh
+from .mesh import TetMesh, tet_edge_cofactors
 
 __all__ = ["shape_gradients", "element_strain_matrices", "element_stiffness_matrices", "assemble_stiffness"]
 
@@ -29,14 +29,12 @@ def shape_gradients(nodes: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np
     volumes : (M,) float
         Signed volumes, cubic metres.
     """
-    x = nodes[tets]
-    edges = x[:, 1:, :] - x[:, :1, :]  # rows x_k - x_0, k = 1..3
-    # x = x0 + edges^T a, so grad a_k is column k of inv(edges).
-    inverse = np.linalg.inv(edges)
+    # x = x0 + E^T a (E's rows the edges x_k - x0), so grad a_k is column k of E^-1.
+    cofactors, determinants = tet_edge_cofactors(nodes, tets)
     grads = np.empty((tets.shape[0], 4, 3))
-    grads[:, 1:, :] = np.swapaxes(inverse, 1, 2)
+    grads[:, 1:, :] = cofactors / determinants[:, None, None]
     grads[:, 0, :] = -grads[:, 1:, :].sum(axis=1)
-    return grads, np.linalg.det(edges) / 6.0
+    return grads, determinants / 6.0
 
 
 def element_strain_matrices(nodes: np.ndarray, tets: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -69,7 +69,7 @@ _OFF_VALUES = ("off", "0", "false", "no")
 
 # Modules whose code decides the cached numbers: assembly (stiffness), ordering and
 # solvers (the factor), body (how columns are solved), this one (entry layout).
-_SOURCES = ("assembly.py", "ordering.py", "solvers.py", "body.py", "cache.py")
+_SOURCES = ("mesh.py", "assembly.py", "ordering.py", "solvers.py", "body.py", "cache.py")
 
 # After eviction the cache holds at most this fraction of its bound, so that a run
 # adding entries one by one does not rescan the directory at each of them.

@@ -5,6 +5,7 @@ import pytest
 import scipy.sparse.linalg as spla
 
 from fem import (
+    DeformableBody,
     LinearElasticMaterial,
     MaterialError,
     assemble_stiffness,
@@ -13,6 +14,7 @@ from fem import (
     element_strain_matrices,
     tensor_mesh,
 )
+from fem.mesh import tet_edge_cofactors
 
 RNG_SEED = 20240611
 MATERIAL = LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.4, density=1e3)
@@ -77,6 +79,24 @@ def test_strain_matrix_gives_exact_strain_of_affine_field(distorted_mesh):
     expected = [sym[0, 0], sym[1, 1], sym[2, 2], 2 * sym[0, 1], 2 * sym[0, 2], 2 * sym[1, 2]]
     assert np.allclose(strain, expected, atol=1e-12)
     assert np.allclose(volumes, distorted_mesh.volumes)
+
+
+def test_closed_form_cofactors_invert_each_tets_edge_matrix(distorted_mesh):
+    cofactors, determinants = tet_edge_cofactors(distorted_mesh.nodes, distorted_mesh.tets)
+    x = distorted_mesh.nodes[distorted_mesh.tets]
+    edges = x[:, 1:] - x[:, :1]  # rows x_k - x_0
+    np.testing.assert_allclose(determinants, np.linalg.det(edges), rtol=1e-12)
+    inverse = np.swapaxes(cofactors, 1, 2) / determinants[:, None, None]
+    np.testing.assert_allclose(inverse @ edges, np.broadcast_to(np.eye(3), edges.shape), atol=1e-12)
+
+
+def test_body_strain_from_shape_gradients_equals_the_strain_matrices(distorted_mesh):
+    """DeformableBody.strain (from the (M, 4, 3) gradients) against B_e u_e of eq. (24)."""
+    body = DeformableBody(distorted_mesh, MATERIAL, fixed_nodes=np.flatnonzero(distorted_mesh.nodes[:, 2] == 0.0))
+    u = 1e-3 * np.random.default_rng(RNG_SEED + 2).normal(size=distorted_mesh.nodes.shape)
+    b, _ = element_strain_matrices(distorted_mesh.nodes, distorted_mesh.tets)
+    expected = np.einsum("eij,ej->ei", b, u[distorted_mesh.tets].reshape(-1, 12))
+    np.testing.assert_allclose(body.strain(u), expected, rtol=0, atol=1e-14)
 
 
 def test_rigid_motions_produce_no_force(distorted_mesh):
