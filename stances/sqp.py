@@ -709,7 +709,7 @@ def problem_point_forces(problem, linearization, q) -> tuple:
     )
 
 
-def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), **options) -> PostureResult:
+def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, **options) -> PostureResult:
     """Find a statically feasible posture holding a stance.
 
     Parameters
@@ -719,6 +719,13 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     stance : environments.Stance
     q_init : (nq,) float, optional
         Warm start (e.g. the parent stance's posture in a search).
+    lam_init : (m,) float, optional
+        Contact variables to start from with ``q_init``: ``statistics["lambda"]``
+        of an earlier answer for the same stance and options (a motion's
+        previous sample). With them a soft stance starts its solve at once,
+        without the rigid and bonded warm starts, which begin from a posture
+        the prints barely touch and so discard the earlier answer's sinking
+        into the soft supports.
     time_budget : float, optional
         Wall-clock seconds this call may take. No SQP iteration starts after
         it is spent; the stance is then infeasible with a reason that says so
@@ -760,8 +767,14 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
 
     problem = build(options)
     warm_iterations = 0
-    lam_init = None
-    if options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
+    if lam_init is not None:
+        lam_init = np.asarray(lam_init, dtype=float)
+        if lam_init.shape != (problem.n_variables,) or not np.all(np.isfinite(lam_init)):
+            raise StanceError(
+                f"lam_init must be {problem.n_variables} finite contact variables (statistics['lambda'] of an "
+                f"answer for the same stance and options), got shape {lam_init.shape}"
+            )
+    elif options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
@@ -790,7 +803,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), *
     if options.contact_law == "coulomb" and any(c.kind == "deformable" for c in problem.contacts):
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
     else:
-        result = solve_problem(problem, q_init, deadline=deadline)
+        result = solve_problem(problem, q_init, lam_init=lam_init, deadline=deadline)
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
     if warm_iterations:
         statistics["rigid_warm_start_iterations"] = warm_iterations

@@ -275,6 +275,20 @@ def test_warm_start_from_the_solution_converges_at_once(robot):
     assert again.feasible and again.iterations < first.iterations
 
 
+def test_a_soft_stance_restarted_from_its_answer_skips_the_rigid_and_bonded_warm_starts(deformable_robots,
+                                                                                        deformable_results):
+    """With its forces too (lam_init), the prints start sunk where they were: no homotopy."""
+    robot, first = deformable_robots["hand-on-soft-cube"], deformable_results["hand-on-soft-cube"]
+    scenario = coarse_scenario("hand-on-soft-cube")
+    stance = scenario.stance("hand-on-soft-cube")
+    posture_only = solve(robot, scenario.scene, stance, q_init=first.q)
+    again = solve(robot, scenario.scene, stance, q_init=first.q, lam_init=first.statistics["lambda"])
+    assert posture_only.statistics["rigid_warm_start_iterations"] > 0  # q alone: rigid, then bonded, again
+    assert again.feasible and "rigid_warm_start_iterations" not in again.statistics
+    assert again.iterations < first.iterations
+    np.testing.assert_allclose(again.q, first.q, atol=1e-3)
+
+
 # -- bad input --------------------------------------------------------------
 
 
@@ -305,6 +319,15 @@ def test_nan_configuration_is_rejected(robot):
     q[10] = np.nan
     with pytest.raises(ConfigurationError, match=r"non-finite entries at indices \[10\]"):
         solve(robot, scenario.scene, scenario.stance("stand"), q_init=q)
+
+
+def test_contact_variables_of_the_wrong_size_are_rejected(robot):
+    scenario = environments.load("stand")
+    with pytest.raises(StanceError) as error:
+        solve(robot, scenario.scene, scenario.stance("stand"), lam_init=[1.0, 2.0])
+    n = build_problem(robot, scenario.scene, scenario.stance("stand"), PostureOptions()).n_variables
+    assert str(error.value) == (f"lam_init must be {n} finite contact variables (statistics['lambda'] of an answer "
+                                "for the same stance and options), got shape (2,)")
 
 
 def test_configuration_of_the_wrong_size_is_rejected(robot):
