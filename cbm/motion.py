@@ -12,7 +12,9 @@ that it leaves and reaches its print squarely instead of sliding over it.
 Each sample is solved warm-started from the previous one (small steps of a
 continuation) and verified by :func:`stances.verify` as a stance of the
 support; the motion starts at the first stance's posture and ends at the
-second's.
+second's. A waypoint the continuation from the first stance does not reach is
+approached from the other end: the waypoints left are solved backward from the
+second stance's posture.
 
 What is not sampled: touch-down and lift-off themselves, the last few
 millimetres where the limb meets its print and the load moves onto it (or off
@@ -30,7 +32,7 @@ import pinocchio as pin
 
 import stances
 from stances.blocks import PLACEMENT_ACCURACY, equality
-from stances.contacts import placement_residual
+from stances.contacts import placement_residual, point_placement_residual
 
 from .errors import CbmError
 from .step_path import RAMP, halfway, keep_clear, lifted_path
@@ -67,11 +69,16 @@ class FramePlacementConstraint:
         Where the frame must be, world frame, metres.
     label : str
         Names the rows in an infeasible answer's reason.
+    position_only : bool
+        Place the frame's origin only (3 rows): a point foot, whose
+        orientation its leg does not set (a 3-joint leg cannot hold 6 rows
+        without the whole body turning to serve it).
     """
 
     frame: str
     transform_frame_to_world: np.ndarray
     label: str = "path"
+    position_only: bool = False
 
     def __post_init__(self):
         transform = np.array(self.transform_frame_to_world, dtype=float)
@@ -81,21 +88,32 @@ class FramePlacementConstraint:
         object.__setattr__(self, "transform_frame_to_world", transform)
 
     def blocks(self, problem, iterate):
-        """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement)."""
+        """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement),
+        or with ``position_only`` the origin's offset in the target frame (as a point foot's)."""
         model, data = problem.robot.model, problem.data
         frame_id = model.getFrameId(self.frame)
-        residual, jlog = placement_residual(data, frame_id, pin.SE3(self.transform_frame_to_world))
-        jacobian = np.zeros((6, problem.n_step))
-        jacobian[:, : model.nv] = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
-        labels = [f"{self.label} ({axis})" for axis in ("x", "y", "z", "roll", "pitch", "yaw")]
+        target = pin.SE3(self.transform_frame_to_world)
+        if self.position_only:
+            residual, tangent = point_placement_residual(model, data, frame_id, target, 0.0)
+            axes = ("x", "y", "z")
+        else:
+            residual, jlog = placement_residual(data, frame_id, target)
+            tangent = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
+            axes = ("x", "y", "z", "roll", "pitch", "yaw")
+        jacobian = np.zeros((len(axes), problem.n_step))
+        jacobian[:, : model.nv] = tangent
+        labels = [f"{self.label} ({axis})" for axis in axes]
         return [equality("frame path", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY)]
 
     def error(self, robot, q):
-        """Largest translation (m) or rotation (rad) error of the frame at ``q``."""
+        """Largest translation (m) or rotation (rad) error of the frame at ``q`` (translation
+        alone with ``position_only``)."""
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
         error = pin.SE3(self.transform_frame_to_world).actInv(data.oMf[robot.model.getFrameId(self.frame)])
         residual = pin.log6(error).vector
+        if self.position_only:
+            return float(np.linalg.norm(error.translation))
         return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
 
 
@@ -123,6 +141,11 @@ class Motion:
         Whether every waypoint was reached by a verified posture.
     reason : str
         Why not (empty when feasible).
+    seam : int or None
+        Index in ``configurations`` of the first sample solved backward, from
+        the second stance's posture, when the solves from the first stance
+        stopped short (a larger joint step may lie just before it); None when
+        every sample was solved forward.
     """
 
     index: int
@@ -133,6 +156,7 @@ class Motion:
     results: tuple
     feasible: bool
     reason: str = ""
+    seam: int | None = None
 
     def __post_init__(self):
         for name in ("configurations", "targets"):
@@ -187,7 +211,7 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=0.2, max_splits=2,
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=None, max_splits=2,
                 solver_options=None):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
 
@@ -203,10 +227,14 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
-    clear_distance : float
+    clear_distance : float, optional
         While crossing, the moving frame keeps this far (metres, across the
-        normal) from the origin of each support print (:func:`cbm.step_path.keep_clear`):
-        0.2 m lets a Talos sole pass beside the other.
+        normal) from the origin of each support print (:func:`cbm.step_path.keep_clear`).
+        Default: for each support, the moving surface's extent plus the
+        support surface's (:attr:`stances.robot.RobotSurface.extent`), so that
+        the disks holding the two polygons do not overlap (two Talos soles:
+        0.256 m; a fixed 0.2 m let the swing sole of cross-soft-block's
+        4 -> 5 graze the stance foot's ankle link, and no posture held it).
     max_splits : int
         Waypoints no posture reaches from the previous sample are retried from
         a waypoint halfway (a shorter continuation step), at most this many
@@ -217,8 +245,11 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
     Returns
     -------
     Motion
-        Solved sample after sample; it stops at the first waypoint no verified
-        posture reaches (``feasible`` False and the solver's ``reason``).
+        Solved sample after sample from the first stance's posture; if a
+        waypoint is out of reach, the waypoints left are solved the same way
+        backward, from the second stance's posture, and the two halves meet at
+        ``Motion.seam``. If neither reaches it, the motion holds the forward
+        samples, ``feasible`` False and both solvers' reasons.
 
     Raises
     ------
@@ -239,37 +270,85 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
     s = np.arange(samples + 2) / (samples + 1)
     crossing = (s > RAMP) & (s < 1.0 - RAMP)
     support_points = [scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in support]
+    if clear_distance is None:
+        extent = robot.surface(moving.robot_surface).extent
+        clear_distance = [extent + robot.surface(c.robot_surface).extent for c in support]
     targets[crossing] = keep_clear(targets[crossing], support_points, normal, clear_distance)
     options = _options_of(after) if solver_options is None else dict(solver_options)
-    solve, verify = stances.solve, stances.verify
-    q, configurations, results, reached, reason = before.q, [before.q], [], [], ""
-    pending, last, splits = list(targets), start, 0
+    scene, label = scenario.scene, f"path of {moving.robot_surface}"
+    point = robot.surface(moving.robot_surface).is_point
+    waypoints = list(enumerate(targets, start=1))
+    forward = _continuation(robot, scene, support, frame, waypoints, before.q, start, options, max_splits, label, point)
+    backward, reason = None, ""
+    if forward.pending:
+        # From the arriving stance back to where the forward solves stopped: a posture
+        # near one end can be out of reach of a continuation from the other (measured
+        # with a 0.2 m clear distance: cross-soft-block 3 -> 4 stopped forward at waypoint
+        # 5 of 8, the swing ankle against the stance knee; backward, all 8 were solved).
+        backward = _continuation(robot, scene, support, frame, forward.pending[::-1], after.q, end, options,
+                                 max_splits, label, point)
+        if backward.pending:
+            reason = (f"{len(targets)} waypoints; forward, {forward.reason}; backward from the next stance, "
+                      f"{backward.reason}")
+            logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
+            backward = None
+    pieces = [forward] if backward is None else [forward, backward.reversed()]
+    configurations = [before.q] + [q for piece in pieces for q in piece.configurations]
+    if not reason:
+        configurations.append(after.q)
+    return Motion(index, moving.robot_surface, support, np.array(configurations),
+                  np.array([t for piece in pieces for t in piece.reached]).reshape(-1, 4, 4),
+                  tuple(r for piece in pieces for r in piece.results), not reason, reason,
+                  None if backward is None else 1 + len(forward.results))
+
+
+@dataclass(frozen=True)
+class _Continuation:
+    """Waypoints solved one after another, each warm-started from the last."""
+
+    configurations: list
+    results: list
+    reached: list  # the waypoints of the results, (4, 4) each
+    pending: list  # (number, waypoint) of the path's waypoints left unreached (empty: all reached)
+    reason: str = ""
+
+    def reversed(self):
+        return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.pending)
+
+
+def _continuation(robot, scene, support, frame, waypoints, q, placement, options, max_splits, label, position_only):
+    """Solve the postures holding ``frame`` on ``waypoints`` ((number, (4, 4)) pairs, the
+    number the waypoint's on the whole path) in turn, from posture ``q`` whose frame is
+    at ``placement``; a waypoint not reached is retried from a waypoint halfway (a
+    shorter continuation step), at most ``max_splits`` times in all."""
+    configurations, results, reached, splits = [], [], [], 0
+    pending = [(number, target, False) for number, target in waypoints]
     while pending:
-        target = pending[0]
-        constraint = FramePlacementConstraint(frame, target, f"path of {moving.robot_surface} (sample {len(results) + 1})")
-        result = solve(robot, scenario.scene, support, q_init=q, constraints=(constraint,), **options)
+        number, target, half = pending[0]
+        where = f"halfway to waypoint {number}" if half else f"waypoint {number}"
+        constraint = FramePlacementConstraint(frame, target, f"{label} ({where})", position_only)
+        # From the second sample on, the previous one is an answer for the same support:
+        # its forces too, so soft supports stay sunk where they were.
+        lam = np.asarray(results[-1].statistics["lambda"]) if results else None
+        result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(constraint,), **options)
         if result.feasible:
-            verification = verify(robot, scenario.scene, support, result, **options)
+            verification = stances.verify(robot, scene, support, result, **options)
             if not verification.ok:
                 result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
         if result.feasible:
-            q, last = result.q, pending.pop(0)
+            q, placement = result.q, target
+            pending.pop(0)
             configurations.append(q)
             results.append(result)
             reached.append(target)
         elif splits < max_splits:
-            # A shorter step of the continuation: the waypoint halfway from the last one reached.
-            pending.insert(0, halfway(last, target))
+            pending.insert(0, (number, halfway(placement, target), True))
             splits += 1
         else:
-            reason = f"sample {len(results) + 1} (of {len(targets)} waypoints, {splits} halved): {result.reason}"
-            logger.info("motion %d -> %d stops at %s", index, index + 1, reason)
-            break
-    feasible = not reason
-    if feasible:
-        configurations.append(after.q)
-    return Motion(index, moving.robot_surface, support, np.array(configurations),
-                  np.array(reached).reshape(-1, 4, 4), tuple(results), feasible, reason)
+            reason = f"{where} ({splits} halved): {result.reason}"
+            left = [(n, t) for n, t, h in pending if not h]  # halfway waypoints are the continuation's own
+            return _Continuation(configurations, results, reached, left, reason)
+    return _Continuation(configurations, results, reached, [])
 
 
 def plan_motions(plan, scenario, robot, **options):
@@ -318,14 +397,14 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     for position, q in ends:
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
-    frame = robot.surface(motion.moving_surface).frame
+    frame, point = robot.surface(motion.moving_surface).frame, robot.surface(motion.moving_surface).is_point
     for k, (result, target) in enumerate(zip(motion.results, motion.targets)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")
         verification = verify(robot, scenario.scene, motion.support, result, **options)
         if not verification.ok:
             problems.append(f"sample {k + 1}: " + "; ".join(map(str, verification.reasons)))
-        error = FramePlacementConstraint(frame, target).error(robot, result.q)
+        error = FramePlacementConstraint(frame, target, position_only=point).error(robot, result.q)
         if error > PATH_TOLERANCE:
             problems.append(f"sample {k + 1}: {motion.moving_surface} is {error:.3g} m or rad off its path")
     return problems

@@ -89,8 +89,8 @@ def keep_clear(path, points, normal, distance):
         Origins of the prints to keep clear of, world frame.
     normal : (3,) float
         Lift direction, world frame.
-    distance : float
-        Metres.
+    distance : float or (p,) float
+        Metres: one for all points, or one per point.
 
     Returns
     -------
@@ -106,7 +106,8 @@ def keep_clear(path, points, normal, distance):
     """
     path = np.array(path, dtype=float)
     normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    for point in np.asarray(points, dtype=float).reshape(-1, 3):
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    for point, distance in zip(points, np.broadcast_to(np.asarray(distance, dtype=float), len(points))):
         offset = path[:, :3, 3] - point
         across = offset - np.outer(offset @ normal, normal)
         length = np.linalg.norm(across, axis=1)

@@ -13,7 +13,7 @@ import stances
 from environments.stance import Contact, ContactPrint
 
 from cbm.motion import FramePlacementConstraint, MotionError, plan_motion, plan_motions, verify_motion
-from cbm.step_path import lifted_path
+from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
 
@@ -95,17 +95,36 @@ def test_a_motion_needs_stances_that_differ_by_one_contact(step_plan, scenario, 
         plan_motion(step_plan, 2, scenario, robot)
 
 
-def test_path_constraint_jacobian_matches_finite_differences(robot, scenario):
+def rows_of(constraint, problem, q):
+    iterate = problem.iterate(q, np.zeros(problem.n_variables))
+    return constraint.blocks(problem, iterate)[0]
+
+
+def test_a_position_only_path_leaves_the_frame_free_to_turn(robot):
+    data = robot.model.createData()
+    q = robot.reference_configuration
+    pin.framesForwardKinematics(robot.model, data, q)
+    frame = robot.surface("right_sole").frame
+    target = data.oMf[robot.model.getFrameId(frame)].homogeneous.copy()
+    target[:3, :3] = pin.exp3(np.array([0.0, 0.0, 0.5])) @ target[:3, :3]  # turned, same origin
+    target[2, 3] += 2e-3
+    assert FramePlacementConstraint(frame, target).error(robot, q) == pytest.approx(0.5)
+    assert FramePlacementConstraint(frame, target, position_only=True).error(robot, q) == pytest.approx(2e-3)
+
+
+@pytest.mark.parametrize("position_only", [False, True], ids=["placement", "position"])
+def test_path_constraint_jacobian_matches_finite_differences(robot, scenario, position_only):
     problem = stances.build_problem(robot, scenario.scene, scenario.stance("stand").without("right_sole"))
     rng = np.random.default_rng(3)
     q = pin.integrate(robot.model, robot.reference_configuration, 0.1 * rng.standard_normal(robot.model.nv))
     target = np.eye(4)
+    target[:3, :3] = pin.exp3(np.array([0.1, -0.2, 0.3]))
     target[:3, 3] = [0.1, -0.1, 0.05]
-    constraint = FramePlacementConstraint(robot.surface("right_sole").frame, target)
+    constraint = FramePlacementConstraint(robot.surface("right_sole").frame, target, position_only=position_only)
+    assert rows_of(constraint, problem, q).value.shape == ((3,) if position_only else (6,))
 
     def rows(q):
-        iterate = problem.iterate(q, np.zeros(problem.n_variables))
-        return constraint.blocks(problem, iterate)[0]
+        return rows_of(constraint, problem, q)
 
     analytic = rows(q).jacobian[:, : robot.model.nv]
     step = 1e-6
@@ -166,3 +185,88 @@ def test_outputs_write_the_trajectory_and_the_viewer_plays_the_motions(step_plan
     assert all(np.all(np.diff(m["times"]) > 0) for m in data["motions"])
     if chromium_binary() is not None:
         assert page_status(files.viewer, tmp_path) == "ok"
+
+
+def _plan_of(robot, scenario, sequence):
+    """A plan of stances solved one after another, each warm-started from the last."""
+    planned, q = [], None
+    for stance in sequence:
+        result = stances.solve(robot, scenario.scene, stance, q_init=q)
+        assert result.feasible, result.reason
+        q = result.q
+        planned.append(PlannedStance(stance, result.q, result.point_forces, {}, result, move=""))
+    return Plan(True, "goal reached", planned, PlanStatistics(), scenario.name,
+                robot=robot_description(robot), scenario_source=scenario_source(scenario))
+
+
+def test_a_point_foot_steps_with_its_centre_on_the_path_and_its_orientation_free():
+    """ANYmal's 3-joint legs cannot also hold a foot orientation: the path places the ball's centre."""
+    robot, scenario = stances.Robot.load("anymal"), environments.load("quadruped-walk")
+    three = scenario.stance("three-feet")
+    ahead = three.with_contact(Contact("left_front_foot", ContactPrint("floor", 0.45, 0.201)))
+    plan = _plan_of(robot, scenario, (scenario.stance("start"), three, ahead))
+    for motion in plan_motions(plan, scenario, robot, samples=3):
+        assert motion.feasible, motion.reason
+        assert verify_motion(motion, plan, scenario, robot) == []
+        frame = robot.surface("left_front_foot").frame
+        turns = [FramePlacementConstraint(frame, t).error(robot, r.q) for t, r in zip(motion.targets, motion.results)]
+        assert max(turns) > 1e-3  # the foot did turn off the path's orientation, which binds it no more
+
+
+def test_the_swing_sole_passes_the_stance_sole_farther_than_both_reach(step_plan, motions, robot):
+    """Default clear distance: the two soles' extents (0.128 m each), measured across the normal."""
+    support_print = np.array([0.0, 0.085])  # the left sole's print in the stand scenario, x and y
+    reach = 2 * robot.surface("left_sole").extent
+    assert reach == pytest.approx(2 * np.hypot(0.11, 0.065))
+    for motion in motions:
+        assert len(motion.targets) == 5  # 3 samples and 2 straight above the ends, none halved
+        s = np.arange(5) / 4
+        crossing = (s > RAMP) & (s < 1 - RAMP)  # those moving across, pushed aside (not those rising)
+        across = np.linalg.norm(motion.targets[crossing, :2, 3] - support_print, axis=1)
+        assert crossing.any() and np.all(across >= reach - 1e-9)
+
+
+def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance(step_plan, scenario, robot,
+                                                                                 monkeypatch):
+    """Forward solves are made to fail past the middle of the step; the motion still joins both stances."""
+    solve, frame = stances.solve, robot.surface("right_sole").frame
+    middle = 0.5 * (_frame_x(robot, step_plan.stances[1].q, frame) + _frame_x(robot, step_plan.stances[2].q, frame))
+
+    def blocked_past_the_middle(robot_, scene, stance, q_init=None, constraints=(), **options):
+        result = solve(robot_, scene, stance, q_init=q_init, constraints=constraints, **options)
+        if _frame_x(robot, q_init, frame) < middle < constraints[0].transform_frame_to_world[0, 3]:
+            return replace(result, feasible=False, reason="blocked by the test")
+        return result
+
+    monkeypatch.setattr(stances, "solve", blocked_past_the_middle)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible, motion.reason
+    assert verify_motion(motion, step_plan, scenario, robot) == []
+    x = [_frame_x(robot, q, frame) for q in motion.configurations]
+    assert motion.seam is not None and x[motion.seam - 1] < middle < x[motion.seam]
+    np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[2].q)
+    assert np.all(np.diff(motion.targets[:, 0, 3]) >= -1e-12)  # the samples in path order, both halves
+
+
+def test_a_waypoint_out_of_reach_both_ways_gives_both_reasons(step_plan, scenario, robot, monkeypatch):
+    solve = stances.solve
+
+    def blocked_at_the_top(robot_, scene, stance, q_init=None, constraints=(), **options):
+        result = solve(robot_, scene, stance, q_init=q_init, constraints=constraints, **options)
+        if constraints[0].transform_frame_to_world[2, 3] > 0.06:
+            return replace(result, feasible=False, reason="blocked by the test")
+        return result
+
+    monkeypatch.setattr(stances, "solve", blocked_at_the_top)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert not motion.feasible and motion.seam is None
+    # Waypoints 2-4 cross 5 cm above the lifted sole (z > 6 cm): forward stops at 2, backward at 4.
+    assert motion.reason == ("5 waypoints; forward, waypoint 2 (2 halved): blocked by the test; "
+                             "backward from the next stance, waypoint 4 (2 halved): blocked by the test")
+    assert len(motion.configurations) == 1 + len(motion.results)  # the forward samples, no arriving stance
+
+
+def _frame_x(robot, q, frame):
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(q))
+    return data.oMf[robot.model.getFrameId(frame)].translation[0]
