@@ -423,6 +423,10 @@ def _plan(args):
                 print(f"    {cause}, e.g. {_shortened(entry['example'])}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
+    if motions:
+        from .motion import motions_summary
+
+        print(f"  {motions_summary(motions)}")
     for motion in motions or ():
         if not motion.feasible:
             print(f"  motion {motion.index} -> {motion.index + 1} not found: {motion.reason}")

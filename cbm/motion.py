@@ -9,7 +9,9 @@ soft bodies' FEM forces) with one more constraint: the moving limb's contact
 frame sits on a waypoint of a path from where it is in the first stance to
 where it is in the second, lifted along the print's normal by a clearance so
 that it leaves and reaches its print squarely instead of sliding over it.
-Each sample is solved warm-started from the previous one (small steps of a
+While it moves across, only its height and progress are held: sideways it is
+free, so that collision avoidance decides how it passes the support. A point
+foot's path places its centre only. Each sample is solved warm-started from the previous one (small steps of a
 continuation) and verified by :func:`stances.verify` as a stance of the
 support; the motion starts at the first stance's posture and ends at the
 second's. A waypoint the continuation from the first stance does not reach is
@@ -35,12 +37,13 @@ from stances.blocks import PLACEMENT_ACCURACY, equality
 from stances.contacts import placement_residual, point_placement_residual
 
 from .errors import CbmError
-from .step_path import RAMP, halfway, keep_clear, lifted_path
+from .step_path import RAMP, halfway, lifted_path
 
 __all__ = [
     "FramePlacementConstraint",
     "Motion",
     "MotionError",
+    "motions_summary",
     "plan_motion",
     "plan_motions",
     "verify_motion",
@@ -59,7 +62,7 @@ class MotionError(CbmError):
 
 @dataclass(frozen=True, eq=False)
 class FramePlacementConstraint:
-    """A robot frame placed at a target (6 equality rows), as a posture-problem constraint.
+    """A robot frame placed at a target (up to 6 equality rows), as a posture-problem constraint.
 
     Parameters
     ----------
@@ -73,12 +76,18 @@ class FramePlacementConstraint:
         Place the frame's origin only (3 rows): a point foot, whose
         orientation its leg does not set (a 3-joint leg cannot hold 6 rows
         without the whole body turning to serve it).
+    free_direction : (3,) float, optional
+        A world direction along which the frame's origin is left free (2
+        position rows instead of 3): sideways while a limb crosses, so that
+        collision avoidance, not a fixed detour, decides how it passes the
+        support.
     """
 
     frame: str
     transform_frame_to_world: np.ndarray
     label: str = "path"
     position_only: bool = False
+    free_direction: np.ndarray | None = None
 
     def __post_init__(self):
         transform = np.array(self.transform_frame_to_world, dtype=float)
@@ -86,14 +95,43 @@ class FramePlacementConstraint:
             raise MotionError(f"transform_frame_to_world must be (4, 4), got {transform.shape}")
         transform.setflags(write=False)
         object.__setattr__(self, "transform_frame_to_world", transform)
+        if self.free_direction is not None:
+            direction = np.array(self.free_direction, dtype=float)
+            length = np.linalg.norm(direction) if direction.shape == (3,) else 0.0
+            if not (np.isfinite(length) and length > 0.0):
+                raise MotionError(f"free_direction must be a non-zero (3,) vector, got {self.free_direction!r}")
+            direction /= length
+            direction.setflags(write=False)
+            object.__setattr__(self, "free_direction", direction)
+
+    @property
+    def _held(self) -> np.ndarray:
+        """(2, 3) orthonormal world directions across ``free_direction``, along which the origin is held."""
+        direction = self.free_direction
+        first = np.cross(direction, np.eye(3)[np.argmin(np.abs(direction))])
+        first /= np.linalg.norm(first)
+        return np.array([first, np.cross(direction, first)])
 
     def blocks(self, problem, iterate):
-        """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement),
-        or with ``position_only`` the origin's offset in the target frame (as a point foot's)."""
+        """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement);
+        with ``position_only`` the origin's offset in the target frame (as a point foot's); with
+        ``free_direction`` the origin's offset across it, world frame, and ``log3(R_t^T R)``."""
         model, data = problem.robot.model, problem.data
         frame_id = model.getFrameId(self.frame)
         target = pin.SE3(self.transform_frame_to_world)
-        if self.position_only:
+        if self.free_direction is not None:
+            held = self._held
+            residual = held @ (data.oMf[frame_id].translation - target.translation)
+            tangent = held @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL_WORLD_ALIGNED)[:3]
+            axes = ("held 1", "held 2")
+            if not self.position_only:
+                # The turn from the target, log3(R_t^T R), in the frame (a LOCAL angular step).
+                turn = target.rotation.T @ data.oMf[frame_id].rotation
+                local = pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)[3:]
+                residual = np.concatenate([residual, pin.log3(turn)])
+                tangent = np.vstack([tangent, pin.Jlog3(turn) @ local])
+                axes += ("roll", "pitch", "yaw")
+        elif self.position_only:
             residual, tangent = point_placement_residual(model, data, frame_id, target, 0.0)
             axes = ("x", "y", "z")
         else:
@@ -107,11 +145,16 @@ class FramePlacementConstraint:
 
     def error(self, robot, q):
         """Largest translation (m) or rotation (rad) error of the frame at ``q`` (translation
-        alone with ``position_only``)."""
+        alone with ``position_only``, across ``free_direction`` only when it is given)."""
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
         error = pin.SE3(self.transform_frame_to_world).actInv(data.oMf[robot.model.getFrameId(self.frame)])
         residual = pin.log6(error).vector
+        if self.free_direction is not None:
+            offset = self._held @ (data.oMf[robot.model.getFrameId(self.frame)].translation
+                                   - self.transform_frame_to_world[:3, 3])
+            turn = 0.0 if self.position_only else np.linalg.norm(pin.log3(error.rotation))
+            return float(max(np.linalg.norm(offset), turn))
         if self.position_only:
             return float(np.linalg.norm(error.translation))
         return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
@@ -132,9 +175,10 @@ class Motion:
     configurations : (k, nq) float
         Postures, the first stance's ``q`` first and the second's last;
         between them, one per waypoint (fewer if the motion failed).
-    targets : (k - 2, 4, 4) float
-        Where the moving surface's frame is held at each interior sample, world
-        (the path's waypoints, and any halfway waypoints the solves needed).
+    paths : tuple of FramePlacementConstraint
+        How the moving surface's frame is held at each interior sample: on the
+        path's waypoints (and any halfway waypoints the solves needed), free
+        sideways while it crosses.
     results : tuple of stances PostureResult
         The support's posture solve of each interior sample.
     feasible : bool
@@ -152,17 +196,27 @@ class Motion:
     moving_surface: str
     support: object
     configurations: np.ndarray
-    targets: np.ndarray
+    paths: tuple
     results: tuple
     feasible: bool
     reason: str = ""
     seam: int | None = None
 
     def __post_init__(self):
-        for name in ("configurations", "targets"):
-            array = np.array(getattr(self, name), dtype=float)
-            array.setflags(write=False)
-            object.__setattr__(self, name, array)
+        array = np.array(self.configurations, dtype=float)
+        array.setflags(write=False)
+        object.__setattr__(self, "configurations", array)
+        object.__setattr__(self, "paths", tuple(self.paths))
+
+    @property
+    def targets(self) -> np.ndarray:
+        """(k - 2, 4, 4) float: each interior sample's waypoint, world frame."""
+        return np.array([path.transform_frame_to_world for path in self.paths]).reshape(-1, 4, 4)
+
+    @property
+    def joint_steps(self) -> np.ndarray:
+        """(k - 1,) float: the largest joint change from each sample to the next, rad (or m)."""
+        return np.abs(np.diff(self.configurations[:, 7:], axis=0)).max(axis=1, initial=0.0)
 
     def durations(self, joint_speed=0.5, base_speed=0.1):
         """Time between consecutive samples, seconds, at nominal speeds.
@@ -211,8 +265,7 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clear_distance=None, max_splits=2,
-                solver_options=None):
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_splits=2, solver_options=None):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
 
     Parameters
@@ -227,18 +280,16 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
-    clear_distance : float, optional
-        While crossing, the moving frame keeps this far (metres, across the
-        normal) from the origin of each support print (:func:`cbm.step_path.keep_clear`).
-        Default: for each support, the moving surface's extent plus the
-        support surface's (:attr:`stances.robot.RobotSurface.extent`), so that
-        the disks holding the two polygons do not overlap (two Talos soles:
-        0.256 m; a fixed 0.2 m let the swing sole of cross-soft-block's
-        4 -> 5 graze the stance foot's ankle link, and no posture held it).
+        While it moves across, its frame is held at the path's height and
+        progress, free sideways (across both the normal and the step): the
+        posture solver's collision avoidance decides how it passes the support
+        (a fixed detour of 0.2 m from each support print, and one of both
+        surfaces' reach, each left 2 of 71 motions of seven built-in plans
+        unfound, different ones; sideways free, none).
     max_splits : int
         Waypoints no posture reaches from the previous sample are retried from
         a waypoint halfway (a shorter continuation step), at most this many
-        times per motion.
+        times in each direction.
     solver_options : dict, optional
         Posture options; default those the arriving stance was solved with.
 
@@ -261,35 +312,34 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
     before, after = plan.stances[index], plan.stances[index + 1]
     moving, support = _moving_contact(before.stance, after.stance)
-    frame = robot.surface(moving.robot_surface).frame
-    start = _frame_placement(robot, before.q, frame)
-    end = _frame_placement(robot, after.q, frame)
+    surface = robot.surface(moving.robot_surface)
+    start = _frame_placement(robot, before.q, surface.frame)
+    end = _frame_placement(robot, after.q, surface.frame)
     normal = scenario.scene.transform_print_to_world(moving.contact_print)[:3, 2]
     targets = lifted_path(start, end, normal, clearance, samples)
-    # Only the waypoints that move across: those above either end stay where they are.
+    # Sideways: across the normal and the step. Free only while moving across: the
+    # waypoints straight above either end hold the limb over its print.
+    sideways = np.cross(normal, end[:3, 3] - start[:3, 3])
     s = np.arange(samples + 2) / (samples + 1)
-    crossing = (s > RAMP) & (s < 1.0 - RAMP)
-    support_points = [scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in support]
-    if clear_distance is None:
-        extent = robot.surface(moving.robot_surface).extent
-        clear_distance = [extent + robot.surface(c.robot_surface).extent for c in support]
-    targets[crossing] = keep_clear(targets[crossing], support_points, normal, clear_distance)
+    crossing = (s > RAMP) & (s < 1.0 - RAMP) & (np.linalg.norm(sideways) > 1e-6)
+    paths = [
+        (f"waypoint {k + 1}", FramePlacementConstraint(surface.frame, target, f"path of {moving.robot_surface} "
+                                                       f"(waypoint {k + 1})", surface.is_point,
+                                                       sideways if crossing[k] else None))
+        for k, target in enumerate(targets)
+    ]
     options = _options_of(after) if solver_options is None else dict(solver_options)
-    scene, label = scenario.scene, f"path of {moving.robot_surface}"
-    point = robot.surface(moving.robot_surface).is_point
-    waypoints = list(enumerate(targets, start=1))
-    forward = _continuation(robot, scene, support, frame, waypoints, before.q, start, options, max_splits, label, point)
+    scene = scenario.scene
+    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits)
     backward, reason = None, ""
     if forward.pending:
         # From the arriving stance back to where the forward solves stopped: a posture
         # near one end can be out of reach of a continuation from the other (measured
-        # with a 0.2 m clear distance: cross-soft-block 3 -> 4 stopped forward at waypoint
+        # with a fixed 0.2 m detour: cross-soft-block 3 -> 4 stopped forward at waypoint
         # 5 of 8, the swing ankle against the stance knee; backward, all 8 were solved).
-        backward = _continuation(robot, scene, support, frame, forward.pending[::-1], after.q, end, options,
-                                 max_splits, label, point)
+        backward = _continuation(robot, scene, support, forward.pending[::-1], after.q, end, options, max_splits)
         if backward.pending:
-            reason = (f"{len(targets)} waypoints; forward, {forward.reason}; backward from the next stance, "
-                      f"{backward.reason}")
+            reason = f"{len(paths)} waypoints; forward, {forward.reason}; backward from the next stance, {backward.reason}"
             logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
             backward = None
     pieces = [forward] if backward is None else [forward, backward.reversed()]
@@ -297,9 +347,8 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, clea
     if not reason:
         configurations.append(after.q)
     return Motion(index, moving.robot_surface, support, np.array(configurations),
-                  np.array([t for piece in pieces for t in piece.reached]).reshape(-1, 4, 4),
-                  tuple(r for piece in pieces for r in piece.results), not reason, reason,
-                  None if backward is None else 1 + len(forward.results))
+                  tuple(p for piece in pieces for p in piece.reached), tuple(r for piece in pieces for r in piece.results),
+                  not reason, reason, None if backward is None else 1 + len(forward.results))
 
 
 @dataclass(frozen=True)
@@ -308,45 +357,46 @@ class _Continuation:
 
     configurations: list
     results: list
-    reached: list  # the waypoints of the results, (4, 4) each
-    pending: list  # (number, waypoint) of the path's waypoints left unreached (empty: all reached)
+    reached: list  # the FramePlacementConstraint each result holds
+    pending: list  # (name, FramePlacementConstraint) of the path's waypoints left unreached (empty: all reached)
     reason: str = ""
 
     def reversed(self):
         return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.pending)
 
 
-def _continuation(robot, scene, support, frame, waypoints, q, placement, options, max_splits, label, position_only):
-    """Solve the postures holding ``frame`` on ``waypoints`` ((number, (4, 4)) pairs, the
-    number the waypoint's on the whole path) in turn, from posture ``q`` whose frame is
-    at ``placement``; a waypoint not reached is retried from a waypoint halfway (a
-    shorter continuation step), at most ``max_splits`` times in all."""
+def _continuation(robot, scene, support, paths, q, placement, options, max_splits):
+    """Solve the postures holding each of ``paths`` ((name, FramePlacementConstraint)
+    pairs) in turn, from posture ``q`` whose frame is at ``placement`` ((4, 4), world);
+    a waypoint not reached is retried from a waypoint halfway (a shorter continuation
+    step), at most ``max_splits`` times in all."""
     configurations, results, reached, splits = [], [], [], 0
-    pending = [(number, target, False) for number, target in waypoints]
+    pending = [(name, path, False) for name, path in paths]
     while pending:
-        number, target, half = pending[0]
-        where = f"halfway to waypoint {number}" if half else f"waypoint {number}"
-        constraint = FramePlacementConstraint(frame, target, f"{label} ({where})", position_only)
+        name, path, half = pending[0]
         # From the second sample on, the previous one is an answer for the same support:
         # its forces too, so soft supports stay sunk where they were.
         lam = np.asarray(results[-1].statistics["lambda"]) if results else None
-        result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(constraint,), **options)
+        result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(path,), **options)
         if result.feasible:
             verification = stances.verify(robot, scene, support, result, **options)
             if not verification.ok:
                 result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
         if result.feasible:
-            q, placement = result.q, target
+            q, placement = result.q, path.transform_frame_to_world
             pending.pop(0)
             configurations.append(q)
             results.append(result)
-            reached.append(target)
+            reached.append(path)
         elif splits < max_splits:
-            pending.insert(0, (number, halfway(placement, target), True))
+            target = halfway(placement, path.transform_frame_to_world)
+            half_name = name if half else f"halfway to {name}"
+            label = path.label.replace(f"({name})", f"({half_name})")
+            pending.insert(0, (half_name, replace(path, transform_frame_to_world=target, label=label), True))
             splits += 1
         else:
-            reason = f"{where} ({splits} halved): {result.reason}"
-            left = [(n, t) for n, t, h in pending if not h]  # halfway waypoints are the continuation's own
+            reason = f"{name} ({splits} halved): {result.reason}"
+            left = [(n, p) for n, p, h in pending if not h]  # halfway waypoints are the continuation's own
             return _Continuation(configurations, results, reached, left, reason)
     return _Continuation(configurations, results, reached, [])
 
@@ -367,6 +417,22 @@ def plan_motions(plan, scenario, robot, **options):
         ``len(plan.stances) - 1`` motions, in order.
     """
     return tuple(plan_motion(plan, i, scenario, robot, **options) for i in range(len(plan.stances) - 1))
+
+
+def motions_summary(motions) -> str:
+    """One line on a plan's motions: how many were found, and where any was joined backward.
+
+    Examples
+    --------
+    >>> motions_summary([])
+    'motions: 0 of 0 found'
+    """
+    found = sum(motion.feasible for motion in motions)
+    joined = [
+        f"{m.index} -> {m.index + 1} at sample {m.seam} (largest joint step there {m.joint_steps[m.seam - 1]:.2f} rad)"
+        for m in motions if m.feasible and m.seam is not None
+    ]
+    return f"motions: {found} of {len(motions)} found" + (f"; joined backward: {', '.join(joined)}" if joined else "")
 
 
 def verify_motion(motion, plan, scenario, robot, solver_options=None):
@@ -397,14 +463,13 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     for position, q in ends:
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
-    frame, point = robot.surface(motion.moving_surface).frame, robot.surface(motion.moving_surface).is_point
-    for k, (result, target) in enumerate(zip(motion.results, motion.targets)):
+    for k, (result, path) in enumerate(zip(motion.results, motion.paths)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")
         verification = verify(robot, scenario.scene, motion.support, result, **options)
         if not verification.ok:
             problems.append(f"sample {k + 1}: " + "; ".join(map(str, verification.reasons)))
-        error = FramePlacementConstraint(frame, target, position_only=point).error(robot, result.q)
+        error = path.error(robot, result.q)
         if error > PATH_TOLERANCE:
             problems.append(f"sample {k + 1}: {motion.moving_surface} is {error:.3g} m or rad off its path")
     return problems

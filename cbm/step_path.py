@@ -1,4 +1,4 @@
-"""The path of a moving limb between two placements: up, across beside the support, down.
+"""The path of a moving limb between two placements: up, across, down.
 
 Pure geometry on SE(3) placements (world frame, metres), used by
 :mod:`cbm.motion` for the waypoints its postures hold the limb on.
@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["RAMP", "lifted_path", "keep_clear", "halfway"]
+__all__ = ["RAMP", "lifted_path", "halfway"]
 
 #: Fraction of a step's path spent rising (and falling), straight above its ends.
 RAMP = 0.25
@@ -71,48 +71,6 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAM
         point = (1.0 - across[k]) * start[:3, 3] + across[k] * end[:3, 3]
         path[k, :3, 3] = point + (height[k] - point @ normal) * normal
         path[k, :3, :3] = start[:3, :3] @ pin.exp3(across[k] * turn)
-    return path
-
-
-def keep_clear(path, points, normal, distance):
-    """Push waypoints away from points, across the normal, to at least a distance.
-
-    The swing foot of a step passes beside the stance foot, not through it: a
-    waypoint closer than ``distance`` to a support print's origin (measured in
-    the plane across ``normal``) moves straight away from it in that plane.
-
-    Parameters
-    ----------
-    path : (k, 4, 4) float
-        Waypoints, world frame.
-    points : (p, 3) float
-        Origins of the prints to keep clear of, world frame.
-    normal : (3,) float
-        Lift direction, world frame.
-    distance : float or (p,) float
-        Metres: one for all points, or one per point.
-
-    Returns
-    -------
-    (k, 4, 4) float
-
-    Examples
-    --------
-    >>> import numpy as np
-    >>> path = np.tile(np.eye(4), (1, 1, 1))
-    >>> path[0, :3, 3] = [0.1, 0.05, 0.05]
-    >>> keep_clear(path, [[0.1, 0.0, 0.0]], [0, 0, 1], 0.2)[0, :3, 3].round(3).tolist()
-    [0.1, 0.2, 0.05]
-    """
-    path = np.array(path, dtype=float)
-    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
-    points = np.asarray(points, dtype=float).reshape(-1, 3)
-    for point, distance in zip(points, np.broadcast_to(np.asarray(distance, dtype=float), len(points))):
-        offset = path[:, :3, 3] - point
-        across = offset - np.outer(offset @ normal, normal)
-        length = np.linalg.norm(across, axis=1)
-        near = (length < distance) & (length > 1e-9)
-        path[near, :3, 3] += across[near] * ((distance - length[near]) / length[near])[:, None]
     return path
 
 

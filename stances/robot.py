@@ -103,12 +103,6 @@ class RobotSurface:
         return self.radius is not None
 
     @property
-    def extent(self) -> float:
-        """How far the surface reaches from its contact frame's origin, metres: the
-        polygon's farthest vertex, or a point foot's ball radius if larger."""
-        return float(max(np.linalg.norm(self.polygon, axis=1).max(), self.radius or 0.0))
-
-    @property
     def vertices_in_frame(self) -> np.ndarray:
         """(k, 3) float: the polygon's vertices in the contact frame (z = 0)."""
         return np.column_stack([self.polygon, np.zeros(len(self.polygon))])

@@ -12,7 +12,8 @@ import environments
 import stances
 from environments.stance import Contact, ContactPrint
 
-from cbm.motion import FramePlacementConstraint, MotionError, plan_motion, plan_motions, verify_motion
+from cbm.motion import (FramePlacementConstraint, MotionError, motions_summary, plan_motion, plan_motions,
+                        verify_motion)
 from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
@@ -112,16 +113,20 @@ def test_a_position_only_path_leaves_the_frame_free_to_turn(robot):
     assert FramePlacementConstraint(frame, target, position_only=True).error(robot, q) == pytest.approx(2e-3)
 
 
-@pytest.mark.parametrize("position_only", [False, True], ids=["placement", "position"])
-def test_path_constraint_jacobian_matches_finite_differences(robot, scenario, position_only):
+@pytest.mark.parametrize("position_only, free", [(False, None), (True, None), (False, [0.3, 1.0, 0.1]),
+                                                 (True, [0.3, 1.0, 0.1])],
+                         ids=["placement", "position", "placement-free-sideways", "position-free-sideways"])
+def test_path_constraint_jacobian_matches_finite_differences(robot, scenario, position_only, free):
     problem = stances.build_problem(robot, scenario.scene, scenario.stance("stand").without("right_sole"))
     rng = np.random.default_rng(3)
     q = pin.integrate(robot.model, robot.reference_configuration, 0.1 * rng.standard_normal(robot.model.nv))
     target = np.eye(4)
     target[:3, :3] = pin.exp3(np.array([0.1, -0.2, 0.3]))
     target[:3, 3] = [0.1, -0.1, 0.05]
-    constraint = FramePlacementConstraint(robot.surface("right_sole").frame, target, position_only=position_only)
-    assert rows_of(constraint, problem, q).value.shape == ((3,) if position_only else (6,))
+    constraint = FramePlacementConstraint(robot.surface("right_sole").frame, target, position_only=position_only,
+                                          free_direction=free)
+    rows = 3 - (free is not None) + 3 * (not position_only)
+    assert rows_of(constraint, problem, q).value.shape == (rows,)
 
     def rows(q):
         return rows_of(constraint, problem, q)
@@ -213,17 +218,35 @@ def test_a_point_foot_steps_with_its_centre_on_the_path_and_its_orientation_free
         assert max(turns) > 1e-3  # the foot did turn off the path's orientation, which binds it no more
 
 
-def test_the_swing_sole_passes_the_stance_sole_farther_than_both_reach(step_plan, motions, robot):
-    """Default clear distance: the two soles' extents (0.128 m each), measured across the normal."""
-    support_print = np.array([0.0, 0.085])  # the left sole's print in the stand scenario, x and y
-    reach = 2 * robot.surface("left_sole").extent
-    assert reach == pytest.approx(2 * np.hypot(0.11, 0.065))
+def test_while_crossing_the_swing_sole_is_free_sideways_only(step_plan, motions, robot):
+    """Height, progress and orientation held on the path; the sideways offset left to the solver."""
+    frame = robot.surface("right_sole").frame
     for motion in motions:
-        assert len(motion.targets) == 5  # 3 samples and 2 straight above the ends, none halved
+        step = _placement(robot, motion.configurations[-1], frame)[:3, 3] - _placement(
+            robot, motion.configurations[0], frame)[:3, 3]
+        assert len(motion.paths) == 5  # 3 samples and 2 straight above the ends, none halved
         s = np.arange(5) / 4
-        crossing = (s > RAMP) & (s < 1 - RAMP)  # those moving across, pushed aside (not those rising)
-        across = np.linalg.norm(motion.targets[crossing, :2, 3] - support_print, axis=1)
-        assert crossing.any() and np.all(across >= reach - 1e-9)
+        crossing = (s > RAMP) & (s < 1 - RAMP)
+        assert [p.free_direction is not None for p in motion.paths] == crossing.tolist()
+        for path, result in zip(motion.paths, motion.results):
+            placement = _placement(robot, result.q, frame)
+            offset = placement[:3, 3] - path.transform_frame_to_world[:3, 3]
+            turn = pin.log3(path.transform_frame_to_world[:3, :3].T @ placement[:3, :3])
+            if path.free_direction is None:
+                np.testing.assert_allclose(offset, 0.0, atol=1e-6)
+            else:
+                # Sideways: across the normal (world z) and the step.
+                assert path.free_direction[2] == pytest.approx(0.0, abs=1e-12)
+                assert path.free_direction @ step == pytest.approx(0.0, abs=1e-12)
+                np.testing.assert_allclose(offset - (offset @ path.free_direction) * path.free_direction, 0.0,
+                                           atol=1e-6)
+            np.testing.assert_allclose(turn, 0.0, atol=1e-6)
+
+
+def test_a_free_direction_must_be_a_vector():
+    with pytest.raises(MotionError) as error:
+        FramePlacementConstraint("f", np.eye(4), free_direction=[0.0, 0.0, 0.0])
+    assert str(error.value) == "free_direction must be a non-zero (3,) vector, got [0.0, 0.0, 0.0]"
 
 
 def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance(step_plan, scenario, robot,
@@ -266,7 +289,20 @@ def test_a_waypoint_out_of_reach_both_ways_gives_both_reasons(step_plan, scenari
     assert len(motion.configurations) == 1 + len(motion.results)  # the forward samples, no arriving stance
 
 
-def _frame_x(robot, q, frame):
+def _placement(robot, q, frame):
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, np.asarray(q))
-    return data.oMf[robot.model.getFrameId(frame)].translation[0]
+    return data.oMf[robot.model.getFrameId(frame)].homogeneous
+
+
+def _frame_x(robot, q, frame):
+    return _placement(robot, q, frame)[0, 3]
+
+
+def test_the_summary_counts_motions_and_names_where_one_was_joined_backward(step_plan, motions):
+    joined = replace(motions[1], seam=2)
+    step = joined.joint_steps[1]
+    assert step == np.abs(motions[1].configurations[2, 7:] - motions[1].configurations[1, 7:]).max()
+    failed = replace(motions[0], feasible=False, reason="r")
+    assert motions_summary([failed, joined]) == (
+        f"motions: 1 of 2 found; joined backward: 1 -> 2 at sample 2 (largest joint step there {step:.2f} rad)")
