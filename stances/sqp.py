@@ -32,7 +32,7 @@ import pinocchio as pin
 
 from fem.dense import single_threaded_blas
 
-from .errors import StanceError
+from .errors import ConfigurationError, StanceError
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
@@ -709,7 +709,8 @@ def problem_point_forces(problem, linearization, q) -> tuple:
     )
 
 
-def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, **options) -> PostureResult:
+def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
+          **options) -> PostureResult:
     """Find a statically feasible posture holding a stance.
 
     Parameters
@@ -726,6 +727,10 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         without the rigid and bonded warm starts, which begin from a posture
         the prints barely touch and so discard the earlier answer's sinking
         into the soft supports.
+    reference : (nq,) float, optional
+        The posture the joint-distance cost pulls toward (``posture_weight``);
+        the robot's reference posture by default. A motion's samples use a
+        blend of the two stances they join.
     time_budget : float, optional
         Wall-clock seconds this call may take. No SQP iteration starts after
         it is spent; the stance is then infeasible with a reason that says so
@@ -763,6 +768,11 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     def build(options):
         built = build_problem(robot, scene, stance, options)
         built.constraints.extend(constraints)
+        if reference is not None:
+            try:
+                built.reference = built.check_configuration(reference)
+            except ConfigurationError as error:
+                raise ConfigurationError(f"reference: {error}") from None
         return built
 
     problem = build(options)

@@ -306,3 +306,19 @@ def test_the_summary_counts_motions_and_names_where_one_was_joined_backward(step
     failed = replace(motions[0], feasible=False, reason="r")
     assert motions_summary([failed, joined]) == (
         f"motions: 1 of 2 found; joined backward: 1 -> 2 at sample 2 (largest joint step there {step:.2f} rad)")
+
+
+def test_each_sample_is_pulled_toward_the_stances_postures_blended_along_the_path(step_plan, scenario, robot,
+                                                                                  monkeypatch):
+    solve, references = stances.solve, []
+
+    def recording(*arguments, reference=None, **options):
+        references.append(reference)
+        return solve(*arguments, reference=reference, **options)
+
+    monkeypatch.setattr(stances, "solve", recording)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible and len(references) == 5
+    before, after = step_plan.stances[1].q, step_plan.stances[2].q
+    for k, reference in enumerate(references):
+        np.testing.assert_allclose(reference, pin.interpolate(robot.model, before, after, k / 4), atol=1e-15)

@@ -289,6 +289,21 @@ def test_a_soft_stance_restarted_from_its_answer_skips_the_rigid_and_bonded_warm
     np.testing.assert_allclose(again.q, first.q, atol=1e-3)
 
 
+def test_the_posture_cost_pulls_toward_the_reference_given(robot):
+    """A reference with the arms raised: the solved arms move toward it, the stance still verified."""
+    scenario = environments.load("stand")
+    stance = scenario.stance("stand")
+    usual = solve(robot, scenario.scene, stance)
+    raised = np.array(robot.reference_configuration)
+    shoulders = [robot.model.joints[robot.model.getJointId(name)].idx_q for name in ("arm_left_1_joint", "arm_right_1_joint")]
+    raised[shoulders] += [0.6, -0.6]
+    pulled = solve(robot, scenario.scene, stance, reference=raised)
+    assert pulled.feasible and verify(robot, scenario.scene, stance, pulled).ok
+    # Each shoulder goes at least 0.1 rad of the way (against the arm's torque cost).
+    toward = np.sign(raised[shoulders] - usual.q[shoulders]) * (pulled.q[shoulders] - usual.q[shoulders])
+    assert np.all(toward > 0.1), toward
+
+
 # -- bad input --------------------------------------------------------------
 
 
@@ -334,6 +349,13 @@ def test_configuration_of_the_wrong_size_is_rejected(robot):
     scenario = environments.load("stand")
     with pytest.raises(ConfigurationError, match=r"shape \(35,\)"):
         solve(robot, scenario.scene, scenario.stance("stand"), q_init=np.zeros(7))
+
+
+def test_a_reference_of_the_wrong_size_is_rejected_by_name(robot):
+    scenario = environments.load("stand")
+    with pytest.raises(ConfigurationError) as error:
+        solve(robot, scenario.scene, scenario.stance("stand"), reference=np.zeros(7))
+    assert str(error.value) == "reference: q must have shape (35,) for robot 'talos', got (7,)"
 
 
 def test_unknown_option_lists_the_valid_ones(robot):
