@@ -76,6 +76,9 @@ TARGETS = {
     "stances/contacts.py": _STANCE_TESTS + ["tests/test_point_feet.py"],
     "stances/verify.py": ["tests/test_stances_solve.py"],
     "cbm/search.py": ["tests/test_cbm_search.py", "tests/test_cbm_plan.py"],
+    "cbm/motion.py": ["tests/test_cbm_motion.py"],
+    "cbm/step_path.py": ["tests/test_cbm_motion.py"],
+    "fem/mesh.py": ["tests/test_fem_mesh.py"] + _FEM_TESTS,
     "environments/geometry.py": [
         "tests/test_environments.py",
         "tests/test_cbm_sampling.py",

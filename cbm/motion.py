@@ -327,7 +327,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     # its waypoint is along the path, not toward the robot's reference posture: the
     # samples then lead into the arriving stance's posture instead of meeting it with a
     # jump at touch-down (seven built-in plans: largest joint step 1.31 -> 0.82 rad, and
-    # the two motions that needed a backward solve go through forward).
+    # one motion of the two that needed a backward solve goes through forward).
     paths = [
         (f"waypoint {k + 1}",
          FramePlacementConstraint(surface.frame, target, f"path of {moving.robot_surface} (waypoint {k + 1})",
