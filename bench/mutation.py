@@ -78,7 +78,7 @@ TARGETS = {
     "cbm/search.py": ["tests/test_cbm_search.py", "tests/test_cbm_plan.py"],
     "cbm/motion.py": ["tests/test_cbm_motion.py"],
     "cbm/step_path.py": ["tests/test_cbm_motion.py"],
-    "fem/mesh.py": ["tests/test_fem_mesh.py"] + _FEM_TESTS,
+    "fem/mesh.py": ["tests/test_fem_mesh.py", "tests/test_bad_input.py::test_repeated_tet_is_a_mesh_error"] + _FEM_TESTS,
     "environments/geometry.py": [
         "tests/test_environments.py",
         "tests/test_cbm_sampling.py",

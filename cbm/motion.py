@@ -10,14 +10,17 @@ frame sits on a waypoint of a path from where it is in the first stance to
 where it is in the second, lifted along the print's normal by a clearance so
 that it leaves and reaches its print squarely instead of sliding over it.
 While it moves across, only its height and progress are held: sideways it is
-free, so that collision avoidance decides how it passes the support. A point
-foot's path places its centre only. Each sample's posture cost pulls toward
-the two stances' postures blended as far as its waypoint lies along the path. Each sample is solved warm-started from the previous one (small steps of a
-continuation) and verified by :func:`stances.verify` as a stance of the
-support; the motion starts at the first stance's posture and ends at the
-second's. A waypoint the continuation from the first stance does not reach is
-approached from the other end: the waypoints left are solved backward from the
-second stance's posture.
+free, so that collision avoidance decides how it passes the support (a fixed
+detour of 0.2 m from each support print, and one of both surfaces' reach, each
+left 2 of the 57 motions of seven built-in plans unfound, different ones;
+sideways free, none). A point foot's path places its centre only. Each
+sample's posture cost pulls toward the two stances' postures blended as far as
+its waypoint lies along the path. Each sample is solved warm-started from the
+previous one (small steps of a continuation) and verified by
+:func:`stances.verify` as a stance of the support; the motion starts at the
+first stance's posture and ends at the second's. A waypoint the continuation
+from the first stance does not reach is approached from the other end: the
+waypoints left are solved backward from the second stance's posture.
 
 What is not sampled: touch-down and lift-off themselves, the last few
 millimetres where the limb meets its print and the load moves onto it (or off
@@ -149,16 +152,17 @@ class FramePlacementConstraint:
         alone with ``position_only``, across ``free_direction`` only when it is given)."""
         data = robot.model.createData()
         pin.framesForwardKinematics(robot.model, data, np.asarray(q, dtype=float))
-        error = pin.SE3(self.transform_frame_to_world).actInv(data.oMf[robot.model.getFrameId(self.frame)])
-        residual = pin.log6(error).vector
-        if self.free_direction is not None:
-            offset = self._held @ (data.oMf[robot.model.getFrameId(self.frame)].translation
-                                   - self.transform_frame_to_world[:3, 3])
-            turn = 0.0 if self.position_only else np.linalg.norm(pin.log3(error.rotation))
-            return float(max(np.linalg.norm(offset), turn))
-        if self.position_only:
-            return float(np.linalg.norm(error.translation))
-        return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
+        placement = data.oMf[robot.model.getFrameId(self.frame)]
+        error = pin.SE3(self.transform_frame_to_world).actInv(placement)
+        if self.free_direction is None and not self.position_only:
+            residual = pin.log6(error).vector
+            return float(max(np.linalg.norm(residual[:3]), np.linalg.norm(residual[3:])))
+        if self.free_direction is None:
+            offset = error.translation
+        else:
+            offset = self._held @ (placement.translation - self.transform_frame_to_world[:3, 3])
+        turn = 0.0 if self.position_only else np.linalg.norm(pin.log3(error.rotation))
+        return float(max(np.linalg.norm(offset), turn))
 
 
 @dataclass(frozen=True, eq=False)
@@ -187,10 +191,18 @@ class Motion:
     reason : str
         Why not (empty when feasible).
     seam : int or None
-        Index in ``configurations`` of the first sample solved backward, from
-        the second stance's posture, when the solves from the first stance
-        stopped short (a larger joint step may lie just before it); None when
-        every sample was solved forward.
+        When the solves from the first stance stopped short and the rest were
+        solved backward from the second stance's posture: the index in
+        ``configurations`` of the first backward sample in path order (the last
+        one solved; a larger joint step may lie just before it). None when every
+        sample was solved forward.
+
+    Raises
+    ------
+    MotionError
+        If the samples do not add up: one path and one result per interior
+        sample, both stances' postures at the ends of a feasible motion (the
+        first only, otherwise), a seam among the interior samples.
     """
 
     index: int
@@ -208,6 +220,15 @@ class Motion:
         array.setflags(write=False)
         object.__setattr__(self, "configurations", array)
         object.__setattr__(self, "paths", tuple(self.paths))
+        object.__setattr__(self, "results", tuple(self.results))
+        interior = len(array) - 1 - bool(self.feasible)
+        if not len(self.paths) == len(self.results) == interior:
+            raise MotionError(
+                f"a motion with {len(array)} configurations ({'feasible' if self.feasible else 'not feasible'}) "
+                f"has {interior} interior samples, got {len(self.paths)} paths and {len(self.results)} results"
+            )
+        if self.seam is not None and not 1 <= self.seam <= interior:
+            raise MotionError(f"seam {self.seam} is not an interior sample (1..{interior})")
 
     @property
     def targets(self) -> np.ndarray:
@@ -281,12 +302,8 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         straight above each end, make ``samples + 2`` interior postures).
     clearance : float
         Lift of the moving limb off its print, metres, along the print's normal.
-        While it moves across, its frame is held at the path's height and
-        progress, free sideways (across both the normal and the step): the
-        posture solver's collision avoidance decides how it passes the support
-        (a fixed detour of 0.2 m from each support print, and one of both
-        surfaces' reach, each left 2 of 71 motions of seven built-in plans
-        unfound, different ones; sideways free, none).
+        While it moves across, its frame is free sideways (across both the
+        normal and the step).
     max_splits : int
         Waypoints no posture reaches from the previous sample are retried from
         a waypoint halfway (a shorter continuation step), at most this many
@@ -349,6 +366,8 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
             reason = f"{len(paths)} waypoints; forward, {forward.reason}; backward from the next stance, {backward.reason}"
             logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
             backward = None
+        else:
+            logger.info("motion %d -> %d joined backward; forward stopped at %s", index, index + 1, forward.reason)
     pieces = [forward] if backward is None else [forward, backward.reversed()]
     configurations = [before.q] + [q for piece in pieces for q in piece.configurations]
     if not reason:
@@ -369,6 +388,7 @@ class _Continuation:
     reason: str = ""
 
     def reversed(self):
+        """The same samples in the opposite order (a backward continuation in path order)."""
         return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.pending)
 
 
@@ -376,11 +396,12 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
     """Solve the postures holding each of ``paths`` ((name, FramePlacementConstraint,
     reference posture) triples) in turn, from posture ``q`` whose frame is at
     ``placement`` ((4, 4), world); a waypoint not reached is retried from a waypoint
-    halfway (a shorter continuation step), at most ``max_splits`` times in all."""
-    configurations, results, reached, splits = [], [], [], 0
+    halfway toward it from the last one reached (a shorter continuation step, its
+    reference posture halfway too), at most ``max_splits`` times in all."""
+    configurations, results, reached, splits, last_reference = [], [], [], 0, q
     pending = [(name, path, reference, False) for name, path, reference in paths]
     while pending:
-        name, path, reference, half = pending[0]
+        name, path, reference, halfway_waypoint = pending[0]
         # From the second sample on, the previous one is an answer for the same support:
         # its forces too, so soft supports stay sunk where they were.
         lam = np.asarray(results[-1].statistics["lambda"]) if results else None
@@ -391,20 +412,20 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
             if not verification.ok:
                 result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
         if result.feasible:
-            q, placement = result.q, path.transform_frame_to_world
+            q, placement, last_reference = result.q, path.transform_frame_to_world, reference
             pending.pop(0)
             configurations.append(q)
             results.append(result)
             reached.append(path)
         elif splits < max_splits:
-            target = halfway(placement, path.transform_frame_to_world)
-            half_name = name if half else f"halfway to {name}"
-            label = path.label.replace(f"({name})", f"({half_name})")
-            pending.insert(0, (half_name, replace(path, transform_frame_to_world=target, label=label), reference, True))
+            closer = replace(path, transform_frame_to_world=halfway(placement, path.transform_frame_to_world),
+                             label=path.label.replace(f"({name})", f"(toward {name})"))
+            pending.insert(0, (name, closer, pin.interpolate(robot.model, last_reference, reference, 0.5), True))
             splits += 1
         else:
-            reason = f"{name} ({splits} halved): {result.reason}"
-            left = [(n, p, r) for n, p, r, h in pending if not h]  # halfway waypoints are the continuation's own
+            reason = f"{name} ({splits} shorter steps tried): {result.reason}"
+            # The shorter steps' waypoints are the continuation's own: what is left is the path's.
+            left = [(n, p, r) for n, p, r, halfway_waypoint in pending if not halfway_waypoint]
             return _Continuation(configurations, results, reached, left, reason)
     return _Continuation(configurations, results, reached, [])
 

@@ -726,7 +726,9 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         previous sample). With them a soft stance starts its solve at once,
         without the rigid and bonded warm starts, which begin from a posture
         the prints barely touch and so discard the earlier answer's sinking
-        into the soft supports.
+        into the soft supports; the cheap early rejection of a stance that
+        cannot be held even rigid is skipped too, so a hopeless stance costs
+        a full soft solve.
     reference : (nq,) float, optional
         The posture the joint-distance cost pulls toward (``posture_weight``);
         the robot's reference posture by default. A motion's samples use a
@@ -779,11 +781,15 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     warm_iterations = 0
     if lam_init is not None:
         lam_init = np.asarray(lam_init, dtype=float)
-        if lam_init.shape != (problem.n_variables,) or not np.all(np.isfinite(lam_init)):
+        if q_init is None:
+            raise StanceError("lam_init needs q_init: the posture those contact variables were solved with")
+        if lam_init.shape != (problem.n_variables,):
             raise StanceError(
-                f"lam_init must be {problem.n_variables} finite contact variables (statistics['lambda'] of an "
+                f"lam_init must be {problem.n_variables} contact variables (statistics['lambda'] of an "
                 f"answer for the same stance and options), got shape {lam_init.shape}"
             )
+        if not np.all(np.isfinite(lam_init)):
+            raise StanceError(f"lam_init has non-finite entries at indices {np.flatnonzero(~np.isfinite(lam_init)).tolist()}")
     elif options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
         # Only starting postures: loose tolerances save most of their cost.
         loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)

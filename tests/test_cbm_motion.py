@@ -267,6 +267,11 @@ def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance
     assert verify_motion(motion, step_plan, scenario, robot) == []
     x = [_frame_x(robot, q, frame) for q in motion.configurations]
     assert motion.seam is not None and x[motion.seam - 1] < middle < x[motion.seam]
+    # Backward, the path's own waypoints only: the forward shorter steps that failed are not redone.
+    backward = [path.label for path in motion.paths[motion.seam - 1:]]
+    forward_reached = {path.label for path in motion.paths[: motion.seam - 1] if "toward" not in path.label}
+    assert all("toward" not in label for label in backward)
+    assert len(backward) + len(forward_reached) == 5 and not forward_reached & set(backward)
     np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[2].q)
     assert np.all(np.diff(motion.targets[:, 0, 3]) >= -1e-12)  # the samples in path order, both halves
 
@@ -284,8 +289,8 @@ def test_a_waypoint_out_of_reach_both_ways_gives_both_reasons(step_plan, scenari
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert not motion.feasible and motion.seam is None
     # Waypoints 2-4 cross 5 cm above the lifted sole (z > 6 cm): forward stops at 2, backward at 4.
-    assert motion.reason == ("5 waypoints; forward, waypoint 2 (2 halved): blocked by the test; "
-                             "backward from the next stance, waypoint 4 (2 halved): blocked by the test")
+    assert motion.reason == ("5 waypoints; forward, waypoint 2 (2 shorter steps tried): blocked by the test; "
+                             "backward from the next stance, waypoint 4 (2 shorter steps tried): blocked by the test")
     assert len(motion.configurations) == 1 + len(motion.results)  # the forward samples, no arriving stance
 
 
@@ -303,7 +308,7 @@ def test_the_summary_counts_motions_and_names_where_one_was_joined_backward(step
     joined = replace(motions[1], seam=2)
     step = joined.joint_steps[1]
     assert step == np.abs(motions[1].configurations[2, 7:] - motions[1].configurations[1, 7:]).max()
-    failed = replace(motions[0], feasible=False, reason="r")
+    failed = replace(motions[0], configurations=motions[0].configurations[:-1], feasible=False, reason="r")
     assert motions_summary([failed, joined]) == (
         f"motions: 1 of 2 found; joined backward: 1 -> 2 at sample 2 (largest joint step there {step:.2f} rad)")
 
@@ -322,3 +327,28 @@ def test_each_sample_is_pulled_toward_the_stances_postures_blended_along_the_pat
     before, after = step_plan.stances[1].q, step_plan.stances[2].q
     for k, reference in enumerate(references):
         np.testing.assert_allclose(reference, pin.interpolate(robot.model, before, after, k / 4), atol=1e-15)
+
+
+def test_a_first_waypoint_out_of_reach_forward_leaves_the_whole_path_to_the_backward_solves(step_plan, scenario,
+                                                                                             robot, monkeypatch):
+    solve, leaving = stances.solve, step_plan.stances[1].q
+
+    def blocked_from_the_first_stance(robot_, scene, stance, q_init=None, **options):
+        result = solve(robot_, scene, stance, q_init=q_init, **options)
+        return replace(result, feasible=False, reason="blocked by the test") if np.array_equal(q_init, leaving) else result
+
+    monkeypatch.setattr(stances, "solve", blocked_from_the_first_stance)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible and motion.seam == 1
+    assert [p.label for p in motion.paths] == [f"path of right_sole (waypoint {k})" for k in range(1, 6)]
+    assert verify_motion(motion, step_plan, scenario, robot) == []
+
+
+def test_a_motion_whose_samples_do_not_add_up_is_refused(motions):
+    motion = motions[0]
+    with pytest.raises(MotionError) as error:
+        replace(motion, paths=motion.paths[:-1])
+    assert str(error.value) == "a motion with 7 configurations (feasible) has 5 interior samples, got 4 paths and 5 results"
+    with pytest.raises(MotionError) as error:
+        replace(motion, seam=6)
+    assert str(error.value) == "seam 6 is not an interior sample (1..5)"

@@ -169,3 +169,12 @@ def test_nodes_in_polygon_rejects_non_planar_and_short_polygons():
         nodes_in_polygon(mesh, [[0, 0, 1], [1, 0, 1], [1, 1, 1.1], [0, 1, 1]])
     with pytest.raises(PrintError, match="k >= 3"):
         nodes_in_polygon(mesh, [[0, 0, 1], [1, 0, 1]])
+
+
+def test_a_face_shared_by_three_tets_is_named_as_not_a_manifold():
+    nodes = [[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [0, 0, -1], [0.2, 0.2, 2]]
+    mesh = TetMesh(np.array(nodes, float), np.array([[0, 1, 2, 3], [0, 2, 1, 4], [0, 1, 2, 5]]))
+    with pytest.raises(MeshError) as error:
+        mesh.surface_triangles
+    # The first tet's face opposite its node 3 (outward order 0, 2, 1).
+    assert str(error.value) == "face [0, 2, 1] is shared by more than two tets; the mesh is not a manifold solid"

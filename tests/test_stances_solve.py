@@ -336,13 +336,20 @@ def test_nan_configuration_is_rejected(robot):
         solve(robot, scenario.scene, scenario.stance("stand"), q_init=q)
 
 
-def test_contact_variables_of_the_wrong_size_are_rejected(robot):
+def test_bad_contact_variables_are_rejected_with_what_is_wrong(robot):
     scenario = environments.load("stand")
-    with pytest.raises(StanceError) as error:
-        solve(robot, scenario.scene, scenario.stance("stand"), lam_init=[1.0, 2.0])
-    n = build_problem(robot, scenario.scene, scenario.stance("stand"), PostureOptions()).n_variables
-    assert str(error.value) == (f"lam_init must be {n} finite contact variables (statistics['lambda'] of an answer "
-                                "for the same stance and options), got shape (2,)")
+    stance, q = scenario.stance("stand"), robot.reference_configuration
+    n = build_problem(robot, scenario.scene, stance, PostureOptions()).n_variables
+    cases = [
+        (dict(q_init=q, lam_init=[1.0, 2.0]), f"lam_init must be {n} contact variables (statistics['lambda'] of an "
+                                              "answer for the same stance and options), got shape (2,)"),
+        (dict(q_init=q, lam_init=np.r_[np.nan, np.ones(n - 1)]), "lam_init has non-finite entries at indices [0]"),
+        (dict(lam_init=np.ones(n)), "lam_init needs q_init: the posture those contact variables were solved with"),
+    ]
+    for arguments, message in cases:
+        with pytest.raises(StanceError) as error:
+            solve(robot, scenario.scene, stance, **arguments)
+        assert str(error.value) == message
 
 
 def test_configuration_of_the_wrong_size_is_rejected(robot):
