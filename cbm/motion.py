@@ -22,10 +22,18 @@ first stance's posture and ends at the second's. A waypoint the continuation
 from the first stance does not reach is approached from the other end: the
 waypoints left are solved backward from the second stance's posture.
 
+Between two consecutive samples the robot is checked for collisions at 7
+postures interpolated in joint space (:data:`BETWEEN`); where one collides, a
+sample is solved halfway along the path (at most :data:`MAX_INSERTED` per
+step), and a step that still collides makes the motion infeasible. The moving
+contact geometry may sink into its own print's object only as deep as it does
+in the stance postures at either end of the step (a soft print).
+
 What is not sampled: touch-down and lift-off themselves, the last few
 millimetres where the limb meets its print and the load moves onto it (or off
 it). Those happen between the stance's own posture, verified with the
-contact, and the nearest lifted sample, verified without it.
+contact, and the nearest lifted sample, verified without it; only their
+collisions are checked.
 """
 
 from __future__ import annotations
@@ -38,7 +46,9 @@ import pinocchio as pin
 
 import stances
 from stances.blocks import PLACEMENT_ACCURACY, equality
+from stances.collision import contact_exclusions
 from stances.contacts import placement_residual, point_placement_residual
+from stances.verify import VerificationTolerances
 
 from .errors import CbmError
 from .step_path import RAMP, halfway, lifted_path
@@ -58,6 +68,13 @@ logger = logging.getLogger(__name__)
 #: A sample's frame may miss its waypoint by this much (m and rad), as
 #: stances.verify's placements: the SQP meets these rows to PLACEMENT_ACCURACY (1e-7).
 PATH_TOLERANCE = 1e-6
+
+#: Where the postures between two consecutive samples (joint-space interpolation,
+#: ``pin.interpolate``) are checked for collisions: 7 points, every 1/8.
+BETWEEN = np.arange(1, 8) / 8
+
+#: Shorter steps inserted, at most, into one step between samples that collides.
+MAX_INSERTED = 2
 
 
 class MotionError(CbmError):
@@ -318,7 +335,9 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         waypoint is out of reach, the waypoints left are solved the same way
         backward, from the second stance's posture, and the two halves meet at
         ``Motion.seam``. If neither reaches it, the motion holds the forward
-        samples, ``feasible`` False and both solvers' reasons.
+        samples, ``feasible`` False and both solvers' reasons; if a step
+        between samples collides even with samples inserted, every sample,
+        ``feasible`` False and the collision.
 
     Raises
     ------
@@ -369,12 +388,112 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         else:
             logger.info("motion %d -> %d joined backward; forward stopped at %s", index, index + 1, forward.reason)
     pieces = [forward] if backward is None else [forward, backward.reversed()]
-    configurations = [before.q] + [q for piece in pieces for q in piece.configurations]
+    samples = [_Sample(r.q, p, r, ref) for piece in pieces for r, p, ref in zip(piece.results, piece.reached,
+                                                                             piece.references)]
+    seam = None if backward is None else 1 + len(forward.results)
     if not reason:
-        configurations.append(after.q)
+        checker = _Between(robot, scene, support, moving, options)
+        ends = _Sample(before.q, None, None, before.q, start), _Sample(after.q, None, None, after.q, end)
+        samples, seam, reason = _clear_steps(robot, scene, support, checker, ends, samples, seam, options,
+                                             surface, index)
+    configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
-                  tuple(p for piece in pieces for p in piece.reached), tuple(r for piece in pieces for r in piece.results),
-                  not reason, reason, None if backward is None else 1 + len(forward.results))
+                  tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
+                  not reason, reason, seam)
+
+
+@dataclass(frozen=True)
+class _Sample:
+    """A posture of a motion: interior (with its path, result and reference posture) or a stance's (the ends)."""
+
+    q: np.ndarray
+    path: FramePlacementConstraint | None
+    result: object
+    reference: np.ndarray
+    end_placement: np.ndarray | None = None  # (4, 4) the moving frame at a stance's posture
+
+    @property
+    def placement(self) -> np.ndarray:
+        return self.end_placement if self.path is None else self.path.transform_frame_to_world
+
+
+class _Between:
+    """Collisions of the postures interpolated between two samples, with the support's checker."""
+
+    def __init__(self, robot, scene, support, moving, options):
+        self.model = robot.model
+        self.data = robot.model.createData()
+        self.checker = stances.build_problem(robot, scene, support, stances.PostureOptions(**options)).collision_checker
+        print_object = scene.surface(moving.contact_print.surface).object_name
+        self.moving = set(contact_exclusions(robot, moving.robot_surface, print_object))
+        self.tolerance = VerificationTolerances().penetration
+
+    def _pairs(self, q):
+        pin.forwardKinematics(self.model, self.data, q)
+        return self.checker.pairs(self.model, self.data)
+
+    def first_collision(self, q0, q1):
+        """``(t, pair, depth)`` of the first interpolated posture deeper than the tolerance, or None.
+
+        The moving contact geometry and its print's object may overlap as deep as they
+        do at either end (a limb resting on a soft print sinks into it).
+        """
+        allowed = {}
+        for q in (q0, q1):
+            for pair in self._pairs(q):
+                if (pair.name_a, pair.name_b) in self.moving:
+                    allowed[pair.name_a, pair.name_b] = max(allowed.get((pair.name_a, pair.name_b), 0.0), -pair.distance)
+        for t in BETWEEN:
+            for pair in self._pairs(pin.interpolate(self.model, q0, q1, float(t))):
+                depth = -pair.distance - allowed.get((pair.name_a, pair.name_b), 0.0)
+                if depth > self.tolerance:
+                    return float(t), pair, depth
+        return None
+
+
+def _clear_steps(robot, scene, support, between, ends, samples, seam, options, surface, index):
+    """Check each step between consecutive postures for collisions; where one collides,
+    solve a sample halfway along the path and check both halves, at most
+    :data:`MAX_INSERTED` times per step. Returns the samples, the seam moved past any
+    inserted before it, and a reason (empty when every step is clear)."""
+    nodes, inserted = [ends[0], *samples, ends[1]], [0] * (len(samples) + 1)
+    k = 0
+    while k < len(nodes) - 1:
+        a, b = nodes[k], nodes[k + 1]
+        hit = between.first_collision(a.q, b.q)
+        if hit is None:
+            k += 1
+            continue
+        t, pair, depth = hit
+        where = (f"between samples {k} and {k + 1}, at {t:g} of the way: collision between {pair.name_a} "
+                 f"and {pair.name_b} (depth {depth:.3g} m)")
+        if inserted[k] >= MAX_INSERTED:
+            logger.info("motion %d -> %d: %s", index, index + 1, where)
+            return nodes[1:-1], seam, f"{where}, after {inserted[k]} samples inserted"
+        free = a.path.free_direction if a.path is not None and b.path is not None else None
+        if free is not None and (b.path.free_direction is None or not np.allclose(free, b.path.free_direction)):
+            free = None
+        path = FramePlacementConstraint(surface.frame, halfway(a.placement, b.placement),
+                                        f"path of {surface.name} (between samples {k} and {k + 1})",
+                                        surface.is_point, free)
+        reference = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
+        for start in (a, b):  # from the posture before the step, else from the one after it
+            lam = None if start.result is None else np.asarray(start.result.statistics["lambda"])
+            result = stances.solve(robot, scene, support, q_init=start.q, lam_init=lam, constraints=(path,),
+                                   reference=reference, **options)
+            if result.feasible:
+                verification = stances.verify(robot, scene, support, result, **options)
+                if not verification.ok:
+                    result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
+            if result.feasible:
+                break
+        else:
+            return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
+        nodes.insert(k + 1, _Sample(result.q, path, result, reference))
+        inserted[k:k + 1] = [inserted[k] + 1] * 2
+        if seam is not None and k + 1 <= seam:
+            seam += 1
+    return nodes[1:-1], seam, ""
 
 
 @dataclass(frozen=True)
@@ -384,12 +503,14 @@ class _Continuation:
     configurations: list
     results: list
     reached: list  # the FramePlacementConstraint each result holds
+    references: list  # the reference posture each result was pulled toward
     pending: list  # (name, FramePlacementConstraint, reference posture) of the waypoints left (empty: all reached)
     reason: str = ""
 
     def reversed(self):
         """The same samples in the opposite order (a backward continuation in path order)."""
-        return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.pending)
+        return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.references[::-1],
+                             self.pending)
 
 
 def _continuation(robot, scene, support, paths, q, placement, options, max_splits):
@@ -398,7 +519,7 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
     ``placement`` ((4, 4), world); a waypoint not reached is retried from a waypoint
     halfway toward it from the last one reached (a shorter continuation step, its
     reference posture halfway too), at most ``max_splits`` times in all."""
-    configurations, results, reached, splits, last_reference = [], [], [], 0, q
+    configurations, results, reached, references, splits, last_reference = [], [], [], [], 0, q
     pending = [(name, path, reference, False) for name, path, reference in paths]
     while pending:
         name, path, reference, halfway_waypoint = pending[0]
@@ -417,6 +538,7 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
             configurations.append(q)
             results.append(result)
             reached.append(path)
+            references.append(reference)
         elif splits < max_splits:
             closer = replace(path, transform_frame_to_world=halfway(placement, path.transform_frame_to_world),
                              label=path.label.replace(f"({name})", f"(toward {name})"))
@@ -426,8 +548,8 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
             reason = f"{name} ({splits} shorter steps tried): {result.reason}"
             # The shorter steps' waypoints are the continuation's own: what is left is the path's.
             left = [(n, p, r) for n, p, r, halfway_waypoint in pending if not halfway_waypoint]
-            return _Continuation(configurations, results, reached, left, reason)
-    return _Continuation(configurations, results, reached, [])
+            return _Continuation(configurations, results, reached, references, left, reason)
+    return _Continuation(configurations, results, reached, references, [])
 
 
 def plan_motions(plan, scenario, robot, **options):
@@ -482,7 +604,8 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     list of str
         Problems, one line each; empty if the motion starts and ends on its
         stances' postures, every interior sample verifies as a stance of the
-        support (:func:`stances.verify`) and holds its frame on its waypoint.
+        support (:func:`stances.verify`) and holds its frame on its waypoint,
+        and (a feasible motion) no posture checked between samples collides.
     """
     verify = stances.verify
     after = plan.stances[motion.index + 1]
@@ -492,6 +615,15 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     for position, q in ends:
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
+    if motion.feasible:
+        moving, _ = _moving_contact(plan.stances[motion.index].stance, after.stance)
+        between = _Between(robot, scenario.scene, motion.support, moving, options)
+        for k in range(len(motion.configurations) - 1):
+            hit = between.first_collision(motion.configurations[k], motion.configurations[k + 1])
+            if hit is not None:
+                t, pair, depth = hit
+                problems.append(f"between samples {k} and {k + 1}, at {t:g} of the way: collision between "
+                                f"{pair.name_a} and {pair.name_b} (depth {depth:.3g} m)")
     for k, (result, path) in enumerate(zip(motion.results, motion.paths)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")

@@ -352,3 +352,63 @@ def test_a_motion_whose_samples_do_not_add_up_is_refused(motions):
     with pytest.raises(MotionError) as error:
         replace(motion, seam=6)
     assert str(error.value) == "seam 6 is not an interior sample (1..5)"
+
+
+def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excepted(step_plan, scenario, robot):
+    """The moving sole may sink into its print's floor as deep as at the step's ends; nothing else may."""
+    from cbm.motion import BETWEEN, _Between
+
+    support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
+    between = _Between(robot, scenario.scene, support, moving, {})
+    sunk = np.array(step_plan.stances[0].q)
+    sunk[2] -= 0.01  # both soles 1 cm into the floor (the left one rests there by design)
+    assert between.first_collision(sunk, sunk) is None
+    fallen = sunk.copy()
+    fallen[2] -= 0.4  # knees and more through the floor
+    t, pair, depth = between.first_collision(sunk, fallen)
+    assert t == BETWEEN[0] and pair.name_b == "floor" and depth > 0.01
+    # Without the allowance the resting sole itself would be a collision at every posture.
+    between.moving = set()
+    t, pair, depth = between.first_collision(sunk, sunk)
+    assert (t, pair.name_a, pair.name_b) == (BETWEEN[0], "leg_right_6_link_0", "floor")
+    assert 0.01 <= depth < 0.011  # the foot's geometry reaches 0.4 mm below the sole's plane
+
+
+def test_verify_motion_reports_a_step_between_samples_that_collides(step_plan, motions, scenario, robot):
+    motion = motions[1]
+    fallen = np.array(motion.configurations)
+    fallen[2, 2] -= 0.4  # one sample's base 40 cm down: through the floor on both sides of it
+    problems = verify_motion(replace(motion, configurations=fallen), step_plan, scenario, robot)
+    assert any(p.startswith("between samples 1 and 2, at 0.125 of the way: collision between ") for p in problems)
+    assert any(p.startswith("between samples 2 and 3, at 0.125 of the way: collision between ") for p in problems)
+
+
+@pytest.mark.parametrize("reach", [0.05, 0.005])
+def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasible(step_plan, scenario, robot,
+                                                                                     monkeypatch, reach):
+    """Steps are made to 'collide' when the swing sole moves more than ``reach`` in x across them."""
+    from cbm.motion import MAX_INSERTED, _Between
+
+    frame = robot.surface("right_sole").frame
+
+    def long_steps_collide(between, q0, q1):
+        moved = abs(_frame_x(robot, q1, frame) - _frame_x(robot, q0, frame))
+        return (0.5, CollisionPairStub(), moved) if moved > reach else None
+
+    monkeypatch.setattr(_Between, "first_collision", long_steps_collide)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    inserted = [path for path in motion.paths if "(between samples" in path.label]
+    x = [_frame_x(robot, q, frame) for q in motion.configurations]
+    if reach == 0.05:  # the two steps across (7.5 cm each) are halved once
+        assert motion.feasible and len(inserted) == 2 and len(motion.paths) == 7
+        assert np.all(np.abs(np.diff(x)) <= reach)
+    else:
+        assert not motion.feasible and len(inserted) == MAX_INSERTED
+        # The first step across (7.5 cm) quartered is still 1.9 cm: it stops there, every sample kept.
+        assert motion.reason == (f"between samples 2 and 3, at 0.5 of the way: collision between a and b "
+                                 f"(depth {abs(x[3] - x[2]):.3g} m), after {MAX_INSERTED} samples inserted")
+        assert len(motion.configurations) == 1 + 5 + MAX_INSERTED
+
+
+class CollisionPairStub:
+    name_a, name_b = "a", "b"
