@@ -478,13 +478,7 @@ def _clear_steps(robot, scene, support, between, ends, samples, seam, options, s
                                         surface.is_point, free)
         reference = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
         for start in (a, b):  # from the posture before the step, else from the one after it
-            lam = None if start.result is None else np.asarray(start.result.statistics["lambda"])
-            result = stances.solve(robot, scene, support, q_init=start.q, lam_init=lam, constraints=(path,),
-                                   reference=reference, **options)
-            if result.feasible:
-                verification = stances.verify(robot, scene, support, result, **options)
-                if not verification.ok:
-                    result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
+            result = _solve_sample(robot, scene, support, path, reference, start.q, start.result, options)
             if result.feasible:
                 break
         else:
@@ -500,8 +494,7 @@ def _clear_steps(robot, scene, support, between, ends, samples, seam, options, s
 class _Continuation:
     """Waypoints solved one after another, each warm-started from the last."""
 
-    configurations: list
-    results: list
+    results: list  # the verified posture results, in the order solved
     reached: list  # the FramePlacementConstraint each result holds
     references: list  # the reference posture each result was pulled toward
     pending: list  # (name, FramePlacementConstraint, reference posture) of the waypoints left (empty: all reached)
@@ -509,8 +502,7 @@ class _Continuation:
 
     def reversed(self):
         """The same samples in the opposite order (a backward continuation in path order)."""
-        return _Continuation(self.configurations[::-1], self.results[::-1], self.reached[::-1], self.references[::-1],
-                             self.pending)
+        return _Continuation(self.results[::-1], self.reached[::-1], self.references[::-1], self.pending)
 
 
 def _continuation(robot, scene, support, paths, q, placement, options, max_splits):
@@ -519,23 +511,14 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
     ``placement`` ((4, 4), world); a waypoint not reached is retried from a waypoint
     halfway toward it from the last one reached (a shorter continuation step, its
     reference posture halfway too), at most ``max_splits`` times in all."""
-    configurations, results, reached, references, splits, last_reference = [], [], [], [], 0, q
+    results, reached, references, splits, last_reference = [], [], [], 0, q
     pending = [(name, path, reference, False) for name, path, reference in paths]
     while pending:
         name, path, reference, halfway_waypoint = pending[0]
-        # From the second sample on, the previous one is an answer for the same support:
-        # its forces too, so soft supports stay sunk where they were.
-        lam = np.asarray(results[-1].statistics["lambda"]) if results else None
-        result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(path,),
-                               reference=reference, **options)
-        if result.feasible:
-            verification = stances.verify(robot, scene, support, result, **options)
-            if not verification.ok:
-                result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
+        result = _solve_sample(robot, scene, support, path, reference, q, results[-1] if results else None, options)
         if result.feasible:
             q, placement, last_reference = result.q, path.transform_frame_to_world, reference
             pending.pop(0)
-            configurations.append(q)
             results.append(result)
             reached.append(path)
             references.append(reference)
@@ -548,8 +531,24 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
             reason = f"{name} ({splits} shorter steps tried): {result.reason}"
             # The shorter steps' waypoints are the continuation's own: what is left is the path's.
             left = [(n, p, r) for n, p, r, halfway_waypoint in pending if not halfway_waypoint]
-            return _Continuation(configurations, results, reached, references, left, reason)
-    return _Continuation(configurations, results, reached, references, [])
+            return _Continuation(results, reached, references, left, reason)
+    return _Continuation(results, reached, references, [])
+
+
+def _solve_sample(robot, scene, support, path, reference, q, previous, options):
+    """The support's posture holding ``path``, from posture ``q``, checked by :func:`stances.verify`.
+
+    ``previous``: the result ``q`` comes from when it is a sample of this support (its
+    forces then start the solve too, so soft supports stay sunk where they were), else None.
+    """
+    lam = None if previous is None else np.asarray(previous.statistics["lambda"])
+    result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(path,), reference=reference,
+                           **options)
+    if result.feasible:
+        verification = stances.verify(robot, scene, support, result, **options)
+        if not verification.ok:
+            result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
+    return result
 
 
 def plan_motions(plan, scenario, robot, **options):
