@@ -24,10 +24,11 @@ waypoints left are solved backward from the second stance's posture.
 
 Between two consecutive samples the robot is checked for collisions at 7
 postures interpolated in joint space (:data:`BETWEEN`); where one collides, a
-sample is solved halfway along the path (at most :data:`MAX_INSERTED` per
-step), and a step that still collides makes the motion infeasible. The moving
-contact geometry may sink into its own print's object only as deep as it does
-in the stance postures at either end of the step (a soft print).
+sample is solved halfway along the path (at most :data:`MAX_INSERTED` in one
+step of the motion), and a step that still collides makes the motion
+infeasible. The moving contact geometry may sink into its own print's object
+only as deep as the interpolation of its depths at the step's two ends (a
+limb resting on a soft print sinks into it).
 
 What is not sampled: touch-down and lift-off themselves, the last few
 millimetres where the limb meets its print and the load moves onto it (or off
@@ -73,7 +74,8 @@ PATH_TOLERANCE = 1e-6
 #: ``pin.interpolate``) are checked for collisions: 7 points, every 1/8.
 BETWEEN = np.arange(1, 8) / 8
 
-#: Shorter steps inserted, at most, into one step between samples that collides.
+#: Samples inserted, at most, into one step of the motion that collides (a step that
+#: still collides after them makes the motion infeasible).
 MAX_INSERTED = 2
 
 
@@ -195,16 +197,18 @@ class Motion:
     support : environments Stance
         The contacts held throughout (those both stances share).
     configurations : (k, nq) float
-        Postures, the first stance's ``q`` first and the second's last;
-        between them, one per waypoint (fewer if the motion failed).
+        Postures, the first stance's ``q`` first and, when feasible, the
+        second's last; between them, one per waypoint, and one per sample
+        inserted where a step collided (fewer if the motion failed).
     paths : tuple of FramePlacementConstraint
         How the moving surface's frame is held at each interior sample: on the
-        path's waypoints (and any halfway waypoints the solves needed), free
-        sideways while it crosses.
+        path's waypoints (and any halfway waypoints the solves or the collision
+        checks needed), free sideways while it crosses.
     results : tuple of stances PostureResult
         The support's posture solve of each interior sample.
     feasible : bool
-        Whether every waypoint was reached by a verified posture.
+        Whether every waypoint was reached by a verified posture and no step
+        between consecutive postures collides (:data:`BETWEEN`).
     reason : str
         Why not (empty when feasible).
     seam : int or None
@@ -392,9 +396,9 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
                                                                              piece.references)]
     seam = None if backward is None else 1 + len(forward.results)
     if not reason:
-        checker = _Between(robot, scene, support, moving, options)
-        ends = _Sample(before.q, None, None, before.q, start), _Sample(after.q, None, None, after.q, end)
-        samples, seam, reason = _clear_steps(robot, scene, support, checker, ends, samples, seam, options,
+        between = _Between(robot, scene, support, moving, options)
+        ends = _Sample(before.q, None, None, before.q), _Sample(after.q, None, None, after.q)
+        samples, seam, reason = _clear_steps(robot, scene, support, between, ends, samples, seam, options,
                                              surface, index)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
@@ -410,11 +414,6 @@ class _Sample:
     path: FramePlacementConstraint | None
     result: object
     reference: np.ndarray
-    end_placement: np.ndarray | None = None  # (4, 4) the moving frame at a stance's posture
-
-    @property
-    def placement(self) -> np.ndarray:
-        return self.end_placement if self.path is None else self.path.transform_frame_to_world
 
 
 class _Between:
@@ -435,28 +434,38 @@ class _Between:
     def first_collision(self, q0, q1):
         """``(t, pair, depth)`` of the first interpolated posture deeper than the tolerance, or None.
 
-        The moving contact geometry and its print's object may overlap as deep as they
-        do at either end (a limb resting on a soft print sinks into it).
+        The moving contact geometry and its print's object may overlap as deep as
+        their depths at the two ends, interpolated at ``t`` (a limb resting on a soft
+        print sinks into it; deeper on the way is a collision).
         """
-        allowed = {}
-        for q in (q0, q1):
-            for pair in self._pairs(q):
-                if (pair.name_a, pair.name_b) in self.moving:
-                    allowed[pair.name_a, pair.name_b] = max(allowed.get((pair.name_a, pair.name_b), 0.0), -pair.distance)
+        ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
+                 if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
         for t in BETWEEN:
             for pair in self._pairs(pin.interpolate(self.model, q0, q1, float(t))):
-                depth = -pair.distance - allowed.get((pair.name_a, pair.name_b), 0.0)
+                key = (pair.name_a, pair.name_b)
+                allowed = (1.0 - t) * ends[0].get(key, 0.0) + t * ends[1].get(key, 0.0)
+                depth = -pair.distance - allowed
                 if depth > self.tolerance:
                     return float(t), pair, depth
         return None
 
 
+def _collision_text(k, hit, last):
+    """Where a step of a motion collides, in words; ``last``: the step into the next stance."""
+    t, pair, depth = hit
+    step = f"between sample {k} and the next stance's posture" if last else f"between samples {k} and {k + 1}"
+    return f"{step}, at {t:g} of the way: collision between {pair.name_a} and {pair.name_b} (depth {depth:.3g} m)"
+
+
 def _clear_steps(robot, scene, support, between, ends, samples, seam, options, surface, index):
-    """Check each step between consecutive postures for collisions; where one collides,
-    solve a sample halfway along the path and check both halves, at most
-    :data:`MAX_INSERTED` times per step. Returns the samples, the seam moved past any
-    inserted before it, and a reason (empty when every step is clear)."""
-    nodes, inserted = [ends[0], *samples, ends[1]], [0] * (len(samples) + 1)
+    """Check each step between consecutive postures for collisions (``between``, a
+    :class:`_Between`); where one collides, solve a sample halfway along the path and
+    check both halves, at most :data:`MAX_INSERTED` samples in each step of the motion.
+    Returns the samples, the seam moved past any inserted before it, and a reason
+    (empty when every step is clear)."""
+    nodes = [ends[0], *samples, ends[1]]
+    origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
+    inserted = [0] * len(origin)  # samples inserted into each step of the motion
     k = 0
     while k < len(nodes) - 1:
         a, b = nodes[k], nodes[k + 1]
@@ -464,17 +473,16 @@ def _clear_steps(robot, scene, support, between, ends, samples, seam, options, s
         if hit is None:
             k += 1
             continue
-        t, pair, depth = hit
-        where = (f"between samples {k} and {k + 1}, at {t:g} of the way: collision between {pair.name_a} "
-                 f"and {pair.name_b} (depth {depth:.3g} m)")
-        if inserted[k] >= MAX_INSERTED:
+        where = _collision_text(k, hit, last=k == len(nodes) - 2)
+        if inserted[origin[k]] >= MAX_INSERTED:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
-            return nodes[1:-1], seam, f"{where}, after {inserted[k]} samples inserted"
+            return nodes[1:-1], seam, f"{where}, after {inserted[origin[k]]} samples inserted in that step"
         free = a.path.free_direction if a.path is not None and b.path is not None else None
         if free is not None and (b.path.free_direction is None or not np.allclose(free, b.path.free_direction)):
             free = None
-        path = FramePlacementConstraint(surface.frame, halfway(a.placement, b.placement),
-                                        f"path of {surface.name} (between samples {k} and {k + 1})",
+        # Halfway between where the frame is at the two postures (a free sideways offset included).
+        target = halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame))
+        path = FramePlacementConstraint(surface.frame, target, f"path of {surface.name} (between samples {k} and {k + 1})",
                                         surface.is_point, free)
         reference = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
         for start in (a, b):  # from the posture before the step, else from the one after it
@@ -484,7 +492,8 @@ def _clear_steps(robot, scene, support, between, ends, samples, seam, options, s
         else:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
         nodes.insert(k + 1, _Sample(result.q, path, result, reference))
-        inserted[k:k + 1] = [inserted[k] + 1] * 2
+        origin.insert(k + 1, origin[k])
+        inserted[origin[k]] += 1
         if seam is not None and k + 1 <= seam:
             seam += 1
     return nodes[1:-1], seam, ""
@@ -617,12 +626,11 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     if motion.feasible:
         moving, _ = _moving_contact(plan.stances[motion.index].stance, after.stance)
         between = _Between(robot, scenario.scene, motion.support, moving, options)
-        for k in range(len(motion.configurations) - 1):
+        steps = len(motion.configurations) - 1
+        for k in range(steps):
             hit = between.first_collision(motion.configurations[k], motion.configurations[k + 1])
             if hit is not None:
-                t, pair, depth = hit
-                problems.append(f"between samples {k} and {k + 1}, at {t:g} of the way: collision between "
-                                f"{pair.name_a} and {pair.name_b} (depth {depth:.3g} m)")
+                problems.append(_collision_text(k, hit, last=k == steps - 1))
     for k, (result, path) in enumerate(zip(motion.results, motion.paths)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")

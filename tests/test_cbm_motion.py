@@ -2,7 +2,7 @@
 
 import csv
 import json
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -360,9 +360,10 @@ def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excep
 
     support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
     between = _Between(robot, scenario.scene, support, moving, {})
-    sunk = np.array(step_plan.stances[0].q)
+    sunk, lifted = np.array(step_plan.stances[0].q), np.array(step_plan.stances[0].q)
     sunk[2] -= 0.01  # both soles 1 cm into the floor (the left one rests there by design)
-    assert between.first_collision(sunk, sunk) is None
+    lifted[2] += 0.02
+    assert between.first_collision(sunk, lifted) is None  # rising out of the floor
     fallen = sunk.copy()
     fallen[2] -= 0.4  # knees and more through the floor
     t, pair, depth = between.first_collision(sunk, fallen)
@@ -374,13 +375,34 @@ def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excep
     assert 0.01 <= depth < 0.011  # the foot's geometry reaches 0.4 mm below the sole's plane
 
 
+def test_the_moving_soles_allowance_is_its_depth_at_the_ends_interpolated_not_the_deeper_one(step_plan, scenario,
+                                                                                            robot):
+    """2 cm deep at the start, out at the end, 1.5 cm deep halfway: 0.5 cm too deep there."""
+    from cbm.motion import _Between
+
+    support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
+    between = _Between(robot, scenario.scene, support, moving, {})
+    q0, q1 = np.array(step_plan.stances[0].q), np.array(step_plan.stances[0].q)
+    q1[0] += 1.0  # the base's x stands in for the fraction of the way
+
+    def depth_at(q):
+        t = q[0] - q0[0]
+        return 0.02 * (1 - t) if abs(t - 0.5) > 0.2 else 0.015
+
+    between._pairs = lambda q: [CollisionPairStub(*sorted(between.moving)[0], distance=-depth_at(q))]
+    t, pair, depth = between.first_collision(q0, q1)
+    assert t == 0.375 and depth == pytest.approx(0.015 - 0.02 * (1 - 0.375))
+
+
 def test_verify_motion_reports_a_step_between_samples_that_collides(step_plan, motions, scenario, robot):
     motion = motions[1]
     fallen = np.array(motion.configurations)
-    fallen[2, 2] -= 0.4  # one sample's base 40 cm down: through the floor on both sides of it
+    fallen[-2, 2] -= 0.4  # the last sample's base 40 cm down: through the floor on both sides of it
     problems = verify_motion(replace(motion, configurations=fallen), step_plan, scenario, robot)
-    assert any(p.startswith("between samples 1 and 2, at 0.125 of the way: collision between ") for p in problems)
-    assert any(p.startswith("between samples 2 and 3, at 0.125 of the way: collision between ") for p in problems)
+    assert problems[0].startswith("between samples 4 and 5, at 0.25 of the way: collision between ")
+    assert problems[1].startswith("between sample 5 and the next stance's posture, at 0.125 of the way: "
+                                  "collision between ")
+    assert problems[2] == "sample 5: its result is not its posture"
 
 
 @pytest.mark.parametrize("reach", [0.05, 0.005])
@@ -406,9 +428,12 @@ def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasib
         assert not motion.feasible and len(inserted) == MAX_INSERTED
         # The first step across (7.5 cm) quartered is still 1.9 cm: it stops there, every sample kept.
         assert motion.reason == (f"between samples 2 and 3, at 0.5 of the way: collision between a and b "
-                                 f"(depth {abs(x[3] - x[2]):.3g} m), after {MAX_INSERTED} samples inserted")
+                                 f"(depth {abs(x[3] - x[2]):.3g} m), after {MAX_INSERTED} samples inserted in that step")
         assert len(motion.configurations) == 1 + 5 + MAX_INSERTED
 
 
+@dataclass
 class CollisionPairStub:
-    name_a, name_b = "a", "b"
+    name_a: str = "a"
+    name_b: str = "b"
+    distance: float = 0.0
