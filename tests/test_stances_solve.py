@@ -909,3 +909,20 @@ def test_verify_sums_point_forces_per_joint_as_a_loop_over_them_does(robot):
     for joint in range(model.njoints):
         assert np.allclose(got[joint].vector, expected[joint].vector, atol=1e-12 * scale)
     assert sum(np.abs(e.vector).max() > 0 for e in expected) >= 2
+
+
+def test_verify_reports_how_far_the_mesh_reaches_past_the_palm(deformable_robots, deformable_results):
+    """The measure against an independent reading: deformed print nodes and the link points, along the normal."""
+    robot, result = deformable_robots["hand-on-soft-cube"], deformable_results["hand-on-soft-cube"]
+    scenario = coarse_scenario("hand-on-soft-cube")
+    problem = build_problem(robot, scenario.scene, result.stance, PostureOptions())
+    (contact,) = [c for c in problem.contacts if c.kind == "deformable"]
+    cube = scenario.scene.deformable_of_surface("cube_top")
+    nodes = cube.points_in_world(cube.body.mesh.nodes[contact.node_ids] + result.deformations[cube.name][contact.node_ids])
+    links = np.array([p.point for p in result.point_forces[problem.load_slices[problem.contacts.index(contact)]]])
+    (palm,) = [c for c in result.stance.contacts if c.contact_print.surface == "cube_top"]
+    normal = scenario.scene.transform_print_to_world(palm.contact_print)[:3, 2]
+    expected = float(((nodes - links) @ normal).max())
+    measured = verify(robot, scenario.scene, result.stance, result).measures["mesh overlap into the links on cube"]
+    assert measured == pytest.approx(expected, abs=1e-9)
+    assert measured > 1e-4  # the ring's nodes do reach past the palm's face on this coarse mesh
