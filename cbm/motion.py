@@ -49,6 +49,7 @@ import stances
 from stances.blocks import PLACEMENT_ACCURACY, equality
 from stances.collision import contact_exclusions
 from stances.contacts import placement_residual, point_placement_residual
+from stances.problem import stance_collision_checker
 from stances.verify import VerificationTolerances
 
 from .errors import CbmError
@@ -277,9 +278,8 @@ class Motion:
         -------
         (k - 1,) float
         """
-        q = self.configurations
-        joints = np.abs(np.diff(q[:, 7:], axis=0)).max(axis=1, initial=0.0) / joint_speed
-        base = np.linalg.norm(np.diff(q[:, :3], axis=0), axis=1) / base_speed
+        joints = self.joint_steps / joint_speed
+        base = np.linalg.norm(np.diff(self.configurations[:, :3], axis=0), axis=1) / base_speed
         return np.maximum(np.maximum(joints, base), 0.05)
 
 
@@ -422,7 +422,7 @@ class _Between:
     def __init__(self, robot, scene, support, moving, options):
         self.model = robot.model
         self.data = robot.model.createData()
-        self.checker = stances.build_problem(robot, scene, support, stances.PostureOptions(**options)).collision_checker
+        self.checker = stance_collision_checker(robot, scene, support, stances.PostureOptions(**options))
         print_object = scene.surface(moving.contact_print.surface).object_name
         self.moving = set(contact_exclusions(robot, moving.robot_surface, print_object))
         self.tolerance = VerificationTolerances().penetration

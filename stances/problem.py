@@ -587,7 +587,6 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
     if len(stance) == 0:
         raise StanceError("the stance has no contact; a robot cannot stand on nothing")
     contacts = []
-    exclusions = []
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.
     deformable_prints: dict[str, list] = {}
@@ -615,7 +614,6 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         else:
             model = PointContact if robot.surface(contact.robot_surface).is_point else RigidContact
             contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label))
-        exclusions.append((robot.surface(contact.robot_surface).frame, surface.object_name))
     if deformable_prints:
         contacts = [
             DeformableContact(robot, c, deformable_prints[c.name], options) if not isinstance(c, RigidContact) else c
@@ -626,21 +624,27 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         # stage of foot-and-hand took 19 iterations instead of 11 (measured).
         # Their rigid warm start keeps it.
         options = replace(options, constraint_curvature=False)
-    checker = _collision_checker(robot, scene, exclusions, options)
+    checker = stance_collision_checker(robot, scene, stance, options)
     return PostureProblem(robot, scene, stance, contacts, options, checker)
 
 
-def _collision_checker(robot, scene, exclusions, options):
-    """A collision checker for the stance, ignoring each contact link vs its support.
+def stance_collision_checker(robot, scene, stance, options: PostureOptions) -> CollisionChecker:
+    """The collision checker of a stance's posture problem: every pair the options
+    check, but each contact surface against the object it rests on.
 
     Parameters
     ----------
-    exclusions : list of (str, str)
-        (robot contact frame, scene object name) pairs in contact by design.
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+        Its surfaces and prints must exist (as :func:`build_problem` checks).
+    options : PostureOptions
+        ``collision_activation`` (the checker's margin) and ``self_collision``.
     """
     excluded = []
-    for frame, object_name in exclusions:
-        excluded.extend(contact_exclusions(robot, frame, object_name))
+    for contact in stance:
+        frame = robot.surface(contact.robot_surface).frame
+        excluded.extend(contact_exclusions(robot, frame, scene.surface(contact.contact_print.surface).object_name))
     return CollisionChecker(
         robot,
         scene.collision_objects(),
