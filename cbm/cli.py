@@ -129,6 +129,13 @@ def _positive_int(text):
     return value
 
 
+def _at_least_two(text):
+    value = _non_negative_int(text)
+    if value < 2:
+        raise argparse.ArgumentTypeError(f"expected an integer of at least 2, got {text!r}")
+    return value
+
+
 def build_parser():
     """The argument parser of ``cbm``."""
     parser = _Parser(
@@ -232,6 +239,11 @@ def build_parser():
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
     check.add_argument("--view", action="store_true", help="show the stance in meshcat (pip install meshcat)")
+    check.add_argument(
+        "--refine", type=_at_least_two, default=None, metavar="FACTOR",
+        help="solve the stance again on its soft meshes FACTOR times finer (2: every cell halved, about 8x the "
+        "nodes) and say how far the answer moves",
+    )
     _add_robot_option(check)
     return parser
 
@@ -456,6 +468,10 @@ def _check(args):
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
+        if args.refine is not None:
+            print("cbm check: error: --refine checks one stance of a scenario; give the scenario and --stance",
+                  file=sys.stderr)
+            return EXIT_BAD_INPUT
         return _check_plan(args.scenario)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
@@ -469,6 +485,11 @@ def _check(args):
         return EXIT_BAD_INPUT
     robot = _load_robot(args, scenario)
     stance = scenario.stances[args.stance]
+    if args.refine is not None and not any(scenario.scene.surfaces[c.contact_print.surface].deformable
+                                           for c in stance.contacts):
+        print(f"cbm check: error: --refine: stance {args.stance!r} has no print on a soft surface: nothing to refine",
+              file=sys.stderr)
+        return EXIT_BAD_INPUT
     check = PostureOracle(robot, scenario.scene)(stance)
     result = check.result
     if result is None:
@@ -481,6 +502,13 @@ def _check(args):
         from .report import stance_report
 
         print("\n".join(stance_report(result, robot, stance)))
+    if check.feasible and args.refine is not None:
+        refined = _refined_check(robot, scenario, result, args.refine)
+        if refined is None:
+            return EXIT_BAD_INPUT
+        print("\n".join(refined.lines()))
+        if not refined.ok:
+            return EXIT_FAILED
     if args.out is not None:
         path = _check_picture(scenario, robot, stance, result, args)
         print(f"  picture written to {path}")
@@ -490,6 +518,18 @@ def _check(args):
         planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result, args.stance)
         Plan(check.feasible, verdict, (planned,), PlanStatistics(), scenario.name).show(scenario, robot)
     return EXIT_OK if check.feasible else EXIT_FAILED
+
+
+def _refined_check(robot, scenario, result, factor):
+    """``stances.check_refined`` of a feasible answer, or None after saying why it cannot be done."""
+    from environments import SceneError
+    from stances import StanceError, check_refined
+
+    try:
+        return check_refined(robot, scenario, result, factor)
+    except (SceneError, StanceError) as error:
+        print(f"cbm check: error: --refine: {error}", file=sys.stderr)
+        return None
 
 
 def _check_plan(path):

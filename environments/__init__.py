@@ -9,6 +9,7 @@ from .errors import ScenarioError, SceneError
 from .goal import Goal, GoalRegion
 from .mesh_surfaces import SurfaceSearch, auto_surfaces, find_surfaces
 from .objects import RigidObject, box, box_surfaces, floor, mesh_object
+from .refinement import refined
 from .rigid_twin import rigid_twin
 from .scenario import Scenario, builtin_scenario_path, load, load_string, scenario_names
 from .scene import Scene
@@ -41,6 +42,7 @@ __all__ = [
     "load_string",
     "mesh_object",
     "rectangle",
+    "refined",
     "rigid_twin",
     "scenario_names",
     "soft_box",

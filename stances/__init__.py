@@ -14,6 +14,7 @@ from .description import RobotDescription, RobotDescriptionError, SupportRule, b
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
 from .results import PointForce, PostureResult, Verification
+from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
 from .sqp import solve, solve_problem
 from .verify import verify, verify_problem
@@ -25,6 +26,7 @@ __all__ = [
     "PostureOptions",
     "PostureProblem",
     "PostureResult",
+    "RefinedCheck",
     "Robot",
     "RobotDescription",
     "RobotDescriptionError",
@@ -36,6 +38,7 @@ __all__ = [
     "Verification",
     "build_problem",
     "builtin_robot_names",
+    "check_refined",
     "read_description",
     "solve",
     "solve_problem",

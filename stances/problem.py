@@ -239,14 +239,20 @@ class _Rows:
 
     def max_violation(self) -> tuple[float, str]:
         """Largest scaled violation and the label of its row."""
-        worst, label = 0.0, ""
+        worst, label, _ = self.worst_row()
+        return worst, label
+
+    def worst_row(self) -> tuple[float, str, float]:
+        """Largest scaled violation, the label of its row and the violation in the
+        row's own units (metres, radians, newtons...)."""
+        worst, label, raw = 0.0, "", 0.0
         for block in self.blocks:
             if len(block):
                 violation = block.violation()
                 i = int(np.argmax(violation))
                 if violation[i] > worst:
-                    worst, label = float(violation[i]), block.labels[i]
-        return worst, label
+                    worst, label, raw = float(violation[i]), block.labels[i], float(violation[i] * block.scale[i])
+        return worst, label, raw
 
 
 @dataclass
