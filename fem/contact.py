@@ -345,6 +345,10 @@ class PrintContactSystem:
         """
         gains = np.zeros(self.n_nodes)
         for iteration in range(1, _MAX_ITERATIONS + 1):
+            if np.isinf(self.mu[modes == SLIP]).any():
+                # Slipping needs |t| = mu n: with mu = inf no such state (the law's
+                # rows would hold inf); the caller says so.
+                return None
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
             new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
