@@ -42,13 +42,15 @@ OBJECT_KEYS = {
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
     "soft_box": (
         "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "grid", "friction", "strain_limit",
-        "floating",
+        "strain_radius", "floating",
     ),
-    "soft_blocks": ("name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "floating"),
+    "soft_blocks": (
+        "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius", "floating",
+    ),
     "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
     "soft_mesh": (
         "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
-        "strain_limit", "floating",
+        "strain_limit", "strain_radius", "floating",
     ),
 }
 
@@ -323,6 +325,8 @@ class _Reader:
                 if not _is_fem_error(error):
                     raise
                 raise self.error(key, f"{type(error).__name__}: {error}") from None
+            if obj.deformable and "strain_radius" in item:
+                obj = dataclasses.replace(obj, strain_radius=self.strain_radius(item, key))
             if obj.name in names:
                 raise self.error(join_key(key, "name"), f"repeated object name {obj.name!r}")
             names.add(obj.name)
@@ -432,6 +436,16 @@ class _Reader:
                 raise self.error(join_key(where, axis), f"must be a list of numbers, got {kind_of(values)}")
             lines.append([self.to_number(v, f"{join_key(where, axis)}[{i}]") for i, v in enumerate(values)])
         return lines
+
+    def strain_radius(self, item: Mapping, key: str) -> float:
+        """A soft object's ``strain_radius``: metres, >= 0."""
+        radius = self.to_number(item["strain_radius"], join_key(key, "strain_radius"))
+        if radius < 0.0:
+            raise self.error(
+                join_key(key, "strain_radius"),
+                f"must be >= 0 metres (0: each tet's own strain), got {radius:g}",
+            )
+        return radius
 
     def resolution(self, item: Mapping, key: str):
         resolution = item.get("resolution", "default")

@@ -20,6 +20,7 @@ from .mesh import TetMesh
 from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
 from .solvers import SOLVERS, Factorization, factorize, resolve_solver
+from .strain_average import BallAverages, voigt_to_tensor_strain
 
 __all__ = ["DeformableBody", "von_mises", "voigt_to_tensor_strain", "rotate_voigt"]
 
@@ -53,26 +54,6 @@ def von_mises(stress: np.ndarray) -> np.ndarray:
         0.5 * ((s[:, 0] - s[:, 1]) ** 2 + (s[:, 1] - s[:, 2]) ** 2 + (s[:, 2] - s[:, 0]) ** 2)
         + 3.0 * (s[:, 3] ** 2 + s[:, 4] ** 2 + s[:, 5] ** 2)
     )
-
-
-def voigt_to_tensor_strain(strain: np.ndarray) -> np.ndarray:
-    """Strain tensors from Voigt strains with engineering shears.
-
-    Parameters
-    ----------
-    strain : (..., 6) float
-        (e11, e22, e33, g12, g13, g23), ``g = 2 e`` off the diagonal.
-
-    Returns
-    -------
-    (..., 3, 3) float, symmetric.
-    """
-    e = np.asarray(strain, dtype=float)
-    tensor = np.empty(e.shape[:-1] + (3, 3))
-    tensor[..., [0, 1, 2], [0, 1, 2]] = e[..., :3]
-    for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
-        tensor[..., i, j] = tensor[..., j, i] = 0.5 * e[..., v]
-    return tensor
 
 
 def rotate_voigt(voigt: np.ndarray, rotation: np.ndarray, engineering_shears: bool) -> np.ndarray:
@@ -607,24 +588,31 @@ class DeformableBody:
         """Principal strains of each tet, (M, 3) float, ascending, dimensionless."""
         return np.linalg.eigvalsh(voigt_to_tensor_strain(self.strain(u)))
 
-    def largest_principal_strain(self, u: np.ndarray) -> tuple[float, int]:
+    def largest_principal_strain(self, u: np.ndarray, radius: float = 0.0) -> tuple[float, int]:
         """The largest principal strain magnitude over all tets, and its tet.
 
-        Eigenvalues are computed only where they can be largest: ``|lambda|max`` lies
-        between ``|E|_F / sqrt(3)`` and ``|E|_F`` (Frobenius norm), so tets whose norm
-        is below the largest norm over sqrt(3) cannot hold the maximum.
+        Parameters
+        ----------
+        u : (N, 3) float
+            Displacement field, metres.
+        radius : float, optional
+            Metres: the strain of each tet is the volume-weighted mean over the
+            tets whose centroids lie within ``radius`` of its own
+            (:class:`fem.strain_average.BallAverages`); 0 (default) each tet's own.
+            Under a rigid print's edge the tets' own strain grows without bound as
+            the mesh is refined; the mean over a fixed ball converges.
 
         Returns
         -------
         (float, int)
-            Strain (dimensionless) and tet index.
+            Strain (dimensionless) and the (centre) tet's index.
         """
-        tensors = voigt_to_tensor_strain(self.strain(u))
-        norms = np.sqrt(np.einsum("tij,tij->t", tensors, tensors))
-        candidates = np.flatnonzero(norms >= norms.max() / np.sqrt(3.0) * (1.0 - 1e-12))
-        values = np.abs(np.linalg.eigvalsh(tensors[candidates])).max(axis=1)
-        best = int(np.argmax(values))
-        return float(values[best]), int(candidates[best])
+        return self.strain_averages.largest_principal(self.strain(u), radius)
+
+    @cached_property
+    def strain_averages(self) -> BallAverages:
+        """Ball means of per-tet values over this mesh (built on first use)."""
+        return BallAverages(self._mesh.nodes, self._mesh.tets)
 
     # ------------------------------------------------------------ fields
     def _check_field(self, u: np.ndarray) -> np.ndarray:

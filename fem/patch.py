@@ -123,7 +123,8 @@ class ContactPatch:
         local = np.full(mesh.n_nodes, -1, dtype=np.int64)
         local[ids] = np.arange(ids.size)
         self._local = local
-        self._tet_maps = {}  # neighbour tet position -> (12, 3p) map of its nodes (_tet_nodes_map)
+        self._tet_maps = {}  # body tet id -> (12, 3p) map of its nodes (_tet_nodes_map)
+        self._strain_sets = {}  # radius -> what neighbour_strains needs (_strain_set)
         # eqs. (38)-(39): surface triangles whose three nodes are all in P.
         inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
         self._tri_global = np.flatnonzero(inside)
@@ -284,56 +285,68 @@ class ContactPatch:
         mesh = self._body.mesh
         return element_strain_matrices(mesh.nodes, mesh.tets[tet_ids])[0]
 
-    @cached_property
-    def _neighbour_nodes(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """What the :attr:`neighbour_tets`' strains are computed from, without the
-        (3q, 3p) map of their q nodes (a 30 ms product on a sole pair, more than a
-        planner's whole use of it): (q, 3, 3p) rows of ``C[:, P]`` at those nodes,
-        (T', 4) each tet's nodes as rows of them, (T', 6, 12) the tets' strain
-        matrices, (q,) each node's index in the print (-1 outside it) and (q,) which
-        nodes are fixed."""
-        body = self._body
-        tets = body.mesh.tets[self.neighbour_tets]
-        nodes, rows = np.unique(tets, return_inverse=True)
+    def _columns_at(self, nodes: np.ndarray) -> np.ndarray:
+        """(q, 3, 3p) rows of ``C[:, P]`` at some nodes: from :attr:`_compliance_rows`
+        when they hold them (the nodes of tets touching the print), else read again."""
         block, position = self._compliance_rows
-        return (
-            block[position[nodes]],
-            rows.reshape(tets.shape),
-            self._strain_matrices(self.neighbour_tets),
-            self._local[nodes],
-            body.fixed_mask[nodes],
-        )
+        at = position[nodes]
+        if np.all(at >= 0):
+            return block[at]
+        return self._body.compliance_block(nodes, self._ids).reshape(nodes.size, 3, -1)
 
-    def neighbour_strains(self, displacements) -> np.ndarray:
-        """Voigt strains of the :attr:`neighbour_tets` under print displacements (eq. 24).
+    def _strain_set(self, radius: float):
+        """What the strains of :attr:`neighbour_tets`, averaged over balls of ``radius``,
+        are computed from, without the (3q, 3p) map of the q nodes (a 30 ms product on
+        a sole pair, more than a planner's whole use of it): the tets in the balls
+        (E,), the (T', E) averaging weights, (q, 3, 3p) rows of ``C[:, P]`` at their
+        nodes, (E, 4) each tet's nodes as rows of them, (E, 6, 12) the tets' strain
+        matrices, (q,) each node's index in the print (-1 outside it) and (q,) which
+        nodes are fixed. Kept per radius."""
+        key = float(radius)
+        known = self._strain_sets.get(key)
+        if known is None:
+            body = self._body
+            members, weights = body.strain_averages.weights(self.neighbour_tets, key)
+            nodes, rows = np.unique(body.mesh.tets[members], return_inverse=True)
+            known = (members, weights, self._columns_at(nodes), rows.reshape(members.size, 4),
+                     self._strain_matrices(members), self._local[nodes], body.fixed_mask[nodes])
+            self._strain_sets[key] = known
+        return known
 
-        Equal to ``strain_map @ U_P.ravel()``, through the tets' nodes: the nodes
-        move by ``C[:, P] S_P U_P`` (eq. 36; exactly U_P at the print nodes, 0 at fixed
-        ones), the force ``S_P U_P`` computed first, so that no (3q, 3p) map is formed
-        (it runs at every evaluation of a soft stance).
+    def neighbour_strains(self, displacements, radius: float = 0.0) -> np.ndarray:
+        """Voigt strains of the :attr:`neighbour_tets` under print displacements (eq. 24),
+        each averaged over a ball of ``radius`` (:class:`fem.strain_average.BallAverages`).
+
+        With ``radius`` 0, equal to ``strain_map @ U_P.ravel()``, through the tets'
+        nodes: the nodes move by ``C[:, P] S_P U_P`` (eq. 36; exactly U_P at the print
+        nodes, 0 at fixed ones), the force ``S_P U_P`` computed first, so that no
+        (3q, 3p) map is formed (it runs at every evaluation of a soft stance).
 
         Parameters
         ----------
         displacements : (3p,) float
             Print node displacements U_P, metres, body frame.
+        radius : float, optional
+            Metres; 0: each tet's own strain.
 
         Returns
         -------
         (T', 6) float
             Voigt strains (engineering shears), dimensionless.
         """
-        block, rows, b, in_print, fixed = self._neighbour_nodes
+        _, weights, block, rows, b, in_print, fixed = self._strain_set(radius)
         u = np.asarray(displacements, dtype=float)
         nodal = block.reshape(-1, block.shape[2]) @ (self.condensed_stiffness @ u)
         nodal = nodal.reshape(-1, 3)
         printed = in_print >= 0
         nodal[printed] = u.reshape(-1, 3)[in_print[printed]]
         nodal[fixed] = 0.0
-        return np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
+        return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
 
-    def neighbour_strain_row(self, weights, tet: int) -> np.ndarray:
+    def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0) -> np.ndarray:
         """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of one
-        neighbour tet's Voigt strains per unit print displacement.
+        neighbour tet's Voigt strains (averaged over a ball of ``radius``) per unit
+        print displacement.
 
         Parameters
         ----------
@@ -341,20 +354,27 @@ class ContactPatch:
             Weights of the tet's Voigt strains (e.g. a principal strain's derivative).
         tet : int
             Position of the tet in :attr:`neighbour_tets`.
+        radius : float, optional
+            As :meth:`neighbour_strains`.
 
         Returns
         -------
         (3p,) float, 1/m
         """
-        b = self._neighbour_nodes[2]
-        return (np.asarray(weights, dtype=float) @ b[tet]) @ self._tet_nodes_map(tet)
+        members, averaging, _, _, b, _, _ = self._strain_set(radius)
+        weights = np.asarray(weights, dtype=float)
+        start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
+        row = np.zeros(3 * self._ids.size)
+        for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
+            row += share * ((weights @ b[k]) @ self._tet_nodes_map(int(members[k])))
+        return row
 
     def _tet_nodes_map(self, tet: int) -> np.ndarray:
-        """(12, 3p) displacements of one neighbour tet's nodes per unit print displacement
-        (eq. 36), kept: a solve's strain rows come back to the same few tets."""
+        """(12, 3p) displacements of one tet's nodes (a body tet id) per unit print
+        displacement (eq. 36), kept: a solve's strain rows come back to the same few tets."""
         known = self._tet_maps.get(tet)
         if known is None:
-            known = self._tet_displacement_map(self.neighbour_tets[[tet]])[0]
+            known = self._tet_displacement_map(np.array([tet]))[0]
             known.setflags(write=False)
             self._tet_maps[tet] = known
         return known
@@ -366,8 +386,7 @@ class ContactPatch:
         tets = body.mesh.tets[tet_ids]
         nodes, rows = np.unique(tets, return_inverse=True)
         rows = rows.reshape(tets.shape)
-        block, position = self._compliance_rows
-        g = block[position[nodes]] @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
+        g = self._columns_at(nodes) @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
         in_print = self._local[nodes]
         idx = np.flatnonzero(in_print >= 0)
         g[idx, :, :] = 0.0

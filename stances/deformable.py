@@ -73,9 +73,10 @@ How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
   its pyramid.
 
 Validity (the paper leaves it implicit): nodes are indented less than a bound
-relative to the body's thickness, and the principal strains of the tets around
-the prints stay within the object's strain bound (linear elasticity holds only
-there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
+relative to the body's thickness, and the principal strains around the prints,
+each the mean over a ball of the object's ``strain_radius`` (a tet's own strain at a
+rigid print's edge grows as the mesh is refined), stay within the object's strain
+bound (linear elasticity holds only there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
 """
 
 from __future__ import annotations
@@ -238,6 +239,7 @@ class DeformableContact:
         self.law = options.contact_law
         self.friction_margin = float(options.friction_margin)
         self.strain_limit = float(deformable_object.strain_limit)
+        self.strain_radius = float(deformable_object.strain_radius)
         self.max_slip = float(options.max_slip)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
@@ -826,7 +828,7 @@ class DeformableContact:
         """
         if self.max_strain_rows == 0:
             return None
-        voigt = self.patch.neighbour_strains(u)  # (T', 6)
+        voigt = self.patch.neighbour_strains(u, self.strain_radius)  # (T', 6), ball means
         # The Frobenius norm of a strain tensor bounds its principal strains: the
         # tets below the activation by that norm are left out of the (costly)
         # eigendecomposition, which is per tet, so the others' answers are unchanged.
@@ -850,7 +852,7 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t) @ d_u)
+                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)
@@ -1008,13 +1010,14 @@ class DeformableContact:
         measures[f"deformation energy of {name}"] = float(0.5 * np.sum(-forces_body * field[self.node_ids]))
         if depth > self.max_indentation + tolerances.deformable_placement:
             reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
-        strain, tet = body.largest_principal_strain(field)
+        strain, tet = body.largest_principal_strain(field, self.strain_radius)
         measures[f"largest strain of {name}"] = strain
         if strain > self.strain_limit + 1e-6:
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(
                 f"strain {strain:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
-                f"exceeds its bound {self.strain_limit:g}: linear elasticity does not hold there"
+                f"(mean over {1e3 * self.strain_radius:g} mm) exceeds its bound {self.strain_limit:g}: linear "
+                "elasticity does not hold there"
             )
         return reasons
 

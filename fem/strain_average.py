@@ -1,0 +1,149 @@
+"""Strain averaged over a ball: a measure of a body's strain that does not depend on its mesh.
+
+Under the edge of a rigid print the linear-elastic strain is singular (it grows as
+the inverse square root of the distance to the edge), so the largest strain of any
+tet there grows as the mesh is refined: pressed 5 mm, a palm on the foam mat gives
+0.121 on the default mesh and 0.182 on the mesh refined twice, and a bound on it
+would let a print carry less and less load on finer meshes. The volume-weighted
+mean strain over a ball of fixed radius around each tet's centroid converges
+instead (the same palm: 0.076 on both meshes with a 20 mm ball), and is the strain
+at the scale where the question "does linear elasticity hold?" is asked (a
+control-volume average, as in the strain-energy-density criteria for notches).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+from scipy.spatial import cKDTree
+
+from .errors import FemError
+from .mesh import tet_signed_volumes
+
+__all__ = ["BallAverages", "voigt_to_tensor_strain"]
+
+
+class BallAverages:
+    """Volume-weighted averages of per-tet values over balls around tet centroids.
+
+    The ball of radius r around tet t holds every tet whose centroid lies within
+    r of t's centroid (t itself always): ``mean_t = sum_s V_s x_s / sum_s V_s``.
+    Radius 0 gives each tet's own value.
+
+    Parameters
+    ----------
+    nodes : (N, 3) float
+        Metres.
+    tets : (M, 4) int
+    """
+
+    def __init__(self, nodes, tets) -> None:
+        nodes = np.asarray(nodes, dtype=float)
+        tets = np.asarray(tets)
+        self.centroids = nodes[tets].mean(axis=1)
+        self.volumes = np.abs(tet_signed_volumes(nodes, tets))
+        self._tree = cKDTree(self.centroids)
+
+    def weights(self, centres, radius: float) -> tuple[np.ndarray, sp.csr_matrix]:
+        """The averaging weights of some centre tets.
+
+        Parameters
+        ----------
+        centres : (c,) int
+            Tet ids.
+        radius : float
+            Metres, >= 0.
+
+        Returns
+        -------
+        members : (e,) int
+            Sorted ids of every tet in one of the balls.
+        weights : (c, e) scipy.sparse.csr_matrix
+            ``weights @ values[members]`` are the centres' ball means; rows sum to 1.
+        """
+        radius = _checked_radius(radius)
+        centres = np.asarray(centres, dtype=np.int64)
+        if radius == 0.0:
+            balls = [[int(t)] for t in centres]
+        else:
+            balls = self._tree.query_ball_point(self.centroids[centres], radius, return_sorted=True)
+        counts = np.array([len(ball) for ball in balls], dtype=np.int64)
+        flat = np.concatenate([np.asarray(ball, dtype=np.int64) for ball in balls]) if len(balls) else np.zeros(0, np.int64)
+        members, columns = np.unique(flat, return_inverse=True)
+        data = self.volumes[flat]
+        indptr = np.concatenate([[0], np.cumsum(counts)])
+        totals = np.add.reduceat(data, indptr[:-1]) if data.size else np.zeros(0)
+        data = data / np.repeat(totals, counts)
+        return members, sp.csr_matrix((data, columns.ravel(), indptr), shape=(centres.size, members.size))
+
+    def largest_principal(self, voigt, radius: float) -> tuple[float, int]:
+        """The largest principal strain magnitude of the ball means over all tets, and its centre tet.
+
+        Only centres that can hold the maximum are averaged: a ball mean's
+        principal strain is at most its Frobenius norm, which is at most the
+        largest Frobenius norm in the ball, so a centre can beat the mean around
+        the most strained tet only if a tet at least that strained lies in its ball.
+
+        Parameters
+        ----------
+        voigt : (M, 6) float
+            Voigt strains per tet (engineering shears).
+        radius : float
+            Metres, >= 0.
+
+        Returns
+        -------
+        (float, int)
+        """
+        voigt = np.asarray(voigt, dtype=float)
+        norms = _frobenius(voigt)
+        first = np.array([int(np.argmax(norms))])
+        members, weights = self.weights(first, radius)
+        bound = _principal(weights @ voigt[members])[0]
+        hot = np.flatnonzero(norms >= bound * (1.0 - 1e-12))
+        if radius == 0.0:
+            centres = hot
+        else:
+            near = self._tree.query_ball_point(self.centroids[hot], _checked_radius(radius), return_sorted=True)
+            centres = np.unique(np.concatenate([np.asarray(ball, dtype=np.int64) for ball in near]))
+        members, weights = self.weights(centres, radius)
+        values = _principal(weights @ voigt[members])
+        best = int(np.argmax(values))
+        return float(values[best]), int(centres[best])
+
+
+def _checked_radius(radius) -> float:
+    radius = float(radius)
+    if not (np.isfinite(radius) and radius >= 0.0):
+        raise FemError(f"strain averaging radius must be >= 0 metres (0: each tet's own strain), got {radius!r}")
+    return radius
+
+
+def _frobenius(voigt: np.ndarray) -> np.ndarray:
+    tensors = voigt_to_tensor_strain(voigt)
+    return np.sqrt(np.einsum("tij,tij->t", tensors, tensors))
+
+
+def _principal(voigt: np.ndarray) -> np.ndarray:
+    """(T,) largest principal strain magnitudes of (T, 6) Voigt strains."""
+    return np.abs(np.linalg.eigvalsh(voigt_to_tensor_strain(voigt))).max(axis=1)
+
+
+def voigt_to_tensor_strain(strain: np.ndarray) -> np.ndarray:
+    """Strain tensors from Voigt strains with engineering shears.
+
+    Parameters
+    ----------
+    strain : (..., 6) float
+        (e11, e22, e33, g12, g13, g23), ``g = 2 e`` off the diagonal.
+
+    Returns
+    -------
+    (..., 3, 3) float, symmetric.
+    """
+    e = np.asarray(strain, dtype=float)
+    tensor = np.empty(e.shape[:-1] + (3, 3))
+    tensor[..., [0, 1, 2], [0, 1, 2]] = e[..., :3]
+    for v, (i, j) in zip((3, 4, 5), ((0, 1), (0, 2), (1, 2))):
+        tensor[..., i, j] = tensor[..., j, i] = 0.5 * e[..., v]
+    return tensor
