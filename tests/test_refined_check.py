@@ -136,3 +136,12 @@ def test_a_stance_not_reached_on_the_refined_meshes_is_reported_not_ok(robot, bo
     assert not check.ok and np.isnan(check.joint_change) and np.isnan(check.force_change)
     assert check.print_forces == ()
     assert "re-solved there: infeasible: " + check.result.reason in "\n".join(check.lines())
+
+
+def test_the_command_line_says_how_the_answer_moves_on_finer_meshes(capsys, tmp_path):
+    path = tmp_path / "cross-soft-block.yaml"
+    path.write_text(coarse_scenario("cross-soft-block").text)
+    assert main(["check", str(path), "--stance", "both-on-foam", "--refine", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "meshes refined 2x: foam 729 -> 3,840 nodes" in out
+    assert "re-solved there: feasible, verified" in out and "  left_sole: force [" in out
