@@ -241,8 +241,8 @@ def build_parser():
     check.add_argument("--view", action="store_true", help="show the stance in meshcat (pip install meshcat)")
     check.add_argument(
         "--refine", type=_at_least_two, default=None, metavar="FACTOR",
-        help="solve the stance again on its soft meshes FACTOR times finer (2: every cell halved, about 8x the "
-        "nodes) and say how far the answer moves",
+        help="solve the stance (or each soft stance of a plan) again on its soft meshes FACTOR times finer "
+        "(2: every cell halved, about 8x the nodes) and say how far the answer moves",
     )
     _add_robot_option(check)
     return parser
@@ -468,11 +468,7 @@ def _check(args):
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
-        if args.refine is not None:
-            print("cbm check: error: --refine checks one stance of a scenario; give the scenario and --stance",
-                  file=sys.stderr)
-            return EXIT_BAD_INPUT
-        return _check_plan(args.scenario)
+        return _check_plan(args.scenario, args.refine)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
         names = ", ".join(sorted(scenario.stances)) or "(none)"
@@ -532,7 +528,7 @@ def _refined_check(robot, scenario, result, factor):
         return None
 
 
-def _check_plan(path):
+def _check_plan(path, refine=None):
     from .plan import Plan
 
     plan = Plan.load(path)
@@ -541,7 +537,38 @@ def _check_plan(path):
     print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}")
     for problem in report.problems:
         print(f"  {problem}")
-    return EXIT_OK if report.ok else EXIT_FAILED
+    if not report.ok:
+        return EXIT_FAILED
+    if refine is not None:
+        return _check_plan_refined(plan, refine)
+    return EXIT_OK
+
+
+def _check_plan_refined(plan, factor):
+    """Each stance of a plan with a soft print solved again on its soft meshes ``factor`` times finer."""
+    from dataclasses import replace
+
+    from environments import SceneError, refined
+    from stances import Robot, check_refined
+
+    scenario = plan.scenario()
+    robot = Robot.load(plan.robot.get("source") or scenario.robot)
+    try:
+        fine = refined(scenario, factor)
+    except SceneError as error:
+        print(f"cbm check: error: --refine: {error}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    held = True
+    for index, planned in enumerate(plan.stances):
+        if not any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in planned.stance.contacts):
+            continue
+        # What the plan shows is what is checked (as Plan.check does).
+        shown = replace(planned.result, q=planned.q, point_forces=planned.point_forces)
+        check = check_refined(robot, scenario, shown, factor, refined=fine)
+        held = held and check.ok
+        print(f"stance {index}:")
+        print("\n".join("  " + line for line in check.lines()))
+    return EXIT_OK if held else EXIT_FAILED
 
 
 def _check_picture(scenario, robot, stance, result, args):

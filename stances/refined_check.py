@@ -94,7 +94,7 @@ class RefinedCheck:
         return out
 
 
-def check_refined(robot, scenario, result: PostureResult, factor: int = 2, **options) -> RefinedCheck:
+def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refined=None, **options) -> RefinedCheck:
     """Solve a soft stance's answer again on its scenario's soft meshes ``factor`` times finer.
 
     Parameters
@@ -106,6 +106,10 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, **opt
         A feasible answer of :func:`stances.solve` for one of its stances.
     factor : int
         How many times finer (2: every cell halved; the node count grows about 8x).
+    refined : environments.Scenario, optional
+        ``environments.refined(scenario, factor)`` made already: checks of several
+        answers in one scenario (a plan's stances) then share its bodies and their
+        factorisations.
     **options
         Posture options; by default those ``result`` was solved with.
 
@@ -127,7 +131,7 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, **opt
     if not soft:
         raise StanceError("the stance has no print on a soft surface: nothing to refine")
     options = posture_options({**result.statistics.get("options", {}), **options})
-    fine = environments.refined(scenario, factor)
+    fine = environments.refined(scenario, factor) if refined is None else refined
     lam = np.asarray(result.statistics["lambda"], dtype=float)
     problem = build_problem(robot, fine.scene, stance, options)
     if lam.shape != (problem.n_variables,):

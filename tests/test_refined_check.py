@@ -123,10 +123,6 @@ def test_the_command_line_refuses_refining_what_it_cannot(capsys, tmp_path):
     assert "--refine: stance 'stand' has no print on a soft surface: nothing to refine" in capsys.readouterr().err
     assert main(["check", "step-on-cube", "--stance", "step-on-cube", "--refine", "1"]) == EXIT_BAD_INPUT
     assert "expected an integer of at least 2, got '1'" in capsys.readouterr().err
-    plan = tmp_path / "plan.json"
-    plan.write_text("{}")
-    assert main(["check", str(plan), "--refine", "2"]) == EXIT_BAD_INPUT
-    assert "--refine checks one stance of a scenario" in capsys.readouterr().err
 
 
 def test_a_stance_not_reached_on_the_refined_meshes_is_reported_not_ok(robot, both_on_foam):
@@ -145,3 +141,27 @@ def test_the_command_line_says_how_the_answer_moves_on_finer_meshes(capsys, tmp_
     out = capsys.readouterr().out
     assert "meshes refined 2x: foam 729 -> 3,840 nodes" in out
     assert "re-solved there: feasible, verified" in out and "  left_sole: force [" in out
+
+
+def test_each_soft_stance_of_a_saved_plan_is_checked_on_finer_meshes(robot, both_on_foam, capsys, tmp_path):
+    from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+
+    scenario, result, _ = both_on_foam
+    # Consecutive stances differ by one contact: right sole on the foam, then off the floor, then both on the foam.
+    right = scenario.stance("right-on-foam")
+    sequence = [right, environments.Stance(tuple(c for c in right.contacts if c.robot_surface == "right_sole"))]
+    planned = []
+    for stance in sequence:
+        answer = stances.solve(robot, scenario.scene, stance)
+        assert answer.feasible, answer.reason
+        planned.append(PlannedStance(stance, answer.q, answer.point_forces, answer.deformations, answer))
+    planned.append(PlannedStance(result.stance, result.q, result.point_forces, result.deformations, result))
+    path = tmp_path / "plan.json"
+    Plan(False, "partial", tuple(planned), PlanStatistics(), scenario.name, robot=robot_description(robot),
+         scenario_source=scenario_source(scenario)).save(path)
+    assert main(["check", str(path), "--refine", "2"]) == 0
+    out = capsys.readouterr().out
+    assert "3 stances: every stance verifies" in out
+    for index in (0, 1, 2):
+        assert f"stance {index}:\n  meshes refined 2x: foam 729 -> 3,840 nodes" in out
+    assert out.count("re-solved there: feasible, verified") == 3
