@@ -78,6 +78,9 @@ TARGETS = {
     "cbm/search.py": ["tests/test_cbm_search.py", "tests/test_cbm_plan.py"],
     "cbm/motion.py": ["tests/test_cbm_motion.py"],
     "cbm/step_path.py": ["tests/test_cbm_motion.py"],
+    "fem/strain_average.py": ["tests/test_strain_average.py"] + _FEM_TESTS,
+    "environments/refinement.py": ["tests/test_refined_check.py"],
+    "stances/refined_check.py": ["tests/test_refined_check.py"],
     "fem/mesh.py": ["tests/test_fem_mesh.py", "tests/test_bad_input.py::test_repeated_tet_is_a_mesh_error"] + _FEM_TESTS,
     "environments/geometry.py": [
         "tests/test_environments.py",
