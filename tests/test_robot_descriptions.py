@@ -200,6 +200,23 @@ BAD_DESCRIPTIONS = {
         lambda d: d.update(ignored_pairs=[["no_such_geometry", "base_link_0"]]),
         "unknown collision geometry 'no_such_geometry'; known collision geometrys: ",
     ),
+    "mesh rotation of an unknown link": (
+        lambda d: d.update(mesh_rotations=[{"links": ["no_such_link"], "rpy_deg": [90, 0, 0]}]),
+        "mesh_rotations: unknown link 'no_such_link'; known links: ",
+    ),
+    "mesh rotation of a link without a mesh": (
+        lambda d: d.update(mesh_rotations=[{"links": ["left_sole_link"], "rpy_deg": [90, 0, 0]}]),
+        "mesh_rotations: link 'left_sole_link' has no collision mesh to turn; links with meshes: arm_left_1_link,",
+    ),
+    "mesh rotation of two angles": (
+        lambda d: d.update(mesh_rotations=[{"links": ["base_link"], "rpy_deg": [90, 0]}]),
+        "mesh_rotations[0].rpy_deg: must be a list of 3 numbers, got a list of 2",
+    ),
+    "link turned twice": (
+        lambda d: d.update(mesh_rotations=[{"links": ["base_link"], "rpy_deg": [90, 0, 0]},
+                                           {"links": ["base_link"], "rpy_deg": [0, 90, 0]}]),
+        "mesh_rotations: link 'base_link' is listed twice; give each link one rotation",
+    ),
     "unknown key": (
         lambda d: d["surfaces"]["left_sole"].update(colour="red"),
         "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, point, plate, geometries",
@@ -425,6 +442,29 @@ def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_
     assert frozenset(("base_link_0", "FL_UPPER_LEG_0")) in {
         frozenset((names[p.first], names[p.second])) for p in kept.collision_model.collisionPairs
     }
+
+
+def test_mesh_rotations_turn_a_links_collision_and_visual_meshes_in_their_own_frame(tmp_path, robot):
+    """A description's mesh_rotations multiply the placement of each mesh of the
+    links it lists by the rotation, on the right (in the mesh's own frame, before
+    the URDF's origin), in the collision model and in the visual one the pictures
+    draw; the other links' meshes stay where the URDF puts them."""
+    from cbm.robot_mesh import visual_model
+
+    data = _talos_data()
+    data["mesh_rotations"] = [{"links": ["leg_left_6_link", "base_link"], "rpy_deg": [90, 0, 30]}]
+    turned = Robot.load(_write(tmp_path / "talos.yaml", data))
+    rotation = pin.rpy.rpyToMatrix(np.radians(90), 0.0, np.radians(30))
+    assert turned.mesh_rotations == read_description(tmp_path / "talos.yaml").mesh_rotations
+    for plain_model, turned_model in ((robot.collision_model, turned.collision_model),
+                                      (visual_model(robot), visual_model(turned))):
+        for plain, moved in zip(plain_model.geometryObjects, turned_model.geometryObjects):
+            assert moved.name == plain.name
+            expected = plain.placement.rotation @ rotation if plain.name in ("leg_left_6_link_0", "base_link_0") else (
+                plain.placement.rotation
+            )
+            np.testing.assert_allclose(moved.placement.rotation, expected, atol=1e-12)
+            np.testing.assert_allclose(moved.placement.translation, plain.placement.translation, atol=1e-12)
 
 
 def test_ignored_pairs_are_not_checked(tmp_path):
