@@ -356,7 +356,7 @@ def builtin_robot_names() -> list[str]:
     Examples
     --------
     >>> builtin_robot_names()
-    ['anymal', 'romeo', 'talos']
+    ['anymal', 'icub', 'romeo', 'talos']
     """
     return sorted(path.stem for path in BUILTIN_DIRECTORY.glob("*.yaml"))
 

@@ -13,8 +13,8 @@ then simply "the robot surface frame coincides with the print frame", whose z
 axis is the environment surface's outward normal.
 
 Robots are data: :meth:`Robot.load` reads a robot description
-(:mod:`stances.description`; the built-in ones, Talos and Romeo, point to the
-files installed by the ``example-robot-data`` package, so no path of one
+(:mod:`stances.description`; the built-in ones, Talos, Romeo, iCub and ANYmal,
+point to the files installed by the ``example-robot-data`` package, so no path of one
 machine is hard-coded).
 """
 
@@ -247,7 +247,7 @@ class Robot:
         ----------
         name_or_file : str or os.PathLike
             A name of :func:`stances.description.builtin_robot_names`
-            (``"talos"``, ``"romeo"``) or a robot description YAML file.
+            (``"talos"``, ``"romeo"``, ``"icub"``, ``"anymal"``) or a robot description YAML file.
 
         Returns
         -------

@@ -21,12 +21,17 @@ from cbm.planner import plan
 from cbm.reach import ReachModel
 from cbm.sampling import obstacle_boxes, options_from_scenario, sample_prints
 
-BUILTIN = ["talos", "romeo"]
+BUILTIN = ["talos", "romeo", "icub"]
 
 
 @pytest.fixture(scope="module")
 def romeo():
     return Robot.load("romeo")
+
+
+@pytest.fixture(scope="module")
+def icub():
+    return Robot.load("icub")
 
 
 @pytest.fixture(scope="module")
@@ -44,8 +49,8 @@ def feet_only_romeo(feet_only_romeo_file):
 
 
 @pytest.mark.parametrize("name", BUILTIN)
-def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo):
-    loaded = {"talos": robot, "romeo": romeo}[name]
+def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo, icub):
+    loaded = {"talos": robot, "romeo": romeo, "icub": icub}[name]
     description = read_description(name)
     assert name in builtin_robot_names()
     assert [(s.name, s.role, s.limb) for s in loaded.surfaces.values()] == [
@@ -57,14 +62,16 @@ def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(nam
     assert loaded.nv == full.nv - len(description.locked_joints)
     # At the reference posture the feet are level and their contact frames'
     # z axes point up, into the feet (the contact-frame convention), within
-    # 0.3 degrees (Talos's half-sitting tilts its feet by 1.7 mrad).
+    # 0.3 degrees (Talos's half-sitting tilts its feet by 1.7 mrad); iCub's SRDF
+    # half-sitting pitches both soles by 3.6 degrees (0.063 rad), its posture solves level them.
+    tilt = {"icub": 0.065}.get(name, 5e-3)
     data = loaded.model.createData()
     pin.framesForwardKinematics(loaded.model, data, loaded.reference_configuration)
     feet = [data.oMf[loaded.frame_id(loaded.surfaces[f].frame)] for f in loaded.surfaces_with_role("foot")]
     assert len(feet) == 2
     assert abs(feet[0].translation[2] - feet[1].translation[2]) < 1e-3
     for foot in feet:
-        np.testing.assert_allclose(foot.rotation[:, 2], [0.0, 0.0, 1.0], atol=5e-3)
+        np.testing.assert_allclose(foot.rotation[:, 2], [0.0, 0.0, 1.0], atol=tilt)
     # Each limb's root joint is above its surfaces in the kinematic tree.
     for surface in loaded.surfaces.values():
         joint = loaded.model.frames[loaded.frame_id(surface.frame)].parentJoint
@@ -94,6 +101,46 @@ def test_romeo_stands_on_the_floor_with_a_verified_posture(romeo):
     # Both feet carry Romeo's weight (40.5 kg).
     vertical = sum(f.force[2] for f in result.point_forces)
     assert vertical == pytest.approx(romeo.mass * 9.81, rel=1e-6)
+
+
+def _world_vertices(robot, q, geometry_name):
+    """(n, 3) world vertices of a collision mesh at configuration ``q``."""
+    model, data = robot.model, robot.model.createData()
+    pin.forwardKinematics(model, data, q)
+    geometry = robot.collision_model.geometryObjects[robot.collision_model.getGeometryId(geometry_name)]
+    placement = data.oMi[geometry.parentJoint] * geometry.placement
+    return np.asarray(geometry.geometry.vertices()) @ placement.rotation.T + placement.translation
+
+
+def test_icub_meshes_lie_where_its_kinematics_puts_its_links(icub):
+    """example-robot-data's iCub meshes come out of the loader a quarter turn about
+    their x axis; icub.yaml's mesh_rotations turn them back: each limb segment's
+    mesh holds the joints its link joins, the foot's bottom face lies on the sole
+    plane and runs along the sole's x (as loaded it ran sideways), and the hands,
+    left as loaded, are boxes thin along the wrist yaw axis."""
+    q = icub.reference_configuration
+    data = icub.model.createData()
+    pin.framesForwardKinematics(icub.model, data, q)
+
+    def joint(name):
+        return data.oMi[icub.model.getJointId(name)].translation
+
+    for side in "lr":
+        for mesh, ends in ((f"{side}_upper_leg_0", ("hip_yaw", "knee")), (f"{side}_lower_leg_0", ("knee", "ankle_pitch")),
+                           (f"{side}_upper_arm_0", ("shoulder_yaw", "elbow")),
+                           (f"{side}_forearm_0", ("wrist_prosup", "wrist_pitch"))):
+            points = _world_vertices(icub, q, mesh)
+            for end in ends:
+                assert np.all(points.min(axis=0) - 1e-3 <= joint(f"{side}_{end}")), (mesh, end)
+                assert np.all(joint(f"{side}_{end}") <= points.max(axis=0) + 1e-3), (mesh, end)
+        sole = data.oMf[icub.frame_id(f"{side}_sole")]
+        foot = (_world_vertices(icub, q, f"{side}_foot_0") - sole.translation) @ sole.rotation
+        assert foot[:, 2].min() == pytest.approx(0.0, abs=1e-4)
+        bottom = foot[foot[:, 2] < 1e-4]
+        assert np.ptp(bottom[:, 0]) > 0.15 and np.ptp(bottom[:, 1]) < 0.065  # 15.6 cm long, 6.1 cm wide
+        hand = data.oMi[icub.model.getJointId(f"{side}_wrist_yaw")]
+        box = (_world_vertices(icub, q, f"{side}_hand_0") - hand.translation) @ hand.rotation
+        np.testing.assert_allclose(np.ptp(box, axis=0), [0.069, 0.065, 0.0243], atol=1e-3)
 
 
 def _talos_data():
@@ -236,7 +283,9 @@ def test_a_bad_description_file_gets_an_error_naming_the_file_and_the_fault(tmp_
 
 
 def test_an_unknown_robot_name_lists_the_builtin_robots():
-    with pytest.raises(RobotNotFound, match=re.escape("unknown robot 'tals' (not a built-in robot); built-in robots: anymal, romeo, talos")):
+    with pytest.raises(RobotNotFound, match=re.escape(
+        "unknown robot 'tals' (not a built-in robot); built-in robots: anymal, icub, romeo, talos"
+    )):
         Robot.load("tals")
 
 
