@@ -35,12 +35,13 @@ A description is a small YAML file; the built-in ones ship in ``stances/robots/`
 
 Self-collision is checked between the robot's convex hulls on the pairs the SRDF
 leaves enabled, plus ``checked_pairs``, minus ``ignored_pairs``. Pairs whose hulls
-already touch or overlap at the reference posture are not checked either (a
-hull holds its mesh, so two links that never meet can have hulls that do: Solo-12's
-base and upper legs overlap by 4 mm standing; MoveIt's setup assistant disables
-pairs colliding in the default posture the same way; loading logs a warning that
-names them); ``Robot.ignored_pairs`` lists both kinds, and a pair named in
-``checked_pairs`` is always checked.
+already touch or overlap at the reference posture, or lie closer than the 5 mm the
+posture solver keeps between bodies, are not checked either (a hull holds its mesh,
+so two links that never meet can have hulls that do: Solo-12's base and upper legs
+overlap by 4 mm standing, iCub's pelvis and hip-pitch discs are 0.6 mm apart at any
+hip pitch; MoveIt's setup assistant disables pairs colliding in the default posture
+the same way; loading logs a warning that names them); ``Robot.ignored_pairs`` lists
+both kinds, and a pair named in ``checked_pairs`` is always checked.
 
 A surface is a polygon (a sole, a palm: a rigid contact holds it with 6
 placement equalities and a friction pyramid at each vertex) or a point foot (a

@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .collision import hull_overlaps, ignore_self_pairs
+from .collision import KEPT_DISTANCE, hull_overlaps, ignore_self_pairs
 from .description import (
     BUILTIN_DIRECTORY,
     ROLES,
@@ -345,9 +345,10 @@ class Robot:
             (pairs a robot's postures can bring into contact).
         ignored_pairs : iterable of (str, str)
             Collision geometry pairs not to check although the SRDF enables
-            them. Pairs whose convex hulls touch or overlap at the reference
-            posture are not checked either (unless in ``checked_pairs``); both
-            kinds end up in :attr:`ignored_pairs`.
+            them. Pairs whose convex hulls touch, overlap or lie closer than
+            the solver keeps them (:data:`stances.collision.KEPT_DISTANCE`) at
+            the reference posture are not checked either (unless in
+            ``checked_pairs``); both kinds end up in :attr:`ignored_pairs`.
         limbs : mapping of str to str, optional
             Limb name -> root joint. Default: each surface's limb starts at
             the joint after the last branching of the kinematic tree above the
@@ -468,13 +469,18 @@ class Robot:
             mesh_rotations,
         )
         checked = {frozenset(pair) for pair in checked_pairs}
-        overlapping = [pair for pair in hull_overlaps(robot, q_reference) if frozenset(pair) not in checked]
+        # A pair nearer than the solver keeps at the reference posture holds no posture near it
+        # (iCub's pelvis and hip-pitch disc are 0.6 mm apart whatever the hip pitch).
+        overlapping = [
+            pair for pair in hull_overlaps(robot, q_reference, within=KEPT_DISTANCE) if frozenset(pair) not in checked
+        ]
         ignore_self_pairs(robot, overlapping)
         if overlapping:
             logger.warning(
-                "%s: %d self-collision pairs whose convex hulls already touch at the reference posture are "
-                "not checked: %s (list them in checked_pairs to check them anyway)",
-                name, len(overlapping), ", ".join(f"{a}-{b}" for a, b in overlapping),
+                "%s: %d self-collision pairs whose convex hulls already touch at the reference posture (or lie "
+                "within the %g mm the posture solver keeps) are not checked: %s (list them in checked_pairs to "
+                "check them anyway)",
+                name, len(overlapping), 1e3 * KEPT_DISTANCE, ", ".join(f"{a}-{b}" for a, b in overlapping),
             )
         robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs) + tuple(overlapping)
         return robot

@@ -143,6 +143,56 @@ def test_icub_meshes_lie_where_its_kinematics_puts_its_links(icub):
         np.testing.assert_allclose(np.ptp(box, axis=0), [0.069, 0.065, 0.0243], atol=1e-3)
 
 
+def test_icub_stands_on_the_floor_with_a_verified_posture(icub):
+    scenario = environments.load_string(
+        textwrap.dedent(
+            """
+            robot: icub
+            objects: [{name: floor, type: floor}]
+            stances:
+              stand:
+                left_sole: {surface: floor, x: 0.0, y: 0.105}
+                right_sole: {surface: floor, x: 0.0, y: -0.105}
+            """
+        )
+    )
+    result = stances.solve(icub, scenario.scene, scenario.stance("stand"))
+    assert result.feasible, result.reason
+    assert stances.verify(icub, scenario.scene, result.stance, result).ok
+    # Both feet carry iCub's weight (28.3 kg).
+    vertical = sum(f.force[2] for f in result.point_forces)
+    assert vertical == pytest.approx(icub.mass * 9.81, rel=1e-6)
+
+
+def test_a_pair_nearer_than_the_solver_keeps_at_the_reference_is_not_checked(icub, tmp_path):
+    """iCub's pelvis and left hip-pitch disc hulls are 0.6 mm apart at the reference
+    posture and at any hip pitch (the disc turns about its own axis): under the 5 mm
+    the solver keeps, so that pair would fail every stance. Loading leaves such pairs
+    unchecked, as those already touching; checked_pairs keeps one checked."""
+    from stances.collision import KEPT_DISTANCE, CollisionChecker
+
+    pair = ("root_link_0", "l_hip_1_0")
+    data = {**yaml.safe_load((BUILTIN_DIRECTORY / "icub.yaml").read_text()), "checked_pairs": [list(pair)]}
+    checked = Robot.load(_write(tmp_path / "icub.yaml", data))
+    checker = CollisionChecker(checked, [], margin=KEPT_DISTANCE)
+
+    def distance(q):
+        pinocchio_data = checked.model.createData()
+        pin.forwardKinematics(checked.model, pinocchio_data, q)
+        (measured,) = [
+            p.distance for p in checker.pairs(checked.model, pinocchio_data) if {p.name_a, p.name_b} == set(pair)
+        ]
+        return measured
+
+    q = np.array(icub.reference_configuration)
+    assert 0.0 < distance(q) < KEPT_DISTANCE
+    q[icub.model.idx_qs[icub.model.getJointId("l_hip_pitch")]] += 0.5
+    assert 0.0 < distance(q) < KEPT_DISTANCE
+    assert pair in icub.ignored_pairs and pair not in checked.ignored_pairs
+    names = [g.name for g in icub.collision_model.geometryObjects]
+    assert frozenset(pair) not in {frozenset((names[p.first], names[p.second])) for p in icub.collision_model.collisionPairs}
+
+
 def _talos_data():
     return yaml.safe_load((BUILTIN_DIRECTORY / "talos.yaml").read_text())
 
