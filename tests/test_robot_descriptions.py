@@ -164,6 +164,19 @@ def test_icub_stands_on_the_floor_with_a_verified_posture(icub):
     assert vertical == pytest.approx(icub.mass * 9.81, rel=1e-6)
 
 
+def test_icub_steps_onto_foot_on_blocks_block_beyond_its_step_height(icub):
+    """foot-on-block's 0.2 m block is past iCub's step height by the reach model
+    (0.37 x 0.48 m legs = 0.18 m) but iCub holds the goal stance: the planner offers
+    the goal's last step and the posture solve accepts it."""
+    reach = ReachModel.of(icub)
+    assert reach.limits.step_height * reach.limbs["right_leg"].length < 0.2
+    result = plan("foot-on-block", robot=icub, max_expansions=10, print_spacing=0.1)  # a coarse grid: quicker
+    assert result.success, result.reason
+    assert [planned.move for planned in result.stances][1:] == [
+        "lift right_sole", "place right_sole on block_top at x -0.020 m, y 0.020 m, theta 0 deg in block_top's frame",
+    ]
+
+
 def test_a_pair_nearer_than_the_solver_keeps_at_the_reference_is_not_checked(icub, tmp_path):
     """iCub's pelvis and left hip-pitch disc hulls are 0.6 mm apart at the reference
     posture and at any hip pitch (the disc turns about its own axis): under the 5 mm
