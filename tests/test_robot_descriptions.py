@@ -556,27 +556,24 @@ def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_
     }
 
 
-def test_mesh_rotations_turn_a_links_collision_and_visual_meshes_in_their_own_frame(tmp_path, robot):
+def test_mesh_rotations_turn_a_links_collision_meshes_in_their_own_frame(tmp_path, robot):
     """A description's mesh_rotations multiply the placement of each mesh of the
     links it lists by the rotation, on the right (in the mesh's own frame, before
-    the URDF's origin), in the collision model and in the visual one the pictures
-    draw; the other links' meshes stay where the URDF puts them."""
-    from cbm.robot_mesh import visual_model
-
+    the URDF's origin); the other links' meshes stay where the URDF puts them. (The
+    visual model the pictures draw gets the same rotations: tests/test_cbm_output.py
+    draws iCub.)"""
     data = _talos_data()
     data["mesh_rotations"] = [{"links": ["leg_left_6_link", "base_link"], "rpy_deg": [90, 0, 30]}]
     turned = Robot.load(_write(tmp_path / "talos.yaml", data))
     rotation = pin.rpy.rpyToMatrix(np.radians(90), 0.0, np.radians(30))
     assert turned.mesh_rotations == read_description(tmp_path / "talos.yaml").mesh_rotations
-    for plain_model, turned_model in ((robot.collision_model, turned.collision_model),
-                                      (visual_model(robot), visual_model(turned))):
-        for plain, moved in zip(plain_model.geometryObjects, turned_model.geometryObjects):
-            assert moved.name == plain.name
-            expected = plain.placement.rotation @ rotation if plain.name in ("leg_left_6_link_0", "base_link_0") else (
-                plain.placement.rotation
-            )
-            np.testing.assert_allclose(moved.placement.rotation, expected, atol=1e-12)
-            np.testing.assert_allclose(moved.placement.translation, plain.placement.translation, atol=1e-12)
+    for plain, moved in zip(robot.collision_model.geometryObjects, turned.collision_model.geometryObjects):
+        assert moved.name == plain.name
+        expected = plain.placement.rotation @ rotation if plain.name in ("leg_left_6_link_0", "base_link_0") else (
+            plain.placement.rotation
+        )
+        np.testing.assert_allclose(moved.placement.rotation, expected, atol=1e-12)
+        np.testing.assert_allclose(moved.placement.translation, plain.placement.translation, atol=1e-12)
 
 
 def test_ignored_pairs_are_not_checked(tmp_path):
