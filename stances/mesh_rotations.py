@@ -2,13 +2,13 @@
 
 A URDF places each mesh by its ``<origin>``; pinocchio's loader (assimp, through
 coal) reads the mesh's vertices as the file stores them, whatever axis a Collada
-file declares as up. Meshes written for a loader that turns them come out turned:
-example-robot-data's iCub meshes (Collada files with ``<up_axis>Y_UP</up_axis>``)
-lie a quarter turn about their own x axis from where the kinematics puts their
-links, all but the hands' and one shoulder's (the thigh mesh sticks out forward
-from the hip instead of running down to the knee; Gepetto/example-robot-data
-issue 105). A robot description lists such links with the rotation that puts
-their meshes back (``mesh_rotations`` in :mod:`stances.description`): each mesh
+file declares as up. Most of example-robot-data's iCub meshes (Collada files with
+``<up_axis>Y_UP</up_axis>``) then lie a quarter turn about their own x axis from
+where the kinematics puts their links (the thigh mesh sticks out forward from the
+hip instead of running down to the knee; Gepetto/example-robot-data issue 105);
+the hands and a few small discs do not. A robot description lists the links to
+turn with the rotation that puts their meshes back (``mesh_rotations`` in
+:mod:`stances.description`, measured in ``stances/robots/icub.yaml``): each mesh
 geometry of those links, collision and visual, gets its placement
 
     M_mesh_to_joint <- M_mesh_to_joint * R(rpy),
@@ -59,7 +59,7 @@ class MeshRotation:
 
     @property
     def rotation(self) -> np.ndarray:
-        """(3, 3) float: the rotation matrix, mesh frame after -> mesh frame as the file stores it."""
+        """(3, 3) float: takes the file's coordinates to the mesh frame the URDF's origin places (p -> R p)."""
         return pin.rpy.rpyToMatrix(*np.radians(self.rpy_deg))
 
 
@@ -68,7 +68,16 @@ def _is_mesh(geometry_object) -> bool:
 
 
 def link_names(model) -> list:
-    """Names of the model's body frames (its URDF links)."""
+    """Names of the model's body frames (its URDF links).
+
+    Parameters
+    ----------
+    model : pinocchio.Model
+
+    Returns
+    -------
+    list of str
+    """
     return [frame.name for frame in model.frames if frame.type == pin.FrameType.BODY]
 
 
