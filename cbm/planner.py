@@ -31,7 +31,15 @@ from .parallel import PosturePool, check_workers
 from .rejections import summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
-from .sampling import default_headings, default_print_spacing, obstacle_boxes, options_from_scenario, sample_prints, with_prints
+from .sampling import (
+    coarse_grid_hint,
+    default_headings,
+    default_print_spacing,
+    obstacle_boxes,
+    options_from_scenario,
+    sample_prints,
+    with_prints,
+)
 from .search import DEFAULT_MAX_EXPANSIONS, DEFAULT_TIME_LIMIT, SearchInterrupted, SearchLimits, best_first_search
 from .stance_graph import StanceNeighbours
 from .terrain import TerrainCost, terrain_weight as _terrain_weight
@@ -479,7 +487,10 @@ def plan(
             bar.close()
         if pool is not None:
             pool.close()
-    return _plan_of(searched, scenario, robot, prints, searched.reason)
+    reason = searched.reason
+    if not searched.success and not reason.startswith("start infeasible"):
+        reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
+    return _plan_of(searched, scenario, robot, prints, reason)
 
 
 def _plan_of(searched, scenario, robot, prints, reason):

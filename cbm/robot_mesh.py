@@ -15,6 +15,8 @@ import numpy as np
 import pinocchio as pin
 import trimesh
 
+from stances.mesh_rotations import turn_meshes
+
 __all__ = ["LinkMesh", "RobotMeshes", "robot_meshes", "visual_model", "cluster_vertices"]
 
 logger = logging.getLogger(__name__)
@@ -191,9 +193,11 @@ def _geometry_mesh(geometry_object):
 
 
 @functools.lru_cache(maxsize=4)
-def _visual_geometry(urdf, package_dirs, locked):
+def _visual_geometry(urdf, package_dirs, locked, mesh_rotations):
     full = pin.buildModelFromUrdf(urdf, pin.JointModelFreeFlyer())
     visual = pin.buildGeomFromUrdf(full, urdf, pin.GeometryType.VISUAL, package_dirs=list(package_dirs))
+    # As the collision meshes (a link may have no visual mesh: nothing to turn then).
+    turn_meshes(full, visual, mesh_rotations)
     if locked:
         q = pin.neutral(full)
         ids = []
@@ -206,7 +210,8 @@ def _visual_geometry(urdf, package_dirs, locked):
 
 
 def _key(robot):
-    """What identifies a robot's visual geometry: URDF, package folders, locked joints (None without a URDF)."""
+    """What identifies a robot's visual geometry: URDF, package folders, locked joints, mesh rotations
+    (None without a URDF)."""
     urdf = getattr(robot, "urdf", None)
     if urdf is None:
         return None
@@ -217,7 +222,7 @@ def _key(robot):
     if source:
         package_dirs = tuple(str(p) for p in read_description(source).package_dirs)
     locked = tuple((name, tuple(float(v) for v in values)) for name, values in robot.locked_joints.items())
-    return str(urdf), package_dirs, locked
+    return str(urdf), package_dirs, locked, tuple(getattr(robot, "mesh_rotations", ()))
 
 
 def visual_model(robot):

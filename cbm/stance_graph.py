@@ -61,7 +61,12 @@ class StanceNeighbours:
         shoulder at the reference posture and a leaning torso reaches farther
         (the palms of hand-on-table and foot-and-hand-on-foam lie 0.69 m from that
         shoulder, past the model's 0.66 m): without this, those goals could never
-        be generated. The posture solve decides.
+        be generated. A foot's print among them stays a candidate once the
+        goal's other feet stand on their own goal prints: the last step into
+        the goal's footing is always offered, even where the step rules would
+        prune it (the step height, 0.37 leg lengths, is 0.18 m for iCub's
+        0.48 m legs, and iCub holds foot-on-block's 0.2 m block). The posture
+        solve decides.
 
     Notes
     -----
@@ -76,15 +81,32 @@ class StanceNeighbours:
         self.reach = reach
         # Hands' (robot surface, print) pairs the reach model leaves alone, and
         # their indices in the print sets (found once: the sets hold thousands).
+        required = tuple(required)
         self.required = {
             (c.robot_surface, c.contact_print) for c in required if reach.roles.get(c.robot_surface) != reach.support_role
         }
-        self.required_indices = {}
-        for robot_surface, contact_print in self.required:
+        self.required_indices = self._indices(self.required)
+        # The goal's feet: each one's print, a candidate once the others stand on theirs.
+        self.goal_feet = {
+            (c.robot_surface, c.contact_print) for c in required if reach.roles.get(c.robot_surface) == reach.support_role
+        }
+        self.goal_feet_indices = self._indices(self.goal_feet)
+        self.pruned = 0  # candidate prints removed by reach pruning so far
+
+    def _indices(self, contacts):
+        """Robot surface -> indices of the given (robot surface, print) pairs in its print set."""
+        indices = {}
+        for robot_surface, contact_print in contacts:
             prints = self.print_sets[robot_surface].prints if robot_surface in self.print_sets else ()
             if contact_print in prints:
-                self.required_indices.setdefault(robot_surface, []).append(prints.index(contact_print))
-        self.pruned = 0  # candidate prints removed by reach pruning so far
+                indices.setdefault(robot_surface, []).append(prints.index(contact_print))
+        return indices
+
+    def _on_goal_footing(self, stance, robot_surface):
+        """Whether the goal has other feet than ``robot_surface`` and each stands on its goal print in ``stance``."""
+        others = [pair for pair in self.goal_feet if pair[0] != robot_surface]
+        in_stance = {(c.robot_surface, c.contact_print) for c in stance}
+        return bool(others) and all(pair in in_stance for pair in others)
 
     def __call__(self, stance):
         """List ``(neighbour stance, Move)`` pairs: removals first, then additions."""
@@ -120,6 +142,8 @@ class StanceNeighbours:
         mask = self.reach.reachable_mask(print_set, {rs: p for rs, p in placed.items() if rs not in held})
         if any(self.reach.roles.get(rs) == self.reach.support_role for rs in placed):
             mask[self.required_indices.get(robot_surface, [])] = True
+            if robot_surface in self.goal_feet_indices and self._on_goal_footing(stance, robot_surface):
+                mask[self.goal_feet_indices[robot_surface]] = True
         self.pruned += int(len(mask) - np.count_nonzero(mask))
         return [
             (

@@ -175,20 +175,30 @@ def _robot_geometry(robot) -> _RobotGeometry:
     return geometry
 
 
-def hull_overlaps(robot, q) -> list:
-    """Self-collision pairs whose convex hulls touch or overlap at configuration ``q``.
+#: Metres: the default distance the posture solver keeps between bodies
+#: (``PostureOptions.collision_distance``); a self-collision pair closer than
+#: this at the reference posture is not checked (see :func:`hull_overlaps`).
+KEPT_DISTANCE = 0.005
+
+
+def hull_overlaps(robot, q, within: float = 0.0) -> list:
+    """Self-collision pairs whose convex hulls touch, overlap or lie within ``within`` at ``q``.
 
     Parameters
     ----------
     robot : stances.Robot
     q : (nq,) float
+    within : float
+        Metres: pairs at most this far apart count too (the robot's loader
+        gives :data:`KEPT_DISTANCE`: a pair nearer than the solver keeps at
+        the reference posture holds no posture near it).
 
     Returns
     -------
     list of (str, str)
         Geometry names, in the collision model's pair order.
     """
-    checker = CollisionChecker(robot, [], margin=0.0)
+    checker = CollisionChecker(robot, [], margin=float(within))
     data = robot.model.createData()
     pin.forwardKinematics(robot.model, data, np.asarray(q, dtype=float))
     return [(pair.name_a, pair.name_b) for pair in checker.pairs(robot.model, data) if pair.is_self_collision]

@@ -30,20 +30,27 @@ A description is a small YAML file; the built-in ones ship in ``stances/robots/`
         geometries: [LF_FOOT_0]           # optional: the collision geometries that touch
     checked_pairs: [[arm_left_5_link_0, wrist_left_ft_link_0]]   # optional
     ignored_pairs: [[base_link_0, FL_UPPER_LEG_0]]                 # optional
+    mesh_rotations:                       # optional: meshes the URDF misplaces (icub.yaml)
+      - {links: [l_foot, r_foot], rpy_deg: [90, 0, 0]}   # in each mesh's own frame
 
 Self-collision is checked between the robot's convex hulls on the pairs the SRDF
 leaves enabled, plus ``checked_pairs``, minus ``ignored_pairs``. Pairs whose hulls
-already touch or overlap at the reference posture are not checked either (a
-hull holds its mesh, so two links that never meet can have hulls that do: Solo-12's
-base and upper legs overlap by 4 mm standing; MoveIt's setup assistant disables
-pairs colliding in the default posture the same way; loading logs a warning that
-names them); ``Robot.ignored_pairs`` lists both kinds, and a pair named in
-``checked_pairs`` is always checked.
+already touch or overlap at the reference posture, or lie closer than the 5 mm the
+posture solver keeps between bodies, are not checked either (a hull holds its mesh,
+so two links that never meet can have hulls that do: Solo-12's base and upper legs
+overlap by 4 mm standing, iCub's pelvis and hip-pitch discs are 0.6 mm apart at any
+hip pitch; MoveIt's setup assistant disables pairs colliding in the default posture
+the same way; loading logs a warning that names them); ``Robot.ignored_pairs`` lists
+both kinds, and a pair named in ``checked_pairs`` is always checked.
 
 A surface is a polygon (a sole, a palm: a rigid contact holds it with 6
 placement equalities and a friction pyramid at each vertex) or a point foot (a
 ball of ``radius`` centred on the contact frame's origin: 3 placement
 equalities and one friction pyramid, see :mod:`stances.point_contact`).
+
+``mesh_rotations`` turns the meshes of the links it lists in their own frame,
+collision and visual, before anything is measured on them: for mesh files the
+URDF places for a loader that turns them (see :mod:`stances.mesh_rotations`).
 
 Reading a description checks its structure and values (roles, polygons, limbs)
 without loading the model; names of links, joints and geometries are checked
@@ -67,6 +74,7 @@ import yaml
 from environments.plain_data import checked_mapping, join_key, kind_of
 
 from .errors import RobotNotFound, StanceError
+from .mesh_rotations import MeshRotation
 from .plates import PlateDeclaration
 
 __all__ = [
@@ -277,6 +285,9 @@ class RobotDescription:
         Collision geometry pairs checked although the SRDF disables them.
     ignored_pairs : tuple of (str, str)
         Collision geometry pairs not checked although the SRDF enables them.
+    mesh_rotations : tuple of MeshRotation
+        Rotations of the meshes of some links, in each mesh's own frame (see
+        :mod:`stances.mesh_rotations`).
     description : str
         Free text.
     path : Path or None
@@ -294,6 +305,7 @@ class RobotDescription:
     support: SupportRule = SupportRule()
     checked_pairs: tuple = ()
     ignored_pairs: tuple = ()
+    mesh_rotations: tuple = ()
     description: str = ""
     path: Path | None = field(default=None, compare=False)
 
@@ -345,7 +357,7 @@ def builtin_robot_names() -> list[str]:
     Examples
     --------
     >>> builtin_robot_names()
-    ['anymal', 'romeo', 'talos']
+    ['anymal', 'icub', 'romeo', 'talos']
     """
     return sorted(path.stem for path in BUILTIN_DIRECTORY.glob("*.yaml"))
 
@@ -408,7 +420,7 @@ def read_description(name_or_file) -> RobotDescription:
 
 _TOP_KEYS = (
     "name", "description", "model", "locked_joints", "reference_posture", "support", "limbs", "surfaces",
-    "checked_pairs", "ignored_pairs",
+    "checked_pairs", "ignored_pairs", "mesh_rotations",
 )
 _SURFACE_KEYS = ("role", "limb", "link", "xyz", "rpy_deg", "polygon", "point", "plate", "geometries")
 
@@ -446,6 +458,20 @@ class _Reader:
                 raise self.error(f"{key}[{index}]", f"must be a pair of collision geometry names, got {pair!r}")
             pairs.append(names)
         return tuple(pairs)
+
+    def mesh_rotations(self, value, key: str) -> tuple:
+        """A list of {links: [link, ...], rpy_deg: [r, p, y]} entries, as MeshRotation's."""
+        if not isinstance(value, list):
+            raise self.error(key, f"must be a list of {{links, rpy_deg}} entries, got {kind_of(value)}")
+        rotations = []
+        for index, item in enumerate(value):
+            entry = f"{key}[{index}]"
+            item = self.mapping(item, entry, ("links", "rpy_deg"), ("links", "rpy_deg"))
+            links = self.strings(item["links"], join_key(entry, "links"))
+            if not links:
+                raise self.error(join_key(entry, "links"), "must name at least one link")
+            rotations.append(MeshRotation(links, tuple(self.numbers(item["rpy_deg"], join_key(entry, "rpy_deg"), 3))))
+        return tuple(rotations)
 
     def numbers(self, value, key: str, length: int) -> list:
         if not isinstance(value, list) or len(value) != length:
@@ -494,6 +520,7 @@ class _Reader:
                 support=support,
                 checked_pairs=pairs["checked_pairs"],
                 ignored_pairs=pairs["ignored_pairs"],
+                mesh_rotations=self.mesh_rotations(top.get("mesh_rotations", []), "mesh_rotations"),
                 description=" ".join(description.split()),
                 path=self.path,
             )

@@ -24,7 +24,7 @@ import pinocchio as pin
 
 from environments.errors import SceneError
 
-from .collision import CollisionChecker, contact_exclusions
+from .collision import KEPT_DISTANCE, CollisionChecker, contact_exclusions
 from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
 from .errors import ConfigurationError, StanceError
@@ -171,7 +171,7 @@ class PostureOptions:
     trust_region: float = 0.3
     feasibility_tolerance: float = 1e-7
     optimality_tolerance: float = 1e-7
-    collision_distance: float = 0.005
+    collision_distance: float = KEPT_DISTANCE
     collision_activation: float = 0.05
     max_collision_rows: int = 20
     self_collision: bool = True

@@ -13,8 +13,8 @@ then simply "the robot surface frame coincides with the print frame", whose z
 axis is the environment surface's outward normal.
 
 Robots are data: :meth:`Robot.load` reads a robot description
-(:mod:`stances.description`; the built-in ones, Talos and Romeo, point to the
-files installed by the ``example-robot-data`` package, so no path of one
+(:mod:`stances.description`; the built-in ones, Talos, Romeo, iCub and ANYmal,
+point to the files installed by the ``example-robot-data`` package, so no path of one
 machine is hard-coded).
 """
 
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from .collision import hull_overlaps, ignore_self_pairs
+from .collision import KEPT_DISTANCE, hull_overlaps, ignore_self_pairs
 from .description import (
     BUILTIN_DIRECTORY,
     ROLES,
@@ -40,6 +40,7 @@ from .description import (
     read_description,
 )
 from .errors import FrameNotFound, StanceError
+from .mesh_rotations import MeshRotation, turn_meshes
 from .plates import PlateDeclaration, mount_plate, plate_geometry
 
 logger = logging.getLogger(__name__)
@@ -155,6 +156,26 @@ def _limb_roots(model, surfaces, limbs) -> dict:
     return roots
 
 
+def _turn_collision_meshes(model, collision_model, rotations) -> None:
+    """Apply ``rotations`` to the collision meshes; every link they name must carry one.
+
+    Raises
+    ------
+    FrameNotFound
+        For a link not in the model.
+    StanceError
+        For a link without any collision mesh (nothing to turn: a typo for
+        another link, or a link whose geometry is a primitive).
+    """
+    turned = turn_meshes(model, collision_model, rotations)
+    bare = [link for rotation in rotations for link in rotation.links if link not in turned]
+    if bare:
+        with_meshes = sorted({model.frames[g.parentFrame].name for g in collision_model.geometryObjects if g.meshPath})
+        raise StanceError(
+            f"mesh_rotations: link {bare[0]!r} has no collision mesh to turn; links with meshes: {', '.join(with_meshes)}"
+        )
+
+
 def _reference_configurations(model) -> dict:
     # pinocchio's map iterates as (name, configuration) pairs.
     return {entry.key(): np.array(entry.data()) for entry in model.referenceConfigurations}
@@ -192,13 +213,18 @@ class Robot:
         values they are locked at (radians or metres), in URDF order.
     urdf : Path or None
         The URDF file the model was built from.
+    mesh_rotations : tuple of MeshRotation
+        Rotations applied to the meshes of some links (see
+        :mod:`stances.mesh_rotations`): the collision model has them, and a
+        visual model built from ``urdf`` needs them too.
     """
 
     def __init__(
         self, name, model, collision_model, surfaces, reference_configuration, limbs=None, support=SupportRule(),
-        locked_joints=None, urdf=None,
+        locked_joints=None, urdf=None, mesh_rotations=(),
     ):
         self.name = name
+        self.mesh_rotations = tuple(mesh_rotations)
         self.locked_joints = {str(k): tuple(float(v) for v in values) for k, values in dict(locked_joints or {}).items()}
         self.urdf = None if urdf is None else Path(urdf)
         self.model = model
@@ -221,7 +247,7 @@ class Robot:
         ----------
         name_or_file : str or os.PathLike
             A name of :func:`stances.description.builtin_robot_names`
-            (``"talos"``, ``"romeo"``) or a robot description YAML file.
+            (``"talos"``, ``"romeo"``, ``"icub"``, ``"anymal"``) or a robot description YAML file.
 
         Returns
         -------
@@ -267,6 +293,7 @@ class Robot:
                 ignored_pairs=description.ignored_pairs,
                 limbs=description.limbs,
                 support=description.support,
+                mesh_rotations=description.mesh_rotations,
             )
         except RobotDescriptionError:
             raise
@@ -291,6 +318,7 @@ class Robot:
         limbs=None,
         support=SupportRule(),
         ignored_pairs=(),
+        mesh_rotations=(),
     ) -> "Robot":
         """Build a robot from URDF and SRDF files with declared contact surfaces.
 
@@ -317,15 +345,19 @@ class Robot:
             (pairs a robot's postures can bring into contact).
         ignored_pairs : iterable of (str, str)
             Collision geometry pairs not to check although the SRDF enables
-            them. Pairs whose convex hulls touch or overlap at the reference
-            posture are not checked either (unless in ``checked_pairs``); both
-            kinds end up in :attr:`ignored_pairs`.
+            them. Pairs whose convex hulls touch, overlap or lie closer than
+            the solver keeps them (:data:`stances.collision.KEPT_DISTANCE`) at
+            the reference posture are not checked either (unless in
+            ``checked_pairs``); both kinds end up in :attr:`ignored_pairs`.
         limbs : mapping of str to str, optional
             Limb name -> root joint. Default: each surface's limb starts at
             the joint after the last branching of the kinematic tree above the
             surface (a leg at its hip, an arm at its shoulder).
         support : SupportRule
             Contacts every stance keeps.
+        mesh_rotations : iterable of MeshRotation
+            Meshes turned in their own frame, by link, before anything is
+            measured on them (see :mod:`stances.mesh_rotations`).
 
         Returns
         -------
@@ -336,13 +368,16 @@ class Robot:
         FrameNotFound
             For a link, joint, geometry or posture name not in the model.
         StanceError
-            If a surface is not on the chain of its limb's root joint.
+            If a surface is not on the chain of its limb's root joint, or a
+            link of ``mesh_rotations`` has no collision mesh.
         """
         dirs = [str(d) for d in package_dirs]
         model = pin.buildModelFromUrdf(str(urdf), pin.JointModelFreeFlyer())
         collision_model = pin.buildGeomFromUrdf(
             model, str(urdf), pin.GeometryType.COLLISION, package_dirs=dirs
         )
+        mesh_rotations = tuple(mesh_rotations)
+        _turn_collision_meshes(model, collision_model, mesh_rotations)
         pin.loadReferenceConfigurations(model, str(srdf), False)
         references = _reference_configurations(model)
         if reference_posture not in references:
@@ -429,15 +464,23 @@ class Robot:
                 declaration.radius,
             )
         limb_roots = _limb_roots(model, robot_surfaces, limbs)
-        robot = cls(name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf)
+        robot = cls(
+            name, model, collision_model, robot_surfaces, q_reference, limb_roots, support, locked_values, urdf,
+            mesh_rotations,
+        )
         checked = {frozenset(pair) for pair in checked_pairs}
-        overlapping = [pair for pair in hull_overlaps(robot, q_reference) if frozenset(pair) not in checked]
+        # A pair nearer than the solver keeps at the reference posture holds no posture near it
+        # (iCub's pelvis and hip-pitch disc are 0.6 mm apart whatever the hip pitch).
+        overlapping = [
+            pair for pair in hull_overlaps(robot, q_reference, within=KEPT_DISTANCE) if frozenset(pair) not in checked
+        ]
         ignore_self_pairs(robot, overlapping)
         if overlapping:
             logger.warning(
-                "%s: %d self-collision pairs whose convex hulls already touch at the reference posture are "
-                "not checked: %s (list them in checked_pairs to check them anyway)",
-                name, len(overlapping), ", ".join(f"{a}-{b}" for a, b in overlapping),
+                "%s: %d self-collision pairs whose convex hulls already touch at the reference posture (or lie "
+                "within the %g mm the posture solver keeps) are not checked: %s (list them in checked_pairs to "
+                "check them anyway)",
+                name, len(overlapping), 1e3 * KEPT_DISTANCE, ", ".join(f"{a}-{b}" for a, b in overlapping),
             )
         robot.ignored_pairs = tuple(tuple(pair) for pair in ignored_pairs) + tuple(overlapping)
         return robot
@@ -541,6 +584,7 @@ class Robot:
 
 
 __all__ = [
+    "MeshRotation",
     "PlateDeclaration",
     "Robot",
     "RobotSurface",

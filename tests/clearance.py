@@ -13,8 +13,9 @@ import coal
 import numpy as np
 import pinocchio as pin
 
-# The geometry that forms each surface of Talos and Romeo, written out here rather
-# than read from the robot: a palm touches with its plate only, a sole with the foot mesh.
+# The geometry that forms each surface of Talos, Romeo and iCub, written out here rather
+# than read from the robot: a palm touches with its plate only (iCub's, a box, with its
+# face), a sole with the foot mesh.
 CONTACT_GEOMETRY = {
     "talos": {
         "left_palm": ("left_palm_plate",),
@@ -27,6 +28,12 @@ CONTACT_GEOMETRY = {
         "right_palm": ("right_palm_plate",),
         "left_sole": ("l_ankle_0",),
         "right_sole": ("r_ankle_0",),
+    },
+    "icub": {
+        "left_palm": ("l_hand_0",),
+        "right_palm": ("r_hand_0",),
+        "left_sole": ("l_foot_0",),
+        "right_sole": ("r_foot_0",),
     },
 }
 

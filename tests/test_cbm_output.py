@@ -489,3 +489,14 @@ def test_every_visual_geometry_is_drawn_even_from_files_trimesh_cannot_read():
     vertices, _ = meshes.posed(romeo.model, romeo.reference_configuration)
     height = vertices[:, 2].max() - vertices[:, 2].min()
     assert 1.2 < height < 1.6  # Romeo is 1.4 m tall
+
+
+def test_icub_is_drawn_with_its_meshes_turned_where_its_links_are():
+    """iCub's visual meshes are turned by its description's mesh_rotations, as its
+    collision meshes: drawn at the reference posture it stands 1.04 m tall (as
+    loaded, with its head hanging behind the neck, the drawing was 0.86 m tall)."""
+    from cbm.robot_mesh import robot_meshes
+
+    icub = stances.Robot.load("icub")
+    vertices, _ = robot_meshes(icub).posed(icub.model, icub.reference_configuration)
+    assert vertices[:, 2].max() - vertices[:, 2].min() == pytest.approx(1.04, abs=0.01)

@@ -131,6 +131,25 @@ def test_unreachable_goal_fails_within_budget_with_a_partial_plan(scenario, robo
     assert result.stances and result.stances[0].stance == scenario.stances["start"]
 
 
+def test_a_failed_plan_on_a_grid_coarser_than_the_robots_default_names_the_robots_grid(scenario, robot):
+    """A scenario's print_spacing is chosen for its robot; for a robot whose step is
+    shorter (iCub's 0.24 m on cross-soft-block's 0.1 m grid) a step reaches few prints.
+    A failed plan on a grid coarser than a quarter of the robot's step names the
+    robot's default grid (on this one, 0.2 m, the fake robot finds no feasible
+    neighbour); a failed plan on the default grid, or one that succeeds, says nothing."""
+    oracle = SyntheticOracle(forbidden_x=(0.0, 10.0))
+    scenario.options = {"print_spacing": 0.2}  # the fake robot's step is 0.4 m: its grid is 0.1 m
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=15)
+    assert not failed.success
+    assert failed.reason.endswith(
+        "; the print grid (0.2 m) is coarser than a quarter of the 0.40 m step of this robot, so a step reaches "
+        "few prints: its default grid is print_spacing 0.1 (cbm plan --print-spacing 0.1)"
+    )
+    scenario.options = {"print_spacing": 0.1}
+    assert "print grid" not in plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=15).reason
+    assert plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle()).reason == "goal reached"
+
+
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):

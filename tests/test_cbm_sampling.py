@@ -240,13 +240,36 @@ def test_goal_hand_prints_stay_candidates_beyond_the_reach_model(surfaces):
     assert sole_prints(StanceNeighbours(sets, surfaces, REACH), held) < sole_prints(required, held)
 
 
-def test_goal_foot_prints_get_no_reach_exemption(surfaces):
+def test_a_lone_goal_foot_print_gets_no_reach_exemption(surfaces):
     sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
     far_sole = Contact("right_sole", ContactPrint("floor", 0.9, -0.1, 0.0))  # beyond a step
     sets = with_prints(sets, [far_sole], surfaces)
     neighbours = StanceNeighbours(sets, surfaces, REACH, required=[far_sole])
     moves = neighbours(feet_together().without("right_sole"))
     assert far_sole.contact_print not in {m.contact_print for _, m in moves if m.robot_surface == "right_sole"}
+
+
+def test_a_goal_foot_print_beyond_the_step_rules_is_offered_once_the_goals_other_feet_stand(surfaces):
+    """The last step into the goal's footing is offered even where the step rules
+    prune it (here a print 1.3 m ahead and 0.2 m up; on iCub, whose step height is
+    0.18 m, foot-on-block's 0.2 m block): from the left sole on its goal print, not
+    from any other print; the posture solve decides."""
+    sets = sample_prints(surfaces, ROBOT, SamplingOptions(spacing=0.1))
+    # block_top is 0.2 m up, 1.3 m ahead: beyond a step of the left sole at x = 0.
+    high_sole = Contact("right_sole", ContactPrint("block_top", 0.0, 0.0, 0.0))
+    goal = [Contact("left_sole", ContactPrint("floor", 0.0, 0.1)), high_sole]
+    sets = with_prints(sets, goal, surfaces)
+
+    def sole_prints(neighbours, stance):
+        return {m.contact_print for _, m in neighbours(stance) if m.robot_surface == "right_sole"}
+
+    on_goal = feet_together().without("right_sole")
+    elsewhere = Stance((Contact("left_sole", ContactPrint("floor", 0.1, 0.1)),))
+    pruned = StanceNeighbours(sets, surfaces, REACH)
+    required = StanceNeighbours(sets, surfaces, REACH, required=goal)
+    assert high_sole.contact_print not in sole_prints(pruned, on_goal)
+    assert sole_prints(required, on_goal) == sole_prints(pruned, on_goal) | {high_sole.contact_print}
+    assert sole_prints(required, elsewhere) == sole_prints(pruned, elsewhere)
 
 
 def _feet(*thetas_deg, surface="floor"):

@@ -214,14 +214,19 @@ def romeo():
     return Robot.load("romeo")
 
 
+@pytest.fixture(scope="module")
+def icub():
+    return Robot.load("icub")
+
+
 @pytest.mark.parametrize("scenario_name, stance_name", PALM_STANCES, ids=[f"{a}/{b}" for a, b in PALM_STANCES])
-def test_only_the_contact_geometry_comes_near_a_support(robot, romeo, scenario_name, stance_name):
+def test_only_the_contact_geometry_comes_near_a_support(robot, romeo, icub, scenario_name, stance_name):
     """In every accepted palm stance, each robot geometry but a surface's own is at
     least collision_distance from every scene object: the solver's convex hulls
     cannot hide a wrist inside the table, coal on the full meshes would see it.
     Soft objects are measured at rest (what the solver keeps clear) and deformed."""
     scenario = coarse_scenario(scenario_name)
-    robot = {"talos": robot, "romeo": romeo}[scenario.robot]
+    robot = {"talos": robot, "romeo": romeo, "icub": icub}[scenario.robot]
     stance = scenario.stance(stance_name)
     result = solve(robot, scenario.scene, stance)
     if not result.feasible:
@@ -265,6 +270,31 @@ def test_romeo_palm_is_a_plate_in_place_of_the_fingers_just_past_the_palm_mesh(r
         float(mass.get("value")) for mass in ElementTree.parse(description.urdf).getroot().iter("mass")
     )
     assert romeo.mass == pytest.approx(urdf_mass, abs=1e-9)
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_icub_palm_is_the_flat_face_of_its_hand_box_without_a_plate(icub, side):
+    """iCub's hand is a box with a flat palm face: the surface is that face, on the
+    side of the URDF's palm frame, and the box is its contact geometry; no plate,
+    so iCub keeps its URDF mass."""
+    palm = f"{side}_palm"
+    surface = icub.surface(palm)
+    assert (surface.role, surface.limb) == ("hand", f"{side}_arm")
+    assert surface.contact_geometries == (f"{side[0]}_hand_0",)
+    names = [geometry.name for geometry in icub.collision_model.geometryObjects]
+    assert not [name for name in names if name.endswith("_plate")]
+    # The whole hand box lies behind the contact plane, its palm face on it.
+    assert _distance_to_half_space_below(icub, f"{side[0]}_hand_0", surface.frame) == pytest.approx(0.0, abs=1e-6)
+    model = icub.model
+    frame = model.frames[icub.frame_id(surface.frame)]
+    dh = model.frames[model.getFrameId(f"{side[0]}_hand_dh_frame")]
+    assert frame.parentJoint == dh.parentJoint
+    # The URDF's palm frame lies 3.9 mm beyond the face, on its outer side.
+    assert (frame.placement.inverse() * dh.placement).translation[2] == pytest.approx(-0.0039, abs=1e-4)
+    urdf_mass = sum(
+        float(mass.get("value")) for mass in ElementTree.parse(read_description("icub").urdf).getroot().iter("mass")
+    )
+    assert icub.mass == pytest.approx(urdf_mass, abs=1e-9)
 
 
 def test_clearance_helper_measures_a_mesh_object_like_its_box(robot):

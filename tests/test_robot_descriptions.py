@@ -21,12 +21,17 @@ from cbm.planner import plan
 from cbm.reach import ReachModel
 from cbm.sampling import obstacle_boxes, options_from_scenario, sample_prints
 
-BUILTIN = ["talos", "romeo"]
+BUILTIN = ["talos", "romeo", "icub"]
 
 
 @pytest.fixture(scope="module")
 def romeo():
     return Robot.load("romeo")
+
+
+@pytest.fixture(scope="module")
+def icub():
+    return Robot.load("icub")
 
 
 @pytest.fixture(scope="module")
@@ -44,8 +49,8 @@ def feet_only_romeo(feet_only_romeo_file):
 
 
 @pytest.mark.parametrize("name", BUILTIN)
-def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo):
-    loaded = {"talos": robot, "romeo": romeo}[name]
+def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(name, robot, romeo, icub):
+    loaded = {"talos": robot, "romeo": romeo, "icub": icub}[name]
     description = read_description(name)
     assert name in builtin_robot_names()
     assert [(s.name, s.role, s.limb) for s in loaded.surfaces.values()] == [
@@ -57,14 +62,16 @@ def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(nam
     assert loaded.nv == full.nv - len(description.locked_joints)
     # At the reference posture the feet are level and their contact frames'
     # z axes point up, into the feet (the contact-frame convention), within
-    # 0.3 degrees (Talos's half-sitting tilts its feet by 1.7 mrad).
+    # 0.3 degrees (Talos's half-sitting tilts its feet by 1.7 mrad); iCub's SRDF
+    # half-sitting pitches both soles by 3.6 degrees (0.063 rad), its posture solves level them.
+    tilt = {"icub": 0.065}.get(name, 5e-3)
     data = loaded.model.createData()
     pin.framesForwardKinematics(loaded.model, data, loaded.reference_configuration)
     feet = [data.oMf[loaded.frame_id(loaded.surfaces[f].frame)] for f in loaded.surfaces_with_role("foot")]
     assert len(feet) == 2
     assert abs(feet[0].translation[2] - feet[1].translation[2]) < 1e-3
     for foot in feet:
-        np.testing.assert_allclose(foot.rotation[:, 2], [0.0, 0.0, 1.0], atol=5e-3)
+        np.testing.assert_allclose(foot.rotation[:, 2], [0.0, 0.0, 1.0], atol=tilt)
     # Each limb's root joint is above its surfaces in the kinematic tree.
     for surface in loaded.surfaces.values():
         joint = loaded.model.frames[loaded.frame_id(surface.frame)].parentJoint
@@ -94,6 +101,109 @@ def test_romeo_stands_on_the_floor_with_a_verified_posture(romeo):
     # Both feet carry Romeo's weight (40.5 kg).
     vertical = sum(f.force[2] for f in result.point_forces)
     assert vertical == pytest.approx(romeo.mass * 9.81, rel=1e-6)
+
+
+def _world_vertices(robot, q, geometry_name):
+    """(n, 3) world vertices of a collision mesh at configuration ``q``."""
+    model, data = robot.model, robot.model.createData()
+    pin.forwardKinematics(model, data, q)
+    geometry = robot.collision_model.geometryObjects[robot.collision_model.getGeometryId(geometry_name)]
+    placement = data.oMi[geometry.parentJoint] * geometry.placement
+    return np.asarray(geometry.geometry.vertices()) @ placement.rotation.T + placement.translation
+
+
+def test_icub_meshes_lie_where_its_kinematics_puts_its_links(icub):
+    """example-robot-data's iCub meshes come out of the loader a quarter turn about
+    their x axis; icub.yaml's mesh_rotations turn them back: each limb segment's
+    mesh holds the joints its link joins, the foot's bottom face lies on the sole
+    plane and runs along the sole's x (as loaded it ran sideways), and the hands,
+    left as loaded, are boxes thin along the wrist yaw axis."""
+    q = icub.reference_configuration
+    data = icub.model.createData()
+    pin.framesForwardKinematics(icub.model, data, q)
+
+    def joint(name):
+        return data.oMi[icub.model.getJointId(name)].translation
+
+    for side in "lr":
+        for mesh, ends in ((f"{side}_upper_leg_0", ("hip_yaw", "knee")), (f"{side}_lower_leg_0", ("knee", "ankle_pitch")),
+                           (f"{side}_upper_arm_0", ("shoulder_yaw", "elbow")),
+                           (f"{side}_forearm_0", ("wrist_prosup", "wrist_pitch"))):
+            points = _world_vertices(icub, q, mesh)
+            for end in ends:
+                assert np.all(points.min(axis=0) - 1e-3 <= joint(f"{side}_{end}")), (mesh, end)
+                assert np.all(joint(f"{side}_{end}") <= points.max(axis=0) + 1e-3), (mesh, end)
+        sole = data.oMf[icub.frame_id(f"{side}_sole")]
+        foot = (_world_vertices(icub, q, f"{side}_foot_0") - sole.translation) @ sole.rotation
+        assert foot[:, 2].min() == pytest.approx(0.0, abs=1e-4)
+        bottom = foot[foot[:, 2] < 1e-4]
+        assert np.ptp(bottom[:, 0]) > 0.15 and np.ptp(bottom[:, 1]) < 0.065  # 15.6 cm long, 6.1 cm wide
+        hand = data.oMi[icub.model.getJointId(f"{side}_wrist_yaw")]
+        box = (_world_vertices(icub, q, f"{side}_hand_0") - hand.translation) @ hand.rotation
+        np.testing.assert_allclose(np.ptp(box, axis=0), [0.069, 0.065, 0.0243], atol=1e-3)
+
+
+def test_icub_stands_on_the_floor_with_a_verified_posture(icub):
+    scenario = environments.load_string(
+        textwrap.dedent(
+            """
+            robot: icub
+            objects: [{name: floor, type: floor}]
+            stances:
+              stand:
+                left_sole: {surface: floor, x: 0.0, y: 0.105}
+                right_sole: {surface: floor, x: 0.0, y: -0.105}
+            """
+        )
+    )
+    result = stances.solve(icub, scenario.scene, scenario.stance("stand"))
+    assert result.feasible, result.reason
+    assert stances.verify(icub, scenario.scene, result.stance, result).ok
+    # Both feet carry iCub's weight (28.3 kg).
+    vertical = sum(f.force[2] for f in result.point_forces)
+    assert vertical == pytest.approx(icub.mass * 9.81, rel=1e-6)
+
+
+def test_icub_steps_onto_foot_on_blocks_block_beyond_its_step_height(icub):
+    """foot-on-block's 0.2 m block is past iCub's step height by the reach model
+    (0.37 x 0.48 m legs = 0.18 m) but iCub holds the goal stance: the planner offers
+    the goal's last step and the posture solve accepts it."""
+    reach = ReachModel.of(icub)
+    assert reach.limits.step_height * reach.limbs["right_leg"].length < 0.2
+    result = plan("foot-on-block", robot=icub, max_expansions=10, print_spacing=0.1)  # a coarse grid: quicker
+    assert result.success, result.reason
+    assert [planned.move for planned in result.stances][1:] == [
+        "lift right_sole", "place right_sole on block_top at x -0.020 m, y 0.020 m, theta 0 deg in block_top's frame",
+    ]
+
+
+def test_a_pair_nearer_than_the_solver_keeps_at_the_reference_is_not_checked(icub, tmp_path):
+    """iCub's pelvis and left hip-pitch disc hulls are 0.6 mm apart at the reference
+    posture and at any hip pitch (the disc turns about its own axis): under the 5 mm
+    the solver keeps, so that pair would fail every stance. Loading leaves such pairs
+    unchecked, as those already touching; checked_pairs keeps one checked."""
+    from stances.collision import KEPT_DISTANCE, CollisionChecker
+
+    pair = ("root_link_0", "l_hip_1_0")
+    data = {**yaml.safe_load((BUILTIN_DIRECTORY / "icub.yaml").read_text()), "checked_pairs": [list(pair)]}
+    checked = Robot.load(_write(tmp_path / "icub.yaml", data))
+    checker = CollisionChecker(checked, [], margin=KEPT_DISTANCE)
+
+    def distance(q):
+        pinocchio_data = checked.model.createData()
+        pin.forwardKinematics(checked.model, pinocchio_data, q)
+        (measured,) = [
+            p.distance for p in checker.pairs(checked.model, pinocchio_data) if {p.name_a, p.name_b} == set(pair)
+        ]
+        return measured
+
+    q = np.array(icub.reference_configuration)
+    assert 0.0 < distance(q) < KEPT_DISTANCE
+    q[icub.model.idx_qs[icub.model.getJointId("l_hip_pitch")]] += 0.5
+    assert 0.0 < distance(q) < KEPT_DISTANCE
+    assert pair in icub.ignored_pairs and pair not in checked.ignored_pairs
+    names = [g.name for g in icub.collision_model.geometryObjects]
+    assert frozenset(pair) not in {frozenset((names[p.first], names[p.second])) for p in icub.collision_model.collisionPairs}
 
 
 def _talos_data():
@@ -200,6 +310,23 @@ BAD_DESCRIPTIONS = {
         lambda d: d.update(ignored_pairs=[["no_such_geometry", "base_link_0"]]),
         "unknown collision geometry 'no_such_geometry'; known collision geometrys: ",
     ),
+    "mesh rotation of an unknown link": (
+        lambda d: d.update(mesh_rotations=[{"links": ["no_such_link"], "rpy_deg": [90, 0, 0]}]),
+        "mesh_rotations: unknown link 'no_such_link'; known links: ",
+    ),
+    "mesh rotation of a link without a mesh": (
+        lambda d: d.update(mesh_rotations=[{"links": ["left_sole_link"], "rpy_deg": [90, 0, 0]}]),
+        "mesh_rotations: link 'left_sole_link' has no collision mesh to turn; links with meshes: arm_left_1_link,",
+    ),
+    "mesh rotation of two angles": (
+        lambda d: d.update(mesh_rotations=[{"links": ["base_link"], "rpy_deg": [90, 0]}]),
+        "mesh_rotations[0].rpy_deg: must be a list of 3 numbers, got a list of 2",
+    ),
+    "link turned twice": (
+        lambda d: d.update(mesh_rotations=[{"links": ["base_link"], "rpy_deg": [90, 0, 0]},
+                                           {"links": ["base_link"], "rpy_deg": [0, 90, 0]}]),
+        "mesh_rotations: link 'base_link' is listed twice; give each link one rotation",
+    ),
     "unknown key": (
         lambda d: d["surfaces"]["left_sole"].update(colour="red"),
         "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, point, plate, geometries",
@@ -219,7 +346,9 @@ def test_a_bad_description_file_gets_an_error_naming_the_file_and_the_fault(tmp_
 
 
 def test_an_unknown_robot_name_lists_the_builtin_robots():
-    with pytest.raises(RobotNotFound, match=re.escape("unknown robot 'tals' (not a built-in robot); built-in robots: anymal, romeo, talos")):
+    with pytest.raises(RobotNotFound, match=re.escape(
+        "unknown robot 'tals' (not a built-in robot); built-in robots: anymal, icub, romeo, talos"
+    )):
         Robot.load("tals")
 
 
@@ -425,6 +554,26 @@ def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_
     assert frozenset(("base_link_0", "FL_UPPER_LEG_0")) in {
         frozenset((names[p.first], names[p.second])) for p in kept.collision_model.collisionPairs
     }
+
+
+def test_mesh_rotations_turn_a_links_collision_meshes_in_their_own_frame(tmp_path, robot):
+    """A description's mesh_rotations multiply the placement of each mesh of the
+    links it lists by the rotation, on the right (in the mesh's own frame, before
+    the URDF's origin); the other links' meshes stay where the URDF puts them. (The
+    visual model the pictures draw gets the same rotations: tests/test_cbm_output.py
+    draws iCub.)"""
+    data = _talos_data()
+    data["mesh_rotations"] = [{"links": ["leg_left_6_link", "base_link"], "rpy_deg": [90, 0, 30]}]
+    turned = Robot.load(_write(tmp_path / "talos.yaml", data))
+    rotation = pin.rpy.rpyToMatrix(np.radians(90), 0.0, np.radians(30))
+    assert turned.mesh_rotations == read_description(tmp_path / "talos.yaml").mesh_rotations
+    for plain, moved in zip(robot.collision_model.geometryObjects, turned.collision_model.geometryObjects):
+        assert moved.name == plain.name
+        expected = plain.placement.rotation @ rotation if plain.name in ("leg_left_6_link_0", "base_link_0") else (
+            plain.placement.rotation
+        )
+        np.testing.assert_allclose(moved.placement.rotation, expected, atol=1e-12)
+        np.testing.assert_allclose(moved.placement.translation, plain.placement.translation, atol=1e-12)
 
 
 def test_ignored_pairs_are_not_checked(tmp_path):

@@ -24,6 +24,7 @@ EXPECTED = {
     "foot-and-hand-on-foam",
     "quadruped-walk",
     "romeo-hand-on-soft-cube",
+    "icub-hand-on-soft-cube",
 }
 
 

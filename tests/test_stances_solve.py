@@ -27,6 +27,7 @@ DEFORMABLE = [
     ("foot-and-hand-on-foam", "foot-and-hand"),  # a sole and a palm on one soft body
     ("hand-on-coarse-cube", "hand-on-cube"),  # the paper's coarse mesh: a print of 4 nodes
     ("romeo-hand-on-soft-cube", "hand-on-soft-cube"),  # the second humanoid, its palm plate
+    ("icub-hand-on-soft-cube", "hand-on-soft-cube"),  # the third, its bare palm face at the cube's edge
 ]
 
 
@@ -104,8 +105,8 @@ def test_deformable_scenario_solves_and_verifies(deformable_robots, deformable_r
         assert np.abs(field).max() < 1e-9 + 1e-5 * max(load, 0.0)
     if scenario_name == "step-on-cube":
         assert load > 100.0  # a sole on the cube carries part of the weight
-    if scenario_name == "romeo-hand-on-soft-cube":
-        assert load > 1.0  # Romeo's palm plate leans on the cube, not only touches it
+    if scenario_name in ("romeo-hand-on-soft-cube", "icub-hand-on-soft-cube"):
+        assert load > 1.0  # the palm leans on the cube, not only touches it
     if scenario_name == "foot-and-hand-on-foam":
         # Both links press the one body, each a real support.
         for surface in ("right_sole", "right_palm"):
