@@ -16,7 +16,7 @@ import numpy as np
 from .errors import PrintError
 from .mesh import TetMesh
 
-__all__ = ["coverage_reach", "nodes_in_polygon", "print_coverage"]
+__all__ = ["clip_polygon", "coverage_reach", "nodes_in_polygon", "print_coverage"]
 
 # The prints met most recently on each mesh, by polygon: a planner asks for the same
 # print in every stance that keeps it, and a solve in each of its stages.
@@ -252,15 +252,37 @@ def _polygon_area(polygons: np.ndarray) -> np.ndarray:
 
 def _clipped_area(subject: list, corners: list) -> float:
     """Area of the part of a convex polygon (m points) inside a convex counter-clockwise
-    polygon (k points): Sutherland-Hodgman clipping, then the shoelace formula.
+    polygon (k points): :func:`clip_polygon`, then the shoelace formula."""
+    points = clip_polygon(subject, corners)
+    if len(points) < 3:
+        return 0.0
+    return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]))
+
+
+def clip_polygon(subject, corners) -> list:
+    """The part of a polygon inside a convex counter-clockwise one (Sutherland-Hodgman).
 
     On Python floats: the polygons have a handful of vertices, where numpy's
     per-call overhead would dominate.
+
+    Parameters
+    ----------
+    subject : (m, 2) float
+        The polygon clipped, in order.
+    corners : (k, 2) float
+        Convex, counter-clockwise: the clipping polygon, same frame.
+
+    Returns
+    -------
+    list of (x, y)
+        The clipped polygon's vertices, in ``subject``'s order; fewer than three
+        when the polygons do not overlap with an area.
     """
     points = [(float(x), float(y)) for x, y in subject]
+    corners = [(float(x), float(y)) for x, y in corners]
     for (ax, ay), (bx, by) in zip(corners, corners[1:] + corners[:1]):
         if not points:
-            return 0.0
+            return []
         ex, ey = bx - ax, by - ay
         kept = []
         px, py = points[-1]
@@ -277,9 +299,7 @@ def _clipped_area(subject: list, corners: list) -> float:
                 kept.append((px + (cx - px) * t, py + (cy - py) * t))
             px, py, s_previous = cx, cy, s_current
         points = kept
-    if len(points) < 3:
-        return 0.0
-    return 0.5 * sum(x0 * y1 - x1 * y0 for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]))
+    return points
 
 
 def _cross(u: np.ndarray, w: np.ndarray) -> np.ndarray:

@@ -36,8 +36,12 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from fem.prints import clip_polygon
+
 from .blocks import PLACEMENT_ACCURACY, equality
 from .errors import StanceError
+
+_SAME_POINT = 1e-9  # metres: clipped vertices closer than this are one
 from .statics import PointLoads, points_in_world
 
 
@@ -92,12 +96,18 @@ class RigidContact:
         Friction coefficient of the environment surface.
     label : str
         Readable name used in constraint labels, e.g. ``"right_palm on table_top"``.
+    support : (m, 2) float, optional
+        The environment surface's polygon in the print frame (convex,
+        counter-clockwise), metres. The forces then act at the vertices of the
+        part of the robot's polygon that lies on it: a sole or palm hanging over
+        an edge is held by the part over the support only. Verify checks that
+        every force acts on it.
     """
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, support=None):
         surface = robot.surface(robot_surface)
         self.robot_surface = robot_surface
         self.label = label
@@ -105,7 +115,10 @@ class RigidContact:
         frame = robot.model.frames[self.frame_id]
         self.print_placement = pin.SE3(np.asarray(transform_print_to_world, dtype=float))
         self.friction = float(friction)
+        self.support = None if support is None else np.array(support, dtype=float)
         vertices = self._points_in_frame(surface)
+        if self.support is not None and not surface.is_point:
+            vertices = supported_vertices(vertices, self.support, label)
         self.loads = PointLoads(
             np.full(len(vertices), frame.parentJoint),
             np.array([frame.placement.act(v) for v in vertices]),
@@ -198,8 +211,15 @@ class RigidContact:
         expected = points_in_world(data, self.loads)
         if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
             reasons.append(f"forces of {self.label} are not applied at {self.application}")
-        # ... and lie in the exact Coulomb cone of the print.
+        # ... on the environment's surface, not past its edge ...
         rotation_print = self.print_placement.rotation
+        if self.support is not None and len(points):
+            in_print = (points - self.print_placement.translation) @ rotation_print
+            beyond = -edge_distances(self.support, in_print[:, :2]).min(axis=1)
+            measures[f"support overhang of {self.label}"] = float(max(beyond.max(), 0.0))
+            if beyond.max() > tolerances.placement:
+                reasons.append(f"a force of {self.label} acts {beyond.max():.3g} m past the edge of its surface")
+        # ... and lie in the exact Coulomb cone of the print.
         local = forces @ rotation_print
         normal = local[:, 2]
         tangential = np.linalg.norm(local[:, :2], axis=1)
@@ -217,6 +237,56 @@ class RigidContact:
         if max(translation, rotation) > tolerances.placement:
             return [f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"]
         return []
+
+
+def edge_distances(polygon, points) -> np.ndarray:
+    """(n, k) signed distances of points to the edge lines of a convex counter-clockwise
+    polygon, metres, positive inside."""
+    polygon = np.asarray(polygon, dtype=float)
+    points = np.atleast_2d(np.asarray(points, dtype=float))
+    edges = np.roll(polygon, -1, axis=0) - polygon
+    relative = points[:, None, :] - polygon[None, :, :]
+    cross = edges[None, :, 0] * relative[..., 1] - edges[None, :, 1] * relative[..., 0]
+    return cross / np.linalg.norm(edges, axis=1)
+
+
+def supported_vertices(vertices, support, label: str) -> np.ndarray:
+    """The vertices of the part of a robot contact polygon that lies on its support.
+
+    Parameters
+    ----------
+    vertices : (k, 3) float
+        The robot polygon's vertices, contact frame (z = 0).
+    support : (m, 2) float
+        The environment surface's polygon in the print frame, convex and
+        counter-clockwise; the contact frame is the print frame where the
+        placement holds.
+    label : str
+        For the message.
+
+    Returns
+    -------
+    (j, 3) float
+        The clipped polygon's vertices (z = 0), repeated vertices merged: the
+        robot polygon itself when it lies on the support.
+
+    Raises
+    ------
+    StanceError
+        If the polygons overlap in less than a triangle.
+    """
+    if edge_distances(support, vertices[:, :2]).min() >= 0.0:
+        return vertices
+    clipped = []
+    for point in clip_polygon(vertices[:, :2], support):
+        if not clipped or np.hypot(point[0] - clipped[-1][0], point[1] - clipped[-1][1]) > _SAME_POINT:
+            clipped.append(point)
+    if len(clipped) > 1 and np.hypot(clipped[0][0] - clipped[-1][0], clipped[0][1] - clipped[-1][1]) <= _SAME_POINT:
+        clipped.pop()
+    if len(clipped) < 3:
+        raise StanceError(f"{label}: the robot's polygon and the surface overlap in less than a triangle; "
+                          "move the print onto the surface")
+    return np.column_stack([np.array(clipped), np.zeros(len(clipped))])
 
 
 def point_placement_residual(model, data, frame_id: int, transform_print_to_world: pin.SE3, radius: float):
@@ -265,12 +335,12 @@ class PointContact(RigidContact):
 
     application = "its ball's centre"
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, support=None):
         surface = robot.surface(robot_surface)
         if not surface.is_point:
             raise StanceError(f"robot surface {robot_surface!r} is a polygon, not a point foot: use RigidContact")
         self.radius = float(surface.radius)
-        super().__init__(robot, robot_surface, transform_print_to_world, friction, label)
+        super().__init__(robot, robot_surface, transform_print_to_world, friction, label, support)
 
     @staticmethod
     def _points_in_frame(surface) -> np.ndarray:
