@@ -481,11 +481,16 @@ def _check(args):
         return EXIT_BAD_INPUT
     robot = _load_robot(args, scenario)
     stance = scenario.stances[args.stance]
-    if args.refine is not None and not any(scenario.scene.surfaces[c.contact_print.surface].deformable
-                                           for c in stance.contacts):
-        print(f"cbm check: error: --refine: stance {args.stance!r} has no print on a soft surface: nothing to refine",
-              file=sys.stderr)
-        return EXIT_BAD_INPUT
+    fine = None
+    if args.refine is not None:
+        # Before the solve, which may take seconds: what cannot be refined says so at once.
+        if not any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in stance.contacts):
+            print(f"cbm check: error: --refine: stance {args.stance!r} has no print on a soft surface: nothing to "
+                  "refine", file=sys.stderr)
+            return EXIT_BAD_INPUT
+        fine = _refined_scenario(scenario, args.refine)
+        if fine is None:
+            return EXIT_BAD_INPUT
     check = PostureOracle(robot, scenario.scene)(stance)
     result = check.result
     if result is None:
@@ -498,13 +503,13 @@ def _check(args):
         from .report import stance_report
 
         print("\n".join(stance_report(result, robot, stance)))
-    if check.feasible and args.refine is not None:
-        refined = _refined_check(robot, scenario, result, args.refine)
-        if refined is None:
-            return EXIT_BAD_INPUT
+    held = True
+    if check.feasible and fine is not None:
+        from stances import check_refined
+
+        refined = check_refined(robot, scenario, result, args.refine, refined=fine)
         print("\n".join(refined.lines()))
-        if not refined.ok:
-            return EXIT_FAILED
+        held = refined.ok
     if args.out is not None:
         path = _check_picture(scenario, robot, stance, result, args)
         print(f"  picture written to {path}")
@@ -513,17 +518,16 @@ def _check(args):
 
         planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result, args.stance)
         Plan(check.feasible, verdict, (planned,), PlanStatistics(), scenario.name).show(scenario, robot)
-    return EXIT_OK if check.feasible else EXIT_FAILED
+    return EXIT_OK if check.feasible and held else EXIT_FAILED
 
 
-def _refined_check(robot, scenario, result, factor):
-    """``stances.check_refined`` of a feasible answer, or None after saying why it cannot be done."""
-    from environments import SceneError
-    from stances import StanceError, check_refined
+def _refined_scenario(scenario, factor):
+    """``environments.refined(scenario, factor)``, or None after saying why it cannot be made."""
+    from environments import SceneError, refined
 
     try:
-        return check_refined(robot, scenario, result, factor)
-    except (SceneError, StanceError) as error:
+        return refined(scenario, factor)
+    except SceneError as error:
         print(f"cbm check: error: --refine: {error}", file=sys.stderr)
         return None
 
@@ -548,20 +552,22 @@ def _check_plan_refined(plan, factor):
     """Each stance of a plan with a soft print solved again on its soft meshes ``factor`` times finer."""
     from dataclasses import replace
 
-    from environments import SceneError, refined
     from stances import Robot, check_refined
 
     scenario = plan.scenario()
-    robot = Robot.load(plan.robot.get("source") or scenario.robot)
-    try:
-        fine = refined(scenario, factor)
-    except SceneError as error:
-        print(f"cbm check: error: --refine: {error}", file=sys.stderr)
+    soft = [index for index, planned in enumerate(plan.stances)
+            if any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in planned.stance.contacts)]
+    if not soft:
+        print("cbm check: error: --refine: no stance of the plan has a print on a soft surface: nothing to refine",
+              file=sys.stderr)
         return EXIT_BAD_INPUT
+    fine = _refined_scenario(scenario, factor)
+    if fine is None:
+        return EXIT_BAD_INPUT
+    robot = Robot.load(plan.robot.get("source") or scenario.robot)
     held = True
-    for index, planned in enumerate(plan.stances):
-        if not any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in planned.stance.contacts):
-            continue
+    for index in soft:
+        planned = plan.stances[index]
         # What the plan shows is what is checked (as Plan.check does).
         shown = replace(planned.result, q=planned.q, point_forces=planned.point_forces)
         check = check_refined(robot, scenario, shown, factor, refined=fine)

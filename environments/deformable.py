@@ -150,12 +150,13 @@ class DeformableObject:
                 f"got {self.strain_limit!r}"
             )
         if isinstance(self.strain_radius, bool) or not (
-            isinstance(self.strain_radius, (int, float)) and 0.0 <= self.strain_radius < np.inf
+            isinstance(self.strain_radius, (int, float, np.floating)) and 0.0 <= self.strain_radius < np.inf
         ):
             raise SceneError(
                 f"object {self.name!r}: strain_radius must be >= 0 metres (0: each tet's own strain), "
                 f"got {self.strain_radius!r}"
             )
+        object.__setattr__(self, "strain_radius", float(self.strain_radius))
 
     @property
     def deformable(self) -> bool:

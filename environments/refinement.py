@@ -15,7 +15,7 @@ from pathlib import Path
 import yaml
 
 from .deformable import RESOLUTIONS
-from .errors import SceneError
+from .errors import ScenarioError, SceneError
 from .scenario import Scenario, load_string
 from .soft_mesh import TET_MESH_SUFFIXES
 
@@ -67,7 +67,12 @@ def refined(scenario: Scenario, factor: int = 2) -> Scenario:
     for item in soft:
         _refine_object(item, factor)
     text = yaml.safe_dump(data, sort_keys=False)
-    return load_string(text, path=scenario.path, name=scenario.name)
+    try:
+        return load_string(text, path=scenario.path, name=scenario.name)
+    except ScenarioError as error:
+        # Its line is one of the rewritten text, not of the user's file.
+        raise SceneError(f"scenario {scenario.name!r} refined {factor}x: {error.key}: {error.message}; "
+                         "use a smaller factor") from None
 
 
 def _refine_object(item: dict, factor: int) -> None:

@@ -123,7 +123,7 @@ class ContactPatch:
         local = np.full(mesh.n_nodes, -1, dtype=np.int64)
         local[ids] = np.arange(ids.size)
         self._local = local
-        self._tet_maps = {}  # body tet id -> (12, 3p) map of its nodes (_tet_nodes_map)
+        self._tet_maps = {}  # (radius, tet in the strain set) -> (12, 3p) map of its nodes (_member_map)
         self._strain_sets = {}  # radius -> what neighbour_strains needs (_strain_set)
         # eqs. (38)-(39): surface triangles whose three nodes are all in P.
         inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
@@ -294,33 +294,44 @@ class ContactPatch:
             return block[at]
         return self._body.compliance_block(nodes, self._ids).reshape(nodes.size, 3, -1)
 
+    def strain_centres(self, radius: float = 0.0) -> np.ndarray:
+        """(C,) ids of the tets whose ball means of radius ``radius`` the strain rows
+        read: the :attr:`neighbour_tets` and every tet whose centroid lies within
+        twice ``radius`` of one of theirs; ``neighbour_tets`` at radius 0. The largest
+        mean under a sole can sit below the tets touching it: on step-on-cube with a
+        0.3 % bound, 3.5 cm under the top, which centres within one radius missed (the
+        answer then failed verify, which looks at every tet)."""
+        return self._strain_set(radius)[0]
+
     def _strain_set(self, radius: float):
-        """What the strains of :attr:`neighbour_tets`, averaged over balls of ``radius``,
-        are computed from, without the (3q, 3p) map of the q nodes (a 30 ms product on
-        a sole pair, more than a planner's whole use of it): the tets in the balls
-        (E,), the (T', E) averaging weights, (q, 3, 3p) rows of ``C[:, P]`` at their
-        nodes, (E, 4) each tet's nodes as rows of them, (E, 6, 12) the tets' strain
-        matrices, (q,) each node's index in the print (-1 outside it) and (q,) which
-        nodes are fixed. Kept per radius."""
+        """What the ball means of :meth:`strain_centres` are computed from, without the
+        (3q, 3p) map of the q nodes (a 30 ms product on a sole pair, more than a
+        planner's whole use of it): the centres (C,), the tets in their balls (E,), the
+        (C, E) averaging weights, (q, 3, 3p) rows of ``C[:, P]`` at the balls' nodes, (E,
+        4) each tet's nodes as rows of them, (E, 6, 12) the tets' strain matrices, (q,)
+        each node's index in the print (-1 outside it) and (q,) which nodes are fixed.
+        Kept per radius."""
         key = float(radius)
         known = self._strain_sets.get(key)
         if known is None:
             body = self._body
-            members, weights = body.strain_averages.weights(self.neighbour_tets, key)
+            centres = body.strain_averages.near(self.neighbour_tets, 2.0 * key)
+            members, weights = body.strain_averages.weights(centres, key)
             nodes, rows = np.unique(body.mesh.tets[members], return_inverse=True)
-            known = (members, weights, self._columns_at(nodes), rows.reshape(members.size, 4),
+            known = (centres, members, weights, self._columns_at(nodes), rows.reshape(members.size, 4),
                      self._strain_matrices(members), self._local[nodes], body.fixed_mask[nodes])
             self._strain_sets[key] = known
         return known
 
     def neighbour_strains(self, displacements, radius: float = 0.0) -> np.ndarray:
-        """Voigt strains of the :attr:`neighbour_tets` under print displacements (eq. 24),
+        """Voigt strains at the :meth:`strain_centres` under print displacements (eq. 24),
         each averaged over a ball of ``radius`` (:class:`fem.strain_average.BallAverages`).
 
-        With ``radius`` 0, equal to ``strain_map @ U_P.ravel()``, through the tets'
-        nodes: the nodes move by ``C[:, P] S_P U_P`` (eq. 36; exactly U_P at the print
-        nodes, 0 at fixed ones), the force ``S_P U_P`` computed first, so that no
-        (3q, 3p) map is formed (it runs at every evaluation of a soft stance).
+        With ``radius`` 0, those of the :attr:`neighbour_tets`, equal to ``strain_map @
+        U_P.ravel()``. Computed through the tets' nodes: the nodes move by ``C[:, P] S_P
+        U_P`` (eq. 36; exactly U_P at the print nodes, 0 at fixed ones), the force ``S_P
+        U_P`` computed first, so that no (3q, 3p) map is formed (it runs at every
+        evaluation of a soft stance).
 
         Parameters
         ----------
@@ -331,10 +342,10 @@ class ContactPatch:
 
         Returns
         -------
-        (T', 6) float
+        (C, 6) float
             Voigt strains (engineering shears), dimensionless.
         """
-        _, weights, block, rows, b, in_print, fixed = self._strain_set(radius)
+        _, _, weights, block, rows, b, in_print, fixed = self._strain_set(radius)
         u = np.asarray(displacements, dtype=float)
         nodal = block.reshape(-1, block.shape[2]) @ (self.condensed_stiffness @ u)
         nodal = nodal.reshape(-1, 3)
@@ -344,16 +355,17 @@ class ContactPatch:
         return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
 
     def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0) -> np.ndarray:
-        """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of one
-        neighbour tet's Voigt strains (averaged over a ball of ``radius``) per unit
-        print displacement.
+        """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of the
+        Voigt strains at one of the :meth:`strain_centres` (averaged over a ball of
+        ``radius``) per unit print displacement.
 
         Parameters
         ----------
         weights : (6,) float
-            Weights of the tet's Voigt strains (e.g. a principal strain's derivative).
+            Weights of the Voigt strains (e.g. a principal strain's derivative).
         tet : int
-            Position of the tet in :attr:`neighbour_tets`.
+            Position of the centre in :meth:`strain_centres` (at radius 0, in
+            :attr:`neighbour_tets`).
         radius : float, optional
             As :meth:`neighbour_strains`.
 
@@ -361,22 +373,32 @@ class ContactPatch:
         -------
         (3p,) float, 1/m
         """
-        members, averaging, _, _, b, _, _ = self._strain_set(radius)
+        _, _, averaging, _, _, b, _, _ = self._strain_set(radius)
         weights = np.asarray(weights, dtype=float)
         start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
         row = np.zeros(3 * self._ids.size)
         for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
-            row += share * ((weights @ b[k]) @ self._tet_nodes_map(int(members[k])))
+            row += share * ((weights @ b[k]) @ self._member_map(float(radius), int(k)))
         return row
 
-    def _tet_nodes_map(self, tet: int) -> np.ndarray:
-        """(12, 3p) displacements of one tet's nodes (a body tet id) per unit print
-        displacement (eq. 36), kept: a solve's strain rows come back to the same few tets."""
-        known = self._tet_maps.get(tet)
+    def _member_map(self, radius: float, k: int) -> np.ndarray:
+        """(12, 3p) displacements of the nodes of tet ``k`` of a strain set (its
+        position there) per unit print displacement (eq. 36), from the set's rows of
+        ``C[:, P]``; kept: a solve's strain rows come back to the same few tets."""
+        known = self._tet_maps.get((radius, k))
         if known is None:
-            known = self._tet_displacement_map(np.array([tet]))[0]
+            _, _, _, block, rows, _, in_print, fixed = self._strain_set(radius)
+            nodes = rows[k]
+            g = block[nodes] @ self.condensed_stiffness  # (4, 3, 3p)
+            for corner, node in enumerate(nodes):
+                if fixed[node]:
+                    g[corner] = 0.0
+                elif in_print[node] >= 0:  # exact identity rows at the print nodes
+                    g[corner] = 0.0
+                    g[corner, np.arange(3), 3 * in_print[node] + np.arange(3)] = 1.0
+            known = g.reshape(12, -1)
             known.setflags(write=False)
-            self._tet_maps[tet] = known
+            self._tet_maps[(radius, k)] = known
         return known
 
     def _node_displacement_map(self, tet_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -76,6 +76,16 @@ class BallAverages:
         data = data / np.repeat(totals, counts)
         return members, sp.csr_matrix((data, columns.ravel(), indptr), shape=(centres.size, members.size))
 
+    def near(self, tets, radius: float) -> np.ndarray:
+        """(n,) sorted ids of the given tets and of every tet whose centroid lies within
+        ``radius`` of one of theirs (the centres whose balls reach them)."""
+        radius = _checked_radius(radius)
+        tets = np.unique(np.asarray(tets, dtype=np.int64))
+        if radius == 0.0 or tets.size == 0:
+            return tets
+        balls = self._tree.query_ball_point(self.centroids[tets], radius, return_sorted=True)
+        return np.unique(np.concatenate([tets] + [np.asarray(ball, dtype=np.int64) for ball in balls]))
+
     def largest_principal(self, voigt, radius: float) -> tuple[float, int]:
         """The largest principal strain magnitude of the ball means over all tets, and its centre tet.
 
@@ -101,11 +111,7 @@ class BallAverages:
         members, weights = self.weights(first, radius)
         bound = _principal(weights @ voigt[members])[0]
         hot = np.flatnonzero(norms >= bound * (1.0 - 1e-12))
-        if radius == 0.0:
-            centres = hot
-        else:
-            near = self._tree.query_ball_point(self.centroids[hot], _checked_radius(radius), return_sorted=True)
-            centres = np.unique(np.concatenate([np.asarray(ball, dtype=np.int64) for ball in near]))
+        centres = self.near(hot, radius)
         members, weights = self.weights(centres, radius)
         values = _principal(weights @ voigt[members])
         best = int(np.argmax(values))

@@ -40,9 +40,9 @@ from fem.prints import clip_polygon
 
 from .blocks import PLACEMENT_ACCURACY, equality
 from .errors import StanceError
+from .statics import PointLoads, points_in_world
 
 _SAME_POINT = 1e-9  # metres: clipped vertices closer than this are one
-from .statics import PointLoads, points_in_world
 
 
 def friction_cone_generators(friction: float, n_edges: int = 4) -> np.ndarray:
@@ -96,18 +96,18 @@ class RigidContact:
         Friction coefficient of the environment surface.
     label : str
         Readable name used in constraint labels, e.g. ``"right_palm on table_top"``.
-    support : (m, 2) float, optional
-        The environment surface's polygon in the print frame (convex,
-        counter-clockwise), metres. The forces then act at the vertices of the
-        part of the robot's polygon that lies on it: a sole or palm hanging over
-        an edge is held by the part over the support only. Verify checks that
-        every force acts on it.
+    surface : environments.ContactSurface, optional
+        The environment surface the print lies on. The forces then act at the
+        vertices of the part of the robot's polygon that lies on its polygon: a
+        sole or palm hanging over an edge is held by the part over the support
+        only. Verify checks, in the surface's own frame, that every force acts on it.
     """
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, support=None):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None):
+        self.support_surface = surface
         surface = robot.surface(robot_surface)
         self.robot_surface = robot_surface
         self.label = label
@@ -115,10 +115,9 @@ class RigidContact:
         frame = robot.model.frames[self.frame_id]
         self.print_placement = pin.SE3(np.asarray(transform_print_to_world, dtype=float))
         self.friction = float(friction)
-        self.support = None if support is None else np.array(support, dtype=float)
         vertices = self._points_in_frame(surface)
-        if self.support is not None and not surface.is_point:
-            vertices = supported_vertices(vertices, self.support, label)
+        if self.support_surface is not None and not surface.is_point:
+            vertices = supported_vertices(vertices, _polygon_in_print(self.support_surface, self.print_placement), label)
         self.loads = PointLoads(
             np.full(len(vertices), frame.parentJoint),
             np.array([frame.placement.act(v) for v in vertices]),
@@ -213,9 +212,12 @@ class RigidContact:
             reasons.append(f"forces of {self.label} are not applied at {self.application}")
         # ... on the environment's surface, not past its edge ...
         rotation_print = self.print_placement.rotation
-        if self.support is not None and len(points):
-            in_print = (points - self.print_placement.translation) @ rotation_print
-            beyond = -edge_distances(self.support, in_print[:, :2]).min(axis=1)
+        if self.support_surface is not None and len(points):
+            # In the surface's own frame, not the print's: independent of how the
+            # solver placed the surface's polygon under the print.
+            to_world = self.support_surface.transform_surface_to_world
+            in_surface = (points - to_world[:3, 3]) @ to_world[:3, :3]
+            beyond = -edge_distances(self.support_surface.polygon, in_surface[:, :2]).min(axis=1)
             measures[f"support overhang of {self.label}"] = float(max(beyond.max(), 0.0))
             if beyond.max() > tolerances.placement:
                 reasons.append(f"a force of {self.label} acts {beyond.max():.3g} m past the edge of its surface")
@@ -237,6 +239,13 @@ class RigidContact:
         if max(translation, rotation) > tolerances.placement:
             return [f"{self.label} is off its print by {translation:.3g} m and {rotation:.3g} rad"]
         return []
+
+
+def _polygon_in_print(surface, print_placement: pin.SE3) -> np.ndarray:
+    """(k, 2) an environment surface's polygon in the frame of a print on it, metres."""
+    to_world = np.asarray(surface.transform_surface_to_world, dtype=float)
+    corners = np.column_stack([surface.polygon, np.zeros(len(surface.polygon))]) @ to_world[:3, :3].T + to_world[:3, 3]
+    return ((corners - print_placement.translation) @ print_placement.rotation)[:, :2]
 
 
 def edge_distances(polygon, points) -> np.ndarray:
@@ -335,12 +344,13 @@ class PointContact(RigidContact):
 
     application = "its ball's centre"
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, support=None):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None):
+        self.support_surface = surface
         surface = robot.surface(robot_surface)
         if not surface.is_point:
             raise StanceError(f"robot surface {robot_surface!r} is a polygon, not a point foot: use RigidContact")
         self.radius = float(surface.radius)
-        super().__init__(robot, robot_surface, transform_print_to_world, friction, label, support)
+        super().__init__(robot, robot_surface, transform_print_to_world, friction, label, support_surface)
 
     @staticmethod
     def _points_in_frame(surface) -> np.ndarray:

@@ -843,7 +843,7 @@ class DeformableContact:
         if candidates.size == 0:
             return None
         chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
-        tets = self.patch.neighbour_tets
+        tets = self.patch.strain_centres(self.strain_radius)
         rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
         for k, t in zip(chosen.tolist(), screened[chosen].tolist()):
             for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),

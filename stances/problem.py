@@ -567,13 +567,6 @@ class PostureProblem:
         return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian)
 
 
-def _polygon_in_print(surface, contact_print) -> np.ndarray:
-    """(k, 2) a surface's polygon in the frame of a print on it, metres."""
-    c, s = np.cos(contact_print.theta), np.sin(contact_print.theta)
-    # p_print = R(theta)^T (p - origin), as rows.
-    return (surface.polygon - [contact_print.x, contact_print.y]) @ np.array([[c, -s], [s, c]])
-
-
 def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:
     """Turn a stance into a posture problem.
 
@@ -626,8 +619,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
             deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
         else:
             model = PointContact if robot.surface(contact.robot_surface).is_point else RigidContact
-            contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label,
-                                  support=_polygon_in_print(surface, contact_print)))
+            contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
     if deformable_prints:
         contacts = [
             DeformableContact(robot, c, deformable_prints[c.name], options) if not isinstance(c, RigidContact) else c

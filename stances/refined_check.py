@@ -81,7 +81,8 @@ class RefinedCheck:
         """A few lines for a person: meshes, the answer's violation there, the re-solve."""
         meshes = ", ".join(f"{name} {coarse:,} -> {fine:,} nodes" for name, coarse, fine in self.nodes)
         out = [f"meshes refined {self.factor}x: {meshes}",
-               f"  the answer there as it is: {self.start_row} off by {self.start_violation:.3g}"]
+               f"  the answer there as it is: {self.start_row} off by {self.start_violation:.3g} (m, rad or N, "
+               "as the row)" if self.start_violation > 0 else "  the answer holds there as it is"]
         result = self.result
         if not self.ok:
             out.append(f"  re-solved there: infeasible: {result.reason}")

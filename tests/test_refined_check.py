@@ -48,6 +48,9 @@ def test_a_grid_given_box_gets_each_interval_cut_with_its_lines_kept():
         refined_lines = np.unique(fine_nodes[:, axis])
         assert refined_lines.size == 3 * (lines.size - 1) + 1
         assert set(lines.tolist()) <= set(refined_lines.tolist())  # the given lines, exactly
+        # Each interval cut in three equal parts.
+        steps = np.diff(refined_lines).reshape(-1, 3)
+        assert np.allclose(steps, steps.mean(axis=1, keepdims=True), rtol=0, atol=1e-12)
 
 
 @pytest.mark.parametrize("factor", [1, 0, 2.0, True, "2"])
@@ -62,6 +65,14 @@ def test_a_scenario_without_soft_objects_or_text_cannot_be_refined():
     in_code = environments.Scenario("made-in-code", environments.load("step-on-cube").scene)
     with pytest.raises(SceneError, match="scenario 'made-in-code' was built in code and has no YAML text to refine"):
         environments.refined(in_code)
+
+
+def test_a_refinement_over_the_node_limit_names_the_object_and_the_factor():
+    with pytest.raises(SceneError, match=re.escape(
+            "scenario 'step-on-cube' refined 40x: objects[2]: resolution 0.0005625 m would mesh this 0.3x0.3x0.3 m "
+            "soft box with about")) as raised:
+        environments.refined(environments.load("step-on-cube"), 40)
+    assert str(raised.value).endswith("; use a smaller factor")
 
 
 def test_a_tetrahedral_mesh_file_is_not_refined(tmp_path):
@@ -98,6 +109,13 @@ def test_a_soft_stance_holds_on_its_meshes_refined_with_the_posture_barely_moved
     assert 1e-7 < check.start_violation < 1e-2
     assert check.start_row.startswith("placement of ")
     assert check.result.iterations <= 5
+    # Started from the answer: no rigid and bonded warm starts.
+    assert "rigid_warm_start_iterations" not in check.result.statistics
+    # Default-mesh forces are the answer's own, refined ones the re-solve's.
+    for surface, coarse, fine in check.print_forces:
+        frame = robot.surface(surface).frame
+        assert np.array_equal(coarse, sum((np.asarray(p.force) for p in result.point_forces if p.frame == frame), np.zeros(3)))
+        assert np.array_equal(fine, sum((np.asarray(p.force) for p in check.result.point_forces if p.frame == frame), np.zeros(3)))
     assert 0.0 < check.joint_change < 5e-3
     # Both soles on the foam carry the robot on either mesh.
     for forces in ([c for _, c, _ in check.print_forces], [f for _, _, f in check.print_forces]):
@@ -132,6 +150,18 @@ def test_a_stance_not_reached_on_the_refined_meshes_is_reported_not_ok(robot, bo
     assert not check.ok and np.isnan(check.joint_change) and np.isnan(check.force_change)
     assert check.print_forces == ()
     assert "re-solved there: infeasible: " + check.result.reason in "\n".join(check.lines())
+
+
+def test_a_plan_without_soft_stances_has_nothing_to_refine(robot, capsys, tmp_path):
+    from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+
+    scenario = environments.load("stand")
+    answer = stances.solve(robot, scenario.scene, scenario.stance("stand"))
+    path = tmp_path / "plan.json"
+    Plan(False, "partial", (PlannedStance(answer.stance, answer.q, answer.point_forces, {}, answer),), PlanStatistics(),
+         scenario.name, robot=robot_description(robot), scenario_source=scenario_source(scenario)).save(path)
+    assert main(["check", str(path), "--refine", "2"]) == EXIT_BAD_INPUT
+    assert "--refine: no stance of the plan has a print on a soft surface: nothing to refine" in capsys.readouterr().err
 
 
 def test_the_command_line_says_how_the_answer_moves_on_finer_meshes(capsys, tmp_path):

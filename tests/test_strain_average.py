@@ -11,6 +11,7 @@ import pytest
 
 import environments
 import fem
+import stances
 from fem.strain_average import BallAverages
 
 from conftest import coarse_scenario
@@ -86,10 +87,13 @@ def test_a_prints_ball_mean_strains_and_their_rows_are_those_of_the_full_field(s
     patch = body.contact_patch(ids)
     rng = np.random.default_rng(5)
     displacements = rng.normal(scale=1e-3, size=(ids.size, 3))
-    members, weights = body.strain_averages.weights(patch.neighbour_tets, radius)
+    centres = patch.strain_centres(radius)
+    # The tets touching the print, and at radius > 0 those whose balls reach them.
+    assert set(patch.neighbour_tets) <= set(centres) and (centres.size > patch.neighbour_tets.size) == (radius > 0)
+    members, weights = body.strain_averages.weights(centres, radius)
     expected = weights @ body.strain(body.displacement_field(patch, displacements))[members]
     assert np.allclose(patch.neighbour_strains(displacements.ravel(), radius), expected, rtol=0, atol=1e-12)
-    for tet in rng.choice(patch.neighbour_tets.size, 3, replace=False).tolist():
+    for tet in rng.choice(centres.size, 3, replace=False).tolist():
         mix = rng.normal(size=6)
         row = patch.neighbour_strain_row(mix, tet, radius)
         columns = np.eye(3 * ids.size)
@@ -126,3 +130,32 @@ def test_a_scenario_sets_an_objects_strain_radius_and_refuses_a_negative_one():
     with pytest.raises(environments.SceneError, match=re.escape(
             "object 'cube': strain_radius must be >= 0 metres (0: each tet's own strain), got -1")):
         environments.DeformableObject("cube", cube.body, cube.transform_body_to_world, strain_radius=-1)
+
+
+@pytest.mark.parametrize("radius", [0.012, 0.03])
+def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radius):
+    """Random, heavy-tailed fields (one tet far more strained than its neighbours, shears
+    dominating) put the largest mean away from the most strained tet."""
+    body, _ = slab
+    averages = body.strain_averages
+    rng = np.random.default_rng(11)
+    for _ in range(10):
+        voigt = rng.standard_t(1.5, size=(body.mesh.n_tets, 6)) * np.array([0.1, 0.1, 0.1, 1.0, 1.0, 1.0])
+        means = _brute_means(averages, voigt, radius)
+        expected = np.abs(np.linalg.eigvalsh(fem.voigt_to_tensor_strain(means))).max(axis=1)
+        value, tet = averages.largest_principal(voigt, radius)
+        assert value == pytest.approx(expected.max(), rel=1e-12) and expected[tet] == pytest.approx(value, rel=1e-12)
+
+
+def test_an_active_strain_bound_holds_where_verify_measures_it(robot):
+    """step-on-cube's soft sole with a strain bound of 0.3 %, below what it reaches
+    unbounded (0.4 %): the answer keeps the largest ball mean of the whole body at the
+    bound, where verify looks (a mean a layer under the sole, 2.75 cm down, is larger
+    than any centred on the tets touching it)."""
+    text = environments.builtin_scenario_path("step-on-cube").read_text()
+    text = text.replace("    material: {E: 1.0e+6", "    strain_limit: 0.003\n    material: {E: 1.0e+6", 1)
+    scenario = environments.load_string(text, name="step-on-cube")
+    assert scenario.scene.deformable("cube").strain_limit == 0.003
+    result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"))
+    assert result.feasible, result.reason
+    assert result.verification.measures["largest strain of cube"] == pytest.approx(0.003, abs=1e-6)

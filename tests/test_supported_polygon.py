@@ -72,3 +72,31 @@ def test_verify_refuses_forces_that_act_past_the_edge(robot, monkeypatch):
     assert not verification.ok
     assert any(re.fullmatch(r"a force of right_palm on table_top acts 0\.04\d* m past the edge of its surface", r)
                for r in verification.reasons), verification.reasons
+
+
+@pytest.mark.parametrize("yaw_deg, x, y, theta_deg, corners", [
+    (0.0, -0.28, 0.0, 30.0, 4),     # turned palm over the near edge: two corners cut off
+    (0.0, -0.28, 0.37, 30.0, 5),    # turned palm over a corner: five vertices
+    (0.0, -0.27, 0.38, 45.0, 6),    # and six
+    (30.0, -0.28, 0.0, 90.0, 4),    # turned table, palm across its edge
+])
+def test_forces_of_a_turned_palm_over_an_edge_act_on_the_table(robot, yaw_deg, x, y, theta_deg, corners):
+    """Every force point of the answer lies on the table top, measured in the table's own
+    frame from its centre and yaw (not through the library's surface frames)."""
+    text = environments.builtin_scenario_path("hand-on-table").read_text()
+    text = text.replace("center: [0.65, -0.25, 0.4]}", f"center: [0.65, -0.25, 0.4], yaw_deg: {yaw_deg}}}")
+    scenario = environments.load_string(text, name="hand-on-table")
+    stance = Stance(tuple(
+        c if c.robot_surface != "right_palm"
+        else Contact("right_palm", ContactPrint("table_top", x, y, np.radians(theta_deg)))
+        for c in scenario.stance("hand-on-table").contacts
+    ))
+    result = stances.solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    points = _palm_points(result)
+    assert len(points) == corners
+    yaw = np.radians(yaw_deg)
+    in_table = (points[:, :2] - [0.65, -0.25]) @ np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
+    assert np.all(np.abs(in_table) <= np.array([0.3, 0.4]) + 1e-7) and np.allclose(points[:, 2], 0.8, atol=1e-7)
+    # The palm does hang over: some of its points lie on an edge of the top.
+    assert np.isclose(np.abs(in_table), [0.3, 0.4], atol=1e-6).any()
