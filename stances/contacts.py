@@ -345,7 +345,7 @@ class PointContact(RigidContact):
     application = "its ball's centre"
 
     def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None):
-        self.support_surface = surface
+        support_surface = surface
         surface = robot.surface(robot_surface)
         if not surface.is_point:
             raise StanceError(f"robot surface {robot_surface!r} is a polygon, not a point foot: use RigidContact")
