@@ -195,3 +195,18 @@ def test_each_soft_stance_of_a_saved_plan_is_checked_on_finer_meshes(robot, both
     for index in (0, 1, 2):
         assert f"stance {index}:\n  meshes refined 2x: foam 729 -> 3,840 nodes" in out
     assert out.count("re-solved there: feasible, verified") == 3
+
+
+def test_the_check_reads_its_own_numbers(both_on_foam):
+    """What lines() and force_change make of a check's fields, at their edge cases."""
+    import dataclasses
+
+    _, _, check = both_on_foam
+    text = "\n".join(check.lines())
+    assert f"the answer there as it is: {check.start_row} off by {check.start_violation:.3g} (m, rad or N" in text
+    held = dataclasses.replace(check, start_violation=0.0, start_row="")
+    assert "  the answer holds there as it is" in held.lines()
+    light = dataclasses.replace(check, print_forces=(("left_sole", np.array([0.0, 0.0, 0.5]), np.array([0.0, 0.0, 0.6])),))
+    assert light.force_change == pytest.approx(0.2)
+    unloaded = dataclasses.replace(check, print_forces=(("left_sole", np.zeros(3), np.array([0.0, 0.0, 1.0])),))
+    assert np.isnan(unloaded.force_change)
