@@ -514,6 +514,7 @@ def soft_box(
     yaw: float = 0.0,
     friction: float = DEFAULT_FRICTION,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
+    strain_radius: float = DEFAULT_STRAIN_RADIUS,
     grid=None,
 ) -> tuple[DeformableObject, ContactSurface]:
     """A deformable box standing on the floor, base fixed, top face a contact surface.
@@ -546,6 +547,9 @@ def soft_box(
         Friction coefficient of the top surface.
     strain_limit : float
         Largest principal strain allowed in a stance (see :class:`DeformableObject`).
+    strain_radius : float
+        Metres over which the strain is averaged before its bound applies (see
+        :class:`DeformableObject`).
     grid : (3,) sequence of 1-D float sequences, optional
         The mesh's grid lines given by hand (see :func:`grid_coordinates`), in
         place of ``resolution`` and ``refine``.
@@ -574,7 +578,8 @@ def soft_box(
     center = readonly_array(center, (3,), f"object {name!r} center")
     transform_body_to_world = pose_from_center_yaw(center - [0.0, 0.0, 0.5 * size[2]], yaw)
     obj = DeformableObject(
-        name, body, transform_body_to_world, "base (z = 0 in the body frame) fixed", float(strain_limit)
+        name, body, transform_body_to_world, "base (z = 0 in the body frame) fixed", float(strain_limit),
+        strain_radius
     )
     transform_top_to_body = transform_from_rotation_translation(np.eye(3), [0.0, 0.0, size[2]])
     top = ContactSurface(
@@ -621,6 +626,7 @@ def soft_blocks(
     resolution="default",
     friction: float = DEFAULT_FRICTION,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
+    strain_radius: float = DEFAULT_STRAIN_RADIUS,
 ) -> tuple[DeformableObject, list]:
     """One deformable solid made of axis-aligned blocks side by side, its base fixed.
 
@@ -650,6 +656,9 @@ def soft_blocks(
         Friction coefficient of the top faces.
     strain_limit : float
         Largest principal strain allowed in a stance.
+    strain_radius : float
+        Metres over which the strain is averaged before its bound applies (see
+        :class:`DeformableObject`).
 
     Returns
     -------
@@ -712,7 +721,7 @@ def soft_blocks(
     body = fem.DeformableBody(mesh, material, fixed_nodes)
     transform_body_to_world = transform_from_rotation_translation(np.eye(3), origin)
     obj = DeformableObject(name, body, transform_body_to_world, "base (the lowest face, on the floor) fixed",
-                           float(strain_limit))
+                           float(strain_limit), strain_radius)
     surfaces = [
         ContactSurface(
             f"{name}_{block_name}",

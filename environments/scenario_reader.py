@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .deformable import DEFAULT_STRAIN_LIMIT, RESOLUTIONS, DeformableObject, _fem, soft_blocks, soft_box
+from .deformable import DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, _fem, soft_blocks, soft_box
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
@@ -325,8 +325,6 @@ class _Reader:
                 if not _is_fem_error(error):
                     raise
                 raise self.error(key, f"{type(error).__name__}: {error}") from None
-            if obj.deformable and "strain_radius" in item:
-                obj = dataclasses.replace(obj, strain_radius=self.strain_radius(item, key))
             if obj.name in names:
                 raise self.error(join_key(key, "name"), f"repeated object name {obj.name!r}")
             names.add(obj.name)
@@ -417,6 +415,7 @@ class _Reader:
             yaw=math.radians(self.number(item, "yaw_deg", key, 0.0)),
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+            strain_radius=self.strain_radius(item, key),
         )
         return obj, [top]
 
@@ -438,8 +437,8 @@ class _Reader:
         return lines
 
     def strain_radius(self, item: Mapping, key: str) -> float:
-        """A soft object's ``strain_radius``: metres, >= 0."""
-        radius = self.to_number(item["strain_radius"], join_key(key, "strain_radius"))
+        """A soft object's ``strain_radius``: metres, >= 0 (default :data:`DEFAULT_STRAIN_RADIUS`)."""
+        radius = self.number(item, "strain_radius", key, DEFAULT_STRAIN_RADIUS)
         if radius < 0.0:
             raise self.error(
                 join_key(key, "strain_radius"),
@@ -497,6 +496,7 @@ class _Reader:
             resolution=self.resolution(item, key),
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+            strain_radius=self.strain_radius(item, key),
         )
 
     def surface_search(self, item: Mapping, key: str) -> SurfaceSearch:
@@ -538,6 +538,7 @@ class _Reader:
             resolution=self.resolution(item, key),
             search=self.surface_search(item, key),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
+            strain_radius=self.strain_radius(item, key),
         )
 
     def fixed_plane(self, item: Mapping, key: str) -> FixedPlane:

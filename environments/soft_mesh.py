@@ -14,7 +14,7 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .deformable import DEFAULT_STRAIN_LIMIT, DeformableObject, _fem, _fine_spacing
+from .deformable import DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, DeformableObject, _fem, _fine_spacing
 from .errors import SceneError
 from .geometry import transform_from_rotation_translation
 from .mesh_surfaces import SurfaceSearch, auto_surfaces, find_surfaces
@@ -128,6 +128,7 @@ def soft_mesh(
     resolution="default",
     search: SurfaceSearch | None = None,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
+    strain_radius: float = DEFAULT_STRAIN_RADIUS,
 ) -> tuple[DeformableObject, list[ContactSurface]]:
     """A deformable solid of any shape, fixed where it lies on a plane.
 
@@ -154,6 +155,9 @@ def soft_mesh(
         sides, friction).
     strain_limit : float
         Largest principal strain allowed in a stance.
+    strain_radius : float
+        Metres over which the strain is averaged before its bound applies (see
+        :class:`DeformableObject`).
 
     Returns
     -------
@@ -189,5 +193,5 @@ def soft_mesh(
         )
     body = fem.DeformableBody(mesh, material, on_plane)
     description = "faces on the floor (z = 0) fixed" if fixed == ON_FLOOR else f"faces on the plane {fixed} fixed"
-    obj = DeformableObject(name, body, transform_body_to_world, description, float(strain_limit))
+    obj = DeformableObject(name, body, transform_body_to_world, description, float(strain_limit), strain_radius)
     return obj, auto_surfaces(name, surface, transform_body_to_world, search, deformable=True)

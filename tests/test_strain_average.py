@@ -159,3 +159,11 @@ def test_an_active_strain_bound_holds_where_verify_measures_it(robot):
     result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"))
     assert result.feasible, result.reason
     assert result.verification.measures["largest strain of cube"] == pytest.approx(0.003, abs=1e-6)
+
+
+def test_soft_objects_made_in_python_take_a_strain_radius():
+    material = fem.LinearElasticMaterial(E, NU)
+    box, _ = environments.soft_box("pad", (0.3, 0.3, 0.1), (0.0, 0.0, 0.05), material, resolution=0.05,
+                                   strain_radius=0.01)
+    assert box.strain_radius == 0.01
+    assert environments.soft_box("pad", (0.3, 0.3, 0.1), (0.0, 0.0, 0.05), material, resolution=0.05)[0].strain_radius == 0.02
