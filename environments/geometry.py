@@ -25,6 +25,7 @@ __all__ = [
     "polygon_area",
     "polygon_centroid",
     "points_in_convex_polygon",
+    "signed_edge_distances",
     "wrap_angle",
 ]
 
@@ -231,15 +232,31 @@ def points_in_convex_polygon(polygon: np.ndarray, points, margin: float = 0.0) -
     (n,) bool, or bool for a single point
         True where inside (boundary included).
     """
-    points = np.asarray(points, dtype=float)
-    single = points.ndim == 1
-    points = np.atleast_2d(points)
+    single = np.ndim(points) == 1
+    inside = np.all(signed_edge_distances(polygon, points) >= margin - 1e-12, axis=1)
+    return bool(inside[0]) if single else inside
+
+
+def signed_edge_distances(polygon: np.ndarray, points) -> np.ndarray:
+    """Signed distances of points to the edge lines of a convex counter-clockwise polygon.
+
+    Parameters
+    ----------
+    polygon : (k, 2) float
+        Convex counter-clockwise vertices, metres.
+    points : (n, 2) or (2,) float
+        Query points, metres, polygon frame.
+
+    Returns
+    -------
+    (n, k) float
+        Metres, positive inside: a point lies in the polygon where its row is >= 0.
+    """
+    polygon = np.asarray(polygon, dtype=float)
+    points = np.atleast_2d(np.asarray(points, dtype=float))
     edges = np.roll(polygon, -1, axis=0) - polygon
     lengths = np.linalg.norm(edges, axis=1)
-    # Signed distance of every point to every edge line, positive inside.
-    distances = _cross_2d(edges[None, :, :], points[:, None, :] - polygon[None, :, :]) / lengths
-    inside = np.all(distances >= margin - 1e-12, axis=1)
-    return bool(inside[0]) if single else inside
+    return _cross_2d(edges[None, :, :], points[:, None, :] - polygon[None, :, :]) / lengths
 
 
 def wrap_angle(theta: float) -> float:

@@ -36,6 +36,7 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
+from environments.geometry import signed_edge_distances
 from fem.prints import clip_polygon
 
 from .blocks import PLACEMENT_ACCURACY, equality
@@ -217,7 +218,7 @@ class RigidContact:
             # solver placed the surface's polygon under the print.
             to_world = self.support_surface.transform_surface_to_world
             in_surface = (points - to_world[:3, 3]) @ to_world[:3, :3]
-            beyond = -edge_distances(self.support_surface.polygon, in_surface[:, :2]).min(axis=1)
+            beyond = -signed_edge_distances(self.support_surface.polygon, in_surface[:, :2]).min(axis=1)
             measures[f"support overhang of {self.label}"] = float(max(beyond.max(), 0.0))
             if beyond.max() > tolerances.placement:
                 reasons.append(f"a force of {self.label} acts {beyond.max():.3g} m past the edge of its surface")
@@ -248,17 +249,6 @@ def _polygon_in_print(surface, print_placement: pin.SE3) -> np.ndarray:
     return ((corners - print_placement.translation) @ print_placement.rotation)[:, :2]
 
 
-def edge_distances(polygon, points) -> np.ndarray:
-    """(n, k) signed distances of points to the edge lines of a convex counter-clockwise
-    polygon, metres, positive inside."""
-    polygon = np.asarray(polygon, dtype=float)
-    points = np.atleast_2d(np.asarray(points, dtype=float))
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    relative = points[:, None, :] - polygon[None, :, :]
-    cross = edges[None, :, 0] * relative[..., 1] - edges[None, :, 1] * relative[..., 0]
-    return cross / np.linalg.norm(edges, axis=1)
-
-
 def supported_vertices(vertices, support, label: str) -> np.ndarray:
     """The vertices of the part of a robot contact polygon that lies on its support.
 
@@ -284,7 +274,7 @@ def supported_vertices(vertices, support, label: str) -> np.ndarray:
     StanceError
         If the polygons overlap in less than a triangle.
     """
-    if edge_distances(support, vertices[:, :2]).min() >= 0.0:
+    if signed_edge_distances(support, vertices[:, :2]).min() >= 0.0:
         return vertices
     clipped = []
     for point in clip_polygon(vertices[:, :2], support):
