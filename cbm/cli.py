@@ -483,8 +483,10 @@ def _check(args):
     stance = scenario.stances[args.stance]
     fine = None
     if args.refine is not None:
+        from stances.refined_check import soft_robot_surfaces
+
         # Before the solve, which may take seconds: what cannot be refined says so at once.
-        if not any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in stance.contacts):
+        if not soft_robot_surfaces(scenario.scene, stance):
             print(f"cbm check: error: --refine: stance {args.stance!r} has no print on a soft surface: nothing to "
                   "refine", file=sys.stderr)
             return EXIT_BAD_INPUT
@@ -553,10 +555,10 @@ def _check_plan_refined(plan, factor):
     from dataclasses import replace
 
     from stances import Robot, check_refined
+    from stances.refined_check import soft_robot_surfaces
 
     scenario = plan.scenario()
-    soft = [index for index, planned in enumerate(plan.stances)
-            if any(scenario.scene.surfaces[c.contact_print.surface].deformable for c in planned.stance.contacts)]
+    soft = [index for index, planned in enumerate(plan.stances) if soft_robot_surfaces(scenario.scene, planned.stance)]
     if not soft:
         print("cbm check: error: --refine: no stance of the plan has a print on a soft surface: nothing to refine",
               file=sys.stderr)

@@ -24,7 +24,7 @@ from .problem import build_problem
 from .results import PostureResult
 from .sqp import posture_options, solve
 
-__all__ = ["RefinedCheck", "check_refined"]
+__all__ = ["RefinedCheck", "check_refined", "soft_robot_surfaces"]
 
 
 @dataclass(frozen=True)
@@ -128,20 +128,20 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refin
     if not result.feasible:
         raise StanceError(f"check_refined needs a feasible answer; this one is not: {result.reason}")
     stance = result.stance
-    soft = [c.robot_surface for c in stance.contacts if scenario.scene.surfaces[c.contact_print.surface].deformable]
+    soft = soft_robot_surfaces(scenario.scene, stance)
     if not soft:
         raise StanceError("the stance has no print on a soft surface: nothing to refine")
-    options = posture_options({**result.statistics.get("options", {}), **options})
+    options = {**result.statistics.get("options", {}), **options}
     fine = environments.refined(scenario, factor) if refined is None else refined
     lam = np.asarray(result.statistics["lambda"], dtype=float)
-    problem = build_problem(robot, fine.scene, stance, options)
+    problem = build_problem(robot, fine.scene, stance, posture_options(options))
     if lam.shape != (problem.n_variables,):
         raise StanceError(
             f"the answer has {lam.size} contact variables, the refined problem {problem.n_variables}: "
             "was it solved with other options?"
         )
     _, start_row, start_violation = problem.evaluate(result.q, lam).worst_row()
-    answer = solve(robot, fine.scene, stance, q_init=result.q, lam_init=lam, **_as_keywords(options))
+    answer = solve(robot, fine.scene, stance, q_init=result.q, lam_init=lam, **options)
     joint_change = (float(np.abs(pin.difference(robot.model, result.q, answer.q)).max())
                     if answer.feasible else float("nan"))
     coarse, refined_forces = _link_forces(robot, result), _link_forces(robot, answer)
@@ -157,17 +157,15 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refin
     )
 
 
-def _as_keywords(options) -> dict:
-    """PostureOptions as the keyword arguments that built them."""
-    return {name: getattr(options, name) for name in type(options).__dataclass_fields__}
+def soft_robot_surfaces(scene, stance) -> tuple:
+    """The robot surfaces of a stance whose prints lie on a soft (deformable) surface, in stance order."""
+    return tuple(c.robot_surface for c in stance.contacts if scene.surfaces[c.contact_print.surface].deformable)
 
 
 def _link_forces(robot, result) -> dict:
     """Total force on the robot through each contact surface of the stance, world frame, newtons."""
     totals = {}
     for contact in result.stance.contacts:
-        frame = robot.surface(contact.robot_surface).frame
-        totals[contact.robot_surface] = sum(
-            (np.asarray(p.force, dtype=float) for p in result.point_forces if p.frame == frame), np.zeros(3)
-        )
+        forces = result.forces_on(robot.surface(contact.robot_surface).frame)
+        totals[contact.robot_surface] = sum((np.asarray(p.force, dtype=float) for p in forces), np.zeros(3))
     return totals
