@@ -389,14 +389,7 @@ class ContactPatch:
         if known is None:
             _, _, _, block, rows, _, in_print, fixed = self._strain_set(radius)
             nodes = rows[k]
-            g = block[nodes] @ self.condensed_stiffness  # (4, 3, 3p)
-            for corner, node in enumerate(nodes):
-                if fixed[node]:
-                    g[corner] = 0.0
-                elif in_print[node] >= 0:  # exact identity rows at the print nodes
-                    g[corner] = 0.0
-                    g[corner, np.arange(3), 3 * in_print[node] + np.arange(3)] = 1.0
-            known = g.reshape(12, -1)
+            known = self._displacement_rows(block[nodes], in_print[nodes], fixed[nodes]).reshape(12, -1)
             known.setflags(write=False)
             self._tet_maps[(radius, k)] = known
         return known
@@ -408,14 +401,20 @@ class ContactPatch:
         tets = body.mesh.tets[tet_ids]
         nodes, rows = np.unique(tets, return_inverse=True)
         rows = rows.reshape(tets.shape)
-        g = self._columns_at(nodes) @ self.condensed_stiffness  # (q, 3, 3p), eq. (36)
-        in_print = self._local[nodes]
+        return self._displacement_rows(self._columns_at(nodes), self._local[nodes], body.fixed_mask[nodes]), rows
+
+    def _displacement_rows(self, columns, in_print, fixed) -> np.ndarray:
+        """(q, 3, 3p) displacements of q nodes per unit print displacement (eq. 36), from
+        their (q, 3, 3p) rows of ``C[:, P]``, each node's index in the print (-1
+        outside it) and whether it is fixed: exact identity rows at the print nodes,
+        zero rows at fixed ones."""
+        g = columns @ self.condensed_stiffness
         idx = np.flatnonzero(in_print >= 0)
         g[idx, :, :] = 0.0
-        for axis in range(3):  # exact identity rows at the print nodes
+        for axis in range(3):
             g[idx, axis, 3 * in_print[idx] + axis] = 1.0
-        g[body.fixed_mask[nodes]] = 0.0
-        return g, rows
+        g[fixed] = 0.0
+        return g
 
     @cached_property
     def strain_map(self) -> np.ndarray:
