@@ -82,25 +82,28 @@ def test_each_builtin_description_loads_its_surfaces_limbs_and_locked_joints(nam
         assert loaded.limbs[surface.limb] in chain
 
 
-def test_romeo_stands_on_the_floor_with_a_verified_posture(romeo):
+@pytest.mark.parametrize("name, feet_apart, kilograms", [("romeo", 0.096, 40.5), ("icub", 0.105, 28.3)])
+def test_a_humanoid_stands_on_the_floor_with_a_verified_posture(request, name, feet_apart, kilograms):
+    robot = request.getfixturevalue(name)
     scenario = environments.load_string(
         textwrap.dedent(
-            """
-            robot: romeo
-            objects: [{name: floor, type: floor}]
+            f"""
+            robot: {name}
+            objects: [{{name: floor, type: floor}}]
             stances:
               stand:
-                left_sole: {surface: floor, x: 0.0, y: 0.096}
-                right_sole: {surface: floor, x: 0.0, y: -0.096}
+                left_sole: {{surface: floor, x: 0.0, y: {feet_apart}}}
+                right_sole: {{surface: floor, x: 0.0, y: {-feet_apart}}}
             """
         )
     )
-    result = stances.solve(romeo, scenario.scene, scenario.stance("stand"))
+    result = stances.solve(robot, scenario.scene, scenario.stance("stand"))
     assert result.feasible, result.reason
-    assert stances.verify(romeo, scenario.scene, result.stance, result).ok
-    # Both feet carry Romeo's weight (40.5 kg).
+    assert stances.verify(robot, scenario.scene, result.stance, result).ok
+    # Both feet carry the robot's weight.
+    assert robot.mass == pytest.approx(kilograms, abs=0.05)
     vertical = sum(f.force[2] for f in result.point_forces)
-    assert vertical == pytest.approx(romeo.mass * 9.81, rel=1e-6)
+    assert vertical == pytest.approx(robot.mass * 9.81, rel=1e-6)
 
 
 def _world_vertices(robot, q, geometry_name):
@@ -141,27 +144,6 @@ def test_icub_meshes_lie_where_its_kinematics_puts_its_links(icub):
         hand = data.oMi[icub.model.getJointId(f"{side}_wrist_yaw")]
         box = (_world_vertices(icub, q, f"{side}_hand_0") - hand.translation) @ hand.rotation
         np.testing.assert_allclose(np.ptp(box, axis=0), [0.069, 0.065, 0.0243], atol=1e-3)
-
-
-def test_icub_stands_on_the_floor_with_a_verified_posture(icub):
-    scenario = environments.load_string(
-        textwrap.dedent(
-            """
-            robot: icub
-            objects: [{name: floor, type: floor}]
-            stances:
-              stand:
-                left_sole: {surface: floor, x: 0.0, y: 0.105}
-                right_sole: {surface: floor, x: 0.0, y: -0.105}
-            """
-        )
-    )
-    result = stances.solve(icub, scenario.scene, scenario.stance("stand"))
-    assert result.feasible, result.reason
-    assert stances.verify(icub, scenario.scene, result.stance, result).ok
-    # Both feet carry iCub's weight (28.3 kg).
-    vertical = sum(f.force[2] for f in result.point_forces)
-    assert vertical == pytest.approx(icub.mass * 9.81, rel=1e-6)
 
 
 def test_icub_steps_onto_foot_on_blocks_block_beyond_its_step_height(icub):
