@@ -30,11 +30,16 @@ infeasible. The moving contact geometry may sink into its own print's object
 only as deep as the interpolation of its depths at the step's two ends (a
 limb resting on a soft print sinks into it).
 
-What is not sampled: touch-down and lift-off themselves, the last few
-millimetres where the limb meets its print and the load moves onto it (or off
-it). Those happen between the stance's own posture, verified with the
-contact, and the nearest lifted sample, verified without it; only their
-collisions are checked.
+Touch-down and lift-off are sampled too. The limb meets its print (or
+leaves it) with no load on it: a posture of the stance that holds the
+contact, with the contact's normal load held at zero (:class:`ContactSample`),
+so that it is balanced on the support alone and on the contact alike. The load
+then moves onto the contact (or off it) between that posture and the stance's
+own; where that step collides, postures of the stance holding the contact are
+solved halfway (the load transfer). Static equilibrium is checked at the
+samples, not between them: a robot moving slowly enough between two balanced
+postures close together stays balanced, and the collision checks between
+samples bound how far apart they are.
 """
 
 from __future__ import annotations
@@ -46,7 +51,7 @@ import numpy as np
 import pinocchio as pin
 
 import stances
-from stances.blocks import PLACEMENT_ACCURACY, equality
+from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.collision import contact_exclusions
 from stances.contacts import placement_residual, point_placement_residual
 from stances.problem import stance_collision_checker
@@ -56,6 +61,7 @@ from .errors import CbmError
 from .step_path import RAMP, halfway, lifted_path
 
 __all__ = [
+    "ContactSample",
     "FramePlacementConstraint",
     "Motion",
     "MotionError",
@@ -78,6 +84,16 @@ BETWEEN = np.arange(1, 8) / 8
 #: Samples inserted, at most, into one step of the motion that collides (a step that
 #: still collides after them makes the motion infeasible).
 MAX_INSERTED = 2
+
+#: Newtons: the largest force a touch-down or lift-off sample may put on its limb
+#: (the solver holds the normal load at zero within its 1e-7 tolerance).
+UNLOADED_FORCE = 1e-4
+
+# rad (or m): the SQP's step bound first tried for a touch-down or lift-off sample. It lies
+# close to the lifted sample it starts from (the limb 1.5 cm lower), and 0.3 rad steps
+# from there overshot: quadruped-walk's 7 -> 8 touch-down took 55 iterations and turned
+# a knee by 1.09 rad.
+_SWITCH_TRUST = 0.05
 
 
 class MotionError(CbmError):
@@ -186,6 +202,70 @@ class FramePlacementConstraint:
 
 
 @dataclass(frozen=True, eq=False)
+class ContactSample:
+    """A sample of a motion that holds the moving contact: touch-down, lift-off or load transfer.
+
+    Solved and verified as a posture of the stance that holds the contact (the
+    support and the moving contact), not of the support alone.
+
+    Parameters
+    ----------
+    frame : str
+        The moving surface's contact frame.
+    robot_surface : str
+        The moving robot surface.
+    surface : str
+        The scene surface its print lies on.
+    label : str
+        Names the sample (and its rows in an infeasible answer's reason).
+    unloaded : bool
+        True at touch-down and lift-off: the print's load along its normal is
+        held at zero (one row, ``<= 0``; no adhesion makes it ``= 0``), so the
+        posture is balanced on the support alone. False for a load-transfer
+        sample: the stance as it is.
+    transform_frame_to_world : (4, 4) float, optional
+        Where the frame is in the solved sample, world frame (set once solved).
+    """
+
+    frame: str
+    robot_surface: str
+    surface: str
+    label: str
+    unloaded: bool = True
+    transform_frame_to_world: np.ndarray | None = None
+
+    free_direction = None  # held on its print: never free sideways
+
+    @property
+    def print_label(self) -> str:
+        """The contact's print as its posture problem names it."""
+        return f"{self.robot_surface} on {self.surface}"
+
+    def blocks(self, problem, iterate):
+        """Unloaded: the row ``normal load of the print <= 0`` and its Jacobian; otherwise none."""
+        if not self.unloaded:
+            return []
+        for contact, loads in zip(problem.contacts, problem.load_slices):
+            if self.print_label not in contact.print_labels:
+                continue
+            mine = contact.load_prints == contact.print_labels.index(self.print_label)
+            normals = contact.load_normals[mine]
+            value = float(np.einsum("pj,pj->", normals, iterate.forces[loads][mine]))
+            jacobian = None
+            if iterate.derivatives:
+                rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(-1, 3, problem.n_step)
+                jacobian = np.einsum("pj,pjc->c", normals, rows[mine])[None, :]
+            return [ConstraintBlock("unloaded contact", np.array([value]), jacobian, -np.inf, 0.0, 1.0,
+                                    (f"{self.label} (normal load)",))]
+        raise MotionError(f"{self.label}: the posture problem has no print {self.print_label!r}")
+
+    def load(self, result) -> float:
+        """Newtons: the magnitude of the resultant force on the frame's link in a result."""
+        forces = [p.force for p in result.forces_on(self.frame)]
+        return float(np.linalg.norm(np.sum(forces, axis=0))) if forces else 0.0
+
+
+@dataclass(frozen=True, eq=False)
 class Motion:
     """A quasi-static motion from stance ``index`` of a plan to the next.
 
@@ -201,12 +281,15 @@ class Motion:
         Postures, the first stance's ``q`` first and, when feasible, the
         second's last; between them, one per waypoint, and one per sample
         inserted where a step collided (fewer if the motion failed).
-    paths : tuple of FramePlacementConstraint
-        How the moving surface's frame is held at each interior sample: on the
-        path's waypoints (and any halfway waypoints the solves or the collision
-        checks needed), free sideways while it crosses.
+    paths : tuple of FramePlacementConstraint or ContactSample
+        How the moving surface is held at each interior sample: its frame on
+        the path's waypoints (and any halfway waypoints the solves or the
+        collision checks needed), free sideways while it crosses; or on its
+        print (:class:`ContactSample`): unloaded at touch-down or lift-off,
+        loaded in a load-transfer sample.
     results : tuple of stances PostureResult
-        The support's posture solve of each interior sample.
+        The posture solve of each interior sample: of the support, or of the
+        stance holding the moving contact for a :class:`ContactSample`.
     feasible : bool
         Whether every waypoint was reached by a verified posture and no step
         between consecutive postures collides (:data:`BETWEEN`).
@@ -254,7 +337,8 @@ class Motion:
 
     @property
     def targets(self) -> np.ndarray:
-        """(k - 2, 4, 4) float: each interior sample's waypoint, world frame."""
+        """(k - 2, 4, 4) float: each interior sample's waypoint, world frame (where the frame
+        is, for a :class:`ContactSample`)."""
         return np.array([path.transform_frame_to_world for path in self.paths]).reshape(-1, 4, 4)
 
     @property
@@ -294,6 +378,11 @@ def _moving_contact(before, after):
     (moving,) = a ^ b
     support = before if len(before) < len(after) else after
     return moving, support
+
+
+def _print_surface(stance, robot_surface):
+    """The surface a stance's contact of ``robot_surface`` lies on."""
+    return next(c.contact_print.surface for c in stance.contacts if c.robot_surface == robot_surface)
 
 
 def _frame_placement(robot, q, frame):
@@ -392,14 +481,42 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         else:
             logger.info("motion %d -> %d joined backward; forward stopped at %s", index, index + 1, forward.reason)
     pieces = [forward] if backward is None else [forward, backward.reversed()]
-    samples = [_Sample(r.q, p, r, ref) for piece in pieces for r, p, ref in zip(piece.results, piece.reached,
-                                                                             piece.references)]
+    samples = [_Sample(r.q, p, r, ref, holds=False) for piece in pieces
+               for r, p, ref in zip(piece.results, piece.reached, piece.references)]
     seam = None if backward is None else 1 + len(forward.results)
+    # The stance that holds the moving contact: the arriving one (touch-down) or the one left (lift-off).
+    touch_down = support == before.stance
+    holding = after.stance if touch_down else before.stance
+    ends = (_Sample(before.q, None, None, before.q, holds=not touch_down),
+            _Sample(after.q, None, None, after.q, holds=touch_down))
+    if not reason:
+        # The limb meets (leaves) its print unloaded, next to the lifted sample above it.
+        name = "touch-down" if touch_down else "lift-off"
+        switch = ContactSample(surface.frame, moving.robot_surface, moving.contact_print.surface,
+                               f"{name} of {moving.robot_surface}")
+        # Pulled toward the lifted sample's posture: the limb only comes down (goes up) by
+        # the approach height; the stance's own posture, which may lean on the contact,
+        # is reached by the load transfer after it (quadruped-walk 7 -> 8: pulled toward
+        # the arriving stance's posture, the touch-down sample lay 1.06 rad from the
+        # lifted one and the foot swept 2.8 mm into the step between them).
+        nearest = samples[-1] if touch_down else samples[0]
+        for trust in (_SWITCH_TRUST, None):  # short steps first; where they stall, the solver's own
+            tried = options if trust is None else {**options, "trust_region": trust}
+            result = _solve_sample(robot, scene, (support, holding), switch, nearest.q, nearest.q, None, tried)
+            if result.feasible:
+                break
+        if not result.feasible:
+            reason = f"{name}: {result.reason}"
+            logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
+        else:
+            touch = _Sample(result.q, _placed(robot, switch, result.q), result, nearest.q, holds=True)
+            samples = samples + [touch] if touch_down else [touch] + samples
+            if seam is not None and not touch_down:
+                seam += 1
     if not reason:
         between = _Between(robot, scene, support, moving, options)
-        ends = _Sample(before.q, None, None, before.q), _Sample(after.q, None, None, after.q)
-        samples, seam, reason = _clear_steps(robot, scene, support, between, ends, samples, seam, options,
-                                             surface, index)
+        samples, seam, reason = _clear_steps(robot, scene, (support, holding), between, ends, samples, seam,
+                                             options, surface, index)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
@@ -408,12 +525,19 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
 
 @dataclass(frozen=True)
 class _Sample:
-    """A posture of a motion: interior (with its path, result and reference posture) or a stance's (the ends)."""
+    """A posture of a motion: interior (with its path, result and reference posture) or a stance's
+    (the ends); ``holds``: whether the moving contact is held there."""
 
     q: np.ndarray
-    path: FramePlacementConstraint | None
+    path: FramePlacementConstraint | ContactSample | None
     result: object
     reference: np.ndarray
+    holds: bool
+
+
+def _placed(robot, sample, q):
+    """A ContactSample with the frame's placement at posture ``q``."""
+    return replace(sample, transform_frame_to_world=_frame_placement(robot, q, sample.frame))
 
 
 class _Between:
@@ -431,18 +555,23 @@ class _Between:
         pin.forwardKinematics(self.model, self.data, q)
         return self.checker.pairs(self.model, self.data)
 
-    def first_collision(self, q0, q1):
+    def first_collision(self, q0, q1, held=False):
         """``(t, pair, depth)`` of the first interpolated posture deeper than the tolerance, or None.
 
         The moving contact geometry and its print's object may overlap as deep as
         their depths at the two ends, interpolated at ``t`` (a limb resting on a soft
-        print sinks into it; deeper on the way is a collision).
+        print sinks into it; deeper on the way is a collision). ``held``: both ends
+        hold the moving contact; its geometry and its print's object are then not
+        checked, as for the support's contacts (a contact held at both ends of a
+        step in joint space leaves its print by a second-order amount in between).
         """
         ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
                  if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
         for t in BETWEEN:
             for pair in self._pairs(pin.interpolate(self.model, q0, q1, float(t))):
                 key = (pair.name_a, pair.name_b)
+                if held and key in self.moving:
+                    continue
                 allowed = (1.0 - t) * ends[0].get(key, 0.0) + t * ends[1].get(key, 0.0)
                 depth = -pair.distance - allowed
                 if depth > self.tolerance:
@@ -457,19 +586,22 @@ def _collision_text(k, hit, last):
     return f"{step}, at {t:g} of the way: collision between {pair.name_a} and {pair.name_b} (depth {depth:.3g} m)"
 
 
-def _clear_steps(robot, scene, support, between, ends, samples, seam, options, surface, index):
+def _clear_steps(robot, scene, stances_, between, ends, samples, seam, options, surface, index):
     """Check each step between consecutive postures for collisions (``between``, a
     :class:`_Between`); where one collides, solve a sample halfway along the path and
     check both halves, at most :data:`MAX_INSERTED` samples in each step of the motion.
-    Returns the samples, the seam moved past any inserted before it, and a reason
-    (empty when every step is clear)."""
+    Between two postures that both hold the moving contact the sample halfway holds it
+    too (load transfer, a :class:`ContactSample` with its load free); elsewhere it is a
+    posture of the support with the frame halfway. ``stances_``: (support, the stance
+    holding the moving contact). Returns the samples, the seam moved past any inserted
+    before it, and a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
     inserted = [0] * len(origin)  # samples inserted into each step of the motion
     k = 0
     while k < len(nodes) - 1:
         a, b = nodes[k], nodes[k + 1]
-        hit = between.first_collision(a.q, b.q)
+        hit = between.first_collision(a.q, b.q, held=a.holds and b.holds)
         if hit is None:
             k += 1
             continue
@@ -477,21 +609,34 @@ def _clear_steps(robot, scene, support, between, ends, samples, seam, options, s
         if inserted[origin[k]] >= MAX_INSERTED:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
             return nodes[1:-1], seam, f"{where}, after {inserted[origin[k]]} samples inserted in that step"
-        free = a.path.free_direction if a.path is not None and b.path is not None else None
-        if free is not None and (b.path.free_direction is None or not np.allclose(free, b.path.free_direction)):
-            free = None
-        # Halfway between where the frame is at the two postures (a free sideways offset included).
-        target = halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame))
-        path = FramePlacementConstraint(surface.frame, target, f"path of {surface.name} (between samples {k} and {k + 1})",
-                                        surface.is_point, free)
         reference = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
-        for start in (a, b):  # from the posture before the step, else from the one after it
-            result = _solve_sample(robot, scene, support, path, reference, start.q, start.result, options)
+        starts = (a, b)  # from the posture before the step, else from the one after it
+        if a.holds and b.holds:
+            path = ContactSample(surface.frame, surface.name, _print_surface(stances_[1], surface.name),
+                                 f"load transfer of {surface.name} (between samples {k} and {k + 1})", unloaded=False)
+            # The posture of the stance nearest the step's midpoint in joint space: from a or
+            # b with a blend of their references, the samples stayed by the end they came
+            # from (quadruped-walk 5 -> 6: two samples 0.01 rad from the touch-down one).
+            reference = pin.interpolate(robot.model, a.q, b.q, 0.5)
+            starts = (_Sample(reference, None, None, reference, holds=True), a, b)
+        else:
+            free = a.path.free_direction if a.path is not None and b.path is not None else None
+            if free is not None and (b.path.free_direction is None or not np.allclose(free, b.path.free_direction)):
+                free = None
+            # Halfway between where the frame is at the two postures (a free sideways offset included).
+            target = halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame))
+            path = FramePlacementConstraint(surface.frame, target,
+                                            f"path of {surface.name} (between samples {k} and {k + 1})",
+                                            surface.is_point, free)
+        for start in starts:
+            result = _solve_sample(robot, scene, stances_, path, reference, start.q, start.result, options)
             if result.feasible:
                 break
         else:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
-        nodes.insert(k + 1, _Sample(result.q, path, result, reference))
+        if isinstance(path, ContactSample):
+            path = _placed(robot, path, result.q)
+        nodes.insert(k + 1, _Sample(result.q, path, result, reference, holds=a.holds and b.holds))
         origin.insert(k + 1, origin[k])
         inserted[origin[k]] += 1
         if seam is not None and k + 1 <= seam:
@@ -544,17 +689,28 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
     return _Continuation(results, reached, references, [])
 
 
-def _solve_sample(robot, scene, support, path, reference, q, previous, options):
-    """The support's posture holding ``path``, from posture ``q``, checked by :func:`stances.verify`.
+def _solve_sample(robot, scene, stances_, path, reference, q, previous, options):
+    """The posture holding ``path``, from posture ``q``, checked by :func:`stances.verify`.
 
-    ``previous``: the result ``q`` comes from when it is a sample of this support (its
-    forces then start the solve too, so soft supports stay sunk where they were), else None.
+    ``stances_``: the support, or (support, the stance holding the moving contact),
+    whose second is solved for a :class:`ContactSample`. ``previous``: the result ``q``
+    comes from when it is a sample of the same stance (its forces then start the solve
+    too, so soft supports stay sunk where they were), else None.
     """
-    lam = None if previous is None else np.asarray(previous.statistics["lambda"])
-    result = stances.solve(robot, scene, support, q_init=q, lam_init=lam, constraints=(path,), reference=reference,
+    support, holding = stances_ if isinstance(stances_, tuple) else (stances_, None)
+    stance = holding if isinstance(path, ContactSample) else support
+    same = previous is not None and previous.stance == stance
+    lam = np.asarray(previous.statistics["lambda"]) if same else None
+    if isinstance(path, ContactSample) and path.unloaded:
+        # Unloaded, a print on a soft support does not deform it: held as a rigid contact on
+        # the undeformed surface. As a soft print with no load, every node would sit exactly
+        # where it lifts off, where the contact model gives the SQP no direction (cross-two-
+        # mats: the touch-down of a sole on a soft mat stalled 2 N from unloaded).
+        options = {**options, "rigid_prints": (path.robot_surface,)}
+    result = stances.solve(robot, scene, stance, q_init=q, lam_init=lam, constraints=(path,), reference=reference,
                            **options)
     if result.feasible:
-        verification = stances.verify(robot, scene, support, result, **options)
+        verification = stances.verify(robot, scene, stance, result, **options)
         if not verification.ok:
             result = replace(result, feasible=False, reason="; ".join(map(str, verification.reasons)))
     return result
@@ -611,33 +767,46 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     -------
     list of str
         Problems, one line each; empty if the motion starts and ends on its
-        stances' postures, every interior sample verifies as a stance of the
-        support (:func:`stances.verify`) and holds its frame on its waypoint,
-        and (a feasible motion) no posture checked between samples collides.
+        stances' postures, every interior sample verifies (:func:`stances.verify`)
+        as a stance of the support holding its frame on its waypoint, or (a
+        :class:`ContactSample`) as the stance holding the moving contact, with no
+        load on it at touch-down and lift-off; a feasible motion has exactly one of
+        those two (a contact switch), and no posture checked between samples collides.
     """
     verify = stances.verify
-    after = plan.stances[motion.index + 1]
+    before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
+    moving, support = _moving_contact(before.stance, after.stance)
+    touch_down = support == before.stance
+    holding = after.stance if touch_down else before.stance
     options = _options_of(after) if solver_options is None else dict(solver_options)
     problems = []
-    ends = [(0, plan.stances[motion.index].q)] + ([(-1, after.q)] if motion.feasible else [])
+    ends = [(0, before.q)] + ([(-1, after.q)] if motion.feasible else [])
     for position, q in ends:
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
     if motion.feasible:
-        moving, _ = _moving_contact(plan.stances[motion.index].stance, after.stance)
         between = _Between(robot, scenario.scene, motion.support, moving, options)
+        holds = [not touch_down] + [isinstance(path, ContactSample) for path in motion.paths] + [touch_down]
         steps = len(motion.configurations) - 1
         for k in range(steps):
-            hit = between.first_collision(motion.configurations[k], motion.configurations[k + 1])
+            hit = between.first_collision(motion.configurations[k], motion.configurations[k + 1],
+                                          held=holds[k] and holds[k + 1])
             if hit is not None:
                 problems.append(_collision_text(k, hit, last=k == steps - 1))
+    switches = [path for path in motion.paths if isinstance(path, ContactSample) and path.unloaded]
+    if motion.feasible and len(switches) != 1:
+        problems.append(f"{len(switches)} touch-down or lift-off samples: a motion has one")
     for k, (result, path) in enumerate(zip(motion.results, motion.paths)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")
-        verification = verify(robot, scenario.scene, motion.support, result, **options)
+        held = isinstance(path, ContactSample)
+        checked = {**options, "rigid_prints": (path.robot_surface,)} if held and path.unloaded else options
+        verification = verify(robot, scenario.scene, holding if held else motion.support, result, **checked)
         if not verification.ok:
             problems.append(f"sample {k + 1}: " + "; ".join(map(str, verification.reasons)))
-        error = path.error(robot, result.q)
+        if held and path.unloaded and path.load(result) > UNLOADED_FORCE:
+            problems.append(f"sample {k + 1} ({path.label}): {path.load(result):.3g} N on {motion.moving_surface}")
+        error = 0.0 if held else path.error(robot, result.q)
         if error > PATH_TOLERANCE:
             problems.append(f"sample {k + 1}: {motion.moving_surface} is {error:.3g} m or rad off its path")
     return problems

@@ -142,6 +142,11 @@ class PostureOptions:
     deformable_as_rigid : bool
         Treat deformable prints as rigid contacts (used for warm starts and
         for comparisons with a rigid support).
+    rigid_prints : tuple of str
+        Robot surfaces whose prints on deformable surfaces are held as rigid
+        contacts on the undeformed surface: a limb that touches a soft support
+        without load (a motion's touch-down or lift-off), under which the body
+        does not deform.
     rigid_warm_start : bool
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
@@ -184,6 +189,7 @@ class PostureOptions:
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
+    rigid_prints: tuple = ()
     rigid_warm_start: bool = True
     constraint_curvature: bool = True
 
@@ -224,6 +230,9 @@ class PostureOptions:
             raise StanceError(f"friction_margin must be in (0, 1], got {self.friction_margin}")
         if self.max_indentation is not None and not self.max_indentation > 0:
             raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
+        if isinstance(self.rigid_prints, str) or not all(isinstance(name, str) for name in self.rigid_prints):
+            raise StanceError(f"rigid_prints must be a sequence of robot surface names, got {self.rigid_prints!r}")
+        object.__setattr__(self, "rigid_prints", tuple(self.rigid_prints))
 
 
 _ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it
@@ -611,7 +620,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
             )
         transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
         label = f"{contact.robot_surface} on {surface.name}"
-        if surface.deformable and not options.deformable_as_rigid:
+        if surface.deformable and not options.deformable_as_rigid and contact.robot_surface not in options.rigid_prints:
             deformable_object = scene.deformable_of_surface(surface.name)
             if deformable_object.name not in deformable_prints:
                 deformable_prints[deformable_object.name] = []

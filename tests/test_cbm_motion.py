@@ -12,8 +12,8 @@ import environments
 import stances
 from environments.stance import Contact, ContactPrint
 
-from cbm.motion import (FramePlacementConstraint, MotionError, motions_summary, plan_motion, plan_motions,
-                        verify_motion)
+from cbm.motion import (UNLOADED_FORCE, ContactSample, FramePlacementConstraint, MotionError, motions_summary,
+                        plan_motion, plan_motions, verify_motion)
 from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
@@ -49,14 +49,27 @@ def test_every_motion_sample_verifies_and_joins_its_two_stances(step_plan, motio
     assert [m.moving_surface for m in motions] == ["right_sole", "right_sole"]
     for index, motion in enumerate(motions):
         assert motion.feasible, motion.reason
-        assert len(motion.configurations) == 3 + 2 + 2  # two stances, three across, two straight above the ends
+        # Two stances, three across, two straight above the ends, and the sole on its print unloaded.
+        assert len(motion.configurations) == 3 + 2 + 2 + 1
         np.testing.assert_array_equal(motion.configurations[0], step_plan.stances[index].q)
         np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[index + 1].q)
         assert motion.support == step_plan.stances[1].stance  # the left sole alone holds the robot
         assert verify_motion(motion, step_plan, scenario, robot) == []
-        for result in motion.results:
-            # Checked here as a stance of the support, independently of the motion code.
-            assert stances.verify(robot, scenario.scene, motion.support, result).ok
+        # Lift-off first (stance 0 -> 1), touch-down last (1 -> 2).
+        switch = 0 if index == 0 else -1
+        assert [isinstance(p, ContactSample) for p in motion.paths] == [k == len(motion.paths) + switch if switch
+                                                                        else k == 0 for k in range(len(motion.paths))]
+        assert motion.paths[switch].label == ("lift-off" if index == 0 else "touch-down") + " of right_sole"
+        holding = step_plan.stances[0 if index == 0 else 2].stance
+        for path, result in zip(motion.paths, motion.results):
+            # Checked here as a stance, independently of the motion code: of the support,
+            # or the sole on its print carrying nothing.
+            if isinstance(path, ContactSample):
+                assert stances.verify(robot, scenario.scene, holding, result).ok
+                on_sole = [p.force for p in result.point_forces if p.frame == robot.surface("right_sole").frame]
+                assert len(on_sole) == 4 and np.abs(on_sole).max() < 1e-5
+            else:
+                assert stances.verify(robot, scenario.scene, motion.support, result).ok
 
 
 def test_the_moving_sole_is_lifted_clear_of_the_floor_between_its_prints(motions, robot):
@@ -67,7 +80,10 @@ def test_the_moving_sole_is_lifted_clear_of_the_floor_between_its_prints(motions
         for q in motion.configurations[1:-1]:
             pin.framesForwardKinematics(robot.model, data, q)
             heights.append(data.oMf[frame].translation[2])
-        # 1.5 cm straight above the print, higher elsewhere (the floor is z = 0, the sole frame on the sole).
+        # On the print at lift-off (touch-down), then 1.5 cm straight above it, higher elsewhere
+        # (the floor is z = 0, the sole frame on the sole).
+        switch = heights.pop(on_print)
+        assert switch == pytest.approx(0.0, abs=1e-6)
         assert heights[on_print] == pytest.approx(0.015, abs=1e-6)
         assert min(heights) >= 0.015 - 1e-6 and max(heights) >= 0.05
 
@@ -163,7 +179,7 @@ def test_trajectory_files_name_the_joints_and_replay_the_plan(step_plan, motions
     with open(csv_path) as stream:
         rows = list(csv.reader(stream))
     assert rows[0] == ["time", "stance", "segment", *step_plan.robot["configuration_names"]]
-    assert len(rows) == 1 + 1 + 2 * 6  # the first stance, then each motion's samples and its arriving stance
+    assert len(rows) == 1 + 1 + 2 * 7  # the first stance, then each motion's samples and its arriving stance
     read = np.load(npz_path)
     np.testing.assert_array_equal(read["q"], np.array([[float(v) for v in row[3:]] for row in rows[1:]]))
     assert list(read["names"]) == step_plan.robot["configuration_names"]
@@ -185,7 +201,7 @@ def test_outputs_write_the_trajectory_and_the_viewer_plays_the_motions(step_plan
     start = page.index('type="application/json">') + len('type="application/json">')
     data = json.loads(page[start: page.index("</script>", start)])
     meshes = len(data["robot"]["meshes"])
-    assert [(m["from"], m["moving"], len(m["robot"])) for m in data["motions"]] == [(0, "right_sole", 5), (1, "right_sole", 5)]
+    assert [(m["from"], m["moving"], len(m["robot"])) for m in data["motions"]] == [(0, "right_sole", 6), (1, "right_sole", 6)]
     assert all(len(pose) == meshes for m in data["motions"] for pose in m["robot"])
     assert all(np.all(np.diff(m["times"]) > 0) for m in data["motions"])
     if chromium_binary() is not None:
@@ -224,11 +240,12 @@ def test_while_crossing_the_swing_sole_is_free_sideways_only(step_plan, motions,
     for motion in motions:
         step = _placement(robot, motion.configurations[-1], frame)[:3, 3] - _placement(
             robot, motion.configurations[0], frame)[:3, 3]
-        assert len(motion.paths) == 5  # 3 samples and 2 straight above the ends, none halved
+        assert len(motion.paths) == 6  # 3 samples and 2 straight above the ends, none halved, and the switch
         s = np.arange(5) / 4
         crossing = (s > RAMP) & (s < 1 - RAMP)
-        assert [p.free_direction is not None for p in motion.paths] == crossing.tolist()
-        for path, result in zip(motion.paths, motion.results):
+        on_path = [(p, r) for p, r in zip(motion.paths, motion.results) if isinstance(p, FramePlacementConstraint)]
+        assert [p.free_direction is not None for p, _ in on_path] == crossing.tolist()
+        for path, result in on_path:
             placement = _placement(robot, result.q, frame)
             offset = placement[:3, 3] - path.transform_frame_to_world[:3, 3]
             turn = pin.log3(path.transform_frame_to_world[:3, :3].T @ placement[:3, :3])
@@ -257,7 +274,8 @@ def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance
 
     def blocked_past_the_middle(robot_, scene, stance, q_init=None, constraints=(), **options):
         result = solve(robot_, scene, stance, q_init=q_init, constraints=constraints, **options)
-        if _frame_x(robot, q_init, frame) < middle < constraints[0].transform_frame_to_world[0, 3]:
+        waypoint = getattr(constraints[0], "transform_frame_to_world", None)  # None: the touch-down sample
+        if waypoint is not None and _frame_x(robot, q_init, frame) < middle < waypoint[0, 3]:
             return replace(result, feasible=False, reason="blocked by the test")
         return result
 
@@ -268,10 +286,11 @@ def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance
     x = [_frame_x(robot, q, frame) for q in motion.configurations]
     assert motion.seam is not None and x[motion.seam - 1] < middle < x[motion.seam]
     # Backward, the path's own waypoints only: the forward shorter steps that failed are not redone.
-    backward = [path.label for path in motion.paths[motion.seam - 1:]]
+    backward = [path.label for path in motion.paths[motion.seam - 1:-1]]
     forward_reached = {path.label for path in motion.paths[: motion.seam - 1] if "toward" not in path.label}
     assert all("toward" not in label for label in backward)
     assert len(backward) + len(forward_reached) == 5 and not forward_reached & set(backward)
+    assert motion.paths[-1].label == "touch-down of right_sole"  # after the backward samples, as always last
     np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[2].q)
     assert np.all(np.diff(motion.targets[:, 0, 3]) >= -1e-12)  # the samples in path order, both halves
 
@@ -281,7 +300,7 @@ def test_a_waypoint_out_of_reach_both_ways_gives_both_reasons(step_plan, scenari
 
     def blocked_at_the_top(robot_, scene, stance, q_init=None, constraints=(), **options):
         result = solve(robot_, scene, stance, q_init=q_init, constraints=constraints, **options)
-        if constraints[0].transform_frame_to_world[2, 3] > 0.06:
+        if not isinstance(constraints[0], ContactSample) and constraints[0].transform_frame_to_world[2, 3] > 0.06:
             return replace(result, feasible=False, reason="blocked by the test")
         return result
 
@@ -323,10 +342,12 @@ def test_each_sample_is_pulled_toward_the_stances_postures_blended_along_the_pat
 
     monkeypatch.setattr(stances, "solve", recording)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
-    assert motion.feasible and len(references) == 5
+    assert motion.feasible and len(references) == 6
     before, after = step_plan.stances[1].q, step_plan.stances[2].q
-    for k, reference in enumerate(references):
+    for k, reference in enumerate(references[:5]):
         np.testing.assert_allclose(reference, pin.interpolate(robot.model, before, after, k / 4), atol=1e-15)
+    # The touch-down sample is pulled toward the lifted sample above it: the sole only comes down.
+    np.testing.assert_array_equal(references[5], motion.configurations[-3])
 
 
 def test_a_first_waypoint_out_of_reach_forward_leaves_the_whole_path_to_the_backward_solves(step_plan, scenario,
@@ -340,7 +361,8 @@ def test_a_first_waypoint_out_of_reach_forward_leaves_the_whole_path_to_the_back
     monkeypatch.setattr(stances, "solve", blocked_from_the_first_stance)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert motion.feasible and motion.seam == 1
-    assert [p.label for p in motion.paths] == [f"path of right_sole (waypoint {k})" for k in range(1, 6)]
+    assert [p.label for p in motion.paths] == [f"path of right_sole (waypoint {k})" for k in range(1, 6)] + [
+        "touch-down of right_sole"]
     assert verify_motion(motion, step_plan, scenario, robot) == []
 
 
@@ -348,10 +370,10 @@ def test_a_motion_whose_samples_do_not_add_up_is_refused(motions):
     motion = motions[0]
     with pytest.raises(MotionError) as error:
         replace(motion, paths=motion.paths[:-1])
-    assert str(error.value) == "a motion with 7 configurations (feasible) has 5 interior samples, got 4 paths and 5 results"
+    assert str(error.value) == "a motion with 8 configurations (feasible) has 6 interior samples, got 5 paths and 6 results"
     with pytest.raises(MotionError) as error:
-        replace(motion, seam=6)
-    assert str(error.value) == "seam 6 is not an interior sample (1..5)"
+        replace(motion, seam=7)
+    assert str(error.value) == "seam 7 is not an interior sample (1..6)"
 
 
 def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excepted(step_plan, scenario, robot):
@@ -399,10 +421,10 @@ def test_verify_motion_reports_a_step_between_samples_that_collides(step_plan, m
     fallen = np.array(motion.configurations)
     fallen[-2, 2] -= 0.4  # the last sample's base 40 cm down: through the floor on both sides of it
     problems = verify_motion(replace(motion, configurations=fallen), step_plan, scenario, robot)
-    assert problems[0].startswith("between samples 4 and 5, at 0.25 of the way: collision between ")
-    assert problems[1].startswith("between sample 5 and the next stance's posture, at 0.125 of the way: "
+    assert problems[0].startswith("between samples 5 and 6, at 0.125 of the way: collision between ")
+    assert problems[1].startswith("between sample 6 and the next stance's posture, at 0.125 of the way: "
                                   "collision between ")
-    assert problems[2] == "sample 5: its result is not its posture"
+    assert problems[2] == "sample 6: its result is not its posture"
 
 
 @pytest.mark.parametrize("reach", [0.05, 0.005])
@@ -413,7 +435,7 @@ def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasib
 
     frame = robot.surface("right_sole").frame
 
-    def long_steps_collide(between, q0, q1):
+    def long_steps_collide(between, q0, q1, held=False):
         moved = abs(_frame_x(robot, q1, frame) - _frame_x(robot, q0, frame))
         return (0.5, CollisionPairStub(), moved) if moved > reach else None
 
@@ -422,14 +444,14 @@ def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasib
     inserted = [path for path in motion.paths if "(between samples" in path.label]
     x = [_frame_x(robot, q, frame) for q in motion.configurations]
     if reach == 0.05:  # the two steps across (7.5 cm each) are halved once
-        assert motion.feasible and len(inserted) == 2 and len(motion.paths) == 7
+        assert motion.feasible and len(inserted) == 2 and len(motion.paths) == 8
         assert np.all(np.abs(np.diff(x)) <= reach)
     else:
         assert not motion.feasible and len(inserted) == MAX_INSERTED
         # The first step across (7.5 cm) quartered is still 1.9 cm: it stops there, every sample kept.
         assert motion.reason == (f"between samples 2 and 3, at 0.5 of the way: collision between a and b "
                                  f"(depth {abs(x[3] - x[2]):.3g} m), after {MAX_INSERTED} samples inserted in that step")
-        assert len(motion.configurations) == 1 + 5 + MAX_INSERTED
+        assert len(motion.configurations) == 1 + 5 + 1 + MAX_INSERTED  # with the touch-down sample
 
 
 @dataclass
@@ -437,3 +459,60 @@ class CollisionPairStub:
     name_a: str = "a"
     name_b: str = "b"
     distance: float = 0.0
+
+
+@pytest.mark.parametrize("scenario_name, stance_name, surface", [("stand", "stand", "floor"),
+                                                                  ("step-on-cube", "step-on-cube", "cube_top")],
+                         ids=["rigid", "soft"])
+def test_the_unloaded_contact_row_matches_finite_differences(robot, scenario_name, stance_name, surface):
+    """The right sole's normal load and its derivative in q and the contact variables (on
+    the soft cube with bonded nodes: the Coulomb solve's modes would switch under the steps)."""
+    scenario = environments.load(scenario_name)
+    stance = scenario.stance(stance_name)
+    problem = stances.build_problem(robot, scenario.scene, stance, stances.PostureOptions(contact_law="bonded"))
+    sample = ContactSample(robot.surface("right_sole").frame, "right_sole", surface, "touch-down of right_sole")
+    rng = np.random.default_rng(5)
+    standing = stances.solve(robot, scenario.scene, stance, deformable_as_rigid=True).q
+    q = pin.integrate(robot.model, standing, 1e-3 * rng.standard_normal(robot.model.nv))
+    lam = problem.initial_variables(q) + rng.uniform(1.0, 50.0, problem.n_variables)
+
+    def row(x):
+        step_q = pin.integrate(robot.model, q, x[: robot.model.nv])
+        (block,) = sample.blocks(problem, problem.iterate(step_q, lam + x[robot.model.nv:]))
+        return block
+
+    block = row(np.zeros(problem.n_step))
+    assert block.labels == ("touch-down of right_sole (normal load)",)
+    assert block.upper[0] == 0.0 and block.lower[0] == -np.inf
+    assert block.value[0] > 1.0  # the sole pushes (N)
+    step = 1e-7
+    numeric = np.array([(row(step * e).value[0] - row(-step * e).value[0]) / (2 * step) for e in np.eye(problem.n_step)])
+    np.testing.assert_allclose(block.jacobian[0], numeric, rtol=1e-5, atol=1e-5 * np.abs(numeric).max())
+
+
+def test_a_contact_sample_of_a_print_the_problem_lacks_is_refused(robot, scenario):
+    problem = stances.build_problem(robot, scenario.scene, scenario.stance("stand"))
+    iterate = problem.iterate(robot.reference_configuration, problem.initial_variables(robot.reference_configuration))
+    sample = ContactSample(robot.surface("right_palm").frame, "right_palm", "floor", "touch-down of right_palm")
+    with pytest.raises(MotionError) as error:
+        sample.blocks(problem, iterate)
+    assert str(error.value) == "touch-down of right_palm: the posture problem has no print 'right_palm on floor'"
+    assert ContactSample("f", "p", "s", "l", unloaded=False).blocks(problem, iterate) == []  # load transfer: no row
+
+
+def test_verify_motion_reports_a_touch_down_that_carries_load_or_is_missing(step_plan, motions, scenario, robot):
+    motion = motions[1]
+    arrived = step_plan.stances[2]
+    # The touch-down sample replaced by the arriving stance's own posture, where the sole bears weight.
+    configurations = np.array(motion.configurations)
+    configurations[-2] = arrived.q
+    loaded = replace(motion, configurations=configurations, results=motion.results[:-1] + (arrived.result,))
+    problems = verify_motion(loaded, step_plan, scenario, robot)
+    load = np.linalg.norm(np.sum([p.force for p in arrived.result.point_forces
+                                  if p.frame == robot.surface("right_sole").frame], axis=0))
+    assert load > 100.0
+    assert problems == [f"sample 6 (touch-down of right_sole): {load:.3g} N on right_sole"]
+    assert UNLOADED_FORCE < 1e-3
+    missing = replace(motion, configurations=np.delete(motion.configurations, -2, axis=0), paths=motion.paths[:-1],
+                      results=motion.results[:-1])
+    assert verify_motion(missing, step_plan, scenario, robot) == ["0 touch-down or lift-off samples: a motion has one"]

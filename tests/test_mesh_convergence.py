@@ -22,6 +22,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import lru_cache
 
 import numpy as np
 import pytest
@@ -114,10 +115,17 @@ class PrintStudy:
         return xs, ys, zs
 
     def body_at(self, level: int, depth_level: int | None = None) -> DeformableBody:
-        """The FEM body meshed at ``level``, base fixed."""
-        mesh = tensor_mesh(*self.coordinates(level, depth_level))
-        material = LinearElasticMaterial(self.young_modulus, POISSON_RATIO)
-        return DeformableBody(mesh, material, mesh.nodes[:, 2] <= 1e-9 * self.size[2])
+        """The FEM body meshed at ``level``, base fixed (built once per module run: the
+        fixtures below press many prints into the same bodies, and a body keeps its
+        factorisation)."""
+        return _body(self, level, depth_level)
+
+
+@lru_cache(maxsize=None)
+def _body(study: PrintStudy, level: int, depth_level: int | None) -> DeformableBody:
+    mesh = tensor_mesh(*study.coordinates(level, depth_level))
+    material = LinearElasticMaterial(study.young_modulus, POISSON_RATIO)
+    return DeformableBody(mesh, material, mesh.nodes[:, 2] <= 1e-9 * study.size[2])
 
 
 CUBE_PALM = PrintStudy("1 m cube, E = 1e6 Pa", (1.0, 1.0, 1.0), 1e6, "palm", (5, 3), (4, 4))

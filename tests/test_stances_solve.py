@@ -928,3 +928,19 @@ def test_verify_reports_how_far_the_mesh_reaches_past_the_palm(deformable_robots
     measured = verify(robot, scenario.scene, result.stance, result).measures["mesh overlap into the links on cube"]
     assert measured == pytest.approx(expected, abs=1e-9)
     assert measured > 1e-4  # the ring's nodes do reach past the palm's face on this coarse mesh
+
+
+def test_a_print_named_in_rigid_prints_is_held_rigid_on_its_soft_surface(robot):
+    """A limb touching a soft support without load (a motion's touch-down): the body does not deform."""
+    scenario = environments.load("step-on-cube")
+    stance = scenario.stance("step-on-cube")
+
+    def kinds(options):
+        return sorted(type(c).__name__ for c in build_problem(robot, scenario.scene, stance, options).contacts)
+
+    assert kinds(PostureOptions()) == ["DeformableContact", "RigidContact"]  # right sole on the soft cube
+    assert kinds(PostureOptions(rigid_prints=["right_sole"])) == ["RigidContact", "RigidContact"]
+    assert PostureOptions(rigid_prints=["right_sole"]).rigid_prints == ("right_sole",)
+    with pytest.raises(StanceError) as error:
+        PostureOptions(rigid_prints="right_sole")
+    assert str(error.value) == "rigid_prints must be a sequence of robot surface names, got 'right_sole'"
