@@ -170,22 +170,22 @@ def verify(robot, scene, stance, result, **options) -> Verification:
 
 
 def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> list:
-    """Penetrations of robot links into the deformed supports (contact link excluded)."""
+    """Penetrations of robot links into the deformed supports (the links resting on them excluded)."""
     reasons = []
     for contact in problem.contacts:
         if contact.kind != "deformable":
             continue
         obj = contact.deformable_object
         name = f"{obj.name} (deformed)"
+        # Every link whose print lies on the body rests on it: its soft prints, and any
+        # print held rigid there (PostureOptions.rigid_prints: a limb touching it unloaded).
+        frames = [problem.robot.surface(c.robot_surface).frame for c in problem.stance
+                  if problem.scene.surface(c.contact_print.surface).object_name == obj.name]
         checker = CollisionChecker(
             problem.robot,
             [(name, obj.deformed_collision_object(result.deformations[obj.name]))],
             margin=0.0,
-            exclude=[
-                pair
-                for frame_id in contact.frame_ids
-                for pair in contact_exclusions(problem.robot, problem.robot.model.frames[frame_id].name, name)
-            ],
+            exclude=[pair for frame in frames for pair in contact_exclusions(problem.robot, frame, name)],
             self_collision=False,
         )
         pairs = checker.pairs(problem.robot.model, data)

@@ -515,4 +515,4 @@ def test_verify_motion_reports_a_touch_down_that_carries_load_or_is_missing(step
     assert UNLOADED_FORCE < 1e-3
     missing = replace(motion, configurations=np.delete(motion.configurations, -2, axis=0), paths=motion.paths[:-1],
                       results=motion.results[:-1])
-    assert verify_motion(missing, step_plan, scenario, robot) == ["0 touch-down or lift-off samples: a motion has one"]
+    assert verify_motion(missing, step_plan, scenario, robot) == ["no touch-down or lift-off sample: a motion has one at least"]

@@ -944,3 +944,19 @@ def test_a_print_named_in_rigid_prints_is_held_rigid_on_its_soft_surface(robot):
     with pytest.raises(StanceError) as error:
         PostureOptions(rigid_prints="right_sole")
     assert str(error.value) == "rigid_prints must be a sequence of robot surface names, got 'right_sole'"
+
+
+def test_a_print_held_rigid_on_a_soft_body_rests_on_it_for_the_deformed_surface_check(robot):
+    """Both soles on the foam, the right one held rigid: its foot (whose mesh reaches 0.4 mm
+    below the sole) rests on the foam like the soft print beside it, so verify does not
+    count it as a link penetrating the deformed foam."""
+    scenario = environments.load("cross-soft-block")
+    stance = scenario.stance("both-on-foam")
+    result = solve(robot, scenario.scene, stance, rigid_prints=["right_sole"])
+    assert result.feasible, result.reason
+    assert "foam" in result.deformations  # the left sole's print deforms it
+    report = verify(robot, scenario.scene, stance, result, rigid_prints=["right_sole"])
+    assert report.ok, report.reasons
+    # The soles excluded, no other link comes near the foam (with the right foot counted
+    # as a stranger, it lay 0.04 mm inside the deformed foam).
+    assert report.measures["clearance to deformed foam"] >= 0.0
