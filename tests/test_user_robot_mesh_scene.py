@@ -73,3 +73,26 @@ def test_hyq_holds_a_foot_on_the_soft_mesh_and_the_stance_verifies(hyq, scenario
     depth = result.verification.measures["indentation of pad"]
     assert 1e-4 < depth < 0.25 * 0.04  # pressed, within the default bound (a quarter of the thickness)
     assert np.abs(result.deformations["pad"]).max() > 0.0
+
+
+def test_a_plan_of_a_scenario_named_by_a_relative_path_checks_from_another_folder(tmp_path, monkeypatch):
+    """The scenario, its robot file and its mesh files are given relative to where
+    the user plans; the saved plan is checked from another working directory (as
+    ``cbm check plan.json`` would be), and finds them all."""
+    import shutil
+
+    from cbm.plan import Plan
+    from cbm.planner import plan
+
+    work = tmp_path / "work"
+    shutil.copytree(SCENES / "meshes", work / "meshes")
+    shutil.copytree(SCENES / "robots", work / "robots")
+    shutil.copy(SCENES / "hyq-mesh-scene.yaml", work)
+    monkeypatch.chdir(work)
+    planned = plan(environments.load("hyq-mesh-scene.yaml"), robot=stances.Robot.load("robots/hyq.yaml"), max_expansions=1)
+    saved = planned.save(Path("plan.json").resolve())
+    elsewhere = tmp_path / "elsewhere"
+    elsewhere.mkdir()
+    monkeypatch.chdir(elsewhere)
+    report = Plan.load(saved).check()
+    assert report.ok, report.problems
