@@ -1,8 +1,8 @@
 """A robot that is not built in, from a user's description file, on a scene made of mesh files.
 
 HyQ (example-robot-data's ``hyq_description``) is described in
-``bench/scenes/robots/hyq.yaml``, outside the package, as a user would; the scene
-``bench/scenes/hyq-mesh-scene.yaml`` is a floor, a rigid step from an STL file whose
+``bench/scenes/mesh-files/robots/hyq.yaml``, outside the package, as a user would; the scene
+``bench/scenes/mesh-files/hyq-mesh-scene.yaml`` is a floor, a rigid step from an STL file whose
 surfaces are found on the mesh (``surfaces: auto``) and a soft foam pad meshed from a
 closed STL (``type: soft_mesh``). ``bench/bench_hyq_mesh_scene.py`` plans the whole scene.
 """
@@ -18,7 +18,7 @@ import pytest
 import environments
 import stances
 
-SCENES = Path(__file__).resolve().parents[1] / "bench" / "scenes"
+SCENES = Path(__file__).resolve().parents[1] / "bench" / "scenes" / "mesh-files"
 GRAVITY = 9.81
 
 

@@ -2,7 +2,7 @@
 
 Both are convex solids given by their corners (a trapezoidal prism each), so the hull
 of the corners is the closed surface, its flat faces triangulated along shared edges.
-Run from anywhere: ``python bench/scenes/make_hyq_meshes.py``; the files are small
+Run from anywhere: ``python bench/scenes/mesh-files/make_meshes.py``; the files are small
 (under 1 kB each) and committed with the scene.
 
 - ``meshes/step.stl``: a rigid step 5 cm high with a sloped front (a ramp face of
