@@ -96,3 +96,18 @@ def test_a_plan_of_a_scenario_named_by_a_relative_path_checks_from_another_folde
     monkeypatch.chdir(elsewhere)
     report = Plan.load(saved).check()
     assert report.ok, report.problems
+
+
+def test_cbm_scenarios_lists_the_surfaces_found_on_the_mesh_files(capsys):
+    """A user writing stances on a scene of mesh files needs the names ``surfaces: auto``
+    gave and where their prints go: ``cbm scenarios FILE`` prints them."""
+    from cbm.cli import main
+
+    assert main(["scenarios", str(SCENES / "hyq-mesh-scene.yaml")]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith("hyq-mesh-scene\n") and "stances: start (start), left-front-on-pad" in out
+    assert (
+        "pad_top_0: soft, on pad; frame origin (0.700, 0.000, 0.040) m, normal (0.00, 0.00, 1.00), world; "
+        "spans x -0.180..0.180 m, y -0.430..0.430 m in its own frame (prints are given there)"
+    ) in out
+    assert "step_top_0: rigid, on step; frame origin (1.225, 0.000, 0.050) m" in out
