@@ -220,7 +220,16 @@ def build_parser():
     batch.add_argument("--scheduler", default=None, metavar="ADDRESS", help="a running Dask scheduler instead")
     batch.add_argument("--quiet", action="store_true", help="warnings only")
 
-    commands.add_parser("scenarios", help="list the built-in scenarios and their stances")
+    scenarios = commands.add_parser(
+        "scenarios",
+        help="list the built-in scenarios and their stances, or given scenarios with their contact surfaces",
+        description="Without arguments, list the built-in scenarios with their stances. Given scenario names or "
+        "files, list those with their stances and every contact surface of their scene (those found on mesh "
+        "files by surfaces: auto included): rigid or soft, object, frame origin and normal in the world, and "
+        "the x, y range of the surface in its own frame, where a stance's prints are given.",
+        formatter_class=_HelpFormatter,
+    )
+    scenarios.add_argument("scenario", nargs="*", metavar="SCENARIO", help="built-in scenario name or scenario file")
     commands.add_parser("robots", help="list the built-in robots")
 
     check = commands.add_parser(
@@ -309,7 +318,7 @@ def main(argv=None):
     )
     try:
         if args.command == "scenarios":
-            return _scenarios()
+            return _scenarios(args.scenario)
         if args.command == "robots":
             return _robots()
         if args.command == "plan":
@@ -340,15 +349,35 @@ def _input_errors():
     return (CbmError, SceneError, FemError, StanceError)
 
 
-def _scenarios():
+def _scenarios(names=()):
+    """List scenarios: the built-in ones, or those named (names or files) with their surfaces."""
     import environments
 
-    for name in environments.scenario_names():
+    for name in names or environments.scenario_names():
         scenario = environments.load(name)
         description = " ".join(str(scenario.description).split())
         stance_names = ", ".join(f"{stance} (start)" if stance == scenario.start else stance for stance in scenario.stances)
-        print(f"{name}\n    {description}\n    stances: {stance_names}")
+        print(f"{scenario.name}\n    {description}\n    stances: {stance_names}")
+        if names:
+            print("    surfaces:")
+            for surface in scenario.scene.surfaces.values():
+                print(f"      {_surface_line(surface)}")
     return EXIT_OK
+
+
+def _surface_line(surface):
+    """One contact surface in words: what a user writing a stance's prints on it needs."""
+    import numpy as np
+
+    transform = np.asarray(surface.transform_surface_to_world, dtype=float)
+    lower, upper = np.min(surface.polygon, axis=0), np.max(surface.polygon, axis=0)
+    origin, normal = transform[:3, 3], transform[:3, 2]
+    return (
+        f"{surface.name}: {'soft' if surface.deformable else 'rigid'}, on {surface.object_name}; frame origin "
+        f"({origin[0]:.3f}, {origin[1]:.3f}, {origin[2]:.3f}) m, normal ({normal[0]:.2f}, {normal[1]:.2f}, "
+        f"{normal[2]:.2f}), world; spans x {lower[0]:.3f}..{upper[0]:.3f} m, y {lower[1]:.3f}..{upper[1]:.3f} m "
+        "in its own frame (prints are given there)"
+    )
 
 
 def _robots():

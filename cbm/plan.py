@@ -512,13 +512,17 @@ def scenario_source(scenario):
     Returns
     -------
     dict
-        ``path`` (str or None), ``built_in`` (bool), ``robot`` (the robot name
+        ``path`` (absolute str or None: a plan is checked from anywhere, so a
+        scenario named relative to the working directory, with its robot file and
+        mesh files relative to it, is found again from another one), ``built_in``
+        (bool), ``robot`` (the robot name
         the scenario asks for), ``text`` (its YAML, None for a scenario built in
         code) and ``transform_body_to_world`` ((4, 4) float of each soft body,
         by object name).
     """
     path = getattr(scenario, "path", None)
-    built_in = path is not None and Path(path).resolve().parent == SCENARIO_DIRECTORY
+    path = None if path is None else Path(path).resolve()
+    built_in = path is not None and path.parent == SCENARIO_DIRECTORY
     return {
         "path": None if path is None else str(path),
         "built_in": bool(built_in),
