@@ -33,7 +33,10 @@ limb resting on a soft print sinks into it).
 Touch-down and lift-off are sampled too. The limb meets its print (or
 leaves it) with no load on it: a posture of the stance that holds the
 contact, with the contact's normal load held at zero (:class:`ContactSample`),
-so that it is balanced on the support alone and on the contact alike. The load
+so that it is balanced on the support alone and on the contact alike (a print
+on a soft support is held rigid on its undeformed surface there: unloaded, it
+deforms nothing, and as a soft print every node would sit exactly where it
+lifts off, where the contact model gives the SQP no direction). The load
 then moves onto the contact (or off it) between that posture and the stance's
 own; where that step collides, postures of the stance holding the contact are
 solved halfway (the load transfer). Static equilibrium is checked at the
