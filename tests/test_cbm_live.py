@@ -71,3 +71,54 @@ def test_plan_show_puts_the_robot_meshes_soft_body_prints_and_forces_in_meshcat(
     ends = np.asarray(arrows.geometry.position).T
     np.testing.assert_allclose(ends[1::2] - ends[::2], [[0.0, 0.0, 0.4]] * 2, atol=1e-6)  # the largest is 0.4 m
     assert view.url is None or view.url.startswith("http")
+
+
+def _meshcat_screenshot(viewer, tmp_path, name):
+    """Headless Chromium's picture of what a meshcat server holds (its self-contained export)."""
+    import subprocess
+
+    from matplotlib.image import imread
+    from test_cbm_output import chromium
+
+    page = tmp_path / f"{name}.html"
+    page.write_text(viewer.static_html())
+    picture = tmp_path / f"{name}.png"
+    command = chromium(tmp_path, "--window-size=960,640", f"--screenshot={picture}", page.as_uri())
+    subprocess.run(command, capture_output=True, text=True, timeout=120, check=True)
+    return imread(picture)[..., :3]
+
+
+def test_the_live_view_draws_the_robot_in_a_real_browser(tmp_path, robot):
+    """`cbm plan --view` through a real meshcat server, opened in headless Chromium: with
+    the robot shown and hidden, what differs is a standing humanoid in the middle."""
+    import meshcat
+
+    import environments
+    from test_cbm_output import chromium_binary
+
+    if chromium_binary() is None:
+        pytest.skip("chromium is not installed (apt-get install chromium)")
+    from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+
+    scenario = environments.load("cross-soft-block")
+    stance = scenario.stances["start"]
+    plan = Plan(True, "goal reached", [PlannedStance(stance, robot.reference_configuration, [], {})],
+                PlanStatistics(), scenario.name, robot=robot_description(robot),
+                scenario_source=scenario_source(scenario))
+    viewer = meshcat.Visualizer()  # starts a local meshcat server, as cbm plan --view does
+    try:
+        plan.show(scenario, robot, viewer=viewer, play=False)
+        shown = _meshcat_screenshot(viewer, tmp_path, "shown")
+        viewer[robot.name].set_property("visible", False)
+        hidden = _meshcat_screenshot(viewer, tmp_path, "hidden")
+    finally:
+        viewer.window.server_proc.kill()  # this meshcat's Visualizer.close() calls a method its window lacks
+        viewer.window.server_proc.wait()
+    robot_pixels = np.abs(shown - hidden).max(axis=2) > 0.1
+    assert robot_pixels.sum() > 2000, "the robot is not drawn"
+    rows, columns = np.nonzero(robot_pixels)
+    height, width = robot_pixels.shape
+    # Tall (over a quarter of the window), narrower than tall, near the middle.
+    assert rows.max() - rows.min() > 0.25 * height
+    assert columns.max() - columns.min() < rows.max() - rows.min()
+    assert 0.25 * width < columns.mean() < 0.75 * width
