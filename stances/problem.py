@@ -601,6 +601,11 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
     options = options or PostureOptions()
     if len(stance) == 0:
         raise StanceError("the stance has no contact; a robot cannot stand on nothing")
+    unknown = sorted(set(options.rigid_prints) - {c.robot_surface for c in stance})
+    if unknown:
+        raise StanceError(
+            f"rigid_prints names {unknown}, not in the stance; its robot surfaces: {sorted(c.robot_surface for c in stance)}"
+        )
     contacts = []
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.

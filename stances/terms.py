@@ -37,6 +37,7 @@ __all__ = [
     "EquilibriumConstraint",
     "TorqueLimitConstraint",
     "NormalLoadConstraint",
+    "print_normal_loads",
     "ContactConstraints",
     "CollisionConstraint",
 ]
@@ -226,25 +227,50 @@ class NormalLoadConstraint:
     def blocks(self, problem, iterate):
         if not len(iterate.forces):
             return []
-        value, jacobian, labels = [], [], []
-        for contact, loads in zip(problem.contacts, problem.load_slices):
-            normals = contact.load_normals
-            if iterate.derivatives:
-                rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
-            for i, label in enumerate(contact.print_labels):
-                mine = contact.load_prints == i
-                value.append(float(np.einsum("pj,pj->", normals[mine], iterate.forces[loads][mine])))
-                if iterate.derivatives:
-                    jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
-                labels.append(f"normal load of {label}")
+        labels, value, jacobian = print_normal_loads(problem, iterate)
         count = len(value)
         return [
             ConstraintBlock(
-                "normal load", np.array(value), np.array(jacobian) if iterate.derivatives else None,
-                np.full(count, self.minimum),
-                np.full(count, np.inf), 1.0, tuple(labels),
+                "normal load", value, jacobian, np.full(count, self.minimum), np.full(count, np.inf), 1.0,
+                tuple(f"normal load of {label}" for label in labels),
             )
         ]
+
+
+def print_normal_loads(problem, iterate, only=None):
+    """Each print's load along its normal: the sum of its load points' ``n . f``.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+    iterate : Iterate
+    only : str, optional
+        One print's label (``"<robot surface> on <surface>"``): that print alone.
+
+    Returns
+    -------
+    labels : list of str
+        The prints' labels, in the problem's order.
+    value : (k,) float
+        Newtons, positive when the print pushes on the robot.
+    jacobian : (k, n_step) float or None
+        Their derivative in the step (None without derivatives).
+    """
+    labels, value, jacobian = [], [], []
+    for contact, loads in zip(problem.contacts, problem.load_slices):
+        normals = contact.load_normals
+        if iterate.derivatives:
+            rows = iterate.force_jacobian[3 * loads.start : 3 * loads.stop].reshape(len(normals), 3, -1)
+        for i, label in enumerate(contact.print_labels):
+            if only is not None and label != only:
+                continue
+            mine = contact.load_prints == i
+            labels.append(label)
+            value.append(float(np.einsum("pj,pj->", normals[mine], iterate.forces[loads][mine])))
+            if iterate.derivatives:
+                jacobian.append(np.einsum("pj,pjc->c", normals[mine], rows[mine]))
+    jacobian = np.array(jacobian).reshape(len(value), problem.n_step) if iterate.derivatives else None
+    return labels, np.array(value), jacobian
 
 
 @dataclass(frozen=True)

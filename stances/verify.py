@@ -18,6 +18,7 @@ import pinocchio as pin
 from .collision import CollisionChecker, contact_exclusions
 from .problem import PostureOptions, build_problem
 from .results import Verification
+from .statics import points_in_world
 
 
 @dataclass(frozen=True)
@@ -170,17 +171,22 @@ def verify(robot, scene, stance, result, **options) -> Verification:
 
 
 def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> list:
-    """Penetrations of robot links into the deformed supports (the links resting on them excluded)."""
+    """Penetrations of robot links into the deformed supports (the links resting on them
+    excluded), and of the prints held rigid on them, point by point."""
     reasons = []
     for contact in problem.contacts:
         if contact.kind != "deformable":
             continue
         obj = contact.deformable_object
         name = f"{obj.name} (deformed)"
-        # Every link whose print lies on the body rests on it: its soft prints, and any
-        # print held rigid there (PostureOptions.rigid_prints: a limb touching it unloaded).
-        frames = [problem.robot.surface(c.robot_surface).frame for c in problem.stance
-                  if problem.scene.surface(c.contact_print.surface).object_name == obj.name]
+        triangles = obj.deformed_surface(result.deformations[obj.name])
+        # A print held rigid on the body (PostureOptions.rigid_prints: a limb touching it
+        # unloaded) rests on it like the soft prints: its link is left out of the meshes'
+        # check, and its points are checked against the surface the other prints deform.
+        held = [c for c in problem.contacts if c.kind == "rigid" and c.support_surface is not None
+                and c.support_surface.object_name == obj.name]
+        frames = [problem.robot.model.frames[i].name for i in contact.frame_ids] + [
+            problem.robot.model.frames[c.frame_id].name for c in held]
         checker = CollisionChecker(
             problem.robot,
             [(name, obj.deformed_collision_object(result.deformations[obj.name]))],
@@ -188,6 +194,13 @@ def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> 
             exclude=[pair for frame in frames for pair in contact_exclusions(problem.robot, frame, name)],
             self_collision=False,
         )
+        for rigid in held:
+            normal = rigid.print_placement.rotation[:, 2]
+            points = points_in_world(data, rigid.loads) - getattr(rigid, "radius", 0.0) * normal
+            depth = float(np.max(depths_below_surface(points, normal, triangles)))
+            measures[f"depth of {rigid.label} (held rigid) in deformed {obj.name}"] = depth
+            if depth > tolerances.penetration:
+                reasons.append(f"{rigid.label}, held rigid, lies {depth:.3g} m inside the deformed {obj.name}")
         pairs = checker.pairs(problem.robot.model, data)
         deepest = min((p.distance for p in pairs), default=np.inf)
         measures[f"clearance to deformed {obj.name}"] = float(deepest)
@@ -195,3 +208,48 @@ def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> 
             if pair.distance < -tolerances.penetration:
                 reasons.append(f"{pair.name_a} penetrates the deformed {obj.name} by {-pair.distance:.3g} m")
     return reasons
+
+
+def depths_below_surface(points, normal, triangles, reach=0.05):
+    """How far each point lies below a surface, measured along ``normal``.
+
+    Parameters
+    ----------
+    points : (p, 3) float
+        Metres, world frame.
+    normal : (3,) float
+        Unit vector out of the body (a print's normal).
+    triangles : (T, 3, 3) float
+        The body's boundary, world frame.
+    reach : float
+        Metres: faces farther than this along ``normal`` are not the surface there.
+
+    Returns
+    -------
+    (p,) float
+        Metres: positive inside the body (under the face above the point that faces
+        along ``normal``), negative above it, ``-inf`` where no such face lies over or
+        under the point.
+    """
+    normal = np.asarray(normal, dtype=float)
+    first = np.cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
+    first /= np.linalg.norm(first)
+    axes = np.array([first, np.cross(normal, first)])
+    facing = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]) @ normal > 0.0
+    corners = triangles[facing]
+    depths = np.full(len(points), -np.inf)
+    for k, point in enumerate(np.asarray(points, dtype=float)):
+        planar = (corners - point) @ axes.T  # (T, 3, 2): the faces seen along the normal from the point
+        heights = (corners - point) @ normal  # (T, 3)
+        a, b, c = planar[:, 0], planar[:, 1], planar[:, 2]
+        area = (b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1]) - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0])
+        # Barycentric weights of the point (the origin) in each projected face.
+        w_b = (a[:, 1] * c[:, 0] - a[:, 0] * c[:, 1]) / area
+        w_c = (a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]) / area
+        w_a = 1.0 - w_b - w_c
+        over = (np.abs(area) > 1e-18) & (w_a >= -1e-9) & (w_b >= -1e-9) & (w_c >= -1e-9)
+        height = w_a * heights[:, 0] + w_b * heights[:, 1] + w_c * heights[:, 2]
+        near = over & (np.abs(height) <= reach)
+        if np.any(near):
+            depths[k] = float(np.max(height[near]))
+    return depths

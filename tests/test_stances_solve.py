@@ -960,3 +960,39 @@ def test_a_print_held_rigid_on_a_soft_body_rests_on_it_for_the_deformed_surface_
     # The soles excluded, no other link comes near the foam (with the right foot counted
     # as a stranger, it lay 0.04 mm inside the deformed foam).
     assert report.measures["clearance to deformed foam"] >= 0.0
+    # The rigid sole's vertices against the foam its neighbour deforms: on it, within the tolerance.
+    depth = report.measures["depth of right_sole on foam_top (held rigid) in deformed foam"]
+    assert -1e-3 < depth < 1e-4
+    # Pressed 2 mm into the foam, the sole is reported (its own print held rigid deforms nothing).
+    sunk = np.array(result.q)
+    sunk[2] -= 0.002
+    moved = verify(robot, scenario.scene, stance, PostureResult(**{**result.__dict__, "q": sunk}),
+                   rigid_prints=["right_sole"])
+    assert any(r.startswith("right_sole on foam_top, held rigid, lies ") and "inside the deformed foam" in str(r)
+               for r in map(str, moved.reasons))
+
+
+def test_rigid_prints_must_name_the_stances_surfaces(robot):
+    scenario = environments.load("step-on-cube")
+    with pytest.raises(StanceError) as error:
+        build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions(rigid_prints=["rigth_sole"]))
+    assert str(error.value) == (
+        "rigid_prints names ['rigth_sole'], not in the stance; its robot surfaces: ['left_sole', 'right_sole']"
+    )
+
+
+def test_depth_below_a_surface_is_read_along_the_normal_on_the_face_over_the_point():
+    """A slab whose top (z = 0.105 at x = 0) rises 1 cm a metre: depths known by hand."""
+    import trimesh
+
+    from stances.verify import depths_below_surface
+
+    slab = trimesh.creation.box(extents=[1.0, 1.0, 0.2])
+    triangles = slab.vertices[slab.faces].copy()
+    triangles[..., 2] += np.where((triangles[..., 2] > 0) & (triangles[..., 0] > 0), 0.01, 0.0)
+    points = [[0.0, 0.0, 0.1], [-0.25, 0.1, 0.095], [0.25, -0.2, 0.12], [2.0, 0.0, 0.1]]
+    np.testing.assert_allclose(depths_below_surface(points, [0, 0, 1], triangles),
+                               [0.005, 0.0075, -0.0125, -np.inf], atol=1e-12)
+    # Seen from the side, only the faces facing along the normal count: the right face (x = 0.5).
+    np.testing.assert_allclose(depths_below_surface([[0.49, 0.0, 0.0], [0.53, 0.0, 0.0], [0.6, 0.0, 0.0]], [1, 0, 0], triangles),
+                               [0.01, -0.03, -np.inf], atol=1e-12)  # beyond reach (5 cm): no surface there
