@@ -573,8 +573,10 @@ class _Between:
         hold the moving contact; its geometry and its print's object are then not
         checked, as for the support's contacts: a contact held at both ends of a step
         leaves its print in between, the joint-space interpolation holding nothing
-        (measured on cross-soft-block's held steps: up to 2.4 mm off its print, 2.2 mm
-        into the floor; the support's feet likewise), which the samples do not resolve.
+        (cross-soft-block's 8 motions: the moving sole up to 2.4 mm off its print on a
+        held step, 2.2 mm into the floor; the support's soles up to 5.2 mm, 90 % of the
+        interpolated postures within 0.9 mm). A controller tracking the samples holds the
+        contacts; the interpolation between them is not a posture the plan vouches for.
         """
         ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
                  if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
