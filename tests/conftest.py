@@ -9,6 +9,7 @@ import tempfile
 
 import coal
 import numpy as np
+import pinocchio as pin
 import pytest
 
 import environments
@@ -113,3 +114,19 @@ def hand_made_biped():
         foot_size=np.array([0.21, 0.13]),
     )
     return surfaces, reach
+
+
+def assert_point_feet_are_their_spheres(robot):
+    """Each point foot's only contact geometry is a sphere of the foot's radius centred on its contact frame."""
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, robot.reference_configuration)
+    geometry_data = robot.collision_model.createData()
+    pin.updateGeometryPlacements(robot.model, data, robot.collision_model, geometry_data)
+    names = [g.name for g in robot.collision_model.geometryObjects]
+    for surface in robot.surfaces.values():
+        assert surface.is_point
+        (sphere,) = surface.contact_geometries
+        index = names.index(sphere)
+        assert robot.collision_model.geometryObjects[index].geometry.radius == pytest.approx(surface.radius, abs=1e-12)
+        centre = data.oMf[robot.frame_id(surface.frame)].translation
+        np.testing.assert_allclose(geometry_data.oMg[index].translation, centre, atol=1e-9)

@@ -12,6 +12,7 @@ import pytest
 
 import environments
 import stances
+from conftest import assert_point_feet_are_their_spheres
 from stances import Robot, StanceError
 from stances.contacts import PointContact, point_placement_residual
 from stances.description import point_print
@@ -58,19 +59,8 @@ def test_a_point_print_is_a_regular_octagon_circumscribing_the_foot():
 def test_anymal_has_four_point_feet_touching_only_with_their_spheres(anymal):
     assert anymal.support.keep == 3
     assert anymal.surfaces_with_role("foot") == ["left_front_foot", "right_front_foot", "left_hind_foot", "right_hind_foot"]
-    data = anymal.model.createData()
-    pin.framesForwardKinematics(anymal.model, data, anymal.reference_configuration)
-    geometry_data = anymal.collision_model.createData()
-    pin.updateGeometryPlacements(anymal.model, data, anymal.collision_model, geometry_data)
-    names = [g.name for g in anymal.collision_model.geometryObjects]
-    for surface in anymal.surfaces.values():
-        assert surface.is_point and surface.radius == FOOT_RADIUS
-        (sphere,) = surface.contact_geometries
-        index = names.index(sphere)
-        assert anymal.collision_model.geometryObjects[index].geometry.radius == pytest.approx(surface.radius)
-        # The contact frame is the sphere's centre.
-        centre = data.oMf[anymal.frame_id(surface.frame)].translation
-        np.testing.assert_allclose(geometry_data.oMg[index].translation, centre, atol=1e-9)
+    assert all(surface.radius == FOOT_RADIUS for surface in anymal.surfaces.values())
+    assert_point_feet_are_their_spheres(anymal)  # the contact frame is the sphere's centre
 
 
 def test_point_placement_jacobian_matches_finite_differences(anymal):

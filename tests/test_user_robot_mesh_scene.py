@@ -12,11 +12,11 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
-import pinocchio as pin
 import pytest
 
 import environments
 import stances
+from conftest import assert_point_feet_are_their_spheres
 
 SCENES = Path(__file__).resolve().parents[1] / "bench" / "scenes" / "mesh-files"
 GRAVITY = 9.81
@@ -37,18 +37,7 @@ def test_the_user_file_describes_hyq_with_its_own_foot_spheres(hyq):
     spheres (measured on the model, not guessed), and only the ball may touch."""
     assert hyq.name == "hyq" and hyq.mass == pytest.approx(86.774, abs=1e-3)  # kg, the URDF's links
     assert hyq.support.keep == 3 and len(hyq.surfaces_with_role("foot")) == 4
-    data = hyq.model.createData()
-    pin.framesForwardKinematics(hyq.model, data, hyq.reference_configuration)
-    geometry_data = hyq.collision_model.createData()
-    pin.updateGeometryPlacements(hyq.model, data, hyq.collision_model, geometry_data)
-    names = [g.name for g in hyq.collision_model.geometryObjects]
-    for surface in hyq.surfaces.values():
-        (sphere,) = surface.contact_geometries
-        index = names.index(sphere)
-        assert hyq.collision_model.geometryObjects[index].geometry.radius == pytest.approx(surface.radius, abs=1e-12)
-        np.testing.assert_allclose(
-            geometry_data.oMg[index].translation, data.oMf[hyq.frame_id(surface.frame)].translation, atol=1e-9
-        )
+    assert_point_feet_are_their_spheres(hyq)
 
 
 def test_the_mesh_files_give_a_rigid_step_top_and_a_soft_pad_top(scenario):
