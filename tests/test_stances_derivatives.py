@@ -115,15 +115,17 @@ def linearised_problems(robot):
     return cases
 
 
-def _rows(problem, q, lam):
-    """Every row but the collision ones (their witness points jump), by label."""
-    linearization = problem.linearize(q, lam)
+def _rows(problem, q, lam, derivatives=True):
+    """Every row but the collision ones (their witness points jump), by label: (value,
+    Jacobian row), the Jacobian None with ``derivatives`` False (the values alone, as a
+    line search reads them: bit for bit those of a linearisation, test_problem_evaluate)."""
+    blocks = problem.linearize(q, lam).blocks if derivatives else problem.evaluate(q, lam).blocks
     rows = {}
-    for block in linearization.blocks:
+    for block in blocks:
         if block.name == "collision":
             continue
         for i, label in enumerate(block.labels):
-            rows[(block.name, label)] = (block.value[i], block.jacobian[i])
+            rows[(block.name, label)] = (block.value[i], block.jacobian[i] if derivatives else None)
     return rows
 
 
@@ -139,8 +141,8 @@ def _value_noise(problem, q, lam, base, detours=4):
     rng = np.random.default_rng(1)
     noise = dict.fromkeys(base, 0.0)
     for _ in range(detours):
-        _rows(problem, q, lam + 1e-3 * rng.standard_normal(len(lam)))
-        again = _rows(problem, q, lam)
+        _rows(problem, q, lam + 1e-3 * rng.standard_normal(len(lam)), derivatives=False)
+        again = _rows(problem, q, lam, derivatives=False)
         for key in base:
             if key in again:
                 noise[key] = max(noise[key], abs(again[key][0] - base[key][0]))
@@ -161,11 +163,12 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             if kind == "q":
                 step = np.zeros(model.nv)
                 step[i] = EPS
-                plus, minus = _rows(problem, pin.integrate(model, q, step), lam), _rows(problem, pin.integrate(model, q, -step), lam)
+                plus = _rows(problem, pin.integrate(model, q, step), lam, derivatives=False)
+                minus = _rows(problem, pin.integrate(model, q, -step), lam, derivatives=False)
             else:
                 step = np.zeros(problem.n_variables)
                 step[i] = EPS
-                plus, minus = _rows(problem, q, lam + step), _rows(problem, q, lam - step)
+                plus, minus = _rows(problem, q, lam + step, derivatives=False), _rows(problem, q, lam - step, derivatives=False)
             for r, key in enumerate(keys):
                 # A strain row's tet may drop out of the active set under a step: skip it there.
                 numeric[r, column] = (plus[key][0] - minus[key][0]) / (2 * EPS) if key in plus and key in minus else np.nan
@@ -189,14 +192,14 @@ def test_objective_gradient_matches_finite_differences(linearised_problems):
         linearization = problem.linearize(q, lam)
 
         def objective(x):
-            return np.array([problem.linearize(x, lam).objective])
+            return np.array([problem.evaluate(x, lam).objective])
 
         numeric = _central_difference(objective, q, model, model.nv)[0]
         analytic = linearization.gradient[: model.nv]
         assert np.abs(numeric - analytic).max() <= 1e-5 * max(1.0, np.abs(analytic).max()), label
         # In the force variables too: the torque-usage term depends on them.
         numeric = np.array([
-            (problem.linearize(q, lam + e).objective - problem.linearize(q, lam - e).objective) / (2 * EPS)
+            (problem.evaluate(q, lam + e).objective - problem.evaluate(q, lam - e).objective) / (2 * EPS)
             for e in EPS * np.eye(problem.n_variables)
         ])
         analytic = linearization.gradient[model.nv:]
@@ -258,7 +261,7 @@ def test_every_cost_term_gradient_matches_finite_differences(linearised_problems
         for term in problem.costs:
 
             def value(x, y, term=term):
-                return term.evaluate(problem, problem.iterate(x, y))[0]
+                return term.evaluate(problem, problem.iterate(x, y, derivatives=False))[0]
 
             _, gradient, _ = term.evaluate(problem, problem.iterate(q, lam))
             if np.abs(gradient).max() > 0.0:
