@@ -295,6 +295,48 @@ def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
         environments.load_string(SCENARIO.replace("E: 1.0e+6", "E: 1.0e+308"), path="case.yaml")
 
 
+
+@pytest.mark.parametrize(
+    "option, value, message",
+    [
+        ("posture_weight", float("nan"), "posture_weight must be >= 0 and finite, got nan"),
+        ("base_orientation_weight", float("inf"), "base_orientation_weight must be >= 0 and finite, got inf"),
+        ("force_weight", -1e-5, "force_weight must be >= 0 and finite, got -1e-05"),
+        ("collision_distance", float("nan"), "collision_distance must be >= 0 and finite, got nan"),
+        ("collision_activation", -0.1, "collision_activation must be >= 0 and finite, got -0.1"),
+        ("min_normal_force", float("inf"), "min_normal_force must be >= 0 and finite, got inf"),
+        ("optimality_tolerance", float("nan"), "optimality_tolerance must be > 0 and finite, got nan"),
+        ("max_slip", -1.0, "max_slip must be > 0 and finite, got -1.0"),
+        ("trust_region", float("inf"), "trust_region must be > 0 and finite, got inf"),
+        ("max_indentation", float("nan"), "max_indentation must be > 0 metres and finite (or None), got nan"),
+        ("posture_weight", "1", "posture_weight must be a number, got '1'"),
+        ("torque_weight", True, "torque_weight must be a number, got True"),
+        ("max_iterations", float("nan"), "max_iterations must be a whole number >= 0, got nan"),
+        ("max_iterations", 2.5, "max_iterations must be a whole number >= 0, got 2.5"),
+        ("max_collision_rows", -1, "max_collision_rows must be a whole number >= 0, got -1"),
+    ],
+    ids=lambda v: str(v) if isinstance(v, str) and len(v) < 30 else None,
+)
+def test_every_number_of_the_posture_options_is_checked(option, value, message):
+    """A NaN weight once made every QP fail and the stance read "print unreachable";
+    a NaN collision distance was ignored; a NaN iteration cap was numpy's ValueError."""
+    from stances.errors import StanceError
+    from stances.problem import PostureOptions
+
+    with pytest.raises(StanceError) as raised:
+        PostureOptions(**{option: value})
+    assert str(raised.value) == message
+
+
+def test_a_nan_weight_given_to_solve_is_bad_input_not_an_infeasible_stance(robot):
+    import stances
+    from stances.errors import StanceError
+
+    scenario = environments.load("hand-on-table")
+    with pytest.raises(StanceError, match="^posture_weight must be >= 0 and finite, got nan$"):
+        stances.solve(robot, scenario.scene, scenario.stance("hand-on-table"), posture_weight=float("nan"))
+
+
 # ------------------------------------------------------------ 6. CLI output
 @pytest.fixture
 def fake_planning(monkeypatch):
