@@ -928,3 +928,29 @@ def test_verify_reports_how_far_the_mesh_reaches_past_the_palm(deformable_robots
     measured = verify(robot, scenario.scene, result.stance, result).measures["mesh overlap into the links on cube"]
     assert measured == pytest.approx(expected, abs=1e-9)
     assert measured > 1e-4  # the ring's nodes do reach past the palm's face on this coarse mesh
+
+
+@pytest.mark.parametrize(
+    "x_lines, y_lines, held",
+    [([-0.5, -0.3, -0.05, 0.5], [-0.5, -0.1, 0.15, 0.5], 3), ([-0.5, -0.3, 0.5], [-0.5, 0.0, 0.5], 2)],
+    ids=["3-nodes", "2-nodes"],
+)
+def test_a_soft_print_needs_three_mesh_nodes(robot, x_lines, y_lines, held):
+    """hand-on-coarse-cube's palm print (10 x 7 cm) on a cube meshed by hand so coarsely
+    that the print covers the cells of 3, or 2, mesh nodes (found by trying grids):
+    three are enough for a print; two are refused, saying how to fix it."""
+    text = environments.builtin_scenario_path("hand-on-coarse-cube").read_text()
+    text = text.replace("x: [-0.5, -0.45, -0.35, -0.05, 0.25, 0.5]", f"x: {x_lines}")
+    text = text.replace("y: [-0.5, -0.2, 0.015, 0.085, 0.3, 0.5]", f"y: {y_lines}")
+    scenario = environments.load_string(text, name="coarser-cube")
+    stance = scenario.stance("hand-on-cube")
+    if held == 3:
+        problem = build_problem(robot, scenario.scene, stance)
+        assert len(next(c for c in problem.contacts if c.kind == "deformable").node_ids) == 3
+    else:
+        with pytest.raises(StanceError) as raised:
+            build_problem(robot, scenario.scene, stance)
+        assert str(raised.value) == (
+            "the print of right_palm on cube_top holds 2 mesh node(s); at least 3 are needed: refine the mesh of "
+            "'cube' where prints land (a scenario's soft_box takes resolution and refine)"
+        )
