@@ -522,12 +522,14 @@ def test_solving_ahead_starts_the_best_open_entries_while_done_answers_wait():
     started = []
 
     def submit(node, parent, parent_result):
-        started.append(node)
+        started.append((node, parent))
         return Future()  # still running
 
     ahead = _Lookahead(submit, 2, cache={}, closed=set())
     ahead.pending = {(f"old{i}", None): done(i) for i in range(8)}
-    heap = [(float(i), i, f"n{i}", None) for i in range(5)]
+    # The search's heap entries: (priority, order, node, parent, cost, total, settled).
+    heap = [(float(i), i, f"n{i}", f"p{i}", 10.0 + i, 20.0 + i, False) for i in range(5)]
     heapq.heapify(heap)
     ahead.fill(heap)
-    assert started == ["n0", "n1"]
+    assert started == [("n0", "p0"), ("n1", "p1")]
+    assert set(ahead.pending) >= {("n0", "p0"), ("n1", "p1")}

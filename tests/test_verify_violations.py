@@ -222,3 +222,20 @@ def test_both_checks_refuse_a_print_deeper_than_the_bound_it_was_solved_with(rob
     recorded = dataclasses.replace(solved, statistics={**solved.statistics, "options": {"max_indentation": bound}})
     report = _plan_of(robot, scenario, recorded, solved).check(scenario, robot)
     assert report.problems == (f"stance 0: {expected}",)
+
+
+def test_a_sole_turned_on_its_print_is_reported_in_metres_and_radians_apart(robot, scenario, solved, problem):
+    """The placement check reads the residual's translation (m) and rotation (rad) apart:
+    1 mm off and 0.02 rad turned reads so, not 0.02 m."""
+    from stances.verify import VerificationTolerances
+
+    (rigid, _), _ = _slices(problem)
+    data = robot.model.createData()
+    rigid._placement_residual = lambda data_: np.array([0.001, 0.0, 0.0, 0.02, 0.0, 0.0])
+    try:
+        measures = {}
+        reasons = rigid._verify_placement(data, VerificationTolerances(), measures)
+    finally:
+        del rigid._placement_residual
+    assert reasons == [f"{rigid.label} is off its print by 0.001 m and 0.02 rad"]
+    assert measures[f"placement error of {rigid.label}"] == 0.02
