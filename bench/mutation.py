@@ -68,7 +68,8 @@ TARGETS = {
     "fem/contact.py": _FEM_TESTS,
     # The polygon checks' messages (which vertex folds back) are tested with bad input.
     "fem/prints.py": ["tests/test_fem_coverage.py",
-                      "tests/test_bad_input.py::test_self_intersecting_print_polygon_is_a_print_error"] + _FEM_TESTS,
+                      "tests/test_bad_input.py::test_self_intersecting_print_polygon_is_a_print_error",
+                      "tests/test_bad_input.py::test_simple_print_polygons_are_accepted_and_hold_the_nodes_inside"] + _FEM_TESTS,
     "stances/statics.py": _STANCE_TESTS,
     "stances/terms.py": _STANCE_TESTS,
     # Each check of verify fed one violation (issue 13, item 2), fast: first. A ball

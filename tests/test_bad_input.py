@@ -278,10 +278,26 @@ def test_self_intersecting_print_polygon_is_a_print_error(polygon, message):
         fem.nodes_in_polygon(mesh, [[x, y, 1.0] for x, y in polygon])
 
 
-def test_non_convex_simple_print_polygon_is_still_accepted():
-    mesh = fem.box_mesh((1.0, 1.0, 1.0), (4, 4, 2))
-    arrow = [[0.2, 0.2, 1.0], [0.8, 0.2, 1.0], [0.5, 0.5, 1.0], [0.8, 0.8, 1.0], [0.2, 0.8, 1.0]]
-    assert fem.nodes_in_polygon(mesh, arrow).size > 0
+@pytest.mark.parametrize(
+    "polygon",
+    [
+        # An arrow, non-convex (its edges pass through no node of the 0.1 m grid).
+        [[0.21, 0.23], [0.79, 0.22], [0.52, 0.49], [0.78, 0.81], [0.22, 0.79]],
+        # Non-convex, counter-clockwise: in the polygon's own plane axes an edge's end
+        # vertex lies inside the bounding box of a later edge, on its inner side, which
+        # the intersection test must not take for a touch (found by random search).
+        [[0.72, 0.52], [0.61, 0.69], [0.32, 0.66], [0.29, 0.69], [0.59, 0.33]],
+    ],
+    ids=["arrow", "pentagon"],
+)
+def test_simple_print_polygons_are_accepted_and_hold_the_nodes_inside(polygon):
+    from matplotlib.path import Path as PolygonPath
+
+    mesh = fem.box_mesh((1.0, 1.0, 1.0), (10, 10, 2))
+    found = fem.nodes_in_polygon(mesh, [[x, y, 1.0] for x, y in polygon])
+    top = np.flatnonzero(mesh.nodes[:, 2] == 1.0)
+    inside = top[PolygonPath(polygon).contains_points(mesh.nodes[top, :2])]
+    assert found.size > 0 and set(found.tolist()) == set(inside.tolist())
 
 
 @pytest.mark.parametrize("young_modulus", [1e308, 1e14], ids=["1e308", "1e14"])

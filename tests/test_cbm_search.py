@@ -533,3 +533,13 @@ def test_solving_ahead_starts_the_best_open_entries_while_done_answers_wait():
     ahead.fill(heap)
     assert started == [("n0", "p0"), ("n1", "p1")]
     assert set(ahead.pending) >= {("n0", "p0"), ("n1", "p1")}
+    # Closed nodes at the top of the heap (entries the search will skip) are looked
+    # past: up to 4 entries per call it may run, so the two open ones after 6 closed start.
+    started.clear()
+    closed = {f"c{i}" for i in range(6)}
+    ahead = _Lookahead(submit, 2, cache={}, closed=closed)
+    heap = [(float(i), i, f"c{i}", "p", 0.0, 0.0, False) for i in range(6)]
+    heap += [(10.0 + i, 10 + i, f"n{i}", "p", 0.0, 0.0, False) for i in range(3)]
+    heapq.heapify(heap)
+    ahead.fill(heap)
+    assert started == [("n0", "p"), ("n1", "p")]
