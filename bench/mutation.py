@@ -326,6 +326,14 @@ EQUIVALENT = {
         "a cap on sweeps that stop on their tolerance; one sweep more moves nothing a test can see",
     ("fem/patch.py", "0 -> 1", "idx = np.flatnonzero(in_print >= 0)"):
         "up to round-off: without the exact identity row, print node 0 gets C_PP S_P = I to about 1e-12",
+    ("fem/contact.py", "1.0 -> 2.0", "replaced[np.searchsorted(rows, lifted_rows), lifted_rows] = 1.0"):
+        "a lifted node's row reads phi = 0 with right-hand side 0: 2 phi = 0 is the same equation",
+    ("fem/prints.py", "3 -> 4", "if polygons.shape[1] < 3:"):
+        "only called on the coverage quads (4 corners each), for which < 3 and < 4 are both false",
+    ("cbm/search.py", "GtE -> Gt", "if running >= self.size:"):
+        "at running == size the loop's first test breaks before starting anything, as the early return does",
+    ("fem/mesh.py", "Add -> Sub", "high, low = keys[:, 0] * n + keys[:, 1], keys[:, 2] * n + keys[:, 3]"):
+        "with 0 <= d < n, c n - d is as injective as c n + d: equal tets still get equal keys, and only they do",
 }
 _FLOAT_BOUNDARY = ("Lt -> LtE", "LtE -> Lt", "Gt -> GtE", "GtE -> Gt")
 # numpy reads any negative size in reshape as "the rest", and these sentinels are
