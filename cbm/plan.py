@@ -343,8 +343,9 @@ class Plan:
         """Re-verify every stance, every transition and the outcome.
 
         Each stance is checked by ``stances.verify`` (independent of the
-        solver) on the posture and forces the plan shows (``q`` and
-        ``point_forces`` of each stance, not a copy inside its result), with
+        solver) on the posture, forces and displacement fields the plan shows
+        (``q``, ``point_forces`` and ``deformations`` of each stance, not a copy
+        inside its result), with
         the posture options its result was solved with. Consecutive stances
         must differ by exactly one contact, and a plan that says it succeeded
         must end on a stance that reaches the scenario's goal.
@@ -373,7 +374,7 @@ class Plan:
                 problems.append(f"stance {index}: no solver result to verify")
                 continue
             # What the plan shows is what is checked.
-            shown = replace(result, q=planned.q, point_forces=planned.point_forces)
+            shown = replace(result, q=planned.q, point_forces=planned.point_forces, deformations=planned.deformations)
             options = dict(getattr(result, "statistics", {}).get("options", {}))
             verification = stances.verify(robot, scenario.scene, planned.stance, shown, **options)
             if not verification.ok:

@@ -17,6 +17,7 @@ functions of q (eq. 29, 44).
 
 from __future__ import annotations
 
+import numbers
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -204,8 +205,15 @@ class PostureOptions:
             )
         if self.deformation_weight is None:
             object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
-        if not self.deformation_weight >= 0.0:
-            raise StanceError(f"deformation_weight must be >= 0, got {self.deformation_weight}")
+        # Every weight, distance and tolerance is a finite number: a NaN weight made
+        # every QP fail and the stance "unreachable", a NaN distance was ignored.
+        for name in _NON_NEGATIVE + _POSITIVE + ("max_indentation",) * (self.max_indentation is not None):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Real):
+                raise StanceError(f"{name} must be a number, got {value!r}")
+        for name in _NON_NEGATIVE:
+            if not 0.0 <= getattr(self, name) < np.inf:
+                raise StanceError(f"{name} must be >= 0 and finite, got {getattr(self, name)}")
         if self.contact_law not in LAWS:
             raise StanceError(f"contact_law must be one of {LAWS}, got {self.contact_law!r}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
@@ -214,26 +222,33 @@ class PostureOptions:
                 "use reaction_model='consistent', or contact_law='bonded' with traction"
             )
         for name in ("max_iterations", "max_collision_rows", "max_strain_rows"):
-            if int(getattr(self, name)) < 0:
-                raise StanceError(f"{name} must be >= 0")
-        for name in ("trust_region", "feasibility_tolerance", "indentation_limit", "elastic_penalty"):
-            if not getattr(self, name) > 0:
-                raise StanceError(f"{name} must be > 0, got {getattr(self, name)}")
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
+                raise StanceError(f"{name} must be a whole number >= 0, got {value!r}")
+        for name in _POSITIVE:
+            if not 0.0 < getattr(self, name) < np.inf:
+                raise StanceError(f"{name} must be > 0 and finite, got {getattr(self, name)}")
         for name in ("effort_margin", "joint_margin"):
             if not 0.0 <= getattr(self, name) < 0.5:
                 raise StanceError(f"{name} must be a fraction in [0, 0.5), got {getattr(self, name)}")
-        if not self.min_normal_force >= 0.0:
-            raise StanceError(f"min_normal_force must be >= 0 newtons, got {self.min_normal_force}")
-        if not self.torque_weight >= 0.0:
-            raise StanceError(f"torque_weight must be >= 0, got {self.torque_weight}")
         if not 0.0 < self.friction_margin <= 1.0:
             raise StanceError(f"friction_margin must be in (0, 1], got {self.friction_margin}")
-        if self.max_indentation is not None and not self.max_indentation > 0:
-            raise StanceError(f"max_indentation must be > 0 metres (or None), got {self.max_indentation}")
+        if self.max_indentation is not None and not 0.0 < self.max_indentation < np.inf:
+            raise StanceError(f"max_indentation must be > 0 metres and finite (or None), got {self.max_indentation}")
         if isinstance(self.rigid_prints, str) or not all(isinstance(name, str) for name in self.rigid_prints):
             raise StanceError(f"rigid_prints must be a sequence of robot surface names, got {self.rigid_prints!r}")
         object.__setattr__(self, "rigid_prints", tuple(self.rigid_prints))
 
+
+#: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
+#: tolerances, penalties, metres), checked by :class:`PostureOptions`.
+_NON_NEGATIVE = (
+    "posture_weight", "base_orientation_weight", "force_weight", "torque_weight", "deformation_weight",
+    "min_normal_force", "collision_distance", "collision_activation",
+)
+_POSITIVE = (
+    "trust_region", "feasibility_tolerance", "optimality_tolerance", "indentation_limit", "elastic_penalty", "max_slip",
+)
 
 _ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it
 

@@ -75,10 +75,12 @@ def verify_problem(
     result : stances.PostureResult
     tolerances : VerificationTolerances, optional
     deformed_surfaces : bool
-        Also check that no link but the contacting one penetrates a deformed
-        support (exact, on the deformed boundary mesh). It needs the whole-body
-        displacement field, a few hundred milliseconds on a large mesh, so the
-        solver's own check (against the rest shape) leaves it out.
+        Also check the displacement fields ``result.deformations`` shows
+        (finite, and those its forces make) and that no link but the
+        contacting one penetrates a deformed support (exact, on the deformed
+        boundary mesh). It needs the whole-body displacement fields, a few
+        hundred milliseconds on a large mesh, so the solver's own check
+        (against the rest shape) leaves it out.
 
     Returns
     -------
@@ -98,6 +100,19 @@ def verify_problem(
     for p in result.point_forces:
         if not (np.all(np.isfinite(p.force)) and np.all(np.isfinite(p.point))):
             return Verification(False, (f"a contact force on {p.frame} is not finite",), {})
+    # The forces act where the file says: one per application point of the stance's
+    # contacts, each on its contact's link. A force on another frame moves its load
+    # to another joint's torque; one more than the contacts have (a hook in the
+    # sky) would be checked by no contact's cone or placement.
+    frames = [frame for contact in problem.contacts for frame in contact.load_frames]
+    shown = [p.frame for p in result.point_forces]
+    if len(shown) != len(frames):
+        return Verification(
+            False, (f"{len(shown)} contact forces reported for the {len(frames)} application points of the stance's contacts",), {}
+        )
+    wrong = next((i for i, (a, b) in enumerate(zip(shown, frames)) if a != b), None)
+    if wrong is not None:
+        return Verification(False, (f"contact force {wrong} acts on {shown[wrong]}, not on its contact's {frames[wrong]}",), {})
     pin.framesForwardKinematics(model, data, q)
 
     # Joint limits.
@@ -130,9 +145,13 @@ def verify_problem(
         points = np.array([p.point for p in result.point_forces[loads]])
         reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
 
-    # Links other than the contacting one keep clear of each deformed surface.
-    if deformed_surfaces and problem.collision_checker is not None:
-        reasons.extend(_deformed_surface_clearance(problem, result, data, tolerances, measures))
+    if deformed_surfaces:
+        # The displacement fields the result shows are those its forces make.
+        fields, mismatches = _shown_deformations(problem, result, data, tolerances, measures)
+        reasons.extend(mismatches)
+        # Links other than the contacting one keep clear of each deformed surface.
+        if problem.collision_checker is not None and fields is not None:
+            reasons.extend(_deformed_surface_clearance(problem, fields, data, tolerances, measures))
 
     # Collisions, measured afresh.
     if problem.collision_checker is not None:
@@ -156,7 +175,9 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     scene : environments.Scene
     stance : environments.Stance
     result : stances.PostureResult
-        Its ``q`` and ``point_forces`` are checked; nothing else is trusted.
+        Its ``q``, ``point_forces`` (one per application point of the stance's
+        contacts, on its contact's frame) and ``deformations`` are checked;
+        nothing else is trusted.
     **options
         Posture options (e.g. ``reaction_model``) the result was solved with.
         Deformable supports are checked against their deformed surface.
@@ -170,7 +191,40 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     return verify_problem(problem, result, deformed_surfaces=True)
 
 
-def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> list:
+def _shown_deformations(problem, result, data, tolerances, measures):
+    """Each soft support's field as shown by ``result``, checked against its forces.
+
+    Returns
+    -------
+    fields : dict of str to (N, 3) float, or None
+        Body-frame displacements by object name: the shown field where the
+        result has one, else the one its forces make. None if a shown field is
+        not finite or not of the body's shape (nothing to check clearance on).
+    reasons : list of str
+        Shown fields that are not the forces' own, by how far (metres).
+    """
+    fields, reasons = {}, []
+    for contact, loads in zip(problem.contacts, problem.load_slices):
+        if contact.kind != "deformable":
+            continue
+        name = contact.deformable_object.name
+        forces = np.array([p.force for p in result.point_forces[loads]]).reshape(-1, 3)
+        expected = np.asarray(contact.displacement_field(problem.robot.model, data, forces))
+        if name not in result.deformations:
+            fields[name] = expected
+            continue
+        shown = np.asarray(result.deformations[name], dtype=float)
+        if shown.shape != expected.shape or not np.all(np.isfinite(shown)):
+            return None, [f"the deformation of {name} is not a finite {expected.shape[0]} x 3 field"]
+        error = float(np.abs(shown - expected).max(initial=0.0))
+        measures[f"deformation error of {name}"] = error
+        if error > tolerances.deformable_placement:
+            reasons.append(f"the deformation of {name} is off the one its forces make by {error:.3g} m")
+        fields[name] = shown
+    return fields, reasons
+
+
+def _deformed_surface_clearance(problem, fields, data, tolerances, measures) -> list:
     """Penetrations of robot links into the deformed supports (the links resting on them
     excluded), and of the prints held rigid on them, point by point."""
     reasons = []
@@ -179,7 +233,7 @@ def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> 
             continue
         obj = contact.deformable_object
         name = f"{obj.name} (deformed)"
-        triangles = obj.deformed_surface(result.deformations[obj.name])
+        triangles = obj.deformed_surface(fields[obj.name])
         # A print held rigid on the body (PostureOptions.rigid_prints: a limb touching it
         # unloaded) rests on it like the soft prints: its link is left out of the meshes'
         # check, and its points are checked against the surface the other prints deform.
@@ -189,7 +243,7 @@ def _deformed_surface_clearance(problem, result, data, tolerances, measures) -> 
             problem.robot.model.frames[c.frame_id].name for c in held]
         checker = CollisionChecker(
             problem.robot,
-            [(name, obj.deformed_collision_object(result.deformations[obj.name]))],
+            [(name, obj.deformed_collision_object(fields[obj.name]))],
             margin=0.0,
             exclude=[pair for frame in frames for pair in contact_exclusions(problem.robot, frame, name)],
             self_collision=False,

@@ -278,10 +278,26 @@ def test_self_intersecting_print_polygon_is_a_print_error(polygon, message):
         fem.nodes_in_polygon(mesh, [[x, y, 1.0] for x, y in polygon])
 
 
-def test_non_convex_simple_print_polygon_is_still_accepted():
-    mesh = fem.box_mesh((1.0, 1.0, 1.0), (4, 4, 2))
-    arrow = [[0.2, 0.2, 1.0], [0.8, 0.2, 1.0], [0.5, 0.5, 1.0], [0.8, 0.8, 1.0], [0.2, 0.8, 1.0]]
-    assert fem.nodes_in_polygon(mesh, arrow).size > 0
+@pytest.mark.parametrize(
+    "polygon",
+    [
+        # An arrow, non-convex (its edges pass through no node of the 0.1 m grid).
+        [[0.21, 0.23], [0.79, 0.22], [0.52, 0.49], [0.78, 0.81], [0.22, 0.79]],
+        # Non-convex, counter-clockwise: in the polygon's own plane axes an edge's end
+        # vertex lies inside the bounding box of a later edge, on its inner side, which
+        # the intersection test must not take for a touch (found by random search).
+        [[0.72, 0.52], [0.61, 0.69], [0.32, 0.66], [0.29, 0.69], [0.59, 0.33]],
+    ],
+    ids=["arrow", "pentagon"],
+)
+def test_simple_print_polygons_are_accepted_and_hold_the_nodes_inside(polygon):
+    from matplotlib.path import Path as PolygonPath
+
+    mesh = fem.box_mesh((1.0, 1.0, 1.0), (10, 10, 2))
+    found = fem.nodes_in_polygon(mesh, [[x, y, 1.0] for x, y in polygon])
+    top = np.flatnonzero(mesh.nodes[:, 2] == 1.0)
+    inside = top[PolygonPath(polygon).contains_points(mesh.nodes[top, :2])]
+    assert found.size > 0 and set(found.tolist()) == set(inside.tolist())
 
 
 @pytest.mark.parametrize("young_modulus", [1e308, 1e14], ids=["1e308", "1e14"])
@@ -293,6 +309,48 @@ def test_enormous_young_modulus_is_a_material_error(young_modulus):
 def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
     with pytest.raises(ScenarioError, match=r"objects\[1\]\.material: young_modulus must be <="):
         environments.load_string(SCENARIO.replace("E: 1.0e+6", "E: 1.0e+308"), path="case.yaml")
+
+
+
+@pytest.mark.parametrize(
+    "option, value, message",
+    [
+        ("posture_weight", float("nan"), "posture_weight must be >= 0 and finite, got nan"),
+        ("base_orientation_weight", float("inf"), "base_orientation_weight must be >= 0 and finite, got inf"),
+        ("force_weight", -1e-5, "force_weight must be >= 0 and finite, got -1e-05"),
+        ("collision_distance", float("nan"), "collision_distance must be >= 0 and finite, got nan"),
+        ("collision_activation", -0.1, "collision_activation must be >= 0 and finite, got -0.1"),
+        ("min_normal_force", float("inf"), "min_normal_force must be >= 0 and finite, got inf"),
+        ("optimality_tolerance", float("nan"), "optimality_tolerance must be > 0 and finite, got nan"),
+        ("max_slip", -1.0, "max_slip must be > 0 and finite, got -1.0"),
+        ("trust_region", float("inf"), "trust_region must be > 0 and finite, got inf"),
+        ("max_indentation", float("nan"), "max_indentation must be > 0 metres and finite (or None), got nan"),
+        ("posture_weight", "1", "posture_weight must be a number, got '1'"),
+        ("torque_weight", True, "torque_weight must be a number, got True"),
+        ("max_iterations", float("nan"), "max_iterations must be a whole number >= 0, got nan"),
+        ("max_iterations", 2.5, "max_iterations must be a whole number >= 0, got 2.5"),
+        ("max_collision_rows", -1, "max_collision_rows must be a whole number >= 0, got -1"),
+    ],
+    ids=lambda v: str(v) if isinstance(v, str) and len(v) < 30 else None,
+)
+def test_every_number_of_the_posture_options_is_checked(option, value, message):
+    """A NaN weight once made every QP fail and the stance read "print unreachable";
+    a NaN collision distance was ignored; a NaN iteration cap was numpy's ValueError."""
+    from stances.errors import StanceError
+    from stances.problem import PostureOptions
+
+    with pytest.raises(StanceError) as raised:
+        PostureOptions(**{option: value})
+    assert str(raised.value) == message
+
+
+def test_a_nan_weight_given_to_solve_is_bad_input_not_an_infeasible_stance(robot):
+    import stances
+    from stances.errors import StanceError
+
+    scenario = environments.load("hand-on-table")
+    with pytest.raises(StanceError, match="^posture_weight must be >= 0 and finite, got nan$"):
+        stances.solve(robot, scenario.scene, scenario.stance("hand-on-table"), posture_weight=float("nan"))
 
 
 # ------------------------------------------------------------ 6. CLI output

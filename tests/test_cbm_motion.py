@@ -594,3 +594,42 @@ def test_a_touch_down_on_foam_beside_a_loaded_sole_is_unloaded_and_held_rigid(ro
     assert motion.paths[-1].unloaded and touch.statistics["options"]["rigid_prints"] == ("right_sole",)
     assert motion.paths[-1].load(touch) < UNLOADED_FORCE
     assert verify_motion(motion, plan, scenario, robot) == []
+
+
+def test_motion_defaults_are_those_the_readme_measured():
+    """The tests plan with 3 samples for speed; `cbm plan --motion` runs the defaults the
+    README's measurements used: 6 waypoints across, 5 cm above the higher end, at most
+    2 samples inserted in one step."""
+    import inspect
+
+    parameters = inspect.signature(plan_motion).parameters
+    assert (parameters["samples"].default, parameters["clearance"].default, parameters["max_splits"].default) == (6, 0.05, 2)
+
+
+def test_a_waypoint_not_reached_is_retried_from_a_waypoint_halfway_first(robot, monkeypatch):
+    """The continuation's order: the far waypoint fails, the one halfway toward it is
+    solved next (its placement halfway), then the far one again from there."""
+    from types import SimpleNamespace
+
+    import cbm.motion as motion
+
+    solved = []
+
+    def fake_solve(robot_, scene, support, holding, path, reference, q, previous, options):
+        solved.append((path.label, np.round(path.transform_frame_to_world[:3, 3], 12).tolist()))
+        # The far waypoint is out of reach from the start only.
+        return SimpleNamespace(feasible=len(solved) > 1, q=q, reason="too far")
+
+    monkeypatch.setattr(motion, "_solve_sample", fake_solve)
+    target = np.eye(4)
+    target[:3, 3] = [0.2, 0.0, 0.1]
+    far = FramePlacementConstraint(robot.surface("right_sole").frame, target, label="right_sole (across)")
+    q = robot.reference_configuration
+    done = motion._continuation(robot, None, None, [("across", far, q)], q, np.eye(4), {}, max_splits=2)
+    assert solved == [
+        ("right_sole (across)", [0.2, 0.0, 0.1]),
+        ("right_sole (toward across)", [0.1, 0.0, 0.05]),
+        ("right_sole (across)", [0.2, 0.0, 0.1]),
+    ]
+    assert done.pending == [] and done.reason == ""
+    assert [p.label for p in done.reached] == ["right_sole (toward across)", "right_sole (across)"]

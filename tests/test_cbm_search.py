@@ -491,3 +491,55 @@ def test_the_search_has_the_planners_defaults():
         limits.time_limit,
     )
     assert inspect.signature(best_first_search).parameters["seed"].default == planner["seed"].default == 0
+
+
+def test_solving_ahead_is_asked_for_not_implied_by_submit():
+    """lookahead defaults to 0: a search given ``submit`` without a lookahead is refused
+    rather than solving ahead by a default nobody chose."""
+    import inspect
+
+    assert inspect.signature(best_first_search).parameters["lookahead"].default == 0
+    with pytest.raises(CbmError, match="^lookahead must be a positive integer with submit, got 0$"):
+        best_first_search(
+            "a", neighbours=lambda n: [], oracle=lambda *a: None, heuristic=lambda n: 0.0,
+            is_goal=lambda n: True, submit=lambda *args: None,
+        )
+
+
+def test_solving_ahead_starts_the_best_open_entries_while_done_answers_wait():
+    """Answers started earlier and not yet taken (done, so not running) do not use up the
+    window of open entries looked at: the two best open nodes are started."""
+    import heapq
+    from concurrent.futures import Future
+
+    from cbm.search import _Lookahead
+
+    def done(value):
+        future = Future()
+        future.set_result(value)
+        return future
+
+    started = []
+
+    def submit(node, parent, parent_result):
+        started.append((node, parent))
+        return Future()  # still running
+
+    ahead = _Lookahead(submit, 2, cache={}, closed=set())
+    ahead.pending = {(f"old{i}", None): done(i) for i in range(8)}
+    # The search's heap entries: (priority, order, node, parent, cost, total, settled).
+    heap = [(float(i), i, f"n{i}", f"p{i}", 10.0 + i, 20.0 + i, False) for i in range(5)]
+    heapq.heapify(heap)
+    ahead.fill(heap)
+    assert started == [("n0", "p0"), ("n1", "p1")]
+    assert set(ahead.pending) >= {("n0", "p0"), ("n1", "p1")}
+    # Closed nodes at the top of the heap (entries the search will skip) are looked
+    # past: up to 4 entries per call it may run, so the two open ones after 6 closed start.
+    started.clear()
+    closed = {f"c{i}" for i in range(6)}
+    ahead = _Lookahead(submit, 2, cache={}, closed=closed)
+    heap = [(float(i), i, f"c{i}", "p", 0.0, 0.0, False) for i in range(6)]
+    heap += [(10.0 + i, 10 + i, f"n{i}", "p", 0.0, 0.0, False) for i in range(3)]
+    heapq.heapify(heap)
+    ahead.fill(heap)
+    assert started == [("n0", "p"), ("n1", "p")]

@@ -103,3 +103,32 @@ def test_distances_do_not_depend_on_an_earlier_box_query_in_the_process():
     ]
     assert len(outputs[0]) > 20  # hulls to the cube, and palm plates to the arms
     assert outputs[0] == outputs[1]
+
+
+INFEASIBLE_SCRIPT = """
+import sys
+sys.path.insert(0, {tests!r})
+from conftest import fingerprint
+import environments, stances
+from environments import Contact, ContactPrint, Stance
+robot = stances.Robot.load("talos")
+scenario = environments.load("stand")
+stance = Stance((Contact("left_sole", ContactPrint("floor", 0.0, 0.085, 0.0)),
+                 Contact("right_sole", ContactPrint("floor", 3.0, -0.085, 0.0))))
+result = stances.solve(robot, scenario.scene, stance, max_iterations=60)
+print(*fingerprint(result))
+print(result.reason)
+"""
+
+
+def test_an_infeasible_stance_solved_in_two_fresh_processes_gives_the_same_reason():
+    """A sole 3 m from the other: the same iterate, the same reason and the same
+    conflicting rows in every process (issue 13 found reasons that changed)."""
+    code = INFEASIBLE_SCRIPT.format(tests=os.path.dirname(__file__))
+    outputs = [
+        subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True, timeout=300).stdout
+        for _ in range(2)
+    ]
+    assert outputs[0].startswith("False")
+    assert "; no step meets together: placement of " in outputs[0]
+    assert outputs[0] == outputs[1]

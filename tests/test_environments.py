@@ -377,3 +377,14 @@ def test_polygon_centroid_is_the_area_weighted_mean_of_its_triangles_centroids()
     assert np.allclose(polygon_centroid(quad), expected, rtol=0.0, atol=1e-12)
     assert not np.allclose(expected, quad.mean(axis=0), atol=1e-3)
     assert np.allclose(polygon_centroid(quad[:3]), quad[:3].mean(axis=0), rtol=0.0, atol=1e-12)
+
+
+def test_collision_shapes_read_as_their_size_and_place():
+    """A shape's repr (in logs and errors) gives its box size or triangle count and its origin."""
+    from environments.geometry import CollisionShape
+
+    to_world = np.eye(4)
+    to_world[:3, 3] = [0.4, -0.6, 0.45]
+    assert repr(CollisionShape(to_world, box_size=(0.8, 0.8, 0.9))) == "CollisionShape(box 0.8 x 0.8 x 0.9 m at (0.4, -0.6, 0.45))"
+    triangle = CollisionShape(np.eye(4), vertices=np.eye(3), triangles=[[0, 1, 2]])
+    assert repr(triangle) == "CollisionShape(mesh of 1 triangles at (0, 0, 0))"

@@ -138,3 +138,29 @@ def test_a_scenario_file_names_the_bad_block(tmp_path):
     path.write_text(text.replace("size: [0.4, 0.5, 0.8], center: [0.4,", "size: [0.4, 0.5, 0.8], center: [0.45,"))
     scenario = environments.load(str(path))
     assert {"foam_tread", "foam_ledge"} <= set(scenario.scene.surfaces)
+
+
+def test_soft_box_yaw_turns_body_and_top_and_its_friction_is_the_tops():
+    """A 0.6 x 0.4 x 0.2 m box centred at (1, -0.5, 0.1), turned 30 degrees about z:
+    its top frame and every mesh node turn about the centre's vertical, its base stays
+    on the floor, and the friction given is the top surface's."""
+    import math
+
+    from environments.deformable import soft_box
+
+    material = fem.LinearElasticMaterial(1e6, 0.4)
+    obj, top = soft_box("pad", (0.6, 0.4, 0.2), (1.0, -0.5, 0.1), material, resolution="coarse",
+                        yaw=math.radians(30), friction=0.45)
+    assert top.friction == 0.45
+    c, s = math.cos(math.radians(30)), math.sin(math.radians(30))
+    turn = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(top.transform_surface_to_world[:3, :3], turn, atol=1e-15)
+    np.testing.assert_allclose(top.transform_surface_to_world[:3, 3], [1.0, -0.5, 0.2], atol=1e-15)
+    np.testing.assert_allclose(top.polygon, [[-0.3, -0.2], [0.3, -0.2], [0.3, 0.2], [-0.3, 0.2]], atol=1e-15)
+    # Body frame: centre of the base, the box's axes.
+    nodes = np.asarray(obj.mesh.nodes)
+    world = obj.points_in_world(nodes)
+    np.testing.assert_allclose(world, nodes @ turn.T + [1.0, -0.5, 0.0], atol=1e-12)
+    assert world[:, 2].min() == pytest.approx(0.0, abs=1e-15) and world[:, 2].max() == pytest.approx(0.2, abs=1e-15)
+    np.testing.assert_allclose(nodes.min(axis=0), [-0.3, -0.2, 0.0], atol=1e-15)
+    np.testing.assert_allclose(nodes.max(axis=0), [0.3, 0.2, 0.2], atol=1e-15)

@@ -81,7 +81,7 @@ def test_paper_force_term_is_the_squared_nodal_reactions(robot):
     ("options", "message"),
     [
         ({"deformation_cost": "strain"}, "deformation_cost must be one of ('energy', 'force'), got 'strain'"),
-        ({"deformation_weight": -1.0}, "deformation_weight must be >= 0, got -1.0"),
+        ({"deformation_weight": -1.0}, "deformation_weight must be >= 0 and finite, got -1.0"),
     ],
 )
 def test_bad_deformation_term_options_are_refused(options, message):

@@ -671,7 +671,7 @@ def test_effort_margin_shrinks_the_torque_rows_and_names_itself(robot):
     [
         ("effort_margin", 0.5, "effort_margin must be a fraction in \\[0, 0.5\\), got 0.5"),
         ("joint_margin", -0.1, "joint_margin must be a fraction in \\[0, 0.5\\), got -0.1"),
-        ("torque_weight", float("nan"), "torque_weight must be >= 0, got nan"),
+        ("torque_weight", float("nan"), "torque_weight must be >= 0 and finite, got nan"),
     ],
 )
 def test_bad_margins_are_rejected(option, value, message):
@@ -996,3 +996,29 @@ def test_depth_below_a_surface_is_read_along_the_normal_on_the_face_over_the_poi
     # Seen from the side, only the faces facing along the normal count: the right face (x = 0.5).
     np.testing.assert_allclose(depths_below_surface([[0.49, 0.0, 0.0], [0.53, 0.0, 0.0], [0.6, 0.0, 0.0]], [1, 0, 0], triangles),
                                [0.01, -0.03, -np.inf], atol=1e-12)  # beyond reach (5 cm): no surface there
+
+
+@pytest.mark.parametrize(
+    "x_lines, y_lines, held",
+    [([-0.5, -0.3, -0.05, 0.5], [-0.5, -0.1, 0.15, 0.5], 3), ([-0.5, -0.3, 0.5], [-0.5, 0.0, 0.5], 2)],
+    ids=["3-nodes", "2-nodes"],
+)
+def test_a_soft_print_needs_three_mesh_nodes(robot, x_lines, y_lines, held):
+    """hand-on-coarse-cube's palm print (10 x 7 cm) on a cube meshed by hand so coarsely
+    that the print covers the cells of 3, or 2, mesh nodes (found by trying grids):
+    three are enough for a print; two are refused, saying how to fix it."""
+    text = environments.builtin_scenario_path("hand-on-coarse-cube").read_text()
+    text = text.replace("x: [-0.5, -0.45, -0.35, -0.05, 0.25, 0.5]", f"x: {x_lines}")
+    text = text.replace("y: [-0.5, -0.2, 0.015, 0.085, 0.3, 0.5]", f"y: {y_lines}")
+    scenario = environments.load_string(text, name="coarser-cube")
+    stance = scenario.stance("hand-on-cube")
+    if held == 3:
+        problem = build_problem(robot, scenario.scene, stance)
+        assert len(next(c for c in problem.contacts if c.kind == "deformable").node_ids) == 3
+    else:
+        with pytest.raises(StanceError) as raised:
+            build_problem(robot, scenario.scene, stance)
+        assert str(raised.value) == (
+            "the print of right_palm on cube_top holds 2 mesh node(s); at least 3 are needed: refine the mesh of "
+            "'cube' where prints land (a scenario's soft_box takes resolution and refine)"
+        )
