@@ -293,7 +293,9 @@ def test_a_waypoint_out_of_reach_forward_is_solved_backward_from_the_next_stance
     assert len(backward) + len(forward_reached) == 5 and not forward_reached & set(backward)
     assert motion.paths[-1].label == "touch-down of right_sole"  # after the backward samples, as always last
     np.testing.assert_array_equal(motion.configurations[-1], step_plan.stances[2].q)
-    assert np.all(np.diff(motion.targets[:, 0, 3]) >= -1e-12)  # the samples in path order, both halves
+    # The samples in path order, both halves (the touch-down sample's frame is where its solve put
+    # it, on its print within the placement accuracy, 1e-7 m, not exactly on the last waypoint's x).
+    assert np.all(np.diff(motion.targets[:, 0, 3]) >= -1e-6)
 
 
 def test_a_waypoint_out_of_reach_both_ways_gives_both_reasons(step_plan, scenario, robot, monkeypatch):
