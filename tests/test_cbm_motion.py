@@ -128,6 +128,11 @@ def test_a_position_only_path_leaves_the_frame_free_to_turn(robot):
     target[2, 3] += 2e-3
     assert FramePlacementConstraint(frame, target).error(robot, q) == pytest.approx(0.5)
     assert FramePlacementConstraint(frame, target, position_only=True).error(robot, q) == pytest.approx(2e-3)
+    # Moved 1 cm and turned 5 mrad about its own x: the error is the larger of the two, each on its own.
+    moved = data.oMf[robot.model.getFrameId(frame)].homogeneous.copy()
+    moved[:3, :3] = moved[:3, :3] @ pin.exp3(np.array([0.005, 0.0, 0.0]))
+    moved[:3, 3] += moved[:3, 0] * 0.01
+    assert FramePlacementConstraint(frame, moved).error(robot, q) == pytest.approx(0.01, rel=1e-6)
 
 
 @pytest.mark.parametrize("position_only, free", [(False, None), (True, None), (False, [0.3, 1.0, 0.1]),
@@ -635,3 +640,44 @@ def test_a_waypoint_not_reached_is_retried_from_a_waypoint_halfway_first(robot, 
     ]
     assert done.pending == [] and done.reason == ""
     assert [p.label for p in done.reached] == ["right_sole (toward across)", "right_sole (across)"]
+
+
+def test_samples_inserted_around_the_seam_keep_it_on_the_first_backward_sample(step_plan, scenario, robot,
+                                                                                monkeypatch):
+    """Forward solves fail past the middle (the rest solved backward); the first step of the
+    motion and the first step after the seam are made to collide once each: the sample inserted
+    before the seam moves it, the one after it does not."""
+    from cbm.motion import _Between
+
+    solve, frame = stances.solve, robot.surface("right_sole").frame
+    middle = 0.5 * (_frame_x(robot, step_plan.stances[1].q, frame) + _frame_x(robot, step_plan.stances[2].q, frame))
+
+    def blocked_past_the_middle(robot_, scene, stance, q_init=None, constraints=(), **options):
+        result = solve(robot_, scene, stance, q_init=q_init, constraints=constraints, **options)
+        waypoint = getattr(constraints[0], "transform_frame_to_world", None)
+        if waypoint is not None and _frame_x(robot, q_init, frame) < middle < waypoint[0, 3]:
+            return replace(result, feasible=False, reason="blocked by the test")
+        return result
+
+    real, hits = _Between.first_collision, []
+
+    def two_steps_collide_once(between, q0, q1, held=False):
+        first = not hits
+        past = _frame_x(robot, q0, frame) > middle and _frame_x(robot, q1, frame) > middle and "past" not in hits
+        if first or past:
+            hits.append("past" if past else "first")
+            return (0.5, CollisionPairStub(), 0.01)
+        return real(between, q0, q1, held)
+
+    monkeypatch.setattr(stances, "solve", blocked_past_the_middle)
+    monkeypatch.setattr(_Between, "first_collision", two_steps_collide_once)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible, motion.reason
+    assert hits == ["first", "past"]
+    labels = [p.label for p in motion.paths]
+    assert labels[0] == "path of right_sole (between samples 0 and 1)"  # inserted before the seam
+    first_backward = labels[motion.seam - 1]
+    assert first_backward.startswith("path of right_sole (waypoint ")
+    assert labels[motion.seam].startswith("path of right_sole (between samples ")  # inserted after it
+    x = [_frame_x(robot, q, frame) for q in motion.configurations]
+    assert x[motion.seam - 1] < middle < x[motion.seam]
