@@ -13,7 +13,7 @@ Build a problem, solve it, check it::
 from .description import RobotDescription, RobotDescriptionError, SupportRule, builtin_robot_names, read_description
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
-from .results import PointForce, PostureResult, Verification
+from .results import PointForce, PostureResult, SolveStatistics, Verification
 from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
 from .sqp import solve, solve_problem
@@ -26,6 +26,7 @@ __all__ = [
     "PostureOptions",
     "PostureProblem",
     "PostureResult",
+    "SolveStatistics",
     "RefinedCheck",
     "Robot",
     "RobotDescription",

@@ -50,6 +50,92 @@ class LazyDeformations(Mapping):
 
 
 @dataclass(frozen=True)
+class SolveStatistics(Mapping):
+    """What a posture solve records of itself, typed; read as a mapping too.
+
+    Every field is optional (None: not recorded, and then not among the keys),
+    so ``result.statistics.get("rigid_warm_start_iterations")`` and
+    ``"options" in result.statistics`` read as they would on a dict; ``lambda``
+    is the key of :attr:`lam`.
+
+    Parameters
+    ----------
+    status : str
+        How the SQP stopped ("converged", "stagnated", ...).
+    violation : float
+        Largest constraint violation at the answer, in row scales.
+    penalty : float
+        The elastic penalty at the end.
+    qp_time : float
+        Seconds in the QP subproblems.
+    curvature_iterations : int
+        Iterations whose QP carried the constraints' curvature.
+    lam : tuple of float
+        The contact variables at the answer (``lam_init`` of a restart).
+    sqp_time : float
+        Seconds of the whole solve, warm starts and verification included.
+    options : dict
+        The posture options that differ from their defaults.
+    rigid_warm_start_iterations : int
+        Iterations of the warm starts of a soft stance.
+    """
+
+    status: str | None = None
+    violation: float | None = None
+    penalty: float | None = None
+    qp_time: float | None = None
+    curvature_iterations: int | None = None
+    lam: tuple | None = None
+    sqp_time: float | None = None
+    options: dict | None = None
+    rigid_warm_start_iterations: int | None = None
+
+    _KEYS = {"lambda": "lam"}  # mapping key -> field, where they differ
+
+    @classmethod
+    def of(cls, values) -> "SolveStatistics":
+        """From a mapping (a dict read back from JSON, or a SolveStatistics).
+
+        Raises
+        ------
+        ValueError
+            If a key is not a statistic.
+        """
+        if isinstance(values, cls):
+            return values
+        names = {f: f for f in cls.__dataclass_fields__} | cls._KEYS
+        unknown = sorted(set(values) - set(names))
+        if unknown:
+            raise ValueError(f"unknown solve statistics {unknown}; known: {sorted(set(names) - {'lam'})}")
+        fields = {names.get(key, key): value for key, value in values.items()}
+        casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
+                 "curvature_iterations": int, "rigid_warm_start_iterations": int, "options": dict,
+                 "lam": lambda v: tuple(float(x) for x in v)}
+        return cls(**{name: None if value is None else casts[name](value) for name, value in fields.items()})
+
+    def _field(self, key):
+        return self._KEYS.get(key, key)
+
+    def __getitem__(self, key):
+        name = self._field(key)
+        value = getattr(self, name, None) if name in self.__dataclass_fields__ else None
+        if value is None:
+            raise KeyError(key)
+        return list(value) if name == "lam" else value
+
+    def __iter__(self):
+        keys = {v: k for k, v in self._KEYS.items()}
+        return iter([keys.get(name, name) for name in self.__dataclass_fields__ if getattr(self, name) is not None])
+
+    def __len__(self):
+        return sum(getattr(self, name) is not None for name in self.__dataclass_fields__)
+
+    def to_dict(self) -> dict:
+        """JSON-ready (the recorded statistics only)."""
+        return {key: self[key] for key in self}
+
+
+@dataclass(frozen=True)
 class PointForce:
     """A force applied ON the robot at a point of one of its links.
 
@@ -124,8 +210,8 @@ class PostureResult:
     deformations : dict of str to (N, 3) float
         Node displacements of each deformable object touched, metres, body frame.
     verification : Verification or None
-    statistics : dict
-        Per-solve counters (time spent in FEM terms, QP time, ...).
+    statistics : SolveStatistics
+        What the solve records of itself (a mapping given here is read into one).
     limits : dict
         How close the posture comes to the robot's limits: largest torque
         usage and its joint, smallest joint clearance and its joint, and the
@@ -143,12 +229,13 @@ class PostureResult:
     stance: object
     deformations: dict = field(default_factory=dict)
     verification: Verification | None = None
-    statistics: dict = field(default_factory=dict)
+    statistics: SolveStatistics = field(default_factory=SolveStatistics)
     limits: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", _readonly(self.q))
         object.__setattr__(self, "torques", _readonly(self.torques))
+        object.__setattr__(self, "statistics", SolveStatistics.of(self.statistics))
 
     def total_force(self) -> np.ndarray:
         """(3,) float: sum of the contact forces, newtons, world frame."""
@@ -195,6 +282,6 @@ class PostureResult:
             "reason": self.reason,
             "stance": self.stance.to_dict() if hasattr(self.stance, "to_dict") else None,
             "deformations": {k: np.asarray(v).tolist() for k, v in self.deformations.items()},
-            "statistics": dict(self.statistics),
+            "statistics": self.statistics.to_dict(),
             "limits": dict(self.limits),
         }

@@ -1022,3 +1022,29 @@ def test_a_soft_print_needs_three_mesh_nodes(robot, x_lines, y_lines, held):
             "the print of right_palm on cube_top holds 2 mesh node(s); at least 3 are needed: refine the mesh of "
             "'cube' where prints land (a scenario's soft_box takes resolution and refine)"
         )
+
+
+def test_solve_statistics_are_typed_and_read_as_a_mapping():
+    from stances import SolveStatistics
+
+    statistics = SolveStatistics.of({"status": "converged", "violation": "1e-9", "lambda": [1, 2.5], "options": {}})
+    assert statistics.status == "converged" and statistics.violation == 1e-9 and statistics.lam == (1.0, 2.5)
+    assert sorted(statistics) == ["lambda", "options", "status", "violation"]  # recorded ones only
+    assert statistics["lambda"] == [1.0, 2.5] and statistics.get("sqp_time") is None
+    assert "rigid_warm_start_iterations" not in statistics
+    assert SolveStatistics.of(statistics.to_dict()) == statistics
+    assert dict(statistics, penalty=100.0)["penalty"] == 100.0
+    with pytest.raises(ValueError) as error:
+        SolveStatistics.of({"status": "converged", "iterations": 3})
+    assert str(error.value).startswith("unknown solve statistics ['iterations']; known: ['curvature_iterations', ")
+
+
+def test_a_result_reads_its_statistics_typed_and_writes_them_back(robot):
+    scenario = environments.load("stand")
+    result = solve(robot, scenario.scene, scenario.stance("stand"))
+    from stances import SolveStatistics
+
+    assert isinstance(result.statistics, SolveStatistics)
+    assert result.statistics.status == "converged" and len(result.statistics.lam) == len(result.statistics["lambda"])
+    back = PostureResult.from_dict(json.loads(json.dumps(result.to_dict())))
+    assert back.statistics == result.statistics
