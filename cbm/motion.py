@@ -53,6 +53,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+from environments.geometry import axes_across
 import stances
 from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.collision import contact_exclusions
@@ -151,10 +152,7 @@ class FramePlacementConstraint:
     @property
     def _held(self) -> np.ndarray:
         """(2, 3) orthonormal world directions across ``free_direction``, along which the origin is held."""
-        direction = self.free_direction
-        first = np.cross(direction, np.eye(3)[np.argmin(np.abs(direction))])
-        first /= np.linalg.norm(first)
-        return np.array([first, np.cross(direction, first)])
+        return axes_across(self.free_direction)
 
     def blocks(self, problem, iterate):
         """Rows ``log6(target^-1 frame) = 0`` and their Jacobian (as a rigid contact's placement);

@@ -27,6 +27,7 @@ __all__ = [
     "points_in_convex_polygon",
     "signed_edge_distances",
     "wrap_angle",
+    "axes_across",
 ]
 
 # Orthonormality tolerance: transforms typed by hand in a YAML file (cos/sin to a
@@ -321,3 +322,22 @@ class CollisionShape:
         if self.box_size is not None:
             return f"CollisionShape(box {' x '.join(f'{v:.4g}' for v in self.box_size)} m at ({origin}))"
         return f"CollisionShape(mesh of {len(self.triangles)} triangles at ({origin}))"
+
+
+def axes_across(direction) -> np.ndarray:
+    """Two orthonormal directions across a unit vector.
+
+    Parameters
+    ----------
+    direction : (3,) float
+        Unit vector.
+
+    Returns
+    -------
+    (2, 3) float
+        Rows ``a, direction x a``: with ``direction`` a right-handed orthonormal frame.
+    """
+    direction = np.asarray(direction, dtype=float)
+    first = np.cross(direction, np.eye(3)[np.argmin(np.abs(direction))])
+    first /= np.linalg.norm(first)
+    return np.array([first, np.cross(direction, first)])

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from environments.geometry import axes_across
+
 from .collision import CollisionChecker, contact_exclusions
 from .problem import PostureOptions, build_problem
 from .results import Verification
@@ -286,9 +288,7 @@ def depths_below_surface(points, normal, triangles, reach=0.05):
         under the point.
     """
     normal = np.asarray(normal, dtype=float)
-    first = np.cross(normal, np.eye(3)[np.argmin(np.abs(normal))])
-    first /= np.linalg.norm(first)
-    axes = np.array([first, np.cross(normal, first)])
+    axes = axes_across(normal)
     facing = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0]) @ normal > 0.0
     corners = triangles[facing]
     depths = np.full(len(points), -np.inf)
