@@ -939,7 +939,7 @@ class DeformableContact:
         return body.displacement_under_loads(self.node_ids, -(np.asarray(forces) @ self.rotation_body))
 
     # -- independent check ---------------------------------------------------
-    def verify(self, model, data, points, forces, tolerances, measures) -> list:
+    def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:
         """Check the reported forces against a full FEM solve, node by node.
 
         ``consistent``: the whole body is loaded by the reported forces (one sparse
@@ -952,6 +952,8 @@ class DeformableContact:
         every tet of the body are checked. The body's elastic energy under the
         forces is measured too (``deformation energy of <name>``, joules). ``forces`` are finite
         (:func:`stances.verify.verify_problem` refuses any other first).
+        ``field``: :meth:`displacement_field` of these forces, if the caller has it
+        already (computed here otherwise).
         """
         name = self.deformable_object.name
         body = self.deformable_object.body
@@ -962,7 +964,6 @@ class DeformableContact:
         displacements = self._displacements(data)
         forces_body = forces @ self.rotation_body
         if self.method == "traction":
-            field = body.displacement_field(self.patch, displacements)
             expected = np.asarray(
                 self.patch.reaction_forces(displacements, method="traction", normals=self._turned_normals(data))
             ) @ self.rotation_body.T
@@ -970,8 +971,7 @@ class DeformableContact:
             measures[f"FEM force error on {name}"] = float(error)
             if error > tolerances.deformable_force:
                 reasons.append(f"forces on {name} differ from the FEM reaction by {error:.3g} (relative)")
-        else:
-            field = body.displacement_under_loads(self.node_ids, -forces_body)
+        field = self.displacement_field(model, data, forces) if field is None else field
         # Node frames: forces and relative motions (link point minus node) as (t1, t2, n).
         phi = np.einsum("pij,pj->pi", self.node_frames, forces_body)
         # Link point minus the node's coupling end (the node itself when fully covered).

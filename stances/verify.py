@@ -141,15 +141,22 @@ def verify_problem(
             f"{excess[worst_joint]:.3g} N m"
         )
 
-    # Each contact: placement, cones, and (deformable) the FEM forces themselves.
+    # Each contact: placement, cones, and (deformable) the FEM forces themselves. A soft
+    # body's field under the reported forces (one sparse solve) serves both its contact's
+    # check and the check of the field the result shows.
+    made = {}
     for contact, loads in zip(problem.contacts, problem.load_slices):
         forces = np.array([p.force for p in result.point_forces[loads]])
         points = np.array([p.point for p in result.point_forces[loads]])
-        reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
+        if contact.kind == "deformable":
+            made[contact.deformable_object.name] = field = np.asarray(contact.displacement_field(model, data, forces))
+            reasons.extend(contact.verify(model, data, points, forces, tolerances, measures, field=field))
+        else:
+            reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
 
     if deformed_surfaces:
         # The displacement fields the result shows are those its forces make.
-        fields, mismatches = _shown_deformations(problem, result, data, tolerances, measures)
+        fields, mismatches = _shown_deformations(result, made, tolerances, measures)
         reasons.extend(mismatches)
         # Links other than the contacting one keep clear of each deformed surface.
         if problem.collision_checker is not None and fields is not None:
@@ -193,8 +200,9 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     return verify_problem(problem, result, deformed_surfaces=True)
 
 
-def _shown_deformations(problem, result, data, tolerances, measures):
-    """Each soft support's field as shown by ``result``, checked against its forces.
+def _shown_deformations(result, made, tolerances, measures):
+    """Each soft support's field as shown by ``result``, checked against the one its
+    forces make (``made``: object name -> (N, 3) float, body frame).
 
     Returns
     -------
@@ -206,12 +214,7 @@ def _shown_deformations(problem, result, data, tolerances, measures):
         Shown fields that are not the forces' own, by how far (metres).
     """
     fields, reasons = {}, []
-    for contact, loads in zip(problem.contacts, problem.load_slices):
-        if contact.kind != "deformable":
-            continue
-        name = contact.deformable_object.name
-        forces = np.array([p.force for p in result.point_forces[loads]]).reshape(-1, 3)
-        expected = np.asarray(contact.displacement_field(problem.robot.model, data, forces))
+    for name, expected in made.items():
         if name not in result.deformations:
             fields[name] = expected
             continue
@@ -235,7 +238,6 @@ def _deformed_surface_clearance(problem, fields, data, tolerances, measures) -> 
             continue
         obj = contact.deformable_object
         name = f"{obj.name} (deformed)"
-        triangles = obj.deformed_surface(fields[obj.name])
         # A print held rigid on the body (PostureOptions.rigid_prints: a limb touching it
         # unloaded) rests on it like the soft prints: its link is left out of the meshes'
         # check, and its points are checked against the surface the other prints deform.
@@ -250,6 +252,7 @@ def _deformed_surface_clearance(problem, fields, data, tolerances, measures) -> 
             exclude=[pair for frame in frames for pair in contact_exclusions(problem.robot, frame, name)],
             self_collision=False,
         )
+        triangles = obj.deformed_surface(fields[obj.name]) if held else None
         for rigid in held:
             normal = rigid.print_placement.rotation[:, 2]
             points = points_in_world(data, rigid.loads) - getattr(rigid, "radius", 0.0) * normal
