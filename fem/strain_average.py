@@ -79,7 +79,8 @@ class BallAverages:
         tets = np.unique(np.asarray(tets, dtype=np.int64))
         if radius == 0.0 or tets.size == 0:
             return tets
-        return np.unique(np.concatenate([tets, self._pairs(tets, radius)[1]]))
+        balls = self._tree.query_ball_point(self.centroids[tets], radius, return_sorted=True)
+        return np.unique(np.concatenate([tets] + [np.asarray(ball, dtype=np.int64) for ball in balls]))
 
     def _pairs(self, centres, radius: float) -> tuple[np.ndarray, np.ndarray]:
         """Every (centre position, tet id) whose centroids lie within ``radius``, sorted by
@@ -89,7 +90,8 @@ class BallAverages:
         ``sparse_distance_matrix``) instead of a ball query per centre: the strain
         sets of a planner's new prints and every verification read thousands of balls,
         and the per-centre lists cost twice the query itself (measured on a foam mat:
-        20 ms against 11 ms for 3,485 balls).
+        20 ms against 11 ms for 3,485 balls). :meth:`near` needs only their union, which
+        the per-centre query gives faster at the radii used (2-4 cm).
         """
         if radius == 0.0:
             return np.arange(centres.size, dtype=np.int64), centres
