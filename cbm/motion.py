@@ -87,8 +87,10 @@ PATH_TOLERANCE = 1e-6
 BETWEEN = np.arange(1, 8) / 8
 
 #: Samples inserted, at most, into one step of the motion that collides (a step that
-#: still collides after them makes the motion infeasible).
-MAX_INSERTED = 2
+#: still collides after them makes the motion infeasible). Each halves the step where it
+#: collides: climb-with-soft-support 1 -> 2 and 3 -> 4 cleared with 3 and 4 (1.3 mm and
+#: 0.5 mm deep after 2).
+MAX_INSERTED = 4
 
 #: Newtons: the largest force a touch-down or lift-off sample may put on its limb
 #: (the solver holds the normal load at zero within its 1e-7 tolerance).
@@ -600,10 +602,8 @@ def _collision_text(k, hit, last):
 def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, index):
     """Check each step between consecutive postures for collisions (``between``, a
     :class:`_Between`); where one collides, solve a sample halfway along the path and
-    check both halves, at most :data:`MAX_INSERTED` samples in each step of the motion.
-    Between two postures that both hold the moving contact the sample halfway holds it
-    too (load transfer, a :class:`ContactSample` with its load free); elsewhere it is a
-    posture of the support with the frame halfway. ``holding``: the stance holding the
+    check both halves, at most :data:`MAX_INSERTED` samples in each step of the motion
+    (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
     moving contact. Returns the samples, the seam moved past any inserted before it, and
     a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
@@ -620,42 +620,8 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         if inserted[origin[k]] >= MAX_INSERTED:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
             return nodes[1:-1], seam, f"{where}, after {inserted[origin[k]]} samples inserted in that step"
-        reference = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
-        # From the posture before the step, else from the one after it, else from the step's
-        # midpoint in joint space (climb-with-soft-support 1 -> 2: the free foot slid along the
-        # other one between the lifted palm and its touch-down, 5 mm apart at both ends, and
-        # neither end reached the palm's halfway waypoint).
-        middle = pin.interpolate(robot.model, a.q, b.q, 0.5)
-        starts = (a, b, _Sample(middle, None, None, middle, holds=a.holds and b.holds))
-        if a.holds or b.holds:
-            # Both hold the contact: a load-transfer sample. One does (the step between the
-            # lifted sample and touch-down or lift-off): another unloaded one, the limb on its
-            # print; a waypoint between them would come nearer its print's object than the
-            # solver's collision distance (climb-with-soft-support 1 -> 2, a palm 7.5 mm above
-            # the cube).
-            kind = "load transfer" if a.holds and b.holds else "touch-down" if b.holds else "lift-off"
-            path = ContactSample(surface.frame, surface.name, _print_surface(holding, surface.name),
-                                 f"{kind} of {surface.name} (between samples {k} and {k + 1})",
-                                 unloaded=not (a.holds and b.holds))
-            # The posture of the stance nearest the step's midpoint: from a or b with a blend
-            # of their references, the samples stayed by the end they came from
-            # (quadruped-walk 5 -> 6: two samples 0.01 rad from the touch-down one).
-            reference = middle
-            starts = starts[::-1]
-        else:
-            free = a.path.free_direction if a.path is not None and b.path is not None else None
-            if free is not None and (b.path.free_direction is None or not np.allclose(free, b.path.free_direction)):
-                free = None
-            # Halfway between where the frame is at the two postures (a free sideways offset included).
-            target = halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame))
-            path = FramePlacementConstraint(surface.frame, target,
-                                            f"path of {surface.name} (between samples {k} and {k + 1})",
-                                            surface.is_point, free)
-        for start in starts:
-            result = _solve_sample(robot, scene, support, holding, path, reference, start.q, start.result, options)
-            if result.feasible:
-                break
-        else:
+        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface)
+        if not result.feasible:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
         if isinstance(path, ContactSample):
             path = _placed(robot, path, result.q)
@@ -665,6 +631,65 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         if seam is not None and k + 1 <= seam:
             seam += 1
     return nodes[1:-1], seam, ""
+
+
+def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
+    """A sample between postures ``a`` and ``b`` (:class:`_Sample`) of a step that
+    collides: ``(result, path, reference)``, ``result.feasible`` False with the last
+    reason when no candidate is reached.
+
+    Candidates, in turn, each solved from ``a``, else from ``b``, else from the step's
+    midpoint in joint space (climb-with-soft-support 1 -> 2: the free foot slid along the
+    other one between the lifted palm and its touch-down, 5 mm apart at both ends, and
+    neither end reached the palm's halfway waypoint):
+
+    - both ends hold the moving contact: a load-transfer sample (a :class:`ContactSample`
+      with its load free), the posture of the holding stance nearest the step's midpoint
+      (from a or b with a blend of their references, the samples stayed by the end they
+      came from: quadruped-walk 5 -> 6, two samples 0.01 rad from the touch-down one);
+    - neither does: a posture of the support with the frame halfway between where it is
+      at the two postures (a free sideways offset included);
+    - one does (the step between the lifted sample and touch-down or lift-off): first the
+      frame halfway, from the step's midpoint in joint space first and pulled toward it,
+      which halves the limb's approach and the step (quadruped-walk 7 -> 8: the shin's
+      adapter swept 1.6 mm into the step between the lifted foot, 15 mm above it, and its
+      touch-down, 1.07 rad away; four more unloaded samples on the print did not clear
+      it), its contact geometry allowed to touch the print's object
+      (``PostureOptions.touching``): halfway down, it is nearer than the collision
+      distance; where that waypoint is not reached, another unloaded sample, the limb on
+      its print.
+    """
+    middle = pin.interpolate(robot.model, a.q, b.q, 0.5)
+    blended = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
+    free = a.path.free_direction if isinstance(a.path, FramePlacementConstraint) else None
+    if free is not None and not (isinstance(b.path, FramePlacementConstraint) and b.path.free_direction is not None
+                                 and np.allclose(free, b.path.free_direction)):
+        free = None
+    waypoint = FramePlacementConstraint(
+        surface.frame, halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame)),
+        f"path of {surface.name} (between samples {k} and {k + 1})", surface.is_point, free)
+    kind = "load transfer" if a.holds and b.holds else "touch-down" if b.holds else "lift-off"
+    on_print = ContactSample(surface.frame, surface.name, _print_surface(holding, surface.name),
+                             f"{kind} of {surface.name} (between samples {k} and {k + 1})",
+                             unloaded=not (a.holds and b.holds))
+    starts = (a, b, _Sample(middle, None, None, middle, holds=a.holds and b.holds))
+    if a.holds and b.holds:
+        candidates = [(on_print, middle, starts[2:] + starts[:2], options)]
+    elif a.holds or b.holds:
+        # The waypoint from the joint-space midpoint and pulled toward it: the unloaded sample
+        # can lie far from the lifted one in joint space (quadruped-walk 7 -> 8: 1.07 rad), and
+        # a waypoint solved from either end stays by that end, leaving the jump whole. The
+        # limb may come nearer its print than the collision distance: halfway down it is.
+        touching = {**options, "touching": ((surface.name, on_print.surface),)}
+        candidates = [(waypoint, middle, starts[2:] + starts[:2], touching), (on_print, middle, starts[::-1], options)]
+    else:
+        candidates = [(waypoint, blended, starts, options)]
+    for path, reference, tried, solved_with in candidates:
+        for start in tried:
+            result = _solve_sample(robot, scene, support, holding, path, reference, start.q, start.result, solved_with)
+            if result.feasible:
+                return result, path, reference
+    return result, path, reference
 
 
 @dataclass(frozen=True)

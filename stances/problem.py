@@ -148,6 +148,12 @@ class PostureOptions:
         contacts on the undeformed surface: a limb that touches a soft support
         without load (a motion's touch-down or lift-off), under which the body
         does not deform.
+    touching : tuple of (str, str)
+        ``(robot surface, scene surface)`` pairs: the robot surface's contact
+        geometry may come as near the scene surface's object as touching it
+        (0 m instead of ``collision_distance``) without a contact there: a limb
+        approaching its print in a motion, halfway between lifted and set down.
+        It still may not go into it (:func:`stances.verify` checks every pair).
     rigid_warm_start : bool
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
@@ -191,6 +197,7 @@ class PostureOptions:
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
     rigid_prints: tuple = ()
+    touching: tuple = ()
     rigid_warm_start: bool = True
     constraint_curvature: bool = True
 
@@ -238,6 +245,14 @@ class PostureOptions:
         if isinstance(self.rigid_prints, str) or not all(isinstance(name, str) for name in self.rigid_prints):
             raise StanceError(f"rigid_prints must be a sequence of robot surface names, got {self.rigid_prints!r}")
         object.__setattr__(self, "rigid_prints", tuple(self.rigid_prints))
+        pairs = self.touching
+        if isinstance(pairs, str) or not all(
+            not isinstance(pair, str) and len(pair) == 2 and all(isinstance(name, str) for name in pair) for pair in pairs
+        ):
+            raise StanceError(
+                f"touching must be a sequence of (robot surface, scene surface) name pairs, got {self.touching!r}"
+            )
+        object.__setattr__(self, "touching", tuple(tuple(pair) for pair in pairs))
 
 
 #: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
@@ -396,8 +411,12 @@ class PostureProblem:
             self.constraints.append(NormalLoadConstraint(options.min_normal_force))
         self.constraints.append(ContactConstraints())
         if collision_checker is not None:
+            touching = frozenset(
+                pair for surface, support in options.touching
+                for pair in contact_exclusions(robot, robot.surface(surface).frame, scene.surface(support).object_name)
+            )
             self.constraints.append(
-                CollisionConstraint(collision_checker, options.collision_distance, options.max_collision_rows)
+                CollisionConstraint(collision_checker, options.collision_distance, options.max_collision_rows, touching)
             )
         self.costs = [PostureCost(), TorqueUsageCost(options.torque_weight)]
         if self.n_variables:
@@ -621,6 +640,9 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         raise StanceError(
             f"rigid_prints names {unknown}, not in the stance; its robot surfaces: {sorted(c.robot_surface for c in stance)}"
         )
+    for surface, support in options.touching:
+        robot.surface(surface)  # raise with the known names
+        scene.surface(support)
     contacts = []
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.

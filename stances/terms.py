@@ -44,6 +44,8 @@ __all__ = [
 
 # Torque usage (fraction of the limit) that TorqueUsageCost leaves free.
 FREE_USAGE = 0.5
+# Metres of a collision row's clearance the SQP may leave unmet (ConstraintBlock slack).
+_COLLISION_SLACK = 1e-4
 
 
 @dataclass(frozen=True)
@@ -300,11 +302,15 @@ class CollisionConstraint:
     rows : int
         At most this many closest pairs enter a QP (a fixed number of rows lets
         the QP solver warm-start).
+    touching : frozenset of (str, str), optional
+        ``(robot geometry, object)`` pairs that may touch: kept 0.1 mm (the rows'
+        slack) apart instead of ``distance`` (``PostureOptions.touching``).
     """
 
     checker: object
     distance: float
     rows: int
+    touching: frozenset = frozenset()
 
     def blocks(self, problem, iterate):
         model, data = problem.robot.model, problem.data
@@ -315,11 +321,12 @@ class CollisionConstraint:
             # Distances alone: no witness points (line-search trials).
             distances, names = self.checker.closest_distances(model, data, self.rows)
             value[: len(distances)] = distances
-            lower[: len(distances)] = self.distance
+            lower[: len(distances)] = [self._lower(pair) for pair in names]
             labels[: len(names)] = [f"collision between {a} and {b}" for a, b in names]
             return [
                 ConstraintBlock(
-                    "collision", value, None, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4
+                    "collision", value, None, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
+                    slack=_COLLISION_SLACK,
                 )
             ]
         pairs = self.checker.closest_pairs(model, data, self.rows)
@@ -329,7 +336,7 @@ class CollisionConstraint:
             jacobian[: len(pairs), : model.nv] = self.checker.jacobian_rows(model, data, pairs)
             for i, pair in enumerate(pairs):
                 value[i] = pair.distance
-                lower[i] = self.distance
+                lower[i] = self._lower((pair.name_a, pair.name_b))
                 labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
             checker, count = self.checker, len(pairs)
 
@@ -340,7 +347,13 @@ class CollisionConstraint:
 
         return [
             ConstraintBlock(
-                "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels), slack=1e-4,
+                "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
+                slack=_COLLISION_SLACK,
                 second_order=second_order,
             )
         ]
+
+    def _lower(self, pair) -> float:
+        """The distance a ``(name_a, name_b)`` pair keeps, metres: a touching pair the
+        rows' slack, so that eating it leaves the pair touching, not inside."""
+        return _COLLISION_SLACK if tuple(pair) in self.touching else self.distance

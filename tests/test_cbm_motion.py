@@ -456,10 +456,43 @@ def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasib
         assert np.all(np.abs(np.diff(x)) <= reach)
     else:
         assert not motion.feasible and len(inserted) == MAX_INSERTED
-        # The first step across (7.5 cm) quartered is still 1.9 cm: it stops there, every sample kept.
-        assert motion.reason == (f"between samples 2 and 3, at 0.5 of the way: collision between a and b "
-                                 f"(depth {abs(x[3] - x[2]):.3g} m), after {MAX_INSERTED} samples inserted in that step")
+        # The first step across (7.5 cm) halved MAX_INSERTED times is still longer than 5 mm
+        # somewhere: it stops at the first such step, every sample kept.
+        k = int(np.flatnonzero(np.abs(np.diff(x)) > reach)[0])
+        assert 2 <= k <= 2 + MAX_INSERTED
+        assert motion.reason == (f"between samples {k} and {k + 1}, at 0.5 of the way: collision between a and b "
+                                 f"(depth {abs(x[k + 1] - x[k]):.3g} m), after {MAX_INSERTED} samples inserted in that step")
         assert len(motion.configurations) == 1 + 5 + 1 + MAX_INSERTED  # with the touch-down sample
+
+
+def test_a_colliding_approach_gets_a_waypoint_halfway_down_that_may_touch_the_support(step_plan, scenario, robot,
+                                                                                     monkeypatch):
+    """Steps that lower the swing sole onto the floor from more than 1 cm 'collide': the 1.5 cm
+    approach onto its print is halved by a waypoint 7.5 mm up, nearer the floor than the 5 mm
+    collision distance allows the sole's geometry, so it is solved with the pair touching."""
+    from cbm.motion import _Between
+
+    frame = robot.surface("right_sole").frame
+    data = robot.model.createData()
+
+    def height(q):
+        pin.framesForwardKinematics(robot.model, data, q)
+        return data.oMf[robot.model.getFrameId(frame)].translation[2]
+
+    def deep_descents_collide(between, q0, q1, held=False):
+        dropped = height(q0) - height(q1)
+        return (0.5, CollisionPairStub(), dropped) if dropped > 0.01 and abs(height(q1)) < 1e-3 else None
+
+    monkeypatch.setattr(_Between, "first_collision", deep_descents_collide)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible, motion.reason
+    inserted = [(path, result) for path, result in zip(motion.paths, motion.results) if "(between samples" in path.label]
+    assert len(inserted) == 1
+    path, result = inserted[0]
+    assert isinstance(path, FramePlacementConstraint)
+    assert result.statistics["options"]["touching"] == (("right_sole", "floor"),)
+    assert height(result.q) == pytest.approx(0.0075, abs=1e-6)
+    assert verify_motion(motion, step_plan, scenario, robot) == []
 
 
 @dataclass
@@ -681,3 +714,57 @@ def test_samples_inserted_around_the_seam_keep_it_on_the_first_backward_sample(s
     assert labels[motion.seam].startswith("path of right_sole (between samples ")  # inserted after it
     x = [_frame_x(robot, q, frame) for q in motion.configurations]
     assert x[motion.seam - 1] < middle < x[motion.seam]
+
+
+def _sole_held_above_floor(robot, scenario, height, **options):
+    """The left sole alone holds the robot; the right sole's frame is held ``height`` above its stand print."""
+    stance = scenario.stance("stand")
+    stand = stances.solve(robot, scenario.scene, stance)
+    frame = robot.surface("right_sole").frame
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, stand.q)
+    target = data.oMf[robot.model.getFrameId(frame)].homogeneous.copy()
+    target[2, 3] += height
+    support = stance.without("right_sole")
+    result = stances.solve(robot, scenario.scene, support, q_init=stand.q,
+                           constraints=(FramePlacementConstraint(frame, target),), **options)
+    return support, result
+
+
+def test_touching_lets_a_limb_come_nearer_its_support_than_the_collision_distance(robot, scenario):
+    # 2 mm above the floor is nearer than the 5 mm the solver keeps: held so, the sole's
+    # collision row cannot be met; with the pair touching, it can, and verify passes.
+    support, kept = _sole_held_above_floor(robot, scenario, 2e-3)
+    assert not kept.feasible and "collision between" in kept.reason and "floor" in kept.reason
+    touching = {"touching": (("right_sole", "floor"),)}
+    support, near = _sole_held_above_floor(robot, scenario, 2e-3, **touching)
+    assert near.feasible, near.reason
+    assert stances.verify(robot, scenario.scene, support, near, **touching).ok
+    checker = stances.build_problem(robot, scenario.scene, support, stances.PostureOptions(**touching)).collision_checker
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, near.q)
+    sole = [p.distance for p in checker.pairs(robot.model, data) if p.name_b == "floor" and "right" in p.name_a]
+    assert sole and 0.0 <= min(sole) < 2.5e-3
+    # What the rows keep: 0.1 mm for the touching pair, the collision distance for the rest.
+    problem = stances.build_problem(robot, scenario.scene, support, stances.PostureOptions(**touching))
+    block = next(b for b in problem.linearize(near.q, near.statistics["lambda"]).blocks if b.name == "collision")
+    lower = dict(zip(block.labels, block.lower))
+    assert any(bound == 1e-4 and "right" in label and "floor" in label for label, bound in lower.items())
+    assert all(bound == stances.PostureOptions().collision_distance for label, bound in lower.items()
+               if "floor" not in label and "inactive" not in label)
+
+
+def test_touching_names_are_checked():
+    with pytest.raises(stances.StanceError, match=r"touching must be a sequence of \(robot surface, scene surface\)"):
+        stances.PostureOptions(touching=("right_sole", "floor"))
+    with pytest.raises(stances.StanceError, match="touching must be"):
+        stances.PostureOptions(touching=(("right_sole",),))
+    assert stances.PostureOptions(touching=[["right_sole", "floor"]]).touching == (("right_sole", "floor"),)
+
+
+def test_touching_unknown_surfaces_are_named(robot, scenario):
+    stance = scenario.stance("stand")
+    with pytest.raises(stances.StanceError, match="right_hand"):
+        stances.build_problem(robot, scenario.scene, stance, stances.PostureOptions(touching=(("right_hand", "floor"),)))
+    with pytest.raises(environments.SceneError, match="ceiling"):
+        stances.build_problem(robot, scenario.scene, stance, stances.PostureOptions(touching=(("right_sole", "ceiling"),)))
