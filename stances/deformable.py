@@ -624,6 +624,32 @@ class DeformableContact:
         """W consistent with the current placement: ``A xi(q)``."""
         return self.a @ self._motion(model, data, self._displacements(data))[0]
 
+    def variables_from_forces(self, model, point_forces) -> np.ndarray:
+        """W carrying given forces: each print's resultant wrench, (6L,) float.
+
+        The consistent reaction gives ``G^T f = G^T R G A^-1 W = W``: a print's W is the
+        wrench its nodes put on the link, body frame, moments about the print's origin
+        (second order in the turn aside). From the forces of the same stance held rigid,
+        a solve starts with the prints pressed as deep as that load presses them, where
+        W read off a posture whose links barely touch (:meth:`initial_variables`) leaves
+        every node at the point of lifting off, with no force gradient.
+
+        Parameters
+        ----------
+        model : pinocchio.Model
+        point_forces : sequence of PointForce
+            Forces on the robot, world frame; those on each print's link frame count.
+        """
+        w = np.zeros(self.n_variables)
+        for i, (frame_id, placement) in enumerate(zip(self.frame_ids, self.print_placements)):
+            frame = model.frames[frame_id].name
+            on_link = [(np.asarray(f.point, float), np.asarray(f.force, float)) for f in point_forces if f.frame == frame]
+            force = sum((f for _, f in on_link), np.zeros(3))
+            moment = sum((np.cross(point - placement.translation, f) for point, f in on_link), np.zeros(3))
+            w[6 * i : 6 * i + 3] = self.rotation_body.T @ force
+            w[6 * i + 3 : 6 * i + 6] = self.rotation_body.T @ moment
+        return w
+
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
         return self._displacements(data)

@@ -448,6 +448,33 @@ class PostureProblem:
                 lam[s] = contact.initial_variables(model, data)
         return lam
 
+    def variables_from_rigid(self, rigid, lam, point_forces) -> np.ndarray:
+        """Force variables carrying the answer of this stance held rigid.
+
+        Parameters
+        ----------
+        rigid : PostureProblem
+            The same stance with ``deformable_as_rigid``.
+        lam : (m_rigid,) float
+            Its force variables at its answer.
+        point_forces : sequence of PointForce
+            Its forces on the robot at that answer, world frame.
+
+        Returns
+        -------
+        (m,) float
+            Rigid contacts' cone coefficients as ``rigid``'s; each soft print's W its
+            resultant wrench there (:meth:`DeformableContact.variables_from_forces`).
+        """
+        out = np.zeros(self.n_variables)
+        slices = {c.robot_surface: s for c, s in zip(rigid.contacts, rigid.variable_slices)}
+        for contact, s in zip(self.contacts, self.variable_slices):
+            if contact.kind == "deformable":
+                out[s] = contact.variables_from_forces(self.robot.model, point_forces)
+            else:
+                out[s] = np.asarray(lam)[slices[contact.robot_surface]]
+        return out
+
     def limit_usage(self, q, torques) -> dict:
         """How close a posture comes to the robot's joint and effort limits.
 

@@ -78,6 +78,9 @@ class SolveStatistics(Mapping):
         The posture options that differ from their defaults.
     rigid_warm_start_iterations : int
         Iterations of the warm starts of a soft stance.
+    bonded_warm_start : bool
+        A soft stance's Coulomb solve from its rigid answer's forces failed, and it
+        was solved again from the bonded model's answer (the earlier pipeline).
     """
 
     status: str | None = None
@@ -89,6 +92,7 @@ class SolveStatistics(Mapping):
     sqp_time: float | None = None
     options: dict | None = None
     rigid_warm_start_iterations: int | None = None
+    bonded_warm_start: bool | None = None
 
     _KEYS = {"lambda": "lam"}  # mapping key -> field, where they differ
 
@@ -109,7 +113,7 @@ class SolveStatistics(Mapping):
             raise ValueError(f"unknown solve statistics {unknown}; known: {sorted(set(names) - {'lam'})}")
         fields = {names.get(key, key): value for key, value in values.items()}
         casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
-                 "curvature_iterations": int, "rigid_warm_start_iterations": int, "options": dict,
+                 "curvature_iterations": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "options": dict,
                  "lam": lambda v: tuple(float(x) for x in v)}
         return cls(**{name: None if value is None else casts[name](value) for name, value in fields.items()})
 
