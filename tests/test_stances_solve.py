@@ -1036,7 +1036,8 @@ def test_solve_statistics_are_typed_and_read_as_a_mapping():
     assert dict(statistics, penalty=100.0)["penalty"] == 100.0
     with pytest.raises(ValueError) as error:
         SolveStatistics.of({"status": "converged", "iterations": 3})
-    assert str(error.value).startswith("unknown solve statistics ['iterations']; known: ['curvature_iterations', ")
+    assert str(error.value).startswith("unknown solve statistics ['iterations']; known: ['bonded_warm_start', "
+                                       "'curvature_iterations', ")
 
 
 def test_a_result_reads_its_statistics_typed_and_writes_them_back(robot):
@@ -1048,3 +1049,61 @@ def test_a_result_reads_its_statistics_typed_and_writes_them_back(robot):
     assert result.statistics.status == "converged" and len(result.statistics.lam) == len(result.statistics["lambda"])
     back = PostureResult.from_dict(json.loads(json.dumps(result.to_dict())))
     assert back.statistics == result.statistics
+
+
+def _stiff_step_on_cube(young_modulus):
+    text = environments.builtin_scenario_path("step-on-cube").read_text()
+    return environments.load_string(text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}"), name="step-on-cube")
+
+
+def test_a_prints_force_variables_are_the_wrench_of_its_forces(robot):
+    # The consistent reaction gives G^T f = W up to the second-order turn, which a
+    # steel-stiff cube makes vanish: W read back from the answer's forces is W, to the
+    # moment of its 441 N about the micrometres the links sink (the levers are at rest).
+    scenario = _stiff_step_on_cube(1e9)
+    stance = scenario.stance("step-on-cube")
+    result = solve(robot, scenario.scene, stance, contact_law="bonded")
+    assert result.feasible, result.reason
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions(contact_law="bonded"))
+    (contact, s), = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
+    w = np.asarray(result.statistics["lambda"])[s]
+    np.testing.assert_allclose(contact.variables_from_forces(robot.model, result.point_forces), w,
+                               rtol=0, atol=1e-5 * np.abs(w).max())
+    # And a rigid answer maps onto the soft problem's variables: its cone coefficients as
+    # they were, the soft print's W the wrench of its forces.
+    rigid = build_problem(robot, scenario.scene, stance, PostureOptions(deformable_as_rigid=True))
+    held = solve_problem(rigid)
+    lam = problem.variables_from_rigid(rigid, held.statistics["lambda"], held.point_forces)
+    on_rigid = [c for c in problem.contacts if c.kind == "rigid"]
+    assert len(on_rigid) == 1
+    rigid_slices = {c.robot_surface: t for c, t in zip(rigid.contacts, rigid.variable_slices)}
+    soft_slices = {c.robot_surface: t for c, t in zip(problem.contacts, problem.variable_slices) if c.kind == "rigid"}
+    surface = on_rigid[0].robot_surface
+    np.testing.assert_array_equal(lam[soft_slices[surface]], np.asarray(held.statistics["lambda"])[rigid_slices[surface]])
+    frame = robot.surface(contact.prints[0].robot_surface).frame
+    on_print = sum(np.asarray(f.force) for f in held.point_forces if f.frame == frame)
+    np.testing.assert_allclose(contact.rotation_body @ lam[s][:3], on_print, rtol=0, atol=1e-9)
+
+
+def test_a_failed_coulomb_solve_from_the_rigid_answer_is_solved_again_from_the_bonded_one(robot, monkeypatch):
+    scenario = coarse_scenario("step-on-cube")
+    stance = scenario.stance("step-on-cube")
+    starts = []
+    original = sqp._solve_coulomb
+
+    def first_fails(problem, q_init, deadline=None, attempts=3, lam_init=None):
+        result = original(problem, q_init, deadline, attempts, lam_init)
+        starts.append(np.array(lam_init))
+        if len(starts) == 1:
+            return sqp._with(result, feasible=False, reason="made to fail")
+        return result
+
+    monkeypatch.setattr(sqp, "_solve_coulomb", first_fails)
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    assert len(starts) == 2 and result.statistics["bonded_warm_start"] is True
+    assert not np.array_equal(starts[0], starts[1])  # the bonded answer's forces, not the rigid wrench
+    monkeypatch.setattr(sqp, "_solve_coulomb", original)
+    direct = solve(robot, scenario.scene, stance)
+    assert direct.feasible and "bonded_warm_start" not in direct.statistics
+    assert direct.statistics["rigid_warm_start_iterations"] < result.statistics["rigid_warm_start_iterations"]
