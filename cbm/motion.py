@@ -638,17 +638,20 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     collides: ``(result, path, reference)``, ``result.feasible`` False with the last
     reason when no candidate is reached.
 
-    Candidates, in turn, each solved from ``a``, else from ``b``, else from the step's
-    midpoint in joint space (climb-with-soft-support 1 -> 2: the free foot slid along the
-    other one between the lifted palm and its touch-down, 5 mm apart at both ends, and
-    neither end reached the palm's halfway waypoint):
+    Candidates, in turn, each solved from one posture after another until one is
+    reached: ``a``, ``b`` and the step's midpoint in joint space (which one first: below;
+    the midpoint is among them since climb-with-soft-support 1 -> 2, where the free foot
+    slid along the other one between the lifted palm and its touch-down, 5 mm apart at
+    both ends, and neither end reached the palm's halfway waypoint):
 
     - both ends hold the moving contact: a load-transfer sample (a :class:`ContactSample`
-      with its load free), the posture of the holding stance nearest the step's midpoint
-      (from a or b with a blend of their references, the samples stayed by the end they
-      came from: quadruped-walk 5 -> 6, two samples 0.01 rad from the touch-down one);
+      with its load free), the posture of the holding stance nearest the step's midpoint,
+      pulled toward that midpoint and from it first (from a or b with a blend of their
+      references, the samples stayed by the end they came from: quadruped-walk 5 -> 6,
+      two samples 0.01 rad from the touch-down one);
     - neither does: a posture of the support with the frame halfway between where it is
-      at the two postures (a free sideways offset included);
+      at the two postures (a free sideways offset included), from ``a`` first, pulled
+      toward the blend of the two samples' references;
     - one does (the step between the lifted sample and touch-down or lift-off): first the
       frame halfway, from the step's midpoint in joint space first and pulled toward it,
       which halves the limb's approach and the step (quadruped-walk 7 -> 8: the shin's
