@@ -56,7 +56,9 @@ def rigid_object_of(deformable_object) -> RigidObject:
         )
     mesh = deformable_object.mesh
     nodes = np.asarray(mesh.nodes, dtype=float)
-    boundary = trimesh.Trimesh(nodes, np.asarray(mesh.surface_triangles), process=True)
+    # The shape the soft object's collisions see (its blocks' faces), else its mesh's boundary.
+    shape = deformable_object.collision_mesh or (nodes, np.asarray(mesh.surface_triangles))
+    boundary = trimesh.Trimesh(*shape, process=True)
     lower, upper = nodes.min(axis=0), nodes.max(axis=0)
     box_volume = float(np.prod(upper - lower))
     volume = float(np.sum(mesh.volumes))

@@ -230,6 +230,8 @@ def _rest_collision_shape(obj: DeformableObject) -> CollisionShape:
         transform_box_to_body = np.eye(4)
         transform_box_to_body[:3, 3] = 0.5 * (low + high)
         return CollisionShape(obj.transform_body_to_world @ transform_box_to_body, box_size=high - low)
+    if obj.collision_mesh is not None:
+        return CollisionShape(obj.transform_body_to_world, vertices=obj.collision_mesh[0], triangles=obj.collision_mesh[1])
     # Its own boundary, not the convex hull: a hull would fill a soft step's
     # re-entrant corner where a foot on its tread stands.
     return CollisionShape(obj.transform_body_to_world, vertices=nodes, triangles=np.asarray(obj.mesh.surface_triangles))

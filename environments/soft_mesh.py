@@ -193,5 +193,8 @@ def soft_mesh(
         )
     body = fem.DeformableBody(mesh, material, on_plane)
     description = "faces on the floor (z = 0) fixed" if fixed == ON_FLOOR else f"faces on the plane {fixed} fixed"
-    obj = DeformableObject(name, body, transform_body_to_world, description, float(strain_limit), strain_radius)
+    # Collisions see the user's surface when it is coarser than the tet mesh's boundary.
+    coarser = len(surface.faces) < len(mesh.surface_triangles)
+    obj = DeformableObject(name, body, transform_body_to_world, description, float(strain_limit), strain_radius,
+                           (np.asarray(surface.vertices), np.asarray(surface.faces)) if coarser else None)
     return obj, auto_surfaces(name, surface, transform_body_to_world, search, deformable=True)

@@ -164,3 +164,47 @@ def test_soft_box_yaw_turns_body_and_top_and_its_friction_is_the_tops():
     assert world[:, 2].min() == pytest.approx(0.0, abs=1e-15) and world[:, 2].max() == pytest.approx(0.2, abs=1e-15)
     np.testing.assert_allclose(nodes.min(axis=0), [-0.3, -0.2, 0.0], atol=1e-15)
     np.testing.assert_allclose(nodes.max(axis=0), [0.3, 0.2, 0.2], atol=1e-15)
+
+
+def test_collisions_see_the_blocks_faces_not_the_fine_boundary():
+    """A soft step's collision shape is its blocks' 24 triangles: every outside point is as far
+    from them as from the mesh's boundary (thousands of triangles), measured by coal both ways."""
+    import coal
+    from stances.narrow_phase import DistanceQuery, box_shape, scene_shape
+
+    scenario = environments.load("foot-and-hand-on-foam")
+    (name, shape), = [(n, s) for n, s in scenario.scene.collision_objects() if n == "foam"]
+    obj = scenario.scene.deformable_objects[0]
+    assert len(shape.triangles) == 24 and len(obj.mesh.surface_triangles) > 1000
+    fine = environments.geometry.CollisionShape(obj.transform_body_to_world, vertices=obj.mesh.nodes,
+                                               triangles=obj.mesh.surface_triangles)
+    coarse_shape, coarse_rotation, coarse_translation = scene_shape(name, shape)
+    fine_shape, fine_rotation, fine_translation = scene_shape(name, fine)
+    probe = box_shape((0.02, 0.02, 0.02))
+    query = DistanceQuery()
+    rng = np.random.default_rng(4)
+    low, high = obj.points_in_world(obj.mesh.nodes).min(axis=0), obj.points_in_world(obj.mesh.nodes).max(axis=0)
+    checked = 0
+    for centre in rng.uniform(low - 0.1, high + 0.1, size=(200, 3)):
+        placed = coal.Transform3s(np.eye(3), centre)
+        coarse = query.distance(probe, placed, coarse_shape, coal.Transform3s(coarse_rotation, coarse_translation))
+        fine_distance = query.distance(probe, placed, fine_shape, coal.Transform3s(fine_rotation, fine_translation))
+        if min(coarse, fine_distance) > 1e-3:  # outside both (a mesh has no inside for coal)
+            assert coarse == pytest.approx(fine_distance, abs=1e-9)
+            checked += 1
+    assert checked > 50
+    # The rigid twin keeps the same shape.
+    twin = environments.rigid_twin(scenario)
+    (_, twin_shape), = [(n, s) for n, s in twin.scene.collision_objects() if n == "foam"]
+    assert len(twin_shape.triangles) <= 24
+
+
+def test_a_malformed_collision_mesh_is_refused_with_its_shapes():
+    obj = environments.load("foot-and-hand-on-foam").scene.deformable_objects[0]
+    from dataclasses import replace
+
+    with pytest.raises(SceneError, match=r"object 'foam': collision_mesh must be finite \(n, 3\) vertices and \(t, 3\) "
+                                         r"triangles indexing them, got shapes \(8, 3\) and \(1, 3\)"):
+        replace(obj, collision_mesh=(np.zeros((8, 3)), [[0, 1, 8]]))
+    with pytest.raises(SceneError, match=r"collision_mesh must be \(vertices, triangles\)"):
+        replace(obj, collision_mesh=np.zeros((8, 3)))
