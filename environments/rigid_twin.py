@@ -56,9 +56,9 @@ def rigid_object_of(deformable_object) -> RigidObject:
         )
     mesh = deformable_object.mesh
     nodes = np.asarray(mesh.nodes, dtype=float)
-    # The shape the soft object's collisions see (its blocks' faces), else its mesh's boundary.
-    shape = deformable_object.collision_mesh or (nodes, np.asarray(mesh.surface_triangles))
-    boundary = trimesh.Trimesh(*shape, process=True)
+    # The mesh's boundary, watertight (a soft_blocks object's collision_mesh, its blocks'
+    # faces, is not: a rigid object's mesh is a closed solid).
+    boundary = trimesh.Trimesh(nodes, np.asarray(mesh.surface_triangles), process=True)
     lower, upper = nodes.min(axis=0), nodes.max(axis=0)
     box_volume = float(np.prod(upper - lower))
     volume = float(np.sum(mesh.volumes))

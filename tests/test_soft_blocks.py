@@ -193,10 +193,6 @@ def test_collisions_see_the_blocks_faces_not_the_fine_boundary():
             assert coarse == pytest.approx(fine_distance, abs=1e-9)
             checked += 1
     assert checked > 50
-    # The rigid twin keeps the same shape.
-    twin = environments.rigid_twin(scenario)
-    (_, twin_shape), = [(n, s) for n, s in twin.scene.collision_objects() if n == "foam"]
-    assert len(twin_shape.triangles) <= 24
 
 
 def test_a_malformed_collision_mesh_is_refused_with_its_shapes():
