@@ -79,8 +79,9 @@ class SolveStatistics(Mapping):
     rigid_warm_start_iterations : int
         Iterations of the warm starts of a soft stance.
     bonded_warm_start : bool
-        A soft stance's Coulomb solve from its rigid answer's forces failed, and it
-        was solved again from the bonded model's answer (the earlier pipeline).
+        A soft stance's Coulomb solve from its rigid answer's forces failed near
+        feasible, and it was solved again from the bonded model's answer (the
+        earlier pipeline).
     """
 
     status: str | None = None
