@@ -778,8 +778,9 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         return built
 
     problem = build(options)
+    deformable = any(c.kind == "deformable" for c in problem.contacts)
     warm_iterations = 0
-    rigid_start, bonded_warm_start = None, False  # the rigid warm start's posture, and whether the bonded one ran
+    rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
     loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)  # warm starts: only starting postures
     if lam_init is not None:
         lam_init = np.asarray(lam_init, dtype=float)
@@ -792,11 +793,10 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
             )
         if not np.all(np.isfinite(lam_init)):
             raise StanceError(f"lam_init has non-finite entries at indices {np.flatnonzero(~np.isfinite(lam_init)).tolist()}")
-    elif options.rigid_warm_start and any(c.kind == "deformable" for c in problem.contacts):
+    elif options.rigid_warm_start and deformable:
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
         warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
         q_init, warm_iterations = warm.q, warm.iterations
-        rigid_start = warm.q
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
@@ -812,11 +812,10 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
             # load does: the Coulomb solve starts there (14 built-in soft stances, every
             # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
-    deformable = any(c.kind == "deformable" for c in problem.contacts)
     if options.contact_law == "coulomb" and deformable:
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
         if (not result.feasible and result.statistics["status"] != _OUT_OF_TIME
-                and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid_start is not None):
+                and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None):
             # Not from there, though near feasible (far from it, the stance cannot be
             # held, wherever it starts: both soles on foam at 3e4 Pa, which the strain
             # bound rules out, took 3.0 s, and 6.6 s with this fallback, which ended the
@@ -825,7 +824,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
             # multiplies the warm start's micrometres of placement error by the body's
             # stiffness, thousands of newtons on a steel-stiff cube).
             bonded = build(replace(options, contact_law="bonded", **loose))
-            warm = solve_problem(bonded, rigid_start, deadline=deadline, check=False)
+            warm = solve_problem(bonded, q_init, deadline=deadline, check=False)  # q_init: the rigid answer
             warm_iterations += result.iterations + warm.iterations
             result = _solve_coulomb(problem, warm.q, deadline, lam_init=np.asarray(warm.statistics["lambda"]))
             bonded_warm_start = True
@@ -870,7 +869,8 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
-    if free.feasible or status == _OUT_OF_TIME or _hopeless(free):
+    hopeless = status in ("stagnated", _NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+    if free.feasible or status == _OUT_OF_TIME or hopeless:
         return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
     # Cut short or stalled near a solution: go on from there; far from it: from the start.
     q = start = free.q if violation <= _CONTACT_SET_VIOLATION else q
@@ -893,15 +893,6 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
         q = attempt.q
     free = solve_problem(problem, start, deadline=deadline)
     return _with(free, iterations=iterations + free.iterations)
-
-
-def _hopeless(result) -> bool:
-    """Whether an SQP stopped stuck far from feasible at a large penalty (stagnated, no
-    progress, or its QP failed): a stance that cannot be held, not a matter of the
-    contact set or of where the solve started."""
-    statistics = result.statistics
-    return (statistics["status"] in ("stagnated", _NO_PROGRESS, _QP_FAILED)
-            and statistics["violation"] > _CONTACT_SET_VIOLATION)
 
 
 def _changed(options) -> dict:
