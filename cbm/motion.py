@@ -28,7 +28,11 @@ sample is solved halfway along the path (at most :data:`MAX_INSERTED` in one
 step of the motion), and a step that still collides makes the motion
 infeasible. The moving contact geometry may sink into its own print's object
 only as deep as the interpolation of its depths at the step's two ends (a
-limb resting on a soft print sinks into it).
+limb resting on a soft print sinks into it). The same postures must keep every
+held contact on its line: a polygon's vertices (a point foot's centre) within
+:data:`HELD_DRIFT` of the straight line between where the step's two samples
+put them; a step that carries one further gets samples halfway too (at most
+:data:`MAX_STRAY_INSERTED`), and one that still does makes the motion infeasible.
 
 Touch-down and lift-off are sampled too. The limb meets its print (or
 leaves it) with no load on it: a posture of the stance that holds the
@@ -92,9 +96,32 @@ BETWEEN = np.arange(1, 8) / 8
 #: 0.5 mm deep after 2).
 MAX_INSERTED = 4
 
+#: Metres: how far a held contact's point (a polygon's vertex, a point foot's centre) may
+#: stray, at the postures interpolated between two samples (:data:`BETWEEN`), from the
+#: straight line between where the two samples put it. The samples hold their contacts;
+#: the joint-space interpolation between them holds nothing, and on cross-soft-block's 8
+#: motions it carried the support's soles up to 5.2 mm off their prints. A step beyond
+#: the bound gets a sample halfway, as a colliding one does: the stray shrinks about
+#: fourfold with each halving (it is the path's curvature times the step squared).
+HELD_DRIFT = 1e-3
+
+#: Samples inserted, at most, into one step of the motion where a held contact strays
+#: beyond :data:`HELD_DRIFT` (apart from those for collisions). A weight shift onto a new
+#: contact takes the most: climb-with-soft-support 4 -> 5 moves the base 0.25 m from
+#: touch-down to the stance, and 4 samples left 5.3 mm of stray on the palm.
+MAX_STRAY_INSERTED = 8
+
 #: Newtons: the largest force a touch-down or lift-off sample may put on its limb
 #: (the solver holds the normal load at zero within its 1e-7 tolerance).
 UNLOADED_FORCE = 1e-4
+
+# How much harder than the stances' posture cost a load-transfer sample pulls toward its
+# step's midpoint. With the stances' own weight the samples follow the optimum for their
+# load, which need not lead to the stance's posture: climb-with-soft-support 4 -> 5, 8
+# samples (the last at 425 N of the sole's 439 N) left a step whose base pitch turns 3.5
+# degrees and whose palm strays 1.07 mm; 10 times harder, 3 samples keep it within 1 mm
+# (100 times: the same 3).
+_TRANSFER_PULL = 10.0
 
 # rad (or m): the SQP's step bound first tried for a touch-down or lift-off sample. It lies
 # close to the lifted sample it starts from (the limb 1.5 cm lower), and 0.3 rad steps
@@ -226,7 +253,14 @@ class ContactSample:
         True at touch-down and lift-off: the print's load along its normal is
         held at zero (one row, ``<= 0``; no adhesion makes it ``= 0``), so the
         posture is balanced on the support alone. False for a load-transfer
-        sample: the stance as it is.
+        sample: the stance, its print's load ``normal_load`` when given.
+    normal_load : float, optional
+        Newtons: a load-transfer sample's print load along its normal (one row,
+        ``=``). Halfway between two postures it is halfway between their loads,
+        which moves the robot's weight halfway: pulled toward the midpoint
+        alone, the samples landed next to the stance's own posture, the step
+        from touch-down left whole (cross-soft-block 5 -> 6: the base 0.25 m
+        from the touch-down sample, 3.9 mm of stray on the other sole between them).
     transform_frame_to_world : (4, 4) float, optional
         Where the frame is in the solved sample, world frame (set once solved).
     """
@@ -236,6 +270,7 @@ class ContactSample:
     surface: str
     label: str
     unloaded: bool = True
+    normal_load: float | None = None
     transform_frame_to_world: np.ndarray | None = None
 
     @property
@@ -244,13 +279,18 @@ class ContactSample:
         return f"{self.robot_surface} on {self.surface}"
 
     def blocks(self, problem, iterate):
-        """Unloaded: the row ``normal load of the print <= 0`` and its Jacobian; otherwise none."""
-        if not self.unloaded:
+        """Unloaded: the row ``normal load of the print <= 0`` and its Jacobian; with a
+        ``normal_load``, the row ``normal load = normal_load``; otherwise none."""
+        if not self.unloaded and self.normal_load is None:
             return []
         labels, value, jacobian = print_normal_loads(problem, iterate, only=self.print_label)
         if not labels:
             raise MotionError(f"{self.label}: the posture problem has no print {self.print_label!r}")
-        return [ConstraintBlock("unloaded contact", value, jacobian, -np.inf, 0.0, 1.0, (f"{self.label} (normal load)",))]
+        if self.unloaded:
+            return [ConstraintBlock("unloaded contact", value, jacobian, -np.inf, 0.0, 1.0,
+                                    (f"{self.label} (normal load)",))]
+        return [ConstraintBlock("contact load", value, jacobian, self.normal_load, self.normal_load, 1.0,
+                                (f"{self.label} (normal load {self.normal_load:.4g} N)",))]
 
     def options(self, options) -> dict:
         """The posture options its solve and verification take: unloaded, its print is held
@@ -409,7 +449,8 @@ def _options_of(planned):
     return dict(statistics.get("options", {}))
 
 
-def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_splits=2, solver_options=None):
+def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_splits=2, solver_options=None,
+                held_drift=HELD_DRIFT):
     """The quasi-static motion from stance ``index`` of a plan to stance ``index + 1``.
 
     Parameters
@@ -432,6 +473,9 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         times in each direction.
     solver_options : dict, optional
         Posture options; default those the arriving stance was solved with.
+    held_drift : float
+        Metres: how far a held contact may stray between two samples
+        (:data:`HELD_DRIFT`); a step straying further gets samples inserted.
 
     Returns
     -------
@@ -452,6 +496,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     """
     if not 0 <= index < len(plan.stances) - 1:
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
+    held_drift = _checked_drift(held_drift)
     before, after = plan.stances[index], plan.stances[index + 1]
     moving, support, holding, touch_down = _switch(before, after)
     surface = robot.surface(moving.robot_surface)
@@ -496,8 +541,10 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     samples = [_Sample(r.q, p, r, ref, holds=False) for piece in pieces
                for r, p, ref in zip(piece.results, piece.reached, piece.references)]
     seam = None if backward is None else 1 + len(forward.results)
-    ends = (_Sample(before.q, None, None, before.q, holds=not touch_down),
-            _Sample(after.q, None, None, after.q, holds=touch_down))
+    ends = (_Sample(before.q, None, None, before.q, holds=not touch_down,
+                    load=0.0 if touch_down else _normal_load(before.point_forces, surface.frame, normal)),
+            _Sample(after.q, None, None, after.q, holds=touch_down,
+                    load=_normal_load(after.point_forces, surface.frame, normal) if touch_down else 0.0))
     if not reason:
         # The limb meets (leaves) its print unloaded, next to the lifted sample above it.
         name = "touch-down" if touch_down else "lift-off"
@@ -523,7 +570,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
             if seam is not None and not touch_down:
                 seam += 1
     if not reason:
-        between = _Between(robot, scene, support, moving, options)
+        between = _Between(robot, scene, support, moving, options, held_drift)
         samples, seam, reason = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
                                              options, surface, index)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
@@ -542,6 +589,12 @@ class _Sample:
     result: object
     reference: np.ndarray
     holds: bool
+    load: float = 0.0  # newtons: the moving contact's print load along its normal (0 where not held)
+
+
+def _normal_load(point_forces, frame, normal) -> float:
+    """Newtons: the load of the forces on ``frame`` along ``normal`` (world)."""
+    return float(sum(np.dot(p.force, normal) for p in point_forces if p.frame == frame))
 
 
 def _placed(robot, sample, q):
@@ -550,15 +603,69 @@ def _placed(robot, sample, q):
 
 
 class _Between:
-    """Collisions of the postures interpolated between two samples, with the support's checker."""
+    """The postures interpolated between two samples: their collisions (with the support's
+    checker) and how far they carry the held contacts off their line (:data:`HELD_DRIFT`)."""
 
-    def __init__(self, robot, scene, support, moving, options):
+    def __init__(self, robot, scene, support, moving, options, held_drift=None):
         self.model = robot.model
         self.data = robot.model.createData()
         self.checker = stance_collision_checker(robot, scene, support, stances.PostureOptions(**options))
         print_object = scene.surface(moving.contact_print.surface).object_name
         self.moving = set(contact_exclusions(robot, moving.robot_surface, print_object))
         self.tolerance = VerificationTolerances().penetration
+        self.held_drift = HELD_DRIFT if held_drift is None else _checked_drift(held_drift)
+        # The points of each contact surface that must stay put: a polygon's vertices (they
+        # see a turn as well as a slide), a point foot's centre.
+        surfaces = [robot.surface(contact.robot_surface) for contact in support.contacts]
+        self.support_points = [_surface_points(self.model, surface) for surface in surfaces]
+        self.moving_points = _surface_points(self.model, robot.surface(moving.robot_surface))
+
+    def _points(self, q, held):
+        """(k, 3) world positions of the held surfaces' points at posture ``q`` (forward
+        kinematics already run for ``q``), and the surface each belongs to."""
+        placed, names = [], []
+        for name, frame, points in self.support_points + ([self.moving_points] if held else []):
+            placement = pin.updateFramePlacement(self.model, self.data, frame)
+            placed.append(points @ placement.rotation.T + placement.translation)
+            names += [name] * len(points)
+        return np.vstack(placed), names
+
+    def largest_drift(self, q0, q1, held=False):
+        """``(t, surface, metres)``: the largest distance, over the postures interpolated
+        between ``q0`` and ``q1`` (:data:`BETWEEN`), of a held contact's point from the
+        straight line between where it is at ``q0`` and at ``q1``; ``held``: the moving
+        contact is held at both ends, and checked too. ``(0, "", 0)`` without held contacts."""
+        if not self.support_points and not held:
+            return 0.0, "", 0.0
+        ends = []
+        for q in (q0, q1):
+            pin.forwardKinematics(self.model, self.data, q)
+            ends.append(self._points(q, held)[0])
+        worst = (0.0, "", 0.0)
+        for t in BETWEEN:
+            q = pin.interpolate(self.model, q0, q1, float(t))
+            pin.forwardKinematics(self.model, self.data, q)
+            points, names = self._points(q, held)
+            drift = np.linalg.norm(points - ((1.0 - t) * ends[0] + t * ends[1]), axis=1)
+            k = int(np.argmax(drift))
+            if drift[k] > worst[2]:
+                worst = (float(t), names[k], float(drift[k]))
+        return worst
+
+    def first_problem(self, q0, q1, held=False):
+        """What makes the step from ``q0`` to ``q1`` unusable, or None: ``("collision",
+        words)`` (:meth:`first_collision`), else ``("drift", words)`` for a held contact
+        straying more than the drift bound (:meth:`largest_drift`)."""
+        hit = self.first_collision(q0, q1, held)
+        if hit is not None:
+            t, pair, depth = hit
+            return "collision", (f"at {t:g} of the way: collision between {pair.name_a} and {pair.name_b} "
+                                 f"(depth {depth:.3g} m)")
+        t, name, drift = self.largest_drift(q0, q1, held)
+        if drift > self.held_drift:
+            return "drift", (f"at {t:g} of the way: the held {name} strays {drift:.3g} m off its line "
+                             f"(bound {self.held_drift:g} m)")
+        return None
 
     def _pairs(self, q):
         pin.forwardKinematics(self.model, self.data, q)
@@ -571,12 +678,9 @@ class _Between:
         their depths at the two ends, interpolated at ``t`` (a limb resting on a soft
         print sinks into it; deeper on the way is a collision). ``held``: both ends
         hold the moving contact; its geometry and its print's object are then not
-        checked, as for the support's contacts: a contact held at both ends of a step
-        leaves its print in between, the joint-space interpolation holding nothing
-        (cross-soft-block's 8 motions: the moving sole up to 2.4 mm off its print on a
-        held step, 2.2 mm into the floor; the support's soles up to 5.2 mm, 90 % of the
-        interpolated postures within 0.9 mm). A controller tracking the samples holds the
-        contacts; the interpolation between them is not a posture the plan vouches for.
+        checked, as for the support's contacts: the joint-space interpolation holds no
+        contact exactly, and a held contact's geometry dips into its support by as much
+        as it strays from its line, which :meth:`largest_drift` bounds instead.
         """
         ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
                  if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
@@ -592,42 +696,63 @@ class _Between:
         return None
 
 
-def _collision_text(k, hit, last):
-    """Where a step of a motion collides, in words; ``last``: the step into the next stance."""
-    t, pair, depth = hit
+def _surface_points(model, surface):
+    """``(name, frame id, (k, 3) points in the contact frame)`` of a robot surface: a
+    polygon's vertices, a point foot's centre."""
+    points = np.zeros((1, 3)) if surface.is_point else surface.vertices_in_frame
+    return surface.name, model.getFrameId(surface.frame), points
+
+
+def _checked_drift(value) -> float:
+    try:
+        drift = float(value)
+    except (TypeError, ValueError):
+        drift = np.nan
+    if not (np.isfinite(drift) and drift > 0.0):
+        raise MotionError(f"held_drift must be a positive distance in metres (default {HELD_DRIFT:g}), got {value!r}")
+    return drift
+
+
+def _step_text(k, problem, last):
+    """Where a step of a motion fails, in words; ``last``: the step into the next stance."""
     step = f"between sample {k} and the next stance's posture" if last else f"between samples {k} and {k + 1}"
-    return f"{step}, at {t:g} of the way: collision between {pair.name_a} and {pair.name_b} (depth {depth:.3g} m)"
+    return f"{step}, {problem}"
 
 
 def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, index):
-    """Check each step between consecutive postures for collisions (``between``, a
-    :class:`_Between`); where one collides, solve a sample halfway along the path and
-    check both halves, at most :data:`MAX_INSERTED` samples in each step of the motion
+    """Check each step between consecutive postures for collisions and held contacts'
+    strays (``between``, a :class:`_Between`); where one fails, solve a sample halfway
+    along the path and check both halves, at most :data:`MAX_INSERTED` samples for
+    collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the motion
     (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
     moving contact. Returns the samples, the seam moved past any inserted before it, and
     a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
-    inserted = [0] * len(origin)  # samples inserted into each step of the motion
+    budget = {"collision": MAX_INSERTED, "drift": MAX_STRAY_INSERTED}
+    inserted = {kind: [0] * len(origin) for kind in budget}  # samples inserted into each step of the motion
     k = 0
     while k < len(nodes) - 1:
         a, b = nodes[k], nodes[k + 1]
-        hit = between.first_collision(a.q, b.q, held=a.holds and b.holds)
-        if hit is None:
+        problem = between.first_problem(a.q, b.q, held=a.holds and b.holds)
+        if problem is None:
             k += 1
             continue
-        where = _collision_text(k, hit, last=k == len(nodes) - 2)
-        if inserted[origin[k]] >= MAX_INSERTED:
+        kind, words = problem
+        where = _step_text(k, words, last=k == len(nodes) - 2)
+        if inserted[kind][origin[k]] >= budget[kind]:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
-            return nodes[1:-1], seam, f"{where}, after {inserted[origin[k]]} samples inserted in that step"
+            return nodes[1:-1], seam, f"{where}, after {inserted[kind][origin[k]]} samples inserted in that step"
         result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface)
         if not result.feasible:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
         if isinstance(path, ContactSample):
             path = _placed(robot, path, result.q)
-        nodes.insert(k + 1, _Sample(result.q, path, result, reference, holds=isinstance(path, ContactSample)))
+        held = isinstance(path, ContactSample)
+        load = path.normal_load if held and path.normal_load is not None else 0.0
+        nodes.insert(k + 1, _Sample(result.q, path, result, reference, holds=held, load=load))
         origin.insert(k + 1, origin[k])
-        inserted[origin[k]] += 1
+        inserted[kind][origin[k]] += 1
         if seam is not None and k + 1 <= seam:
             seam += 1
     return nodes[1:-1], seam, ""
@@ -645,10 +770,11 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     both ends, and neither end reached the palm's halfway waypoint):
 
     - both ends hold the moving contact: a load-transfer sample (a :class:`ContactSample`
-      with its load free), the posture of the holding stance nearest the step's midpoint,
-      pulled toward that midpoint and from it first (from a or b with a blend of their
-      references, the samples stayed by the end they came from: quadruped-walk 5 -> 6,
-      two samples 0.01 rad from the touch-down one);
+      whose print carries the mean of its loads at the two ends), a posture of the holding
+      stance pulled toward the step's midpoint (:data:`_TRANSFER_PULL` times harder than
+      the stances are pulled toward theirs) and from it first (from a or b with a blend
+      of their references, the samples stayed by the end they came from: quadruped-walk
+      5 -> 6, two samples 0.01 rad from the touch-down one);
     - neither does: a posture of the support with the frame halfway between where it is
       at the two postures (a free sideways offset included), from ``a`` first, pulled
       toward the blend of the two samples' references;
@@ -674,10 +800,12 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     kind = "load transfer" if a.holds and b.holds else "touch-down" if b.holds else "lift-off"
     on_print = ContactSample(surface.frame, surface.name, _print_surface(holding, surface.name),
                              f"{kind} of {surface.name} (between samples {k} and {k + 1})",
-                             unloaded=not (a.holds and b.holds))
+                             unloaded=not (a.holds and b.holds),
+                             normal_load=0.5 * (a.load + b.load) if a.holds and b.holds else None)
     starts = (a, b, _Sample(middle, None, None, middle, holds=a.holds and b.holds))
     if a.holds and b.holds:
-        candidates = [(on_print, middle, starts[2:] + starts[:2], options)]
+        weight = _TRANSFER_PULL * options.get("posture_weight", stances.PostureOptions().posture_weight)
+        candidates = [(on_print, middle, starts[2:] + starts[:2], {**options, "posture_weight": weight})]
     elif a.holds or b.holds:
         # The waypoint from the joint-space midpoint and pulled toward it: the unloaded sample
         # can lie far from the lifted one in joint space (quadruped-walk 7 -> 8: 1.07 rad), and
@@ -797,7 +925,7 @@ def motions_summary(motions) -> str:
     return f"motions: {found} of {len(motions)} found" + (f"; joined backward: {', '.join(joined)}" if joined else "")
 
 
-def verify_motion(motion, plan, scenario, robot, solver_options=None):
+def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift=HELD_DRIFT):
     """Check a motion again, sample by sample, independently of its solves.
 
     Parameters
@@ -809,6 +937,8 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
     robot : stances Robot
     solver_options : dict, optional
         As given to :func:`plan_motion`.
+    held_drift : float
+        As given to :func:`plan_motion`.
 
     Returns
     -------
@@ -818,8 +948,10 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
         as a stance of the support holding its frame on its waypoint, or (a
         :class:`ContactSample`) as the stance holding the moving contact, with no
         load on it at touch-down and lift-off; a feasible motion has at least one of
-        those (its contact switch), and no posture checked between samples collides.
+        those (its contact switch), and no posture checked between samples collides
+        or carries a held contact more than ``held_drift`` off its line.
     """
+    held_drift = _checked_drift(held_drift)
     verify = stances.verify
     before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
     moving, _, holding, touch_down = _switch(before, after)
@@ -830,14 +962,14 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None):
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
     if motion.feasible:
-        between = _Between(robot, scenario.scene, motion.support, moving, options)
+        between = _Between(robot, scenario.scene, motion.support, moving, options, held_drift)
         holds = [not touch_down] + [isinstance(path, ContactSample) for path in motion.paths] + [touch_down]
         steps = len(motion.configurations) - 1
         for k in range(steps):
-            hit = between.first_collision(motion.configurations[k], motion.configurations[k + 1],
-                                          held=holds[k] and holds[k + 1])
-            if hit is not None:
-                problems.append(_collision_text(k, hit, last=k == steps - 1))
+            problem = between.first_problem(motion.configurations[k], motion.configurations[k + 1],
+                                            held=holds[k] and holds[k + 1])
+            if problem is not None:
+                problems.append(_step_text(k, problem[1], last=k == steps - 1))
     switches = [path for path in motion.paths if isinstance(path, ContactSample) and path.unloaded]
     if motion.feasible and not switches:
         problems.append("no touch-down or lift-off sample: a motion has one at least")

@@ -424,6 +424,74 @@ def test_the_moving_soles_allowance_is_its_depth_at_the_ends_interpolated_not_th
     assert t == 0.375 and depth == pytest.approx(0.015 - 0.02 * (1 - 0.375))
 
 
+def test_the_drift_of_held_contacts_between_samples_is_their_distance_from_the_chord(step_plan, scenario, robot):
+    """The base turned 0.2 rad about its own z axis between two postures: the joint-space
+    interpolation turns every sole vertex along an arc about that axis, whose largest distance
+    from the chord between its ends is computed here with scipy's rotations; a pure
+    translation of the base moves them along the chord (no drift)."""
+    from scipy.spatial.transform import Rotation
+
+    from cbm.motion import BETWEEN, _Between
+
+    support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
+    between = _Between(robot, scenario.scene, support, moving, {})
+    q0 = np.array(step_plan.stances[1].q)
+    base = Rotation.from_quat(q0[3:7])  # pinocchio's (x, y, z, w), as scipy's
+    q1 = q0.copy()
+    q1[3:7] = (base * Rotation.from_rotvec([0.0, 0.0, 0.2])).as_quat()
+    sole = robot.surface("left_sole")
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q0)
+    placement = data.oMf[robot.model.getFrameId(sole.frame)]
+    vertices = sole.vertices_in_frame @ placement.rotation.T + placement.translation
+    axis = base.apply([0.0, 0.0, 1.0])
+    arm = vertices - q0[:3]
+    ends = [vertices, q0[:3] + Rotation.from_rotvec(0.2 * axis).apply(arm)]
+    expected = max(
+        (float(np.linalg.norm(q0[:3] + Rotation.from_rotvec(t * 0.2 * axis).apply(arm) - (1 - t) * ends[0] - t * ends[1],
+                              axis=1).max()), t) for t in BETWEEN)
+    t, name, drift = between.largest_drift(q0, q1)
+    assert name == "left_sole" and t == expected[1] == 0.5
+    assert drift == pytest.approx(expected[0], rel=1e-9) and 5e-4 < drift < 0.01
+    shifted = q0.copy()
+    shifted[:3] += [0.1, -0.05, 0.02]
+    assert between.largest_drift(q0, shifted)[2] < 1e-12
+    # The moving sole counts where it is held at both ends, alone when nothing else is held.
+    assert between.largest_drift(q0, q1, held=True)[2] >= drift
+    between.support_points = []
+    assert between.largest_drift(q0, q1) == (0.0, "", 0.0)
+    assert between.largest_drift(q0, q1, held=True)[1] == "right_sole"
+
+
+def test_a_step_that_carries_a_held_sole_off_its_line_gets_samples_inserted(step_plan, motions, scenario, robot):
+    """With a bound of 0.1 mm on the support sole's stray, the lift-off motion gets samples
+    inserted until every step keeps it, and verify_motion reports a step that does not."""
+    from cbm.motion import HELD_DRIFT, _Between
+
+    loose = motions[0]
+    support, moving = loose.support, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
+    between = _Between(robot, scenario.scene, support, moving, {})
+    steps = [between.largest_drift(a, b)[2] for a, b in zip(loose.configurations[:-1], loose.configurations[1:])]
+    assert max(steps) < HELD_DRIFT and max(steps) > 1e-4  # the default bound holds; 0.1 mm does not
+    problems = verify_motion(loose, step_plan, scenario, robot, held_drift=1e-4)
+    k = int(np.argmax(np.array(steps) > 1e-4))
+    assert any(p.startswith(f"between samples {k} and {k + 1}, at ") and "the held left_sole strays" in p
+               and p.endswith("m off its line (bound 0.0001 m)") for p in problems), problems
+    tight = plan_motion(step_plan, 0, scenario, robot, samples=3, held_drift=1e-4)
+    assert tight.feasible, tight.reason
+    assert len(tight.configurations) > len(loose.configurations)
+    assert all(between.largest_drift(a, b)[2] <= 1e-4
+               for a, b in zip(tight.configurations[:-1], tight.configurations[1:]))
+    assert verify_motion(tight, step_plan, scenario, robot, held_drift=1e-4) == []
+
+
+@pytest.mark.parametrize("bound", [0.0, -1e-3, float("nan"), "far"])
+def test_a_drift_bound_that_is_not_a_positive_distance_is_refused(step_plan, scenario, robot, bound):
+    with pytest.raises(MotionError) as error:
+        plan_motion(step_plan, 0, scenario, robot, held_drift=bound)
+    assert str(error.value) == f"held_drift must be a positive distance in metres (default 0.001), got {bound!r}"
+
+
 def test_verify_motion_reports_a_step_between_samples_that_collides(step_plan, motions, scenario, robot):
     motion = motions[1]
     fallen = np.array(motion.configurations)
@@ -599,7 +667,15 @@ def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stan
     assert transfer.label == "load transfer of right_sole (between samples 6 and 7)"
     assert motion.paths[-2].unloaded and motion.paths[-2].label == "touch-down of right_sole"
     assert motion.results[-1].stance == step_plan.stances[2].stance
-    assert transfer.load(motion.results[-1]) > 1.0  # the sole carries part of the weight halfway
+    # Halfway between touch-down (no load) and the stance, the sole carries half the
+    # stance's load along the floor's normal (z), within the solver's tolerance.
+    frame = robot.surface("right_sole").frame
+    stance_load = sum(p.force[2] for p in step_plan.stances[2].point_forces if p.frame == frame)
+    assert stance_load > 100.0 and transfer.normal_load == pytest.approx(0.5 * stance_load, abs=1e-12)
+    halfway_load = sum(p.force[2] for p in motion.results[-1].forces_on(frame))
+    assert halfway_load == pytest.approx(0.5 * stance_load, abs=1e-6)
+    # Pulled toward the step's midpoint harder than a stance toward its reference posture.
+    assert motion.results[-1].statistics["options"]["posture_weight"] == 10.0
     assert verify_motion(motion, step_plan, scenario, robot) == []
 
 
