@@ -728,6 +728,8 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
     moving contact. Returns the samples, the seam moved past any inserted before it, and
     a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
+    held_print = next(c.contact_print for c in holding.contacts if c.robot_surface == surface.name)
+    normal = scene.transform_print_to_world(held_print)[:3, 2]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
     budget = {"collision": MAX_INSERTED, "drift": MAX_STRAY_INSERTED}
     inserted = {kind: [0] * len(origin) for kind in budget}  # samples inserted into each step of the motion
@@ -749,7 +751,8 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         if isinstance(path, ContactSample):
             path = _placed(robot, path, result.q)
         held = isinstance(path, ContactSample)
-        load = path.normal_load if held and path.normal_load is not None else 0.0
+        load = 0.0 if not held else path.normal_load if path.normal_load is not None else _normal_load(
+            result.point_forces, surface.frame, normal)
         nodes.insert(k + 1, _Sample(result.q, path, result, reference, holds=held, load=load))
         origin.insert(k + 1, origin[k])
         inserted[kind][origin[k]] += 1
@@ -770,7 +773,8 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     both ends, and neither end reached the palm's halfway waypoint):
 
     - both ends hold the moving contact: a load-transfer sample (a :class:`ContactSample`
-      whose print carries the mean of its loads at the two ends), a posture of the holding
+      whose print carries the mean of its loads at the two ends, or, where no posture
+      does, any load), a posture of the holding
       stance pulled toward the step's midpoint (:data:`_TRANSFER_PULL` times harder than
       the stances are pulled toward theirs) and from it first (from a or b with a blend
       of their references, the samples stayed by the end they came from: quadruped-walk
@@ -804,8 +808,12 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
                              normal_load=0.5 * (a.load + b.load) if a.holds and b.holds else None)
     starts = (a, b, _Sample(middle, None, None, middle, holds=a.holds and b.holds))
     if a.holds and b.holds:
-        weight = _TRANSFER_PULL * options.get("posture_weight", stances.PostureOptions().posture_weight)
-        candidates = [(on_print, middle, starts[2:] + starts[:2], {**options, "posture_weight": weight})]
+        # Its load pinned first; where no posture meets it exactly, free (hand-on-coarse-cube's
+        # palm on its 10 mm tets: 0.33 N from half its load, the line search stalling).
+        pulled = {**options, "posture_weight": _TRANSFER_PULL * options.get(
+            "posture_weight", stances.PostureOptions().posture_weight)}
+        candidates = [(path, middle, starts[2:] + starts[:2], pulled)
+                      for path in (on_print, replace(on_print, normal_load=None))]
     elif a.holds or b.holds:
         # The waypoint from the joint-space midpoint and pulled toward it: the unloaded sample
         # can lie far from the lifted one in joint space (quadruped-walk 7 -> 8: 1.07 rad), and

@@ -679,6 +679,39 @@ def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stan
     assert verify_motion(motion, step_plan, scenario, robot) == []
 
 
+def test_a_load_transfer_sample_whose_load_cannot_be_met_is_solved_with_its_load_free(step_plan, scenario, robot,
+                                                                                       monkeypatch):
+    """The colliding load-transfer step again, with every posture pinned to a load refused."""
+    from cbm.motion import _Between
+
+    real, hits = _Between.first_collision, []
+
+    def held_step_collides_once(between, q0, q1, held=False):
+        if held and not hits:
+            hits.append((q0, q1))
+            return (0.5, CollisionPairStub(), 0.01)
+        return real(between, q0, q1, held)
+
+    solve, pinned = stances.solve, []
+
+    def pinned_loads_refused(robot_, scene, stance, constraints=(), **options):
+        result = solve(robot_, scene, stance, constraints=constraints, **options)
+        if constraints and getattr(constraints[0], "normal_load", None) is not None:
+            pinned.append(constraints[0].normal_load)
+            return replace(result, feasible=False, reason="refused by the test")
+        return result
+
+    monkeypatch.setattr(_Between, "first_collision", held_step_collides_once)
+    monkeypatch.setattr(stances, "solve", pinned_loads_refused)
+    motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
+    assert motion.feasible, motion.reason
+    transfer = motion.paths[-1]
+    assert transfer.label == "load transfer of right_sole (between samples 6 and 7)"
+    assert transfer.normal_load is None and not transfer.unloaded
+    assert len(pinned) == 3  # tried from the midpoint, then from either end
+    assert verify_motion(motion, step_plan, scenario, robot) == []
+
+
 def test_the_seam_moves_past_a_lift_off_sample(step_plan, scenario, robot, monkeypatch):
     """(From a review.) Waypoint 3 out of reach forward on a lift-off: the seam counts the lift-off sample."""
     solve, backward = stances.solve, []
