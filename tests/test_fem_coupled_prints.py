@@ -77,6 +77,20 @@ def test_field_under_the_print_forces_puts_the_nodes_where_they_were_pressed(blo
     assert np.abs(field - direct_field).max() <= 1e-9
 
 
+def test_the_field_of_the_same_loads_asked_again_is_the_same_and_not_shared(block):
+    """The last field is kept for a second caller (a solver's check, then its result):
+    the same bits, in an array of its own; other loads get their own field."""
+    body, both, _, _, on_body = _pressed_together(block, 9)
+    first = body.displacement_under_loads(both, on_body)
+    again = body.displacement_under_loads(both, on_body.copy())
+    np.testing.assert_array_equal(first, again)
+    again[:] = 0.0  # a caller writing into its field changes nobody else's
+    np.testing.assert_array_equal(body.displacement_under_loads(both, on_body), first)
+    doubled = body.displacement_under_loads(both, 2.0 * on_body)
+    assert np.allclose(doubled, 2.0 * first, rtol=1e-12, atol=1e-15)
+    assert np.allclose(body.displacement_under_loads(both[::-1], on_body[::-1]), first, rtol=1e-12, atol=1e-15)
+
+
 def test_strain_map_matches_the_strain_of_the_full_field(block):
     body, left, _ = block
     displacements = _press(np.random.default_rng(6), left.size)
