@@ -18,6 +18,12 @@ __all__ = ["JointTrajectory", "plan_trajectory", "write_trajectory"]
 class JointTrajectory:
     """Postures in time: the stances of a plan and the motions between them.
 
+    Between two consecutive samples a replay interpolates in joint space, the
+    free flyer on SE(3) (``pinocchio.interpolate``): a motion's samples are placed
+    so that this interpolation keeps clear of collisions and keeps every held
+    contact within :data:`cbm.motion.HELD_DRIFT` of its line (a failed motion's
+    jump excepted).
+
     Parameters
     ----------
     names : tuple of str
