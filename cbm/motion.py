@@ -42,11 +42,12 @@ on a soft support is held rigid on its undeformed surface there: unloaded, it
 deforms nothing, and as a soft print every node would sit exactly where it
 lifts off, where the contact model gives the SQP no direction). The load
 then moves onto the contact (or off it) between that posture and the stance's
-own; where that step collides, postures of the stance holding the contact are
-solved halfway (the load transfer). Static equilibrium is checked at the
-samples, not between them: a robot moving slowly enough between two balanced
-postures close together stays balanced, and the collision checks between
-samples bound how far apart they are.
+own; where that step collides or carries a held contact off its line,
+postures of the stance holding the contact are solved halfway (the load
+transfer), each carrying the mean of its neighbours' loads. Static equilibrium
+is checked at the samples, not between them: a robot moving slowly enough
+between two balanced postures close together stays balanced, and the checks
+between samples bound how far apart they are.
 """
 
 from __future__ import annotations
@@ -87,7 +88,8 @@ logger = logging.getLogger(__name__)
 PATH_TOLERANCE = 1e-6
 
 #: Where the postures between two consecutive samples (joint-space interpolation,
-#: ``pin.interpolate``) are checked for collisions: 7 points, every 1/8.
+#: ``pin.interpolate``) are checked for collisions and held contacts' strays: 7 points,
+#: every 1/8 (a stray peaks halfway: a grid of 99 points found at most 1e-4 mm more).
 BETWEEN = np.arange(1, 8) / 8
 
 #: Samples inserted, at most, into one step of the motion that collides (a step that
@@ -99,24 +101,29 @@ MAX_INSERTED = 4
 #: Metres: how far a held contact's point (a polygon's vertex, a point foot's centre) may
 #: stray, at the postures interpolated between two samples (:data:`BETWEEN`), from the
 #: straight line between where the two samples put it. The samples hold their contacts;
-#: the joint-space interpolation between them holds nothing, and on cross-soft-block's 8
-#: motions it carried the support's soles up to 5.2 mm off their prints. A step beyond
-#: the bound gets a sample halfway, as a colliding one does: the stray shrinks about
-#: fourfold with each halving (it is the path's curvature times the step squared).
+#: the joint-space interpolation between them holds nothing, and on seven built-in plans
+#: it carried held contacts up to 24 mm off their line (climb-with-soft-support's palm;
+#: cross-soft-block's soles 6.6 mm). A step beyond the bound gets a sample halfway, as a
+#: colliding one does: the stray shrinks about fourfold with each halving (it is the
+#: path's curvature times the step squared). The bound holds for ``pin.interpolate``
+#: (the free flyer on SE(3)); a replay interpolating the base's position and orientation
+#: apart strays more (up to 2.6 mm on the same steps).
 HELD_DRIFT = 1e-3
 
 #: Samples inserted, at most, into one step of the motion where a held contact strays
 #: beyond :data:`HELD_DRIFT` (apart from those for collisions). A weight shift onto a new
-#: contact takes the most: climb-with-soft-support 4 -> 5 moves the base 0.25 m from
-#: touch-down to the stance, and 4 samples left 5.3 mm of stray on the palm.
+#: contact takes the most: climb-with-soft-support 3 -> 4 moves a sole's 540 N in eighths
+#: (6 samples); 4 -> 5, before load-transfer samples were pulled toward their step's
+#: midpoint, was left at 5.3 mm with 4.
 MAX_STRAY_INSERTED = 8
 
 #: Newtons: the largest force a touch-down or lift-off sample may put on its limb
 #: (the solver holds the normal load at zero within its 1e-7 tolerance).
 UNLOADED_FORCE = 1e-4
 
-# How much harder than the stances' posture cost a load-transfer sample pulls toward its
-# step's midpoint. With the stances' own weight the samples follow the optimum for their
+# How much harder than the stances' posture cost a load-transfer sample pulls its joints
+# toward its step's midpoint (``posture_weight``; the base's orientation weight is left
+# as it is, its position has none). With the stances' own weight the samples follow the optimum for their
 # load, which need not lead to the stance's posture: climb-with-soft-support 4 -> 5, 8
 # samples (the last at 425 N of the sole's 439 N) left a step whose base pitch turns 3.5
 # degrees and whose palm strays 1.07 mm; 10 times harder, 3 samples keep it within 1 mm
@@ -323,11 +330,11 @@ class Motion:
     configurations : (k, nq) float
         Postures, the first stance's ``q`` first and, when feasible, the
         second's last; between them, one per waypoint, and one per sample
-        inserted where a step collided (fewer if the motion failed).
+        inserted where a step collided or strayed (fewer if the motion failed).
     paths : tuple of FramePlacementConstraint or ContactSample
         How the moving surface is held at each interior sample: its frame on
         the path's waypoints (and any halfway waypoints the solves or the
-        collision checks needed), free sideways while it crosses; or on its
+        checks between samples needed), free sideways while it crosses; or on its
         print (:class:`ContactSample`): unloaded at touch-down or lift-off,
         loaded in a load-transfer sample.
     results : tuple of stances PostureResult
@@ -335,7 +342,8 @@ class Motion:
         stance holding the moving contact for a :class:`ContactSample`.
     feasible : bool
         Whether every waypoint was reached by a verified posture and no step
-        between consecutive postures collides (:data:`BETWEEN`).
+        between consecutive postures collides or carries a held contact more
+        than its bound off its line (:data:`BETWEEN`, :data:`HELD_DRIFT`).
     reason : str
         Why not (empty when feasible).
     seam : int or None
@@ -485,8 +493,8 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         backward, from the second stance's posture, and the two halves meet at
         ``Motion.seam``. If neither reaches it, the motion holds the forward
         samples, ``feasible`` False and both solvers' reasons; if a step
-        between samples collides even with samples inserted, every sample,
-        ``feasible`` False and the collision.
+        between samples collides or strays even with samples inserted, every
+        sample, ``feasible`` False and the collision or the stray.
 
     Raises
     ------
@@ -679,8 +687,8 @@ class _Between:
         print sinks into it; deeper on the way is a collision). ``held``: both ends
         hold the moving contact; its geometry and its print's object are then not
         checked, as for the support's contacts: the joint-space interpolation holds no
-        contact exactly, and a held contact's geometry dips into its support by as much
-        as it strays from its line, which :meth:`largest_drift` bounds instead.
+        contact exactly, and :meth:`largest_drift` bounds how far it strays from its line
+        (on a rigid print, how deep its geometry may dip).
         """
         ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
                  if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
@@ -704,8 +712,9 @@ def _surface_points(model, surface):
 
 
 def _checked_drift(value) -> float:
+    """``value`` as a positive finite distance in metres, or a MotionError naming it."""
     try:
-        drift = float(value)
+        drift = np.nan if isinstance(value, bool) else float(value)  # True would read as 1 m
     except (TypeError, ValueError):
         drift = np.nan
     if not (np.isfinite(drift) and drift > 0.0):
@@ -744,7 +753,8 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         where = _step_text(k, words, last=k == len(nodes) - 2)
         if inserted[kind][origin[k]] >= budget[kind]:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
-            return nodes[1:-1], seam, f"{where}, after {inserted[kind][origin[k]]} samples inserted in that step"
+            count = sum(counts[origin[k]] for counts in inserted.values())
+            return nodes[1:-1], seam, f"{where}, after {count} samples inserted in that step"
         result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface)
         if not result.feasible:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
@@ -763,7 +773,7 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
 
 def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     """A sample between postures ``a`` and ``b`` (:class:`_Sample`) of a step that
-    collides: ``(result, path, reference)``, ``result.feasible`` False with the last
+    collides or strays: ``(result, path, reference)``, ``result.feasible`` False with the last
     reason when no candidate is reached.
 
     Candidates, in turn, each solved from one posture after another until one is
@@ -775,8 +785,8 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     - both ends hold the moving contact: a load-transfer sample (a :class:`ContactSample`
       whose print carries the mean of its loads at the two ends, or, where no posture
       does, any load), a posture of the holding
-      stance pulled toward the step's midpoint (:data:`_TRANSFER_PULL` times harder than
-      the stances are pulled toward theirs) and from it first (from a or b with a blend
+      stance whose joints are pulled toward the step's midpoint (:data:`_TRANSFER_PULL`
+      times harder than the stances' toward theirs) and from it first (from a or b with a blend
       of their references, the samples stayed by the end they came from: quadruped-walk
       5 -> 6, two samples 0.01 rad from the touch-down one);
     - neither does: a posture of the support with the frame halfway between where it is
@@ -955,7 +965,8 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
         stances' postures, every interior sample verifies (:func:`stances.verify`)
         as a stance of the support holding its frame on its waypoint, or (a
         :class:`ContactSample`) as the stance holding the moving contact, with no
-        load on it at touch-down and lift-off; a feasible motion has at least one of
+        load on it at touch-down and lift-off and a load-transfer sample's pinned
+        ``normal_load`` on it (to :data:`UNLOADED_FORCE`); a feasible motion has at least one of
         those (its contact switch), and no posture checked between samples collides
         or carries a held contact more than ``held_drift`` off its line.
     """
@@ -963,6 +974,7 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
     verify = stances.verify
     before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
     moving, _, holding, touch_down = _switch(before, after)
+    normal = scenario.scene.transform_print_to_world(moving.contact_print)[:3, 2]
     options = _options_of(after) if solver_options is None else dict(solver_options)
     problems = []
     ends = [(0, before.q)] + ([(-1, after.q)] if motion.feasible else [])
@@ -991,6 +1003,11 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
             problems.append(f"sample {k + 1}: " + "; ".join(map(str, verification.reasons)))
         if held and path.unloaded and path.load(result) > UNLOADED_FORCE:
             problems.append(f"sample {k + 1} ({path.label}): {path.load(result):.3g} N on {motion.moving_surface}")
+        if held and path.normal_load is not None:
+            carried = _normal_load(result.point_forces, path.frame, normal)
+            if abs(carried - path.normal_load) > UNLOADED_FORCE:
+                problems.append(f"sample {k + 1} ({path.label}): its print carries {carried:.6g} N along its normal, "
+                                f"not the {path.normal_load:.6g} N pinned")
         # Where the sample holds the frame (a ContactSample records where it came to rest).
         recorded = path if not held else FramePlacementConstraint(path.frame, path.transform_frame_to_world)
         error = recorded.error(robot, result.q)

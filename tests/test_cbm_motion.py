@@ -191,6 +191,7 @@ def test_trajectory_files_name_the_joints_and_replay_the_plan(step_plan, motions
     assert list(read["names"]) == step_plan.robot["configuration_names"]
     assert json.loads(str(read["locked_joints"])) == {k: list(v) for k, v in step_plan.robot["locked_joints"].items()}
     assert np.all(np.diff(read["times"]) > 0)
+    assert str(read["interpolation"]).startswith("pinocchio.interpolate between consecutive samples")
     stance_rows = np.flatnonzero(read["stance"] >= 0)
     assert read["stance"][stance_rows].tolist() == [0, 1, 2]
     for index, row in zip(range(3), stance_rows):
@@ -485,7 +486,7 @@ def test_a_step_that_carries_a_held_sole_off_its_line_gets_samples_inserted(step
     assert verify_motion(tight, step_plan, scenario, robot, held_drift=1e-4) == []
 
 
-@pytest.mark.parametrize("bound", [0.0, -1e-3, float("nan"), "far"])
+@pytest.mark.parametrize("bound", [0.0, -1e-3, float("nan"), "far", True])
 def test_a_drift_bound_that_is_not_a_positive_distance_is_refused(step_plan, scenario, robot, bound):
     with pytest.raises(MotionError) as error:
         plan_motion(step_plan, 0, scenario, robot, held_drift=bound)
@@ -677,6 +678,11 @@ def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stan
     # Pulled toward the step's midpoint harder than a stance toward its reference posture.
     assert motion.results[-1].statistics["options"]["posture_weight"] == 10.0
     assert verify_motion(motion, step_plan, scenario, robot) == []
+    # A sample claiming another load than its print carries is reported.
+    claimed = replace(transfer, normal_load=transfer.normal_load + 1.0)
+    problems = verify_motion(replace(motion, paths=motion.paths[:-1] + (claimed,)), step_plan, scenario, robot)
+    assert problems == [f"sample 7 ({transfer.label}): its print carries {halfway_load:.6g} N along its normal, "
+                        f"not the {transfer.normal_load + 1.0:.6g} N pinned"]
 
 
 def test_a_load_transfer_sample_whose_load_cannot_be_met_is_solved_with_its_load_free(step_plan, scenario, robot,
