@@ -647,9 +647,8 @@ def test_a_touch_down_needs_no_minimum_load_on_any_print(step_plan, scenario, ro
     assert verify_motion(motion, step_plan, scenario, robot, solver_options={"min_normal_force": 5.0}) == []
 
 
-def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stance(step_plan, scenario, robot,
-                                                                                   monkeypatch):
-    """(From a review.) The step from touch-down to the arriving stance made to collide once."""
+def _held_steps_collide_once(monkeypatch):
+    """Make the first step whose two ends hold the moving contact 'collide' (1 cm deep), once."""
     from cbm.motion import _Between
 
     real, hits = _Between.first_collision, []
@@ -661,6 +660,12 @@ def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stan
         return real(between, q0, q1, held)
 
     monkeypatch.setattr(_Between, "first_collision", held_step_collides_once)
+
+
+def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stance(step_plan, scenario, robot,
+                                                                                   monkeypatch):
+    """(From a review.) The step from touch-down to the arriving stance made to collide once."""
+    _held_steps_collide_once(monkeypatch)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert motion.feasible, motion.reason
     transfer = motion.paths[-1]
@@ -688,16 +693,7 @@ def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stan
 def test_a_load_transfer_sample_whose_load_cannot_be_met_is_solved_with_its_load_free(step_plan, scenario, robot,
                                                                                        monkeypatch):
     """The colliding load-transfer step again, with every posture pinned to a load refused."""
-    from cbm.motion import _Between
-
-    real, hits = _Between.first_collision, []
-
-    def held_step_collides_once(between, q0, q1, held=False):
-        if held and not hits:
-            hits.append((q0, q1))
-            return (0.5, CollisionPairStub(), 0.01)
-        return real(between, q0, q1, held)
-
+    _held_steps_collide_once(monkeypatch)
     solve, pinned = stances.solve, []
 
     def pinned_loads_refused(robot_, scene, stance, constraints=(), **options):
@@ -707,7 +703,6 @@ def test_a_load_transfer_sample_whose_load_cannot_be_met_is_solved_with_its_load
             return replace(result, feasible=False, reason="refused by the test")
         return result
 
-    monkeypatch.setattr(_Between, "first_collision", held_step_collides_once)
     monkeypatch.setattr(stances, "solve", pinned_loads_refused)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert motion.feasible, motion.reason
