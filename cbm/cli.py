@@ -199,7 +199,8 @@ def build_parser():
         "--motion",
         action="store_true",
         help="also plan the quasi-static motion between consecutive stances (trajectory.csv, trajectory.npz, "
-        "played by viewer.html); each sample is a verified posture solve",
+        "played by viewer.html); each sample is a verified posture solve; a stance whose posture its motion "
+        "cannot reach is solved again from the motion's touch-down (plan.json holds the new posture)",
     )
     plan.add_argument("--view", action="store_true", help="show the plan in meshcat (pip install meshcat)")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
@@ -436,9 +437,9 @@ def _plan(args):
             )
         motions = None
         if args.motion and not interrupted:
-            from .motion import plan_motions
+            from .motion import plan_motions_reposing
 
-            motions = plan_motions(result, scenario, robot)
+            result, motions = plan_motions_reposing(result, scenario, robot)
         files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures, motions=motions)
         staged.publish()
     except BaseException:

@@ -78,6 +78,7 @@ __all__ = [
     "motions_summary",
     "plan_motion",
     "plan_motions",
+    "plan_motions_reposing",
     "verify_motion",
 ]
 
@@ -352,6 +353,9 @@ class Motion:
         ``configurations`` of the first backward sample in path order (the last
         one solved; a larger joint step may lie just before it). None when every
         sample was solved forward.
+    reposed : bool
+        Whether the arriving stance's posture was solved again for this motion
+        (:func:`plan_motions_reposing`): the plan's own lay out of its reach.
 
     Raises
     ------
@@ -370,6 +374,7 @@ class Motion:
     feasible: bool
     reason: str = ""
     seam: int | None = None
+    reposed: bool = False
 
     def __post_init__(self):
         array = np.array(self.configurations, dtype=float)
@@ -927,8 +932,76 @@ def plan_motions(plan, scenario, robot, **options):
     return tuple(plan_motion(plan, i, scenario, robot, **options) for i in range(len(plan.stances) - 1))
 
 
+def plan_motions_reposing(plan, scenario, robot, **options):
+    """The motions of a plan, solving an arriving stance's posture again where its motion fails.
+
+    The planner chooses each stance's posture without the motion into it in view,
+    and a motion can find it out of reach: quadruped-walk's last step puts the
+    foot down and moves the weight onto it on one side of a support leg's
+    adapter, while the stance's posture has that leg bent the other way, 1 rad
+    apart (no posture between them clears the step). Where a motion fails, the
+    arriving stance is solved again from the motion's sample that puts its contact
+    down (the touch-down; at a lift-off, the last lifted sample), pulled toward
+    that sample's posture, and the motion is planned again
+    to the new posture; if that fails too the stance keeps its posture. The
+    motion out of a reposed stance starts from its new posture.
+
+    Parameters
+    ----------
+    plan, scenario, robot
+        As :func:`plan_motion`.
+    **options
+        Keyword arguments of :func:`plan_motion` (its ``solver_options`` serve
+        the stances solved again too).
+
+    Returns
+    -------
+    plan : cbm.Plan
+        The plan with the reposed stances' postures, forces and fields.
+    motions : tuple of Motion
+        ``len(plan.stances) - 1`` motions, in order; ``Motion.reposed`` marks
+        those that needed their arriving stance reposed.
+    """
+    planned = list(plan.stances)
+    motions = []
+    for index in range(len(planned) - 1):
+        current = replace(plan, stances=planned)
+        motion = plan_motion(current, index, scenario, robot, **options)
+        if not motion.feasible:
+            reposed = _reposed_stance(current, index, motion, scenario, robot, options.get("solver_options"))
+            if reposed is not None:
+                trial = planned[:index + 1] + [reposed] + planned[index + 2:]
+                retried = plan_motion(replace(plan, stances=trial), index, scenario, robot, **options)
+                if retried.feasible:
+                    logger.info("motion %d -> %d found with stance %d reposed", index, index + 1, index + 1)
+                    planned, motion = trial, replace(retried, reposed=True)
+        motions.append(motion)
+    return replace(plan, stances=tuple(planned)), tuple(motions)
+
+
+def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
+    """Stance ``index + 1`` of a plan solved again from the failed ``motion``'s touch-down
+    sample (else its last sample holding that stance's contacts), pulled toward it: a
+    PlannedStance, or None (no such sample, or no posture)."""
+    after = plan.stances[index + 1]
+    held = [(path, result) for path, result in zip(motion.paths, motion.results) if result.stance == after.stance]
+    if not held:
+        return None
+    # From the touch-down where there is one: the load transfer starts there, and samples
+    # inserted after it may already lie by the stance's posture, across what blocks it.
+    touch = [result for path, result in held if isinstance(path, ContactSample) and path.unloaded]
+    start = (touch[0] if touch else held[-1][1]).q
+    options = _options_of(after) if solver_options is None else dict(solver_options)
+    result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start, **options)
+    if not result.feasible:
+        return None
+    return replace(after, q=result.q, point_forces=tuple(result.point_forces),
+                   deformations=dict(result.deformations or {}), result=result)
+
+
 def motions_summary(motions) -> str:
-    """One line on a plan's motions: how many were found, and where any was joined backward.
+    """One line on a plan's motions: how many were found, where any was joined backward, and
+    which stances were reposed (:func:`plan_motions_reposing`).
 
     Examples
     --------
@@ -940,7 +1013,9 @@ def motions_summary(motions) -> str:
         f"{m.index} -> {m.index + 1} at sample {m.seam} (largest joint step there {m.joint_steps[m.seam - 1]:.2f} rad)"
         for m in motions if m.feasible and m.seam is not None
     ]
-    return f"motions: {found} of {len(motions)} found" + (f"; joined backward: {', '.join(joined)}" if joined else "")
+    reposed = [str(m.index + 1) for m in motions if m.reposed]
+    return (f"motions: {found} of {len(motions)} found" + (f"; joined backward: {', '.join(joined)}" if joined else "")
+            + (f"; stances reposed for the motion into them: {', '.join(reposed)}" if reposed else ""))
 
 
 def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift=HELD_DRIFT):

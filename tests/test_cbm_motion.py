@@ -13,7 +13,7 @@ import stances
 from environments.stance import Contact, ContactPrint
 
 from cbm.motion import (UNLOADED_FORCE, ContactSample, FramePlacementConstraint, MotionError, motions_summary,
-                        plan_motion, plan_motions, verify_motion)
+                        plan_motion, plan_motions, plan_motions_reposing, verify_motion)
 from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
@@ -744,6 +744,50 @@ def test_a_touch_down_on_foam_beside_a_loaded_sole_is_unloaded_and_held_rigid(ro
     assert motion.paths[-1].unloaded and touch.statistics["options"]["rigid_prints"] == ("right_sole",)
     assert motion.paths[-1].load(touch) < UNLOADED_FORCE
     assert verify_motion(motion, plan, scenario, robot) == []
+
+
+@pytest.mark.parametrize("reposing_helps", [True, False])
+def test_a_stance_whose_posture_its_motion_cannot_reach_is_solved_again_from_the_touch_down(
+        step_plan, scenario, robot, monkeypatch, reposing_helps):
+    """Every step into the last stance's planned posture is made to 'collide' (with
+    ``reposing_helps`` False, every step into any posture of that stance): the touch-down
+    motion fails, the stance is solved again from its touch-down sample, and the motion
+    into the new posture is found; where nothing helps, plan and motion stay as they were."""
+    from cbm.motion import _Between
+
+    planned = np.array(step_plan.stances[2].q)
+    real = _Between.first_collision
+    data = robot.model.createData()
+    frame = robot.model.getFrameId(robot.surface("right_sole").frame)
+
+    def settled(q):  # the right sole down at its new print (x = 0.15 m), as in the last stance
+        pin.framesForwardKinematics(robot.model, data, q)
+        return abs(data.oMf[frame].translation[0] - 0.15) < 0.02 and abs(data.oMf[frame].translation[2]) < 1e-3
+
+    def blocked(between, q0, q1, held=False):
+        into = np.array_equal(q1, planned) if reposing_helps else (held and settled(q1) and settled(q0))
+        return (0.5, CollisionPairStub(), 0.01) if into else real(between, q0, q1, held)
+
+    monkeypatch.setattr(_Between, "first_collision", blocked)
+    plan, motions = plan_motions_reposing(step_plan, scenario, robot, samples=3)
+    assert motions[0].feasible and not motions[0].reposed
+    np.testing.assert_array_equal(plan.stances[1].q, step_plan.stances[1].q)
+    if not reposing_helps:
+        assert not motions[1].feasible and not motions[1].reposed
+        assert plan.stances == step_plan.stances
+        assert motions_summary(motions) == "motions: 1 of 2 found"
+        return
+    assert motions[1].feasible and motions[1].reposed
+    reposed = plan.stances[2]
+    assert reposed.stance == step_plan.stances[2].stance and reposed.move == step_plan.stances[2].move
+    assert not np.array_equal(reposed.q, planned) and reposed.result.feasible
+    np.testing.assert_array_equal(motions[1].configurations[-1], reposed.q)
+    touch = next(r for p, r in zip(motions[1].paths, motions[1].results) if isinstance(p, ContactSample) and p.unloaded)
+    # Solved from the touch-down and pulled toward it: nearer it than the planned posture.
+    assert np.abs(reposed.q[7:] - touch.q[7:]).max() < np.abs(planned[7:] - touch.q[7:]).max()
+    assert verify_motion(motions[1], plan, scenario, robot) == []
+    assert plan.check(scenario, robot).ok
+    assert motions_summary(motions) == "motions: 2 of 2 found; stances reposed for the motion into them: 2"
 
 
 def test_motion_defaults_are_those_the_readme_measured():
