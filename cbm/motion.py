@@ -75,6 +75,7 @@ __all__ = [
     "FramePlacementConstraint",
     "Motion",
     "MotionError",
+    "held_strays",
     "motions_summary",
     "plan_motion",
     "plan_motions",
@@ -1018,6 +1019,41 @@ def motions_summary(motions) -> str:
             + (f"; stances reposed for the motion into them: {', '.join(reposed)}" if reposed else ""))
 
 
+def held_strays(motion, plan, scenario, robot):
+    """How far each step of a feasible motion carries a held contact off its line.
+
+    Parameters
+    ----------
+    motion : Motion
+        Feasible (its last posture the next stance's).
+    plan, scenario, robot
+        As :func:`plan_motion`.
+
+    Returns
+    -------
+    list of (float, str, float)
+        Per step between consecutive configurations: where along it (the fraction of
+        :data:`BETWEEN`), which robot surface and how far, metres, the held contact's
+        point strays most from the straight line between where the step's two postures
+        put it (``(0, "", 0)`` when nothing is held). At most :data:`HELD_DRIFT` in a
+        motion planned with the default bound.
+    """
+    if not motion.feasible:
+        raise MotionError("held_strays needs a feasible motion (its steps end on the next stance's posture)")
+    before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
+    moving, _, _, touch_down = _switch(before, after)
+    between = _Between(robot, scenario.scene, motion.support, moving, _options_of(after))
+    holds = _holds(motion, touch_down)
+    configurations = motion.configurations
+    return [between.largest_drift(configurations[k], configurations[k + 1], held=holds[k] and holds[k + 1])
+            for k in range(len(configurations) - 1)]
+
+
+def _holds(motion, touch_down):
+    """(k,) bool: whether each configuration of a feasible motion holds its moving contact."""
+    return [not touch_down] + [isinstance(path, ContactSample) for path in motion.paths] + [touch_down]
+
+
 def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift=HELD_DRIFT):
     """Check a motion again, sample by sample, independently of its solves.
 
@@ -1058,7 +1094,7 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
             problems.append(f"sample {position} is not the posture of its stance")
     if motion.feasible:
         between = _Between(robot, scenario.scene, motion.support, moving, options, held_drift)
-        holds = [not touch_down] + [isinstance(path, ContactSample) for path in motion.paths] + [touch_down]
+        holds = _holds(motion, touch_down)
         steps = len(motion.configurations) - 1
         for k in range(steps):
             problem = between.first_problem(motion.configurations[k], motion.configurations[k + 1],

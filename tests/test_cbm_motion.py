@@ -12,8 +12,9 @@ import environments
 import stances
 from environments.stance import Contact, ContactPrint
 
-from cbm.motion import (UNLOADED_FORCE, ContactSample, FramePlacementConstraint, MotionError, motions_summary,
-                        plan_motion, plan_motions, plan_motions_reposing, verify_motion)
+from cbm.motion import (HELD_DRIFT, UNLOADED_FORCE, ContactSample, FramePlacementConstraint, MotionError,
+                        held_strays, motions_summary, plan_motion, plan_motions, plan_motions_reposing,
+                        verify_motion)
 from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
@@ -462,6 +463,37 @@ def test_the_drift_of_held_contacts_between_samples_is_their_distance_from_the_c
     between.support_points = []
     assert between.largest_drift(q0, q1) == (0.0, "", 0.0)
     assert between.largest_drift(q0, q1, held=True)[1] == "right_sole"
+
+
+def test_held_strays_measure_every_step_and_the_held_moving_sole_on_the_last(step_plan, motions, scenario, robot):
+    """The touch-down motion's strays: within the bound; its last step (touch-down sample to
+    the stance, both holding the right sole) computed again here with pinocchio over both
+    soles' vertices."""
+    from cbm.motion import BETWEEN
+
+    motion = motions[1]
+    strays = held_strays(motion, step_plan, scenario, robot)
+    assert len(strays) == len(motion.configurations) - 1
+    assert 0.0 < max(d for _, _, d in strays) <= HELD_DRIFT
+    data = robot.model.createData()
+
+    def vertices(q):
+        pin.framesForwardKinematics(robot.model, data, q)
+        placed = []
+        for name in ("left_sole", "right_sole"):
+            surface = robot.surface(name)
+            placement = data.oMf[robot.model.getFrameId(surface.frame)]
+            placed.append(surface.vertices_in_frame @ placement.rotation.T + placement.translation)
+        return np.vstack(placed)
+
+    q0, q1 = motion.configurations[-2:]
+    ends = vertices(q0), vertices(q1)
+    expected = max(np.linalg.norm(vertices(pin.interpolate(robot.model, q0, q1, t)) - (1 - t) * ends[0] - t * ends[1],
+                                  axis=1).max() for t in BETWEEN)
+    assert strays[-1][2] == pytest.approx(expected, rel=1e-12, abs=1e-15)
+    with pytest.raises(MotionError, match="needs a feasible motion"):
+        held_strays(replace(motion, feasible=False, configurations=motion.configurations[:-1], reason="x"),
+                    step_plan, scenario, robot)
 
 
 def test_a_step_that_carries_a_held_sole_off_its_line_gets_samples_inserted(step_plan, motions, scenario, robot):
