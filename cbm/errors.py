@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-__all__ = ["CbmError", "UnknownScenario", "PlanFileError"]
+__all__ = ["CbmError", "MotionError", "UnknownScenario", "PlanFileError"]
 
 
 class CbmError(ValueError):
@@ -32,3 +32,7 @@ class UnknownScenario(CbmError):
 
 class PlanFileError(CbmError):
     """A plan file that cannot be read back (missing key, wrong version)."""
+
+
+class MotionError(CbmError):
+    """Stances that no motion joins (not differing by one contact, no posture)."""

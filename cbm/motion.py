@@ -61,16 +61,16 @@ import pinocchio as pin
 from environments.geometry import axes_across
 import stances
 from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
-from stances.collision import contact_exclusions
 from stances.contacts import placement_residual, point_placement_residual
-from stances.problem import stance_collision_checker
 from stances.terms import print_normal_loads
-from stances.verify import VerificationTolerances
 
-from .errors import CbmError
+from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
+from .errors import MotionError
 from .step_path import RAMP, halfway, lifted_path
 
 __all__ = [
+    "BETWEEN",
+    "HELD_DRIFT",
     "ContactSample",
     "FramePlacementConstraint",
     "Motion",
@@ -89,28 +89,11 @@ logger = logging.getLogger(__name__)
 #: stances.verify's placements: the SQP meets these rows to PLACEMENT_ACCURACY (1e-7).
 PATH_TOLERANCE = 1e-6
 
-#: Where the postures between two consecutive samples (joint-space interpolation,
-#: ``pin.interpolate``) are checked for collisions and held contacts' strays: 7 points,
-#: every 1/8 (a stray peaks halfway: a grid of 99 points found at most 1e-4 mm more).
-BETWEEN = np.arange(1, 8) / 8
-
 #: Samples inserted, at most, into one step of the motion that collides (a step that
 #: still collides after them makes the motion infeasible). Each halves the step where it
 #: collides: climb-with-soft-support 1 -> 2 and 3 -> 4 cleared with 3 and 4 (1.3 mm and
 #: 0.5 mm deep after 2).
 MAX_INSERTED = 4
-
-#: Metres: how far a held contact's point (a polygon's vertex, a point foot's centre) may
-#: stray, at the postures interpolated between two samples (:data:`BETWEEN`), from the
-#: straight line between where the two samples put it. The samples hold their contacts;
-#: the joint-space interpolation between them holds nothing, and on seven built-in plans
-#: it carried held contacts up to 24 mm off their line (climb-with-soft-support's palm;
-#: cross-soft-block's soles 6.6 mm). A step beyond the bound gets a sample halfway, as a
-#: colliding one does: the stray shrinks about fourfold with each halving (it is the
-#: path's curvature times the step squared). The bound holds for ``pin.interpolate``
-#: (the free flyer on SE(3)); a replay interpolating the base's position and orientation
-#: apart strays more (up to 2.6 mm on the same steps).
-HELD_DRIFT = 1e-3
 
 #: Samples inserted, at most, into one step of the motion where a held contact strays
 #: beyond :data:`HELD_DRIFT` (apart from those for collisions). A weight shift onto a new
@@ -137,10 +120,6 @@ _TRANSFER_PULL = 10.0
 # from there overshot: quadruped-walk's 7 -> 8 touch-down took 55 iterations and turned
 # a knee by 1.09 rad.
 _SWITCH_TRUST = 0.05
-
-
-class MotionError(CbmError):
-    """Stances that no motion joins (not differing by one contact, no posture)."""
 
 
 @dataclass(frozen=True, eq=False)
@@ -510,7 +489,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     """
     if not 0 <= index < len(plan.stances) - 1:
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
-    held_drift = _checked_drift(held_drift)
+    held_drift = checked_drift(held_drift)
     before, after = plan.stances[index], plan.stances[index + 1]
     moving, support, holding, touch_down = _switch(before, after)
     surface = robot.surface(moving.robot_surface)
@@ -584,7 +563,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
             if seam is not None and not touch_down:
                 seam += 1
     if not reason:
-        between = _Between(robot, scene, support, moving, options, held_drift)
+        between = BetweenSamples(robot, scene, support, moving, options, held_drift)
         samples, seam, reason = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
                                              options, surface, index)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
@@ -616,118 +595,6 @@ def _placed(robot, sample, q):
     return replace(sample, transform_frame_to_world=_frame_placement(robot, q, sample.frame))
 
 
-class _Between:
-    """The postures interpolated between two samples: their collisions (with the support's
-    checker) and how far they carry the held contacts off their line (:data:`HELD_DRIFT`)."""
-
-    def __init__(self, robot, scene, support, moving, options, held_drift=None):
-        self.model = robot.model
-        self.data = robot.model.createData()
-        self.checker = stance_collision_checker(robot, scene, support, stances.PostureOptions(**options))
-        print_object = scene.surface(moving.contact_print.surface).object_name
-        self.moving = set(contact_exclusions(robot, moving.robot_surface, print_object))
-        self.tolerance = VerificationTolerances().penetration
-        self.held_drift = HELD_DRIFT if held_drift is None else _checked_drift(held_drift)
-        # The points of each contact surface that must stay put: a polygon's vertices (they
-        # see a turn as well as a slide), a point foot's centre.
-        surfaces = [robot.surface(contact.robot_surface) for contact in support.contacts]
-        self.support_points = [_surface_points(self.model, surface) for surface in surfaces]
-        self.moving_points = _surface_points(self.model, robot.surface(moving.robot_surface))
-
-    def _points(self, q, held):
-        """(k, 3) world positions of the held surfaces' points at posture ``q`` (forward
-        kinematics already run for ``q``), and the surface each belongs to."""
-        placed, names = [], []
-        for name, frame, points in self.support_points + ([self.moving_points] if held else []):
-            placement = pin.updateFramePlacement(self.model, self.data, frame)
-            placed.append(points @ placement.rotation.T + placement.translation)
-            names += [name] * len(points)
-        return np.vstack(placed), names
-
-    def largest_drift(self, q0, q1, held=False):
-        """``(t, surface, metres)``: the largest distance, over the postures interpolated
-        between ``q0`` and ``q1`` (:data:`BETWEEN`), of a held contact's point from the
-        straight line between where it is at ``q0`` and at ``q1``; ``held``: the moving
-        contact is held at both ends, and checked too. ``(0, "", 0)`` without held contacts."""
-        if not self.support_points and not held:
-            return 0.0, "", 0.0
-        ends = []
-        for q in (q0, q1):
-            pin.forwardKinematics(self.model, self.data, q)
-            ends.append(self._points(q, held)[0])
-        worst = (0.0, "", 0.0)
-        for t in BETWEEN:
-            q = pin.interpolate(self.model, q0, q1, float(t))
-            pin.forwardKinematics(self.model, self.data, q)
-            points, names = self._points(q, held)
-            drift = np.linalg.norm(points - ((1.0 - t) * ends[0] + t * ends[1]), axis=1)
-            k = int(np.argmax(drift))
-            if drift[k] > worst[2]:
-                worst = (float(t), names[k], float(drift[k]))
-        return worst
-
-    def first_problem(self, q0, q1, held=False):
-        """What makes the step from ``q0`` to ``q1`` unusable, or None: ``("collision",
-        words)`` (:meth:`first_collision`), else ``("drift", words)`` for a held contact
-        straying more than the drift bound (:meth:`largest_drift`)."""
-        hit = self.first_collision(q0, q1, held)
-        if hit is not None:
-            t, pair, depth = hit
-            return "collision", (f"at {t:g} of the way: collision between {pair.name_a} and {pair.name_b} "
-                                 f"(depth {depth:.3g} m)")
-        t, name, drift = self.largest_drift(q0, q1, held)
-        if drift > self.held_drift:
-            return "drift", (f"at {t:g} of the way: the held {name} strays {drift:.3g} m off its line "
-                             f"(bound {self.held_drift:g} m)")
-        return None
-
-    def _pairs(self, q):
-        pin.forwardKinematics(self.model, self.data, q)
-        return self.checker.pairs(self.model, self.data)
-
-    def first_collision(self, q0, q1, held=False):
-        """``(t, pair, depth)`` of the first interpolated posture deeper than the tolerance, or None.
-
-        The moving contact geometry and its print's object may overlap as deep as
-        their depths at the two ends, interpolated at ``t`` (a limb resting on a soft
-        print sinks into it; deeper on the way is a collision). ``held``: both ends
-        hold the moving contact; its geometry and its print's object are then not
-        checked, as for the support's contacts: the joint-space interpolation holds no
-        contact exactly, and :meth:`largest_drift` bounds how far it strays from its line
-        (on a rigid print, how deep its geometry may dip).
-        """
-        ends = [{(p.name_a, p.name_b): max(-p.distance, 0.0) for p in self._pairs(q)
-                 if (p.name_a, p.name_b) in self.moving} for q in (q0, q1)]
-        for t in BETWEEN:
-            for pair in self._pairs(pin.interpolate(self.model, q0, q1, float(t))):
-                key = (pair.name_a, pair.name_b)
-                if held and key in self.moving:
-                    continue
-                allowed = (1.0 - t) * ends[0].get(key, 0.0) + t * ends[1].get(key, 0.0)
-                depth = -pair.distance - allowed
-                if depth > self.tolerance:
-                    return float(t), pair, depth
-        return None
-
-
-def _surface_points(model, surface):
-    """``(name, frame id, (k, 3) points in the contact frame)`` of a robot surface: a
-    polygon's vertices, a point foot's centre."""
-    points = np.zeros((1, 3)) if surface.is_point else surface.vertices_in_frame
-    return surface.name, model.getFrameId(surface.frame), points
-
-
-def _checked_drift(value) -> float:
-    """``value`` as a positive finite distance in metres, or a MotionError naming it."""
-    try:
-        drift = np.nan if isinstance(value, bool) else float(value)  # True would read as 1 m
-    except (TypeError, ValueError):
-        drift = np.nan
-    if not (np.isfinite(drift) and drift > 0.0):
-        raise MotionError(f"held_drift must be a positive distance in metres (default {HELD_DRIFT:g}), got {value!r}")
-    return drift
-
-
 def _step_text(k, problem, last):
     """Where a step of a motion fails, in words; ``last``: the step into the next stance."""
     step = f"between sample {k} and the next stance's posture" if last else f"between samples {k} and {k + 1}"
@@ -736,7 +603,7 @@ def _step_text(k, problem, last):
 
 def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, index):
     """Check each step between consecutive postures for collisions and held contacts'
-    strays (``between``, a :class:`_Between`); where one fails, solve a sample halfway
+    strays (``between``, a :class:`cbm.between_samples.BetweenSamples`); where one fails, solve a sample halfway
     along the path and check both halves, at most :data:`MAX_INSERTED` samples for
     collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the motion
     (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
@@ -1042,7 +909,7 @@ def held_strays(motion, plan, scenario, robot):
         raise MotionError("held_strays needs a feasible motion (its steps end on the next stance's posture)")
     before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
     moving, _, _, touch_down = _switch(before, after)
-    between = _Between(robot, scenario.scene, motion.support, moving, _options_of(after))
+    between = BetweenSamples(robot, scenario.scene, motion.support, moving, _options_of(after))
     holds = _holds(motion, touch_down)
     configurations = motion.configurations
     return [between.largest_drift(configurations[k], configurations[k + 1], held=holds[k] and holds[k + 1])
@@ -1081,7 +948,7 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
         those (its contact switch), and no posture checked between samples collides
         or carries a held contact more than ``held_drift`` off its line.
     """
-    held_drift = _checked_drift(held_drift)
+    held_drift = checked_drift(held_drift)
     verify = stances.verify
     before, after = plan.stances[motion.index], plan.stances[motion.index + 1]
     moving, _, holding, touch_down = _switch(before, after)
@@ -1093,7 +960,7 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
         if not np.array_equal(motion.configurations[position], q):
             problems.append(f"sample {position} is not the posture of its stance")
     if motion.feasible:
-        between = _Between(robot, scenario.scene, motion.support, moving, options, held_drift)
+        between = BetweenSamples(robot, scenario.scene, motion.support, moving, options, held_drift)
         holds = _holds(motion, touch_down)
         steps = len(motion.configurations) - 1
         for k in range(steps):

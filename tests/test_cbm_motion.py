@@ -388,10 +388,10 @@ def test_a_motion_whose_samples_do_not_add_up_is_refused(motions):
 
 def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excepted(step_plan, scenario, robot):
     """The moving sole may sink into its print's floor as deep as at the step's ends; nothing else may."""
-    from cbm.motion import BETWEEN, _Between
+    from cbm.between_samples import BETWEEN, BetweenSamples
 
     support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
-    between = _Between(robot, scenario.scene, support, moving, {})
+    between = BetweenSamples(robot, scenario.scene, support, moving, {})
     sunk, lifted = np.array(step_plan.stances[0].q), np.array(step_plan.stances[0].q)
     sunk[2] -= 0.01  # both soles 1 cm into the floor (the left one rests there by design)
     lifted[2] += 0.02
@@ -410,10 +410,10 @@ def test_steps_between_samples_are_checked_for_collisions_the_resting_sole_excep
 def test_the_moving_soles_allowance_is_its_depth_at_the_ends_interpolated_not_the_deeper_one(step_plan, scenario,
                                                                                             robot):
     """2 cm deep at the start, out at the end, 1.5 cm deep halfway: 0.5 cm too deep there."""
-    from cbm.motion import _Between
+    from cbm.between_samples import BetweenSamples
 
     support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
-    between = _Between(robot, scenario.scene, support, moving, {})
+    between = BetweenSamples(robot, scenario.scene, support, moving, {})
     q0, q1 = np.array(step_plan.stances[0].q), np.array(step_plan.stances[0].q)
     q1[0] += 1.0  # the base's x stands in for the fraction of the way
 
@@ -433,10 +433,10 @@ def test_the_drift_of_held_contacts_between_samples_is_their_distance_from_the_c
     translation of the base moves them along the chord (no drift)."""
     from scipy.spatial.transform import Rotation
 
-    from cbm.motion import BETWEEN, _Between
+    from cbm.between_samples import BETWEEN, BetweenSamples
 
     support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
-    between = _Between(robot, scenario.scene, support, moving, {})
+    between = BetweenSamples(robot, scenario.scene, support, moving, {})
     q0 = np.array(step_plan.stances[1].q)
     base = Rotation.from_quat(q0[3:7])  # pinocchio's (x, y, z, w), as scipy's
     q1 = q0.copy()
@@ -499,11 +499,11 @@ def test_held_strays_measure_every_step_and_the_held_moving_sole_on_the_last(ste
 def test_a_step_that_carries_a_held_sole_off_its_line_gets_samples_inserted(step_plan, motions, scenario, robot):
     """With a bound of 0.1 mm on the support sole's stray, the lift-off motion gets samples
     inserted until every step keeps it, and verify_motion reports a step that does not."""
-    from cbm.motion import HELD_DRIFT, _Between
+    from cbm.between_samples import HELD_DRIFT, BetweenSamples
 
     loose = motions[0]
     support, moving = loose.support, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
-    between = _Between(robot, scenario.scene, support, moving, {})
+    between = BetweenSamples(robot, scenario.scene, support, moving, {})
     steps = [between.largest_drift(a, b)[2] for a, b in zip(loose.configurations[:-1], loose.configurations[1:])]
     assert max(steps) < HELD_DRIFT and max(steps) > 1e-4  # the default bound holds; 0.1 mm does not
     problems = verify_motion(loose, step_plan, scenario, robot, held_drift=1e-4)
@@ -540,7 +540,8 @@ def test_verify_motion_reports_a_step_between_samples_that_collides(step_plan, m
 def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasible(step_plan, scenario, robot,
                                                                                      monkeypatch, reach):
     """Steps are made to 'collide' when the swing sole moves more than ``reach`` in x across them."""
-    from cbm.motion import MAX_INSERTED, _Between
+    from cbm.between_samples import BetweenSamples
+    from cbm.motion import MAX_INSERTED
 
     frame = robot.surface("right_sole").frame
 
@@ -548,7 +549,7 @@ def test_a_step_that_collides_gets_samples_inserted_or_makes_the_motion_infeasib
         moved = abs(_frame_x(robot, q1, frame) - _frame_x(robot, q0, frame))
         return (0.5, CollisionPairStub(), moved) if moved > reach else None
 
-    monkeypatch.setattr(_Between, "first_collision", long_steps_collide)
+    monkeypatch.setattr(BetweenSamples, "first_collision", long_steps_collide)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     inserted = [path for path in motion.paths if "(between samples" in path.label]
     x = [_frame_x(robot, q, frame) for q in motion.configurations]
@@ -571,7 +572,7 @@ def test_a_colliding_approach_gets_a_waypoint_halfway_down_that_may_touch_the_su
     """Steps that lower the swing sole onto the floor from more than 1 cm 'collide': the 1.5 cm
     approach onto its print is halved by a waypoint 7.5 mm up, nearer the floor than the 5 mm
     collision distance allows the sole's geometry, so it is solved with the pair touching."""
-    from cbm.motion import _Between
+    from cbm.between_samples import BetweenSamples
 
     frame = robot.surface("right_sole").frame
     data = robot.model.createData()
@@ -584,7 +585,7 @@ def test_a_colliding_approach_gets_a_waypoint_halfway_down_that_may_touch_the_su
         dropped = height(q0) - height(q1)
         return (0.5, CollisionPairStub(), dropped) if dropped > 0.01 and abs(height(q1)) < 1e-3 else None
 
-    monkeypatch.setattr(_Between, "first_collision", deep_descents_collide)
+    monkeypatch.setattr(BetweenSamples, "first_collision", deep_descents_collide)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert motion.feasible, motion.reason
     inserted = [(path, result) for path, result in zip(motion.paths, motion.results) if "(between samples" in path.label]
@@ -681,9 +682,9 @@ def test_a_touch_down_needs_no_minimum_load_on_any_print(step_plan, scenario, ro
 
 def _held_steps_collide_once(monkeypatch):
     """Make the first step whose two ends hold the moving contact 'collide' (1 cm deep), once."""
-    from cbm.motion import _Between
+    from cbm.between_samples import BetweenSamples
 
-    real, hits = _Between.first_collision, []
+    real, hits = BetweenSamples.first_collision, []
 
     def held_step_collides_once(between, q0, q1, held=False):
         if held and not hits:
@@ -691,7 +692,7 @@ def _held_steps_collide_once(monkeypatch):
             return (0.5, CollisionPairStub(), 0.01)
         return real(between, q0, q1, held)
 
-    monkeypatch.setattr(_Between, "first_collision", held_step_collides_once)
+    monkeypatch.setattr(BetweenSamples, "first_collision", held_step_collides_once)
 
 
 def test_a_colliding_load_transfer_step_gets_a_loaded_sample_of_the_holding_stance(step_plan, scenario, robot,
@@ -785,10 +786,10 @@ def test_a_stance_whose_posture_its_motion_cannot_reach_is_solved_again_from_the
     ``reposing_helps`` False, every step into any posture of that stance): the touch-down
     motion fails, the stance is solved again from its touch-down sample, and the motion
     into the new posture is found; where nothing helps, plan and motion stay as they were."""
-    from cbm.motion import _Between
+    from cbm.between_samples import BetweenSamples
 
     planned = np.array(step_plan.stances[2].q)
-    real = _Between.first_collision
+    real = BetweenSamples.first_collision
     data = robot.model.createData()
     frame = robot.model.getFrameId(robot.surface("right_sole").frame)
 
@@ -800,7 +801,7 @@ def test_a_stance_whose_posture_its_motion_cannot_reach_is_solved_again_from_the
         into = np.array_equal(q1, planned) if reposing_helps else (held and settled(q1) and settled(q0))
         return (0.5, CollisionPairStub(), 0.01) if into else real(between, q0, q1, held)
 
-    monkeypatch.setattr(_Between, "first_collision", blocked)
+    monkeypatch.setattr(BetweenSamples, "first_collision", blocked)
     plan, motions = plan_motions_reposing(step_plan, scenario, robot, samples=3)
     assert motions[0].feasible and not motions[0].reposed
     np.testing.assert_array_equal(plan.stances[1].q, step_plan.stances[1].q)
@@ -866,7 +867,7 @@ def test_samples_inserted_around_the_seam_keep_it_on_the_first_backward_sample(s
     """Forward solves fail past the middle (the rest solved backward); the first step of the
     motion and the first step after the seam are made to collide once each: the sample inserted
     before the seam moves it, the one after it does not."""
-    from cbm.motion import _Between
+    from cbm.between_samples import BetweenSamples
 
     solve, frame = stances.solve, robot.surface("right_sole").frame
     middle = 0.5 * (_frame_x(robot, step_plan.stances[1].q, frame) + _frame_x(robot, step_plan.stances[2].q, frame))
@@ -878,7 +879,7 @@ def test_samples_inserted_around_the_seam_keep_it_on_the_first_backward_sample(s
             return replace(result, feasible=False, reason="blocked by the test")
         return result
 
-    real, hits = _Between.first_collision, []
+    real, hits = BetweenSamples.first_collision, []
 
     def two_steps_collide_once(between, q0, q1, held=False):
         first = not hits
@@ -889,7 +890,7 @@ def test_samples_inserted_around_the_seam_keep_it_on_the_first_backward_sample(s
         return real(between, q0, q1, held)
 
     monkeypatch.setattr(stances, "solve", blocked_past_the_middle)
-    monkeypatch.setattr(_Between, "first_collision", two_steps_collide_once)
+    monkeypatch.setattr(BetweenSamples, "first_collision", two_steps_collide_once)
     motion = plan_motion(step_plan, 1, scenario, robot, samples=3)
     assert motion.feasible, motion.reason
     assert hits == ["first", "past"]
