@@ -55,7 +55,7 @@ def measure(plan, motions, scenario, robot, seconds):
     strays = [d for m in found for _, _, d in held_strays(m, plan, scenario, robot)]
     problems = sum(len(verify_motion(m, plan, scenario, robot)) for m in found)
     return {
-        "found": f"{len(found)} / {len(motions)}",
+        "found": f"{len(found)} of {len(motions)}",
         "samples": sum(len(m.configurations) for m in found),
         "stray": 1e3 * max(strays, default=0.0),
         "over": sum(d > 1e-3 for d in strays),
