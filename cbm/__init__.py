@@ -10,7 +10,7 @@ Examples
 
 from .batch import BatchFileError, Check, CheckOutcome, read_checks, run_check
 from .distributed import solve_many, write_dataset
-from .errors import CbmError, PlanFileError, UnknownScenario
+from .errors import CbmError, MotionError, PlanFileError, UnknownScenario
 from .output import OutputFiles, write_outputs
 from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
 from .planner import LookaheadHeuristic, PostureOracle, StanceCheck, initial_configuration, load_scenario, plan
@@ -26,6 +26,7 @@ __all__ = [
     "CbmError",
     "LookaheadHeuristic",
     "Move",
+    "MotionError",
     "OutputFiles",
     "Plan",
     "PlanCheck",

@@ -200,7 +200,8 @@ def build_parser():
         action="store_true",
         help="also plan the quasi-static motion between consecutive stances (trajectory.csv, trajectory.npz, "
         "played by viewer.html); each sample is a verified posture solve; a stance whose posture its motion "
-        "cannot reach is solved again from the motion's touch-down (plan.json holds the new posture)",
+        "cannot reach is solved again from the motion's touch-down, or at a lift-off its last lifted sample "
+        "(plan.json holds the new posture)",
     )
     plan.add_argument("--view", action="store_true", help="show the plan in meshcat (pip install meshcat)")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")

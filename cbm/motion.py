@@ -44,7 +44,8 @@ lifts off, where the contact model gives the SQP no direction). The load
 then moves onto the contact (or off it) between that posture and the stance's
 own; where that step collides or carries a held contact off its line,
 postures of the stance holding the contact are solved halfway (the load
-transfer), each carrying the mean of its neighbours' loads. Static equilibrium
+transfer), each carrying the mean of its neighbours' loads (any load where no
+posture carries exactly that; between two unloaded samples, another unloaded one). Static equilibrium
 is checked at the samples, not between them: a robot moving slowly enough
 between two balanced postures close together stays balanced, and the checks
 between samples bound how far apart they are.
@@ -58,10 +59,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
+from environments.errors import SceneError
 from environments.geometry import axes_across
+from fem.errors import FemError
 import stances
 from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.contacts import placement_residual, point_placement_residual
+from stances.errors import StanceError
 from stances.terms import print_normal_loads
 
 from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
@@ -260,6 +264,16 @@ class ContactSample:
     unloaded: bool = True
     normal_load: float | None = None
     transform_frame_to_world: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.normal_load is None:
+            return
+        if self.unloaded:
+            raise MotionError(f"{self.label}: an unloaded sample carries no normal_load (it is held at zero)")
+        load = float(self.normal_load)
+        if not (np.isfinite(load) and load >= 0.0):
+            raise MotionError(f"{self.label}: normal_load must be a finite load >= 0 newtons, got {self.normal_load!r}")
+        object.__setattr__(self, "normal_load", load)
 
     @property
     def print_label(self) -> str:
@@ -484,8 +498,8 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     Raises
     ------
     MotionError
-        If ``index`` does not name a pair of stances, or they do not differ by
-        exactly one contact.
+        If ``index`` does not name a pair of stances, they do not differ by
+        exactly one contact, or ``held_drift`` is not a positive distance.
     """
     if not 0 <= index < len(plan.stances) - 1:
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
@@ -634,8 +648,8 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         if isinstance(path, ContactSample):
             path = _placed(robot, path, result.q)
         held = isinstance(path, ContactSample)
-        load = 0.0 if not held else path.normal_load if path.normal_load is not None else _normal_load(
-            result.point_forces, surface.frame, normal)
+        load = 0.0 if not held or path.unloaded else path.normal_load if path.normal_load is not None else (
+            _normal_load(result.point_forces, surface.frame, normal))
         nodes.insert(k + 1, _Sample(result.q, path, result, reference, holds=held, load=load))
         origin.insert(k + 1, origin[k])
         inserted[kind][origin[k]] += 1
@@ -684,13 +698,19 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     waypoint = FramePlacementConstraint(
         surface.frame, halfway(_frame_placement(robot, a.q, surface.frame), _frame_placement(robot, b.q, surface.frame)),
         f"path of {surface.name} (between samples {k} and {k + 1})", surface.is_point, free)
-    kind = "load transfer" if a.holds and b.holds else "touch-down" if b.holds else "lift-off"
+    # Between two unloaded samples on the print (the touch-down and one inserted before it),
+    # another unloaded one: a soft print at zero load as a load transfer stalls the solver.
+    unloaded_ends = all(isinstance(end.path, ContactSample) and end.path.unloaded for end in (a, b))
+    transfer = a.holds and b.holds and not unloaded_ends
+    kind = ("load transfer" if transfer else "unloaded contact" if unloaded_ends
+            else "touch-down" if b.holds else "lift-off")
     on_print = ContactSample(surface.frame, surface.name, _print_surface(holding, surface.name),
                              f"{kind} of {surface.name} (between samples {k} and {k + 1})",
-                             unloaded=not (a.holds and b.holds),
-                             normal_load=0.5 * (a.load + b.load) if a.holds and b.holds else None)
+                             unloaded=not transfer, normal_load=0.5 * (a.load + b.load) if transfer else None)
     starts = (a, b, _Sample(middle, None, None, middle, holds=a.holds and b.holds))
-    if a.holds and b.holds:
+    if unloaded_ends:
+        candidates = [(on_print, middle, starts[2:] + starts[:2], options)]
+    elif transfer:
         # Its load pinned first; where no posture meets it exactly, free (hand-on-coarse-cube's
         # palm on its 10 mm tets: 0.33 N from half its load, the line search stalling).
         pulled = {**options, "posture_weight": _TRANSFER_PULL * options.get(
@@ -808,11 +828,13 @@ def plan_motions_reposing(plan, scenario, robot, **options):
     foot down and moves the weight onto it on one side of a support leg's
     adapter, while the stance's posture has that leg bent the other way, 1 rad
     apart (no posture between them clears the step). Where a motion fails, the
-    arriving stance is solved again from the motion's sample that puts its contact
-    down (the touch-down; at a lift-off, the last lifted sample), pulled toward
-    that sample's posture, and the motion is planned again
-    to the new posture; if that fails too the stance keeps its posture. The
-    motion out of a reposed stance starts from its new posture.
+    arriving stance is solved again (and verified) from the motion's first
+    unloaded sample on the new print (its touch-down; at a lift-off, the last
+    lifted sample), pulled toward that sample's posture, and the motion is
+    planned again to the new posture; if that fails too, or the motion out of
+    the stance fails from the new posture where it is found from the planned one,
+    the stance keeps its posture. The motion out of a reposed stance starts from
+    its new posture.
 
     Parameters
     ----------
@@ -831,16 +853,24 @@ def plan_motions_reposing(plan, scenario, robot, **options):
         those that needed their arriving stance reposed.
     """
     planned = list(plan.stances)
-    motions = []
+    motions, ahead = [], None  # ahead: the next motion, when a repose needed it planned already
     for index in range(len(planned) - 1):
         current = replace(plan, stances=planned)
-        motion = plan_motion(current, index, scenario, robot, **options)
+        motion = ahead if ahead is not None else plan_motion(current, index, scenario, robot, **options)
+        ahead = None
         if not motion.feasible:
             reposed = _reposed_stance(current, index, motion, scenario, robot, options.get("solver_options"))
             if reposed is not None:
                 trial = planned[:index + 1] + [reposed] + planned[index + 2:]
                 retried = plan_motion(replace(plan, stances=trial), index, scenario, robot, **options)
-                if retried.feasible:
+                kept = retried.feasible
+                if kept and index + 2 < len(planned):
+                    # The motion out of the reposed stance starts from its new posture: kept
+                    # unless it fails there where it is found from the planned posture.
+                    ahead = plan_motion(replace(plan, stances=trial), index + 1, scenario, robot, **options)
+                    if not ahead.feasible and plan_motion(current, index + 1, scenario, robot, **options).feasible:
+                        kept, ahead = False, None
+                if kept:
                     logger.info("motion %d -> %d found with stance %d reposed", index, index + 1, index + 1)
                     planned, motion = trial, replace(retried, reposed=True)
         motions.append(motion)
@@ -855,13 +885,18 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
     held = [(path, result) for path, result in zip(motion.paths, motion.results) if result.stance == after.stance]
     if not held:
         return None
-    # From the touch-down where there is one: the load transfer starts there, and samples
+    # From the (first) unloaded sample on the print where there is one: the load transfer starts there, and samples
     # inserted after it may already lie by the stance's posture, across what blocks it.
     touch = [result for path, result in held if isinstance(path, ContactSample) and path.unloaded]
     start = (touch[0] if touch else held[-1][1]).q
     options = _options_of(after) if solver_options is None else dict(solver_options)
-    result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start, **options)
-    if not result.feasible:
+    try:
+        result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start, **options)
+    except (StanceError, SceneError, FemError) as error:
+        # A repose is a second chance, not a requirement: the plan keeps its posture.
+        logger.info("stance %d not reposed: %s", index + 1, error)
+        return None
+    if not result.feasible or not stances.verify(robot, scenario.scene, after.stance, result, **options).ok:
         return None
     return replace(after, q=result.q, point_forces=tuple(result.point_forces),
                    deformations=dict(result.deformations or {}), result=result)
@@ -904,6 +939,11 @@ def held_strays(motion, plan, scenario, robot):
         point strays most from the straight line between where the step's two postures
         put it (``(0, "", 0)`` when nothing is held). At most :data:`HELD_DRIFT` in a
         motion planned with the default bound.
+
+    Raises
+    ------
+    MotionError
+        If the motion is not feasible.
     """
     if not motion.feasible:
         raise MotionError("held_strays needs a feasible motion (its steps end on the next stance's posture)")
@@ -947,6 +987,11 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
         ``normal_load`` on it (to :data:`UNLOADED_FORCE`); a feasible motion has at least one of
         those (its contact switch), and no posture checked between samples collides
         or carries a held contact more than ``held_drift`` off its line.
+
+    Raises
+    ------
+    MotionError
+        If ``held_drift`` is not a positive distance.
     """
     held_drift = checked_drift(held_drift)
     verify = stances.verify

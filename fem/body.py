@@ -547,8 +547,9 @@ class DeformableBody:
         # A posture solver's check and its result's field ask for the same loads in turn:
         # the last field is kept (a copy is returned, callers may write into theirs).
         key = ids.astype(np.int64).tobytes() + np.ascontiguousarray(loads).tobytes()
-        if self._last_field is not None and self._last_field[0] == key:
-            return self._last_field[1].copy()
+        last = self._last_field  # read once: another thread may replace it
+        if last is not None and last[0] == key:
+            return last[1].copy()
         u = np.zeros(self._mesh.n_dofs)
         if ids.size <= _COLUMN_LOAD_LIMIT:
             # Elementwise sums in a fixed order (no BLAS reduction), so the field is

@@ -823,6 +823,42 @@ def test_a_stance_whose_posture_its_motion_cannot_reach_is_solved_again_from_the
     assert motions_summary(motions) == "motions: 2 of 2 found; stances reposed for the motion into them: 2"
 
 
+def test_a_reposed_middle_stance_starts_the_next_motion(step_plan, scenario, robot, monkeypatch):
+    """Every step into the lift-off's arriving posture (stance 1, the left sole alone) made
+    to 'collide': the stance is solved again from the last lifted sample, the lift-off
+    motion found into it, and the touch-down motion after it starts there."""
+    from cbm.between_samples import BetweenSamples
+
+    planned = np.array(step_plan.stances[1].q)
+    real = BetweenSamples.first_collision
+
+    def blocked(between, q0, q1, held=False):
+        return (0.5, CollisionPairStub(), 0.01) if np.array_equal(q1, planned) else real(between, q0, q1, held)
+
+    monkeypatch.setattr(BetweenSamples, "first_collision", blocked)
+    plan, motions = plan_motions_reposing(step_plan, scenario, robot, samples=3)
+    assert [m.feasible for m in motions] == [True, True] and [m.reposed for m in motions] == [True, False]
+    reposed = plan.stances[1].q
+    assert not np.array_equal(reposed, planned)
+    np.testing.assert_array_equal(motions[0].configurations[-1], reposed)
+    np.testing.assert_array_equal(motions[1].configurations[0], reposed)
+    np.testing.assert_array_equal(plan.stances[2].q, step_plan.stances[2].q)  # the others keep theirs
+    assert all(verify_motion(m, plan, scenario, robot) == [] for m in motions)
+    assert plan.check(scenario, robot).ok
+
+
+def test_a_contact_sample_refuses_a_load_it_cannot_carry():
+    with pytest.raises(MotionError) as error:
+        ContactSample("f", "right_sole", "floor", "touch-down of right_sole", unloaded=True, normal_load=5.0)
+    assert str(error.value) == ("touch-down of right_sole: an unloaded sample carries no normal_load "
+                                "(it is held at zero)")
+    for load in (-1.0, float("nan"), float("inf")):
+        with pytest.raises(MotionError) as error:
+            ContactSample("f", "right_sole", "floor", "load transfer", unloaded=False, normal_load=load)
+        assert str(error.value) == f"load transfer: normal_load must be a finite load >= 0 newtons, got {load!r}"
+    assert ContactSample("f", "right_sole", "floor", "load transfer", unloaded=False, normal_load=3).normal_load == 3.0
+
+
 def test_motion_defaults_are_those_the_readme_measured():
     """The tests plan with 3 samples for speed; `cbm plan --motion` runs the defaults the
     README's measurements used: 6 waypoints across, 5 cm above the higher end, at most
