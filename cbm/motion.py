@@ -96,8 +96,8 @@ PATH_TOLERANCE = 1e-6
 #: Samples inserted, at most, into one step of the motion that collides (a step that
 #: still collides after them makes the motion infeasible). Each halves the step where it
 #: collides: climb-with-soft-support 1 -> 2 and 3 -> 4 cleared with 3 and 4 (1.3 mm and
-#: 0.5 mm deep after 2); rail-over-gap 8 -> 9's palm lift-off (the ankles 5 mm apart at the
-#: samples) with 6, 0.24 mm deep after 4.
+#: 0.5 mm deep after 2), rail-over-gap 6 -> 7 (the swing ankle 2.4 mm into the stance
+#: knee after 4) with 6.
 MAX_INSERTED = 6
 
 #: Samples inserted, at most, into one step of the motion where a held contact strays
@@ -119,12 +119,6 @@ UNLOADED_FORCE = 1e-4
 # degrees and whose palm strays 1.07 mm; 10 times harder, 3 samples keep it within 1 mm
 # (100 times: the same 3).
 _TRANSFER_PULL = 10.0
-
-# How much further than the collision distance a sample inserted into a colliding step is
-# first kept: its two neighbours sit at the collision distance from what the step cuts
-# into, and halving the step with a sample there left rail-over-gap 6 -> 7's swing ankle
-# 2.4 mm into the stance knee after 4 samples; 1.5 times (7.5 mm) clears it.
-_WIDER = 1.5
 
 # rad (or m): the SQP's step bound first tried for a touch-down or lift-off sample. It lies
 # close to the lifted sample it starts from (the limb 1.5 cm lower), and 0.3 rad steps
@@ -649,8 +643,7 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
             logger.info("motion %d -> %d: %s", index, index + 1, where)
             count = sum(counts[origin[k]] for counts in inserted.values())
             return nodes[1:-1], seam, f"{where}, after {count} samples inserted in that step"
-        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface,
-                                                  wider=kind == "collision")
+        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface)
         if not result.feasible:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
         if isinstance(path, ContactSample):
@@ -666,7 +659,7 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
     return nodes[1:-1], seam, ""
 
 
-def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, wider=False):
+def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
     """A sample between postures ``a`` and ``b`` (:class:`_Sample`) of a step that
     collides or strays: ``(result, path, reference)``, ``result.feasible`` False with the last
     reason when no candidate is reached.
@@ -696,9 +689,6 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, w
       (``PostureOptions.touching``): halfway down, it is nearer than the collision
       distance; where that waypoint is not reached, another unloaded sample, the limb on
       its print.
-
-    Where the step collides (``wider``), each candidate is first solved from its first
-    start kept :data:`_WIDER` times the collision distance from every obstacle.
     """
     middle = pin.interpolate(robot.model, a.q, b.q, 0.5)
     blended = pin.interpolate(robot.model, a.reference, b.reference, 0.5)
@@ -737,14 +727,6 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, w
         candidates = [(waypoint, middle, starts[2:] + starts[:2], touching), (on_print, middle, starts[::-1], options)]
     else:
         candidates = [(waypoint, blended, starts, options)]
-    if wider:
-        # A step that collides: each candidate is tried first, from its first start, kept
-        # further from the collision than the samples at its ends (which sit at the
-        # collision distance, so the joint-space chord between them cuts into the obstacle).
-        distance = _WIDER * options.get("collision_distance", stances.PostureOptions().collision_distance)
-        candidates = [attempt for path, reference, tried, solved_with in candidates for attempt in (
-            (path, reference, tried[:1], {**solved_with, "collision_distance": distance}),
-            (path, reference, tried, solved_with))]
     for path, reference, tried, solved_with in candidates:
         for start in tried:
             result = _solve_sample(robot, scene, support, holding, path, reference, start.q, start.result, solved_with)
