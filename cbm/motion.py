@@ -580,7 +580,7 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     if not reason:
         between = BetweenSamples(robot, scene, support, moving, options, held_drift)
         samples, seam, reason = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
-                                             options, surface, index)
+                                             options, surface, normal, index)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
@@ -616,17 +616,15 @@ def _step_text(k, problem, last):
     return f"{step}, {problem}"
 
 
-def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, index):
+def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, normal, index):
     """Check each step between consecutive postures for collisions and held contacts'
     strays (``between``, a :class:`cbm.between_samples.BetweenSamples`); where one fails, solve a sample halfway
     along the path and check both halves, at most :data:`MAX_INSERTED` samples for
     collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the motion
     (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
-    moving contact. Returns the samples, the seam moved past any inserted before it, and
+    moving contact; ``normal``: its print's normal (world). Returns the samples, the seam moved past any inserted before it, and
     a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
-    held_print = next(c.contact_print for c in holding.contacts if c.robot_surface == surface.name)
-    normal = scene.transform_print_to_world(held_print)[:3, 2]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
     budget = {"collision": MAX_INSERTED, "drift": MAX_STRAY_INSERTED}
     inserted = {kind: [0] * len(origin) for kind in budget}  # samples inserted into each step of the motion
@@ -869,8 +867,10 @@ def plan_motions_reposing(plan, scenario, robot, **options):
                     # The motion out of the reposed stance starts from its new posture: kept
                     # unless it fails there where it is found from the planned posture.
                     ahead = plan_motion(replace(plan, stances=trial), index + 1, scenario, robot, **options)
-                    if not ahead.feasible and plan_motion(current, index + 1, scenario, robot, **options).feasible:
-                        kept, ahead = False, None
+                    if not ahead.feasible:
+                        planned_next = plan_motion(current, index + 1, scenario, robot, **options)
+                        if planned_next.feasible:
+                            kept, ahead = False, planned_next
                 if kept:
                     logger.info("motion %d -> %d found with stance %d reposed", index, index + 1, index + 1)
                     planned, motion = trial, replace(retried, reposed=True)
@@ -897,7 +897,7 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
         # A repose is a second chance, not a requirement: the plan keeps its posture.
         logger.info("stance %d not reposed: %s", index + 1, error)
         return None
-    if not result.feasible or not stances.verify(robot, scenario.scene, after.stance, result, **options).ok:
+    if not result.feasible:  # feasible: stances.verify passed inside the solve
         return None
     return replace(after, q=result.q, point_forces=tuple(result.point_forces),
                    deformations=dict(result.deformations or {}), result=result)
