@@ -158,12 +158,15 @@ class LegacyWorkspace(stances.qp.QPWorkspace):
     """:class:`stances.qp.QPWorkspace` as it was before its proxsuite policy was tuned (commit d11d41b).
 
     Kept here, and only here, as the benchmark's "old policy": proxsuite's automatic
-    backend and default cold guess; everything else (settings, warm starts with the
-    weights the previous solve ended with) is the library's.
+    backend and default cold guess, warm starts with the weights the previous solve
+    ended with, and proxsuite's first proximal weight on inequalities (0.1);
+    everything else (settings) is the library's.
     """
 
     backend = "Automatic"
     cold_guess = "EQUALITY_CONSTRAINED_INITIAL_GUESS"
+    warm_start = True
+    first_proximal_in = 0.1
 
 
 class Workspace:

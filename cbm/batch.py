@@ -14,7 +14,7 @@ A batch file lists (robot, scenario, stance) checks, as YAML::
 
 or as CSV with the columns ``scenario``, ``stance`` (a name) and optionally
 ``robot`` and ``id``. Every check is solved cold (from
-:func:`cbm.planner.initial_configuration`, the reference posture over the
+:func:`stances.initial_configuration`, the reference posture over the
 stance) and verified, so its answer depends on the check alone: the order
 and the machine it runs on do not change it. :func:`cbm.distributed.solve_many`
 runs many of them on a cluster.

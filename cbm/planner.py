@@ -16,11 +16,11 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-import pinocchio as pin
 from tqdm import tqdm
 
 import environments
 import stances
+from stances.cold_start import initial_configuration
 from environments.errors import SceneError
 from fem.errors import FemError
 from stances.errors import StanceError
@@ -533,46 +533,3 @@ def _plan_of(searched, scenario, robot, prints, reason):
         scenario_source=scenario_source(scenario),
     )
 
-
-def initial_configuration(robot, scene, stance):
-    """A cold-start posture: the reference posture moved over the stance's feet.
-
-    Parameters
-    ----------
-    robot : stances Robot
-    scene : environments Scene
-    stance : environments Stance
-
-    Returns
-    -------
-    (nq,) float
-        ``robot.reference_configuration`` with its free flyer translated so
-        that the mid-point of the feet (surfaces of its support role) the
-        stance uses lies over the mid-point of their prints (without a foot in
-        the stance: all its feet over all its prints) and turned to their mean
-        heading about world z.
-    """
-    q = np.array(robot.reference_configuration, dtype=float)
-    model = robot.model
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    feet = robot.surfaces_with_role(robot.support.role)
-    contacts = [c for c in stance if c.robot_surface in feet]
-    # The same feet on both sides: a quadruped on three feet puts those three
-    # over their prints, not the mid-point of all four.
-    used = [c.robot_surface for c in contacts] or list(feet)
-    contacts = contacts or list(stance)
-    if not contacts:
-        return q
-    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in used], axis=0)
-    transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]
-    target = np.mean([t[:3, 3] for t in transforms], axis=0)
-    heading = np.mean([t[:3, 0] for t in transforms], axis=0)
-    yaw = float(np.arctan2(heading[1], heading[0])) if np.linalg.norm(heading[:2]) > 1e-9 else 0.0
-    rotation = pin.utils.rotate("z", yaw)
-    base = pin.XYZQUATToSE3(q[:7])
-    offset = base.translation - reference_feet
-    base.translation = target + rotation @ offset
-    base.rotation = rotation @ base.rotation
-    q[:7] = pin.SE3ToXYZQUAT(base)
-    return q

@@ -10,6 +10,7 @@ Build a problem, solve it, check it::
     (True, True)
 """
 
+from .cold_start import initial_configuration
 from .description import RobotDescription, RobotDescriptionError, SupportRule, builtin_robot_names, read_description
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
@@ -40,6 +41,7 @@ __all__ = [
     "build_problem",
     "builtin_robot_names",
     "check_refined",
+    "initial_configuration",
     "read_description",
     "solve",
     "solve_problem",

@@ -33,6 +33,7 @@ import pinocchio as pin
 from fem.dense import single_threaded_blas
 
 from .errors import ConfigurationError, StanceError
+from .cold_start import initial_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
@@ -172,7 +173,8 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     ----------
     problem : PostureProblem
     q_init : (nq,) float, optional
-        Warm start; the robot's reference posture by default.
+        Warm start; by default the robot's reference posture moved over the
+        stance's prints (:func:`stances.initial_configuration`).
     lam_init : (m,) float, optional
         Initial force variables.
     max_iterations : int, optional
@@ -193,7 +195,9 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     """
     start = time.perf_counter()
     options = problem.options
-    q = problem.check_configuration(problem.robot.reference_configuration if q_init is None else q_init)
+    if q_init is None:
+        q_init = initial_configuration(problem.robot, problem.scene, problem.stance)
+    q = problem.check_configuration(q_init)
     lam = (
         problem.initial_variables(q)
         if lam_init is None
@@ -719,7 +723,8 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     scene : environments.Scene
     stance : environments.Stance
     q_init : (nq,) float, optional
-        Warm start (e.g. the parent stance's posture in a search).
+        Warm start (e.g. the parent stance's posture in a search); by default the
+        reference posture moved over the prints (:func:`stances.initial_configuration`).
     lam_init : (m,) float, optional
         Contact variables to start from with ``q_init``: ``statistics["lambda"]``
         of an earlier answer for the same stance and options (a motion's

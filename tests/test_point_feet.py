@@ -295,7 +295,7 @@ def test_verify_catches_a_point_foot_force_reported_away_from_its_ball(anymal, s
 def test_a_cold_start_puts_the_stance_feet_over_their_prints(anymal, walk):
     """On three feet, the reference posture is moved so that those three feet's
     mid-point lies over their prints' mid-point (it once matched all four feet's)."""
-    from cbm.planner import initial_configuration
+    from stances import initial_configuration
 
     stance = walk.stance("three-feet")
     assert len(stance.contacts) == 3

@@ -62,7 +62,9 @@ def test_an_inequality_binds_only_when_it_must_and_scales_read_in_row_units():
 def test_a_warm_started_workspace_gives_the_cold_answer():
     row = equality("sum", np.array([-1.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 1"])
     workspace = QPWorkspace()
+    workspace.warm_start = True  # the option (the library's policy is cold starts)
     workspace.solve(*elastic_qp(_linearization([row]), penalty=100.0), accuracy=1e-9)
+    assert workspace.qp is not None
     moved = equality("sum", np.array([-2.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 2"])
     warm = workspace.solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
     cold = QPWorkspace().solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)

@@ -1,0 +1,94 @@
+"""The posture a solve starts from when given none: the reference posture over the stance."""
+
+import math
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import stances
+from stances import initial_configuration
+from stances.problem import PostureOptions, build_problem
+from stances.sqp import solve_problem
+
+
+def _feet(robot, q, surfaces):
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, q)
+    return np.array([data.oMf[robot.frame_id(robot.surface(s).frame)].translation for s in surfaces])
+
+
+def _turned(stance, angle, shift):
+    """The stance's prints turned by ``angle`` about the world z axis and moved by ``shift`` (on a floor)."""
+    rotation = np.array([[math.cos(angle), -math.sin(angle)], [math.sin(angle), math.cos(angle)]])
+    contacts = []
+    for c in stance:
+        p = c.contact_print
+        x, y = rotation @ np.array([p.x, p.y]) + shift
+        contacts.append(environments.Contact(c.robot_surface, environments.ContactPrint(p.surface, x, y, p.theta + angle)))
+    return environments.Stance(tuple(contacts))
+
+
+def test_the_feet_start_over_the_prints_at_the_highest_one(robot):
+    """foot-on-block: one sole on the floor, one on the block. The soles' mid-point goes
+    over the prints' mid-point, the base up by the block's height (the highest print),
+    with the reference posture's shape unchanged."""
+    scenario = environments.load("foot-on-block")
+    stance = scenario.stance("foot-on-block")
+    q = initial_configuration(robot, scenario.scene, stance)
+    soles = [c.robot_surface for c in stance]
+    prints = np.array([scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in stance])
+    feet = _feet(robot, q, soles)
+    np.testing.assert_allclose(feet.mean(axis=0)[:2], prints.mean(axis=0)[:2], atol=1e-12)
+    assert feet.mean(axis=0)[2] == pytest.approx(prints[:, 2].max(), abs=1e-12)
+    assert prints[:, 2].max() > prints[:, 2].min() + 0.05  # the case is one of two heights
+    np.testing.assert_array_equal(q[7:], robot.reference_configuration[7:])
+
+
+def test_a_turned_stance_turns_the_base_about_z(robot):
+    scenario = environments.load("stand")
+    angle = 0.7
+    stance = _turned(scenario.stance("stand"), angle, np.array([0.4, -0.3]))
+    q = initial_configuration(robot, scenario.scene, stance)
+    yaw = pin.rpy.matrixToRpy(pin.XYZQUATToSE3(q[:7]).rotation)[2]
+    reference_yaw = pin.rpy.matrixToRpy(pin.XYZQUATToSE3(robot.reference_configuration[:7]).rotation)[2]
+    assert yaw - reference_yaw == pytest.approx(angle, abs=1e-9)
+    feet = _feet(robot, q, [c.robot_surface for c in stance])
+    prints = np.array([scenario.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in stance])
+    np.testing.assert_allclose(feet[:, :2], prints[:, :2], atol=1e-9)  # both soles land on their prints
+
+
+def test_an_empty_stance_starts_at_the_reference_posture(robot):
+    scenario = environments.load("stand")
+    q = initial_configuration(robot, scenario.scene, environments.Stance(()))
+    np.testing.assert_array_equal(q, robot.reference_configuration)
+
+
+def test_a_solve_without_a_posture_starts_from_it(robot, monkeypatch):
+    """solve_problem with no q_init hands the SQP the placed posture, not the raw reference."""
+    import stances.sqp as sqp
+
+    scenario = environments.load("foot-on-block")
+    stance = scenario.stance("foot-on-block")
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions(max_iterations=1))
+    seen = {}
+    real = sqp.run_sqp
+
+    def spy(problem, q, lam, limit, deadline=None):
+        seen["q"] = np.array(q)
+        return real(problem, q, lam, limit, deadline)
+
+    monkeypatch.setattr(sqp, "run_sqp", spy)
+    solve_problem(problem, check=False)
+    np.testing.assert_allclose(seen["q"], initial_configuration(robot, scenario.scene, stance), atol=1e-15)
+
+
+def test_a_raised_stance_solves_from_no_posture(robot):
+    """step-on-cube held rigid (both soles 0.3 m up) from no posture: feasible, in a
+    few iterations (from the raw reference posture, legs inside the supports, its
+    answer depended on the QP solver's last bits)."""
+    scenario = environments.load("step-on-cube")
+    result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"), deformable_as_rigid=True)
+    assert result.feasible, result.reason
+    assert result.iterations <= 8
