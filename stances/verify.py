@@ -59,10 +59,9 @@ def _external_forces(model, data, point_forces):
     np.add.at(moment, joints, np.cross(points, forces))
     fext = pin.StdVec_Force()
     for joint in range(model.njoints):
-        placement = data.oMi[joint]
-        # About the joint's origin: sum (x - o) x f = sum x x f - o x sum f.
-        about_joint = moment[joint] - np.cross(placement.translation, total[joint])
-        fext.append(pin.Force(placement.rotation.T @ total[joint], placement.rotation.T @ about_joint))
+        # The world-frame wrench about the world origin, seen from the joint's frame
+        # (R^T f, R^T (m - o x f)); np.cross on one vector costs 50 us a call.
+        fext.append(data.oMi[joint].actInv(pin.Force(total[joint], moment[joint])))
     return fext
 
 

@@ -204,10 +204,12 @@ def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
     assert result.reason.startswith("print unreachable: placement of ")
     conflict = result.reason.split("; no step meets together: ")[1].split(", ")
     # Both soles' placements conflict (which of their rows bind depends on where the
-    # solve stopped); nothing else is to blame.
+    # solve stopped); besides them only the balance of the legs' split may bind
+    # (from the posture over the prints, the SQP stops with the legs stretched
+    # apart, where the horizontal equilibrium ties with the placements).
     assert any(row.startswith("placement of left_sole on floor") for row in conflict), conflict
     assert any(row.startswith("placement of right_sole on floor") for row in conflict), conflict
-    assert all(row.startswith("placement of ") for row in conflict), conflict
+    assert all(row.startswith(("placement of ", "static equilibrium")) for row in conflict), conflict
     assert result.iterations <= 60
 
 
