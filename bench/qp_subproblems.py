@@ -276,6 +276,6 @@ def table(robot, repeats=5, path="/tmp/softcbm_qps.npz"):
               f"(saved to {path}); {min(variables)}-{max(variables)} variables, {min(constraint_rows)}-"
               f"{max(constraint_rows)} rows, plus box bounds. "
               f"CPU time (`time.process_time`), median of {repeats} replays of every QP, each sequence "
-              "warm-started as in the SQP. Quality (against piqp at eps_abs 1e-10, when installed): largest row or bound "
+              "in one workspace (warm starts where a policy has them). Quality (against piqp at eps_abs 1e-10, when installed): largest row or bound "
               "violation (rows are scaled: 1 = one row scale), objective excess (f - f*) / (1 + |f*|).")
     return "\n".join([header, "", *rows, *([""] + [note] if note else [])])
