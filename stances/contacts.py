@@ -164,7 +164,7 @@ class RigidContact:
             False: the rows' values only (frame placements computed), ``jacobian`` None.
         """
         if derivatives:
-            residual, jacobian_q = self.placement(model, data)
+            residual, jacobian_q = self._placement(model, data)
             jacobian = np.zeros((len(residual), columns))
             jacobian[:, : model.nv] = jacobian_q
         else:
@@ -175,7 +175,7 @@ class RigidContact:
 
     _placement_axes = ("x", "y", "z", "roll", "pitch", "yaw")
 
-    def placement(self, model, data):
+    def _placement(self, model, data):
         """Placement residual (6,) and its Jacobian (6, nv) at the kinematics in ``data``."""
         residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
         return residual, jlog @ pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
@@ -187,7 +187,7 @@ class RigidContact:
     def _weighted_placement(self, model, data, weights) -> np.ndarray:
         """(nv,) ``weights @ jacobian`` of the placement rows at the kinematics in ``data``
         (their ``second_order``, see :mod:`stances.curvature`)."""
-        return weights @ self.placement(model, data)[1]
+        return weights @ self._placement(model, data)[1]
 
     def cost(self, model, data, lam, options, columns, offset, derivatives=True):
         """No objective term of its own (lambda's is the problem's force term)."""
@@ -349,7 +349,7 @@ class PointContact(RigidContact):
 
     _placement_axes = ("x", "y", "z")
 
-    def placement(self, model, data):
+    def _placement(self, model, data):
         """Placement residual of the ball's centre (3,), print frame, and its Jacobian (3, nv)."""
         return point_placement_residual(model, data, self.frame_id, self.print_placement, self.radius)
 

@@ -33,7 +33,7 @@ import pinocchio as pin
 from fem.dense import single_threaded_blas
 
 from .errors import ConfigurationError, StanceError
-from .cold_start import initial_configuration, reach_prints
+from .cold_start import initial_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
@@ -174,8 +174,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     problem : PostureProblem
     q_init : (nq,) float, optional
         Warm start; by default the robot's reference posture moved over the
-        stance's prints (:func:`stances.initial_configuration`), its links then
-        brought onto them (:func:`stances.cold_start.reach_prints`).
+        stance's prints (:func:`stances.initial_configuration`).
     lam_init : (m,) float, optional
         Initial force variables.
     max_iterations : int, optional
@@ -197,7 +196,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     start = time.perf_counter()
     options = problem.options
     if q_init is None:
-        q_init = reach_prints(problem, initial_configuration(problem.robot, problem.scene, problem.stance))
+        q_init = initial_configuration(problem.robot, problem.scene, problem.stance)
     q = problem.check_configuration(q_init)
     lam = (
         problem.initial_variables(q)

@@ -9,7 +9,6 @@ import pytest
 import environments
 import stances
 from stances import initial_configuration
-from stances.cold_start import reach_prints
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve_problem
 
@@ -67,8 +66,7 @@ def test_an_empty_stance_starts_at_the_reference_posture(robot):
 
 
 def test_a_solve_without_a_posture_starts_from_it(robot, monkeypatch):
-    """solve_problem with no q_init hands the SQP the placed posture brought onto the
-    prints, not the raw reference."""
+    """solve_problem with no q_init hands the SQP the placed posture, not the raw reference."""
     import stances.sqp as sqp
 
     scenario = environments.load("foot-on-block")
@@ -83,8 +81,7 @@ def test_a_solve_without_a_posture_starts_from_it(robot, monkeypatch):
 
     monkeypatch.setattr(sqp, "run_sqp", spy)
     solve_problem(problem, check=False)
-    expected = reach_prints(problem, initial_configuration(robot, scenario.scene, stance))
-    np.testing.assert_allclose(seen["q"], expected, atol=1e-15)
+    np.testing.assert_allclose(seen["q"], initial_configuration(robot, scenario.scene, stance), atol=1e-15)
 
 
 def test_a_raised_stance_solves_from_no_posture(robot):
@@ -95,52 +92,3 @@ def test_a_raised_stance_solves_from_no_posture(robot):
     result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"), deformable_as_rigid=True)
     assert result.feasible, result.reason
     assert result.iterations <= 8
-
-
-def _placement_errors(problem, q):
-    model, data = problem.robot.model, problem.robot.model.createData()
-    pin.computeJointJacobians(model, data, q)
-    pin.updateFramePlacements(model, data)
-    return np.concatenate([c.placement(model, data)[0] for c in problem.contacts if c.kind == "rigid"])
-
-
-@pytest.mark.parametrize("name, stance_name", [("hand-on-table", "hand-on-table"), ("foot-on-block", "foot-on-block")])
-def test_reaching_puts_every_link_on_its_print_within_the_joint_limits(robot, name, stance_name):
-    """From the placed posture, whose palm hangs tens of centimetres from the table,
-    inverse kinematics alone meets every placement to 0.1 mm / 0.1 mrad."""
-    scenario = environments.load(name)
-    problem = build_problem(robot, scenario.scene, scenario.stance(stance_name))
-    start = initial_configuration(robot, scenario.scene, problem.stance)
-    assert np.max(np.abs(_placement_errors(problem, start))) > 0.01  # a real reach
-    q = reach_prints(problem, start)
-    assert np.max(np.abs(_placement_errors(problem, q))) < 1e-4
-    assert np.all(q[7:] >= problem.q_lower) and np.all(q[7:] <= problem.q_upper)
-    assert np.linalg.norm(q[3:7]) == pytest.approx(1.0, abs=1e-12)
-
-
-def test_reaching_an_unreachable_print_stops_within_the_limits(robot):
-    """Feet 3 m apart: no posture meets both; the steps stop at their budget, within
-    the joint limits, the error smaller than it started."""
-    scenario = environments.load("stand")
-    stance = environments.Stance((
-        environments.Contact("left_sole", environments.ContactPrint("floor", 0.0, 0.085, 0.0)),
-        environments.Contact("right_sole", environments.ContactPrint("floor", 3.0, -0.085, 0.0)),
-    ))
-    problem = build_problem(robot, scenario.scene, stance)
-    start = initial_configuration(robot, scenario.scene, stance)
-    q = reach_prints(problem, start)
-    assert np.all(np.isfinite(q))
-    assert np.all(q[7:] >= problem.q_lower) and np.all(q[7:] <= problem.q_upper)
-    before, after = np.linalg.norm(_placement_errors(problem, start)), np.linalg.norm(_placement_errors(problem, q))
-    assert 0.3 < after < before
-
-
-def test_reaching_leaves_soft_prints_to_the_solver(robot):
-    """Both soles on foam: no rigid contact, so the placed posture is returned as it is."""
-    from conftest import coarse_scenario
-
-    scenario = coarse_scenario("cross-soft-block")
-    problem = build_problem(robot, scenario.scene, scenario.stance("both-on-foam"))
-    assert all(c.kind == "deformable" for c in problem.contacts)
-    start = initial_configuration(robot, scenario.scene, problem.stance)
-    np.testing.assert_array_equal(reach_prints(problem, start), start)

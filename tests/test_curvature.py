@@ -59,7 +59,7 @@ def test_placement_curvature_matches_second_differences_of_the_residuals(robot, 
 
     def weighted_residuals(configuration):
         pin.framesForwardKinematics(model, data, configuration)
-        return sum(w @ contact.placement(model, data)[0] for contact, w in zip(problem.contacts, weights))
+        return sum(w @ contact._placement(model, data)[0] for contact, w in zip(problem.contacts, weights))
 
     expected = second_differences(model, q, weighted_residuals, 1e-4)
     hessian = ConstraintCurvature(model).hessian(q, blocks, weights)
