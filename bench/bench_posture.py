@@ -123,7 +123,7 @@ def solve_slsqp(robot, scene, stance) -> BaselineRun:
     """SLSQP on the stance's posture problem."""
     problem = build_problem(robot, scene, stance, PostureOptions())
     start, cpu_start = time.perf_counter(), time.process_time()
-    q0 = problem.check_configuration(robot.reference_configuration)
+    q0 = problem.check_configuration(stances.initial_configuration(robot, scene, stance))  # where stances.solve starts
     lam0 = problem.initial_variables(q0)
     wrapped = PostureNlp(problem, q0, lam0, cpu_start + SLSQP_TIME_LIMIT)
     x0 = np.concatenate([np.zeros(robot.nv), lam0])
@@ -343,7 +343,9 @@ Times exclude building the problem (collision checker, contact models) and, for
 CPU times (`time.process_time`, one BLAS thread) are of the solver call: for `stances.solve`
 `solve_problem`, its final `verify` included; for the baselines the solve, their final
 `verify` excluded.
-SLSQP: `scipy.optimize.minimize(method="SLSQP")` over x = (dq from the reference posture,
+Every method starts from the same posture, the one `stances.solve` starts from
+(`stances.initial_configuration`: the reference posture over the prints).
+SLSQP: `scipy.optimize.minimize(method="SLSQP")` over x = (dq from that posture,
 lambda), objective and constraints of `PostureProblem.linearize` with analytic Jacobians
 (tangent columns times `pin.dIntegrate`), rows divided by their scale, bounds from joint limits
 less the joint margin

@@ -3,7 +3,8 @@
 :func:`record` runs ``stances.solve`` with every :class:`stances.qp.QPWorkspace`
 call logged: one *sequence* per workspace (a posture solve uses one for its steps and
 one for its restoration steps, and a soft stance several solves), in call order, so
-that a replay warm-starts each QP from the previous one as the SQP does.
+that a replay in one workspace sees the QPs in the SQP's order (a policy with warm
+starts, such as the old one, starts each from the previous answer).
 :func:`replay` solves the sequences again with a *policy* (an object with
 ``reset()`` and ``solve(data, accuracy) -> (x, iterations)``), timing each QP in CPU
 time (``time.process_time``; the median over repeats), and :func:`quality` compares an

@@ -29,9 +29,10 @@ def initial_configuration(robot, scene, stance) -> np.ndarray:
     (nq,) float
         ``robot.reference_configuration`` with its free flyer translated so
         that the mid-point of the feet (surfaces of its support role) the
-        stance uses lies over the mid-point of their prints (without a foot in
-        the stance: all its feet over all its prints) and turned to their mean
-        heading about world z. An empty stance gives the reference posture.
+        stance uses lies over the mid-point of their prints, at the height of
+        the highest of them (without a foot in the stance: all its feet over
+        all its prints, at the highest print's height), and turned to their
+        mean heading about world z. An empty stance gives the reference posture.
     """
     q = np.array(robot.reference_configuration, dtype=float)
     model = robot.model

@@ -773,8 +773,8 @@ class DeformableContact:
         was accepted with its palm turned 76 degrees, loaded nodes up to 70 mm
         from their link points). Each tangential component of the
         ``_SLIP_ROWS`` largest slips is kept within ``max_slip / sqrt(2)``, so
-        that the slip itself (what verify checks) is within ``max_slip``; a
-        fixed row count lets the QP warm-start. ``d_displacements`` (3p, nv) and
+        that the slip itself (what verify checks) is within ``max_slip``; the
+        row count is fixed. ``d_displacements`` (3p, nv) and
         ``d_nodes`` (3p, columns), in the full step, are None for values only.
         """
         p = len(self.node_ids)

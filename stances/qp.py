@@ -14,9 +14,11 @@ from .qp_backend import proxsuite
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _WARM_QP_ITERATIONS = 60
 # proxsuite's first proximal weight on the inequality rows (its default_mu_in, 0.1 by
-# default). Measured on the QPs of six stances' SQPs (rigid and soft, 76 QPs): 1e-3
-# took 1.8-1.9x fewer iterations than 0.1 and reached objectives as close to a 1e-11
-# accurate answer; warm starts from the previous QP did not save iterations over it.
+# default). Measured on 76 QPs recorded from the SQPs of six stances (hand-on-table,
+# stand, foot-on-block; hand-on-cube, foot-and-hand-on-foam, cross-two-mats), each
+# solved from a cold start: 2,076 proxsuite iterations at 1e-3 against 3,514 at 0.1
+# (3,612 with the warm starts of the previous policy), objectives as close to a 1e-11
+# accurate answer (worst relative excess 1.5e-4 at 1e-3, 1.2e-4 at 0.1).
 _FIRST_PROXIMAL_IN = 1e-3
 _INACTIVE_MULTIPLIER = 1e-8  # QP multipliers (objective units per scaled row) below this are zero
 _PENALTY_REFERENCE = 1e2  # the SQP's first elastic penalty (PostureOptions.elastic_penalty)
@@ -46,6 +48,11 @@ class QPWorkspace:
 
     Attributes
     ----------
+    warm_start : bool
+        Class setting: start a QP of the previous one's shape from its answer
+        (False: every QP from x = 0).
+    first_proximal_in : float
+        Class setting: proxsuite's first proximal weight on the inequality rows.
     iterations : int
         proxsuite iterations spent by the last :meth:`solve`, an abandoned warm
         start included.
@@ -69,10 +76,9 @@ class QPWorkspace:
     cold_guess = "NO_INITIAL_GUESS"  # a proxsuite.proxqp.InitialGuess name
     # Warm starts (proxsuite's WARM_START_WITH_PREVIOUS_RESULT, with the proximal
     # weights the previous solve ended with) were the policy until the first
-    # proximal weight was lowered: on the same QPs (the SQPs of hand-on-table,
-    # foot-on-block, hand-on-cube, foot-and-hand-on-foam, cross-two-mats) they took
-    # 3,076 + 1,079 iterations where cold starts take about half. Kept as an
-    # option for comparison (bench/qp_subproblems.py).
+    # proximal weight was lowered; on the QPs above they saved nothing over cold
+    # starts (3,612 iterations against 3,514 at 0.1). Kept as an option, for
+    # comparison (bench/qp_subproblems.py).
     warm_start = False
     first_proximal_in = _FIRST_PROXIMAL_IN
 

@@ -300,8 +300,8 @@ class CollisionConstraint:
     distance : float
         Metres.
     rows : int
-        At most this many closest pairs enter a QP (a fixed number of rows lets
-        the QP solver warm-start).
+        At most this many closest pairs enter a QP (a fixed number of rows: the
+        QP's shape does not change between iterations).
     touching : frozenset of (str, str), optional
         ``(robot geometry, object)`` pairs that may touch: kept 0.1 mm (the rows'
         slack) apart instead of ``distance`` (``PostureOptions.touching``).

@@ -40,8 +40,8 @@ class VerificationTolerances:
 def _external_forces(model, data, point_forces):
     """Each joint's spatial force (local frame) from the reported point forces.
 
-    Summed in the world frame about each joint's origin, then turned into the joint's
-    frame: a way of its own (the solver sums local forces at local points,
+    Summed in the world frame about the world origin, then moved to each joint's
+    frame (``oMi.actInv``): a way of its own (the solver sums local forces at local points,
     :mod:`stances.statics`), and one numpy pass for the hundreds of a soft print's
     points (a loop over them was 8 ms of a two-mat stance's check).
     """
@@ -59,8 +59,9 @@ def _external_forces(model, data, point_forces):
     np.add.at(moment, joints, np.cross(points, forces))
     fext = pin.StdVec_Force()
     for joint in range(model.njoints):
-        # The world-frame wrench about the world origin, seen from the joint's frame
-        # (R^T f, R^T (m - o x f)); np.cross on one vector costs 50 us a call.
+        # The world-frame wrench about the world origin, seen from the joint's frame:
+        # (R^T f, R^T (m - o x f)), one pinocchio call (np.cross on one vector cost
+        # about 20 times as much).
         fext.append(data.oMi[joint].actInv(pin.Force(total[joint], moment[joint])))
     return fext
 

@@ -6,6 +6,7 @@ import pytest
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization
 from stances.qp import QPWorkspace, elastic_qp
+from stances.qp_backend import proxsuite
 
 
 def _linearization(blocks, n=2, bound=10.0):
@@ -64,9 +65,11 @@ def test_a_warm_started_workspace_gives_the_cold_answer():
     workspace = QPWorkspace()
     workspace.warm_start = True  # the option (the library's policy is cold starts)
     workspace.solve(*elastic_qp(_linearization([row]), penalty=100.0), accuracy=1e-9)
-    assert workspace.qp is not None
+    first = workspace.qp
     moved = equality("sum", np.array([-2.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 2"])
     warm = workspace.solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
+    assert workspace.qp is first  # the same proxsuite object, started from its last answer
+    assert first.settings.initial_guess == proxsuite.proxqp.InitialGuess.WARM_START_WITH_PREVIOUS_RESULT
     cold = QPWorkspace().solve(*elastic_qp(_linearization([moved]), penalty=100.0), accuracy=1e-9)
     assert np.allclose(warm, cold, atol=1e-6)
     assert np.allclose(warm[:2], [0.4, 0.8], atol=1e-6)
@@ -99,3 +102,24 @@ def test_a_large_penalty_divides_the_objective_and_changes_neither_answer_nor_mu
     jacobian = np.array([[1.0, 1.0], [1.0, 0.0]])
     multipliers = np.array([scaled["x0 + x1 = 1"], scaled["x0 <= 0.2"]])
     np.testing.assert_allclose(x[:2] + lin.gradient + jacobian.T @ multipliers, 0.0, atol=1e-6)
+
+
+def test_the_library_solves_every_qp_from_a_cold_start_with_a_small_first_proximal_weight():
+    """A reused workspace answers a QP exactly as a fresh one does (nothing carried
+    over), with proxsuite's first inequality weight at 1e-3."""
+    rows = [
+        equality("sum", np.array([-1.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 1"]),
+        ConstraintBlock("cap", np.zeros(1), np.array([[1.0, 0.0]]), -np.inf, 0.2, 1.0, ("x0 <= 0.2",)),
+    ]
+    assert QPWorkspace.warm_start is False
+    reused = QPWorkspace()
+    other = [equality("sum", np.array([-3.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 3"]), rows[1]]
+    reused.solve(*elastic_qp(_linearization(other), penalty=100.0), accuracy=1e-9)  # same shape
+    again = reused.solve(*elastic_qp(_linearization(rows), penalty=100.0), accuracy=1e-9)
+    fresh = QPWorkspace()
+    once = fresh.solve(*elastic_qp(_linearization(rows), penalty=100.0), accuracy=1e-9)
+    np.testing.assert_array_equal(again, once)
+    np.testing.assert_array_equal(reused.multipliers, fresh.multipliers)
+    assert reused.iterations == fresh.iterations
+    assert reused.qp.settings.default_mu_in == 1e-3
+    assert reused.qp.settings.initial_guess == proxsuite.proxqp.InitialGuess.NO_INITIAL_GUESS
