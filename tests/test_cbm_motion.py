@@ -426,6 +426,34 @@ def test_the_moving_soles_allowance_is_its_depth_at_the_ends_interpolated_not_th
     assert t == 0.375 and depth == pytest.approx(0.015 - 0.02 * (1 - 0.375))
 
 
+def test_a_colliding_step_is_reported_where_it_first_collides_and_how_deep_it_goes(step_plan, scenario, robot):
+    """A wrist grazing a cube at 1/8 of a step and 12.8 mm deep halfway (romeo's approach):
+    the first collision decides, the message gives the deepest too."""
+    from cbm.between_samples import BetweenSamples
+
+    support, moving = step_plan.stances[1].stance, Contact("right_sole", ContactPrint("floor", 0.0, -0.085))
+    between = BetweenSamples(robot, scenario.scene, support, moving, {})
+    q0, q1 = np.array(step_plan.stances[0].q), np.array(step_plan.stances[0].q)
+    q1[0] += 1.0  # the base's x stands in for the fraction of the way
+
+    swept = {0.125: 0.00087, 0.25: 0.0065, 0.375: 0.0119, 0.5: 0.0128, 0.625: 0.0026}  # metres deep
+
+    def depth_at(q):
+        return swept.get(round(float(q[0] - q0[0]), 3), -0.005)  # 5 mm clear elsewhere
+
+    between._pairs = lambda q: [CollisionPairStub("r_wrist_0", "cube", distance=-depth_at(q))]
+    t, pair, depth = between.first_collision(q0, q1)
+    assert t == 0.125 and depth == pytest.approx(0.00087)
+    kind, words = between.first_problem(q0, q1)
+    assert kind == "collision"
+    assert words.startswith(f"at 0.125 of the way: collision between r_wrist_0 and cube (depth {depth:.3g} m; ")
+    assert words.endswith("deepest 0.0128 m at 0.5 of the way, between r_wrist_0 and cube)")
+    # Where the first is the deepest, nothing more is said.
+    between._pairs = lambda q: [CollisionPairStub("r_wrist_0", "cube", distance=-0.01 if abs(q[0] - q0[0] - 0.5) < 0.01 else 0.0)]
+    kind, words = between.first_problem(q0, q1)
+    assert words == "at 0.5 of the way: collision between r_wrist_0 and cube (depth 0.01 m)"
+
+
 def test_the_drift_of_held_contacts_between_samples_is_their_distance_from_the_chord(step_plan, scenario, robot):
     """The base turned 0.2 rad about its own z axis between two postures: the joint-space
     interpolation turns every sole vertex along an arc about that axis, whose largest distance
