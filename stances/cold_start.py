@@ -65,4 +65,13 @@ def initial_configuration(robot, scene, stance) -> np.ndarray:
     return q
 
 
-__all__ = ["initial_configuration"]
+def starting_configuration(problem, q_init) -> np.ndarray:
+    """Where a solve of ``problem`` starts: ``q_init`` checked by the problem
+    (:meth:`~stances.PostureProblem.check_configuration`), or, when it is None, the
+    :func:`initial_configuration` of the problem's stance."""
+    if q_init is None:
+        q_init = initial_configuration(problem.robot, problem.scene, problem.stance)
+    return problem.check_configuration(q_init)
+
+
+__all__ = ["initial_configuration", "starting_configuration"]

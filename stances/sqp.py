@@ -33,7 +33,7 @@ import pinocchio as pin
 from fem.dense import single_threaded_blas
 
 from .errors import ConfigurationError, StanceError
-from .cold_start import initial_configuration
+from .cold_start import starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
@@ -195,9 +195,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     """
     start = time.perf_counter()
     options = problem.options
-    if q_init is None:
-        q_init = initial_configuration(problem.robot, problem.scene, problem.stance)
-    q = problem.check_configuration(q_init)
+    q = starting_configuration(problem, q_init)
     lam = (
         problem.initial_variables(q)
         if lam_init is None
@@ -873,11 +871,9 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     that stage's, ``iterations`` counts every stage. With ``q_init`` None the solve
     starts from :func:`stances.initial_configuration`.
     """
-    if q_init is None:
-        q_init = initial_configuration(problem.robot, problem.scene, problem.stance)
     model = problem.robot.model
     deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
-    q = problem.check_configuration(q_init)
+    q = starting_configuration(problem, q_init)
     free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
