@@ -65,6 +65,13 @@ _CRAWL_STEPS = 3
 # moving by 1e-5).
 _NO_GAIN = 1e-5
 _NO_GAIN_ITERATIONS = 4
+# A feasible iterate is also final when the QP's model predicts a merit decrease
+# below _NO_GAIN of the objective and the full step does not deliver it: the model
+# is wrong there (a node's mode switch), and cutting the step gains no more than the
+# rule above would wait for. Measured: foot-and-hand-on-foam's Coulomb stage ended
+# with a step predicted to gain 3e-6 of the objective, which the line search cut to
+# 1/128 through eight contact solves of both prints (60 ms of its 290).
+_PREDICTED_GAIN = _NO_GAIN
 # ... and one whose best feasible objective gained less than _SLOW_GAIN (relative) over
 # the last _SLOW_GAIN_ITERATIONS: a cycle that still creeps, a feasible iterate and a
 # barely infeasible neighbour in turn, each pair 7e-5 better (hand-on-cube's Coulomb
@@ -87,6 +94,8 @@ _HOPELESS_PROGRESS = 0.5
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
 _RESTORATION_PENALTY = 1e6
+_SHORTEST_STEP = 1e-3  # the line search's shortest trial, a fraction of the QP's step
+_TRUST_REGION_HELD = 0.999  # a step this close to the trust region's bound was held by it
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
 _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage enters the objective
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
@@ -351,9 +360,15 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         ):
             status = "converged"
             break
+        # (see _PREDICTED_GAIN)
+        marginal = linearization.met(tolerance) and predicted <= _PREDICTED_GAIN * (1.0 + abs(linearization.objective))
         accepted, alpha = _line_search(
-            problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight
+            problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
+            shortest=1.0 if marginal else _SHORTEST_STEP,
         )
+        if marginal and accepted is None:
+            status = "converged"
+            break
         searched = alpha if accepted is not None else 0.0  # the optimality step's own cut
         # Near a feasible point the optimality step may cross a kink (a print
         # node switching between stick, slip and lift-off) where the linear model
@@ -416,7 +431,15 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 status = f"converging too slowly: {1.0 - rate:.1%} an iteration"
                 break
         # The QP kept some violation although the merit could trade it: raise rho.
-        if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY:
+        # Not when the full step was taken and held by the trust region: the violation
+        # left is what no step that short removes, whatever rho (hand-on-cube's rigid
+        # warm start, its palm 0.2 rad from its print, raised rho to 1e4 on its way
+        # there, for the same iterates, and its QPs took 60-165 proxsuite iterations
+        # instead of 7-80: 1,471 in the solve against 918). A cut step says the model
+        # is off, and rho rises as before (an infeasible quadruped stance, whose steps
+        # at the trust region were cut to 1/8-1/2, relies on it to stop early).
+        bounded = alpha == 1.0 and np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * options.trust_region
+        if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY and not bounded:
             penalty *= 10.0
         elif linearization.met(tolerance) and penalty > options.elastic_penalty:
             # Feasible: the penalty raised on the way (up to 1e7) now weighs a
@@ -452,6 +475,11 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             or abs(previous_objective - linearization.objective)
             < options.optimality_tolerance * (1.0 + abs(previous_objective))
             or crawling >= _CRAWL_STEPS
+            # From a feasible iterate, a step cut below _CRAWL_ALPHA that gained next to
+            # nothing: the QP's model is wrong here (a node's mode switch within the
+            # step), and the next steps were seen to be the same step cut again
+            # (hand-on-cube's Coulomb stage: twice to 1/256, nine contact solves each).
+            or (violation <= tolerance and cut and gained < _CRAWL_GAIN * (1.0 + abs(previous_objective)))
         ):
             status = "converged"
             break
@@ -554,10 +582,11 @@ def _predicted_decrease(linearization, step, elastic, penalty, violation) -> flo
     return linearization.objective + penalty * violation - model
 
 
-def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight):
+def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
+                 shortest=_SHORTEST_STEP):
     """Backtracking on the exact-penalty merit from ``linearization`` (whose largest
     scaled violation is ``violation``); ``(q, lam, linearization)`` and the step
-    length accepted, or ``(None, alpha)`` when no length down to 1e-3 does.
+    length accepted, or ``(None, alpha)`` when no length down to ``shortest`` does.
 
     The full step is linearised at once: it is accepted in most line searches
     (hand-on-soft-cube: 33 of 49 trials, most of them first ones), and judging it
@@ -571,7 +600,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     tolerance = problem.options.feasibility_tolerance
     merit = linearization.objective + penalty * violation
     alpha = 1.0
-    while alpha >= 1e-3:
+    while alpha >= shortest:
         q_try = pin.integrate(model, q, alpha * step[:nv])
         lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
         trial = (problem.linearize if alpha == 1.0 else problem.evaluate)(q_try, lam_try, torque_weight)

@@ -346,7 +346,7 @@ def _cycling_problem(feasible_until=np.inf):
     return ToyProblem(objective, rows)
 
 
-def _steps_of_one_hundredth(problem, q, lam, *args):
+def _steps_of_one_hundredth(problem, q, lam, *args, **kwargs):
     q_next = q + np.array([0.01, 0.0, 0.0])
     return (q_next, lam, problem.linearize(q_next, lam)), 1.0
 
@@ -369,3 +369,76 @@ def test_an_infeasible_last_iterate_gives_way_to_the_best_feasible_one(monkeypat
     outcome = run_sqp(_cycling_problem(feasible_until=0.025), np.zeros(3), np.zeros(0), limit=3)
     assert outcome.iterations == 3 and outcome.feasible and outcome.reason == ""
     assert outcome.q[0] == pytest.approx(0.01, abs=1e-12)
+
+
+def test_a_step_held_by_the_trust_region_does_not_raise_the_penalty(monkeypatch):
+    """The row q_x = 2 lies seven trust regions (0.3) from the start: each QP meets what
+    it can and leaves the rest to the elastic variable, which no penalty can remove.
+    The penalty stays at its first value (raising it made the palm stances' QPs take
+    60-165 proxsuite iterations instead of 7-60) and the solve still walks there."""
+    penalties = []
+    qp = sqp.elastic_qp
+
+    def recording(linearization, penalty):
+        penalties.append(penalty)
+        return qp(linearization, penalty)
+
+    monkeypatch.setattr(sqp, "elastic_qp", recording)
+
+    def at_two(q, lam):
+        return [equality("x", np.array([q[0] - 2.0]), np.array([[1.0, 0.0, 0.0]]), 1.0, ["q_x at 2"])]
+
+    problem = ToyProblem(squared_distance_to(np.zeros(3)), at_two)
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    np.testing.assert_allclose(outcome.q, [2.0, 0.0, 0.0], atol=1e-8)
+    assert set(penalties) == {problem.options.elastic_penalty}
+    assert len(penalties) <= 10  # ceil(2 / 0.3) = 7 steps to get there
+
+
+def test_a_marginal_step_the_objective_refuses_ends_the_solve_without_backtracking():
+    """At a feasible point the reported gradient (3e-3) asks for a step predicted to gain
+    4.5e-6 of an objective that does not move: the full step is tried once, refused,
+    and the solve ends there, converged (the line search used to cut it ten times,
+    a contact solve each on a soft stance)."""
+
+    class Counting(ToyProblem):
+        trials = 0
+
+        def evaluate(self, q, lam, torque_weight=None):
+            Counting.trials += 1
+            return super().evaluate(q, lam, torque_weight)
+
+        def linearize(self, q, lam, torque_weight=None):
+            Counting.trials += 1
+            return super().linearize(q, lam, torque_weight)
+
+    def flat(q, lam):
+        return 1.0, np.array([-3e-3, 0.0, 0.0]), np.eye(3)
+
+    problem = Counting(flat, lambda q, lam: [])
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1
+    assert Counting.trials == 2  # the start's linearisation and the refused full step
+    assert np.all(outcome.q == 0.0)
+
+
+def test_a_feasible_step_cut_short_for_nothing_ends_the_solve(monkeypatch):
+    """From a feasible point a step cut to 1/256 that gains 1.2e-6 of the objective (more
+    than the optimality tolerance, 1e-7, less than a crawl's 1.25e-4):
+    the QP's model is wrong there, and the solve ends at once (it used to repeat the
+    same cut step until three of them in a row)."""
+
+    def slope(q, lam):
+        return 1.0 - 1e-3 * q[0], np.array([-1.0, 0.0, 0.0]), np.eye(3)
+
+    def cut(problem, q, lam, step, *args, **kwargs):
+        q_next = q + step[:3] / 256.0
+        return (q_next, lam, problem.linearize(q_next, lam)), 1.0 / 256.0
+
+    monkeypatch.setattr(sqp, "_line_search", cut)
+    outcome = run_sqp(ToyProblem(slope, lambda q, lam: []), np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1
+    assert outcome.q[0] == pytest.approx(0.3 / 256.0, rel=1e-6)
