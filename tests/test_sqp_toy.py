@@ -442,3 +442,31 @@ def test_a_feasible_step_cut_short_for_nothing_ends_the_solve(monkeypatch):
     assert outcome.feasible and outcome.status == "converged"
     assert outcome.iterations == 1
     assert outcome.q[0] == pytest.approx(0.3 / 256.0, rel=1e-6)
+
+
+def test_a_cut_step_back_to_feasibility_that_beats_the_best_by_nothing_ends_the_solve(monkeypatch):
+    """A feasible iterate (the best), then a step cut to 1/512 that leaves q_y <= 0 by
+    1e-6, then another cut step back onto it, 2e-6 better than the best: the solve ends
+    there (a two-sole turn stance on a mat cycled so: a lean cut to 1/512, restored,
+    three times, ten contact solves a line search). Counting them as a crawl needed
+    three such iterations in a row, each ending feasible."""
+    script = [((0.001, 0.0, 0.0), 1.0), ((0.002, 1e-6, 0.0), 1.0 / 512.0), ((0.003, 0.0, 0.0), 1.0 / 512.0),
+              ((0.004, 0.0, 0.0), 1.0 / 512.0), ((0.005, 0.0, 0.0), 1.0 / 512.0)]
+
+    def scripted(problem, q, lam, *args, **kwargs):
+        point, alpha = script.pop(0)
+        q_next = np.array(point)
+        return (q_next, lam, problem.linearize(q_next, lam)), alpha
+
+    def slope(q, lam):
+        return 1.0 - 1e-3 * q[0], np.array([-1.0, 0.0, 0.0]), np.eye(3)
+
+    def below(q, lam):
+        return [ConstraintBlock("y", np.array([q[1]]), np.array([[0.0, 1.0, 0.0]]), -np.inf, 0.0, 1.0, ("q_y <= 0",))]
+
+    monkeypatch.setattr(sqp, "_line_search", scripted)
+    monkeypatch.setattr(sqp, "_restoration", lambda *args: None)
+    outcome = run_sqp(ToyProblem(slope, below), np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 3
+    np.testing.assert_array_equal(outcome.q, [0.003, 0.0, 0.0])
