@@ -66,6 +66,7 @@ import stances
 from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.contacts import placement_residual, point_placement_residual
 from stances.errors import StanceError
+from stances.problem import stance_collision_checker
 from stances.terms import print_normal_loads
 
 from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
@@ -84,6 +85,7 @@ __all__ = [
     "plan_motion",
     "plan_motions",
     "plan_motions_reposing",
+    "retreat",
     "verify_motion",
 ]
 
@@ -494,7 +496,13 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         ``Motion.seam``. If neither reaches it, the motion holds the forward
         samples, ``feasible`` False and both solvers' reasons; if a step
         between samples collides or strays even with samples inserted, every
-        sample, ``feasible`` False and the collision or the stray.
+        sample, ``feasible`` False and the collision or the stray. Where the
+        path straight up from the limb's free end (the one off its print) fails,
+        the motion is planned again with that end drawn ``clearance`` away from
+        the scene object nearest to it, across the normal (:func:`retreat`): a hand hanging beside
+        the support it reaches for (Romeo's wrist 5 mm from the soft cube's face,
+        which the rise swept 12.8 mm through). The first motion found is
+        returned; if neither is, the first with both reasons.
 
     Raises
     ------
@@ -505,13 +513,82 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
     if not 0 <= index < len(plan.stances) - 1:
         raise MotionError(f"stance {index} has no next stance: the plan has {len(plan.stances)} stances")
     held_drift = checked_drift(held_drift)
+    settings = dict(samples=samples, clearance=clearance, max_splits=max_splits, solver_options=solver_options,
+                    held_drift=held_drift)
+    motion = _motion_on_path(plan, index, scenario, robot, None, **settings)
+    if motion.feasible:
+        return motion
+    options = _options_of(plan.stances[index + 1]) if solver_options is None else dict(solver_options)
+    offset = retreat(robot, scenario.scene, plan.stances[index], plan.stances[index + 1], clearance, options)
+    if offset is None:
+        return motion
+    detour = _motion_on_path(plan, index, scenario, robot, offset, **settings)
+    if detour.feasible:
+        logger.info("motion %d -> %d found with its free end drawn %.3g m off the scene", index, index + 1, clearance)
+        return detour
+    return replace(motion, reason=f"{motion.reason}; with the free end drawn {clearance:g} m off the scene first, "
+                                  f"{detour.reason}")
+
+
+def retreat(robot, scene, before, after, distance, options=None):
+    """The detour of a motion's free end: ``(start offset, end offset)``, world, metres,
+    the other one None (see :func:`cbm.step_path.lifted_path`); None when nothing is near.
+
+    The limb off its print (before a touch-down, after a lift-off) is drawn
+    ``distance`` away from the scene object nearest to it at that posture (within the
+    collision checker's activation margin), across the print's normal: a hand hanging
+    beside the face of the support it reaches for is drawn off that face before it
+    rises. The limb is the chain of joints carrying the moving surface that carries
+    no held contact.
+
+    Parameters
+    ----------
+    robot : stances Robot
+    scene : environments Scene
+    before, after : cbm PlannedStance
+        The stances the motion joins.
+    distance : float
+        Metres.
+    options : dict, optional
+        Posture options the collision checker is built with (its activation margin).
+
+    Returns
+    -------
+    tuple of ((3,) float or None, (3,) float or None), or None
+    """
+    moving, support, _, touch_down = _switch(before, after)
+    model = robot.model
+    free = np.asarray(before.q if touch_down else after.q, dtype=float)
+    checker = stance_collision_checker(robot, scene, support, stances.PostureOptions(**(options or {})))
+    held = {j for contact in support.contacts
+            for j in model.supports[model.frames[robot.frame_id(robot.surface(contact.robot_surface).frame)].parentJoint]}
+    frame = model.frames[robot.frame_id(robot.surface(moving.robot_surface).frame)]
+    limb = set(model.supports[frame.parentJoint]) - held
+    data = model.createData()
+    pin.forwardKinematics(model, data, free)
+    near = [pair for pair in checker.pairs(model, data) if not pair.is_self_collision and pair.joint_a in limb]
+    if not near:
+        return None
+    normal = scene.transform_print_to_world(moving.contact_print)[:3, 2]
+    away = np.array(min(near, key=lambda pair: pair.distance).normal)
+    away -= (away @ normal) * normal / (normal @ normal)
+    length = np.linalg.norm(away)
+    if length < 1e-9:
+        return None
+    offset = distance * away / length
+    return (offset, None) if touch_down else (None, offset)
+
+
+def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance, max_splits, solver_options,
+                    held_drift):
+    """:func:`plan_motion` along the lifted path with the given ``retreat`` offsets (or none)."""
     before, after = plan.stances[index], plan.stances[index + 1]
     moving, support, holding, touch_down = _switch(before, after)
     surface = robot.surface(moving.robot_surface)
     start = _frame_placement(robot, before.q, surface.frame)
     end = _frame_placement(robot, after.q, surface.frame)
     normal = scenario.scene.transform_print_to_world(moving.contact_print)[:3, 2]
-    targets = lifted_path(start, end, normal, clearance, samples)
+    targets = lifted_path(start, end, normal, clearance, samples, retreat=offset)
     # Sideways: across the normal and the step. Free only while moving across: the
     # waypoints straight above either end hold the limb over its print.
     sideways = np.cross(normal, end[:3, 3] - start[:3, 3])

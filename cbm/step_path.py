@@ -15,7 +15,7 @@ __all__ = ["RAMP", "lifted_path", "halfway"]
 RAMP = 0.25
 
 
-def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAMP):
+def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAMP, retreat=None):
     """Waypoints of a step from one placement to another: up, across, down.
 
     Along ``normal`` the path rises from the start to ``clearance`` above the
@@ -24,7 +24,10 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAM
     last waypoints sit ``approach`` straight above the ends (lift-off and
     touch-down). Between them, ``samples`` waypoints at s = k / (samples + 1):
     rising for s < ``ramp``, falling for s > 1 - ``ramp``. Orientations follow
-    the geodesic of SO(3), turning with the motion across.
+    the geodesic of SO(3), turning with the motion across. With ``retreat``, the
+    path first moves by that offset while it rises (and takes it back while it
+    crosses), or, given for the end, comes in from it while it falls: a detour
+    for a limb that hangs beside the support it reaches for.
 
     Parameters
     ----------
@@ -40,6 +43,9 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAM
         Lift of the first and last waypoints, metres.
     ramp : float
         Fraction of the path spent going up (and down).
+    retreat : tuple of two (3,) float or None, optional
+        Offsets (world, metres) reached at the top of the rise from the start and
+        kept from the top of the fall to the end; None for none at either end.
 
     Returns
     -------
@@ -66,10 +72,14 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAM
                       height_end + (top - height_end) * np.minimum((1.0 - s) / ramp, 1.0))
     height[[0, -1]] = height_start + approach, height_end + approach
     turn = pin.log3(start[:3, :3].T @ end[:3, :3])
+    away = [np.zeros(3) if offset is None else np.asarray(offset, dtype=float) for offset in (retreat or (None, None))]
     path = np.tile(np.eye(4), (samples + 2, 1, 1))
     for k in range(samples + 2):
         point = (1.0 - across[k]) * start[:3, 3] + across[k] * end[:3, 3]
         path[k, :3, 3] = point + (height[k] - point @ normal) * normal
+        if retreat is not None:
+            path[k, :3, 3] += away[0] * min(s[k] / ramp, 1.0) * (1.0 - across[k])
+            path[k, :3, 3] += away[1] * min((1.0 - s[k]) / ramp, 1.0) * across[k]
         path[k, :3, :3] = start[:3, :3] @ pin.exp3(across[k] * turn)
     return path
 

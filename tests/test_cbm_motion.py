@@ -13,8 +13,8 @@ import stances
 from environments.stance import Contact, ContactPrint
 
 from cbm.motion import (HELD_DRIFT, UNLOADED_FORCE, ContactSample, FramePlacementConstraint, MotionError,
-                        held_strays, motions_summary, plan_motion, plan_motions, plan_motions_reposing,
-                        verify_motion)
+                        _motion_on_path, held_strays, motions_summary, plan_motion, plan_motions,
+                        plan_motions_reposing, retreat, verify_motion)
 from cbm.step_path import RAMP, lifted_path
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from cbm.trajectory import plan_trajectory, write_trajectory
@@ -1019,3 +1019,65 @@ def test_touching_unknown_surfaces_are_named(robot, scenario):
         stances.build_problem(robot, scenario.scene, stance, stances.PostureOptions(touching=(("right_hand", "floor"),)))
     with pytest.raises(environments.SceneError, match="ceiling"):
         stances.build_problem(robot, scenario.scene, stance, stances.PostureOptions(touching=(("right_sole", "ceiling"),)))
+
+
+def test_a_retreat_moves_the_rise_off_its_free_end_and_takes_it_back_across():
+    start, end = np.eye(4), np.eye(4)
+    end[:3, 3] = [0.3, 0.0, 0.1]
+    away = np.array([-0.05, 0.0, 0.0])
+    straight = lifted_path(start, end, [0.0, 0.0, 1.0], 0.05, 5)
+    path = lifted_path(start, end, [0.0, 0.0, 1.0], 0.05, 5, retreat=(away, None))
+    shift = path[:, :3, 3] - straight[:, :3, 3]
+    s = np.arange(7) / 6
+    across = np.clip((s - RAMP) / (1.0 - 2.0 * RAMP), 0.0, 1.0)
+    # None at the start's approach, all of it at the top of the rise, none once across.
+    np.testing.assert_allclose(shift, np.outer(np.minimum(s / RAMP, 1.0) * (1.0 - across), away), atol=1e-15)
+    assert shift[0].tolist() == [0.0, 0.0, 0.0] and shift[-1].tolist() == [0.0, 0.0, 0.0]
+    np.testing.assert_array_equal(path[:, :3, :3], straight[:, :3, :3])
+    # Given for the end, the same offset mirrored: kept from the top of the fall.
+    mirrored = lifted_path(start, end, [0.0, 0.0, 1.0], 0.05, 5, retreat=(None, away))
+    np.testing.assert_allclose(mirrored[:, :3, 3] - straight[:, :3, 3], shift[::-1], atol=1e-15)
+
+
+@pytest.fixture(scope="module")
+def romeo_reach():
+    """Romeo standing, then its right palm on the soft cube (romeo-hand-on-soft-cube): its
+    right hand hangs with the wrist 5 mm from the cube's front face."""
+    scenario = environments.load("romeo-hand-on-soft-cube")
+    romeo = stances.Robot.load(scenario.robot)
+    planned, q = [], None
+    for name in ("stand", "hand-on-soft-cube"):
+        result = stances.solve(romeo, scenario.scene, scenario.stance(name), q_init=q)
+        assert result.feasible, result.reason
+        q = result.q
+        planned.append(PlannedStance(scenario.stance(name), result.q, result.point_forces, {}, result, move=""))
+    plan = Plan(True, "goal reached", planned, PlanStatistics(), scenario.name,
+                robot=robot_description(romeo), scenario_source=scenario_source(scenario))
+    return romeo, scenario, plan
+
+
+def test_a_hand_beside_its_support_is_drawn_off_it_before_it_rises(romeo_reach):
+    """Straight up from where it hangs, Romeo's wrist sweeps through the cube's face
+    between samples and no posture halfway holds the palm on its chord; drawn 5 cm off
+    that face first (away from the nearest scene object, across the print's normal), the
+    motion is found and every sample and step verifies."""
+    romeo, scenario, plan = romeo_reach
+    start, end = retreat(romeo, scenario.scene, plan.stances[0], plan.stances[1], 0.05)
+    assert end is None  # a touch-down: the start is the free end
+    np.testing.assert_allclose(start, [-0.05, 0.0, 0.0], atol=1e-6)  # off the face at x = 0.17 m
+    motion = plan_motion(plan, 0, scenario, romeo)
+    assert motion.feasible, motion.reason
+    assert verify_motion(motion, plan, scenario, romeo) == []
+    # The second waypoint, on the rise, lies more than 1 cm behind where the palm hangs.
+    assert motion.targets[1][0, 3] < plan_motion_start_x(romeo, plan) - 0.01
+    # Without the detour the same motion fails: the wrist through the cube.
+    straight = _motion_on_path(plan, 0, scenario, romeo, None, samples=6, clearance=0.05, max_splits=2,
+                               solver_options=None, held_drift=HELD_DRIFT)
+    assert not straight.feasible and "r_wrist_0 and cube" in straight.reason
+
+
+def plan_motion_start_x(robot, plan):
+    """x of the right palm frame where Romeo stands (world, metres)."""
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, plan.stances[0].q)
+    return data.oMf[robot.frame_id(robot.surface("right_palm").frame)].translation[0]
