@@ -109,6 +109,10 @@ MAX_INSERTED = 6
 #: midpoint, was left at 5.3 mm with 4.
 MAX_STRAY_INSERTED = 8
 
+#: Sine of the angle to the print's normal below which the nearest scene object's
+#: normal gives no direction to draw a free limb off across it (:func:`retreat`).
+_ACROSS = 0.3
+
 #: Newtons: the largest force a touch-down or lift-off sample may put on its limb
 #: (the solver holds the normal load at zero within its 1e-7 tolerance).
 UNLOADED_FORCE = 1e-4
@@ -497,12 +501,14 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
         samples, ``feasible`` False and both solvers' reasons; if a step
         between samples collides or strays even with samples inserted, every
         sample, ``feasible`` False and the collision or the stray. Where the
-        path straight up from the limb's free end (the one off its print) fails,
-        the motion is planned again with that end drawn ``clearance`` away from
-        the scene object nearest to it, across the normal (:func:`retreat`): a hand hanging beside
-        the support it reaches for (Romeo's wrist 5 mm from the soft cube's face,
-        which the rise swept 12.8 mm through). The first motion found is
-        returned; if neither is, the first with both reasons.
+        motion fails and the limb's free end (the one off its print) lies within
+        the collision checker's activation distance of a scene object, it is
+        planned again with that end drawn ``clearance`` away from the nearest one,
+        across the normal, as the limb rises (or falls) (:func:`retreat`): a hand
+        hanging beside the support it reaches for (Romeo's wrist 5 mm from the soft
+        cube's face, which the rise straight up swept 12.8 mm through). The first
+        motion found is returned; if neither is, the first with both reasons (a
+        failing motion near a support thus costs two tries).
 
     Raises
     ------
@@ -532,14 +538,15 @@ def plan_motion(plan, index, scenario, robot, *, samples=6, clearance=0.05, max_
 
 def retreat(robot, scene, before, after, distance, options=None):
     """The detour of a motion's free end: ``(start offset, end offset)``, world, metres,
-    the other one None (see :func:`cbm.step_path.lifted_path`); None when nothing is near.
+    the other one None (see :func:`cbm.step_path.lifted_path`); None when no scene object
+    is near, or the nearest one lies along the print's normal (nothing to draw off across it).
 
     The limb off its print (before a touch-down, after a lift-off) is drawn
     ``distance`` away from the scene object nearest to it at that posture (within the
     collision checker's activation margin), across the print's normal: a hand hanging
-    beside the face of the support it reaches for is drawn off that face before it
-    rises. The limb is the chain of joints carrying the moving surface that carries
-    no held contact.
+    beside the face of the support it reaches for is drawn off that face as it rises
+    (the path reaches the whole offset at the top of the rise). The limb is every link
+    below the root joint of the moving surface's limb (:attr:`stances.Robot.limbs`).
 
     Parameters
     ----------
@@ -560,10 +567,8 @@ def retreat(robot, scene, before, after, distance, options=None):
     model = robot.model
     free = np.asarray(before.q if touch_down else after.q, dtype=float)
     checker = stance_collision_checker(robot, scene, support, stances.PostureOptions(**(options or {})))
-    held = {j for contact in support.contacts
-            for j in model.supports[model.frames[robot.frame_id(robot.surface(contact.robot_surface).frame)].parentJoint]}
-    frame = model.frames[robot.frame_id(robot.surface(moving.robot_surface).frame)]
-    limb = set(model.supports[frame.parentJoint]) - held
+    surface = robot.surface(moving.robot_surface)
+    limb = set(model.subtrees[model.getJointId(robot.limbs[surface.limb])])
     data = model.createData()
     pin.forwardKinematics(model, data, free)
     near = [pair for pair in checker.pairs(model, data) if not pair.is_self_collision and pair.joint_a in limb]
@@ -573,7 +578,7 @@ def retreat(robot, scene, before, after, distance, options=None):
     away = np.array(min(near, key=lambda pair: pair.distance).normal)
     away -= (away @ normal) * normal / (normal @ normal)
     length = np.linalg.norm(away)
-    if length < 1e-9:
+    if length < _ACROSS:
         return None
     offset = distance * away / length
     return (offset, None) if touch_down else (None, offset)

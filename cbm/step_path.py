@@ -25,9 +25,9 @@ def lifted_path(start, end, normal, clearance, samples, approach=0.015, ramp=RAM
     touch-down). Between them, ``samples`` waypoints at s = k / (samples + 1):
     rising for s < ``ramp``, falling for s > 1 - ``ramp``. Orientations follow
     the geodesic of SO(3), turning with the motion across. With ``retreat``, the
-    path first moves by that offset while it rises (and takes it back while it
-    crosses), or, given for the end, comes in from it while it falls: a detour
-    for a limb that hangs beside the support it reaches for.
+    path moves by that offset as it rises (none at the approach waypoint, all of it
+    at the top) and takes it back as it crosses, or, given for the end, mirrored: a
+    detour for a limb that hangs beside the support it reaches for.
 
     Parameters
     ----------

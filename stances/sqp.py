@@ -330,6 +330,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             # The usage term moves the loads: the last QP's multipliers are
             # those of another problem (measured: a step of 0.15 rad off).
             last_qp = None
+            # So are the objectives of any feasible iterate seen before: compared with
+            # the new ones, they would stop the solve as soon as a step is cut.
+            best, best_history = None, []
         # The QP's model: the objective's Hessian, plus the constraints'
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
@@ -368,6 +371,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         )
         if marginal and accepted is None:
             status = "converged"
+            q, lam, linearization = _better(best, (q, lam, linearization))
             break
         searched = alpha if accepted is not None else 0.0  # the optimality step's own cut
         # Near a feasible point the optimality step may cross a kink (a print
@@ -431,14 +435,15 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 status = f"converging too slowly: {1.0 - rate:.1%} an iteration"
                 break
         # The QP kept some violation although the merit could trade it: raise rho.
-        # Not when the full step was taken and held by the trust region: the violation
-        # left is what no step that short removes, whatever rho (hand-on-cube's rigid
-        # warm start, its palm 0.2 rad from its print, raised rho to 1e4 on its way
-        # there, for the same iterates, and its QPs took 60-165 proxsuite iterations
-        # instead of 7-80: 1,471 in the solve against 918). A cut step says the model
-        # is off, and rho rises as before (an infeasible quadruped stance, whose steps
-        # at the trust region were cut to 1/8-1/2, relies on it to stop early).
-        bounded = alpha == 1.0 and np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * options.trust_region
+        # Not when the optimality step was taken whole (no cut, no restoration in its
+        # place) and held by the trust region: the violation left is what no step that
+        # short removes, whatever rho (hand-on-cube's rigid warm start, its palm 0.2 rad
+        # from its print, raised rho to 1e4 on its way there, for the same iterates, and
+        # its QPs took 60-165 proxsuite iterations instead of 7-80: 1,471 in the solve
+        # against 918). A cut step says the model is off, and rho rises as before (an
+        # infeasible quadruped stance, whose steps at the trust region were cut to
+        # 1/8-1/2, relies on it to stop early).
+        bounded = searched == 1.0 and np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * options.trust_region
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY and not bounded:
             penalty *= 10.0
         elif linearization.met(tolerance) and penalty > options.elastic_penalty:
@@ -486,6 +491,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 < _CRAWL_GAIN * (1.0 + abs(previous_objective)))
         ):
             status = "converged"
+            # A cut step restored to feasibility can land above the best feasible
+            # objective (restoration ignores the objective): that one is the answer.
+            q, lam, linearization = _better(best, (q, lam, linearization))
             break
         if linearization.met(tolerance) and (
             best is None or linearization.objective < best[2].objective - _NO_GAIN * (1.0 + abs(best[2].objective))
@@ -512,6 +520,14 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
     return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations)
+
+
+def _better(best, current):
+    """The feasible ``(q, lam, linearization)`` with the lower objective: ``best`` (None: none
+    yet) or ``current`` (ties to ``current``)."""
+    if best is not None and best[2].objective < current[2].objective:
+        return best
+    return current
 
 
 def _with_curvature(curvature, q, linearization, multipliers):

@@ -1081,3 +1081,20 @@ def plan_motion_start_x(robot, plan):
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, plan.stances[0].q)
     return data.oMf[robot.frame_id(robot.surface("right_palm").frame)].translation[0]
+
+
+def test_a_free_foot_over_the_floor_has_no_retreat(step_plan, scenario, robot):
+    """The lifted right sole's nearest scene object is the floor under it, whose normal
+    lies along the print's: there is nothing to draw the foot off across the normal."""
+    from cbm.motion import _ACROSS
+    from stances.problem import stance_collision_checker
+
+    lifted = step_plan.stances[1]
+    checker = stance_collision_checker(robot, scenario.scene, lifted.stance, stances.PostureOptions())
+    data = robot.model.createData()
+    pin.forwardKinematics(robot.model, data, lifted.q)
+    leg = set(robot.model.subtrees[robot.model.getJointId(robot.limbs["right_leg"])])
+    near = [p for p in checker.pairs(robot.model, data) if not p.is_self_collision and p.joint_a in leg]
+    assert near and min(near, key=lambda p: p.distance).name_b == "floor"
+    assert np.hypot(*min(near, key=lambda p: p.distance).normal[:2]) < _ACROSS
+    assert retreat(robot, scenario.scene, step_plan.stances[0], step_plan.stances[1], 0.05) is None

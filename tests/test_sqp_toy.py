@@ -12,7 +12,7 @@ QP's answer.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -375,7 +375,7 @@ def test_a_step_held_by_the_trust_region_does_not_raise_the_penalty(monkeypatch)
     """The row q_x = 2 lies seven trust regions (0.3) from the start: each QP meets what
     it can and leaves the rest to the elastic variable, which no penalty can remove.
     The penalty stays at its first value (raising it made the palm stances' QPs take
-    60-165 proxsuite iterations instead of 7-60) and the solve still walks there."""
+    60-165 proxsuite iterations instead of 7-80) and the solve still walks there."""
     penalties = []
     qp = sqp.elastic_qp
 
@@ -453,6 +453,94 @@ def test_a_cut_step_back_to_feasibility_that_beats_the_best_by_nothing_ends_the_
     script = [((0.001, 0.0, 0.0), 1.0), ((0.002, 1e-6, 0.0), 1.0 / 512.0), ((0.003, 0.0, 0.0), 1.0 / 512.0),
               ((0.004, 0.0, 0.0), 1.0 / 512.0), ((0.005, 0.0, 0.0), 1.0 / 512.0)]
 
+    outcome = _run_scripted(monkeypatch, script)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 3
+    np.testing.assert_array_equal(outcome.q, [0.003, 0.0, 0.0])
+
+
+def test_a_cut_step_at_the_trust_region_restored_still_raises_the_penalty(monkeypatch):
+    """The step toward q_x = 2 is at the trust region but the line search cuts it to
+    1/32 and a restoration step replaces it: that says the QP's model is off, not that
+    the step was too short, so the penalty rises as it always did (an infeasible
+    quadruped stance stops early through it)."""
+    penalties = []
+    qp = sqp.elastic_qp
+
+    def recording(linearization, penalty):
+        penalties.append(penalty)
+        return qp(linearization, penalty)
+
+    def cut(problem, q, lam, step, *args, **kwargs):
+        q_next = q + step[:3] / 32.0
+        return (q_next, lam, problem.linearize(q_next, lam)), 1.0 / 32.0
+
+    def restored(problem, linearization, q, lam, workspace, torque_weight):
+        q_next = q + np.array([0.1, 0.0, 0.0])
+        return q_next, lam, problem.linearize(q_next, lam)
+
+    def at_two(q, lam):
+        return [equality("x", np.array([q[0] - 2.0]), np.array([[1.0, 0.0, 0.0]]), 1.0, ["q_x at 2"])]
+
+    monkeypatch.setattr(sqp, "elastic_qp", recording)
+    monkeypatch.setattr(sqp, "_line_search", cut)
+    monkeypatch.setattr(sqp, "_restoration", restored)
+    run_sqp(ToyProblem(squared_distance_to(np.zeros(3)), at_two), np.zeros(3), np.zeros(0), limit=2)
+    assert penalties[:2] == [100.0, 1000.0]  # (then the reason's conflict QP)
+
+
+def test_a_crawl_stop_after_a_worse_restoration_returns_the_best_feasible_iterate(monkeypatch):
+    """As the cycle above, but the step back onto q_y <= 0 lands 8e-6 above the best
+    feasible objective (restoration ignores the objective): the solve ends there, at
+    the best feasible iterate, not at the worse one it stopped on."""
+    script = [((0.01, 0.0, 0.0), 1.0), ((0.02, 1e-6, 0.0), 1.0 / 512.0), ((0.002, 0.0, 0.0), 1.0 / 512.0)]
+
+    outcome = _run_scripted(monkeypatch, script)
+    assert outcome.feasible and outcome.status == "converged" and outcome.iterations == 3
+    np.testing.assert_array_equal(outcome.q, [0.01, 0.0, 0.0])
+    assert outcome.linearization.objective == pytest.approx(1.0 - 1e-5, abs=1e-15)
+
+
+class _UsageToy(ToyProblem):
+    """A toy whose objective has a 'torque usage' term, 0.1 (q_y - 1)^2, that joins once the
+    iterate is within _USAGE_PHASE of feasible, as the posture problem's does."""
+
+    def __init__(self, rows):
+        super().__init__(squared_distance_to(np.zeros(3)), rows)
+        self.options = PostureOptions(torque_weight=0.1, constraint_curvature=False)
+
+    def linearize(self, q, lam, torque_weight=None):
+        base = super().linearize(q, lam)
+        weight = torque_weight or 0.0
+        gradient = base.gradient + np.array([0.0, 2.0 * weight * (q[1] - 1.0), 0.0])
+        hessian = base.hessian + np.diag([0.0, 2.0 * weight, 0.0])
+        return replace(base, objective=base.objective + weight * (q[1] - 1.0) ** 2, gradient=gradient, hessian=hessian)
+
+
+def test_the_best_feasible_iterate_is_forgotten_when_the_usage_term_joins(monkeypatch):
+    """A feasible iterate reached in one step from a violation of 0.2 is the best one so
+    far, its objective without the usage term; once the term joins, every objective is
+    larger, and measured against that best a cut step that still gains 6 % would end the
+    solve. The best is forgotten at the switch: the cut step is just a step."""
+    script = [((0.8, 0.0, 0.0), 1.0), ((0.8, 0.2, 0.0), 1.0 / 32.0), ((0.8, 0.4, 0.0), 1.0), ((0.8, 0.6, 0.0), 1.0)]
+
+    def scripted(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight, **kwargs):
+        point, alpha = script.pop(0)
+        q_next = np.array(point)
+        return (q_next, lam, problem.linearize(q_next, lam, torque_weight)), alpha
+
+    def at_most(q, lam):
+        return [ConstraintBlock("x", np.array([q[0]]), np.array([[1.0, 0.0, 0.0]]), 0.8, np.inf, 1.0, ("q_x >= 0.8",))]
+
+    monkeypatch.setattr(sqp, "_line_search", scripted)
+    outcome = run_sqp(_UsageToy(at_most), np.array([0.6, 0.0, 0.0]), np.zeros(0), limit=4)
+    assert outcome.iterations == 4 and outcome.q[1] == pytest.approx(0.6)
+
+
+def _run_scripted(monkeypatch, script):
+    """run_sqp on ``min 1 - 1e-3 q_x`` with ``q_y <= 0``, its line search replaced by the
+    ``(point, alpha)`` steps of ``script`` in turn and no restoration."""
+
     def scripted(problem, q, lam, *args, **kwargs):
         point, alpha = script.pop(0)
         q_next = np.array(point)
@@ -466,7 +554,4 @@ def test_a_cut_step_back_to_feasibility_that_beats_the_best_by_nothing_ends_the_
 
     monkeypatch.setattr(sqp, "_line_search", scripted)
     monkeypatch.setattr(sqp, "_restoration", lambda *args: None)
-    outcome = run_sqp(ToyProblem(slope, below), np.zeros(3), np.zeros(0), limit=30)
-    assert outcome.feasible and outcome.status == "converged"
-    assert outcome.iterations == 3
-    np.testing.assert_array_equal(outcome.q, [0.003, 0.0, 0.0])
+    return run_sqp(ToyProblem(slope, below), np.zeros(3), np.zeros(0), limit=30)
