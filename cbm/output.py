@@ -201,6 +201,7 @@ class StagedOutput:
     >>> _ = (staged.folder / "plan.json").write_text("{}")
     >>> staged.publish().name, sorted(p.name for p in (root / "results").iterdir())
     ('results', ['plan.json'])
+    >>> import shutil; shutil.rmtree(root)
     """
 
     def __init__(self, out_dir, force=False):

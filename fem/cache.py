@@ -190,13 +190,15 @@ class DiskCache:
 
     Examples
     --------
-    >>> import tempfile, numpy as np
-    >>> cache = DiskCache(tempfile.mkdtemp())
+    >>> import shutil, tempfile, numpy as np
+    >>> directory = tempfile.mkdtemp()
+    >>> cache = DiskCache(directory)
     >>> cache.store("0" * 64, "example", {"x": np.arange(3.0)})
     >>> cache.load("0" * 64, "example")["x"]
     array([0., 1., 2.])
     >>> cache.load("1" * 64, "example") is None      # another body: a miss
     True
+    >>> shutil.rmtree(directory)
     """
 
     def __init__(self, directory, max_bytes: int = DEFAULT_MAX_MEGABYTES * 2**20) -> None:

@@ -139,6 +139,7 @@ def write_pvd(path: str | os.PathLike, datasets) -> None:
     >>> write_pvd(folder / "plan.pvd", [(0, 0, folder / "stance_00.vtu"), (1, 0, folder / "stance_01.vtu")])
     >>> print((folder / "plan.pvd").read_text().splitlines()[4])
         <DataSet timestep="1" part="0" file="stance_01.vtu"/>
+    >>> import shutil; shutil.rmtree(folder)
     """
     from xml.sax.saxutils import quoteattr
 
