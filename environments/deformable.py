@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -35,6 +36,7 @@ __all__ = [
     "soft_box_coordinates",
     "grid_coordinates",
     "DEFAULT_STRAIN_LIMIT",
+    "GRAVITY",
     "DEFAULT_STRAIN_RADIUS",
     "MAX_SOFT_BOX_NODES",
 ]
@@ -42,6 +44,9 @@ __all__ = [
 DEFAULT_STRAIN_LIMIT = 0.05
 """Largest principal strain (dimensionless) a soft object may take: linear elasticity
 (small strain) is trusted up to a few percent."""
+
+GRAVITY = np.array([0.0, 0.0, -9.81])
+"""Acceleration of gravity in the world frame, m/s^2 (pinocchio's default, the robot's)."""
 
 DEFAULT_STRAIN_RADIUS = 0.02
 """Radius (metres) of the ball over which a soft object's strain is averaged before
@@ -199,6 +204,51 @@ class DeformableObject:
         points = np.asarray(points_in_body, dtype=float)
         transform = self.transform_body_to_world
         return points @ transform[:3, :3].T + transform[:3, 3]
+
+    @cached_property
+    def self_weight_field(self) -> np.ndarray:
+        """The displacement its own weight gives the body, ``(N, 3)`` metres, body frame
+        (:meth:`fem.DeformableBody.self_weight_displacement`; 0 for a density of 0).
+
+        The scene's geometry is the body as it rests under its weight, as a robot
+        sees it: by superposition the weight changes no print force (the paper's
+        eq. 31), but the body already holds its strain, which a stance's strain
+        bound counts.
+
+        Raises
+        ------
+        SceneError
+            If its weight alone strains the body beyond its strain bound: linear
+            elasticity cannot describe it even at rest.
+        """
+        field = self.body.self_weight_displacement(self.transform_body_to_world[:3, :3].T @ GRAVITY)
+        field.setflags(write=False)
+        if field.any():
+            strain, tet = self.body.largest_principal_strain(field, self.strain_radius)
+            if strain > self.strain_limit:
+                centre = self.points_in_world(self.mesh.nodes[self.mesh.tets[tet]].mean(axis=0)[None])[0]
+                raise SceneError(
+                    f"object {self.name!r}: its own weight strains it {strain:.3g} at ({centre[0]:.3f}, "
+                    f"{centre[1]:.3f}, {centre[2]:.3f}) m, beyond its strain bound {self.strain_limit:g}: linear "
+                    "elasticity cannot describe it even at rest; raise its Young's modulus E, lower its density "
+                    "rho or raise its strain_limit"
+                )
+        return field
+
+    def strained_at_rest(self, threshold: float) -> np.ndarray:
+        """(n,) sorted ids of the tets whose strain under the body's own weight, the ball
+        mean of :attr:`strain_radius`, has a principal magnitude of ``threshold`` or more
+        (:meth:`fem.strain_average.BallAverages.centres_above`); kept per threshold."""
+        known = self.__dict__.setdefault("_strained_at_rest", {})
+        key = float(threshold)
+        if key not in known:
+            field = self.self_weight_field
+            tets = np.zeros(0, dtype=np.int64)
+            if field.any():
+                tets = self.body.strain_averages.centres_above(self.body.strain(field), self.strain_radius, key)
+            tets.setflags(write=False)
+            known[key] = tets
+        return known[key]
 
     def rest_surface(self) -> np.ndarray:
         """Boundary triangles at rest, ``(T, 3, 3)`` metres, world frame."""

@@ -193,6 +193,8 @@ class DeformableBody:
         self._columns: OrderedDict[int, np.ndarray] = OrderedDict()
         # The last displacement_under_loads: (its loaded nodes' and loads' bytes, field).
         self._last_field: tuple[bytes, np.ndarray] | None = None
+        # Self-weight fields by entry name (density and gravity).
+        self._self_weight: dict[str, np.ndarray] = {}
 
     @staticmethod
     def _check_fixed(mesh: TetMesh, fixed_nodes) -> np.ndarray:
@@ -564,6 +566,52 @@ class DeformableBody:
         field = u.reshape(-1, 3)
         self._last_field = (key, field.copy())
         return field
+
+    def self_weight_displacement(self, gravity) -> np.ndarray:
+        """Displacement of every node under the body's own weight (eqs. 2 and 6 with
+        ``rho f = rho g``), from one sparse solve; kept, and in the disk cache.
+
+        The body force enters eq. (6) through the consistent loads of linear tets:
+        ``rho g V_e / 4`` at each corner of tet e. The posture problem leaves it out
+        (eq. 31): a scene's soft body is meshed as it rests under its own weight, and
+        by superposition its weight then changes no print force. What it does change
+        is the strain the body already holds, which this field gives.
+
+        Parameters
+        ----------
+        gravity : (3,) float
+            Acceleration of gravity, m/s^2, body frame (e.g. ``(0, 0, -9.81)``).
+
+        Returns
+        -------
+        (N, 3) float, metres, body frame; 0 at fixed nodes, 0 everywhere if the
+        material's density is 0.
+        """
+        g = np.asarray(gravity, dtype=float)
+        if g.shape != (3,) or not np.all(np.isfinite(g)):
+            raise FemError(f"gravity must be a finite (3,) vector in m/s^2, got {np.asarray(gravity).tolist()!r}")
+        density = self._material.density
+        if density == 0.0 or not g.any():
+            return np.zeros((self._mesh.n_nodes, 3))
+        # The density and gravity name the entry; the mesh, elasticity and fixed set the digest.
+        name = "self_weight_" + cache_digest({"g": g}, {"density": repr(float(density))})[:16]
+        known = self._self_weight.get(name)
+        if known is None:
+            entry = self._load_entry(name)
+            if entry is not None and entry.get("u", np.zeros(0)).shape == (self._mesh.n_nodes, 3):
+                known = entry["u"].copy()
+            else:
+                volumes = np.abs(shape_gradients(self._mesh.nodes, self._mesh.tets)[1])
+                loads = np.zeros(self._mesh.n_nodes)
+                np.add.at(loads, self._mesh.tets.ravel(), np.repeat(density * volumes / 4.0, 4))
+                rhs = (loads[:, None] * g).ravel()
+                u = np.zeros(self._mesh.n_dofs)
+                u[self._free_dofs] = self.factorization.solve(rhs[self._free_dofs])
+                known = u.reshape(-1, 3)
+                self._store_entry(name, {"u": known})
+            known.setflags(write=False)
+            self._self_weight[name] = known
+        return known.copy()
 
     def displacement_field(self, patch: ContactPatch, displacements: np.ndarray) -> np.ndarray:
         """Displacement of every node when the print is displaced (eqs. 35-36).

@@ -30,8 +30,9 @@ class LinearElasticMaterial:
     poisson_ratio : float
         Poisson's ratio nu, dimensionless, in (-1, 0.5).
     density : float
-        Mass density rho, kg/m^3, >= 0 (not used by the static problem, kept for
-        the scene's gravity and mass properties).
+        Mass density rho, kg/m^3, >= 0: the body's own weight
+        (:meth:`fem.DeformableBody.self_weight_displacement`), which strains it at rest
+        but, the body being meshed as it rests, moves no print force (eq. 31).
 
     Raises
     ------

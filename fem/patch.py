@@ -123,8 +123,8 @@ class ContactPatch:
         local = np.full(mesh.n_nodes, -1, dtype=np.int64)
         local[ids] = np.arange(ids.size)
         self._local = local
-        self._tet_maps = {}  # (radius, tet in the strain set) -> (12, 3p) map of its nodes (_member_map)
-        self._strain_sets = {}  # radius -> what neighbour_strains needs (_strain_set)
+        self._tet_maps = {}  # (radius, also, tet in the strain set) -> (12, 3p) map of its nodes (_member_map)
+        self._strain_sets = {}  # (radius, also) -> what neighbour_strains needs (_strain_set)
         # eqs. (38)-(39): surface triangles whose three nodes are all in P.
         inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
         self._tri_global = np.flatnonzero(inside)
@@ -294,36 +294,40 @@ class ContactPatch:
             return block[at]
         return self._body.compliance_block(nodes, self._ids).reshape(nodes.size, 3, -1)
 
-    def strain_centres(self, radius: float = 0.0) -> np.ndarray:
+    def strain_centres(self, radius: float = 0.0, also=None) -> np.ndarray:
         """(C,) ids of the tets whose ball means of radius ``radius`` the strain rows
         read: the :attr:`neighbour_tets` and every tet whose centroid lies within
-        twice ``radius`` of one of theirs; ``neighbour_tets`` at radius 0. The largest
-        mean under a sole can sit below the tets touching it: on step-on-cube with a
-        0.3 % bound, 3.5 cm under the top, which centres within one radius missed (the
-        answer then failed verify, which looks at every tet)."""
-        return self._strain_set(radius)[0]
+        twice ``radius`` of one of theirs (``neighbour_tets`` at radius 0), and the
+        tets ``also`` names (sorted ids, or None; e.g. where the body's own weight
+        strains it already). The largest mean under a sole can sit below the tets
+        touching it: on step-on-cube with a 0.3 % bound, 3.5 cm under the top, which
+        centres within one radius missed (the answer then failed verify, which looks
+        at every tet)."""
+        return self._strain_set(radius, also)[0]
 
-    def _strain_set(self, radius: float):
+    def _strain_set(self, radius: float, also=None):
         """What the ball means of :meth:`strain_centres` are computed from, without the
         (3q, 3p) map of the q nodes (a 30 ms product on a sole pair, more than a
         planner's whole use of it): the centres (C,), the tets in their balls (E,), the
         (C, E) averaging weights, (q, 3, 3p) rows of ``C[:, P]`` at the balls' nodes, (E,
         4) each tet's nodes as rows of them, (E, 6, 12) the tets' strain matrices, (q,)
         each node's index in the print (-1 outside it) and (q,) which nodes are fixed.
-        Kept per radius."""
-        key = float(radius)
+        Kept per radius and ``also``."""
+        key = (float(radius), None if also is None else np.asarray(also, dtype=np.int64).tobytes())
         known = self._strain_sets.get(key)
         if known is None:
             body = self._body
-            centres = body.strain_averages.near(self.neighbour_tets, 2.0 * key)
-            members, weights = body.strain_averages.weights(centres, key)
+            centres = body.strain_averages.near(self.neighbour_tets, 2.0 * key[0])
+            if also is not None:
+                centres = np.union1d(centres, np.asarray(also, dtype=np.int64))
+            members, weights = body.strain_averages.weights(centres, key[0])
             nodes, rows = np.unique(body.mesh.tets[members], return_inverse=True)
             known = (centres, members, weights, self._columns_at(nodes), rows.reshape(members.size, 4),
                      self._strain_matrices(members), self._local[nodes], body.fixed_mask[nodes])
             self._strain_sets[key] = known
         return known
 
-    def neighbour_strains(self, displacements, radius: float = 0.0) -> np.ndarray:
+    def neighbour_strains(self, displacements, radius: float = 0.0, also=None) -> np.ndarray:
         """Voigt strains at the :meth:`strain_centres` under print displacements (eq. 24),
         each averaged over a ball of ``radius`` (:class:`fem.strain_average.BallAverages`).
 
@@ -339,13 +343,15 @@ class ContactPatch:
             Print node displacements U_P, metres, body frame.
         radius : float, optional
             Metres; 0: each tet's own strain.
+        also : (n,) int, optional
+            Further centres, as :meth:`strain_centres`.
 
         Returns
         -------
         (C, 6) float
             Voigt strains (engineering shears), dimensionless.
         """
-        _, _, weights, block, rows, b, in_print, fixed = self._strain_set(radius)
+        _, _, weights, block, rows, b, in_print, fixed = self._strain_set(radius, also)
         u = np.asarray(displacements, dtype=float)
         nodal = block.reshape(-1, block.shape[2]) @ (self.condensed_stiffness @ u)
         nodal = nodal.reshape(-1, 3)
@@ -354,7 +360,30 @@ class ContactPatch:
         nodal[fixed] = 0.0
         return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
 
-    def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0) -> np.ndarray:
+    def field_strains(self, field, radius: float = 0.0, also=None) -> np.ndarray:
+        """Voigt strains at the :meth:`strain_centres` of a whole displacement field
+        (e.g. the body's own weight), each averaged over a ball of ``radius``, as
+        :meth:`neighbour_strains` gives them for print displacements.
+
+        Parameters
+        ----------
+        field : (N, 3) float
+            Displacement of every node, metres, body frame.
+        radius : float, optional
+            Metres; 0: each tet's own strain.
+        also : (n,) int, optional
+            Further centres, as :meth:`strain_centres`.
+
+        Returns
+        -------
+        (C, 6) float
+            Voigt strains (engineering shears), dimensionless.
+        """
+        _, members, weights, _, _, b, _, _ = self._strain_set(radius, also)
+        nodal = np.asarray(field, dtype=float)[self._body.mesh.tets[members]].reshape(members.size, 12)
+        return weights @ np.einsum("tik,tk->ti", b, nodal)
+
+    def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0, also=None) -> np.ndarray:
         """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of the
         Voigt strains at one of the :meth:`strain_centres` (averaged over a ball of
         ``radius``) per unit print displacement.
@@ -366,32 +395,33 @@ class ContactPatch:
         tet : int
             Position of the centre in :meth:`strain_centres` (at radius 0, in
             :attr:`neighbour_tets`).
-        radius : float, optional
+        radius, also : optional
             As :meth:`neighbour_strains`.
 
         Returns
         -------
         (3p,) float, 1/m
         """
-        _, _, averaging, _, _, b, _, _ = self._strain_set(radius)
+        _, _, averaging, _, _, b, _, _ = self._strain_set(radius, also)
         weights = np.asarray(weights, dtype=float)
         start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
         row = np.zeros(3 * self._ids.size)
         for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
-            row += share * ((weights @ b[k]) @ self._member_map(float(radius), int(k)))
+            row += share * ((weights @ b[k]) @ self._member_map(float(radius), int(k), also))
         return row
 
-    def _member_map(self, radius: float, k: int) -> np.ndarray:
+    def _member_map(self, radius: float, k: int, also=None) -> np.ndarray:
         """(12, 3p) displacements of the nodes of tet ``k`` of a strain set (its
         position there) per unit print displacement (eq. 36), from the set's rows of
         ``C[:, P]``; kept: a solve's strain rows come back to the same few tets."""
-        known = self._tet_maps.get((radius, k))
+        key = (radius, None if also is None else np.asarray(also, dtype=np.int64).tobytes(), k)
+        known = self._tet_maps.get(key)
         if known is None:
-            _, _, _, block, rows, _, in_print, fixed = self._strain_set(radius)
+            _, _, _, block, rows, _, in_print, fixed = self._strain_set(radius, also)
             nodes = rows[k]
             known = self._displacement_rows(block[nodes], in_print[nodes], fixed[nodes]).reshape(12, -1)
             known.setflags(write=False)
-            self._tet_maps[(radius, k)] = known
+            self._tet_maps[key] = known
         return known
 
     def _node_displacement_map(self, tet_ids: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

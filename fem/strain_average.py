@@ -143,6 +143,29 @@ class BallAverages:
         best = int(np.argmax(values))
         return float(values[best]), int(centres[best])
 
+    def centres_above(self, voigt, radius: float, threshold: float) -> np.ndarray:
+        """(n,) sorted ids of the tets whose ball mean's largest principal strain
+        magnitude is at least ``threshold``.
+
+        As in :meth:`largest_principal`, only centres with a tet of Frobenius norm at
+        least ``threshold`` in their ball can qualify, and only those are averaged.
+
+        Parameters
+        ----------
+        voigt : (M, 6) float
+            Voigt strains per tet (engineering shears).
+        radius : float
+            Metres, >= 0.
+        threshold : float
+            Dimensionless, > 0.
+        """
+        voigt = np.asarray(voigt, dtype=float)
+        centres = self.near(np.flatnonzero(_frobenius(voigt) >= threshold), radius)
+        if centres.size == 0:
+            return centres
+        members, weights = self.weights(centres, radius)
+        return centres[_principal(weights @ voigt[members]) >= threshold]
+
 
 def _checked_radius(radius) -> float:
     radius = float(radius)

@@ -76,7 +76,11 @@ Validity (the paper leaves it implicit): nodes are indented less than a bound
 relative to the body's thickness, and the principal strains around the prints,
 each the mean over a ball of the object's ``strain_radius`` (a tet's own strain at a
 rigid print's edge grows as the mesh is refined), stay within the object's strain
-bound (linear elasticity holds only there). :meth:`DeformableContact.verify` checks all of it on the full FEM model.
+bound (linear elasticity holds only there). The strain counted is the prints' plus
+the one the body holds under its own weight: a scene's soft body is meshed as it
+rests, so by superposition its weight moves no print force (eq. 31, exact for a
+body at rest under gravity), but its strain is there before any robot comes.
+:meth:`DeformableContact.verify` checks all of it on the full FEM model.
 """
 
 from __future__ import annotations
@@ -88,6 +92,7 @@ from typing import Any
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
+import scipy.spatial
 
 import fem
 
@@ -108,6 +113,9 @@ _STRAIN_ACTIVATION = 0.5
 # others are far from it (a sole pair on a mat: 123 rows, none near, were 46 % of the
 # QP's rows). stances.verify checks every node.
 _INDENTATION_ACTIVATION = 0.5
+# Tets the body's own weight alone strains to this fraction of the bound are strain-row
+# centres wherever they lie, not only near the prints.
+_REST_STRAIN = 0.25
 _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
 _SIDES = ("+x", "-x", "+y", "-y")
 LAWS = ("coulomb", "sticking", "bonded")
@@ -846,6 +854,37 @@ class DeformableContact:
         mu = (np.asarray(friction) * _PYRAMID)[:, None, None]
         return mu * normals[:, None, :] + signs * np.repeat(tangents, 2, axis=1)
 
+    @cached_property
+    def _rest_centres(self):
+        """Tets whose ball mean the body's own weight alone strains to a quarter of the
+        bound or more, within a print's width of the tets touching the prints, (n,)
+        sorted ids, or None. The strain rows read them as well as the tets next to the
+        prints: a print's strain, smaller there, can take them over the bound
+        (step-on-cube's cube with a 0.3 % bound: 0.35 % at 16 cm under the sole's edge,
+        by the free side face, where the weight gives 0.16 %). Farther away a print's
+        strain has fallen to a fraction of its peak (Boussinesq: about a quarter two
+        radii down), and rows there would only cost: the base of hand-on-soft-cube's
+        1 m cube, 2.4 % under its weight, is 16,821 such tets (0.32 -> 0.97 s a solve)."""
+        tets = self.deformable_object.strained_at_rest(_REST_STRAIN * self.strain_limit)
+        if tets.size == 0:
+            return None
+        body = self.deformable_object.body
+        averages = body.strain_averages
+        nodes = body.mesh.nodes[self.node_ids]
+        width = max(float(np.linalg.norm(np.ptp(nodes[self.print_of_node == i], axis=0))) for i in range(len(self.prints)))
+        distance, _ = scipy.spatial.cKDTree(averages.centroids[self.patch.neighbour_tets]).query(
+            averages.centroids[tets], distance_upper_bound=width)
+        tets = tets[np.isfinite(distance)]
+        return tets if tets.size else None
+
+    @cached_property
+    def _weight_strains(self):
+        """(T', 6) ball-mean strains of the body's own weight at the strain rows' centres
+        (the scene is meshed as the body rests, so the weight moves no print force but
+        its strain adds to theirs); None for a weightless body."""
+        weight = self.deformable_object.self_weight_field
+        return self.patch.field_strains(weight, self.strain_radius, self._rest_centres) if weight.any() else None
+
     def _strain_block(self, u, d_u, columns):
         """Largest and smallest principal strains of the most strained tets near the prints.
 
@@ -854,7 +893,9 @@ class DeformableContact:
         """
         if self.max_strain_rows == 0:
             return None
-        voigt = self.patch.neighbour_strains(u, self.strain_radius)  # (T', 6), ball means
+        voigt = self.patch.neighbour_strains(u, self.strain_radius, self._rest_centres)  # (T', 6), ball means
+        if self._weight_strains is not None:
+            voigt = voigt + self._weight_strains
         # The Frobenius norm of a strain tensor bounds its principal strains: the
         # tets below the activation by that norm are left out of the (costly)
         # eigendecomposition, which is per tet, so the others' answers are unchanged.
@@ -869,7 +910,7 @@ class DeformableContact:
         if candidates.size == 0:
             return None
         chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
-        tets = self.patch.strain_centres(self.strain_radius)
+        tets = self.patch.strain_centres(self.strain_radius, self._rest_centres)
         rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
         for k, t in zip(chosen.tolist(), screened[chosen].tolist()):
             for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),
@@ -878,7 +919,7 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius) @ d_u)
+                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius, self._rest_centres) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)
@@ -1036,12 +1077,13 @@ class DeformableContact:
         measures[f"deformation energy of {name}"] = float(0.5 * np.sum(-forces_body * field[self.node_ids]))
         if depth > self.max_indentation + tolerances.deformable_placement:
             reasons.append(f"a node of {name} is indented {depth:.3g} m, beyond its bound {self.max_indentation:.3g} m")
-        strain, tet = body.largest_principal_strain(field, self.strain_radius)
+        # The body holds its own weight's strain at rest (the scene is meshed as it rests).
+        strain, tet = body.largest_principal_strain(field + self.deformable_object.self_weight_field, self.strain_radius)
         measures[f"largest strain of {name}"] = strain
         if strain > self.strain_limit + 1e-6:
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(
-                f"strain {strain:.3g} of {name} at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
+                f"strain {strain:.3g} of {name} (its own weight's included) at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "
                 f"(mean over {1e3 * self.strain_radius:g} mm) exceeds its bound {self.strain_limit:g}: linear "
                 "elasticity does not hold there"
             )

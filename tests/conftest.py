@@ -55,16 +55,20 @@ def robot():
 
 
 @functools.lru_cache(maxsize=None)
-def coarse_scenario(name: str, resolution: str = "0.04", young_modulus: float | None = None):
+def coarse_scenario(name: str, resolution: str = "0.04", young_modulus: float | None = None,
+                    density: float | None = None):
     """A built-in scenario with its deformable meshes coarsened for fast tests.
 
     A 4 cm top spacing still seats >= 3 nodes in a palm print, which the
     deformable contact needs, and keeps factorisations to a fraction of a second.
+    ``young_modulus`` and ``density`` (kg/m^3) replace the soft objects' E and rho.
     """
     text = environments.builtin_scenario_path(name).read_text()
     text = text.replace("resolution: default", f"resolution: {resolution}")
     if young_modulus is not None:
         text = text.replace("E: 1.0e+6", f"E: {young_modulus:.6e}").replace("E: 5.0e+5", f"E: {young_modulus:.6e}")
+    if density is not None:
+        text = text.replace("rho: 1.0e+3", f"rho: {density:.6e}").replace("rho: 100.0", f"rho: {density:.6e}")
     return environments.load_string(text, name=name)
 
 

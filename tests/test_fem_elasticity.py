@@ -7,6 +7,7 @@ import scipy.sparse.linalg as spla
 from fem import (
     DeformableBody,
     LinearElasticMaterial,
+    FemError,
     MaterialError,
     assemble_stiffness,
     box_mesh,
@@ -169,3 +170,44 @@ def test_column_on_rollers_under_compression_gives_e_a_d_over_l():
     u[free] = spla.spsolve(k[free][:, free].tocsc(), -k[free][:, prescribed] @ values[prescribed])
     force_on_top = (k @ u)[3 * top + 2].sum()
     assert force_on_top == pytest.approx(-MATERIAL.young_modulus * width * depth * d / height, rel=1e-10)
+
+
+def test_self_weight_is_carried_by_the_base_exactly(distorted_mesh):
+    """The supports carry the body's weight, to rounding, on any mesh: the consistent
+    loads sum to rho g V, and the supports' forces are the elastic forces K u at the
+    base nodes less the loads lumped there."""
+    body = DeformableBody(distorted_mesh, MATERIAL, fixed_nodes=np.flatnonzero(distorted_mesh.nodes[:, 2] == 0.0), cache=False)
+    gravity = np.array([0.3, -0.2, -9.81])
+    u = body.self_weight_displacement(gravity)
+    assert np.all(u[body.fixed_nodes] == 0.0)
+    volumes = np.abs(np.linalg.det(np.stack([distorted_mesh.nodes[distorted_mesh.tets[:, k]] - distorted_mesh.nodes[distorted_mesh.tets[:, 0]]
+                                             for k in (1, 2, 3)], axis=1))) / 6.0
+    on_base = np.isin(distorted_mesh.tets, body.fixed_nodes)
+    lumped = MATERIAL.density * (volumes[:, None] * on_base).sum() / 4.0 * gravity
+    weight = MATERIAL.density * volumes.sum() * gravity
+    np.testing.assert_allclose((body.fixed_reactions(u).sum(axis=0) - lumped), -weight, rtol=1e-10)
+
+
+def test_self_weight_of_a_block_converges_to_the_uniaxial_solution():
+    """A 1 m x 1 m x 0.5 m block (nu = 0) on a fixed base: u_z = -(rho g / E)(L z - z^2 / 2)
+    and no sideways motion; linear tets approach it as the mesh is refined."""
+    height, material = 0.5, LinearElasticMaterial(young_modulus=1e6, poisson_ratio=0.0, density=1e3)
+    errors = []
+    for cells in (4, 8):
+        mesh = tensor_mesh(np.linspace(0, 1, cells + 1), np.linspace(0, 1, cells + 1), np.linspace(0, height, cells + 1))
+        body = DeformableBody(mesh, material, fixed_nodes=np.flatnonzero(mesh.nodes[:, 2] == 0.0), cache=False)
+        u = body.self_weight_displacement((0.0, 0.0, -9.81))
+        z = mesh.nodes[:, 2]
+        exact = -(1e3 * 9.81 / 1e6) * (height * z - z**2 / 2)
+        errors.append((np.abs(u[:, 2] - exact).max() / np.abs(exact).max(), np.abs(u[:, :2]).max() / np.abs(exact).max()))
+    assert errors[1][0] < 0.05 and errors[1][1] < 0.02
+    assert errors[1][0] < 0.5 * errors[0][0] and errors[1][1] < 0.5 * errors[0][1]
+
+
+def test_self_weight_needs_a_density_and_a_gravity_vector(distorted_mesh):
+    fixed = np.flatnonzero(distorted_mesh.nodes[:, 2] == 0.0)
+    weightless = DeformableBody(distorted_mesh, LinearElasticMaterial(1e6, 0.4), fixed_nodes=fixed, cache=False)
+    assert not weightless.self_weight_displacement((0.0, 0.0, -9.81)).any()
+    body = DeformableBody(distorted_mesh, MATERIAL, fixed_nodes=fixed, cache=False)
+    with pytest.raises(FemError, match=r"gravity must be a finite \(3,\) vector in m/s\^2, got \[0.0, -9.81\]"):
+        body.self_weight_displacement((0.0, -9.81))

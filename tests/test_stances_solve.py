@@ -144,11 +144,13 @@ def _print_offset(robot, scenario, stance, result):
 def test_stiffer_cube_tends_to_the_rigid_contact(robot):
     """From a foam to steel: every solve converges, the print's compliance (depth per
     newton) falls as 1/E, the sole ends up on its print as on a rigid support, and
-    the forces settle to a stiff limit."""
+    the forces settle to a stiff limit. The cube is weightless: at 1e4 Pa, 1,000
+    kg/m^3 would strain it 21 % under its own weight (refused, see
+    test_a_body_too_soft_for_its_own_weight_is_refused)."""
     offsets, compliance, sole_forces = [], [], []
     moduli = (1e4, 1e6, 1e7, 1e8, 1e10, 1e11)
     for young_modulus in moduli:
-        scenario = coarse_scenario("step-on-cube", young_modulus=young_modulus)
+        scenario = coarse_scenario("step-on-cube", young_modulus=young_modulus, density=0.0)
         stance = scenario.stance("step-on-cube")
         result = solve(robot, scenario.scene, stance)
         assert result.feasible, (young_modulus, result.reason)
@@ -511,8 +513,9 @@ def test_a_prints_resultant_is_kept_in_the_inner_square_of_its_cone_less_the_mar
 def test_strain_rows_go_to_the_tets_strained_most_in_compression_as_in_stretch(robot):
     """A sole pressed straight down compresses the tets under it most: the strain rows
     go to the tets of largest principal strain magnitude, their compression row
-    reading the tet's smallest principal strain."""
-    scenario = coarse_scenario("step-on-cube")
+    reading the tet's smallest principal strain (a weightless cube: the rows read
+    the prints' strain alone)."""
+    scenario = coarse_scenario("step-on-cube", density=0.0)
     problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions())
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
     soft.strain_radius = 0.0  # each tet's own strain: how rows are chosen does not depend on the averaging
@@ -1129,3 +1132,41 @@ def test_a_stance_the_strain_bound_rules_out_is_not_solved_again_from_the_bonded
     assert not result.feasible and "strain bound" in result.reason
     assert result.statistics["violation"] > sqp._CONTACT_SET_VIOLATION
     assert "bonded_warm_start" not in result.statistics
+
+
+def test_a_body_too_soft_for_its_own_weight_is_refused(robot):
+    """At 1e4 Pa, 1,000 kg/m^3 strains step-on-cube's cube 18 % under its own weight:
+    linear elasticity cannot describe it at rest, and the solve says so."""
+    scenario = coarse_scenario("step-on-cube", young_modulus=1e4)
+    with pytest.raises(environments.SceneError, match=r"object 'cube': its own weight strains it 0\.1\d+ at .* beyond its "
+                       r"strain bound 0\.05: linear elasticity cannot describe it even at rest; raise its Young's modulus E"):
+        solve(robot, scenario.scene, scenario.stance("step-on-cube"))
+
+
+def test_strain_rows_and_verify_count_the_strain_of_the_bodys_own_weight(robot):
+    """The body is meshed as it rests: its weight's strain is there before the robot's.
+    The strain rows read it at the centres' ball means (equal to the full field's), and
+    verify's largest strain is that of the prints' field plus the weight's."""
+    scenario = coarse_scenario("hand-on-cube")
+    stance = scenario.stance("hand-on-cube")
+    problem = build_problem(robot, scenario.scene, stance, PostureOptions())
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    body, weight = soft.deformable_object.body, soft.deformable_object.self_weight_field
+    assert weight[:, 2].min() < -1e-3  # a 1 m cube of E = 1e6 Pa, rho = 1e3 kg/m^3 sags millimetres
+    centres = soft.patch.strain_centres(0.0)
+    np.testing.assert_allclose(soft.patch.field_strains(weight, 0.0), body.strain(weight)[centres], rtol=0, atol=1e-15)
+    radius = soft.strain_radius
+    members, averaging = body.strain_averages.weights(soft.patch.strain_centres(radius, soft._rest_centres), radius)
+    means = averaging @ body.strain(weight)[members]
+    np.testing.assert_allclose(soft._weight_strains, means, rtol=1e-10, atol=1e-15)
+    # At rest (no print motion) the rows read the weight's strain alone.
+    soft.strain_limit = 1e-9
+    block = soft._strain_block(np.zeros(3 * len(soft.node_ids)), None, problem.n_step)
+    principal = np.linalg.eigvalsh(fem.voigt_to_tensor_strain(soft._weight_strains))
+    assert block.value[0] == pytest.approx(principal[:, 2][np.argmax(np.maximum(principal[:, 2], -principal[:, 0]))], rel=1e-12)
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    field = result.deformations["cube"]
+    expected = body.largest_principal_strain(field + weight, radius)[0]
+    assert result.verification.measures["largest strain of cube"] == pytest.approx(expected, rel=1e-12)
+    assert expected != pytest.approx(body.largest_principal_strain(field, radius)[0], rel=1e-3)

@@ -147,6 +147,23 @@ def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radi
         assert value == pytest.approx(expected.max(), rel=1e-12) and expected[tet] == pytest.approx(value, rel=1e-12)
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.012, 0.03])
+def test_the_centres_above_a_threshold_are_the_brute_force_ones(slab, radius):
+    """Every tet whose ball mean reaches the threshold, and no other, on heavy-tailed
+    fields (the screen on the tets' own norms must not drop a centre)."""
+    body, _ = slab
+    averages = body.strain_averages
+    rng = np.random.default_rng(5)
+    for _ in range(5):
+        voigt = rng.standard_t(1.5, size=(body.mesh.n_tets, 6)) * np.array([0.1, 0.1, 0.1, 1.0, 1.0, 1.0])
+        magnitudes = np.abs(np.linalg.eigvalsh(fem.voigt_to_tensor_strain(_brute_means(averages, voigt, radius)))).max(axis=1)
+        threshold = float(np.quantile(magnitudes, 0.9))
+        expected = np.flatnonzero(magnitudes >= threshold * (1.0 + 1e-12))
+        found = averages.centres_above(voigt, radius, threshold)
+        assert np.all(magnitudes[found] >= threshold * (1.0 - 1e-12))
+        assert set(expected) <= set(found.tolist()) and len(found) <= len(expected) + 1
+
+
 def test_an_active_strain_bound_holds_where_verify_measures_it(robot):
     """step-on-cube's soft sole with a strain bound of 0.3 %, below what it reaches
     unbounded (0.4 %): the answer keeps the largest ball mean of the whole body at the
