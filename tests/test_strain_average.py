@@ -45,6 +45,10 @@ def test_ball_means_are_the_volume_weighted_means_over_the_ball(slab, radius):
     members, weights = averages.weights(centres, radius)
     assert np.allclose(weights.sum(axis=1), 1.0, rtol=0, atol=1e-15)
     assert np.allclose(weights @ values[members], _brute_means(averages, values, radius)[centres], rtol=0, atol=1e-12)
+    # Every ball at once, each mean the same bits as taken alone.
+    everywhere = averages.mean_matrix(radius) @ values
+    assert np.allclose(everywhere, _brute_means(averages, values, radius), rtol=0, atol=1e-12)
+    assert np.array_equal(everywhere[centres], weights @ values[members])
     if radius == 0.0:
         assert np.array_equal(members, np.sort(centres)) and np.array_equal(weights.toarray()[np.argsort(centres)], np.eye(4))
 
