@@ -403,6 +403,8 @@ def plan(
         ``terrain_weight`` is not a finite number >= 0.
     environments.ScenarioError
         If a stance or the goal names a surface the robot lacks.
+    environments.SceneError
+        If a soft object's own weight strains it beyond its strain bound.
     PlanInterrupted
         On Ctrl-C during the search, with the best partial plan so far.
     """
@@ -415,6 +417,9 @@ def plan(
     start = _resolve_stance(start if start is not None else scenario.start, scenario, "start")
     if start is None:
         raise CbmError(f"scenario {scenario.name!r} has no start stance; pass start=")
+    for soft in scene.deformable_objects:
+        # A body its own weight strains past its bound is refused now, not stance by stance.
+        soft.self_weight_field
     if robot is None:
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)

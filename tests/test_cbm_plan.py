@@ -7,12 +7,13 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+import environments
 from environments.goal import Goal, GoalRegion
 from environments.objects import box, box_surfaces, floor
 from environments.scene import Scene
 from environments.stance import Contact, ContactPrint, Stance
 
-from conftest import hand_made_biped
+from conftest import coarse_scenario, hand_made_biped
 
 from cbm.errors import CbmError, PlanFileError
 from cbm.plan import Plan, PlannedStance, PlanStatistics
@@ -280,3 +281,11 @@ def test_ctrl_c_in_a_solve_raises_with_the_partial_plan_so_far(scenario, robot):
     # The same seed walks the same way: the partial plan is the complete plan's beginning.
     assert [p.stance for p in partial.stances] == [p.stance for p in complete.stances[: len(partial.stances)]]
     assert 1 <= len(partial.stances) <= 3
+
+
+def test_a_plan_on_a_body_too_soft_for_its_own_weight_is_refused_before_searching():
+    """Every stance on such a body would be refused: the plan says why at once."""
+    scenario = coarse_scenario("cross-soft-block", young_modulus=1e4, density=3000.0)
+    with pytest.raises(environments.SceneError, match=r"object 'foam': its own weight strains it 0\.1\d+ at .* beyond "
+                       r"its strain bound 0\.05"):
+        plan(scenario)
