@@ -22,6 +22,7 @@ import environments
 import stances
 from stances.cold_start import initial_configuration
 from environments.errors import SceneError
+from environments.scene_checks import check_self_weight
 from fem.errors import FemError
 from stances.errors import StanceError
 
@@ -417,9 +418,7 @@ def plan(
     start = _resolve_stance(start if start is not None else scenario.start, scenario, "start")
     if start is None:
         raise CbmError(f"scenario {scenario.name!r} has no start stance; pass start=")
-    for soft in scene.deformable_objects:
-        # A body its own weight strains past its bound is refused now, not stance by stance.
-        soft.self_weight_field
+    check_self_weight(scene)
     if robot is None:
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)

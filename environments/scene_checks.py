@@ -18,7 +18,7 @@ from .errors import SceneError
 from .mesh_surfaces import SurfaceSearch, find_surfaces
 from .scene import Scene
 
-__all__ = ["SceneSenseError", "check_supported", "find_overlaps", "check_overlaps", "CONTACT_TOLERANCE"]
+__all__ = ["SceneSenseError", "check_supported", "find_overlaps", "check_overlaps", "check_self_weight", "CONTACT_TOLERANCE"]
 
 class SceneSenseError(SceneError):
     """A scene that does not make physical sense, naming the objects at fault.
@@ -229,3 +229,20 @@ def check_overlaps(scene: Scene, allowed: Collection[frozenset] = ()) -> None:
             f"one, or list the pair in allowed_overlaps if it is intended, e.g. allowed_overlaps: [[{first}, {second}]]",
             (first, second),
         )
+
+
+def check_self_weight(scene: Scene) -> None:
+    """Refuse a scene whose soft object its own weight alone strains beyond its strain bound.
+
+    Not run when a scene is read: it takes a solve per object (a factorisation the
+    first time, the disk cache after). A planner or a stance check runs it first, so
+    that such a scene is refused at once rather than stance by stance.
+
+    Raises
+    ------
+    SceneError
+        Naming the object, the strain, where it is and the bound
+        (:attr:`environments.DeformableObject.self_weight_field`).
+    """
+    for soft in scene.deformable_objects:
+        soft.self_weight_field

@@ -517,3 +517,14 @@ def test_oracle_turns_the_library_errors_into_infeasible(oracle_with, error):
     oracle, stance = oracle_with(error)
     check = oracle(stance)
     assert check == StanceCheck(False, f"{type(error).__name__}: {error}")
+
+
+def test_cli_check_of_a_body_too_soft_for_its_own_weight_is_bad_input(tmp_path, capsys):
+    """A scene at fault exits 2 with the reason, before any solve, not 'infeasible'."""
+    text = environments.builtin_scenario_path("step-on-cube").read_text()
+    path = tmp_path / "soft.yaml"
+    path.write_text(text.replace("E: 1.0e+6", "E: 1.0e+4").replace("resolution: default", "resolution: 0.04"))
+    assert cli.main(["check", str(path), "--stance", "step-on-cube"]) == cli.EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert "cbm check: error: object 'cube': its own weight strains it" in captured.err
+    assert "infeasible" not in captured.out
