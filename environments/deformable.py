@@ -45,7 +45,7 @@ DEFAULT_STRAIN_LIMIT = 0.05
 """Largest principal strain (dimensionless) a soft object may take: linear elasticity
 (small strain) is trusted up to a few percent."""
 
-GRAVITY = np.array([0.0, 0.0, -9.81])
+GRAVITY = readonly_array([0.0, 0.0, -9.81], (3,), "GRAVITY")
 """Acceleration of gravity in the world frame, m/s^2 (pinocchio's default, the robot's)."""
 
 DEFAULT_STRAIN_RADIUS = 0.02

@@ -587,7 +587,7 @@ class DeformableBody:
         (N, 3) float, metres, body frame; 0 at fixed nodes, 0 everywhere if the
         material's density is 0.
         """
-        g = np.asarray(gravity, dtype=float)
+        g = np.asarray(gravity, dtype=float) + 0.0  # + 0.0: -0.0 and 0.0 name one entry
         if g.shape != (3,) or not np.all(np.isfinite(g)):
             raise FemError(f"gravity must be a finite (3,) vector in m/s^2, got {np.asarray(gravity).tolist()!r}")
         density = self._material.density
@@ -598,8 +598,9 @@ class DeformableBody:
         known = self._self_weight.get(name)
         if known is None:
             entry = self._load_entry(name)
-            if entry is not None and entry.get("u", np.zeros(0)).shape == (self._mesh.n_nodes, 3):
-                known = entry["u"].copy()
+            known_u = None if entry is None else entry.get("u")
+            if known_u is not None and known_u.dtype == np.float64 and known_u.shape == (self._mesh.n_nodes, 3):
+                known = known_u.copy()
             else:
                 volumes = np.abs(shape_gradients(self._mesh.nodes, self._mesh.tets)[1])
                 loads = np.zeros(self._mesh.n_nodes)

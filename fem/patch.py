@@ -123,7 +123,7 @@ class ContactPatch:
         local = np.full(mesh.n_nodes, -1, dtype=np.int64)
         local[ids] = np.arange(ids.size)
         self._local = local
-        self._tet_maps = {}  # (radius, also, tet in the strain set) -> (12, 3p) map of its nodes (_member_map)
+        self._tet_maps = {}  # ((radius, also), tet in the strain set) -> (12, 3p) map of its nodes (_member_map)
         self._strain_sets = {}  # (radius, also) -> what neighbour_strains needs (_strain_set)
         # eqs. (38)-(39): surface triangles whose three nodes are all in P.
         inside = (local[mesh.surface_triangles] >= 0).all(axis=1)
@@ -305,21 +305,29 @@ class ContactPatch:
         at every tet)."""
         return self._strain_set(radius, also)[0]
 
-    def _strain_set(self, radius: float, also=None):
+    @staticmethod
+    def _set_key(radius: float, also) -> tuple:
+        """The key of a strain set: the radius and the bytes of ``also`` (None for none)."""
+        return float(radius), None if also is None else np.asarray(also, dtype=np.int64).tobytes()
+
+    def _strain_set(self, radius: float, also=None, key=None):
         """What the ball means of :meth:`strain_centres` are computed from, without the
         (3q, 3p) map of the q nodes (a 30 ms product on a sole pair, more than a
         planner's whole use of it): the centres (C,), the tets in their balls (E,), the
         (C, E) averaging weights, (q, 3, 3p) rows of ``C[:, P]`` at the balls' nodes, (E,
         4) each tet's nodes as rows of them, (E, 6, 12) the tets' strain matrices, (q,)
         each node's index in the print (-1 outside it) and (q,) which nodes are fixed.
-        Kept per radius and ``also``."""
-        key = (float(radius), None if also is None else np.asarray(also, dtype=np.int64).tobytes())
+        Kept per radius and ``also`` (``key``: their :meth:`_set_key`, when known)."""
+        key = self._set_key(radius, also) if key is None else key
         known = self._strain_sets.get(key)
         if known is None:
             body = self._body
             centres = body.strain_averages.near(self.neighbour_tets, 2.0 * key[0])
             if also is not None:
-                centres = np.union1d(centres, np.asarray(also, dtype=np.int64))
+                also = np.asarray(also, dtype=np.int64)
+                if also.size and (also.min() < 0 or also.max() >= body.mesh.n_tets):
+                    raise FemError(f"strain centres must be tet ids in [0, {body.mesh.n_tets}), got {also.min()}..{also.max()}")
+                centres = np.union1d(centres, also)
             members, weights = body.strain_averages.weights(centres, key[0])
             nodes, rows = np.unique(body.mesh.tets[members], return_inverse=True)
             known = (centres, members, weights, self._columns_at(nodes), rows.reshape(members.size, 4),
@@ -402,22 +410,24 @@ class ContactPatch:
         -------
         (3p,) float, 1/m
         """
-        _, _, averaging, _, _, b, _, _ = self._strain_set(radius, also)
+        key = self._set_key(radius, also)
+        _, _, averaging, _, _, b, _, _ = self._strain_set(radius, also, key)
         weights = np.asarray(weights, dtype=float)
         start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
         row = np.zeros(3 * self._ids.size)
         for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
-            row += share * ((weights @ b[k]) @ self._member_map(float(radius), int(k), also))
+            row += share * ((weights @ b[k]) @ self._member_map(key, int(k), also))
         return row
 
-    def _member_map(self, radius: float, k: int, also=None) -> np.ndarray:
+    def _member_map(self, set_key: tuple, k: int, also=None) -> np.ndarray:
         """(12, 3p) displacements of the nodes of tet ``k`` of a strain set (its
-        position there) per unit print displacement (eq. 36), from the set's rows of
-        ``C[:, P]``; kept: a solve's strain rows come back to the same few tets."""
-        key = (radius, None if also is None else np.asarray(also, dtype=np.int64).tobytes(), k)
+        position there, the set named by its :meth:`_set_key`) per unit print
+        displacement (eq. 36), from the set's rows of ``C[:, P]``; kept: a solve's
+        strain rows come back to the same few tets."""
+        key = (set_key, k)
         known = self._tet_maps.get(key)
         if known is None:
-            _, _, _, block, rows, _, in_print, fixed = self._strain_set(radius, also)
+            _, _, _, block, rows, _, in_print, fixed = self._strain_set(set_key[0], also, set_key)
             nodes = rows[k]
             known = self._displacement_rows(block[nodes], in_print[nodes], fixed[nodes]).reshape(12, -1)
             known.setflags(write=False)

@@ -411,6 +411,9 @@ class DeformableContact:
         self._modes = None  # (modes, slip directions) of the last contact solve: its warm start
         self._contact_system = None  # fem.PrintContactSystem, built on the first Coulomb solve
         self._frozen = None  # (modes, slip directions) held fixed by freeze_modes
+        # Strain-row centres verify found over the bound outside the rows (take_strain_outlier).
+        self._found_centres = None
+        self._strain_outlier = None  # the tet of the last verify's strain failure outside the rows
         if options.max_indentation is not None:
             self.max_indentation = float(options.max_indentation)
         else:
@@ -877,13 +880,40 @@ class DeformableContact:
         tets = tets[np.isfinite(distance)]
         return tets if tets.size else None
 
+    @property
+    def _row_also(self):
+        """The strain rows' centres beyond the prints' neighbourhood, (n,) sorted tet ids
+        or None: the weight's (:attr:`_rest_centres`) and those verify found strained
+        beyond the bound outside the rows (:meth:`take_strain_outlier`)."""
+        return self._rest_centres if self._found_centres is None else self._found_centres
+
+    def take_strain_outlier(self) -> bool:
+        """Make the tets around the last verify's strain failure strain-row centres, if
+        it lay outside the rows; True if it did (the SQP then goes on from its answer).
+
+        The rows cover the tets near the prints and where the body's own weight strains
+        it to a quarter of its bound within a print's width of them; the largest strain
+        can still sit elsewhere (a base corner the weight already strains to 90 % of
+        the bound, a print's strain small there): verify, which looks at every tet,
+        finds it, and the rows read it from then on.
+        """
+        tet, self._strain_outlier = self._strain_outlier, None
+        if tet is None:
+            return False
+        body = self.deformable_object.body
+        around = body.strain_averages.near([tet], 2.0 * self.strain_radius)
+        current = self._row_also
+        self._found_centres = around if current is None else np.union1d(current, around)
+        self.__dict__.pop("_weight_strains", None)  # read at the new centres
+        return True
+
     @cached_property
     def _weight_strains(self):
         """(T', 6) ball-mean strains of the body's own weight at the strain rows' centres
         (the scene is meshed as the body rests, so the weight moves no print force but
         its strain adds to theirs); None for a weightless body."""
         weight = self.deformable_object.self_weight_field
-        return self.patch.field_strains(weight, self.strain_radius, self._rest_centres) if weight.any() else None
+        return self.patch.field_strains(weight, self.strain_radius, self._row_also) if weight.any() else None
 
     def _strain_block(self, u, d_u, columns):
         """Largest and smallest principal strains of the most strained tets near the prints.
@@ -893,7 +923,7 @@ class DeformableContact:
         """
         if self.max_strain_rows == 0:
             return None
-        voigt = self.patch.neighbour_strains(u, self.strain_radius, self._rest_centres)  # (T', 6), ball means
+        voigt = self.patch.neighbour_strains(u, self.strain_radius, self._row_also)  # (T', 6), ball means
         if self._weight_strains is not None:
             voigt = voigt + self._weight_strains
         # The Frobenius norm of a strain tensor bounds its principal strains: the
@@ -910,7 +940,7 @@ class DeformableContact:
         if candidates.size == 0:
             return None
         chosen = candidates[np.argsort(-ratio[candidates], kind="stable")][: self.max_strain_rows]
-        tets = self.patch.strain_centres(self.strain_radius, self._rest_centres)
+        tets = self.patch.strain_centres(self.strain_radius, self._row_also)
         rows_value, rows_jacobian, lower, upper, labels = [], [], [], [], []
         for k, t in zip(chosen.tolist(), screened[chosen].tolist()):
             for which, bound_lower, bound_upper, name in ((2, -np.inf, self.strain_limit, "stretch"),
@@ -919,7 +949,7 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius, self._rest_centres) @ d_u)
+                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius, self._row_also) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)
@@ -1080,7 +1110,10 @@ class DeformableContact:
         # The body holds its own weight's strain at rest (the scene is meshed as it rests).
         strain, tet = body.largest_principal_strain(field + self.deformable_object.self_weight_field, self.strain_radius)
         measures[f"largest strain of {name}"] = strain
+        self._strain_outlier = None
         if strain > self.strain_limit + 1e-6:
+            if tet not in set(self.patch.strain_centres(self.strain_radius, self._row_also).tolist()):
+                self._strain_outlier = tet
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(
                 f"strain {strain:.3g} of {name} (its own weight's included) at ({centre[0]:.3f}, {centre[1]:.3f}, {centre[2]:.3f}) m "

@@ -123,7 +123,10 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refin
     StanceError
         If ``result`` is not feasible, or its stance has no print on a soft surface.
     SceneError
-        As :func:`environments.refined` (a scenario built in code, a factor below 2...).
+        As :func:`environments.refined` (a scenario built in code, a factor below 2...),
+        or a soft object whose own weight strains it beyond its bound on the finer mesh
+        (its clamped base's corners strain more as the mesh is refined:
+        :attr:`environments.DeformableObject.self_weight_field`).
     """
     if not result.feasible:
         raise StanceError(f"check_refined needs a feasible answer; this one is not: {result.reason}")

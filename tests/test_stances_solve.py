@@ -145,7 +145,7 @@ def test_stiffer_cube_tends_to_the_rigid_contact(robot):
     """From a foam to steel: every solve converges, the print's compliance (depth per
     newton) falls as 1/E, the sole ends up on its print as on a rigid support, and
     the forces settle to a stiff limit. The cube is weightless: at 1e4 Pa, 1,000
-    kg/m^3 would strain it 21 % under its own weight (refused, see
+    kg/m^3 would strain it 18 % under its own weight (this mesh) (refused, see
     test_a_body_too_soft_for_its_own_weight_is_refused)."""
     offsets, compliance, sole_forces = [], [], []
     moduli = (1e4, 1e6, 1e7, 1e8, 1e10, 1e11)
