@@ -185,7 +185,7 @@ class BallAverages:
         voigt = np.asarray(voigt, dtype=float)
         if not threshold > 0.0:
             raise FemError(f"threshold must be a strain > 0, got {threshold!r}")
-        if self._all_means(radius):
+        if self._all_means(radius, question=False):
             means = voigt if _checked_radius(radius) == 0.0 else self.mean_matrix(radius) @ voigt
             centres = np.flatnonzero(_frobenius(means) >= threshold)
             return centres[_principal(means[centres]) >= threshold] if centres.size else centres
@@ -196,16 +196,19 @@ class BallAverages:
         members, weights = self.weights(centres, radius)
         return centres[_principal(weights @ voigt[members]) >= threshold]
 
-    def _all_means(self, radius: float) -> bool:
+    def _all_means(self, radius: float, question: bool = True) -> bool:
         """Whether to take every ball mean (:meth:`mean_matrix`) rather than screen: at
         radius 0, once the matrix is built, and from the second question at a radius on
         meshes of at most :data:`_MEAN_MATRIX_TETS` tets. A process that asks once (a
         stance check) does not pay the matrix (0.13-0.18 s on the 1 m cube and the foam
         step); one that asks again (a planner's checks) builds it then. Both ways give
-        the same bits."""
+        the same bits. ``question`` False: a one-off use that does not count (and
+        screens unless the matrix is there)."""
         radius = _checked_radius(radius)
         if radius == 0.0 or radius in self._mean_matrices:
             return True
+        if not question:
+            return False
         self._questions[radius] = self._questions.get(radius, 0) + 1
         return self.volumes.size <= _MEAN_MATRIX_TETS and self._questions[radius] >= 2
 
