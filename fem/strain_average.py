@@ -46,9 +46,12 @@ class BallAverages:
     nodes : (N, 3) float
         Metres.
     tets : (M, 4) int
+    cache : (load, store), optional
+        Where the matrix of every ball mean (:meth:`mean_matrix`) is kept between
+        processes: ``load(radius)`` returns it or None, ``store(radius, matrix)`` keeps it.
     """
 
-    def __init__(self, nodes, tets) -> None:
+    def __init__(self, nodes, tets, cache=None) -> None:
         nodes = np.asarray(nodes, dtype=float)
         tets = np.asarray(tets)
         self.centroids = nodes[tets].mean(axis=1)
@@ -56,6 +59,7 @@ class BallAverages:
         self._tree = cKDTree(self.centroids)
         self._mean_matrices: dict[float, sp.csr_matrix] = {}
         self._questions: dict[float, int] = {}  # screened answers per radius (_all_means)
+        self._cache = cache
 
     def weights(self, centres, radius: float) -> tuple[np.ndarray, sp.csr_matrix]:
         """The averaging weights of some centre tets.
@@ -123,9 +127,20 @@ class BallAverages:
         radius = _checked_radius(radius)
         known = self._mean_matrices.get(radius)
         if known is None:
+            known = self._cached_matrix(radius)
+        if known is None:
             members, known = self.weights(np.arange(self.volumes.size), radius)
             if members.size != self.volumes.size:  # every tet lies in its own ball
                 raise FemError("a tet is missing from the ball means; the mesh has NaN centroids")
+            self._mean_matrices[radius] = known
+            if self._cache is not None:
+                self._cache[1](radius, known)
+        return known
+
+    def _cached_matrix(self, radius: float):
+        """The matrix of every ball mean at ``radius`` from the cache (kept), or None."""
+        known = None if self._cache is None else self._cache[0](radius)
+        if known is not None:
             self._mean_matrices[radius] = known
         return known
 
@@ -198,19 +213,23 @@ class BallAverages:
 
     def _all_means(self, radius: float, question: bool = True) -> bool:
         """Whether to take every ball mean (:meth:`mean_matrix`) rather than screen: at
-        radius 0, once the matrix is built, and from the second question at a radius on
-        meshes of at most :data:`_MEAN_MATRIX_TETS` tets. A process that asks once (a
-        stance check) does not pay the matrix (0.13-0.18 s on the 1 m cube and the foam
-        step); one that asks again (a planner's checks) builds it then. Both ways give
-        the same bits. ``question`` False: a one-off use that does not count (and
-        screens unless the matrix is there)."""
+        radius 0, once the matrix is built or found in the cache, and from the second
+        question at a radius, on meshes of at most :data:`_MEAN_MATRIX_TETS` tets. A
+        process that asks once (a stance check) does not build the matrix (0.13-0.3 s on
+        the 1 m cube and the foam bodies); one that asks again (a planner's checks)
+        builds and stores it. Both ways give the same bits. ``question`` False: a
+        one-off use that does not count (and screens unless the matrix is there)."""
         radius = _checked_radius(radius)
         if radius == 0.0 or radius in self._mean_matrices:
+            return True
+        if self.volumes.size > _MEAN_MATRIX_TETS:
+            return False
+        if self._questions.get(radius, 0) == 0 and self._cached_matrix(radius) is not None:
             return True
         if not question:
             return False
         self._questions[radius] = self._questions.get(radius, 0) + 1
-        return self.volumes.size <= _MEAN_MATRIX_TETS and self._questions[radius] >= 2
+        return self._questions[radius] >= 2
 
     def _largest_principal_screened(self, voigt, radius: float) -> tuple[float, int]:
         """:meth:`largest_principal` without :meth:`mean_matrix`: only centres with a

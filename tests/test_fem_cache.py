@@ -71,6 +71,23 @@ def test_a_warm_body_reads_its_columns_instead_of_solving(mesh, cache):
     assert warm._factor is None
 
 
+def test_the_matrix_of_every_ball_mean_is_kept_and_read_back(mesh, cache):
+    """Built at a body's second strain check and stored; the same body met again (a
+    planner's next plan) reads it at its first check: the same matrix, the same answer."""
+    voigt = np.random.default_rng(2).normal(size=(mesh.n_tets, 6))
+    cold = make_body(mesh, cache)
+    first = cold.strain_averages.largest_principal(voigt, 0.2)  # screened, nothing stored
+    assert not cache.path(cold.cache_key, "ball_means_0.2").exists()
+    assert cold.strain_averages.largest_principal(voigt, 0.2) == first  # builds and stores the matrix
+    assert cache.path(cold.cache_key, "ball_means_0.2").exists()
+    warm = make_body(mesh, cache).strain_averages
+    assert warm._all_means(0.2)  # found at the first question
+    matrix = warm.mean_matrix(0.2)
+    built = cold.strain_averages.mean_matrix(0.2)
+    assert all(np.array_equal(getattr(matrix, a), getattr(built, a)) for a in ("data", "indices", "indptr"))
+    assert warm.largest_principal(voigt, 0.2) == first
+
+
 def _flip_bytes_inside(path):
     """Invert 100 bytes near the end of the array data."""
     data = bytearray(path.read_bytes())
