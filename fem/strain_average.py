@@ -173,13 +173,9 @@ class BallAverages:
             return self._largest_principal_screened(voigt, radius)
         means = voigt if _checked_radius(radius) == 0.0 else self.mean_matrix(radius) @ voigt
         norms = _frobenius(means)
-        count = min(_BOUND_CENTRES, norms.size)
-        strained = np.argpartition(norms, norms.size - count)[norms.size - count:]
-        bound = _principal(means[strained]).max()
+        bound = _principal(means[_most_strained(norms)]).max()
         centres = np.flatnonzero(norms >= bound * (1.0 - 1e-12))
-        values = _principal(means[centres])
-        best = int(np.argmax(values))
-        return float(values[best]), int(centres[best])
+        return _largest(means[centres], centres)
 
     def centres_above(self, voigt, radius: float, threshold: float) -> np.ndarray:
         """(n,) sorted ids of the tets whose ball mean's largest principal strain
@@ -238,15 +234,11 @@ class BallAverages:
         principal strain is at most the largest norm in its ball). Each mean is summed
         in tet order: the same bits."""
         norms = _frobenius(voigt)
-        count = min(_BOUND_CENTRES, norms.size)
-        strained = np.sort(np.argpartition(norms, norms.size - count)[norms.size - count:])
-        members, weights = self.weights(strained, radius)
+        members, weights = self.weights(_most_strained(norms), radius)
         bound = _principal(weights @ voigt[members]).max()
         centres = self.near(np.flatnonzero(norms >= bound * (1.0 - 1e-12)), radius)
         members, weights = self.weights(centres, radius)
-        values = _principal(weights @ voigt[members])
-        best = int(np.argmax(values))
-        return float(values[best]), int(centres[best])
+        return _largest(weights @ voigt[members], centres)
 
 
 def _checked_radius(radius) -> float:
@@ -254,6 +246,20 @@ def _checked_radius(radius) -> float:
     if not (np.isfinite(radius) and radius >= 0.0):
         raise FemError(f"strain averaging radius must be >= 0 metres (0: each tet's own strain), got {radius!r}")
     return radius
+
+
+def _most_strained(norms: np.ndarray) -> np.ndarray:
+    """(k,) sorted ids of the :data:`_BOUND_CENTRES` largest of (T,) norms."""
+    count = min(_BOUND_CENTRES, norms.size)
+    return np.sort(np.argpartition(norms, norms.size - count)[norms.size - count:])
+
+
+def _largest(means: np.ndarray, centres: np.ndarray) -> tuple[float, int]:
+    """The largest principal strain magnitude of (c, 6) Voigt means and its centre
+    among (c,) ``centres`` (the first on a tie)."""
+    values = _principal(means)
+    best = int(np.argmax(values))
+    return float(values[best]), int(centres[best])
 
 
 def _frobenius(voigt: np.ndarray) -> np.ndarray:
