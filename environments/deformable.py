@@ -227,11 +227,14 @@ class DeformableObject:
             strain, tet = self.body.largest_principal_strain(field, self.strain_radius)
             if strain > self.strain_limit:
                 centre = self.points_in_world(self.mesh.nodes[self.mesh.tets[tet]].mean(axis=0)[None])[0]
+                # A fixed base is clamped: at its edges the strain is singular and grows as
+                # the mesh is refined, which the user should know when it decides.
+                at_base = bool(self.body.fixed_mask[self.mesh.tets[tet]].any())
                 raise SceneError(
                     f"object {self.name!r}: its own weight strains it {strain:.3g} at ({centre[0]:.3f}, "
-                    f"{centre[1]:.3f}, {centre[2]:.3f}) m, beyond its strain bound {self.strain_limit:g}: linear "
-                    "elasticity cannot describe it even at rest; raise its Young's modulus E, lower its density "
-                    "rho or raise its strain_limit"
+                    f"{centre[1]:.3f}, {centre[2]:.3f}) m{' (a tet on its fixed base, clamped there)' if at_base else ''}, "
+                    f"beyond its strain bound {self.strain_limit:g}: linear elasticity cannot describe it even at "
+                    "rest; raise its Young's modulus E, lower its density rho or raise its strain_limit"
                 )
         return field
 
