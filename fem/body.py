@@ -16,7 +16,7 @@ from .cache import DiskCache, cache_digest, default_cache
 from .errors import BoundaryError, FemError, FemWarning
 from .io import write_mesh
 from .material import LinearElasticMaterial
-from .mesh import TetMesh
+from .mesh import TetMesh, tet_signed_volumes
 from .ordering import nested_dissection, node_adjacency
 from .patch import ContactPatch, check_node_ids
 from .solvers import SOLVERS, Factorization, factorize, resolve_solver
@@ -612,7 +612,7 @@ class DeformableBody:
             if known_u is not None and known_u.dtype == np.float64 and known_u.shape == (self._mesh.n_nodes, 3):
                 known = known_u.copy()
             else:
-                volumes = np.abs(shape_gradients(self._mesh.nodes, self._mesh.tets)[1])
+                volumes = np.abs(tet_signed_volumes(self._mesh.nodes, self._mesh.tets))
                 loads = np.zeros(self._mesh.n_nodes)
                 np.add.at(loads, self._mesh.tets.ravel(), np.repeat(density * volumes / 4.0, 4))
                 rhs = (loads[:, None] * g).ravel()

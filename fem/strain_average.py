@@ -150,7 +150,10 @@ class BallAverages:
         Every ball mean is one product with :meth:`mean_matrix`; the eigenvalues are
         taken only where they can hold the maximum: a principal strain is at most its
         Frobenius norm, so a centre whose mean's norm is below the largest principal
-        strain among the :data:`_BOUND_CENTRES` largest norms cannot. (Before, means
+        strain among the :data:`_BOUND_CENTRES` largest norms cannot. Where the means
+        are not taken at once (:meth:`_all_means`), the bound is the largest mean
+        around the most strained tets, and only the centres with a tet at least that
+        strained in their ball are averaged (:meth:`_reaching`). (Before, means
         were taken only around the most strained tets, a screen a broad field defeats:
         with a body's own weight, whose strain spreads through it, step-on-cube's
         check, the tets' strains included, went from 4.8 to 12.4 ms; 1.6 ms now. On a
@@ -169,13 +172,16 @@ class BallAverages:
         (float, int)
         """
         voigt = np.asarray(voigt, dtype=float)
-        if not self._all_means(radius):
-            return self._largest_principal_screened(voigt, radius)
-        means = voigt if _checked_radius(radius) == 0.0 else self.mean_matrix(radius) @ voigt
-        norms = _frobenius(means)
-        bound = _principal(means[_most_strained(norms)]).max()
-        centres = np.flatnonzero(norms >= bound * (1.0 - 1e-12))
-        return _largest(means[centres], centres)
+        means = self._every_mean(voigt, radius)
+        norms = _frobenius(voigt if means is None else means)
+        strained = _most_strained(norms)
+        if means is None:
+            members, weights = self.weights(strained, radius)
+            bound = _principal(weights @ voigt[members]).max()
+        else:
+            bound = _principal(means[strained]).max()
+        centres, candidates = self._reaching(voigt, radius, norms, bound * (1.0 - 1e-12), means)
+        return _largest(candidates, centres)
 
     def centres_above(self, voigt, radius: float, threshold: float) -> np.ndarray:
         """(n,) sorted ids of the tets whose ball mean's largest principal strain
@@ -196,16 +202,32 @@ class BallAverages:
         voigt = np.asarray(voigt, dtype=float)
         if not threshold > 0.0:
             raise FemError(f"threshold must be a strain > 0, got {threshold!r}")
-        if self._all_means(radius, question=False):
-            means = voigt if _checked_radius(radius) == 0.0 else self.mean_matrix(radius) @ voigt
-            centres = np.flatnonzero(_frobenius(means) >= threshold)
-            return centres[_principal(means[centres]) >= threshold] if centres.size else centres
-        # A centre's mean reaches the threshold only if a tet in its ball does (norms).
-        centres = self.near(np.flatnonzero(_frobenius(voigt) >= threshold), radius)
+        means = self._every_mean(voigt, radius, question=False)
+        centres, candidates = self._reaching(voigt, radius, _frobenius(voigt if means is None else means), threshold, means)
+        return centres[_principal(candidates) >= threshold] if centres.size else centres
+
+    def _every_mean(self, voigt, radius: float, question: bool = True):
+        """Every ball mean of ``voigt`` (M, 6) when they are taken at once
+        (:meth:`_all_means`), else None."""
+        if not self._all_means(radius, question):
+            return None
+        return voigt if _checked_radius(radius) == 0.0 else self.mean_matrix(radius) @ voigt
+
+    def _reaching(self, voigt, radius: float, norms, floor: float, means=None):
+        """The centres whose ball mean's Frobenius norm (which bounds its principal
+        strains) can reach ``floor``, (n,) sorted, and their means, (n, 6). With every
+        mean known (``means``; ``norms`` theirs): those whose mean's norm does.
+        Otherwise (``norms`` the tets' own): those with a tet in their ball whose norm
+        does, a mean's norm being at most the largest in its ball; only they are
+        averaged, each in tet order (the same bits as every mean at once)."""
+        hot = np.flatnonzero(norms >= floor)
+        if means is not None:
+            return hot, means[hot]
+        centres = self.near(hot, radius)
         if centres.size == 0:
-            return centres
+            return centres, np.zeros((0, 6))
         members, weights = self.weights(centres, radius)
-        return centres[_principal(weights @ voigt[members]) >= threshold]
+        return centres, weights @ voigt[members]
 
     def _all_means(self, radius: float, question: bool = True) -> bool:
         """Whether to take every ball mean (:meth:`mean_matrix`) rather than screen: at
@@ -226,19 +248,6 @@ class BallAverages:
             return False
         self._questions[radius] = self._questions.get(radius, 0) + 1
         return self._questions[radius] >= 2
-
-    def _largest_principal_screened(self, voigt, radius: float) -> tuple[float, int]:
-        """:meth:`largest_principal` without :meth:`mean_matrix`: only centres with a
-        tet at least as strained (Frobenius norm) as the largest mean around the
-        :data:`_BOUND_CENTRES` most strained tets in their ball are averaged (a mean's
-        principal strain is at most the largest norm in its ball). Each mean is summed
-        in tet order: the same bits."""
-        norms = _frobenius(voigt)
-        members, weights = self.weights(_most_strained(norms), radius)
-        bound = _principal(weights @ voigt[members]).max()
-        centres = self.near(np.flatnonzero(norms >= bound * (1.0 - 1e-12)), radius)
-        members, weights = self.weights(centres, radius)
-        return _largest(weights @ voigt[members], centres)
 
 
 def _checked_radius(radius) -> float:

@@ -1112,7 +1112,7 @@ class DeformableContact:
         measures[f"largest strain of {name}"] = strain
         self._strain_outlier = None
         if strain > self.strain_limit + 1e-6:
-            if tet not in set(self.patch.strain_centres(self.strain_radius, self._row_also).tolist()):
+            if tet not in self.patch.strain_centres(self.strain_radius, self._row_also):
                 self._strain_outlier = tet
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(

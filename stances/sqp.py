@@ -218,10 +218,10 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     outcome = run_sqp(problem, q, lam, limit, deadline)
     result = _result(problem, outcome, time.perf_counter() - start, check)
     iterations = outcome.iterations
+    soft = [contact for contact in problem.contacts if contact.kind == "deformable"]
     for _ in range(_STRAIN_ROUNDS):
         # verify found a strain over its bound where the strain rows do not look (far
         # from the prints): they look there from now on, and the SQP goes on.
-        soft = [contact for contact in problem.contacts if contact.kind == "deformable"]
         if result.feasible or not outcome.feasible or not any([contact.take_strain_outlier() for contact in soft]):
             break
         outcome = run_sqp(problem, outcome.q, outcome.lam, limit, deadline)
