@@ -231,16 +231,28 @@ class ContactPatch:
     @cached_property
     def coupling_compliance(self) -> np.ndarray:
         """D: each partly covered node's series compliance ``(1 - w) / w C_ii``, (3p, 3p)
-        float, m/N, block diagonal (zero for a fully covered print)."""
+        float, m/N, block diagonal (zero for a fully covered print); its blocks are
+        :attr:`coupling_blocks`."""
         p = self.n_nodes
         d = np.zeros((3 * p, 3 * p))
-        if self._coverage is not None:
-            c = self.compliance.reshape(p, 3, p, 3)
-            nodes = np.arange(p)
-            blocks = c[nodes, :, nodes, :] * ((1.0 - self._coverage) / self._coverage)[:, None, None]
-            d.reshape(p, 3, p, 3)[nodes, :, nodes, :] = blocks
+        nodes = np.arange(p)
+        d.reshape(p, 3, p, 3)[nodes, :, nodes, :] = self.coupling_blocks
         d.setflags(write=False)
         return d
+
+    @cached_property
+    def coupling_blocks(self) -> np.ndarray:
+        """(p, 3, 3) float, m/N: the diagonal blocks of :attr:`coupling_compliance`, node by
+        node (what a product with D needs: 9 p numbers instead of 9 p^2)."""
+        p = self.n_nodes
+        if self._coverage is None:
+            blocks = np.zeros((p, 3, 3))
+        else:
+            nodes = np.arange(p)
+            c = self.compliance.reshape(p, 3, p, 3)
+            blocks = c[nodes, :, nodes, :] * ((1.0 - self._coverage) / self._coverage)[:, None, None]
+        blocks.setflags(write=False)
+        return blocks
 
     @cached_property
     def link_compliance(self) -> np.ndarray:

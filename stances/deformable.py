@@ -212,6 +212,13 @@ class _PrintValues:
     solved: Any
 
 
+
+def _block_product(blocks: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """A block-diagonal matrix, given by its (p, 3, 3) ``blocks``, times stacked (3p,) or
+    (3p, k) vectors."""
+    p = blocks.shape[0]
+    return np.einsum("pij,pj...->pi...", blocks, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
+
 def _skew_rows(points: np.ndarray) -> np.ndarray:
     """(p, 3) -> (p, 3, 3) cross-product matrices."""
     return np.array([pin.skew(p) for p in points]) if len(points) else np.zeros((0, 3, 3))
@@ -337,9 +344,10 @@ class DeformableContact:
         self.load_prints = self.print_of_node
         self.load_frames = tuple(frames[i] for i in self.print_of_node)
         self.patch = body.contact_patch(self.node_ids, self.coverage if self.method == "consistent" else None)
-        # Partly covered nodes' series compliance D (fem.ContactPatch): a link point
-        # moves by its node's motion plus D times the force; None when every node is covered.
-        self._coupling = None if np.all(self.coverage == 1.0) else np.asarray(self.patch.coupling_compliance)
+        # Partly covered nodes' series compliance D (fem.ContactPatch), its (p, 3, 3)
+        # diagonal blocks: a link point moves by its node's motion plus D times the
+        # force; None when every node is covered.
+        self._coupling = None if np.all(self.coverage == 1.0) else self.patch.coupling_blocks
         self.nodes_in_world = body.mesh.nodes[self.node_ids] @ self.rotation_body.T + body_placement.translation
         # Where each node's link point is when the body is at rest: the node itself
         # for a polygon; the ball's centre, a radius above the print, for a point foot.
@@ -571,7 +579,7 @@ class DeformableContact:
         forces = (forces_body.reshape(p, 3)) @ self.rotation_body.T
         # The body's own print displacement: the compliance under the forces (the link
         # points' U only where the nodes stick; traction has no compliance form).
-        nodes = u if self.method == "traction" else -self.patch.compliance @ forces_body
+        nodes = u if self.method == "traction" else -(self.patch.compliance @ forces_body)  # (not -C: a copy of C)
         self._cache_key = key
         self._cache = _PrintValues(displacements, forces, forces_body, nodes, solved)
         self._derivatives = None
@@ -610,7 +618,9 @@ class DeformableContact:
         if self.method == "traction":
             d_nodes = np.hstack([d_displacements, np.zeros((3 * p, self.n_variables))])
         else:
-            d_nodes = -self.patch.compliance @ d_forces_body
+            # Only W moves the forces: C times their W columns alone (the q columns, zero,
+            # made this product 4-5 times larger: 2 ms a linearisation on two soles).
+            d_nodes = np.hstack([np.zeros((3 * p, nv)), -(self.patch.compliance @ d_forces_body[:, nv:])])
         return d_displacements, d_forces[:, :nv], d_forces[:, nv:], d_nodes
 
     # -- contact set ---------------------------------------------------------
@@ -732,9 +742,9 @@ class DeformableContact:
             # A link point slides over its node's coupling end: the node plus its coupling's stretch.
             ends, d_ends = nodes, d_nodes_full
             if self._coupling is not None:
-                ends = nodes - self._coupling @ values.forces_body
+                ends = nodes - _block_product(self._coupling, values.forces_body)
                 if derivatives:
-                    d_ends = d_nodes_full - self._coupling @ self._body_rows(d_forces.reshape(3 * p, columns))
+                    d_ends = d_nodes_full - _block_product(self._coupling, self._body_rows(d_forces.reshape(3 * p, columns)))
             blocks.append(self._slip_block(displacements, d_displacements, ends, d_ends, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
@@ -1074,7 +1084,7 @@ class DeformableContact:
         # Link point minus the node's coupling end (the node itself when fully covered).
         ends = field[self.node_ids]
         if self._coupling is not None:
-            ends = ends - (self._coupling @ forces_body.reshape(-1)).reshape(-1, 3)
+            ends = ends - _block_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         relative = np.einsum("pij,pj->pi", self.node_frames, displacements - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)

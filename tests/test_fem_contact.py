@@ -221,6 +221,37 @@ def test_the_law_is_isotropic_turning_the_tangent_axes_changes_nothing(pad):
     assert np.allclose(turned.forces, state.forces, rtol=0.0, atol=1e-9 * np.abs(state.forces).max())
 
 
+def test_a_print_turned_as_a_whole_gives_the_turned_forces_and_jacobian(pad):
+    """The same print seen in axes turned by R (compliance, motions and node frames
+    turned, each node's tangent axes turned about its normal by its own angle): the
+    modes are the same and the forces and their Jacobian are the turned ones. The
+    turned system goes through the node-frame rotation that frames equal to the body's
+    axes skip (``PrintContactSystem``), so the two paths are checked against each other."""
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.002, 0.0015, -0.004], [0.01, -0.02, 0.0], patch.points.mean(axis=0))
+    mu = np.full(patch.n_nodes, MU)
+    system = fem.PrintContactSystem(patch.compliance, frames, mu)
+    state = system.solve(displacements)
+    assert state.n_slip > 0 and state.n_stick > 0
+    rng = np.random.default_rng(7)
+    angles = rng.uniform(-np.pi, np.pi, patch.n_nodes)
+    spins = np.zeros((patch.n_nodes, 3, 3))
+    spins[:, 0, 0] = spins[:, 1, 1] = np.cos(angles)
+    spins[:, 0, 1], spins[:, 1, 0], spins[:, 2, 2] = np.sin(angles), -np.sin(angles), 1.0
+    axis = rng.normal(size=3)
+    axis /= np.linalg.norm(axis)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    turn = np.eye(3) + np.sin(1.1) * k + (1 - np.cos(1.1)) * k @ k
+    big = np.kron(np.eye(patch.n_nodes), turn)
+    turned_system = fem.PrintContactSystem(big @ patch.compliance @ big.T, spins @ frames @ turn.T, mu)
+    turned = turned_system.solve(displacements @ turn.T)
+    assert np.array_equal(turned.modes, state.modes)
+    scale = np.abs(state.forces).max()
+    assert np.abs(turned.forces - state.forces @ turn.T).max() <= 1e-9 * scale
+    jacobian = big @ state.jacobian @ big.T
+    assert np.abs(turned.jacobian - jacobian).max() <= 1e-9 * np.abs(jacobian).max()
+
+
 def test_held_modes_forces_have_the_returned_jacobian_with_slip_directions_following(pad):
     """With the modes held, a slipping node's friction turns with its slip: the forces
     are smooth, not linear, and central differences agree with the held Jacobian."""

@@ -112,6 +112,12 @@ def test_coupled_forces_load_the_full_system_to_the_link_motion(pad):
     nodes = pad.displacement_under_loads(ids, -forces)[ids]  # the whole body, one sparse solve
     stretch = (patch.coupling_compliance @ -forces.ravel()).reshape(-1, 3)
     np.testing.assert_allclose(nodes + stretch, motion, atol=1e-9 * np.abs(motion).max())
+    # Its blocks, node by node, are the whole of D (what the solver multiplies by).
+    by_blocks = np.einsum("pij,pj->pi", patch.coupling_blocks, -forces)
+    np.testing.assert_allclose(by_blocks, stretch, rtol=0.0, atol=1e-12 * np.abs(stretch).max())
+    off_diagonal = patch.coupling_compliance.reshape(len(ids), 3, len(ids), 3).copy()
+    off_diagonal[np.arange(len(ids)), :, np.arange(len(ids)), :] = 0.0
+    assert not off_diagonal.any()
     # Fully covered nodes follow the link; the coupling stretches only where cells are cut.
     full = coverage == 1.0
     np.testing.assert_allclose(nodes[full], motion[full], atol=1e-9 * np.abs(motion).max())
