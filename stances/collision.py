@@ -117,6 +117,18 @@ class CollisionPair:
         return self.joint_b != 0
 
 
+def _measured_pair(name_a, name_b, joint_a, joint_b, point_a, point_b, distance, normal) -> CollisionPair:
+    """A :class:`CollisionPair` from the checker's own measurement, without the
+    constructor's checks and copies (20 pairs a linearisation): the three vectors
+    must be (3,) float arrays that nothing else holds; they are made read-only."""
+    for vector in (point_a, point_b, normal):
+        vector.setflags(write=False)
+    pair = object.__new__(CollisionPair)
+    pair.__dict__.update(name_a=name_a, name_b=name_b, joint_a=joint_a, joint_b=joint_b, point_a=point_a,
+                         point_b=point_b, distance=distance, normal=normal)
+    return pair
+
+
 @dataclass(frozen=True)
 class _RobotGeometry:
     """Robot collision geometry converted to coal once per robot (shapes are never moved)."""
@@ -129,6 +141,7 @@ class _RobotGeometry:
     sphere_radius: np.ndarray  # (g,) metres
     box_center: np.ndarray  # (g, 3) metres, geometry frame: the shape's local bounding box
     box_half: np.ndarray  # (g, 3) metres, its half sides
+    local_centers: np.ndarray  # (g, 3, 2) metres: sphere_center and box_center side by side
     shapes: tuple  # coal.Convex hulls and primitives, geometry frame
     self_pairs: np.ndarray  # (p, 2) int geometry indices, SRDF-allowed
     support: np.ndarray  # (njoints, nv) bool, see _support_columns
@@ -167,6 +180,8 @@ def _robot_geometry(robot) -> _RobotGeometry:
         sphere_radius=np.array(radii, dtype=float),
         box_center=np.array([0.5 * (low + high) for low, high in boxes]).reshape(-1, 3),
         box_half=np.array([0.5 * (high - low) for low, high in boxes]).reshape(-1, 3),
+        local_centers=np.stack([np.array(centers).reshape(-1, 3),
+                                np.array([0.5 * (low + high) for low, high in boxes]).reshape(-1, 3)], axis=2),
         shapes=tuple(shapes),
         self_pairs=_self_pairs(collision_model),
         support=_support_columns(robot.model),
@@ -374,6 +389,7 @@ class CollisionChecker:
         self_pairs = geometry.self_pairs if self.self_collision else np.zeros((0, 2), int)
         keep = allowed_self[self_pairs[:, 0], self_pairs[:, 1]]
         self._self_pairs = self_pairs[keep]
+        self._self_radii = geometry.sphere_radius[self._self_pairs[:, 0]] + geometry.sphere_radius[self._self_pairs[:, 1]]
 
     @property
     def pair_count(self) -> int:
@@ -444,10 +460,11 @@ class CollisionChecker:
             Bounding sphere centres, metres, world frame.
         """
         geometry = self._geometry
-        centers = np.einsum("gij,gj->gi", rotation, geometry.sphere_center) + translation
+        # Sphere and box centres in one product (the bounds' rounding is covered by the slack).
+        placed = np.matmul(rotation, geometry.local_centers) + translation[:, :, None]  # (g, 3, 2)
+        centers, box_centers = placed[:, :, 0], placed[:, :, 1]
         radius = geometry.sphere_radius
-        box_centers = np.einsum("gij,gj->gi", rotation, geometry.box_center) + translation
-        box_halves = np.einsum("gij,gj->gi", np.abs(rotation), geometry.box_half)
+        box_halves = np.matmul(np.abs(rotation), geometry.box_half[:, :, None])[:, :, 0]
         lows, highs = box_centers - box_halves, box_centers + box_halves
         # Both bounds never exceed the distance (a shape lies inside its sphere and
         # its box); the larger one is kept. The slack covers coal's own accuracy.
@@ -459,8 +476,8 @@ class CollisionChecker:
             lower, upper = self._scene_boxes[None, :, 0], self._scene_boxes[None, :, 1]
             c = centers[:, None]
             per_box = np.maximum(
-                np.linalg.norm(c - np.clip(c, lower, upper), axis=2) - radius[:, None],
-                np.linalg.norm(np.maximum(np.maximum(lower - highs[:, None], lows[:, None] - upper), 0.0), axis=2),
+                _norms(c - np.clip(c, lower, upper)) - radius[:, None],
+                _norms(np.maximum(np.maximum(lower - highs[:, None], lows[:, None] - upper), 0.0)),
             )
             gap = np.minimum.reduceat(per_box, self._scene_box_starts, axis=1)[scene_pairs[:, 0], scene_pairs[:, 1]]
             scene_candidates = scene_pairs[gap <= limit]
@@ -470,7 +487,7 @@ class CollisionChecker:
         if len(self_pairs):
             a, b = self_pairs[:, 0], self_pairs[:, 1]
             gap = np.maximum(
-                np.linalg.norm(centers[a] - centers[b], axis=1) - radius[a] - radius[b],
+                _norms(centers[a] - centers[b]) - self._self_radii,
                 _box_gap(lows[a], highs[a], lows[b], highs[b]),
             )
             self_candidates = self_pairs[gap <= limit]
@@ -485,14 +502,13 @@ class CollisionChecker:
         scene_candidates, self_candidates, centers = self._broad_phase(rotation, translation)
         used = np.union1d(scene_candidates[:, 0], self_candidates.ravel())
         placements = {int(index): coal.Transform3s(rotation[index], translation[index]) for index in used}
-        out = []
-        for a, b in scene_candidates.tolist():
-            # Reference for a degenerate normal: the nearest point of b's bounds.
-            lower, upper = self._scene_bounds[b]
-            out.append((a, placements[a], b, self._scene_shapes[b], self._scene_placements[b],
-                        centers[a], np.clip(centers[a], lower, upper), False))
-        for a, b in self_candidates.tolist():
-            out.append((a, placements[a], b, geometry.shapes[b], placements[b], centers[a], centers[b], True))
+        # A scene pair's reference point for a degenerate normal (the nearest point of b's
+        # bounds to a's centre) is left None: :meth:`_pair` finds it in the rare case it is needed.
+        shapes, scene_shapes, scene_placements = geometry.shapes, self._scene_shapes, self._scene_placements
+        out = [(a, placements[a], b, scene_shapes[b], scene_placements[b], centers[a], None, False)
+               for a, b in scene_candidates.tolist()]
+        out.extend((a, placements[a], b, shapes[b], placements[b], centers[a], centers[b], True)
+                   for a, b in self_candidates.tolist())
         return out
 
     def pairs(self, model, data, geometry_placements=None) -> list:
@@ -610,12 +626,14 @@ class CollisionChecker:
         geometry = self._geometry
         name_b, joint_b = (geometry.names[b], int(geometry.joints[b])) if is_self else (self.scene_names[b], 0)
         point_a, point_b, normal = witness
+        if reference_b is None and (normal is None or not distance >= -_DEEPEST):
+            reference_b = np.clip(center_a, *self._scene_bounds[b])
         if not distance >= -_DEEPEST:
             # coal's EPA gave up on a deep interpenetration (it answers -1.8e308,
             # seen with a leg through a wrist on a stance 3 m out of reach): a
             # finite stand-in between the centres keeps the solver's arithmetic
             # finite and pushes the bodies apart along the line joining them.
-            distance, point_a, point_b, normal = -_DEEPEST, center_a, reference_b, None
+            distance, point_a, point_b, normal = -_DEEPEST, np.array(center_a), np.array(reference_b), None
         if normal is None:
             # coal gave no direction: fall back on the direction from b's
             # centre to a's, a fair separating guess, or world z when those
@@ -623,16 +641,8 @@ class CollisionChecker:
             offset = center_a - reference_b
             length = np.linalg.norm(offset)
             normal = offset / length if length > 1e-12 else np.array([0.0, 0.0, 1.0])
-        return CollisionPair(
-            name_a=geometry.names[a],
-            name_b=name_b,
-            joint_a=int(geometry.joints[a]),
-            joint_b=joint_b,
-            point_a=point_a,
-            point_b=point_b,
-            distance=distance,
-            normal=normal,
-        )
+        return _measured_pair(geometry.names[a], name_b, int(geometry.joints[a]), joint_b, point_a, point_b,
+                              float(distance), normal)
 
     def jacobian_rows(self, model, data, pairs) -> np.ndarray:
         """Rows of the distance linearisation ``d(q (+) dq) ~= d + row @ dq``.
@@ -737,7 +747,12 @@ class CollisionChecker:
 
 def _box_gap(low_a, high_a, low_b, high_b) -> np.ndarray:
     """(k,) Euclidean distances between axis-aligned boxes given by (k, 3) corners (0 where they meet)."""
-    return np.linalg.norm(np.maximum(np.maximum(low_b - high_a, low_a - high_b), 0.0), axis=1)
+    return _norms(np.maximum(np.maximum(low_b - high_a, low_a - high_b), 0.0))
+
+
+def _norms(vectors) -> np.ndarray:
+    """Euclidean norms along the last axis (without ``np.linalg.norm``'s overhead)."""
+    return np.sqrt(np.einsum("...i,...i->...", vectors, vectors))
 
 
 def _cross(a, b) -> np.ndarray:

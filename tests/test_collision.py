@@ -289,3 +289,24 @@ def test_geometry_placements_from_pinocchio_give_the_same_pairs(robot, floor, da
     assert from_oMi.keys() == from_oMg.keys()
     for key, pair in from_oMi.items():
         assert from_oMg[key].distance == pytest.approx(pair.distance, abs=1e-12)
+
+
+def test_a_pair_without_a_direction_or_depth_from_coal_falls_back_on_the_bounds(robot, floor, feet_on_floor, data):
+    """When coal gives no separating direction, a scene pair's normal runs from the
+    nearest point of the object's bounds to the geometry's bounding-sphere centre; when
+    its penetration solver gives up (a distance below -1.8e308), the pair stands at
+    -1 m between those two points (copies: the pair owns read-only vectors)."""
+    checker = CollisionChecker(robot, [("floor", floor)], exclude=feet_on_floor)
+    placed_at(robot, data, robot.reference_configuration)
+    rotation, translation = checker._geometry_to_world(data, None)
+    candidate = next(c for c in checker._candidates(rotation, translation) if not c[7])
+    centre = np.array(candidate[5])
+    nearest = np.clip(centre, [-5.0, -5.0, -0.1], [5.0, 5.0, 0.0])  # the floor slab's bounds
+    undirected = checker._pair(0.3, (np.zeros(3), np.zeros(3), None), *candidate)
+    np.testing.assert_allclose(undirected.normal, (centre - nearest) / np.linalg.norm(centre - nearest), atol=1e-15)
+    assert undirected.distance == 0.3
+    lost = checker._pair(-np.inf, (np.zeros(3), np.zeros(3), np.array([1.0, 0.0, 0.0])), *candidate)
+    assert lost.distance == -1.0
+    np.testing.assert_array_equal(lost.point_a, centre)
+    np.testing.assert_array_equal(lost.point_b, nearest)
+    assert not lost.point_a.flags.writeable and not np.shares_memory(lost.point_a, candidate[5])
