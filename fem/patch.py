@@ -6,6 +6,7 @@ from functools import cached_property
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.linalg
 
 from .assembly import element_strain_matrices
 from .dense import single_threaded_blas
@@ -182,6 +183,36 @@ class ContactPatch:
         """(T',) int ids of every tet with a node in the print, where strain peaks."""
         touching = np.isin(self._body.mesh.tets, self._ids).any(axis=1)
         return np.flatnonzero(touching)
+
+    def link_solve(self, rhs) -> np.ndarray:
+        """``(C + D)^-1 rhs`` (:attr:`link_stiffness` times a few columns) through the
+        Cholesky factor of :attr:`link_compliance`, kept: a solver that needs the link
+        stiffness on six columns a print (the compliance form's rigid modes) pays one
+        factorisation, a third of the inverse's work.
+
+        Parameters
+        ----------
+        rhs : (3p,) or (3p, k) float
+
+        Returns
+        -------
+        Same shape as ``rhs``: N/m times its units.
+
+        Raises
+        ------
+        PrintError
+            If the compliance is not positive definite.
+        """
+        return scipy.linalg.cho_solve(self._link_factor, np.asarray(rhs, dtype=float), check_finite=False)
+
+    @cached_property
+    def _link_factor(self):
+        """scipy's Cholesky factor of :attr:`link_compliance` (one BLAS thread)."""
+        with single_threaded_blas():
+            try:
+                return scipy.linalg.cho_factor(self.link_compliance, lower=False, check_finite=False)
+            except np.linalg.LinAlgError as exc:
+                raise PrintError("the print compliance is not positive definite") from exc
 
     @cached_property
     def _compliance_rows(self) -> tuple[np.ndarray, np.ndarray]:
@@ -378,7 +409,33 @@ class ContactPatch:
         printed = in_print >= 0
         nodal[printed] = u.reshape(-1, 3)[in_print[printed]]
         nodal[fixed] = 0.0
-        return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
+        return _ball_means(weights, b, nodal, rows)
+
+    def neighbour_strains_under_loads(self, loads, radius: float = 0.0, also=None) -> np.ndarray:
+        """Voigt strains at the :meth:`strain_centres` under loads on the print nodes,
+        each averaged over a ball of ``radius``: :meth:`neighbour_strains` of the print
+        displacements ``C_PP loads``, without the condensed stiffness.
+
+        The nodes of the balls' tets move by ``C[:, P] loads`` (the compliance's columns
+        are the full system's answers to unit loads: 0 at fixed nodes): a solver that
+        knows the print's forces (the compliance form) needs no ``S_P``, whose inverse
+        cost 6-10 ms at every new print on a foam mat.
+
+        Parameters
+        ----------
+        loads : (3p,) float
+            Forces ON the body at the print nodes, newtons, body frame.
+        radius, also : optional
+            As :meth:`neighbour_strains`.
+
+        Returns
+        -------
+        (C, 6) float
+            Voigt strains (engineering shears), dimensionless.
+        """
+        _, _, weights, block, rows, b, _, _ = self._strain_set(radius, also)
+        nodal = (block.reshape(-1, block.shape[2]) @ np.asarray(loads, dtype=float)).reshape(-1, 3)
+        return _ball_means(weights, b, nodal, rows)
 
     def field_strains(self, field, radius: float = 0.0, also=None) -> np.ndarray:
         """Voigt strains at the :meth:`strain_centres` of a whole displacement field
@@ -400,13 +457,12 @@ class ContactPatch:
             Voigt strains (engineering shears), dimensionless.
         """
         _, members, weights, _, _, b, _, _ = self._strain_set(radius, also)
-        nodal = np.asarray(field, dtype=float)[self._body.mesh.tets[members]].reshape(members.size, 12)
-        return weights @ np.einsum("tik,tk->ti", b, nodal)
+        return _ball_means(weights, b, np.asarray(field, dtype=float), self._body.mesh.tets[members])
 
-    def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0, also=None) -> np.ndarray:
+    def neighbour_strain_row(self, weights, tet: int, radius: float = 0.0, also=None, per: str = "displacement") -> np.ndarray:
         """``weights @ strain_map[tet]`` without :attr:`strain_map`: a combination of the
         Voigt strains at one of the :meth:`strain_centres` (averaged over a ball of
-        ``radius``) per unit print displacement.
+        ``radius``) per unit print displacement, or per unit load.
 
         Parameters
         ----------
@@ -417,18 +473,25 @@ class ContactPatch:
             :attr:`neighbour_tets`).
         radius, also : optional
             As :meth:`neighbour_strains`.
+        per : {"displacement", "load"}
+            The derivative of :meth:`neighbour_strains` (in U_P, 1/m) or of
+            :meth:`neighbour_strains_under_loads` (in the loads, 1/N).
 
         Returns
         -------
-        (3p,) float, 1/m
+        (3p,) float
         """
+        if per not in ("displacement", "load"):
+            raise PrintError(f"per must be 'displacement' or 'load', got {per!r}")
         key = self._set_key(radius, also)
-        _, _, averaging, _, _, b, _, _ = self._strain_set(radius, also, key)
+        _, _, averaging, block, rows, b, _, _ = self._strain_set(radius, also, key)
         weights = np.asarray(weights, dtype=float)
         start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
         row = np.zeros(3 * self._ids.size)
         for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
-            row += share * ((weights @ b[k]) @ self._member_map(key, int(k), also))
+            # Per load, the tet's nodes move by their rows of C[:, P] as they are.
+            nodes = self._member_map(key, int(k), also) if per == "displacement" else block[rows[k]].reshape(12, -1)
+            row += share * ((weights @ b[k]) @ nodes)
         return row
 
     def _member_map(self, set_key: tuple, k: int, also=None) -> np.ndarray:
@@ -668,3 +731,10 @@ class ContactPatch:
 
     def __repr__(self) -> str:
         return f"ContactPatch({self.n_nodes} nodes, {self._tri_global.size} triangles)"
+
+
+def _ball_means(weights, b, nodal, rows) -> np.ndarray:
+    """(C, 6) ball means of the tets' Voigt strains ``B_e u_e``: ``weights`` (C, E)
+    averaging, ``b`` (E, 6, 12) strain matrices, ``nodal`` (q, 3) node displacements and
+    ``rows`` (E, 4) each tet's nodes as rows of ``nodal``."""
+    return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))

@@ -374,10 +374,11 @@ class DeformableContact:
         self.basis = basis.reshape(3 * p, -1)
         self.point_prints = np.array([i for i, _ in point_rests], dtype=np.int64)
         # The rigid modes are split off with the consistent stiffness (always
-        # symmetric positive definite); the traction model reuses that split.
-        self.reaction = np.asarray(self.patch.reaction_matrix(self.method))  # rest normals
-        self.consistent = np.asarray(self.patch.reaction_matrix("consistent"))
-        a = self.basis.T @ self.consistent @ self.basis
+        # symmetric positive definite; G^T R G with R = -(C + D)^-1, through a Cholesky
+        # solve on G's columns, not the whole inverse: 8 -> 2 ms on two soles); the
+        # traction model reuses that split.
+        a = -(self.basis.T @ self.patch.link_solve(self.basis))
+        a = 0.5 * (a + a.T)  # symmetric to the last bit
         if np.linalg.cond(a) > 1e12:
             raise StanceError(
                 f"the print nodes of {self.label} cannot hold a rigid link (nearly collinear): "
@@ -390,7 +391,6 @@ class DeformableContact:
         # (L, 3, 6L): W -> each print's turn A^-1 W (none for a point foot, whose print does not turn).
         self._turn_of_w = a_inverse.reshape(n_prints, 6, -1)[:, 3:, :].copy()
         self._turn_of_w[self.point_prints] = 0.0
-        self.distribution = self.reaction @ self.basis @ a_inverse  # D, independent of E
         # Rows of the placement residual in each print's own axes (x, y, normal).
         to_print = np.zeros((6 * n_prints, 6 * n_prints))
         for i, rotation in enumerate(print_rotations_in_body):
@@ -699,6 +699,7 @@ class DeformableContact:
         """
         values = self._values(model, data, w)
         displacements, forces, nodes = values.displacements, values.forces, values.nodes
+        forces_body = values.forces_body
         nv, p = model.nv, len(self.node_ids)
         w_columns = slice(offset, offset + self.n_variables)
         blocks = []
@@ -724,6 +725,7 @@ class DeformableContact:
             d_nodes_full = np.zeros((3 * p, columns))
             d_nodes_full[:, :nv] = d_nodes[:, :nv]
             d_nodes_full[:, w_columns] = d_nodes[:, nv:]
+            d_forces_body = self._body_rows(d_forces.reshape(3 * p, columns))
         if self.law == "coulomb":
             # The contact solve keeps every node admissible; each link must still
             # press its print (on average not above the rest surface), or it is
@@ -742,9 +744,9 @@ class DeformableContact:
             # A link point slides over its node's coupling end: the node plus its coupling's stretch.
             ends, d_ends = nodes, d_nodes_full
             if self._coupling is not None:
-                ends = nodes - _block_product(self._coupling, values.forces_body)
+                ends = nodes - _block_product(self._coupling, forces_body)
                 if derivatives:
-                    d_ends = d_nodes_full - _block_product(self._coupling, self._body_rows(d_forces.reshape(3 * p, columns)))
+                    d_ends = d_nodes_full - _block_product(self._coupling, d_forces_body)
             blocks.append(self._slip_block(displacements, d_displacements, ends, d_ends, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
@@ -781,7 +783,12 @@ class DeformableContact:
             "indentation", depth[deep], jacobian, -np.inf, self.max_indentation, 1e-2,
             tuple(labels["indentation"][i] for i in deep),
         ))
-        strain = self._strain_block(nodes, d_nodes_full, columns)
+        if self.method == "traction":
+            strain = self._strain_block(nodes, d_nodes_full, columns)
+        else:
+            # The compliance form knows the forces: the strains of the loads on the body
+            # (minus the forces on the robot), no condensed stiffness needed.
+            strain = self._strain_block(-forces_body, -d_forces_body if derivatives else None, columns, per="load")
         if strain is not None:
             blocks.append(strain)
         return blocks
@@ -817,6 +824,20 @@ class DeformableContact:
             "slip", tangential[chosen].reshape(-1), jacobian,
             -_PYRAMID * self.max_slip, _PYRAMID * self.max_slip, 1e-2, labels,
         )
+
+    @cached_property
+    def reaction(self) -> np.ndarray:
+        """(3p, 3p) float, N/m, body frame: the print's reaction matrix R at the rest
+        normals (``fem.ContactPatch.reaction_matrix`` of the method), what the bonded
+        law's forces ``R U`` and the traction model read; the Coulomb law has its
+        contact solve instead, and never forms it (an inverse of C + D)."""
+        return np.asarray(self.patch.reaction_matrix(self.method))
+
+    @cached_property
+    def distribution(self) -> np.ndarray:
+        """(3p, 6L) float: ``D = R G A^-1``, each print's W spread over its nodes as a
+        rigid motion of them loads them (independent of E); the traction model's."""
+        return self.reaction @ self.basis @ self.a_inverse
 
     @cached_property
     def _labels(self) -> dict:
@@ -925,15 +946,17 @@ class DeformableContact:
         weight = self.deformable_object.self_weight_field
         return self.patch.field_strains(weight, self.strain_radius, self._row_also) if weight.any() else None
 
-    def _strain_block(self, u, d_u, columns):
+    def _strain_block(self, u, d_u, columns, per="displacement"):
         """Largest and smallest principal strains of the most strained tets near the prints.
 
-        ``u`` (3p,) are the body's print-node displacements, ``d_u`` (3p, columns)
-        their derivative in the step (None: values only).
+        ``u`` (3p,) are the body's print-node displacements (``per="displacement"``) or
+        the loads on its print nodes (``per="load"``: forces ON the body, body frame),
+        ``d_u`` (3p, columns) their derivative in the step (None: values only).
         """
         if self.max_strain_rows == 0:
             return None
-        voigt = self.patch.neighbour_strains(u, self.strain_radius, self._row_also)  # (T', 6), ball means
+        strains = self.patch.neighbour_strains if per == "displacement" else self.patch.neighbour_strains_under_loads
+        voigt = strains(u, self.strain_radius, self._row_also)  # (T', 6), ball means
         if self._weight_strains is not None:
             voigt = voigt + self._weight_strains
         # The Frobenius norm of a strain tensor bounds its principal strains: the
@@ -959,7 +982,8 @@ class DeformableContact:
                     v = vectors[k, :, which]
                     # d lambda = v^T dE v; Voigt with engineering shears.
                     weights = np.array([v[0] ** 2, v[1] ** 2, v[2] ** 2, v[0] * v[1], v[0] * v[2], v[1] * v[2]])
-                    rows_jacobian.append(self.patch.neighbour_strain_row(weights, t, self.strain_radius, self._row_also) @ d_u)
+                    rows_jacobian.append(
+                        self.patch.neighbour_strain_row(weights, t, self.strain_radius, self._row_also, per=per) @ d_u)
                 rows_value.append(values[k, which])
                 lower.append(bound_lower)
                 upper.append(bound_upper)

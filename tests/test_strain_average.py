@@ -105,6 +105,32 @@ def test_a_prints_ball_mean_strains_and_their_rows_are_those_of_the_full_field(s
         assert np.allclose(row, linear, rtol=1e-9, atol=1e-12 * np.abs(linear).max())
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.02])
+def test_strains_under_print_loads_are_those_of_the_full_field_under_them(slab, radius):
+    """The compliance form's strain rows: loads on the print nodes strain the body as
+    the full system loaded by them (one sparse solve) does, without the condensed
+    stiffness; a row per unit load is their exact derivative."""
+    body, ids = slab
+    patch = body.contact_patch(ids)
+    rng = np.random.default_rng(6)
+    loads = rng.normal(scale=10.0, size=(ids.size, 3))
+    members, weights = body.strain_averages.weights(patch.strain_centres(radius), radius)
+    expected = weights @ body.strain(body.displacement_under_loads(ids, loads))[members]
+    got = patch.neighbour_strains_under_loads(loads.ravel(), radius)
+    assert np.allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    # The same strains as those of the print displacements the loads make.
+    assert np.allclose(got, patch.neighbour_strains(patch.compliance @ loads.ravel(), radius), rtol=0,
+                       atol=1e-9 * np.abs(expected).max())
+    columns = np.eye(3 * ids.size)
+    for tet in rng.choice(got.shape[0], 3, replace=False).tolist():
+        mix = rng.normal(size=6)
+        row = patch.neighbour_strain_row(mix, tet, radius, per="load")
+        linear = np.array([mix @ patch.neighbour_strains_under_loads(c, radius)[tet] for c in columns])
+        assert np.allclose(row, linear, rtol=1e-9, atol=1e-12 * np.abs(linear).max())
+    with pytest.raises(fem.PrintError, match="per must be 'displacement' or 'load', got 'force'"):
+        patch.neighbour_strain_row(mix, 0, radius, per="force")
+
+
 def test_the_ball_mean_at_a_rigid_palms_edge_converges_where_a_tets_own_strain_does_not():
     """A palm pressed 5 mm into the foam mat on the default mesh and on the mesh refined
     twice (1,792 and 10,759 nodes). Measured: the tets' own largest strain 0.121 -> 0.182
