@@ -333,9 +333,16 @@ class ContactPatch:
         when they hold them (the nodes of tets touching the print), else read again."""
         block, position = self._compliance_rows
         at = position[nodes]
-        if np.all(at >= 0):
+        known = at >= 0
+        if known.all():
             return block[at]
-        return self._body.compliance_block(nodes, self._ids).reshape(nodes.size, 3, -1)
+        # Only the rows it does not hold are gathered (a ball's nodes include the
+        # touching tets' ones).
+        out = np.empty((nodes.size, 3, block.shape[2]))
+        out[known] = block[at[known]]
+        missing = nodes[~known]
+        out[~known] = self._body.compliance_block(missing, self._ids).reshape(missing.size, 3, -1)
+        return out
 
     def strain_centres(self, radius: float = 0.0, also=None) -> np.ndarray:
         """(C,) ids of the tets whose ball means of radius ``radius`` the strain rows

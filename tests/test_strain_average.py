@@ -53,6 +53,34 @@ def test_ball_means_are_the_volume_weighted_means_over_the_ball(slab, radius):
         assert np.array_equal(members, np.sort(centres)) and np.array_equal(weights.toarray()[np.argsort(centres)], np.eye(4))
 
 
+@pytest.mark.parametrize("radius", [0.012, 0.03])
+def test_a_balls_weights_are_the_same_bits_before_and_after_every_ball_is_known(slab, radius):
+    """Once every ball's weights are known (mean_matrix), a set of balls reads its rows:
+    the same members, columns and weights as found by the tree."""
+    body, _ = slab
+    averages = fem.strain_average.BallAverages(body.mesh.nodes, body.mesh.tets)
+    centres = np.random.default_rng(4).choice(body.mesh.n_tets, 40, replace=False)
+    members, weights = averages.weights(centres, radius)
+    averages.mean_matrix(radius)
+    known_members, known_weights = averages.weights(centres, radius)
+    assert np.array_equal(known_members, members)
+    for name in ("data", "indices", "indptr"):
+        assert np.array_equal(getattr(known_weights, name), getattr(weights, name))
+
+
+@pytest.mark.parametrize("radius", [0.0, 0.012, 0.031, 0.08])
+def test_the_tets_near_some_tets_are_those_within_the_radius_of_one_of_them(slab, radius):
+    """The centres whose balls reach some tets: the definition read literally (a
+    thousandth of a micrometre either side of the radius left to rounding)."""
+    body, _ = slab
+    averages = body.strain_averages
+    tets = np.random.default_rng(9).choice(body.mesh.n_tets, 25, replace=False)
+    distance = np.linalg.norm(averages.centroids[:, None] - averages.centroids[tets][None], axis=2).min(axis=1)
+    got = set(averages.near(tets, radius).tolist())
+    assert set(np.flatnonzero(distance <= radius - 1e-15).tolist()) | set(tets.tolist()) <= got
+    assert got <= set(np.flatnonzero(distance <= radius + 1e-15).tolist())
+
+
 def test_a_uniform_strain_is_its_own_mean(slab):
     body, _ = slab
     voigt = np.tile([0.01, -0.02, 0.003, 0.004, 0.0, -0.001], (body.mesh.n_tets, 1))
