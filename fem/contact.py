@@ -124,9 +124,10 @@ class PrintContact:
 
 def _to_nodes(frames: np.ndarray | None, vectors: np.ndarray) -> np.ndarray:
     """Stacked body-frame vectors (3p,) or (3p, k) in the node frames (rows t1, t2, n);
-    ``frames`` None: the node frames are the body's axes (the vectors as they are)."""
+    ``frames`` None: the node frames are the body's axes (a copy of the vectors, -0.0
+    made 0.0 as the rotation made it)."""
     if frames is None:
-        return vectors
+        return vectors + 0.0
     p = frames.shape[0]
     return np.einsum("pij,pj...->pi...", frames, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
@@ -134,7 +135,7 @@ def _to_nodes(frames: np.ndarray | None, vectors: np.ndarray) -> np.ndarray:
 def _to_body(frames: np.ndarray | None, vectors: np.ndarray) -> np.ndarray:
     """Inverse of :func:`_to_nodes`."""
     if frames is None:
-        return vectors
+        return vectors + 0.0
     p = frames.shape[0]
     return np.einsum("pji,pj...->pi...", frames, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
