@@ -39,7 +39,7 @@ from functools import cached_property
 import numpy as np
 import scipy.linalg
 
-from .dense import spd_inverse
+from .dense import block_diagonal_product, spd_inverse
 from .errors import FemError
 
 __all__ = [
@@ -99,7 +99,7 @@ class PrintContact:
         """
         factor, blocks, frames, _ = self._system
         local = _to_nodes(frames, np.asarray(matrix, dtype=float))
-        return _to_body(frames, -factor.solve(_apply_blocks(blocks, local)))
+        return _to_body(frames, -factor.solve(block_diagonal_product(blocks, local)))
 
     @cached_property
     def jacobian(self) -> np.ndarray:
@@ -254,8 +254,10 @@ class PrintContactSystem:
         # soft stance) leave every vector and C as they are: no rotation at all.
         self._frames = None if np.array_equal(frames, np.broadcast_to(np.eye(3), frames.shape)) else frames
         # R C R^T (R block diagonal): F_i C_ij F_j^T.
-        # (A caller's writable C is copied: changed later, it must not change this system.)
-        self.c_local = (c if not c.flags.writeable else c.copy()) if self._frames is None else _in_frames(frames, c)
+        # (Only a read-only C that owns its numbers is kept as it is, such as a print's
+        # compliance: one that could change later, through it or its base, is copied.)
+        owned = not c.flags.writeable and c.base is None
+        self.c_local = (c if owned else c.copy()) if self._frames is None else _in_frames(frames, c)
         self.mu = mu
         # Complementarity scales: the diagonal stiffness of each dof.
         self.scale = 1.0 / np.diag(self.c_local).reshape(p, 3)
@@ -350,7 +352,7 @@ class PrintContactSystem:
     def _forces(self, u_local, system):
         """Node forces and relative motions (node frames) of one linearised law."""
         factor, rhs_blocks = system
-        phi = factor.solve(-_apply_blocks(rhs_blocks, u_local.ravel()))
+        phi = factor.solve(-block_diagonal_product(rhs_blocks, u_local.ravel()))
         r = u_local.ravel() + self.c_local @ phi
         return phi.reshape(-1, 3), r.reshape(-1, 3)
 
@@ -611,10 +613,6 @@ def _compliance_rows(modes) -> np.ndarray:
     return motion_rows
 
 
-def _apply_blocks(blocks, vectors) -> np.ndarray:
-    """(p, 3, 3) blocks times stacked (3p,) or (3p, m) vectors."""
-    p = blocks.shape[0]
-    return np.einsum("pij,pj...->pi...", blocks, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
 
 def _friction_bound(normal, mu):

@@ -18,7 +18,7 @@ from threadpoolctl import ThreadpoolController
 
 from .errors import FemError
 
-__all__ = ["single_threaded_blas", "spd_inverse"]
+__all__ = ["block_diagonal_product", "single_threaded_blas", "spd_inverse"]
 
 _controller: ThreadpoolController | None = None
 
@@ -64,3 +64,15 @@ def spd_inverse(matrix: np.ndarray, what: str) -> np.ndarray:
     if info != 0:
         raise FemError(f"{what} is not positive definite (LAPACK info {info})")
     return np.triu(upper) + np.triu(upper, 1).T
+
+
+def block_diagonal_product(blocks: np.ndarray, vectors: np.ndarray) -> np.ndarray:
+    """A block-diagonal matrix, given by its (p, 3, 3) ``blocks``, times stacked (3p,)
+    or (3p, k) vectors: 9 p numbers read instead of the 9 p^2 of the whole matrix.
+
+    Returns
+    -------
+    ndarray of the shape of ``vectors``.
+    """
+    p = blocks.shape[0]
+    return np.einsum("pij,pj...->pi...", blocks, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)

@@ -196,14 +196,17 @@ class ContactPatch:
 
         Returns
         -------
-        Same shape as ``rhs``: N/m times its units.
+        ndarray
+            Of the shape of ``rhs``: N/m times its units.
 
         Raises
         ------
         PrintError
             If the compliance is not positive definite.
         """
-        return scipy.linalg.cho_solve(self._link_factor, np.asarray(rhs, dtype=float), check_finite=False)
+        factor = self._link_factor
+        with single_threaded_blas():
+            return scipy.linalg.cho_solve(factor, np.asarray(rhs, dtype=float), check_finite=False)
 
     @cached_property
     def _link_factor(self):
@@ -393,7 +396,8 @@ class ContactPatch:
         U_P.ravel()``. Computed through the tets' nodes: the nodes move by ``C[:, P] S_P
         U_P`` (eq. 36; exactly U_P at the print nodes, 0 at fixed ones), the force ``S_P
         U_P`` computed first, so that no (3q, 3p) map is formed (it runs at every
-        evaluation of a soft stance).
+        evaluation of a traction model's stance; the compliance form's read
+        :meth:`neighbour_strains_under_loads`).
 
         Parameters
         ----------

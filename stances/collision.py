@@ -141,7 +141,6 @@ class _RobotGeometry:
     sphere_radius: np.ndarray  # (g,) metres
     box_center: np.ndarray  # (g, 3) metres, geometry frame: the shape's local bounding box
     box_half: np.ndarray  # (g, 3) metres, its half sides
-    local_centers: np.ndarray  # (g, 3, 2) metres: sphere_center and box_center side by side
     shapes: tuple  # coal.Convex hulls and primitives, geometry frame
     self_pairs: np.ndarray  # (p, 2) int geometry indices, SRDF-allowed
     support: np.ndarray  # (njoints, nv) bool, see _support_columns
@@ -180,8 +179,6 @@ def _robot_geometry(robot) -> _RobotGeometry:
         sphere_radius=np.array(radii, dtype=float),
         box_center=np.array([0.5 * (low + high) for low, high in boxes]).reshape(-1, 3),
         box_half=np.array([0.5 * (high - low) for low, high in boxes]).reshape(-1, 3),
-        local_centers=np.stack([np.array(centers).reshape(-1, 3),
-                                np.array([0.5 * (low + high) for low, high in boxes]).reshape(-1, 3)], axis=2),
         shapes=tuple(shapes),
         self_pairs=_self_pairs(collision_model),
         support=_support_columns(robot.model),
@@ -460,11 +457,10 @@ class CollisionChecker:
             Bounding sphere centres, metres, world frame.
         """
         geometry = self._geometry
-        # Sphere and box centres in one product (the bounds' rounding is covered by the slack).
-        placed = np.matmul(rotation, geometry.local_centers) + translation[:, :, None]  # (g, 3, 2)
-        centers, box_centers = placed[:, :, 0], placed[:, :, 1]
+        centers = np.einsum("gij,gj->gi", rotation, geometry.sphere_center) + translation
         radius = geometry.sphere_radius
-        box_halves = np.matmul(np.abs(rotation), geometry.box_half[:, :, None])[:, :, 0]
+        box_centers = np.einsum("gij,gj->gi", rotation, geometry.box_center) + translation
+        box_halves = np.einsum("gij,gj->gi", np.abs(rotation), geometry.box_half)
         lows, highs = box_centers - box_halves, box_centers + box_halves
         # Both bounds never exceed the distance (a shape lies inside its sphere and
         # its box); the larger one is kept. The slack covers coal's own accuracy.

@@ -95,6 +95,7 @@ import scipy.linalg
 import scipy.spatial
 
 import fem
+from fem.dense import block_diagonal_product
 
 from .blocks import ConstraintBlock, equality
 from .contacts import friction_cone_generators
@@ -211,13 +212,6 @@ class _PrintValues:
     nodes: np.ndarray
     solved: Any
 
-
-
-def _block_product(blocks: np.ndarray, vectors: np.ndarray) -> np.ndarray:
-    """A block-diagonal matrix, given by its (p, 3, 3) ``blocks``, times stacked (3p,) or
-    (3p, k) vectors."""
-    p = blocks.shape[0]
-    return np.einsum("pij,pj...->pi...", blocks, vectors.reshape(p, 3, *vectors.shape[1:])).reshape(vectors.shape)
 
 def _skew_rows(points: np.ndarray) -> np.ndarray:
     """(p, 3) -> (p, 3, 3) cross-product matrices."""
@@ -406,6 +400,10 @@ class DeformableContact:
              for spec, friction in zip(self.prints, self.friction)]
         ) @ to_print
         self._print_rotations_in_body = print_rotations_in_body
+        if self.method == "traction":
+            # Made now, not at the first soft evaluation: a print the traction model cannot
+            # integrate (no whole surface triangle) is refused while the problem is built.
+            _ = self.reaction
 
         # Per-node frames: normal and tangents of each node's print, world.
         self.normals = np.array([self.print_placements[i].rotation[:, 2] for i in self.print_of_node])
@@ -744,9 +742,9 @@ class DeformableContact:
             # A link point slides over its node's coupling end: the node plus its coupling's stretch.
             ends, d_ends = nodes, d_nodes_full
             if self._coupling is not None:
-                ends = nodes - _block_product(self._coupling, forces_body)
+                ends = nodes - block_diagonal_product(self._coupling, forces_body)
                 if derivatives:
-                    d_ends = d_nodes_full - _block_product(self._coupling, d_forces_body)
+                    d_ends = d_nodes_full - block_diagonal_product(self._coupling, d_forces_body)
             blocks.append(self._slip_block(displacements, d_displacements, ends, d_ends, columns))
             # Each print's resultant keeps a margin inside its pyramid: a print whose
             # nodes all slide is at the point of sliding away.
@@ -828,9 +826,9 @@ class DeformableContact:
     @cached_property
     def reaction(self) -> np.ndarray:
         """(3p, 3p) float, N/m, body frame: the print's reaction matrix R at the rest
-        normals (``fem.ContactPatch.reaction_matrix`` of the method), what the bonded
-        law's forces ``R U`` and the traction model read; the Coulomb law has its
-        contact solve instead, and never forms it (an inverse of C + D)."""
+        normals (``fem.ContactPatch.reaction_matrix`` of the method), what the bonded and
+        sticking laws' forces ``R U`` and the traction model read; the Coulomb law has
+        its contact solve instead, and never forms it (an inverse of C + D)."""
         return np.asarray(self.patch.reaction_matrix(self.method))
 
     @cached_property
@@ -1108,7 +1106,7 @@ class DeformableContact:
         # Link point minus the node's coupling end (the node itself when fully covered).
         ends = field[self.node_ids]
         if self._coupling is not None:
-            ends = ends - _block_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
+            ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         relative = np.einsum("pij,pj->pi", self.node_frames, displacements - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
