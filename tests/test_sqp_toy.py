@@ -363,6 +363,25 @@ def test_feasible_iterates_that_no_step_improves_end_the_solve_at_the_best(monke
     assert outcome.linearization.objective == pytest.approx(1.0 - 2e-6, abs=1e-12)
 
 
+@pytest.mark.parametrize("gain, stops", [(1e-4, True), (1e-3, False)])
+def test_feasible_iterates_that_gain_too_slowly_end_the_solve(monkeypatch, gain, stops):
+    """Feasible steps each better by ``gain`` (so never 'no gain'): gaining under 0.1 % of
+    the objective over _SLOW_GAIN_ITERATIONS iterations (1e-4 a step: 4e-4 over four,
+    against 2e-3) ends the solve at the best iterate; 1e-3 a step goes on to the limit."""
+
+    def objective(q, lam):
+        return 1.0 - gain * round(q[0] / 0.01), np.array([-1.0, 0.0, 0.0]), np.eye(3)
+
+    monkeypatch.setattr(sqp, "_line_search", _steps_of_one_hundredth)
+    outcome = run_sqp(ToyProblem(objective, lambda q, lam: []), np.zeros(3), np.zeros(0), limit=20)
+    assert outcome.feasible
+    if stops:
+        assert outcome.status == "converged" and outcome.iterations == sqp._SLOW_GAIN_ITERATIONS + 1
+        assert outcome.q[0] == pytest.approx(0.01 * (sqp._SLOW_GAIN_ITERATIONS + 1), abs=1e-12)  # the last is the best
+    else:
+        assert outcome.status == "iteration limit" and outcome.iterations == 20
+
+
 def test_an_infeasible_last_iterate_gives_way_to_the_best_feasible_one(monkeypatch):
     """At the iteration limit on an infeasible iterate, the best feasible one seen is the answer."""
     monkeypatch.setattr(sqp, "_line_search", _steps_of_one_hundredth)
