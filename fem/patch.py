@@ -457,10 +457,8 @@ class ContactPatch:
         ----------
         field : (N, 3) float
             Displacement of every node, metres, body frame.
-        radius : float, optional
-            Metres; 0: each tet's own strain.
-        also : (n,) int, optional
-            Further centres, as :meth:`strain_centres`.
+        radius, also : optional
+            As :meth:`neighbour_strains`.
 
         Returns
         -------

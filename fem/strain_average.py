@@ -208,10 +208,8 @@ class BallAverages:
 
         Parameters
         ----------
-        voigt : (M, 6) float
-            Voigt strains per tet (engineering shears).
-        radius : float
-            Metres, >= 0.
+        voigt, radius
+            As :meth:`largest_principal`.
         threshold : float
             Dimensionless, > 0.
         """

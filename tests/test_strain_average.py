@@ -200,19 +200,29 @@ def averaging_path(request, monkeypatch):
     return request.param
 
 
-@pytest.mark.parametrize("radius", [0.012, 0.03])
-def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radius, averaging_path):
-    """Random, heavy-tailed fields (one tet far more strained than its neighbours, shears
-    dominating) put the largest mean away from the most strained tet."""
-    body, _ = slab
+def _rough_fields(body, radius, averaging_path, seed, count):
+    """Fresh ball averages of ``body`` on ``averaging_path``, and ``count`` random,
+    heavy-tailed fields (one tet far more strained than its neighbours, shears
+    dominating), each with the largest principal strain magnitude of every ball mean,
+    the definition read literally."""
     averages = fem.strain_average.BallAverages(body.mesh.nodes, body.mesh.tets)
     if averaging_path == "every mean":
         averages.mean_matrix(radius)  # built: every answer reads it
-    rng = np.random.default_rng(11)
-    for _ in range(10):
+    rng = np.random.default_rng(seed)
+    fields = []
+    for _ in range(count):
         voigt = rng.standard_t(1.5, size=(body.mesh.n_tets, 6)) * np.array([0.1, 0.1, 0.1, 1.0, 1.0, 1.0])
         means = _brute_means(averages, voigt, radius)
-        expected = np.abs(np.linalg.eigvalsh(fem.voigt_to_tensor_strain(means))).max(axis=1)
+        fields.append((voigt, np.abs(np.linalg.eigvalsh(fem.voigt_to_tensor_strain(means))).max(axis=1)))
+    return averages, fields
+
+
+@pytest.mark.parametrize("radius", [0.012, 0.03])
+def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radius, averaging_path):
+    """Rough fields put the largest mean away from the most strained tet."""
+    body, _ = slab
+    averages, fields = _rough_fields(body, radius, averaging_path, seed=11, count=10)
+    for voigt, expected in fields:
         value, tet = averages.largest_principal(voigt, radius)
         assert value == pytest.approx(expected.max(), rel=1e-12) and expected[tet] == pytest.approx(value, rel=1e-12)
 
@@ -222,13 +232,8 @@ def test_the_centres_above_a_threshold_are_the_brute_force_ones(slab, radius, av
     """Every tet whose ball mean reaches the threshold, and no other, on heavy-tailed
     fields (the screens on the means' or the tets' norms must not drop a centre)."""
     body, _ = slab
-    averages = fem.strain_average.BallAverages(body.mesh.nodes, body.mesh.tets)
-    if averaging_path == "every mean":
-        averages.mean_matrix(radius)  # built: every answer reads it
-    rng = np.random.default_rng(5)
-    for _ in range(5):
-        voigt = rng.standard_t(1.5, size=(body.mesh.n_tets, 6)) * np.array([0.1, 0.1, 0.1, 1.0, 1.0, 1.0])
-        magnitudes = np.abs(np.linalg.eigvalsh(fem.voigt_to_tensor_strain(_brute_means(averages, voigt, radius)))).max(axis=1)
+    averages, fields = _rough_fields(body, radius, averaging_path, seed=5, count=5)
+    for voigt, magnitudes in fields:
         threshold = float(np.quantile(magnitudes, 0.9))
         expected = np.flatnonzero(magnitudes >= threshold * (1.0 + 1e-12))
         found = averages.centres_above(voigt, radius, threshold)
