@@ -32,6 +32,23 @@ class LazyDeformations(Mapping):
         self._producers = dict(producers)
         self._fields = {}
 
+    def provide(self, fields) -> None:
+        """Keep fields computed elsewhere from the same inputs (:func:`stances.verify`
+        solves each soft body under the result's forces anyway), so that a first
+        access pays nothing.
+
+        Parameters
+        ----------
+        fields : dict of str to (N, 3) float
+            Object name -> displacement field, metres, body frame; names this
+            mapping does not hold, or holds already, are left alone.
+        """
+        for name, value in fields.items():
+            if name in self._producers and name not in self._fields:
+                value = np.array(value, dtype=float)
+                value.setflags(write=False)
+                self._fields[name] = value
+
     def __getitem__(self, name):
         if name not in self._fields:
             field_ = np.array(self._producers[name](), dtype=float)

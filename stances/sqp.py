@@ -687,7 +687,11 @@ def _result(problem, outcome, elapsed, check=True) -> PostureResult:
         },
     )
     if check and (feasible or nearly):
-        verification = verify_problem(problem, result)
+        # The check solves each soft body under the answer's forces: the fields the
+        # result shows are those (the same function of the same q and forces).
+        fields = {}
+        verification = verify_problem(problem, result, fields=fields)
+        deformations.provide(fields)
         if verification.ok:
             result = _with(result, verification=verification, feasible=True, reason="")
         elif feasible:

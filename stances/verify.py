@@ -67,7 +67,8 @@ def _external_forces(model, data, point_forces):
 
 
 def verify_problem(
-    problem, result, tolerances: VerificationTolerances | None = None, deformed_surfaces: bool = False
+    problem, result, tolerances: VerificationTolerances | None = None, deformed_surfaces: bool = False,
+    fields: dict | None = None,
 ) -> Verification:
     """Check a result against the problem it claims to solve.
 
@@ -83,6 +84,10 @@ def verify_problem(
         boundary mesh). It needs the whole-body displacement fields, a few
         hundred milliseconds on a large mesh, so the solver's own check
         (against the rest shape) leaves it out.
+    fields : dict, optional
+        Filled with the displacement field this check solves for each soft
+        body under the reported forces (object name -> (N, 3) float, metres,
+        body frame), for a caller that shows them too.
 
     Returns
     -------
@@ -144,7 +149,7 @@ def verify_problem(
     # Each contact: placement, cones, and (deformable) the FEM forces themselves. A soft
     # body's field under the reported forces (one sparse solve) serves both its contact's
     # check and the check of the field the result shows.
-    made = {}
+    made = {} if fields is None else fields
     for contact, loads in zip(problem.contacts, problem.load_slices):
         forces = np.array([p.force for p in result.point_forces[loads]])
         points = np.array([p.point for p in result.point_forces[loads]])
@@ -156,11 +161,11 @@ def verify_problem(
 
     if deformed_surfaces:
         # The displacement fields the result shows are those its forces make.
-        fields, mismatches = _shown_deformations(result, made, tolerances, measures)
+        shown, mismatches = _shown_deformations(result, made, tolerances, measures)
         reasons.extend(mismatches)
         # Links other than the contacting one keep clear of each deformed surface.
-        if problem.collision_checker is not None and fields is not None:
-            reasons.extend(_deformed_surface_clearance(problem, fields, data, tolerances, measures))
+        if problem.collision_checker is not None and shown is not None:
+            reasons.extend(_deformed_surface_clearance(problem, shown, data, tolerances, measures))
 
     # Collisions, measured afresh.
     if problem.collision_checker is not None:

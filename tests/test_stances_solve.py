@@ -14,6 +14,7 @@ import fem
 from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
+from stances.results import LazyDeformations
 from stances.problem import PostureOptions, build_problem
 from stances import sqp
 from stances.sqp import solve, solve_problem
@@ -71,6 +72,36 @@ def test_rigid_scenario_solves_and_verifies(robot, scenario_name, stance_name):
     assert check.measures.get("closest_distance", np.inf) > 0.0
     # The reported torques are the actuated part of g - J^T f.
     assert np.all(np.abs(result.torques) <= robot.effort_limits + 1e-6)
+
+
+def test_lazy_deformations_keep_a_provided_field_and_only_for_their_own_bodies():
+    def never():
+        raise AssertionError("a provided field is not computed again")
+
+    computed = np.ones((4, 3))
+    fields = LazyDeformations({"cube": never, "foam": lambda: computed})
+    given = np.arange(12.0).reshape(4, 3)
+    fields.provide({"cube": given, "mat": np.zeros((2, 3))})
+    assert list(fields) == ["cube", "foam"]  # no body the solve did not touch
+    assert np.array_equal(fields["cube"], given) and not fields["cube"].flags.writeable
+    given[0, 0] = -1.0  # a copy is kept
+    assert fields["cube"][0, 0] == 0.0
+    assert np.array_equal(fields["foam"], computed)
+    fields.provide({"foam": np.zeros((4, 3))})  # what is known stays
+    assert np.array_equal(fields["foam"], computed)
+
+
+def test_a_soft_answer_shows_the_field_its_forces_make_bit_for_bit(deformable_robots, deformable_results):
+    # The field the result shows is the one verify solved for (handed over, not
+    # solved again): the same bits as a fresh solve under the answer's forces.
+    robot = deformable_robots["step-on-cube"]
+    result = deformable_results["step-on-cube"]
+    scenario = coarse_scenario("step-on-cube")
+    problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions())
+    fresh = sqp.deformation_fields(problem, result.q, result.point_forces)
+    assert set(fresh) == set(result.deformations) == {"cube"}
+    assert np.array_equal(result.deformations["cube"], fresh["cube"])
+    assert np.abs(fresh["cube"]).max() > 1e-5
 
 
 @pytest.mark.parametrize("scenario_name, stance_name", DEFORMABLE, ids=[d[0] for d in DEFORMABLE])
