@@ -15,11 +15,13 @@ from .output import OutputFiles, write_outputs
 from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
 from .planner import LookaheadHeuristic, PostureOracle, StanceCheck, initial_configuration, load_scenario, plan
 from .reach import ReachLimits, ReachModel
+from .replan import AvoidedStep, MovingPlan, plan_with_motions
 from .sampling import PrintSet, SamplingOptions, sample_prints
 from .search import SearchLimits, SearchResult, SearchStatistics, best_first_search
 from .stance_graph import Move, StanceNeighbours, differ_by_one_contact
 
 __all__ = [
+    "AvoidedStep",
     "BatchFileError",
     "Check",
     "CheckOutcome",
@@ -27,6 +29,7 @@ __all__ = [
     "LookaheadHeuristic",
     "Move",
     "MotionError",
+    "MovingPlan",
     "OutputFiles",
     "Plan",
     "PlanCheck",
@@ -49,6 +52,7 @@ __all__ = [
     "initial_configuration",
     "load_scenario",
     "plan",
+    "plan_with_motions",
     "read_checks",
     "run_check",
     "solve_many",

@@ -201,7 +201,8 @@ def build_parser():
         help="also plan the quasi-static motion between consecutive stances (trajectory.csv, trajectory.npz, "
         "played by viewer.html); each sample is a verified posture solve; a stance whose posture its motion "
         "cannot reach is solved again from the motion's touch-down, or at a lift-off its last lifted sample "
-        "(plan.json holds the new posture)",
+        "(plan.json holds the new posture); a step that still has no motion is taken out and the search runs "
+        "again, three searches at most, each with the budgets above",
     )
     plan.add_argument("--view", action="store_true", help="show the plan in meshcat (pip install meshcat)")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
@@ -406,6 +407,7 @@ def _load_robot(args, scenario):
 def _plan(args):
     from .output import StagedOutput, write_outputs
     from .planner import PlanInterrupted, load_scenario, plan
+    from .replan import plan_with_motions
 
     scenario = load_scenario(args.scenario)
     robot = _load_robot(args, scenario)
@@ -413,20 +415,25 @@ def _plan(args):
     # temporary folder made here is where the files go.
     staged = StagedOutput(args.out, force=args.force)
     interrupted = False
+    options = dict(
+        print_spacing=args.print_spacing,
+        max_expansions=args.max_expansions,
+        time_limit=args.time_limit,
+        seed=args.seed,
+        progress=not args.quiet,
+        workers=args.workers,
+        prefilter=not args.no_prefilter,
+        terrain_weight=args.terrain_weight,
+    )
+    motions, moving = None, None
     try:
         try:
-            result = plan(
-                scenario,
-                robot=robot,
-                print_spacing=args.print_spacing,
-                max_expansions=args.max_expansions,
-                time_limit=args.time_limit,
-                seed=args.seed,
-                progress=not args.quiet,
-                workers=args.workers,
-                prefilter=not args.no_prefilter,
-                terrain_weight=args.terrain_weight,
-            )
+            if args.motion:
+                # Where a step has no motion, the search runs again without it.
+                moving = plan_with_motions(scenario, robot=robot, **options)
+                result, motions = moving.plan, moving.motions
+            else:
+                result = plan(scenario, robot=robot, **options)
         except PlanInterrupted as stop:
             if not stop.plan.stances:
                 raise  # not even the start solved: nothing worth writing
@@ -436,11 +443,6 @@ def _plan(args):
                 "Ctrl-C again to abandon it",
                 file=sys.stderr,
             )
-        motions = None
-        if args.motion and not interrupted:
-            from .motion import plan_motions_reposing
-
-            result, motions = plan_motions_reposing(result, scenario, robot)
         files = write_outputs(result, scenario, robot, staged.folder, pictures=not args.no_pictures, motions=motions)
         staged.publish()
     except BaseException:
@@ -464,6 +466,10 @@ def _plan(args):
         if not result.success:
             for cause, entry in result.rejections.items():
                 print(f"    {cause}, e.g. {_shortened(entry['example'])}")
+    if moving is not None and moving.avoided:
+        print(f"  searched {moving.plans} times; {len(moving.avoided)} step(s) of earlier plans had no motion and were avoided:")
+        for step in moving.avoided:
+            print(f"    {step.move}: {_shortened(step.reason)}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
     if motions:

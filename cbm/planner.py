@@ -336,6 +336,7 @@ def plan(
     workers=1,
     prefilter=True,
     terrain_weight=None,
+    forbidden=(),
 ):
     """Plan a sequence of stances from the scenario's start to its goal.
 
@@ -390,6 +391,9 @@ def plan(
         ground where a rigid way exists. Default: the scenario's
         ``terrain_weight`` option, else 0 (then plans are those of a search
         without the term, bit for bit).
+    forbidden : iterable of (Stance, Stance), optional
+        Transitions the search may not take, ``(stance, next stance)``: steps
+        that no quasi-static motion joins (:func:`cbm.replan.plan_with_motions`).
 
     Returns
     -------
@@ -441,7 +445,7 @@ def plan(
         sampling.spacing,
         len(sampling.theta_values),
     )
-    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts)
+    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts, forbidden=forbidden)
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None
     if check_workers(workers) > 1 and oracle is not None:

@@ -67,6 +67,9 @@ class StanceNeighbours:
         prune it (the step height, 0.37 leg lengths, is 0.18 m for iCub's
         0.48 m legs, and iCub holds foot-on-block's 0.2 m block). The posture
         solve decides.
+    forbidden : iterable of (Stance, Stance), optional
+        Transitions never offered, ``(stance, neighbour)``: steps an earlier plan
+        took that no quasi-static motion joins (:func:`cbm.replan.plan_with_motions`).
 
     Notes
     -----
@@ -75,8 +78,9 @@ class StanceNeighbours:
     :meth:`cbm.reach.ReachModel.reachable_mask`.
     """
 
-    def __init__(self, print_sets, surfaces, reach, required=()):
+    def __init__(self, print_sets, surfaces, reach, required=(), forbidden=()):
         self.print_sets = dict(print_sets)
+        self.forbidden = frozenset(forbidden)
         self.surfaces = surfaces
         self.reach = reach
         # Hands' (robot surface, print) pairs the reach model leaves alone, and
@@ -120,6 +124,8 @@ class StanceNeighbours:
         for robot_surface in sorted(self.print_sets):
             if robot_surface not in in_contact:
                 result.extend(self.additions(stance, robot_surface, placed))
+        if self.forbidden:
+            result = [(child, move) for child, move in result if (stance, child) not in self.forbidden]
         return result
 
     def additions(self, stance, robot_surface, placed=None):

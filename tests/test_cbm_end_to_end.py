@@ -130,6 +130,17 @@ def test_cli_plan_writes_every_file(tmp_path, capsys):
         assert page_status(out / "viewer.html", tmp_path) == "ok"
 
 
+def test_cli_plan_with_motions_writes_the_trajectory_of_every_step(tmp_path, capsys):
+    out = tmp_path / "out"
+    code = main(["plan", "foot-on-block", "--motion", "--no-pictures", "--out", str(out), "--quiet"])
+    printed = capsys.readouterr().out
+    assert code == 0, printed
+    steps = len(Plan.load(out / "plan.json").stances) - 1
+    assert f"motions: {steps} of {steps} found" in printed
+    assert "searched" not in printed  # every step had its motion: one search
+    assert {"trajectory.csv", "trajectory.npz"} <= {p.name for p in out.iterdir()}
+
+
 def test_cli_check_reports_a_feasible_stance_and_draws_it(tmp_path, capsys):
     code = main(["check", "cross-soft-block", "--stance", "right-on-foam", "--out", str(tmp_path)])
     printed = capsys.readouterr().out

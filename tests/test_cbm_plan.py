@@ -289,3 +289,82 @@ def test_a_plan_on_a_body_too_soft_for_its_own_weight_is_refused_before_searchin
     with pytest.raises(environments.SceneError, match=r"object 'foam': its own weight strains it 0\.1\d+ at .* beyond "
                        r"its strain bound 0\.05"):
         plan(scenario)
+
+
+def _steps(planned):
+    """The (stance, next stance) pairs a plan takes."""
+    chain = [s.stance for s in planned.stances]
+    return list(zip(chain, chain[1:]))
+
+
+def test_a_forbidden_step_is_never_taken_and_the_search_goes_around_it(scenario, robot):
+    first = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100)
+    assert first.success
+    step = _steps(first)[2]
+    again = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100,
+                 forbidden={step})
+    assert again.success, again.reason
+    assert step not in _steps(again)
+    assert all(differ_by_one_contact(a, b) for a, b in _steps(again))
+    # Forbidding a step no plan takes changes nothing.
+    unused = (first.stances[-1].stance, first.stances[0].stance)
+    same = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100,
+                forbidden={unused})
+    assert _steps(same) == _steps(first)
+
+
+def _motions_failing(bad):
+    """A stand-in for plan_motions_reposing: a motion is found unless its step is in ``bad``
+    (a set, or a function of the plan giving the set)."""
+
+    def motions(planned, scenario, robot, **options):
+        failing = bad(planned) if callable(bad) else bad
+        return planned, tuple(
+            SimpleNamespace(index=i, feasible=step not in failing, reason="" if step not in failing else "no waypoint held")
+            for i, step in enumerate(_steps(planned))
+        )
+
+    return motions
+
+
+def test_a_step_without_a_motion_is_planned_around(scenario, robot, monkeypatch):
+    from cbm import replan
+
+    options = dict(robot=robot, reach=robot.reach, max_expansions=100)
+    first = plan(scenario, oracle=SyntheticOracle(), **options)
+    bad = _steps(first)[2]
+    monkeypatch.setattr(replan, "plan_motions_reposing", _motions_failing({bad}))
+    moving = replan.plan_with_motions(scenario, oracle=SyntheticOracle(), **options)
+    assert moving.plans == 2 and moving.missing == 0
+    assert moving.plan.success and bad not in _steps(moving.plan)
+    assert [(s.before, s.after) for s in moving.avoided] == [bad]
+    assert moving.avoided[0].move == first.stances[3].move
+    assert moving.avoided[0].reason == "no waypoint held"
+    # One search only: the first plan, with its step that has no motion.
+    once = replan.plan_with_motions(scenario, oracle=SyntheticOracle(), attempts=1, **options)
+    assert once.plans == 1 and once.missing == 1 and once.avoided == ()
+    assert _steps(once.plan) == _steps(first)
+
+
+def test_when_every_plan_misses_a_motion_the_earliest_with_fewest_misses_is_kept(scenario, robot, monkeypatch):
+    from cbm import replan
+
+    options = dict(robot=robot, reach=robot.reach, max_expansions=100)
+    first = plan(scenario, oracle=SyntheticOracle(), **options)
+    # Every plan's last step has no motion: three searches, each one step more avoided.
+    monkeypatch.setattr(replan, "plan_motions_reposing", _motions_failing(lambda planned: {_steps(planned)[-1]}))
+    moving = replan.plan_with_motions(scenario, oracle=SyntheticOracle(), attempts=3, **options)
+    assert moving.plans == 3 and moving.missing == 1
+    assert _steps(moving.plan) == _steps(first) and moving.avoided == ()
+
+
+@pytest.mark.parametrize("options, message", [
+    (dict(attempts=0), "attempts must be a positive integer, got 0"),
+    (dict(attempts=True), "attempts must be a positive integer, got True"),
+    (dict(forbidden=()), "plan_with_motions sets forbidden itself"),
+])
+def test_plan_with_motions_refuses_bad_options(scenario, robot, options, message):
+    from cbm.replan import plan_with_motions
+
+    with pytest.raises(CbmError, match=message):
+        plan_with_motions(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), **options)
