@@ -6,9 +6,10 @@ motions twice in this process, CPU time of each (``time.process_time``, one BLAS
 
 - baseline: :func:`cbm.motion.plan_motions` with the held-contact bound off
   (``held_drift=1e9``): the motions as they were before strays were checked;
-- library: :func:`cbm.motion.plan_motions_reposing`, what ``cbm plan --motion`` runs
-  (strays kept within :data:`cbm.motion.HELD_DRIFT`, a stance whose posture its motion
-  cannot reach solved again).
+- library: :func:`cbm.motion.plan_motions_reposing`, what ``cbm plan --motion`` runs on
+  each plan it makes (strays kept within :data:`cbm.motion.HELD_DRIFT`, a stance whose
+  posture its motion cannot reach solved again; :func:`cbm.plan_with_motions` searches
+  again only where a motion still fails, which none of the seven plans' does).
 
 For each: motions found, samples (configurations of the found motions), the largest
 stray of a held contact between samples (:func:`cbm.motion.held_strays`, millimetres),
