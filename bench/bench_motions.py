@@ -20,6 +20,13 @@ table and writes it to ``bench/results/motions.md``.
 Run from the repository root::
 
     .venv/bin/python bench/bench_motions.py [scenario ...]
+    .venv/bin/python bench/bench_motions.py --replan [scenario ...]
+
+With ``--replan``, each scenario (by default every built-in one with a goal and every
+suite scene) goes through :func:`cbm.plan_with_motions`, what ``cbm plan --motion``
+runs: searches, steps avoided, motions found, whether every found motion passes
+``verify_motion`` and the plan ``Plan.check``, CPU of the whole; written to
+``bench/results/motions-replan.md``.
 """
 
 from __future__ import annotations
@@ -43,6 +50,7 @@ import environments  # noqa: E402
 import stances  # noqa: E402
 from cbm.motion import held_strays, plan_motions, plan_motions_reposing, verify_motion  # noqa: E402
 from cbm.planner import plan as make_plan  # noqa: E402
+from cbm.replan import plan_with_motions  # noqa: E402
 
 SCENARIOS = ("cross-soft-block", "climb-with-soft-support", "quadruped-walk", "quadruped-foam",
              "cross-two-mats", "soft-shortcut", "foot-on-block")
@@ -122,5 +130,51 @@ def main(names):
     (RESULTS / "motions.md").write_text(text)
 
 
+def every_scene():
+    """Every built-in scenario with a goal, then every suite scene (``bench/scenes``)."""
+    built_in = [n for n in environments.scenario.scenario_names() if environments.load(n).goal is not None]
+    suite = sorted(str(p) for p in (Path(__file__).resolve().parent / "scenes").glob("*.yaml"))
+    return built_in + suite
+
+
+def replan_row(name):
+    """One scenario through plan_with_motions: a markdown row."""
+    scenario = environments.load(name)
+    robot = stances.Robot.load(scenario.robot)
+    tic = time.process_time()
+    moving = plan_with_motions(scenario, robot=robot)
+    cpu = time.process_time() - tic
+    plan, motions = moving.plan, moving.motions
+    label = Path(name).stem
+    if not plan.success:
+        return f"| {label} | {moving.plans} | - | no plan: {plan.reason[:80]} | - | {cpu:.1f} |"
+    found = [m for m in motions if m.feasible]
+    problems = sum(len(verify_motion(m, plan, scenario, robot)) for m in found)
+    verified = "yes" if problems == 0 and plan.check(scenario, robot).ok else f"no ({problems} problems)"
+    avoided = "; ".join(step.move for step in moving.avoided) or "-"
+    return f"| {label} | {moving.plans} | {avoided} | {len(found)} of {len(motions)} | {verified} | {cpu:.1f} |"
+
+
+def main_replan(names):
+    lines = [
+        f"# Plans with motions (`cbm.plan_with_motions`, {code_version()})",
+        "",
+        f"Machine: {machine()}.",
+        "",
+        "| scenario | searches | steps avoided (no motion in an earlier plan) | motions found | verified | CPU s |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in names:
+        lines.append(replan_row(name))
+        print(lines[-1], flush=True)
+    text = "\n".join(lines) + "\n"
+    RESULTS.mkdir(exist_ok=True)
+    (RESULTS / "motions-replan.md").write_text(text)
+    print(text)
+
+
 if __name__ == "__main__":
-    main(sys.argv[1:] or SCENARIOS)
+    if sys.argv[1:2] == ["--replan"]:
+        main_replan(sys.argv[2:] or every_scene())
+    else:
+        main(sys.argv[1:] or SCENARIOS)
