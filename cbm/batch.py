@@ -166,8 +166,10 @@ def read_checks(path) -> tuple:
 def _yaml_entries(path, text):
     import yaml
 
+    from environments.plain_data import load_yaml
+
     try:
-        data = yaml.safe_load(text)
+        data = load_yaml(text)
     except yaml.YAMLError as error:
         raise BatchFileError(path, "", f"not valid YAML: {error}") from None
     if isinstance(data, list):

@@ -9,7 +9,43 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 
-__all__ = ["join_key", "kind_of", "checked_mapping"]
+import yaml
+
+__all__ = ["join_key", "kind_of", "checked_mapping", "load_yaml", "repeated_key"]
+
+
+def repeated_key(node: yaml.MappingNode) -> tuple[str, int] | None:
+    """Why a YAML mapping is refused when it gives a key twice (YAML keeps the last
+    silently: a stance, an object or a robot surface defined twice would lose its
+    first definition unseen), and the second one's line; None if no key repeats.
+    ``<<`` (merging a mapping in) may repeat."""
+    seen: dict[str, int] = {}
+    for key_node, _ in node.value:
+        if not isinstance(key_node, yaml.ScalarNode) or key_node.value == "<<":
+            continue
+        line = key_node.start_mark.line + 1
+        if key_node.value in seen:
+            return (f"{key_node.value!r} is given twice (lines {seen[key_node.value]} and {line}); "
+                    "YAML would keep only the last: remove or rename one"), line
+        seen[key_node.value] = line
+    return None
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    """yaml's safe loader, refusing a mapping that gives a key twice."""
+
+    def construct_mapping(self, node, deep=False):
+        if isinstance(node, yaml.MappingNode):
+            repeated = repeated_key(node)
+            if repeated is not None:
+                raise yaml.constructor.ConstructorError(None, None, repeated[0], node.start_mark)
+        return super().construct_mapping(node, deep)
+
+
+def load_yaml(text):
+    """``yaml.safe_load``, but a key given twice in one mapping is a ``yaml.YAMLError``
+    naming it and its two lines."""
+    return yaml.load(text, Loader=_UniqueKeyLoader)
 
 
 def join_key(key: str, name) -> str:

@@ -22,7 +22,7 @@ from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
 from .mesh_surfaces import SurfaceSearch, auto_surfaces
 from .options import validate_options
-from .plain_data import checked_mapping, join_key, kind_of
+from .plain_data import checked_mapping, join_key, kind_of, load_yaml, repeated_key
 from .scene import Scene
 from .scene_checks import SceneSenseError, check_overlaps, check_supported
 from .soft_mesh import ON_FLOOR, FixedPlane, soft_mesh
@@ -110,7 +110,7 @@ def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name:
         if node is not None:
             # Before building any Python data: the walk bounds what aliases expand to.
             _record_lines(node, lines, path)
-        data = yaml.safe_load(text)
+        data = load_yaml(text)
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = None if mark is None else mark.line + 1
@@ -168,6 +168,9 @@ def _record_lines(root: yaml.Node, lines: dict[str, int], path) -> None:
         lines.setdefault(key, line)
         below = (*ancestors, id(node))
         if isinstance(node, yaml.MappingNode):
+            repeated = repeated_key(node)
+            if repeated is not None:
+                raise ScenarioError(path, key, repeated[0], line=repeated[1])
             for key_node, value_node in reversed(node.value):
                 child = f"{key}.{key_node.value}" if key else str(key_node.value)
                 lines[child] = key_node.start_mark.line + 1

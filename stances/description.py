@@ -71,7 +71,7 @@ import numpy as np
 import pinocchio as pin
 import yaml
 
-from environments.plain_data import checked_mapping, join_key, kind_of
+from environments.plain_data import checked_mapping, join_key, kind_of, load_yaml
 
 from .errors import RobotNotFound, StanceError
 from .mesh_rotations import MeshRotation
@@ -410,7 +410,7 @@ def read_description(name_or_file) -> RobotDescription:
     """
     path = description_path(name_or_file)
     try:
-        data = yaml.safe_load(path.read_text(encoding="utf-8"))
+        data = load_yaml(path.read_text(encoding="utf-8"))
     except (OSError, UnicodeDecodeError) as error:
         raise RobotDescriptionError(path, "", f"cannot read: {error}") from None
     except yaml.YAMLError as error:

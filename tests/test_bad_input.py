@@ -152,6 +152,34 @@ def test_cyclic_or_deep_yaml_is_a_scenario_error_not_a_recursion_error(text, mes
         environments.load_string(text, path="case.yaml")
 
 
+@pytest.mark.parametrize(
+    "replaced, by, line, message",
+    [
+        ("    right_sole: {surface: floor, x: 0.0, y: -0.085}\n",
+         "    right_sole: {surface: floor, x: 0.0, y: -0.085}\n    left_sole: {surface: floor, x: 0.1, y: 0.085}\n",
+         14, "stances.stand: 'left_sole' is given twice (lines 12 and 14)"),
+        ("start: stand\n", "start: stand\nstances: {}\n", 15, "'stances' is given twice (lines 10 and 15)"),
+        ("material: {E: 1.0e+6, nu: 0.4}", "material: {E: 1.0e+6, nu: 0.4, E: 2.0e+6}", 8,
+         "objects[1].material: 'E' is given twice (lines 8 and 8)"),
+    ],
+    ids=["stance-contact", "top-level", "inline"],
+)
+def test_a_key_given_twice_is_refused_with_both_lines(replaced, by, line, message):
+    # YAML keeps the last silently: the first definition would be lost unseen.
+    assert replaced in SCENARIO
+    with pytest.raises(ScenarioError) as raised:
+        environments.load_string(SCENARIO.replace(replaced, by), path="case.yaml")
+    assert str(raised.value).startswith(f"case.yaml:{line}: ")
+    assert message + "; YAML would keep only the last: remove or rename one" in str(raised.value)
+
+
+def test_merge_keys_may_repeat():
+    text = SCENARIO.replace("stances:\n", "base: &b {surface: floor}\nstances:\n").replace(
+        "left_sole: {surface: floor, x: 0.0, y: 0.085}", "left_sole: {<<: *b, x: 0.0, y: 0.085}")
+    with pytest.raises(ScenarioError, match="unknown key 'base'"):  # the merge itself is read
+        environments.load_string(text, path="case.yaml")
+
+
 def test_a_small_alias_still_works():
     text = SCENARIO.replace("material: {E: 1.0e+6, nu: 0.4}", "material: &foam {E: 2.0e+6, nu: 0.4}")
     text = text.replace(

@@ -63,8 +63,10 @@ def test_a_local_cluster_of_two_workers_answers_like_checks_run_one_by_one(batch
         ("checks:\n  - {scenario: stand, stance: {left_sole: {surface: roof, x: 0, y: 0}}}", "checks[0].stance: scene 'stand': unknown surface 'roof'; known surfaces: floor"),
         ("checks:\n  - {scenario: stand, stance: stand, id: a}\n  - {scenario: stand, stance: stand, id: a}", "checks: repeated id(s) ['a']"),
         ("checks: [", "not valid YAML"),
+        ("checks:\n  - {scenario: stand, stance: stand, stance: sit}", "'stance' is given twice (lines 2 and 2)"),
     ],
-    ids=["empty", "no-stance", "unknown-stance", "unknown-scenario", "unknown-key", "unknown-surface", "repeated-id", "syntax"],
+    ids=["empty", "no-stance", "unknown-stance", "unknown-scenario", "unknown-key", "unknown-surface", "repeated-id",
+         "syntax", "repeated-key"],
 )
 def test_bad_batch_file_names_the_check_and_key_at_fault(tmp_path, text, message):
     path = tmp_path / "bad.yaml"

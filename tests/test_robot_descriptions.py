@@ -331,6 +331,17 @@ def test_a_bad_description_file_gets_an_error_naming_the_file_and_the_fault(tmp_
     assert str(caught.value).startswith(str(path))
 
 
+def test_a_surface_given_twice_in_a_description_file_is_refused(tmp_path):
+    text = (BUILTIN_DIRECTORY / "talos.yaml").read_text()
+    start = text.index("  left_sole:")
+    block = text[start:text.index("\n  right_sole:", start) + 1]
+    path = tmp_path / "twice.yaml"
+    path.write_text(text.replace(block, block + block, 1))
+    with pytest.raises(RobotDescriptionError, match="'left_sole' is given twice") as caught:
+        Robot.load(path)
+    assert str(caught.value).startswith(str(path))
+
+
 def test_an_unknown_robot_name_lists_the_builtin_robots():
     with pytest.raises(RobotNotFound, match=re.escape(
         "unknown robot 'tals' (not a built-in robot); built-in robots: anymal, icub, romeo, talos"
