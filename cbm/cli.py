@@ -607,16 +607,23 @@ def _check_plan_refined(plan, factor):
     if fine is None:
         return EXIT_BAD_INPUT
     robot = Robot.load(plan.robot.get("source") or scenario.robot)
-    held = True
+    failed = []
     for index in soft:
         planned = plan.stances[index]
         # What the plan shows is what is checked (as Plan.check does).
         shown = replace(planned.result, q=planned.q, point_forces=planned.point_forces)
         check = check_refined(robot, scenario, shown, factor, refined=fine)
-        held = held and check.ok
+        if not check.ok:
+            failed.append(index)
         print(f"stance {index}:")
         print("\n".join("  " + line for line in check.lines()))
-    return EXIT_OK if held else EXIT_FAILED
+    if failed:
+        print(f"meshes refined {factor}x: {len(failed)} of the {len(soft)} stances with a soft print do not hold "
+              f"(stance{'s' if len(failed) > 1 else ''} {', '.join(map(str, failed))}): the plan's soft meshes are "
+              "too coarse for them; plan again with a finer resolution of those objects")
+        return EXIT_FAILED
+    print(f"meshes refined {factor}x: every stance with a soft print holds ({len(soft)} of {len(soft)})")
+    return EXIT_OK
 
 
 def _check_picture(scenario, robot, stance, result, args):

@@ -4,6 +4,7 @@
 from __future__ import annotations
 
 import re
+import types
 
 import numpy as np
 import pytest
@@ -210,3 +211,28 @@ def test_the_check_reads_its_own_numbers(both_on_foam):
     assert light.force_change == pytest.approx(0.2)
     unloaded = dataclasses.replace(check, print_forces=(("left_sole", np.zeros(3), np.array([0.0, 0.0, 1.0])),))
     assert np.isnan(unloaded.force_change)
+
+
+def _soft_plan(robot, both_on_foam, path):
+    """A one-stance plan file of cross-soft-block's both-on-foam answer (its coarse mesh)."""
+    from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+
+    scenario, result, _ = both_on_foam
+    Plan(False, "partial", (PlannedStance(result.stance, result.q, result.point_forces, {}, result),), PlanStatistics(),
+         scenario.name, robot=robot_description(robot), scenario_source=scenario_source(scenario)).save(path)
+    return path
+
+
+def test_a_plan_checked_on_refined_meshes_ends_with_its_verdict(robot, both_on_foam, capsys, tmp_path, monkeypatch):
+    path = _soft_plan(robot, both_on_foam, tmp_path / "plan.json")
+    assert main(["check", str(path), "--refine", "2"]) == 0
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith("meshes refined 2x: every stance with a soft print holds (1 of 1)")
+    # A stance that does not hold there: the last line says which, and how to fix it.
+    failed = types.SimpleNamespace(ok=False, lines=lambda: ["re-solved there: infeasible: made up"])
+    monkeypatch.setattr(stances, "check_refined", lambda *args, **kwargs: failed)
+    assert main(["check", str(path), "--refine", "2"]) == 1
+    out = capsys.readouterr().out
+    assert out.rstrip().endswith(
+        "meshes refined 2x: 1 of the 1 stances with a soft print do not hold (stance 0): the plan's soft meshes "
+        "are too coarse for them; plan again with a finer resolution of those objects")
