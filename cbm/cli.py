@@ -535,6 +535,10 @@ def _check(args):
             return EXIT_BAD_INPUT
     check = PostureOracle(robot, scenario.scene)(stance)
     result = check.result
+    if check.bad_input:
+        # A stance the user wrote that the solver refuses (two prints on the same nodes): bad input.
+        print(f"cbm check: error: stance {args.stance!r}: {check.reason}", file=sys.stderr)
+        return EXIT_BAD_INPUT
     if result is None:
         print(f"{scenario.name} / {args.stance}: infeasible: {check.reason}")
         return EXIT_FAILED

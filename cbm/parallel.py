@@ -152,7 +152,7 @@ def _check(stance, parent_q):
         raise CbmError(f"a worker process could not build the robot and scene: {_ORACLE}") from _ORACLE
     check = _ORACLE(stance, None, None if parent_q is None else _WarmStart(parent_q))
     result = None if check.result is None else portable(check.result)
-    return StanceCheck(check.feasible, check.reason, result, check.rejected_by)
+    return StanceCheck(check.feasible, check.reason, result, check.rejected_by, check.bad_input)
 
 
 class _Answer:

@@ -120,12 +120,18 @@ class StanceCheck:
     rejected_by : str
         Name of the cheap check that rejected the stance without a posture
         solve (:mod:`cbm.prefilter`), ``""`` if it was solved.
+    bad_input : bool
+        The solver refused the stance as bad input for this scene (it raised one
+        of the packages' errors, which ``reason`` gives: e.g. two prints pressing
+        the same nodes): a candidate to drop in a search, an error to fix in a
+        stance a user wrote.
     """
 
     feasible: bool
     reason: str
     result: Any = None
     rejected_by: str = ""
+    bad_input: bool = False
 
 
 def posture_api():
@@ -223,7 +229,7 @@ class PostureOracle:
             # nodes): an infeasible stance for the search, not a crash. Only the
             # packages' own errors: any other ValueError (numpy's LinAlgError) is a bug.
             logger.debug("solve raised on %s: %s", stance, error)
-            return StanceCheck(False, f"{type(error).__name__}: {error}")
+            return StanceCheck(False, f"{type(error).__name__}: {error}", bad_input=True)
         if not result.feasible:
             return StanceCheck(False, str(result.reason), result)
         verification = getattr(result, "verification", None)

@@ -91,8 +91,9 @@ __all__ = [
     "read_description",
 ]
 
-#: Roles a robot contact surface can have: a foot supports the robot and goes
-#: only on surfaces facing up; a hand may touch any surface.
+#: Roles a robot contact surface can have: a foot supports the robot and the
+#: planner samples its prints only on surfaces facing up (a stance given by hand may
+#: put it on any surface: the solver judges it); a hand may touch any surface.
 ROLES = ("foot", "hand")
 
 BUILTIN_DIRECTORY = Path(__file__).resolve().parent / "robots"

@@ -30,6 +30,8 @@ from environments.errors import ScenarioError
 from fem.errors import MaterialError, MeshError, PrintError
 from stances.errors import StanceError
 
+from conftest import coarse_scenario
+
 ROOT = Path(__file__).resolve().parents[1]
 
 # Address space of a child process: far above what importing the packages takes
@@ -544,7 +546,22 @@ def test_oracle_lets_a_linear_algebra_bug_propagate(oracle_with):
 def test_oracle_turns_the_library_errors_into_infeasible(oracle_with, error):
     oracle, stance = oracle_with(error)
     check = oracle(stance)
-    assert check == StanceCheck(False, f"{type(error).__name__}: {error}")
+    assert check == StanceCheck(False, f"{type(error).__name__}: {error}", bad_input=True)
+
+
+def test_cli_check_of_a_stance_the_solver_refuses_is_bad_input(tmp_path, capsys):
+    """Two soles pressing the same foam nodes: the stance a user wrote is at fault, exit 2."""
+    text = coarse_scenario("cross-soft-block").text.replace(
+        "stances:\n",
+        "stances:\n  overlap:\n    left_sole: {surface: foam_top, x: 0.0, y: 0.0}\n"
+        "    right_sole: {surface: foam_top, x: 0.0, y: 0.05}\n", 1)
+    path = tmp_path / "overlap.yaml"
+    path.write_text(text)
+    assert cli.main(["check", str(path), "--stance", "overlap"]) == cli.EXIT_BAD_INPUT
+    captured = capsys.readouterr()
+    assert captured.err.startswith("cbm check: error: stance 'overlap': StanceError: the prints of left_sole on "
+                                   "foam_top and right_sole on foam_top overlap")
+    assert "move one print" in captured.err and "infeasible" not in captured.out
 
 
 def test_cli_check_of_a_body_too_soft_for_its_own_weight_is_bad_input(tmp_path, capsys):
