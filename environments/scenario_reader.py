@@ -69,6 +69,9 @@ NESTED_KEYS = {
     "surface override": ("friction",),
 }
 
+#: fem.LinearElasticMaterial's fields and the keys a scenario file gives them under.
+_MATERIAL_KEYS = {"young_modulus": "E", "poisson_ratio": "nu", "density": "rho"}
+
 #: A ``robot:`` value ending so is a robot description file, relative to the
 #: scenario file; any other value is a built-in robot name.
 ROBOT_FILE_SUFFIXES = (".yaml", ".yml")
@@ -475,7 +478,12 @@ class _Reader:
         except ValueError as error:
             if not _is_fem_error(error):
                 raise
-            raise self.error(material_key, str(error)) from None
+            # fem names its fields; the file's keys are E, nu and rho.
+            message = str(error)
+            for field, file_key in _MATERIAL_KEYS.items():
+                if message.startswith(field + " "):
+                    raise self.error(join_key(material_key, file_key), message[len(field) + 1:]) from None
+            raise self.error(material_key, message) from None
 
     def soft_blocks(self, item: Mapping, key: str):
         item = self.mapping(item, key, OBJECT_KEYS["soft_blocks"], ("name", "blocks", "material"))

@@ -175,6 +175,12 @@ def test_a_key_given_twice_is_refused_with_both_lines(replaced, by, line, messag
     assert message + "; YAML would keep only the last: remove or rename one" in str(raised.value)
 
 
+def test_an_empty_stance_is_said_to_be_empty():
+    text = SCENARIO.replace("start: stand\n", "start: stand\n").replace("stances:\n", "stances:\n  empty: {}\n", 1)
+    with pytest.raises(ScenarioError, match=r"stances\.empty: must be a non-empty mapping .*, got an empty mapping$"):
+        environments.load_string(text, path="case.yaml")
+
+
 def test_merge_keys_may_repeat():
     text = SCENARIO.replace("stances:\n", "base: &b {surface: floor}\nstances:\n").replace(
         "left_sole: {surface: floor, x: 0.0, y: 0.085}", "left_sole: {<<: *b, x: 0.0, y: 0.085}")
@@ -337,7 +343,7 @@ def test_enormous_young_modulus_is_a_material_error(young_modulus):
 
 
 def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
-    with pytest.raises(ScenarioError, match=r"objects\[1\]\.material: young_modulus must be <="):
+    with pytest.raises(ScenarioError, match=r"objects\[1\]\.material\.E: must be <= 1e\+13 Pa"):
         environments.load_string(SCENARIO.replace("E: 1.0e+6", "E: 1.0e+308"), path="case.yaml")
 
 

@@ -128,7 +128,7 @@ def test_a_stance_on_a_soft_mesh_solves_and_verifies(pad_scenario, robot):
          "objects[1].fixed.plane: plane must read '<x|y|z> = <metres>' in the world frame, e.g. 'z = 0'; got 'up'"),
         ("position: [0.5, 0.0, 0.0]\n    fixed: below", "objects[1].fixed: must be on_floor or {plane: '<x|y|z> = <metres>'}, got str 'below'"),
         ("position: [0.5, 0.0, 0.0]\n    surfaces: []",
-         "objects[1].surfaces: must be 'auto' (a soft mesh's surfaces are found on it), got a list of 0"),
+         "objects[1].surfaces: must be 'auto' (a soft mesh's surfaces are found on it), got an empty list"),
     ],
     ids=["fine", "off-the-plane", "bad-plane", "bad-fixed", "explicit-surfaces"],
 )
