@@ -40,8 +40,27 @@ def test_worked_example_stance_solves_and_verifies(example):
     assert stances.verify(robot, example.scene, result.stance, result).ok
     mat_frame = robot.surfaces["right_sole"].frame
     on_mat = sum(f.force[2] for f in result.point_forces if f.frame == mat_frame)
-    assert 250.0 < on_mat < 400.0  # the doc says "about 330 N on the right sole"
+    said = float(re.search(r"about (\d+) N on the right sole", DOC.read_text()).group(1))
+    assert on_mat == pytest.approx(said, rel=0.05)
     assert 0.0 < result.verification.measures["indentation of mat"] < 1e-3  # "a tenth of a millimetre"
+
+
+def test_worked_example_softened_as_the_doc_says(example):
+    """"at E = 5e4 Pa it is pressed about D mm deep and strained S %, ... leaves the mat about F N"."""
+    text = " ".join(DOC.read_text().split("## Worked example", 1)[1].split())
+    claim = re.search(r"at E = 5e4 Pa it is pressed about ([\d.]+) mm deep and strained ([\d.]+) %.*?"
+                      r"leaves the mat about (\d+) N", text)
+    depth, strain, force = (float(claim.group(i)) for i in (1, 2, 3))
+    soft = environments.load_string(worked_example().replace("E: 2.0e+6", "E: 5.0e+4"), path="my-scene.yaml")
+    robot = stances.Robot.load(soft.robot)
+    result = stances.solve(robot, soft.scene, soft.stance("right-on-mat"))
+    assert result.feasible, result.reason
+    measures = result.verification.measures
+    on_mat = sum(f.force[2] for f in result.point_forces if f.frame == robot.surfaces["right_sole"].frame)
+    assert on_mat == pytest.approx(force, rel=0.05)
+    assert 1e3 * measures["indentation of mat"] == pytest.approx(depth, rel=0.1)
+    assert 100 * measures["largest strain of mat"] == pytest.approx(strain, rel=0.05)
+    assert measures["largest strain of mat"] < 0.05  # within the strain limit, not on it
 
 
 def test_worked_example_plans_to_its_goal(example):
