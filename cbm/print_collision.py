@@ -9,12 +9,15 @@ another placed link (a palm on a foot's print), no posture can hold the stance.
 
 The check asks the solver's own :class:`stances.collision.CollisionChecker`,
 with the exclusions the posture problem uses (each contact geometry may touch
-its own support), at those fixed link poses. It rejects only a penetration
-deeper than :data:`REJECTED_DEPTH`, far beyond the penetration that
-:func:`stances.verify` tolerates (1e-4 m) plus what the placement tolerance
-can move a geometry, so it never rejects a stance that a solve would accept.
-Soft prints (their links move with the body) and point feet (they turn
-freely) place nothing and are left to the solver.
+its own support), at those fixed link poses. The solver keeps every other pair
+``collision_distance`` apart (5 mm; 0.1 mm of it may be eaten, and the pairs
+``PostureOptions.touching`` names keep 0 m: :meth:`stances.terms.CollisionConstraint.least`),
+so a fixed link nearer than that to the scene or to another fixed link, by more
+than :data:`PLACED` (what the placement tolerance can move a geometry), has no
+posture the solver accepts: a sole set down a few millimetres from the corner of
+a mat lying next to its print is refused here, with that distance, instead of
+failing its solve on the sole's placement. Soft prints (their links move with the
+body) and point feet (they turn freely) place nothing and are left to the solver.
 """
 
 from __future__ import annotations
@@ -22,10 +25,11 @@ from __future__ import annotations
 import numpy as np
 import pinocchio as pin
 
-__all__ = ["PrintCollisionFilter", "REJECTED_DEPTH", "PRINTS_COLLIDE"]
+__all__ = ["PrintCollisionFilter", "PLACED", "PRINTS_COLLIDE"]
 
-#: Penetration (metres) from which a fixed link's collision rejects a stance.
-REJECTED_DEPTH = 1e-3
+#: Metres a fixed link's geometry may lie off its print pose in an accepted posture,
+#: bounded well above the placement tolerance (1e-6 m and rad, a metre from the print).
+PLACED = 1e-5
 
 #: How every rejection's reason starts (cbm.rejections files it under collision).
 PRINTS_COLLIDE = "collision of a placed link"
@@ -57,12 +61,17 @@ class PrintCollisionFilter:
 
     def __init__(self, robot, scene, options=None):
         from stances.collision import CollisionChecker
-        from stances.problem import PostureOptions
+        from stances.problem import PostureOptions, touching_pairs
+        from stances.terms import CollisionConstraint
 
         self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
-        self._checker = CollisionChecker(robot, scene.collision_objects(), margin=0.0, self_collision=self.options.self_collision)
+        self._checker = CollisionChecker(robot, scene.collision_objects(), margin=self.options.collision_distance,
+                                         self_collision=self.options.self_collision)
+        # What each pair keeps in the solve (the touching pairs less).
+        self._rows = CollisionConstraint(None, self.options.collision_distance, self.options.max_collision_rows,
+                                         touching_pairs(robot, scene, self.options))
         geometries = robot.collision_model.geometryObjects
         self._joints = np.array([g.parentJoint for g in geometries], dtype=int)
         self._in_joint = np.array([g.placement.homogeneous for g in geometries]).reshape(-1, 4, 4)
@@ -102,12 +111,19 @@ class PrintCollisionFilter:
         colliding = [
             pair
             for pair in pairs
-            if pair.distance < -REJECTED_DEPTH and pair.joint_a in fixed and (pair.joint_b == 0 or pair.joint_b in fixed)
+            if pair.joint_a in fixed and (pair.joint_b == 0 or pair.joint_b in fixed)
+            and pair.distance < self._rows.least((pair.name_a, pair.name_b)) - PLACED
         ]
         if not colliding:
             return ""
         deepest = min(colliding, key=lambda pair: pair.distance)
+        if deepest.distance < 0.0:
+            return (
+                f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} sinks {-deepest.distance:.3g} m into "
+                f"{deepest.name_b} whatever the posture"
+            )
+        kept = self._rows.least((deepest.name_a, deepest.name_b))
         return (
-            f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} sinks {-deepest.distance:.3g} m into {deepest.name_b} "
-            "whatever the posture"
+            f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} comes within {1e3 * deepest.distance:.2g} mm of "
+            f"{deepest.name_b} whatever the posture, where the solver keeps every link {1e3 * kept:.2g} mm away"
         )

@@ -411,12 +411,9 @@ class PostureProblem:
             self.constraints.append(NormalLoadConstraint(options.min_normal_force))
         self.constraints.append(ContactConstraints())
         if collision_checker is not None:
-            touching = frozenset(
-                pair for surface, support in options.touching
-                for pair in contact_exclusions(robot, robot.surface(surface).frame, scene.surface(support).object_name)
-            )
             self.constraints.append(
-                CollisionConstraint(collision_checker, options.collision_distance, options.max_collision_rows, touching)
+                CollisionConstraint(collision_checker, options.collision_distance, options.max_collision_rows,
+                                    touching_pairs(robot, scene, options))
             )
         self.costs = [PostureCost(), TorqueUsageCost(options.torque_weight)]
         if self.n_variables:
@@ -710,6 +707,15 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         options = replace(options, constraint_curvature=False)
     checker = stance_collision_checker(robot, scene, stance, options)
     return PostureProblem(robot, scene, stance, contacts, options, checker)
+
+
+def touching_pairs(robot, scene, options: PostureOptions) -> frozenset:
+    """``(robot geometry, object)`` pairs that ``options.touching`` lets touch: each
+    named surface's contact geometry and the object of the scene surface named with it."""
+    return frozenset(
+        pair for surface, support in options.touching
+        for pair in contact_exclusions(robot, robot.surface(surface).frame, scene.surface(support).object_name)
+    )
 
 
 def stance_collision_checker(robot, scene, stance, options: PostureOptions) -> CollisionChecker:

@@ -357,3 +357,8 @@ class CollisionConstraint:
         """The distance a ``(name_a, name_b)`` pair keeps, metres: a touching pair the
         rows' slack, so that eating it leaves the pair touching, not inside."""
         return _COLLISION_SLACK if tuple(pair) in self.touching else self.distance
+
+    def least(self, pair) -> float:
+        """The least distance a ``(name_a, name_b)`` pair can have in a posture these rows
+        accept, metres: what it keeps less the rows' slack."""
+        return self._lower(pair) - _COLLISION_SLACK
