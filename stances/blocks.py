@@ -96,10 +96,19 @@ class ConstraintBlock:
         return len(self.value)
 
     def violation(self) -> np.ndarray:
-        """(r,) float: how far each row is outside its bounds, in units of ``scale``."""
-        below = np.maximum(self.lower - self.value - self.slack, 0.0)
-        above = np.maximum(self.value - self.upper - self.slack, 0.0)
-        return (below + above) / self.scale
+        """(r,) float, read-only: how far each row is outside its bounds, in units of ``scale``.
+
+        Computed once (the SQP reads it several times per iterate: the stopping
+        tests, the worst row, the penalty rule); a block's arrays do not change.
+        """
+        known = self.__dict__.get("_violation")
+        if known is None:
+            below = np.maximum(self.lower - self.value - self.slack, 0.0)
+            above = np.maximum(self.value - self.upper - self.slack, 0.0)
+            known = (below + above) / self.scale
+            known.setflags(write=False)
+            object.__setattr__(self, "_violation", known)
+        return known
 
     def met(self, tolerance: float) -> bool:
         """Whether every row is within ``tolerance`` (scaled) or its own ``accuracy``."""
