@@ -289,7 +289,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     :class:`~stances.problem.Linearization` and ``evaluate(q, lam,
     torque_weight)`` returning the same values without Jacobians (an object
     with ``objective`` and ``max_violation()``, e.g. a
-    :class:`~stances.problem.Evaluation`), for the line search's trials. Nothing here knows contacts or
+    :class:`~stances.problem.Evaluation`), for the line search's trials, and, if it
+    has one, ``reweighted(linearization, torque_weight)``: the same linearisation at
+    another torque weight (else ``linearize`` runs again). Nothing here knows contacts or
     torques, so the loop can be checked on a toy problem with a known optimum.
 
     Parameters
@@ -344,7 +346,11 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         violation, _ = linearization.max_violation()
         if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
             torque_weight = options.torque_weight
-            linearization = problem.linearize(q, lam, torque_weight)
+            # Only the objective changes: summed again where the problem can (the same
+            # bits as linearising again).
+            reweighted = getattr(problem, "reweighted", None)
+            linearization = (problem.linearize(q, lam, torque_weight) if reweighted is None
+                             else reweighted(linearization, torque_weight))
             # The usage term moves the loads: the last QP's multipliers are
             # those of another problem (measured: a step of 0.15 rad off).
             last_qp = None

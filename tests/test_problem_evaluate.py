@@ -64,6 +64,33 @@ def test_values_only_evaluation_equals_the_linearisation_values(robot, case):
     assert violated  # the points are not all trivially feasible
 
 
+@pytest.mark.parametrize("case", ["rigid-palm-on-table", "soft-palm-coulomb"])
+def test_a_linearisation_reweighted_is_the_linearisation_at_that_torque_weight(robot, case):
+    # The SQP's switch to the torque-usage term sums the costs again instead of
+    # linearising again: the same bits, the same rows.
+    scenario_name, stance_name, options = CASES[case]
+    scenario = coarse_scenario(scenario_name)
+    problem = build_problem(robot, scenario.scene, scenario.stance(stance_name), PostureOptions(**options))
+    rng = np.random.default_rng(5)
+    q = problem.check_configuration(pin.integrate(robot.model, robot.reference_configuration,
+                                                  0.05 * rng.standard_normal(robot.nv)))
+    lam = problem.initial_variables(q) + rng.uniform(0.0, 20.0, problem.n_variables)
+    for first, then in ((0.0, 1.0), (1.0, 0.0), (0.0, 3.0), (1.0, 3.0)):
+        reweighted = problem.reweighted(problem.linearize(q, lam, first), then)
+        direct = problem.linearize(q, lam, then)
+        assert reweighted.objective == direct.objective
+        np.testing.assert_array_equal(reweighted.gradient, direct.gradient)
+        np.testing.assert_array_equal(reweighted.hessian, direct.hessian)
+        assert [b.labels for b in reweighted.blocks] == [b.labels for b in direct.blocks]
+        for mine, theirs in zip(reweighted.blocks, direct.blocks):
+            np.testing.assert_array_equal(mine.value, theirs.value)
+            np.testing.assert_array_equal(mine.jacobian, theirs.jacobian)
+        np.testing.assert_array_equal(reweighted.step_lower, direct.step_lower)
+        np.testing.assert_array_equal(reweighted.step_upper, direct.step_upper)
+    # The weight matters here (the term is not zero at this point).
+    assert problem.linearize(q, lam, 0.0).objective != problem.linearize(q, lam, 3.0).objective
+
+
 def test_closest_distances_and_pairs_are_the_closest_of_all_pairs(robot):
     """closest_distances / closest_pairs (the line search's and the linearisation's
     collision rows) are the first rows of every pair sorted by distance, including
