@@ -452,7 +452,14 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         ):
             status = "stagnated"
             break
-        if len(history) > _STAGNATION_WINDOW and new_violation > tolerance and penalty >= _SLOW_PENALTY:
+        # Only while the QP cannot meet its linearised rows (elastic > 0): an iterate whose
+        # rows the QP meets is no sign of an infeasible stance, and its violation can fall
+        # faster later (a rigid palm turned 30 degrees on hand-on-cube's cube crept at
+        # 4 % an iteration, at elastic 0, and was stopped at iteration 29 "converging too
+        # slowly", where it converged at 39; measured on 60 random stances by a wall: one
+        # more found feasible, the same CPU; the 23 plans with a goal: the same plans).
+        if (len(history) > _STAGNATION_WINDOW and new_violation > tolerance and penalty >= _SLOW_PENALTY
+                and elastic > tolerance):
             rate = (new_violation / history[-_STAGNATION_WINDOW - 1]) ** (1.0 / _STAGNATION_WINDOW)
             needed = np.log(tolerance / new_violation) / np.log(rate) if rate < 1.0 else np.inf
             if needed > 2.0 * (limit - iteration):

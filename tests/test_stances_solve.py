@@ -905,6 +905,26 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
     assert "no step meets together: " in result.reason and "_ADAPTER_0 and floor" in result.reason
 
 
+def test_a_feasible_stance_creeping_at_elastic_zero_is_not_stopped_as_too_slow(robot):
+    # A rigid palm turned 30 degrees and moved 3 cm on hand-on-cube's cube: its QPs meet
+    # their linearised rows (elastic 0) while the violation creeps down 4 % an iteration;
+    # it converges at iteration 39. The too-slow rule, which looks only at that rate,
+    # stopped it at 29 as "print unreachable" (an independent audit found it).
+    import math
+
+    from environments.rigid_twin import rigid_twin
+
+    scenario = rigid_twin(environments.load("hand-on-cube"))
+    stance = scenario.stance("hand-on-cube")
+    p = stance.contact("right_palm").contact_print
+    stance = stance.with_contact(Contact("right_palm", ContactPrint(p.surface, p.x - 0.03, p.y + 0.03,
+                                                                    p.theta + math.radians(30))))
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    assert result.iterations > 30
+    assert verify(robot, scenario.scene, stance, result).ok
+
+
 def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reason(robot):
     # One sole on the floor, the right palm on the foam's ledge behind it: held rigid,
     # the right ankle sinks into the foam and each step toward clearing it is cut
