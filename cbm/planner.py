@@ -29,7 +29,7 @@ from stances.errors import StanceError
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
-from .rejections import summarise
+from .rejections import finer_grid_hint, summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import (
@@ -504,7 +504,18 @@ def plan(
     reason = searched.reason
     if not searched.success and not reason.startswith("start infeasible"):
         reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
+    if not searched.success and reason.startswith("budget exhausted"):
+        reason += finer_grid_hint(_rejected(searched), sampling.spacing)
     return _plan_of(searched, scenario, robot, prints, reason)
+
+
+def _rejected(searched):
+    """The reasons of the stances a search found infeasible."""
+    return [
+        getattr(attributes["result"], "reason", "") or "rejected"
+        for _, attributes in searched.graph.nodes(data=True)
+        if attributes.get("status") == "infeasible"
+    ]
 
 
 def _plan_of(searched, scenario, robot, prints, reason):
@@ -531,18 +542,13 @@ def _plan_of(searched, scenario, robot, prints, reason):
     prefiltered.pop("", None)
     # Every search counter, whatever SearchStatistics holds, the prints and the prefilter's rejections.
     statistics = PlanStatistics(**s.to_dict(), prints=prints, prefiltered=dict(sorted(prefiltered.items())))
-    rejected = [
-        getattr(attributes["result"], "reason", "") or "rejected"
-        for _, attributes in searched.graph.nodes(data=True)
-        if attributes.get("status") == "infeasible"
-    ]
     return Plan(
         searched.success,
         reason,
         tuple(planned),
         statistics,
         scenario.name,
-        summarise(rejected),
+        summarise(_rejected(searched)),
         robot=robot_description(robot),
         scenario_source=scenario_source(scenario),
     )

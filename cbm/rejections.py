@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from collections import Counter
 
-__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "summarise"]
+__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "finer_grid_hint", "summarise"]
 
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
@@ -79,3 +79,48 @@ def summarise(reasons) -> dict:
         examples.setdefault(cause_of(reason), reason)
     ordered = sorted(counts, key=lambda cause: (-counts[cause], cause))
     return {cause: {"count": counts[cause], "example": examples[cause]} for cause in ordered}
+
+
+#: Share of a failed search's rejected stances that collide from which a finer grid is suggested.
+COLLIDING_SHARE = 0.5
+#: Finest print grid suggested, metres.
+FINEST_GRID = 0.02
+
+
+def finer_grid_hint(reasons, spacing: float) -> str:
+    """What to add to a search's reason when it ran out of budget among colliding stances.
+
+    Where most rejected stances collide, the prints that clear the obstacles may lie
+    between the grid's points: a user's mattress before a step, on a 0.1 m grid, spent
+    200 expansions on stances whose links hit the step, and planned in 0.7 s on a 0.05 m
+    grid.
+
+    Parameters
+    ----------
+    reasons : iterable of str
+        The rejected stances' reasons.
+    spacing : float
+        The print grid the search used, metres.
+
+    Returns
+    -------
+    str
+        ``""``, or a clause starting with ``"; "`` that names the share and a grid half
+        as fine (not below :data:`FINEST_GRID`).
+
+    Examples
+    --------
+    >>> finer_grid_hint(["collision between a and b"] * 3 + ["torque limit of j"], 0.1)
+    '; 3 of the 4 stances rejected collide: a finer print grid offers prints between the obstacles (print_spacing 0.05, cbm plan --print-spacing 0.05)'
+    >>> finer_grid_hint(["torque limit of j"] * 3, 0.1)
+    ''
+    """
+    reasons = [str(r) for r in reasons]
+    colliding = sum(cause_of(r) == "collision" for r in reasons)
+    finer = spacing / 2.0
+    if not reasons or colliding < COLLIDING_SHARE * len(reasons) or finer < FINEST_GRID:
+        return ""
+    return (
+        f"; {colliding} of the {len(reasons)} stances rejected collide: a finer print grid offers prints between "
+        f"the obstacles (print_spacing {finer:.3g}, cbm plan --print-spacing {finer:.3g})"
+    )

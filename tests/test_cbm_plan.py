@@ -151,6 +151,30 @@ def test_a_failed_plan_on_a_grid_coarser_than_the_robots_default_names_the_robot
     assert plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle()).reason == "goal reached"
 
 
+class CollidingOracle(SyntheticOracle):
+    """As SyntheticOracle, its forbidden band's stances rejected as collisions."""
+
+    def __call__(self, stance, parent, parent_check):
+        check = super().__call__(stance, parent, parent_check)
+        if check.reason == "forbidden band":
+            return StanceCheck(False, "collision between leg_left_5_link_0 and step (depth 0.01 m)", None)
+        return check
+
+
+def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(scenario, robot):
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=CollidingOracle(forbidden_x=(0.0, 10.0)),
+                  max_expansions=15)
+    assert failed.reason.startswith("budget exhausted: max_expansions; ")
+    rejected = failed.rejections["collision"]["count"]
+    assert failed.reason.endswith(
+        f"; {rejected} of the {rejected} stances rejected collide: a finer print grid offers prints between the "
+        "obstacles (print_spacing 0.05, cbm plan --print-spacing 0.05)")
+    # Other causes: no such hint.
+    other = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)),
+                 max_expansions=15)
+    assert other.reason == "budget exhausted: max_expansions"
+
+
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):

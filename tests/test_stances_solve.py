@@ -925,6 +925,29 @@ def test_a_feasible_stance_creeping_at_elastic_zero_is_not_stopped_as_too_slow(r
     assert verify(robot, scenario.scene, stance, result).ok
 
 
+def test_an_infeasible_stance_creeping_at_elastic_zero_still_stops_before_the_limit(robot):
+    # Both soles and the right palm on a wall's back: the QPs meet their rows (elastic
+    # 0) while the violation creeps 2-6 % an iteration. Ignoring the too-slow rule at
+    # elastic 0 ran it to the 100-iteration limit; with the rule's grace it stops.
+    scene = environments.load_string("""
+robot: talos
+objects:
+  - {name: floor, type: floor}
+  - {name: wall, type: box, size: [0.2, 2.0, 1.6], center: [0.5, 0.0, 0.8], friction: 0.3, side_surfaces: true}
+stances:
+  stand: {left_sole: {surface: floor, x: 0.0, y: 0.085}, right_sole: {surface: floor, x: 0.0, y: -0.085}}
+""", name="wall").scene
+    stance = Stance((
+        Contact("left_sole", ContactPrint("floor", -0.08461309399448688, 0.394629363908457, 0.28969849145342474)),
+        Contact("right_palm", ContactPrint("wall_back", -0.02436315326872246, -0.20550028983825452, 0.39566805627871604)),
+        Contact("right_sole", ContactPrint("floor", 0.16992134155724198, -0.3032336521557203, 0.4244762630872586)),
+    ))
+    result = solve(robot, scene, stance)
+    assert not result.feasible
+    assert result.statistics["status"].startswith("converging too slowly: ")
+    assert result.iterations < PostureOptions().max_iterations
+
+
 def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reason(robot):
     # One sole on the floor, the right palm on the foam's ledge behind it: held rigid,
     # the right ankle sinks into the foam and each step toward clearing it is cut
