@@ -15,37 +15,53 @@ __all__ = ["join_key", "kind_of", "checked_mapping", "load_yaml", "repeated_key"
 
 
 def repeated_key(node: yaml.MappingNode) -> tuple[str, int] | None:
-    """Why a YAML mapping is refused when it gives a key twice (YAML keeps the last
-    silently: a stance, an object or a robot surface defined twice would lose its
+    """Why a composed YAML mapping is refused when it gives a key twice (YAML keeps the
+    last silently: a stance, an object or a robot surface defined twice would lose its
     first definition unseen), and the second one's line; None if no key repeats.
-    ``<<`` (merging a mapping in) may repeat."""
-    seen: dict[str, int] = {}
+    ``<<`` (merging a mapping in) may repeat; keys of different types (``1`` and
+    ``'1'``) are different keys."""
+    seen: dict[tuple, int] = {}
     for key_node, _ in node.value:
         if not isinstance(key_node, yaml.ScalarNode) or key_node.value == "<<":
             continue
         line = key_node.start_mark.line + 1
-        if key_node.value in seen:
-            return (f"{key_node.value!r} is given twice (lines {seen[key_node.value]} and {line}); "
+        key = (key_node.tag, key_node.value)
+        if key in seen:
+            return (f"{key_node.value!r} is given twice (lines {seen[key]} and {line}); "
                     "YAML would keep only the last: remove or rename one"), line
-        seen[key_node.value] = line
+        seen[key] = line
     return None
 
 
-class _UniqueKeyLoader(yaml.SafeLoader):
-    """yaml's safe loader, refusing a mapping that gives a key twice."""
-
-    def construct_mapping(self, node, deep=False):
+def _mappings(root: yaml.Node):
+    """Every mapping node of a composed document, each once (aliases repeat nodes)."""
+    stack, visited = [root], set()
+    while stack:
+        node = stack.pop()
+        if id(node) in visited:
+            continue
+        visited.add(id(node))
         if isinstance(node, yaml.MappingNode):
-            repeated = repeated_key(node)
-            if repeated is not None:
-                raise yaml.constructor.ConstructorError(None, None, repeated[0], node.start_mark)
-        return super().construct_mapping(node, deep)
+            yield node
+            stack.extend(value for pair in node.value for value in pair)
+        elif isinstance(node, yaml.SequenceNode):
+            stack.extend(node.value)
 
 
 def load_yaml(text):
-    """``yaml.safe_load``, but a key given twice in one mapping is a ``yaml.YAMLError``
-    naming it and its two lines."""
-    return yaml.load(text, Loader=_UniqueKeyLoader)
+    """``yaml.safe_load``, but a key given twice in one mapping is a
+    ``yaml.constructor.ConstructorError`` naming it and its two lines.
+
+    The keys are checked on the composed document, before any mapping is built
+    (building merges ``<<`` mappings into their targets' nodes)."""
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    if root is None:
+        return None
+    for node in _mappings(root):
+        repeated = repeated_key(node)
+        if repeated is not None:
+            raise yaml.constructor.ConstructorError(None, None, repeated[0], node.start_mark)
+    return yaml.safe_load(text)
 
 
 def join_key(key: str, name) -> str:

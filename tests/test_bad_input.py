@@ -188,6 +188,19 @@ def test_merge_keys_may_repeat():
         environments.load_string(text, path="case.yaml")
 
 
+@pytest.mark.parametrize("text", [
+    "b: &B {k: 0}\na:\n  inner: &A {<<: *B, k: 1}\nx: {<<: *A, m: 3}\n",  # merges built in any order
+    "base: &B {k: 0, j: 1}\nx: {<<: *B, k: 2}\n",  # a merged key overridden
+    "1: a\n'1': b\n",  # an int and a str key
+], ids=["nested-merge", "override", "int-and-str"])
+def test_what_yaml_keeps_apart_is_no_repeated_key(text):
+    import yaml
+
+    from environments.plain_data import load_yaml
+
+    assert load_yaml(text) == yaml.safe_load(text)
+
+
 def test_a_small_alias_still_works():
     text = SCENARIO.replace("material: {E: 1.0e+6, nu: 0.4}", "material: &foam {E: 2.0e+6, nu: 0.4}")
     text = text.replace(
