@@ -11,7 +11,7 @@ The check asks the solver's own :class:`stances.collision.CollisionChecker`,
 with the exclusions the posture problem uses (each contact geometry may touch
 its own support), at those fixed link poses. The solver keeps every other pair
 ``collision_distance`` apart (5 mm; 0.1 mm of it may be eaten, and the pairs
-``PostureOptions.touching`` names keep 0 m: :meth:`stances.terms.CollisionConstraint.least`),
+``PostureOptions.touching`` names keep 0 m: :func:`stances.terms.kept_distance`),
 so a fixed link nearer than that to the scene or to another fixed link, by more
 than :data:`PLACED` (what the placement tolerance can move a geometry), has no
 posture the solver accepts: a sole set down a few millimetres from the corner of
@@ -24,6 +24,8 @@ from __future__ import annotations
 
 import numpy as np
 import pinocchio as pin
+
+from stances.terms import COLLISION_SLACK, kept_distance
 
 __all__ = ["PrintCollisionFilter", "PLACED", "PRINTS_COLLIDE"]
 
@@ -62,16 +64,14 @@ class PrintCollisionFilter:
     def __init__(self, robot, scene, options=None):
         from stances.collision import CollisionChecker
         from stances.problem import PostureOptions, touching_pairs
-        from stances.terms import CollisionConstraint
 
         self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
         self._checker = CollisionChecker(robot, scene.collision_objects(), margin=self.options.collision_distance,
                                          self_collision=self.options.self_collision)
-        # What each pair keeps in the solve (the touching pairs less).
-        self._rows = CollisionConstraint(None, self.options.collision_distance, self.options.max_collision_rows,
-                                         touching_pairs(robot, scene, self.options))
+        # The pairs the solve lets touch keep less than the others.
+        self._touching = touching_pairs(robot, scene, self.options)
         geometries = robot.collision_model.geometryObjects
         self._joints = np.array([g.parentJoint for g in geometries], dtype=int)
         self._in_joint = np.array([g.placement.homogeneous for g in geometries]).reshape(-1, 4, 4)
@@ -112,7 +112,7 @@ class PrintCollisionFilter:
             pair
             for pair in pairs
             if pair.joint_a in fixed and (pair.joint_b == 0 or pair.joint_b in fixed)
-            and pair.distance < self._rows.least((pair.name_a, pair.name_b)) - PLACED
+            and pair.distance < self._least((pair.name_a, pair.name_b)) - PLACED
         ]
         if not colliding:
             return ""
@@ -122,8 +122,12 @@ class PrintCollisionFilter:
                 f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} sinks {-deepest.distance:.3g} m into "
                 f"{deepest.name_b} whatever the posture"
             )
-        kept = self._rows.least((deepest.name_a, deepest.name_b))
+        kept = self._least((deepest.name_a, deepest.name_b))
         return (
-            f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} comes within {1e3 * deepest.distance:.2g} mm of "
-            f"{deepest.name_b} whatever the posture, where the solver keeps every link {1e3 * kept:.2g} mm away"
+            f"{PRINTS_COLLIDE}: at its print, {deepest.name_a} comes within {1e3 * deepest.distance:.3g} mm of "
+            f"{deepest.name_b} whatever the posture, where the solver keeps every link {1e3 * kept:.3g} mm away"
         )
+
+    def _least(self, pair) -> float:
+        """The least distance of a pair in a posture the solve accepts, metres (:func:`stances.terms.kept_distance`)."""
+        return kept_distance(pair, self.options.collision_distance, self._touching) - COLLISION_SLACK

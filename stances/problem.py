@@ -240,6 +240,13 @@ class PostureOptions:
                 raise StanceError(f"{name} must be a fraction in [0, 0.5), got {getattr(self, name)}")
         if not 0.0 < self.friction_margin <= 1.0:
             raise StanceError(f"friction_margin must be in (0, 1], got {self.friction_margin}")
+        if self.collision_activation < self.collision_distance:
+            # Pairs are linearised from the activation distance on: nearer than the
+            # distance they keep, they must be.
+            raise StanceError(
+                f"collision_activation ({self.collision_activation:g} m) must be at least collision_distance "
+                f"({self.collision_distance:g} m): pairs nearer than the distance they keep would not be checked"
+            )
         if self.max_indentation is not None and not 0.0 < self.max_indentation < np.inf:
             raise StanceError(f"max_indentation must be > 0 metres and finite (or None), got {self.max_indentation}")
         if isinstance(self.rigid_prints, str) or not all(isinstance(name, str) for name in self.rigid_prints):

@@ -40,12 +40,14 @@ __all__ = [
     "print_normal_loads",
     "ContactConstraints",
     "CollisionConstraint",
+    "COLLISION_SLACK",
+    "kept_distance",
 ]
 
 # Torque usage (fraction of the limit) that TorqueUsageCost leaves free.
 FREE_USAGE = 0.5
-# Metres of a collision row's clearance the SQP may leave unmet (ConstraintBlock slack).
-_COLLISION_SLACK = 1e-4
+#: Metres of a collision row's clearance the SQP may leave unmet (ConstraintBlock slack).
+COLLISION_SLACK = 1e-4
 
 
 @dataclass(frozen=True)
@@ -326,7 +328,7 @@ class CollisionConstraint:
             return [
                 ConstraintBlock(
                     "collision", value, None, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
-                    slack=_COLLISION_SLACK,
+                    slack=COLLISION_SLACK,
                 )
             ]
         pairs = self.checker.closest_pairs(model, data, self.rows)
@@ -348,7 +350,7 @@ class CollisionConstraint:
         return [
             ConstraintBlock(
                 "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
-                slack=_COLLISION_SLACK,
+                slack=COLLISION_SLACK,
                 second_order=second_order,
             )
         ]
@@ -356,9 +358,11 @@ class CollisionConstraint:
     def _lower(self, pair) -> float:
         """The distance a ``(name_a, name_b)`` pair keeps, metres: a touching pair the
         rows' slack, so that eating it leaves the pair touching, not inside."""
-        return _COLLISION_SLACK if tuple(pair) in self.touching else self.distance
+        return kept_distance(pair, self.distance, self.touching)
 
-    def least(self, pair) -> float:
-        """The least distance a ``(name_a, name_b)`` pair can have in a posture these rows
-        accept, metres: what it keeps less the rows' slack."""
-        return self._lower(pair) - _COLLISION_SLACK
+
+def kept_distance(pair, distance: float, touching=frozenset()) -> float:
+    """The distance the collision rows keep a ``(name_a, name_b)`` pair at, metres:
+    ``distance``, or the rows' slack for a pair ``touching`` names (eating it leaves the
+    pair touching, not inside). The rows accept down to this less :data:`COLLISION_SLACK`."""
+    return COLLISION_SLACK if tuple(pair) in touching else distance

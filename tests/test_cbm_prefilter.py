@@ -120,13 +120,13 @@ def test_foot_print_inside_a_box_is_rejected_as_a_collision(wall_filter):
 
 def test_foot_print_nearer_a_box_than_the_solver_keeps_links_is_rejected_with_the_distance(robot, wall, wall_filter):
     # The wall's face at x = 0.4; the toe of a sole at x = 0.29 stands 5.5 mm from it. At
-    # x = 0.292 (3.4 mm) the solver, which keeps links 5 mm from the scene (0.1 mm of it
+    # x = 0.292 (3.45 mm) the solver, which keeps links 5 mm from the scene (0.1 mm of it
     # may be eaten), holds no posture: refused before solving, with the distance.
     near = stance(left_sole=("floor", 0.292, 0.1), right_sole=("floor", 0.0, -0.1))
     rejection = wall_filter(near)
     assert rejection.rejected_by == "print collision" and cause_of(rejection.reason) == "collision"
     assert rejection.reason == (
-        f"{PRINTS_COLLIDE}: at its print, leg_left_6_link_0 comes within 3.4 mm of wall whatever the posture, "
+        f"{PRINTS_COLLIDE}: at its print, leg_left_6_link_0 comes within 3.45 mm of wall whatever the posture, "
         "where the solver keeps every link 4.9 mm away")
     solved = stances.solve(robot, wall, near)
     assert not solved.feasible  # the premise: the solver finds no posture either

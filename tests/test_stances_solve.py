@@ -708,6 +708,8 @@ def test_effort_margin_shrinks_the_torque_rows_and_names_itself(robot):
         ("effort_margin", 0.5, "effort_margin must be a fraction in \\[0, 0.5\\), got 0.5"),
         ("joint_margin", -0.1, "joint_margin must be a fraction in \\[0, 0.5\\), got -0.1"),
         ("torque_weight", float("nan"), "torque_weight must be >= 0 and finite, got nan"),
+        ("collision_activation", 0.002, "collision_activation \\(0.002 m\\) must be at least collision_distance "
+                                        "\\(0.005 m\\): pairs nearer than the distance they keep would not be checked"),
     ],
 )
 def test_bad_margins_are_rejected(option, value, message):
