@@ -594,9 +594,11 @@ class PostureProblem:
 
     def reweighted(self, linearization: Linearization, torque_weight: float) -> Linearization:
         """A linearisation with the torque-usage term at another weight: the same rows,
-        bounds and iterate, the costs summed again in :meth:`linearize`'s order (the same
-        bits as linearising again at that weight, without the kinematics, contact
-        solves and collision distances: a soft stance's linearisation costs 10-15 ms).
+        bounds and iterate, the costs summed again in :meth:`linearize`'s order: what
+        linearising again at that weight gives, bit for bit, with the same contact modes
+        (soft prints' contact solves start from the last modes found, so a linearisation
+        made after other evaluations may differ by rounding), without the kinematics,
+        contact solves and collision distances (10-15 ms on a soft stance).
 
         Parameters
         ----------
@@ -610,9 +612,17 @@ class PostureProblem:
         """
         parts = {}
         for index, term in self._costs(torque_weight):
-            known = linearization.cost_parts.get(index)
-            # The torque-usage term reads the iterate's torques alone.
-            parts[index] = term.evaluate(self, linearization.iterate) if isinstance(term, TorqueUsageCost) or known is None else known
+            if isinstance(term, TorqueUsageCost):
+                # It reads the iterate's torques alone (the other pieces read self.data,
+                # which later calls overwrite: they are taken as they were).
+                parts[index] = term.evaluate(self, linearization.iterate)
+            elif index in linearization.cost_parts:
+                parts[index] = linearization.cost_parts[index]
+            else:
+                raise StanceError(
+                    f"reweighted needs a linearisation of this problem (from its linearize): cost piece {index} "
+                    f"({type(term).__name__}) is missing from the one given"
+                )
         objective, gradient, hessian = _summed(parts, self.n_step)
         return replace(linearization, objective=objective, gradient=gradient, hessian=hessian, cost_parts=parts)
 

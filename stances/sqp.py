@@ -348,8 +348,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         violation, _ = linearization.max_violation()
         if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
             torque_weight = options.torque_weight
-            # Only the objective changes: summed again where the problem can (the same
-            # bits as linearising again).
+            # Only the objective changes: summed again where the problem can (what
+            # linearising again gives with the same contact modes).
             reweighted = getattr(problem, "reweighted", None)
             linearization = (problem.linearize(q, lam, torque_weight) if reweighted is None
                              else reweighted(linearization, torque_weight))

@@ -9,6 +9,9 @@ import pinocchio as pin
 import pytest
 from conftest import coarse_scenario
 
+from dataclasses import replace
+
+from stances.errors import StanceError
 from stances.problem import PostureOptions, build_problem
 
 CASES = {
@@ -89,6 +92,17 @@ def test_a_linearisation_reweighted_is_the_linearisation_at_that_torque_weight(r
         np.testing.assert_array_equal(reweighted.step_upper, direct.step_upper)
     # The weight matters here (the term is not zero at this point).
     assert problem.linearize(q, lam, 0.0).objective != problem.linearize(q, lam, 3.0).objective
+    # Evaluations elsewhere in between (a line search's trials, which overwrite the
+    # problem's kinematics) change nothing it reads.
+    first = problem.linearize(q, lam, 0.0)
+    before = problem.reweighted(first, 3.0)
+    problem.evaluate(pin.integrate(robot.model, q, 0.05 * rng.standard_normal(robot.nv)), lam, 0.0)
+    after = problem.reweighted(first, 3.0)
+    assert after.objective == before.objective
+    np.testing.assert_array_equal(after.gradient, before.gradient)
+    np.testing.assert_array_equal(after.hessian, before.hessian)
+    with pytest.raises(StanceError, match="reweighted needs a linearisation of this problem"):
+        problem.reweighted(replace(first, cost_parts={}), 3.0)
 
 
 def test_closest_distances_and_pairs_are_the_closest_of_all_pairs(robot):
