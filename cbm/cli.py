@@ -437,7 +437,7 @@ def _plan(args):
         except PlanInterrupted as stop:
             if not stop.plan.stances:
                 raise  # not even the start solved: nothing worth writing
-            result, interrupted = stop.plan, True
+            result, motions, interrupted = stop.plan, stop.motions, True
             print(
                 f"cbm plan: interrupted; writing the best partial plan ({len(result.stances)} stances), "
                 "Ctrl-C again to abandon it",
@@ -466,10 +466,13 @@ def _plan(args):
         if not result.success:
             for cause, entry in result.rejections.items():
                 print(f"    {cause}, e.g. {_shortened(entry['example'])}")
-    if moving is not None and moving.avoided:
-        print(f"  searched {moving.plans} times; {len(moving.avoided)} step(s) of earlier plans had no motion and were avoided:")
+    if moving is not None and moving.plans > 1:
+        kept = ("the first" if not moving.avoided else
+                f"one avoiding {len(moving.avoided)} step(s) of earlier plans that had no motion")
+        print(f"  searched {moving.plans} times for a plan whose every step has a motion; kept {kept}"
+              + ("" if moving.missing == 0 else f", {moving.missing} motion(s) still missing") + ":")
         for step in moving.avoided:
-            print(f"    {step.move}: {_shortened(step.reason)}")
+            print(f"    avoided {step.move}: {_shortened(step.reason)}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
     if motions:

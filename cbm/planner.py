@@ -97,12 +97,16 @@ class PlanInterrupted(KeyboardInterrupt):
     plan : Plan
         ``success`` False, its reason saying it was interrupted; its stances
         lead from the start towards the goal (none if the start was not yet
-        solved).
+        solved). From :func:`cbm.plan_with_motions` after a first plan was made:
+        the best plan made before (then ``success`` may be True).
+    motions : tuple of cbm.motion.Motion, optional
+        That plan's motions, when they were planned.
     """
 
-    def __init__(self, plan):
+    def __init__(self, plan, motions=None):
         super().__init__(plan.reason)
         self.plan = plan
+        self.motions = motions
 
 
 @dataclass(frozen=True)

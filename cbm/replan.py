@@ -104,8 +104,10 @@ def plan_with_motions(scenario, *, robot=None, attempts=3, motion_options=None, 
     CbmError
         If ``attempts`` is not a positive integer or ``plan_options`` names ``forbidden``.
     PlanInterrupted
-        On Ctrl-C during a search: with the best plan found before it, when there is
-        one (its motions are not kept), else the search's partial plan.
+        On Ctrl-C during a search or its motions: with the best plan made before and
+        its motions, when there is one, else (during the first search) the search's
+        partial plan; a Ctrl-C during the first plan's motions is a plain
+        ``KeyboardInterrupt``.
     """
     if isinstance(attempts, bool) or not isinstance(attempts, int) or attempts < 1:
         raise CbmError(f"attempts must be a positive integer, got {attempts!r}")
@@ -119,17 +121,18 @@ def plan_with_motions(scenario, *, robot=None, attempts=3, motion_options=None, 
         forbidden = frozenset((step.before, step.after) for step in avoided)
         try:
             planned = plan(scenario, robot=robot, forbidden=forbidden, **plan_options)
-        except PlanInterrupted:
+            if planned.success:
+                planned, motions = plan_motions_reposing(planned, scenario, robot, **motion_options)
+        except KeyboardInterrupt:  # PlanInterrupted too
             if best is None:
                 raise
-            raise PlanInterrupted(best.plan) from None
+            raise PlanInterrupted(best.plan, best.motions) from None
         if not planned.success:
             logger.info("search %d found no plan without the %d steps avoided: %s", attempt, len(avoided), planned.reason)
             if best is not None:
                 return replace(best, plans=attempt)
             # No plan at all: the best partial sequence, with its motions, as cbm.plan gives it.
             return MovingPlan(*plan_motions_reposing(planned, scenario, robot, **motion_options), (), attempt)
-        planned, motions = plan_motions_reposing(planned, scenario, robot, **motion_options)
         current = MovingPlan(planned, motions, tuple(avoided), attempt)
         if best is None or current.missing < best.missing:
             best = current

@@ -392,3 +392,26 @@ def test_plan_with_motions_refuses_bad_options(scenario, robot, options, message
 
     with pytest.raises(CbmError, match=message):
         plan_with_motions(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), **options)
+
+
+def test_ctrl_c_after_a_first_plan_keeps_it_with_its_motions(scenario, robot, monkeypatch):
+    from cbm import replan
+    from cbm.planner import PlanInterrupted
+
+    options = dict(robot=robot, reach=robot.reach, max_expansions=100)
+    first = plan(scenario, oracle=SyntheticOracle(), **options)
+    bad = _steps(first)[2]
+    found = _motions_failing({bad})
+    calls = []
+
+    def motions(planned, scenario_, robot_, **kwargs):
+        calls.append(planned)
+        if len(calls) == 2:
+            raise KeyboardInterrupt  # Ctrl-C while the second plan's motions are planned
+        return found(planned, scenario_, robot_, **kwargs)
+
+    monkeypatch.setattr(replan, "plan_motions_reposing", motions)
+    with pytest.raises(PlanInterrupted) as stopped:
+        replan.plan_with_motions(scenario, oracle=SyntheticOracle(), **options)
+    assert _steps(stopped.value.plan) == _steps(first)
+    assert [m.feasible for m in stopped.value.motions] == [step != bad for step in _steps(first)]
