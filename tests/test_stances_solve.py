@@ -91,6 +91,20 @@ def test_lazy_deformations_keep_a_provided_field_and_only_for_their_own_bodies()
     assert np.array_equal(fields["foam"], computed)
 
 
+def test_a_soft_answer_keeps_the_field_verify_solved_for(deformable_robots, monkeypatch):
+    # Shown without a second solve: a producer that would solve again is never called.
+    def never(*args):
+        def produce():
+            raise AssertionError("the field verify solved for was solved again")
+        return produce
+
+    monkeypatch.setattr(sqp, "_field_producer", never)
+    scenario = coarse_scenario("step-on-cube")
+    result = solve(deformable_robots["step-on-cube"], scenario.scene, scenario.stance("step-on-cube"))
+    assert result.feasible, result.reason
+    assert np.abs(result.deformations["cube"]).max() > 1e-5
+
+
 def test_a_soft_answer_shows_the_field_its_forces_make_bit_for_bit(deformable_robots, deformable_results):
     # The field the result shows is the one verify solved for (handed over, not
     # solved again): the same bits as a fresh solve under the answer's forces.
