@@ -69,9 +69,6 @@ NESTED_KEYS = {
     "surface override": ("friction",),
 }
 
-#: fem.LinearElasticMaterial's fields and the keys a scenario file gives them under.
-_MATERIAL_KEYS = {"young_modulus": "E", "poisson_ratio": "nu", "density": "rho"}
-
 #: A ``robot:`` value ending so is a robot description file, relative to the
 #: scenario file; any other value is a built-in robot name.
 ROBOT_FILE_SUFFIXES = (".yaml", ".yml")
@@ -184,6 +181,11 @@ def _record_lines(root: yaml.Node, lines: dict[str, int], path) -> None:
 
 
 _MISSING = object()
+
+#: fem.LinearElasticMaterial's fields: the key a scenario file gives each under, its
+#: default (required without one) and whether it must be > 0.
+_MATERIAL_KEYS = {"young_modulus": ("E", _MISSING, True), "poisson_ratio": ("nu", _MISSING, False),
+                  "density": ("rho", 0.0, False)}
 
 
 class _Reader:
@@ -467,23 +469,18 @@ class _Reader:
         material_key = join_key(key, "material")
         material_data = self.mapping(item["material"], material_key, NESTED_KEYS["material"], ("E", "nu"))
         fem = _fem()
+        values = {field: self.number(material_data, key, material_key, default, positive)
+                  for field, (key, default, positive) in _MATERIAL_KEYS.items()}
         try:
-            return fem.LinearElasticMaterial(
-                young_modulus=self.number(material_data, "E", material_key, positive=True),
-                poisson_ratio=self.number(material_data, "nu", material_key),
-                density=self.number(material_data, "rho", material_key, 0.0),
-            )
-        except ScenarioError:
-            raise
+            return fem.LinearElasticMaterial(**values)
         except ValueError as error:
             if not _is_fem_error(error):
                 raise
-            # fem names its fields; the file's keys are E, nu and rho.
-            message = str(error)
-            for field, file_key in _MATERIAL_KEYS.items():
-                if message.startswith(field + " "):
-                    raise self.error(join_key(material_key, file_key), message[len(field) + 1:]) from None
-            raise self.error(material_key, message) from None
+            field = getattr(error, "field", None)
+            if field in _MATERIAL_KEYS:
+                # Named by the file's key: its message starts with fem's name of the field.
+                raise self.error(join_key(material_key, _MATERIAL_KEYS[field][0]), str(error)[len(field) + 1:]) from None
+            raise self.error(material_key, str(error)) from None
 
     def soft_blocks(self, item: Mapping, key: str):
         item = self.mapping(item, key, OBJECT_KEYS["soft_blocks"], ("name", "blocks", "material"))

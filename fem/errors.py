@@ -28,7 +28,20 @@ class MeshError(FemError):
 
 
 class MaterialError(FemError):
-    """Material constants are outside the range where linear elasticity is defined."""
+    """Material constants are outside the range where linear elasticity is defined.
+
+    Parameters
+    ----------
+    message : str
+    field : str, optional
+        The :class:`fem.LinearElasticMaterial` field at fault (``"young_modulus"``,
+        ``"poisson_ratio"`` or ``"density"``), which the message then starts with, so
+        that a reader of another format can name its own key.
+    """
+
+    def __init__(self, message: str, field: str | None = None) -> None:
+        super().__init__(message)
+        self.field = field
 
 
 class BoundaryError(FemError):

@@ -56,27 +56,30 @@ class LinearElasticMaterial:
             try:
                 value = float(value)
             except (TypeError, ValueError) as exc:
-                raise MaterialError(f"{name} must be a real number, got {value!r}") from exc
+                raise MaterialError(f"{name} must be a real number, got {value!r}", field=name) from exc
             if not math.isfinite(value):
-                raise MaterialError(f"{name} must be finite, got {value}")
+                raise MaterialError(f"{name} must be finite, got {value}", field=name)
             object.__setattr__(self, name, value)
         if self.young_modulus <= 0.0:
             raise MaterialError(
                 f"young_modulus must be > 0 Pa, got {self.young_modulus:g}; "
-                "soft foams are around 1e4-1e6 Pa"
+                "soft foams are around 1e4-1e6 Pa",
+                field="young_modulus",
             )
         if self.young_modulus > MAX_YOUNG_MODULUS:
             raise MaterialError(
                 f"young_modulus must be <= {MAX_YOUNG_MODULUS:g} Pa (ten times diamond's), got "
-                f"{self.young_modulus:g}; model a support this stiff as a rigid object"
+                f"{self.young_modulus:g}; model a support this stiff as a rigid object",
+                field="young_modulus",
             )
         if not -1.0 < self.poisson_ratio < 0.5:
             raise MaterialError(
                 f"poisson_ratio must lie in (-1, 0.5), got {self.poisson_ratio:g}; "
-                "0.5 is incompressible (the stiffness is singular there), use e.g. 0.49"
+                "0.5 is incompressible (the stiffness is singular there), use e.g. 0.49",
+                field="poisson_ratio",
             )
         if self.density < 0.0:
-            raise MaterialError(f"density must be >= 0 kg/m^3, got {self.density:g}")
+            raise MaterialError(f"density must be >= 0 kg/m^3, got {self.density:g}", field="density")
 
     @property
     def lame_lambda(self) -> float:

@@ -211,3 +211,14 @@ def test_self_weight_needs_a_density_and_a_gravity_vector(distorted_mesh):
     body = DeformableBody(distorted_mesh, MATERIAL, fixed_nodes=fixed, cache=False)
     with pytest.raises(FemError, match=r"gravity must be a finite \(3,\) vector in m/s\^2, got \[0.0, -9.81\]"):
         body.self_weight_displacement((0.0, -9.81))
+
+
+def test_a_material_error_names_its_field():
+    # So that a reader of another format (a scenario's E, nu, rho) can name its own key.
+    for values, field in (({"young_modulus": -1.0, "poisson_ratio": 0.3}, "young_modulus"),
+                          ({"young_modulus": 1e6, "poisson_ratio": 0.5}, "poisson_ratio"),
+                          ({"young_modulus": 1e6, "poisson_ratio": 0.3, "density": -1.0}, "density"),
+                          ({"young_modulus": float("inf"), "poisson_ratio": 0.3}, "young_modulus")):
+        with pytest.raises(MaterialError) as raised:
+            LinearElasticMaterial(**values)
+        assert raised.value.field == field and str(raised.value).startswith(field + " ")
