@@ -505,8 +505,6 @@ def _batch(args):
 
 
 def _check(args):
-    from environments.scene_checks import check_self_weight
-
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
@@ -521,7 +519,7 @@ def _check(args):
         # Checked before the solve, which may take seconds.
         print(f"cbm check: error: --out {str(args.out)!r} is a file, not a folder", file=sys.stderr)
         return EXIT_BAD_INPUT
-    check_self_weight(scenario.scene)  # a scene at fault is bad input, not an infeasible stance
+    scenario.check_self_weight()  # a scene at fault is bad input, not an infeasible stance
     robot = _load_robot(args, scenario)
     stance = scenario.stances[args.stance]
     fine = None

@@ -432,7 +432,10 @@ def plan(
     start = _resolve_stance(start if start is not None else scenario.start, scenario, "start")
     if start is None:
         raise CbmError(f"scenario {scenario.name!r} has no start stance; pass start=")
-    check_self_weight(scene)
+    if isinstance(scenario, environments.Scenario):
+        scenario.check_self_weight()  # naming the file and the object's line
+    else:  # a scenario-like object built in code (tests)
+        check_self_weight(scene)
     if robot is None:
         robot = stances.Robot.load(scenario.robot)
     check_robot_surfaces(scenario, robot, goal)

@@ -46,6 +46,7 @@ from typing import Any
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal
 from .options import validate_options
+from .plain_data import load_yaml
 from .scenario_reader import line_of, read_scenario_fields
 from .scene import Scene
 from .stance import Stance
@@ -135,6 +136,33 @@ class Scenario:
             raise SceneError(
                 f"scenario {self.name!r}: unknown stance {name!r}; stances: {known_names(self.stances)}"
             ) from None
+
+    def check_self_weight(self) -> None:
+        """Refuse a soft object its own weight alone strains beyond its strain bound
+        (:func:`environments.scene_checks.check_self_weight`), naming, for a scenario
+        read from a file, the file and the object's line.
+
+        Raises
+        ------
+        SceneError
+            A :class:`ScenarioError` for a scenario read from a file.
+        """
+        for soft in self.scene.deformable_objects:
+            try:
+                soft.self_weight_field
+            except SceneError as error:
+                key = self._object_key(soft.name)
+                if self.path is None or key is None:
+                    raise
+                raise ScenarioError(self.path, key, str(error), line=line_of(self.lines, key)) from None
+
+    def _object_key(self, name: str) -> str | None:
+        """``"objects[i]"``, the key path of the file's object of that name, or None."""
+        if self.text is None:
+            return None
+        objects = (load_yaml(self.text) or {}).get("objects") or ()
+        return next((f"objects[{i}]" for i, item in enumerate(objects)
+                     if isinstance(item, Mapping) and item.get("name") == name), None)
 
     def check_robot_surfaces(self, robot_surfaces, robot_name: str = "the robot") -> None:
         """Check that every stance and goal names only surfaces the robot has.

@@ -590,5 +590,8 @@ def test_cli_check_of_a_body_too_soft_for_its_own_weight_is_bad_input(tmp_path, 
     path.write_text(text.replace("E: 1.0e+6", "E: 1.0e+4").replace("resolution: default", "resolution: 0.04"))
     assert cli.main(["check", str(path), "--stance", "step-on-cube"]) == cli.EXIT_BAD_INPUT
     captured = capsys.readouterr()
-    assert "cbm check: error: object 'cube': its own weight strains it" in captured.err
+    # Named by the file, the object's key and its line, as any other error in the file.
+    line = next(i for i, row in enumerate(path.read_text().splitlines(), 1) if "name: cube" in row)
+    assert captured.err.startswith(f"cbm check: error: {path}:{line}: objects[")
+    assert "]: object 'cube': its own weight strains it" in captured.err
     assert "infeasible" not in captured.out
