@@ -13,7 +13,7 @@ from .body import DeformableBody, rotate_voigt, voigt_to_tensor_strain, von_mise
 from .cache import DiskCache
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
-from .material import LinearElasticMaterial
+from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
@@ -28,6 +28,7 @@ __all__ = [
     "PrintError",
     "SolverError",
     "FemWarning",
+    "LOCKING_POISSON_RATIO",
     "TetMesh",
     "box_mesh",
     "tensor_mesh",

@@ -222,3 +222,37 @@ def test_a_material_error_names_its_field():
         with pytest.raises(MaterialError) as raised:
             LinearElasticMaterial(**values)
         assert raised.value.field == field and str(raised.value).startswith(field + " ")
+
+
+def test_a_nearly_incompressible_material_warns_that_linear_tetrahedra_lock():
+    import warnings
+
+    from fem.errors import FemWarning
+
+    with pytest.warns(FemWarning, match=r"poisson_ratio 0.49 is above 0.45: linear tetrahedra lock"):
+        LinearElasticMaterial(1e6, 0.49)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        LinearElasticMaterial(1e6, 0.45)  # at the bound: no warning
+        LinearElasticMaterial(1e6, 0.4)
+
+
+def test_poisson_ratio_near_half_locks_a_coarse_box_as_the_warning_says():
+    # The locking the warning names, on a small case: a square print pressed 1 mm into a
+    # 4-layer box; the force on a mesh twice as fine changes by far more at nu = 0.49
+    # than at 0.3 (the coarse mesh too stiff).
+    import warnings
+
+    def force(nu, divisions):
+        mesh = box_mesh((1.0, 1.0, 0.4), divisions)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            material = LinearElasticMaterial(1e6, nu)
+        body = DeformableBody(mesh, material, mesh.nodes[:, 2] == 0.0)
+        top = np.flatnonzero((mesh.nodes[:, 2] == 0.4) & (np.abs(mesh.nodes[:, 0] - 0.5) <= 0.17)
+                             & (np.abs(mesh.nodes[:, 1] - 0.5) <= 0.17))
+        patch = body.contact_patch(top)
+        return patch.reaction_forces(np.tile([0.0, 0.0, -1e-3], (patch.n_nodes, 1)))[:, 2].sum()
+
+    change = {nu: abs(force(nu, (6, 6, 2)) / force(nu, (12, 12, 4)) - 1.0) for nu in (0.3, 0.49)}
+    assert change[0.49] > 2.0 * change[0.3]
