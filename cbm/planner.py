@@ -29,7 +29,7 @@ from stances.errors import StanceError
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
-from .rejections import finer_grid_hint, summarise
+from .rejections import finer_grid_hint, strain_bound_hint, summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import (
@@ -513,6 +513,8 @@ def plan(
         reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
     if not searched.success and reason.startswith("budget exhausted"):
         reason += finer_grid_hint(_rejected(searched), sampling.spacing)
+    if not searched.success and not reason.startswith("start infeasible"):
+        reason += strain_bound_hint(_rejected(searched))
     return _plan_of(searched, scenario, robot, prints, reason)
 
 

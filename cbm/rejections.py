@@ -8,9 +8,10 @@ scene fails on reach, torque, collision, the soft supports or the time budget.
 
 from __future__ import annotations
 
+import re
 from collections import Counter
 
-__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "finer_grid_hint", "summarise"]
+__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise"]
 
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
@@ -123,4 +124,50 @@ def finer_grid_hint(reasons, spacing: float) -> str:
     return (
         f"; {colliding} of the {len(reasons)} stances rejected collide: a finer print grid offers prints between "
         f"the obstacles (print_spacing {finer:.3g}, cbm plan --print-spacing {finer:.3g})"
+    )
+
+
+#: Share of a failed search's rejected stances whose reason names a soft object's strain
+#: bound (as the worst row or among the rows no step meets together) from which it is said.
+STRAINED_SHARE = 0.5
+_STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)")
+
+
+def strain_bound_hint(reasons) -> str:
+    """What to add to a failed search's reason when most rejected stances ran into a soft
+    object's strain bound, in their worst row or in the rows no step meets together.
+
+    A soft support too soft for the robot's weight shows in every cause at once (balance,
+    reach, the soft support itself: a new user's 12 cm block of 3e5 Pa foam to step onto),
+    so the counts by cause do not name it.
+
+    Parameters
+    ----------
+    reasons : iterable of str
+        The rejected stances' reasons.
+
+    Returns
+    -------
+    str
+        ``""``, or a clause starting with ``"; "`` that names the object(s) and the share.
+
+    Examples
+    --------
+    >>> strain_bound_hint(["static equilibrium (fx) violated by 2 N; no step meets together: "
+    ...                    "strain bound (compression) of tet 7 of block, placement of a (x)",
+    ...                    "strain bound (tension) of tet 9 of block violated by 0.02", "torque limit of j"])
+    '; 2 of the 3 stances rejected meet the strain bound of block (the worst row or among those no step meets together): it may be too soft or too thin to stand on; a stiffer material, a larger strain_limit or a thicker body would carry more'
+    >>> strain_bound_hint(["torque limit of j"])
+    ''
+    """
+    reasons = [str(r) for r in reasons]
+    objects = [sorted(set(_STRAIN_ROW.findall(r))) for r in reasons]
+    strained = sum(bool(names) for names in objects)
+    if not reasons or strained < STRAINED_SHARE * len(reasons):
+        return ""
+    named = ", ".join(sorted({name for names in objects for name in names}))
+    return (
+        f"; {strained} of the {len(reasons)} stances rejected meet the strain bound of {named} (the worst row or "
+        "among those no step meets together): it may be too soft or too thin to stand on; a stiffer material, a "
+        "larger strain_limit or a thicker body would carry more"
     )

@@ -175,6 +175,29 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
     assert other.reason == "budget exhausted: max_expansions"
 
 
+class StrainedOracle(SyntheticOracle):
+    """As SyntheticOracle, its forbidden band's stances rejected with a strain bound among the rows."""
+
+    def __call__(self, stance, parent, parent_check):
+        check = super().__call__(stance, parent, parent_check)
+        if check.reason == "forbidden band":
+            return StanceCheck(False, "static equilibrium (fx) violated by 2.3 N; no step meets together: strain "
+                                      "bound (compression) of tet 7509 of step, placement of right_sole (z)", None)
+        return check
+
+
+def test_a_search_failing_on_a_soft_objects_strain_bound_says_so(scenario, robot):
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=StrainedOracle(forbidden_x=(0.0, 10.0)),
+                  max_expansions=15)
+    rejected = failed.rejections["balance (static equilibrium)"]["count"]
+    assert failed.reason.endswith(
+        f"; {rejected} of the {rejected} stances rejected meet the strain bound of step (the worst row or among those "
+        "no step meets together): it may be too soft or too thin to stand on; a stiffer material, a larger "
+        "strain_limit or a thicker body would carry more")
+    assert "strain bound" not in plan(scenario, robot=robot, reach=robot.reach,
+                                      oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
+
+
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):
