@@ -50,6 +50,7 @@ _STAGNATION_WINDOW = 8
 # iterations left, ends the solve (an infeasible quadruped stance fell 2 % an
 # iteration for 87 iterations of 170 ms QPs, 17 s, and never got there).
 _SLOW_PENALTY = 1e6
+_SLOW_GRACE = 12  # iterations a too-slow convergence may go on while its QPs meet their rows
 # Feasible iterates whose line search keeps cutting the step below this many
 # times in a row stop: the QP's model no longer predicts the objective (a
 # warm start at its loose tolerance crawled 70 iterations at alpha 1/256 on a
@@ -79,7 +80,6 @@ _PREDICTED_GAIN = _NO_GAIN
 # iterations, not eight: a two-sole stance of the turn scene cycled so, 0.023 % of the
 # objective a pair, each cut step nine contact solves of its two soles (1.31 -> 0.88 s,
 # the posture 0.8 mrad apart; the other built-in soft and rigid stances the same bits).
-_SLOW_GRACE = 12  # iterations a too-slow convergence may go on while its QPs meet their rows
 _SLOW_GAIN = 1e-3
 _SLOW_GAIN_ITERATIONS = 4
 _CRAWL_GAIN = _SLOW_GAIN / 8  # relative objective gain an iteration below which a cut step crawls
@@ -464,8 +464,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             # it meets them the violation can still fall faster, so _SLOW_GRACE iterations
             # more first (a rigid palm turned 30 degrees on hand-on-cube's cube crept 4 % an
             # iteration at elastic 0 from iteration 29 and converged at 39; an infeasible
-            # two-feet-and-palm stance by a wall, creeping 2 % at elastic 0, now ends at 42
-            # rather than at 30, where ignoring the rule at elastic 0 ran it to 100).
+            # two-feet-and-palm stance by a wall, creeping 2-6 % at elastic 0, now ends at
+            # 59 rather than at 30, where ignoring the rule at elastic 0 ran it to 100).
             if too_slow and (elastic > tolerance or iteration - slow_since >= _SLOW_GRACE):
                 status = f"converging too slowly: {1.0 - rate:.1%} an iteration"
                 break
