@@ -510,11 +510,11 @@ def plan(
             pool.close()
     reason = searched.reason
     if not searched.success and not reason.startswith("start infeasible"):
+        rejected, exhausted = _rejected(searched), reason.startswith("budget exhausted")
         reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
-    if not searched.success and reason.startswith("budget exhausted"):
-        reason += finer_grid_hint(_rejected(searched), sampling.spacing)
-    if not searched.success and not reason.startswith("start infeasible"):
-        reason += strain_bound_hint(_rejected(searched))
+        if exhausted:
+            reason += finer_grid_hint(rejected, sampling.spacing)
+        reason += strain_bound_hint(rejected)
     return _plan_of(searched, scenario, robot, prints, reason)
 
 
