@@ -48,20 +48,37 @@ def _mappings(root: yaml.Node):
             stack.extend(node.value)
 
 
-def load_yaml(text):
+def load_yaml(text, inspect=None):
     """``yaml.safe_load``, but a key given twice in one mapping is a
     ``yaml.constructor.ConstructorError`` naming it and its two lines.
 
-    The keys are checked on the composed document, before any mapping is built
-    (building merges ``<<`` mappings into their targets' nodes)."""
-    root = yaml.compose(text, Loader=yaml.SafeLoader)
-    if root is None:
-        return None
-    for node in _mappings(root):
-        repeated = repeated_key(node)
-        if repeated is not None:
-            raise yaml.constructor.ConstructorError(None, None, repeated[0], node.start_mark)
-    return yaml.safe_load(text)
+    The document is parsed once; its keys are checked on the composed tree, before any
+    mapping is built (building merges ``<<`` mappings into their targets' nodes).
+
+    Parameters
+    ----------
+    text : str
+    inspect : callable, optional
+        Called with the composed tree's root before anything is built, in place of
+        the repeated-key check: a reader that walks the tree anyway (the scenario
+        reader, recording each key's line) checks the keys itself with
+        :func:`repeated_key` and names their key paths.
+    """
+    loader = yaml.SafeLoader(text)
+    try:
+        root = loader.get_single_node()
+        if root is None:
+            return None
+        if inspect is not None:
+            inspect(root)
+        else:
+            for node in _mappings(root):
+                repeated = repeated_key(node)
+                if repeated is not None:
+                    raise yaml.constructor.ConstructorError(None, None, repeated[0], node.start_mark)
+        return loader.construct_document(root)
+    finally:
+        loader.dispose()
 
 
 def join_key(key: str, name) -> str:

@@ -105,12 +105,10 @@ def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name:
         On a syntax error (with its line) or any invalid entry.
     """
     try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
         lines: dict[str, int] = {}
-        if node is not None:
-            # Before building any Python data: the walk bounds what aliases expand to.
-            _record_lines(node, lines, path)
-        data = load_yaml(text)
+        # Before building any Python data: the walk bounds what aliases expand to, and
+        # refuses a repeated key with its key path.
+        data = load_yaml(text, inspect=lambda root: _record_lines(root, lines, path))
     except yaml.YAMLError as error:
         mark = getattr(error, "problem_mark", None)
         line = None if mark is None else mark.line + 1
