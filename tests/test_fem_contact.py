@@ -302,11 +302,11 @@ def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_l
     angles = rng.uniform(0.0, 2.0 * np.pi, p)
     directions = np.where((modes == fem.SLIP)[:, None], np.column_stack([np.cos(angles), np.sin(angles)]), 0.0)
     gains = np.where(modes == fem.SLIP, rng.uniform(0.2, 0.9, p), 0.0)
-    matrix = _replace_rows(system.c_local, *_mode_rows(system.c_local, modes, directions, gains, system.mu, system.scale)[:2])
+    law, _ = _mode_rows(system.c_local, modes, directions, gains, system.mu, system.scale)
+    matrix = _replace_rows(system.c_local, law)
     rows = np.flatnonzero(~_compliance_rows(modes))
-    assert rows.size == 2 * n_slip + 3 * n_lift
-    inverse = np.linalg.inv(system.c_local)
-    factor = _LowRankFactor(system.c_local, inverse, rows, matrix[rows])
+    assert np.array_equal(law.rows, rows) and rows.size == 2 * n_slip + 3 * n_lift
+    factor = _LowRankFactor(system.c_local, spd_inverse(system.c_local, "C"), law)
     vector, block = rng.normal(size=3 * p), rng.normal(size=(3 * p, 5))
     exact_vector, exact_block = np.linalg.solve(matrix, vector), np.linalg.solve(matrix, block)
     assert np.abs(factor.solve(vector) - exact_vector).max() <= 1e-12 * np.abs(exact_vector).max()
@@ -327,6 +327,25 @@ def test_a_slipping_print_is_solved_through_the_low_rank_path_with_the_same_answ
 
     assert isinstance(state._system[0], _LowRankFactor)  # not the dense fallback
     _check_signorini_coulomb(body, patch, displacements, state, MU)
+
+
+def test_an_ill_conditioned_capacitance_falls_back_to_the_dense_factorisation(pad, monkeypatch):
+    """Where the Woodbury capacitance is too badly conditioned (here: any, the bound raised
+    above every reciprocal condition number), the law is factorised densely, with the
+    same forces."""
+    import fem.contact as contact
+
+    body, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    displacements = _rigid_motion(patch.points, [0.002, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    low_rank = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements)
+    assert isinstance(low_rank._system[0], contact._LowRankFactor)
+    assert 1e-10 < low_rank._system[0].reciprocal_condition <= 1.0
+    monkeypatch.setattr(contact, "_LOW_RANK_RCOND", 2.0)
+    dense = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements)
+    assert isinstance(dense._system[0], contact._DenseFactor)
+    assert np.array_equal(dense.modes, low_rank.modes)
+    np.testing.assert_allclose(dense.forces, low_rank.forces, rtol=0, atol=1e-9 * np.abs(low_rank.forces).max())
 
 
 def test_spd_inverse_matches_the_general_inverse_and_refuses_an_indefinite_matrix():
