@@ -18,18 +18,22 @@ def repeated_key(node: yaml.MappingNode) -> tuple[str, int] | None:
     """Why a composed YAML mapping is refused when it gives a key twice (YAML keeps the
     last silently: a stance, an object or a robot surface defined twice would lose its
     first definition unseen), and the second one's line; None if no key repeats.
-    ``<<`` (merging a mapping in) may repeat; keys of different types (``1`` and
-    ``'1'``) are different keys."""
-    seen: dict[tuple, int] = {}
+    ``<<`` (merging a mapping in) may repeat. Keys are compared as YAML builds them:
+    ``yes`` and ``true`` are one key (True), as are ``1`` and ``1.0``; ``1`` and
+    ``'1'`` are two."""
+    constructor = yaml.constructor.SafeConstructor()  # one per mapping: it remembers what it built
+    seen: dict = {}
     for key_node, _ in node.value:
         if not isinstance(key_node, yaml.ScalarNode) or key_node.value == "<<":
             continue
         line = key_node.start_mark.line + 1
-        key = (key_node.tag, key_node.value)
+        key = constructor.construct_object(key_node)
         if key in seen:
-            return (f"{key_node.value!r} is given twice (lines {seen[key]} and {line}); "
-                    "YAML would keep only the last: remove or rename one"), line
-        seen[key] = line
+            text, first = seen[key]
+            what = (f"{text!r} is given twice" if text == key_node.value
+                    else f"{text!r} and {key_node.value!r} are one key to YAML ({key!r}), given twice")
+            return f"{what} (lines {first} and {line}); YAML would keep only the last: remove or rename one", line
+        seen[key] = (key_node.value, line)
     return None
 
 

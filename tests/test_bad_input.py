@@ -163,8 +163,10 @@ def test_cyclic_or_deep_yaml_is_a_scenario_error_not_a_recursion_error(text, mes
         ("start: stand\n", "start: stand\nstances: {}\n", 15, "'stances' is given twice (lines 10 and 15)"),
         ("material: {E: 1.0e+6, nu: 0.4}", "material: {E: 1.0e+6, nu: 0.4, E: 2.0e+6}", 8,
          "objects[1].material: 'E' is given twice (lines 8 and 8)"),
+        ("start: stand\n", "start: stand\nyes: 1\ntrue: 2\n", 11,
+         "'yes' and 'true' are one key to YAML (True), given twice (lines 10 and 11)"),
     ],
-    ids=["stance-contact", "top-level", "inline"],
+    ids=["stance-contact", "top-level", "inline", "one-key-two-spellings"],
 )
 def test_a_key_given_twice_is_refused_with_both_lines(replaced, by, line, message):
     # YAML keeps the last silently: the first definition would be lost unseen.
@@ -192,7 +194,8 @@ def test_merge_keys_may_repeat():
     "b: &B {k: 0}\na:\n  inner: &A {<<: *B, k: 1}\nx: {<<: *A, m: 3}\n",  # merges built in any order
     "base: &B {k: 0, j: 1}\nx: {<<: *B, k: 2}\n",  # a merged key overridden
     "1: a\n'1': b\n",  # an int and a str key
-], ids=["nested-merge", "override", "int-and-str"])
+    "yes: a\n'yes': b\n",  # a bool and a str key
+], ids=["nested-merge", "override", "int-and-str", "bool-and-str"])
 def test_what_yaml_keeps_apart_is_no_repeated_key(text):
     import yaml
 
