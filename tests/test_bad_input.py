@@ -163,8 +163,8 @@ def test_cyclic_or_deep_yaml_is_a_scenario_error_not_a_recursion_error(text, mes
         ("start: stand\n", "start: stand\nstances: {}\n", 15, "'stances' is given twice (lines 10 and 15)"),
         ("material: {E: 1.0e+6, nu: 0.4}", "material: {E: 1.0e+6, nu: 0.4, E: 2.0e+6}", 8,
          "objects[1].material: 'E' is given twice (lines 8 and 8)"),
-        ("start: stand\n", "start: stand\nyes: 1\ntrue: 2\n", 11,
-         "'yes' and 'true' are one key to YAML (True), given twice (lines 10 and 11)"),
+        ("start: stand\n", "start: stand\nyes: 1\ntrue: 2\n", 16,
+         "'yes' and 'true' are one key to YAML (True), given twice (lines 15 and 16)"),
     ],
     ids=["stance-contact", "top-level", "inline", "one-key-two-spellings"],
 )
