@@ -1210,21 +1210,18 @@ class DeformableContact:
         """Exact Coulomb cones: per node, or (``bonded``) of each print's resultant."""
         name = self.deformable_object.name
         if self.law == "bonded":
-            groups = [(forces[self.print_of_node == i].sum(axis=0), self.print_placements[i].rotation[:, 2],
-                       self.friction[i], f"the resultant of {spec.label}") for i, spec in enumerate(self.prints)]
+            totals = np.array([forces[self.print_of_node == i].sum(axis=0) for i in range(len(self.prints))])
+            normals = np.array([placement.rotation[:, 2] for placement in self.print_placements])
+            mu, what = np.asarray(self.friction, dtype=float), [f"the resultant of {spec.label}" for spec in self.prints]
         else:
-            groups = [(forces[i], self.normals[i], self.node_mu[i], f"node {int(n)} of {name}")
-                      for i, n in enumerate(self.node_ids)]
-        reasons, worst = [], np.inf
-        for total, normal, mu, what in groups:
-            normal_part = float(total @ normal)
-            tangential = float(np.linalg.norm(total - normal_part * normal))
-            margin = mu * normal_part - tangential
-            worst = min(worst, margin)
-            if margin < -tolerances.cone:
-                reasons.append(
-                    f"{what} leaves its friction cone by {-margin:.3g} N "
-                    f"(tangential {tangential:.3g} N, normal {normal_part:.3g} N, mu {mu:g})"
-                )
-        measures[f"cone margin on {name}"] = float(worst)
-        return reasons
+            # All nodes at once (a python loop over them cost 0.6 ms a soft check).
+            totals, normals, mu, what = forces, self.normals, self.node_mu, None
+        normal_part = np.einsum("ij,ij->i", totals, normals)
+        tangential = np.linalg.norm(totals - normal_part[:, None] * normals, axis=1)
+        margins = mu * normal_part - tangential
+        measures[f"cone margin on {name}"] = float(margins.min(initial=np.inf))
+        return [
+            f"{what[i] if what is not None else f'node {int(self.node_ids[i])} of {name}'} leaves its friction cone "
+            f"by {-margins[i]:.3g} N (tangential {tangential[i]:.3g} N, normal {normal_part[i]:.3g} N, mu {mu[i]:g})"
+            for i in np.flatnonzero(margins < -tolerances.cone).tolist()
+        ]

@@ -88,6 +88,23 @@ def _pulling(result, problem):
     return _forces(result, pull), rf"node {node} of cube pulls on the robot \(-1 N\): adhesion"
 
 
+def _node_out_of_cone(result, problem):
+    _, (soft, loads) = _slices(problem)
+    # The most pressed print node pushes sideways twice its normal force: outside its own
+    # cone (mu below 2) whatever its neighbours carry.
+    forces = np.array([p.force for p in result.point_forces[loads]])
+    normals = soft.rotation_body @ soft.node_frames[:, 2].T  # (3, p) world
+    index = int(np.argmax(np.einsum("ij,ji->i", forces, normals)))
+    tangent = soft.rotation_body @ soft.node_frames[index, 0]
+    node = int(soft.node_ids[index])
+
+    def push(f):
+        f[loads.start + index] += 2.0 * (f[loads.start + index] @ normals[:, index]) * tangent
+        return f
+
+    return _forces(result, push), rf"node {node} of cube leaves its friction cone by [0-9.e+-]+ N \(tangential .*\)"
+
+
 def _nan_forces(result, problem):
     frame = result.point_forces[0].frame
     return _forces(result, lambda f: np.full_like(f, np.nan)), rf"a contact force on {frame} is not finite"
@@ -137,6 +154,7 @@ CASES = {
     "out-of-cone": _out_of_cone,
     "misplaced": _misplaced,
     "pulling-node": _pulling,
+    "node-out-of-cone": _node_out_of_cone,
     "nan-forces": _nan_forces,
     "nan-q": _nan_q,
     "nan-deformation": _nan_deformation,
