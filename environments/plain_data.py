@@ -7,7 +7,7 @@ path at fault and says what would be valid.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Hashable, Mapping
 
 import yaml
 
@@ -24,17 +24,33 @@ def repeated_key(node: yaml.MappingNode) -> tuple[str, int] | None:
     constructor = yaml.constructor.SafeConstructor()  # one per mapping: it remembers what it built
     seen: dict = {}
     for key_node, _ in node.value:
-        if not isinstance(key_node, yaml.ScalarNode) or key_node.value == "<<":
+        if not isinstance(key_node, yaml.ScalarNode) or key_node.tag == _MERGE:
             continue
         line = key_node.start_mark.line + 1
-        key = constructor.construct_object(key_node)
+        key = _built_key(constructor, key_node)
         if key in seen:
-            text, first = seen[key]
+            text, first, built = seen[key]
             what = (f"{text!r} is given twice" if text == key_node.value
-                    else f"{text!r} and {key_node.value!r} are one key to YAML ({key!r}), given twice")
+                    else f"{text!r} and {key_node.value!r} are one key to YAML ({built!r}), given twice")
             return f"{what} (lines {first} and {line}); YAML would keep only the last: remove or rename one", line
-        seen[key] = (key_node.value, line)
+        seen[key] = (key_node.value, line, key)
     return None
+
+
+_MERGE, _VALUE = "tag:yaml.org,2002:merge", "tag:yaml.org,2002:value"
+
+
+def _built_key(constructor, key_node: yaml.ScalarNode):
+    """The key YAML builds from a scalar key node; where it builds none here (a tag
+    with no constructor, a key that cannot be a key), the node's tag and text, so that
+    building the document itself says what is wrong."""
+    if key_node.tag == _VALUE:
+        return key_node.value  # a plain '=' key: a string once in a mapping
+    try:
+        key = constructor.construct_object(key_node)
+    except yaml.YAMLError:
+        return (key_node.tag, key_node.value)
+    return key if isinstance(key, Hashable) else (key_node.tag, key_node.value)
 
 
 def _mappings(root: yaml.Node):

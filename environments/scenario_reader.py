@@ -144,6 +144,7 @@ def _record_lines(root: yaml.Node, lines: dict[str, int], path) -> None:
     # nodes above it, so an alias pointing back up is a cycle.
     stack = [(root, "", ())]
     visited = 0
+    checked = set()  # ids of the mappings whose keys were checked
     while stack:
         node, key, ancestors = stack.pop()
         visited += 1
@@ -166,7 +167,10 @@ def _record_lines(root: yaml.Node, lines: dict[str, int], path) -> None:
         lines.setdefault(key, line)
         below = (*ancestors, id(node))
         if isinstance(node, yaml.MappingNode):
-            repeated = repeated_key(node)
+            # Once per mapping, not per use of an alias to it (building its keys again
+            # at each of up to MAX_YAML_NODES visits would undo that bound).
+            repeated = None if id(node) in checked else repeated_key(node)
+            checked.add(id(node))
             if repeated is not None:
                 raise ScenarioError(path, key, repeated[0], line=repeated[1])
             for key_node, value_node in reversed(node.value):

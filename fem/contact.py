@@ -55,7 +55,7 @@ _LOW_RANK_ROWS = 0.25
 # serves. Measured on 897 factorisations of five scenes' plans (turn, rail-over-gap,
 # two-mats, foot-and-hand-on-foam, hand-on-cube): 8.9e-4 at worst, solving for a vector of
 # ones to 1e-13. (Before, that solve itself was the test: 0.4 ms, more than the factorisation.)
-_LOW_RANK_RCOND = 1e-10
+_LOW_RANK_RCOND = 1e-7
 
 
 @dataclass(frozen=True)
@@ -181,6 +181,23 @@ class _LowRankFactor:
     """
 
     def __init__(self, compliance, inverse, law):
+        """
+        Parameters
+        ----------
+        compliance : (n, n) float
+            C, in node frames.
+        inverse : (n, n) float
+            S = C^-1, exactly symmetric (:func:`fem.dense.spd_inverse`): its rows at R
+            are read as its columns.
+        law : _LawRows
+            The replaced rows.
+
+        Attributes
+        ----------
+        reciprocal_condition : float
+            LAPACK ``gecon``'s estimate of the capacitance matrix's reciprocal
+            condition number in the 1-norm (1.0 when no row is replaced).
+        """
         self._compliance = compliance  # C: A is never formed
         self._inverse = inverse
         self._law = law
@@ -192,7 +209,6 @@ class _LowRankFactor:
             unit[rows, np.arange(rows.size)] = 1.0  # C S E = E
             capacitance = law.values(self._columns, unit)
             self._lu = scipy.linalg.lu_factor(capacitance, check_finite=False)
-            #: 1-norm reciprocal condition number estimate of the capacitance matrix (LAPACK gecon).
             self.reciprocal_condition = float(
                 scipy.linalg.lapack.dgecon(self._lu[0], np.abs(capacitance).sum(axis=0).max(), norm="1")[0])
         else:
@@ -365,8 +381,10 @@ class PrintContactSystem:
             self._inverse = spd_inverse(self.c_local, "the print's compliance")
         factor = _LowRankFactor(self.c_local, self._inverse, law)
         # Woodbury is exact in exact arithmetic; a badly conditioned capacitance (not
-        # seen) would lose digits, and the dense factorisation then serves.
-        if factor.reciprocal_condition < _LOW_RANK_RCOND:
+        # seen) would lose digits, and the dense factorisation then serves (so does a
+        # NaN estimate). C's own conditioning is the compliance's: its inverse comes from
+        # a Cholesky factor, and a force vector gets a step of iterative refinement.
+        if not factor.reciprocal_condition >= _LOW_RANK_RCOND:
             return _DenseFactor(_replace_rows(self.c_local, law))
         return factor
 
@@ -579,7 +597,7 @@ def _replace_rows(c_local, law):
     return matrix
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class _LawRows:
     """The rows of a linearised law that are not rows of C, kept by their structure.
 

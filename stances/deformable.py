@@ -1212,16 +1212,19 @@ class DeformableContact:
         if self.law == "bonded":
             totals = np.array([forces[self.print_of_node == i].sum(axis=0) for i in range(len(self.prints))])
             normals = np.array([placement.rotation[:, 2] for placement in self.print_placements])
-            mu, what = np.asarray(self.friction, dtype=float), [f"the resultant of {spec.label}" for spec in self.prints]
+            mu = np.asarray(self.friction, dtype=float)
+            what = [f"the resultant of {spec.label}" for spec in self.prints]
         else:
             # All nodes at once (a python loop over them cost 0.6 ms a soft check).
-            totals, normals, mu, what = forces, self.normals, self.node_mu, None
+            totals, normals, mu = forces, self.normals, self.node_mu
+            what = [f"node {int(n)} of {name}" for n in self.node_ids]
         normal_part = np.einsum("ij,ij->i", totals, normals)
         tangential = np.linalg.norm(totals - normal_part[:, None] * normals, axis=1)
         margins = mu * normal_part - tangential
-        measures[f"cone margin on {name}"] = float(margins.min(initial=np.inf))
+        # fmin: a node of infinite friction with no normal force (inf * 0) has no margin, as before.
+        measures[f"cone margin on {name}"] = float(np.fmin.reduce(margins, initial=np.inf))
         return [
-            f"{what[i] if what is not None else f'node {int(self.node_ids[i])} of {name}'} leaves its friction cone "
-            f"by {-margins[i]:.3g} N (tangential {tangential[i]:.3g} N, normal {normal_part[i]:.3g} N, mu {mu[i]:g})"
+            f"{what[i]} leaves its friction cone by {-margins[i]:.3g} N "
+            f"(tangential {tangential[i]:.3g} N, normal {normal_part[i]:.3g} N, mu {mu[i]:g})"
             for i in np.flatnonzero(margins < -tolerances.cone).tolist()
         ]

@@ -94,6 +94,7 @@ _CRAWL_GAIN = _SLOW_GAIN / 8  # relative objective gain an iteration below which
 # below a violation of 7e-4; infeasible solves crawled at 0.05-7 and then
 # stalled (four line searches finding no step, 1-2 s on soft scenes).
 _HOPELESS_VIOLATION = 1e-2
+_STALLED_SEARCHES = 4  # failed line searches in a row (the penalty raised after each) that end a solve
 _HOPELESS_PROGRESS = 0.5
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
@@ -425,14 +426,18 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             stalled += 1
             if violation > tolerance and penalty < _MAX_PENALTY:
                 penalty *= 10.0
-            elif not (slow and violation <= _CURVATURE_PHASE):
+            elif violation <= _HOPELESS_VIOLATION and not (slow and violation <= _CURVATURE_PHASE):
                 # Nothing the next iteration reads has changed (the linearisation, the
-                # penalty, a model without the last QP's multipliers): its QP and line
-                # search would be this one's again. A soft palm on rail-over-gap's rail,
-                # feasible, repeated a failed line search three times, ten contact
-                # solves each (40 % of its solve).
-                stalled = 4
-            if stalled >= 4:
+                # penalty, a model without the last QP's multipliers; QPs from a cold
+                # start): its QP and line search would be this one's again, but for
+                # the contact modes each soft print's solve starts from (the last
+                # trial's; where a print's Coulomb state is unique, the same answer).
+                # A soft palm on rail-over-gap's rail, feasible, repeated a failed line
+                # search three times, ten contact solves each (40 % of its solve). Far
+                # from feasible the repeats are left to the crawl stop, which ends them
+                # with its own reason (and _solve_coulomb tries no more from there).
+                stalled = _STALLED_SEARCHES
+            if stalled >= _STALLED_SEARCHES:
                 status = "stalled"
                 break
             continue

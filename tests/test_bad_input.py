@@ -16,6 +16,8 @@ import textwrap
 from pathlib import Path
 
 import numpy as np
+import re
+
 import pytest
 
 import environments
@@ -195,13 +197,36 @@ def test_merge_keys_may_repeat():
     "base: &B {k: 0, j: 1}\nx: {<<: *B, k: 2}\n",  # a merged key overridden
     "1: a\n'1': b\n",  # an int and a str key
     "yes: a\n'yes': b\n",  # a bool and a str key
-], ids=["nested-merge", "override", "int-and-str", "bool-and-str"])
+    "=: a\nb: 1\n",  # a plain '=' key, a string once in a mapping
+    "!!binary aGVsbG8=: a\nhello: b\n",  # bytes and a str key
+], ids=["nested-merge", "override", "int-and-str", "bool-and-str", "value-key", "binary-key"])
 def test_what_yaml_keeps_apart_is_no_repeated_key(text):
     import yaml
 
     from environments.plain_data import load_yaml
 
     assert load_yaml(text) == yaml.safe_load(text)
+
+
+@pytest.mark.parametrize("text, message", [
+    ("1: a\n1.0: b\n", "'1' and '1.0' are one key to YAML (1), given twice (lines 1 and 2)"),
+    ("'<<': a\n'<<': b\n", "'<<' is given twice (lines 1 and 2)"),  # quoted: a string, not a merge
+], ids=["int-and-float", "quoted-merge-text"])
+def test_one_key_in_two_spellings_is_refused(text, message):
+    import yaml
+
+    from environments.plain_data import load_yaml
+
+    with pytest.raises(yaml.constructor.ConstructorError, match=re.escape(message)):
+        load_yaml(text)
+
+
+@pytest.mark.parametrize("text", ["!!seq a: 1\n", "? !!map {a: 1}\n: 1\n"], ids=["seq-tag", "map-key"])
+def test_a_key_that_cannot_be_a_key_is_the_yaml_error_it_was(text):
+    """Keys YAML cannot build or hash are left to building the document, which says so
+    (as yaml.safe_load does): a ScenarioError, not a TypeError."""
+    with pytest.raises(ScenarioError, match="found unhashable key"):
+        environments.load_string("robot: talos\n" + text, path="case.yaml")
 
 
 def test_a_small_alias_still_works():

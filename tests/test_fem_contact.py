@@ -306,6 +306,23 @@ def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_l
     matrix = _replace_rows(system.c_local, law)
     rows = np.flatnonzero(~_compliance_rows(modes))
     assert np.array_equal(law.rows, rows) and rows.size == 2 * n_slip + 3 * n_lift
+    # The replaced rows, written out from the law (fem.contact's docstring): a lifted
+    # node's phi = 0; a slipping node's phi_t - mu phi_n d - P (U + C phi)_t = 0 with
+    # P = k s (I - d d^T), as matrix rows (O = (1 - k) I + k d d^T on phi_t).
+    expected = system.c_local.copy()
+    s = 0.5 * (system.scale[:, 0] + system.scale[:, 1])
+    for node in range(p):
+        dofs = slice(3 * node, 3 * node + 3)
+        if modes[node] == fem.LIFT:
+            expected[dofs] = np.eye(3 * p)[dofs]
+        elif modes[node] == fem.SLIP:
+            d, k = directions[node], gains[node]
+            projected = k * s[node] * (np.eye(2) - np.outer(d, d))
+            tangential = projected @ system.c_local[3 * node : 3 * node + 2]
+            tangential[:, 3 * node : 3 * node + 2] += (1.0 - k) * np.eye(2) + k * np.outer(d, d)
+            tangential[:, 3 * node + 2] -= MU * d
+            expected[3 * node : 3 * node + 2] = tangential
+    np.testing.assert_allclose(matrix, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     factor = _LowRankFactor(system.c_local, spd_inverse(system.c_local, "C"), law)
     vector, block = rng.normal(size=3 * p), rng.normal(size=(3 * p, 5))
     exact_vector, exact_block = np.linalg.solve(matrix, vector), np.linalg.solve(matrix, block)
@@ -339,8 +356,15 @@ def test_an_ill_conditioned_capacitance_falls_back_to_the_dense_factorisation(pa
     mu = np.full(patch.n_nodes, MU)
     displacements = _rigid_motion(patch.points, [0.002, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
     low_rank = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements)
-    assert isinstance(low_rank._system[0], contact._LowRankFactor)
-    assert 1e-10 < low_rank._system[0].reciprocal_condition <= 1.0
+    factor = low_rank._system[0]
+    assert isinstance(factor, contact._LowRankFactor)
+    # gecon's estimate is within a factor 10 of the exact 1-norm condition number of the
+    # capacitance A[R] S[:, R] (formed here from the dense law matrix).
+    matrix = contact._replace_rows(factor._compliance, factor._law)
+    capacitance = matrix[factor._law.rows] @ factor._inverse[:, factor._law.rows]
+    exact = 1.0 / np.linalg.cond(capacitance, 1)
+    assert exact / 10.0 <= factor.reciprocal_condition <= 10.0 * exact
+    assert contact._LOW_RANK_RCOND < factor.reciprocal_condition <= 1.0
     monkeypatch.setattr(contact, "_LOW_RANK_RCOND", 2.0)
     dense = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements)
     assert isinstance(dense._system[0], contact._DenseFactor)

@@ -443,6 +443,52 @@ def test_a_marginal_step_the_objective_refuses_ends_the_solve_without_backtracki
     assert np.all(outcome.q == 0.0)
 
 
+class _CountingTrials(ToyProblem):
+    """A toy problem that counts the linearisations and evaluations the SQP asks for."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        self.trials = 0
+
+    def evaluate(self, q, lam, torque_weight=None):
+        self.trials += 1
+        return ToyProblem.linearize(self, q, lam, torque_weight)  # (ToyProblem.evaluate would count twice)
+
+    def linearize(self, q, lam, torque_weight=None):
+        self.trials += 1
+        return super().linearize(q, lam, torque_weight)
+
+
+def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once():
+    """At a feasible point the gradient asks for a step predicted to gain 5e-3, which the
+    flat objective never gives: the line search tries ten lengths and finds none. Nothing
+    the next iteration reads changes (the penalty stays, no curvature), so the solve ends
+    there, converged, rather than repeating that search three more times (41 trials)."""
+
+    def flat(q, lam):
+        return 1.0, np.array([-0.1, 0.0, 0.0]), np.eye(3)
+
+    problem = _CountingTrials(flat, lambda q, lam: [])
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1 and np.all(outcome.q == 0.0)
+    assert problem.trials == 1 + 10  # the start, then lengths 1, 1/2, ..., 1/512
+
+
+def test_failed_line_searches_far_from_feasible_are_left_to_the_crawl_stop(monkeypatch):
+    """Far from feasible (contradicting rows: a restoration step takes the violation from 1
+    to its floor of 1/2) at the largest penalty, a failed line search changes nothing
+    either, but the solve goes on to the crawl stop, which ends it with its own reason
+    after _CRAWL_STEPS failures in a row (what _solve_coulomb reads as a stance that
+    cannot be held), not as "stalled" at the first."""
+    monkeypatch.setattr(sqp, "_line_search", lambda *args, **kwargs: (None, 2.0**-10))
+    problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), contradicting_rows)
+    problem.options = replace(problem.options, elastic_penalty=sqp._MAX_PENALTY)
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=100)
+    assert not outcome.feasible
+    assert outcome.status == sqp._NO_PROGRESS and outcome.iterations > sqp._CRAWL_STEPS
+
+
 def test_a_feasible_step_cut_short_for_nothing_ends_the_solve(monkeypatch):
     """From a feasible point a step cut to 1/256 that gains 1.2e-6 of the objective (more
     than the optimality tolerance, 1e-7, less than a crawl's 1.25e-4):

@@ -90,8 +90,8 @@ def _pulling(result, problem):
 
 def _node_out_of_cone(result, problem):
     _, (soft, loads) = _slices(problem)
-    # The most pressed print node pushes sideways twice its normal force: outside its own
-    # cone (mu below 2) whatever its neighbours carry.
+    # The most pressed print node pushes sideways twice its normal force more: outside its
+    # own cone (mu below 1, whatever tangential force it had) whatever its neighbours carry.
     forces = np.array([p.force for p in result.point_forces[loads]])
     normals = soft.rotation_body @ soft.node_frames[:, 2].T  # (3, p) world
     index = int(np.argmax(np.einsum("ij,ji->i", forces, normals)))
@@ -201,6 +201,28 @@ def test_plan_check_refuses_the_violation_the_plan_shows(robot, scenario, solved
     assert not report.ok
     _assert_named(report.problems, "stance 0: .*")
     _assert_named(report.problems[0][len("stance 0: "):].split("; "), pattern)
+
+
+def test_verify_refuses_a_bonded_prints_resultant_outside_its_cone(robot, scenario):
+    """The paper's bonded law keeps each print's resultant in its cone (not each node's):
+    the soft sole's forces pushed sideways by twice their normal sum more leave it."""
+    options = {"contact_law": "bonded"}
+    result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"), **options)
+    assert result.feasible, result.reason
+    assert stances.verify(robot, scenario.scene, result.stance, result, **options).ok
+    problem = build_problem(robot, scenario.scene, result.stance, stances.PostureOptions(**options))
+    _, (soft, loads) = _slices(problem)
+    normal = soft.rotation_body @ soft.node_frames[0, 2]
+    tangent = soft.rotation_body @ soft.node_frames[0, 0]
+
+    def push(f):
+        f[loads] += (2.0 * (f[loads] @ normal).sum() / (loads.stop - loads.start)) * tangent
+        return f
+
+    check = stances.verify(robot, scenario.scene, result.stance, _forces(result, push), **options)
+    assert not check.ok
+    _assert_named(check.reasons, rf"the resultant of {re.escape(soft.prints[0].label)} leaves its friction cone "
+                                 r"by [0-9.e+-]+ N \(tangential .*\)")
 
 
 def _robot_with_lower_limit(joint_name, limit):
