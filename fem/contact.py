@@ -3,8 +3,9 @@
 A print's nodes are pressed by points of rigid indenters (robot links). Each node
 either sticks to its indenter point, slips along the surface with its force on
 the friction bound against its slip, or lifts off with no force. On the print's
-compliance ``C = [K_NN^-1]_PP`` the conditions read, per node, in its frame (t1,
-t2, n: the outward normal):
+compliance ``C = [K_NN^-1]_PP`` (the posture solver passes ``C + D``, D the series
+coupling of partly covered nodes: :attr:`fem.ContactPatch.link_compliance`) the
+conditions read, per node, in its frame (t1, t2, n: the outward normal):
 
     r = U + C phi                      relative motion of the indenter point w.r.t. the node
     phi_n >= 0,  r_n >= 0,  phi_n r_n = 0                      (Signorini: push, no penetration)
@@ -17,7 +18,8 @@ and a slipping node's friction is exactly opposite its slip (maximum
 dissipation). The normal and tangential laws are not associated (a slipping node
 does not open a gap), as Coulomb's law wants.
 
-Written as fixed points of projections (Alart and Curnier), with per-dof scales s,
+Written as fixed points of projections (Alart and Curnier), with scales s (the normal
+dof's own; one per node, the mean of its two tangential ones, for the friction disc),
 ``phi_n = max(0, phi_n - s r_n)`` and ``phi_t = proj_{|.| <= mu phi_n}(phi_t - s r_t)``,
 the problem is solved by a semismooth Newton method (a primal-dual active set):
 read each node's mode from the current iterate, solve the law linearised there,
