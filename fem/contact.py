@@ -358,7 +358,7 @@ class PrintContactSystem:
         if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
-        law, rhs_blocks = _mode_rows(self.c_local, modes, directions, gains, self.mu, self.scale)
+        law, rhs_blocks = _mode_rows(modes, directions, gains, self.mu, self.scale)
         entry = (self._factor(modes, law), rhs_blocks)
         if not slipping:
             self._factors[key] = entry
@@ -612,12 +612,16 @@ class _LawRows:
     ----------
     rows : (r,) int
         The replaced rows, ascending.
+    lifted_dofs : (a,) int
+        The lifted nodes' dofs.
     lifted : (a,) int
-        Positions in ``rows`` of the lifted nodes' dofs.
-    nodes : (k,) int
-        The slipping nodes.
+        Their positions in ``rows``.
+    tangential : (k, 2) int
+        The slipping nodes' tangential dofs.
+    normal : (k,) int
+        Their normal dofs.
     at : (k, 2) int
-        Positions in ``rows`` of each slipping node's tangential dofs.
+        Positions in ``rows`` of the tangential dofs.
     projected : (k, 2, 2) float
         P, on C's tangential rows.
     own : (k, 2, 2) float
@@ -627,8 +631,10 @@ class _LawRows:
     """
 
     rows: np.ndarray
+    lifted_dofs: np.ndarray
     lifted: np.ndarray
-    nodes: np.ndarray
+    tangential: np.ndarray
+    normal: np.ndarray
     at: np.ndarray
     projected: np.ndarray
     own: np.ndarray
@@ -637,18 +643,16 @@ class _LawRows:
     def values(self, x, cx):
         """``A[R] x`` from ``x`` and ``C x``, (r,) or (r, m) for x (3p,) or (3p, m)."""
         out = np.empty((self.rows.size,) + x.shape[1:])
-        out[self.lifted] = x[self.rows[self.lifted]]
-        if self.nodes.size:
-            tangential = 3 * self.nodes[:, None] + np.arange(2)  # (k, 2)
-            turned = np.einsum("kij,kj...->ki...", self.projected, cx[tangential])
-            turned += np.einsum("kij,kj...->ki...", self.own, x[tangential])
-            normal = x[3 * self.nodes + 2]
-            turned -= self.friction.reshape(self.friction.shape + (1,) * (x.ndim - 1)) * normal[:, None]
+        out[self.lifted] = x[self.lifted_dofs]
+        if self.normal.size:
+            turned = np.einsum("kij,kj...->ki...", self.projected, cx[self.tangential])
+            turned += np.einsum("kij,kj...->ki...", self.own, x[self.tangential])
+            turned -= self.friction.reshape(self.friction.shape + (1,) * (x.ndim - 1)) * x[self.normal][:, None]
             out[self.at] = turned
         return out
 
 
-def _mode_rows(c_local, modes, directions, gains, mu, scale):
+def _mode_rows(modes, directions, gains, mu, scale):
     """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames),
     the matrix being C with a few rows replaced (:func:`_replace_rows` forms it).
 
@@ -678,11 +682,15 @@ def _mode_rows(c_local, modes, directions, gains, mu, scale):
     projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
     own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
     blocks[nodes, :2, :2] = projected
+    lifted_dofs = np.flatnonzero(np.repeat(lifted, 3))
+    tangential = 3 * nodes[:, None] + np.arange(2)  # (k, 2)
     law = _LawRows(
         rows=rows,
-        lifted=np.searchsorted(rows, np.flatnonzero(np.repeat(lifted, 3))),
-        nodes=nodes,
-        at=np.searchsorted(rows, (3 * nodes[:, None] + np.arange(2)).ravel()).reshape(len(nodes), 2),
+        lifted_dofs=lifted_dofs,
+        lifted=np.searchsorted(rows, lifted_dofs),
+        tangential=tangential,
+        normal=3 * nodes + 2,
+        at=np.searchsorted(rows, tangential.ravel()).reshape(len(nodes), 2),
         projected=projected,
         own=own,
         friction=mu[nodes][:, None] * d,

@@ -415,34 +415,6 @@ def test_a_step_held_by_the_trust_region_does_not_raise_the_penalty(monkeypatch)
     assert len(penalties) <= 10  # ceil(2 / 0.3) = 7 steps to get there
 
 
-def test_a_marginal_step_the_objective_refuses_ends_the_solve_without_backtracking():
-    """At a feasible point the reported gradient (3e-3) asks for a step predicted to gain
-    4.5e-6 of an objective that does not move: the full step is tried once, refused,
-    and the solve ends there, converged (the line search used to cut it ten times,
-    a contact solve each on a soft stance)."""
-
-    class Counting(ToyProblem):
-        trials = 0
-
-        def evaluate(self, q, lam, torque_weight=None):
-            Counting.trials += 1
-            return super().evaluate(q, lam, torque_weight)
-
-        def linearize(self, q, lam, torque_weight=None):
-            Counting.trials += 1
-            return super().linearize(q, lam, torque_weight)
-
-    def flat(q, lam):
-        return 1.0, np.array([-3e-3, 0.0, 0.0]), np.eye(3)
-
-    problem = Counting(flat, lambda q, lam: [])
-    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
-    assert outcome.feasible and outcome.status == "converged"
-    assert outcome.iterations == 1
-    assert Counting.trials == 2  # the start's linearisation and the refused full step
-    assert np.all(outcome.q == 0.0)
-
-
 class _CountingTrials(ToyProblem):
     """A toy problem that counts the linearisations and evaluations the SQP asks for."""
 
@@ -457,6 +429,23 @@ class _CountingTrials(ToyProblem):
     def linearize(self, q, lam, torque_weight=None):
         self.trials += 1
         return super().linearize(q, lam, torque_weight)
+
+
+def test_a_marginal_step_the_objective_refuses_ends_the_solve_without_backtracking():
+    """At a feasible point the reported gradient (3e-3) asks for a step predicted to gain
+    4.5e-6 of an objective that does not move: the full step is tried once, refused,
+    and the solve ends there, converged (the line search used to cut it ten times,
+    a contact solve each on a soft stance)."""
+
+    def flat(q, lam):
+        return 1.0, np.array([-3e-3, 0.0, 0.0]), np.eye(3)
+
+    problem = _CountingTrials(flat, lambda q, lam: [])
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1
+    assert problem.trials == 2  # the start's linearisation and the refused full step
+    assert np.all(outcome.q == 0.0)
 
 
 def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once():
