@@ -22,6 +22,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
+import scipy.linalg
 
 from environments.errors import SceneError
 
@@ -36,6 +37,7 @@ from .terms import (
     ContactCosts,
     EquilibriumConstraint,
     ForceCost,
+    ForceQuadraticCost,
     Iterate,
     NormalLoadConstraint,
     PostureCost,
@@ -496,6 +498,36 @@ class PostureProblem:
             else:
                 out[s] = np.asarray(lam)[slices[contact.robot_surface]]
         return out
+
+    def soft_energy_for(self, rigid) -> ForceQuadraticCost | None:
+        """This problem's deformation term as the same stance held rigid would pay it.
+
+        Parameters
+        ----------
+        rigid : PostureProblem
+            The same stance with ``deformable_as_rigid``: each soft print a rigid
+            contact of the same robot surface.
+
+        Returns
+        -------
+        ForceQuadraticCost or None
+            Over ``rigid``'s force variables
+            (:meth:`~stances.deformable.DeformableContact.energy_of_stand_ins`, one
+            block per soft body); None when no soft print has such a term.
+        """
+        stand_ins = {c.robot_surface: (c, s) for c, s in zip(rigid.contacts, rigid.variable_slices)}
+        indices, blocks = [], []
+        for contact in self.contacts:
+            if contact.kind != "deformable":
+                continue
+            mine = [stand_ins[spec.robot_surface] for spec in contact.prints]
+            form = contact.energy_of_stand_ins([c for c, _ in mine], self.options)
+            if form is not None:
+                indices.append(np.concatenate([np.arange(s.start, s.stop) for _, s in mine]))
+                blocks.append(form)
+        if not blocks:
+            return None
+        return ForceQuadraticCost(np.concatenate(indices), scipy.linalg.block_diag(*blocks))
 
     def limit_usage(self, q, torques) -> dict:
         """How close a posture comes to the robot's joint and effort limits.
