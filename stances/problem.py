@@ -160,6 +160,9 @@ class PostureOptions:
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
+        The rigid solve weighs each soft print's stand-in by the energy the
+        body would store under its wrench
+        (:meth:`PostureProblem.soft_energy_for`).
     constraint_curvature : bool
         Add the curvature of the rigid placement and collision rows, weighted
         by the previous QP's multipliers, to the QP's Hessian (kept convex;
