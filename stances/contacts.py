@@ -123,8 +123,6 @@ class RigidContact:
             np.full(len(vertices), frame.parentJoint),
             np.array([frame.placement.act(v) for v in vertices]),
         )
-        # (k, 3) where the forces act once the link sits on its print, print frame.
-        self.points_in_print = self._points_at_print(vertices)
         edges_in_print = friction_cone_generators(self.friction)
         edges_in_world = edges_in_print @ self.print_placement.rotation.T
         n_vertices, n_edges = len(vertices), len(edges_in_world)
@@ -144,11 +142,6 @@ class RigidContact:
     def _points_in_frame(surface) -> np.ndarray:
         """(k, 3) application points of the forces, contact frame: the polygon's vertices."""
         return surface.vertices_in_frame
-
-    def _points_at_print(self, points_in_frame) -> np.ndarray:
-        """(k, 3) the application points, print frame, with the link on its print (the
-        contact frame is the print's)."""
-        return np.asarray(points_in_frame, dtype=float)
 
     def forces(self, model, data, lam) -> np.ndarray:
         """(k, 3) world forces on the robot at the polygon vertices, newtons."""
@@ -353,10 +346,6 @@ class PointContact(RigidContact):
     def _points_in_frame(surface) -> np.ndarray:
         """(1, 3): the force acts at the ball's centre, the contact frame's origin."""
         return np.zeros((1, 3))
-
-    def _points_at_print(self, points_in_frame) -> np.ndarray:
-        """(1, 3): the ball's centre, a radius above the print's origin, print frame."""
-        return np.array([[0.0, 0.0, self.radius]])
 
     _placement_axes = ("x", "y", "z")
 

@@ -669,50 +669,6 @@ class DeformableContact:
             w[6 * i + 3 : 6 * i + 6] = self.rotation_body.T @ moment
         return w
 
-    def energy_of_stand_ins(self, stand_ins, options) -> np.ndarray | None:
-        """The deformation term of this contact as rigid contacts standing in for its
-        prints would pay it: a quadratic form in their force variables.
-
-        Each stand-in's cone coefficients ``c`` give the print's wrench ``W = T c``
-        (as :meth:`variables_from_forces` reads it off their forces); pressed by a
-        rigid link with every node stuck, the body stores ``-1/2 W^T A^-1 W`` (``A^-1 W``
-        the link's rigid motion, against W: W is the nodes' wrench on the link; A^-1
-        couples the prints through the body).
-        A stance held rigid with this term in its objective already leans as the
-        soft one will: its answer starts the Coulomb solve closer (cross-two-mats'
-        one-on-each moved 0.05 rad in that solve without it, to spare the soft mat).
-
-        Parameters
-        ----------
-        stand_ins : sequence of stances.contacts.RigidContact
-            One per print of :attr:`prints`, in that order, on the same print placements.
-        options : PostureOptions
-            ``deformation_cost`` and ``deformation_weight``.
-
-        Returns
-        -------
-        (m, m) float or None
-            Per N^2 times the weight, over the stand-ins' variables stacked in order;
-            None where the term has no such form (``deformation_cost="force"``, the
-            traction model, a weight of zero).
-        """
-        weight = options.deformation_weight
-        if options.deformation_cost != "energy" or self.method != "consistent" or weight == 0.0:
-            return None
-        sizes = [rigid.n_variables for rigid in stand_ins]
-        wrench = np.zeros((self.n_variables, sum(sizes)))
-        start = 0
-        for i, (rigid, size) in enumerate(zip(stand_ins, sizes)):
-            levers = rigid.points_in_print @ rigid.print_placement.rotation.T  # (k, 3) world, from the print origin
-            generators = rigid.generators.reshape(len(levers), 3, size)  # world forces per coefficient
-            force = generators.sum(axis=0)
-            moment = np.einsum("kij,kjm->im", _skew_rows(levers), generators)
-            wrench[6 * i : 6 * i + 3, start : start + size] = self.rotation_body.T @ force
-            wrench[6 * i + 3 : 6 * i + 6, start : start + size] = self.rotation_body.T @ moment
-            start += size
-        form = -weight * (wrench.T @ self.a_inverse @ wrench)
-        return 0.5 * (form + form.T)
-
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
         return self._displacements(data)

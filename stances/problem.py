@@ -22,7 +22,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 import pinocchio as pin
-import scipy.linalg
 
 from environments.errors import SceneError
 
@@ -37,7 +36,6 @@ from .terms import (
     ContactCosts,
     EquilibriumConstraint,
     ForceCost,
-    ForceQuadraticCost,
     Iterate,
     NormalLoadConstraint,
     PostureCost,
@@ -160,9 +158,6 @@ class PostureOptions:
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
-        The rigid solve weighs each soft print's stand-in by the energy the
-        body would store under its wrench
-        (:meth:`PostureProblem.soft_energy_for`).
     constraint_curvature : bool
         Add the curvature of the rigid placement and collision rows, weighted
         by the previous QP's multipliers, to the QP's Hessian (kept convex;
@@ -501,36 +496,6 @@ class PostureProblem:
             else:
                 out[s] = np.asarray(lam)[slices[contact.robot_surface]]
         return out
-
-    def soft_energy_for(self, rigid) -> ForceQuadraticCost | None:
-        """This problem's deformation term as the same stance held rigid would pay it.
-
-        Parameters
-        ----------
-        rigid : PostureProblem
-            The same stance with ``deformable_as_rigid``: each soft print a rigid
-            contact of the same robot surface.
-
-        Returns
-        -------
-        ForceQuadraticCost or None
-            Over ``rigid``'s force variables
-            (:meth:`~stances.deformable.DeformableContact.energy_of_stand_ins`, one
-            block per soft body); None when no soft print has such a term.
-        """
-        stand_ins = {c.robot_surface: (c, s) for c, s in zip(rigid.contacts, rigid.variable_slices)}
-        indices, blocks = [], []
-        for contact in self.contacts:
-            if contact.kind != "deformable":
-                continue
-            mine = [stand_ins[spec.robot_surface] for spec in contact.prints]
-            form = contact.energy_of_stand_ins([c for c, _ in mine], self.options)
-            if form is not None:
-                indices.append(np.concatenate([np.arange(s.start, s.stop) for _, s in mine]))
-                blocks.append(form)
-        if not blocks:
-            return None
-        return ForceQuadraticCost(np.concatenate(indices), scipy.linalg.block_diag(*blocks))
 
     def limit_usage(self, q, torques) -> dict:
         """How close a posture comes to the robot's joint and effort limits.

@@ -898,12 +898,6 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
             raise StanceError(f"lam_init has non-finite entries at indices {np.flatnonzero(~np.isfinite(lam_init)).tolist()}")
     elif options.rigid_warm_start and deformable:
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
-        # The soft prints' deformation term, paid by their rigid stand-ins: the warm
-        # start leans as the soft answer will (cross-two-mats' one-on-each: Coulomb
-        # stage 4 -> 3 iterations, 76 -> 57 ms; foot-and-hand 240 -> 140 ms).
-        energy = problem.soft_energy_for(rigid)
-        if energy is not None:
-            rigid.costs.append(energy)
         warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
         q_init, warm_iterations = warm.q, warm.iterations
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:

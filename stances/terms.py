@@ -32,7 +32,6 @@ __all__ = [
     "Iterate",
     "PostureCost",
     "ForceCost",
-    "ForceQuadraticCost",
     "TorqueUsageCost",
     "ContactCosts",
     "EquilibriumConstraint",
@@ -125,36 +124,6 @@ class ForceCost:
         gradient, hessian = np.zeros(n), np.zeros((n, n))
         gradient[nv:] = weights * iterate.lam
         hessian[nv:, nv:] = np.diag(weights)
-        return value, gradient, hessian
-
-
-@dataclass(frozen=True, eq=False)
-class ForceQuadraticCost:
-    """Half a quadratic form in some force variables, ``1/2 lam[i]^T Q lam[i]`` (exact
-    derivatives; e.g. the deformation a soft print would store, paid by the rigid
-    contact standing in for it, :meth:`~stances.deformable.DeformableContact.energy_of_stand_ins`).
-
-    Parameters
-    ----------
-    indices : (k,) int
-        Which force variables (positions in ``lambda``).
-    matrix : (k, k) float
-        Q, symmetric positive semi-definite.
-    """
-
-    indices: np.ndarray
-    matrix: np.ndarray
-
-    def evaluate(self, problem, iterate):
-        lam = iterate.lam[self.indices]
-        weighted = self.matrix @ lam
-        value = 0.5 * float(lam @ weighted)
-        if not iterate.derivatives:
-            return value, None, None
-        n, columns = problem.n_step, problem.robot.model.nv + self.indices
-        gradient, hessian = np.zeros(n), np.zeros((n, n))
-        gradient[columns] = weighted
-        hessian[np.ix_(columns, columns)] = self.matrix
         return value, gradient, hessian
 
 

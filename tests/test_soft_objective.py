@@ -19,7 +19,6 @@ from stances.deformable import rigid_force_metric
 from stances.problem import PostureOptions, build_problem
 
 from conftest import coarse_scenario
-from fem_reference import direct_reactions
 
 
 @pytest.mark.parametrize("surface_name", ["right_sole", "right_palm"])
@@ -129,79 +128,3 @@ def test_the_papers_force_term_keeps_a_stiff_support_off_the_rigid_split(robot, 
     result = solve(robot, stiff.scene, stance, deformation_cost="force")
     assert result.feasible, result.reason
     assert _soft_sole_force(robot, result)[2] < 0.95 * _soft_sole_force(robot, rigid)[2]
-
-
-def _wrench_about(origin, points, forces):
-    """(6,) resultant force and moment about ``origin`` of point forces, their frame."""
-    return np.concatenate([forces.sum(axis=0), np.cross(points - origin, forces).sum(axis=0)])
-
-
-def test_rigid_stand_ins_pay_the_energy_the_full_fem_body_stores_under_their_wrenches(robot):
-    """The soft solve's warm start holds both soles rigid and weighs their cone
-    coefficients by the energy the foam would store, coupled through the block.
-
-    Reference, independent of the condensation: the print nodes' stiffness from direct
-    solves of the full FEM system (one per node dof), the partly covered nodes'
-    series compliance, and each sole's wrench summed from its stand-in's vertex forces;
-    the links' rigid motion that gives those wrenches stores ``1/2 W . xi``.
-    """
-    scenario = coarse_scenario("cross-soft-block")
-    stance = scenario.stance("both-on-foam")
-    soft = build_problem(robot, scenario.scene, stance, PostureOptions())
-    rigid = build_problem(robot, scenario.scene, stance, PostureOptions(deformable_as_rigid=True))
-    (contact,) = [c for c in soft.contacts if c.kind == "deformable"]
-    energy = soft.soft_energy_for(rigid)
-    body = contact.deformable_object.body
-    rotation = contact.rotation_body  # body to world
-    stand_ins = {c.robot_surface: (c, s) for c, s in zip(rigid.contacts, rigid.variable_slices)}
-    rng = np.random.default_rng(11)
-    lam = rng.uniform(0.0, 40.0, size=rigid.n_variables)
-    # Each sole's wrench about its print origin, body frame, from its stand-in's forces.
-    wrenches, levers = [], []
-    for spec in contact.prints:
-        stand_in, s = stand_ins[spec.robot_surface]
-        placement = stand_in.print_placement
-        points = stand_in.points_in_print @ placement.rotation.T + placement.translation
-        forces = (stand_in.generators @ lam[s]).reshape(-1, 3)
-        wrench = _wrench_about(placement.translation, points, forces)
-        wrenches.append(np.concatenate([rotation.T @ wrench[:3], rotation.T @ wrench[3:]]))
-        levers.append(placement.translation)
-    w = np.concatenate(wrenches)
-    assert w[2] > 100.0 and w[8] > 100.0  # both soles press
-    # The nodes' rigid motion per link twist (about each print origin), body frame.
-    ids = contact.node_ids
-    body_to_world = np.asarray(contact.deformable_object.transform_body_to_world, dtype=float)
-    origins = [(o - body_to_world[:3, 3]) @ body_to_world[:3, :3] for o in levers]
-    basis = np.zeros((3 * len(ids), 6 * len(contact.prints)))
-    for row, (node, which) in enumerate(zip(body.mesh.nodes[ids], contact.print_of_node)):
-        lever = node - origins[which]
-        basis[3 * row : 3 * row + 3, 6 * which : 6 * which + 3] = np.eye(3)
-        basis[3 * row : 3 * row + 3, 6 * which + 3 : 6 * which + 6] = -pin.skew(lever)
-    stiffness = np.column_stack([
-        direct_reactions(body, ids, unit.reshape(-1, 3))[0].reshape(-1) for unit in np.eye(3 * len(ids))
-    ])
-    series = np.zeros((3 * len(ids), 3 * len(ids)))
-    if contact._coupling is not None:
-        for i, block in enumerate(contact._coupling):
-            series[3 * i : 3 * i + 3, 3 * i : 3 * i + 3] = block
-    link_stiffness = np.linalg.inv(np.linalg.inv(stiffness) + series)  # link points to node forces
-    twist = np.linalg.solve(basis.T @ link_stiffness @ basis, w)
-    expected = 0.5 * float(w @ twist)
-    assert energy.indices.tolist() == sorted(energy.indices.tolist())
-    value = 0.5 * float(lam[energy.indices] @ energy.matrix @ lam[energy.indices])
-    assert value == pytest.approx(expected, rel=1e-6)
-    # The two soles share the block: the energy of both is not the sum of each alone.
-    alone = [0.5 * float(wi @ np.linalg.solve(basis[:, 6 * i : 6 * i + 6].T @ link_stiffness @ basis[:, 6 * i : 6 * i + 6], wi))
-             for i, wi in enumerate(wrenches)]
-    assert abs(expected - sum(alone)) > 1e-3 * expected
-
-
-@pytest.mark.parametrize(
-    "options", [{"deformation_cost": "force"}, {"reaction_model": "traction", "contact_law": "bonded"}, {"deformation_weight": 0.0}]
-)
-def test_stand_ins_pay_no_energy_where_the_term_has_no_such_form(robot, options):
-    scenario = coarse_scenario("cross-soft-block")
-    stance = scenario.stance("both-on-foam")
-    soft = build_problem(robot, scenario.scene, stance, PostureOptions(**options))
-    rigid = build_problem(robot, scenario.scene, stance, PostureOptions(deformable_as_rigid=True))
-    assert soft.soft_energy_for(rigid) is None
