@@ -103,6 +103,9 @@ _SHORTEST_STEP = 1e-3  # the line search's shortest trial, a fraction of the QP'
 _TRUST_REGION_HELD = 0.999  # a step this close to the trust region's bound was held by it
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
 _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage enters the objective
+# Scaled violation below which a full step that the merit refuses for the violation it
+# adds gets a second-order correction (see _line_search).
+_CORRECTION_PHASE = 1e-2
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _QP_FAILED = "the QP solver returned no finite step"
 _NO_PROGRESS = f"no progress toward feasibility: the line search cut {_CRAWL_STEPS} steps in a row below 1/16"
@@ -394,7 +397,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         marginal = linearization.met(tolerance) and predicted <= _PREDICTED_GAIN * (1.0 + abs(linearization.objective))
         accepted, alpha = _line_search(
             problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-            shortest=1.0 if marginal else _SHORTEST_STEP,
+            shortest=1.0 if marginal else _SHORTEST_STEP, correction=restoration,
         )
         if marginal and accepted is None:
             status = "converged"
@@ -650,7 +653,7 @@ def _predicted_decrease(linearization, step, elastic, penalty, violation) -> flo
 
 
 def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-                 shortest=_SHORTEST_STEP):
+                 shortest=_SHORTEST_STEP, correction=None):
     """Backtracking on the exact-penalty merit from ``linearization`` (whose largest
     scaled violation is ``violation``); ``(q, lam, linearization)`` and the step
     length accepted, or ``(None, alpha)`` when no length down to ``shortest`` does.
@@ -662,6 +665,17 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     values alone (``problem.evaluate``: no Jacobians, the same numbers); only the
     accepted one is then linearised, reusing the evaluation's collision distances
     and contact solves.
+
+    Near feasibility (violation within ``_CORRECTION_PHASE``) a full step that the merit
+    refuses while it raised the violation gets a second-order correction first (Nocedal
+    and Wright, section 15.6): the restoration step from the trial point, the shortest
+    step back onto the constraints linearised there, taken whole if the merit then
+    falls enough. Without it a step along curved rows (a palm's turn rows) leaves them
+    at second order, the penalty outweighs the objective's gain, and the step is cut
+    to 1/16-1/128 at every other iteration (the Maratos effect: hand-on-soft-cube's
+    Coulomb stage crept so, 0.06 % of the objective a pair of iterations; a point on a
+    sphere crawled to its iteration limit). ``correction`` is the QP workspace it
+    solves with; None: no correction.
     """
     model, nv = problem.robot.model, problem.robot.model.nv
     tolerance = problem.options.feasibility_tolerance
@@ -683,6 +697,12 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
             if alpha != 1.0:
                 trial = problem.linearize(q_try, lam_try, torque_weight)
             return (q_try, lam_try, trial), alpha
+        if alpha == 1.0 and correction is not None and violation <= _CORRECTION_PHASE and trial_violation > violation:
+            corrected = _restoration(problem, trial, q_try, lam_try, correction, torque_weight)
+            if corrected is not None:
+                corrected_violation, _ = corrected[2].max_violation()
+                if corrected[2].objective + penalty * corrected_violation <= merit - 1e-4 * max(predicted, 0.0):
+                    return corrected, 1.0
         alpha *= 0.5
     return None, alpha
 

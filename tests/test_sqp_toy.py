@@ -291,6 +291,24 @@ def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
     assert again.q.tobytes() == outcome.q.tobytes() and again.reason == outcome.reason
 
 
+def test_full_steps_that_leave_a_curved_row_are_corrected_back_onto_it(monkeypatch):
+    """The Maratos effect: min 1/2 |q - (0, 3, 0)|^2 on the unit sphere from (1, 0, 0).
+    Each QP step runs along the tangent (0.3, the trust region) and leaves the sphere by
+    about |d|^2 = 0.09, which the merit (penalty 100) refuses although the objective
+    falls: cut to 1/16 and restored, the SQP crept and stopped at its 60-iteration
+    limit with the objective at 3.3 (optimum 2 at (0, 1, 0)). The second-order
+    correction (the restoration step from the trial point) takes the steps whole."""
+    problem = ToyProblem(squared_distance_to(np.array([0.0, 3.0, 0.0])), on_the_sphere)
+    start = np.array([1.0, 0.0, 0.0])
+    outcome = run_sqp(problem, start, np.zeros(0), limit=60)
+    assert outcome.feasible and outcome.iterations <= 10
+    assert outcome.linearization.objective < 2.01
+    monkeypatch.setattr(sqp, "_CORRECTION_PHASE", -1.0)  # no correction
+    crept = run_sqp(problem, start, np.zeros(0), limit=60)
+    assert crept.iterations == 60 and crept.status == "iteration limit"
+    assert crept.linearization.objective > 3.0
+
+
 def test_cut_steps_that_still_gain_are_not_a_crawl():
     """Near the closest point of a small sphere (radius 0.3) to a far target, each step
     is cut below 1/16 (its curvature takes it off the sphere) and a restoration step

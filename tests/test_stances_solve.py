@@ -921,11 +921,13 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
     assert "no step meets together: " in result.reason and "_ADAPTER_0 and floor" in result.reason
 
 
-def test_a_feasible_stance_creeping_at_elastic_zero_is_not_stopped_as_too_slow(robot):
-    # A rigid palm turned 30 degrees and moved 3 cm on hand-on-cube's cube: its QPs meet
-    # their linearised rows (elastic 0) while the violation creeps down 4 % an iteration;
-    # it converges at iteration 39. The too-slow rule, which looks only at that rate,
-    # stopped it at 29 as "print unreachable" (an independent audit found it).
+def test_a_rigid_palm_turned_30_degrees_converges_without_creeping(robot):
+    # A rigid palm turned 30 degrees and moved 3 cm on hand-on-cube's cube. Its QPs met
+    # their linearised rows (elastic 0) while the violation crept down 4 % an iteration:
+    # the steps along the palm's turn rows left them at second order and were cut (the
+    # Maratos effect). The too-slow rule stopped it at 29 as "print unreachable" (an
+    # independent audit found it); with the grace at elastic 0 it converged at 39; the
+    # line search's second-order correction now takes those steps whole.
     import math
 
     from environments.rigid_twin import rigid_twin
@@ -937,14 +939,18 @@ def test_a_feasible_stance_creeping_at_elastic_zero_is_not_stopped_as_too_slow(r
                                                                     p.theta + math.radians(30))))
     result = solve(robot, scenario.scene, stance)
     assert result.feasible, result.reason
-    assert result.iterations > 30
+    assert result.iterations <= 25
     assert verify(robot, scenario.scene, stance, result).ok
 
 
-def test_an_infeasible_stance_creeping_at_elastic_zero_still_stops_before_the_limit(robot):
-    # Both soles and the right palm on a wall's back: the QPs meet their rows (elastic
-    # 0) while the violation creeps 2-6 % an iteration. Ignoring the too-slow rule at
-    # elastic 0 ran it to the 100-iteration limit; with the rule's grace it stops.
+def test_a_stance_that_creeps_at_elastic_zero_ends_before_the_limit_with_an_answer(robot):
+    # Both soles and the right palm on a wall's back. Its QPs meet their rows (elastic
+    # 0) while the violation creeps 2-6 % an iteration, with steps cut to 1/4 at 0.3-1 mm
+    # of the palm's turn rows: ignoring the too-slow rule at elastic 0 ran it to the
+    # 100-iteration limit. How it ends depends on the last bits of the machine's BLAS
+    # (on one machine the line search's second-order correction took it to a feasible
+    # posture at iteration 54, on another the too-slow rule stopped it at 38 with the
+    # roll of the palm 0.28 mm off): either is an answer, the limit is not.
     scene = environments.load_string("""
 robot: talos
 objects:
@@ -959,9 +965,12 @@ stances:
         Contact("right_sole", ContactPrint("floor", 0.16992134155724198, -0.3032336521557203, 0.4244762630872586)),
     ))
     result = solve(robot, scene, stance)
-    assert not result.feasible
-    assert result.statistics["status"].startswith("converging too slowly: ")
     assert result.iterations < PostureOptions().max_iterations
+    if result.feasible:
+        assert verify(robot, scene, stance, result).ok
+    else:
+        assert result.statistics["status"].startswith("converging too slowly: ")
+        assert result.reason.startswith("print unreachable: placement of right_palm on wall_back")
 
 
 def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reason(robot):
