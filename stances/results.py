@@ -87,6 +87,8 @@ class SolveStatistics(Mapping):
         Seconds in the QP subproblems.
     curvature_iterations : int
         Iterations whose QP carried the constraints' curvature.
+    corrections : int
+        Full steps the line search took with a second-order correction.
     lam : tuple of float
         The contact variables at the answer (``lam_init`` of a restart).
     sqp_time : float
@@ -106,6 +108,7 @@ class SolveStatistics(Mapping):
     penalty: float | None = None
     qp_time: float | None = None
     curvature_iterations: int | None = None
+    corrections: int | None = None
     lam: tuple | None = None
     sqp_time: float | None = None
     options: dict | None = None
@@ -131,7 +134,7 @@ class SolveStatistics(Mapping):
             raise ValueError(f"unknown solve statistics {unknown}; known: {sorted(set(names) - {'lam'})}")
         fields = {names.get(key, key): value for key, value in values.items()}
         casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
-                 "curvature_iterations": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "options": dict,
+                 "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "options": dict,
                  "lam": lambda v: tuple(float(x) for x in v)}
         return cls(**{name: None if value is None else casts[name](value) for name, value in fields.items()})
 

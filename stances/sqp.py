@@ -268,6 +268,8 @@ class SqpOutcome:
         iterations stopped, and the rows no step can meet together.
     curved_iterations : int
         Iterations whose QP had the constraints' curvature in its Hessian.
+    corrections : int
+        Full steps taken with a second-order correction (see :func:`_line_search`).
     """
 
     q: np.ndarray
@@ -280,6 +282,7 @@ class SqpOutcome:
     feasible: bool
     reason: str
     curved_iterations: int = 0
+    corrections: int = 0
 
 
 def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
@@ -339,6 +342,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     # _SLOW_CONTRACTION.
     slow = False
     curved_iterations = 0
+    corrections = 0
     local_steps = []  # lengths of full steps in the local phase
     crawling = 0  # crawling iterations in a row near feasibility (see where it is counted)
     slow_since = None  # the first iteration at which the violation fell too slowly to converge in time
@@ -395,10 +399,13 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             break
         # (see _PREDICTED_GAIN)
         marginal = linearization.met(tolerance) and predicted <= _PREDICTED_GAIN * (1.0 + abs(linearization.objective))
-        accepted, alpha = _line_search(
+        # (A marginal step is only tried whole: no correction, which costs a QP and a
+        # linearisation, for a gain the stop below would not wait for.)
+        accepted, alpha, corrected = _line_search(
             problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-            shortest=1.0 if marginal else _SHORTEST_STEP, correction=restoration,
+            shortest=1.0 if marginal else _SHORTEST_STEP, correction=None if marginal else restoration,
         )
+        corrections += corrected
         if marginal and accepted is None:
             status = "converged"
             q, lam, linearization = _better(best, (q, lam, linearization))
@@ -453,8 +460,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         stalled = 0
         new_violation, worst_label = linearization.max_violation()
         logger.debug(
-            "iteration %d: step %.3g (alpha %.3g), violation %.3g (%s), objective %.6g, elastic %.3g, penalty %.3g",
-            iteration, float(np.max(np.abs(step[:nv]))), alpha, new_violation, worst_label,
+            "iteration %d: step %.3g (alpha %.3g%s), violation %.3g (%s), objective %.6g, elastic %.3g, penalty %.3g",
+            iteration, float(np.max(np.abs(step[:nv]))), alpha, ", corrected" if corrected else "", new_violation, worst_label,
             linearization.objective, elastic, penalty,
         )
         history.append(new_violation)
@@ -569,7 +576,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
-    return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations)
+    return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations,
+                      corrections)
 
 
 def _better(best, current):
@@ -655,8 +663,9 @@ def _predicted_decrease(linearization, step, elastic, penalty, violation) -> flo
 def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
                  shortest=_SHORTEST_STEP, correction=None):
     """Backtracking on the exact-penalty merit from ``linearization`` (whose largest
-    scaled violation is ``violation``); ``(q, lam, linearization)`` and the step
-    length accepted, or ``(None, alpha)`` when no length down to ``shortest`` does.
+    scaled violation is ``violation``): ``((q, lam, linearization), alpha, corrected)``
+    with the step length accepted and whether a second-order correction followed it,
+    or ``(None, alpha, False)`` when no length down to ``shortest`` does.
 
     The full step is linearised at once: it is accepted in most line searches
     (hand-on-soft-cube: 33 of 49 trials, most of them first ones), and judging it
@@ -674,8 +683,9 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     at second order, the penalty outweighs the objective's gain, and the step is cut
     to 1/16-1/128 at every other iteration (the Maratos effect: hand-on-soft-cube's
     Coulomb stage crept so, 0.06 % of the objective a pair of iterations; a point on a
-    sphere crawled to its iteration limit). ``correction`` is the QP workspace it
-    solves with; None: no correction.
+    sphere crawled to its iteration limit). The corrected point is judged on values and
+    linearised only when taken. ``correction`` is the QP workspace it solves with;
+    None: no correction.
     """
     model, nv = problem.robot.model, problem.robot.model.nv
     tolerance = problem.options.feasibility_tolerance
@@ -696,15 +706,15 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
         ):
             if alpha != 1.0:
                 trial = problem.linearize(q_try, lam_try, torque_weight)
-            return (q_try, lam_try, trial), alpha
+            return (q_try, lam_try, trial), alpha, False
         if alpha == 1.0 and correction is not None and violation <= _CORRECTION_PHASE and trial_violation > violation:
-            corrected = _restoration(problem, trial, q_try, lam_try, correction, torque_weight)
+            corrected = _restoration_step(problem, trial, q_try, lam_try, correction)
             if corrected is not None:
-                corrected_violation, _ = corrected[2].max_violation()
-                if corrected[2].objective + penalty * corrected_violation <= merit - 1e-4 * max(predicted, 0.0):
-                    return corrected, 1.0
+                values = problem.evaluate(*corrected, torque_weight)
+                if values.objective + penalty * values.max_violation()[0] <= merit - 1e-4 * max(predicted, 0.0):
+                    return (*corrected, problem.linearize(*corrected, torque_weight)), 1.0, True
         alpha *= 0.5
-    return None, alpha
+    return None, alpha, False
 
 
 def _result(problem, outcome, elapsed, check=True) -> PostureResult:
@@ -733,6 +743,7 @@ def _result(problem, outcome, elapsed, check=True) -> PostureResult:
         statistics={
             "status": outcome.status, "qp_time": outcome.qp_time, "penalty": outcome.penalty,
             "lambda": lam.tolist(), "violation": violation, "curvature_iterations": outcome.curved_iterations,
+            "corrections": outcome.corrections,
         },
     )
     if check and (feasible or nearly):
@@ -756,6 +767,12 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     -------
     (q, lam, Linearization) at the restored point.
     """
+    restored = _restoration_step(problem, linearization, q, lam, workspace)
+    return None if restored is None else (*restored, problem.linearize(*restored, torque_weight))
+
+
+def _restoration_step(problem, linearization, q, lam, workspace):
+    """The point :func:`_restoration` goes to, ``(q, lam)``, or None."""
     n = len(linearization.gradient)
     metric = np.ones(n)
     # Force variables (newtons) move more freely than joints (radians); a ratio much
@@ -769,7 +786,7 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     nv = problem.robot.model.nv
     q_new = pin.integrate(problem.robot.model, q, x[:nv])
     lam_new = np.maximum(lam + x[nv:-1], problem.variable_lower)
-    return q_new, lam_new, problem.linearize(q_new, lam_new, torque_weight)
+    return q_new, lam_new
 
 
 def deformation_fields(problem, q, point_forces) -> LazyDeformations:

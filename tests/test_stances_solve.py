@@ -1150,7 +1150,7 @@ def test_solve_statistics_are_typed_and_read_as_a_mapping():
     with pytest.raises(ValueError) as error:
         SolveStatistics.of({"status": "converged", "iterations": 3})
     assert str(error.value).startswith("unknown solve statistics ['iterations']; known: ['bonded_warm_start', "
-                                       "'curvature_iterations', ")
+                                       "'corrections', 'curvature_iterations', ")
 
 
 def test_a_result_reads_its_statistics_typed_and_writes_them_back(robot):
