@@ -88,7 +88,8 @@ class SolveStatistics(Mapping):
     curvature_iterations : int
         Iterations whose QP carried the constraints' curvature.
     corrections : int
-        Full steps the line search took with a second-order correction.
+        Full steps the line search took with a second-order correction, in the SQP run
+        that gave the answer (a soft stance's warm starts not counted).
     lam : tuple of float
         The contact variables at the answer (``lam_init`` of a restart).
     sqp_time : float
