@@ -106,6 +106,13 @@ _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage ente
 # Scaled violation below which a full step that the merit refuses for the violation it
 # adds gets a second-order correction (see _line_search).
 _CORRECTION_PHASE = 1e-2
+# Warm starts give starting postures only: feasible within 1e-3 (scaled), and done once
+# an iteration gains under 1 % of the objective. At 1e-5 the rigid warm start spent its
+# last 1-2 iterations confirming an objective the Coulomb stage then changes anyway: six
+# soft bench stances, the same answers to 1e-7 with 1-2 warm-start iterations fewer;
+# plans on five soft suite scenes x 3 seeds, the same solver calls and stances, 5-6 % less
+# CPU (rail-over-gap 10 %).
+_WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-3, "optimality_tolerance": 1e-2}
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _QP_FAILED = "the QP solver returned no finite step"
 _NO_PROGRESS = f"no progress toward feasibility: the line search cut {_CRAWL_STEPS} steps in a row below 1/16"
@@ -921,7 +928,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     deformable = any(c.kind == "deformable" for c in problem.contacts)
     warm_iterations = 0
     rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
-    loose = dict(feasibility_tolerance=1e-3, optimality_tolerance=1e-5)  # warm starts: only starting postures
+    loose = dict(_WARM_START_TOLERANCES)
     if lam_init is not None:
         lam_init = np.asarray(lam_init, dtype=float)
         if q_init is None:
