@@ -73,6 +73,13 @@ _NO_GAIN_ITERATIONS = 4
 # with a step predicted to gain 3e-6 of the objective, which the line search cut to
 # 1/128 through eight contact solves of both prints (60 ms of its 290).
 _PREDICTED_GAIN = _NO_GAIN
+# A nearly feasible iterate (within _NEARLY_FEASIBLE tolerances) whose step is predicted
+# to gain under _MINOR_GAIN of the objective cuts that step no shorter than
+# _CRAWL_ALPHA: below, the model is wrong (a node's mode switch within the step), and
+# each cut costs a contact solve per soft print for a gain the crawl rules would not wait
+# for. Measured on hand-on-cube's Coulomb stage: its last two line searches (predicted
+# 1e-4 of the objective) cut to 1/128 and 1/512, 18 evaluations, 30 of its 200 ms.
+_MINOR_GAIN = 1e-3
 # ... and one whose best feasible objective gained less than _SLOW_GAIN (relative) over
 # the last _SLOW_GAIN_ITERATIONS: a cycle that still creeps, a feasible iterate and a
 # barely infeasible neighbour in turn, each pair 7e-5 better (hand-on-cube's Coulomb
@@ -406,11 +413,13 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             break
         # (see _PREDICTED_GAIN)
         marginal = linearization.met(tolerance) and predicted <= _PREDICTED_GAIN * (1.0 + abs(linearization.objective))
+        minor = violation <= _NEARLY_FEASIBLE * tolerance and predicted <= _MINOR_GAIN * (1.0 + abs(linearization.objective))
         # (A marginal step is only tried whole: no correction, which costs a QP and a
         # linearisation, for a gain the stop below would not wait for.)
         accepted, alpha, corrected = _line_search(
             problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-            shortest=1.0 if marginal else _SHORTEST_STEP, correction=None if marginal else restoration,
+            shortest=1.0 if marginal else _CRAWL_ALPHA if minor else _SHORTEST_STEP,
+            correction=None if marginal else restoration,
         )
         corrections += corrected
         if marginal and accepted is None:

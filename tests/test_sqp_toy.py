@@ -484,6 +484,22 @@ def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once():
     assert problem.trials == 1 + 10  # the start, then lengths 1, 1/2, ..., 1/512
 
 
+def test_a_minor_step_the_objective_refuses_is_cut_no_shorter_than_a_sixteenth():
+    """As above, but the step is predicted to gain 1.25e-3, 6e-4 of the objective (under
+    _MINOR_GAIN, above _PREDICTED_GAIN): the line search tries lengths down to 1/16
+    only, five trials instead of ten (each a contact solve per soft print; hand-on-cube's
+    Coulomb stage cut such steps to 1/128 and 1/512, 30 of its 200 ms)."""
+
+    def flat(q, lam):
+        return 1.0, np.array([-0.05, 0.0, 0.0]), np.eye(3)
+
+    problem = _CountingTrials(flat, lambda q, lam: [])
+    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations == 1 and np.all(outcome.q == 0.0)
+    assert problem.trials == 1 + 5  # the start, then lengths 1, 1/2, ..., 1/16
+
+
 def test_failed_line_searches_far_from_feasible_are_left_to_the_crawl_stop(monkeypatch):
     """Far from feasible (contradicting rows: a restoration step takes the violation from 1
     to its floor of 1/2) at the largest penalty, a failed line search changes nothing
