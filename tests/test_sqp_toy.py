@@ -500,6 +500,36 @@ def test_a_minor_step_the_objective_refuses_is_cut_no_shorter_than_a_sixteenth()
     assert problem.trials == 1 + 5  # the start, then lengths 1, 1/2, ..., 1/16
 
 
+def _a_row_with_a_rounding_floor(q, lam):
+    """``q_x = 2`` read with a jump of 3e-7 across it (scale 1): no point meets it within
+    1.5e-7, though its Jacobian (1) says a step does, as a stiff print's rows read through
+    rounding."""
+    value = q[0] - 2.0 + (1.5e-7 if q[0] >= 2.0 else -1.5e-7)
+    return [equality("x", np.array([value]), np.array([[1.0, 0.0, 0.0]]), 1.0, ["q_x at 2"])]
+
+
+def test_a_failed_line_search_at_a_rounding_floor_ends_the_solve(monkeypatch):
+    """1.5 tolerances from feasible, the QP meets its linearised row, no step length nor
+    the restoration gets below the floor: the solve ends at the first failed search (its
+    iterate goes to verify), instead of raising the penalty search after search (to its
+    1e8 cap, ten trials a search)."""
+
+    def flat(q, lam):
+        return 0.0, np.zeros(3), np.eye(3)
+
+    start = np.array([2.01, 0.0, 0.0])
+    problem = _CountingTrials(flat, _a_row_with_a_rounding_floor)
+    outcome = run_sqp(problem, start, np.zeros(0), limit=30)
+    assert outcome.status == "stalled" and not outcome.feasible
+    assert 1.5e-7 <= outcome.linearization.max_violation()[0] < 1e-6
+    assert outcome.penalty == problem.options.elastic_penalty
+    monkeypatch.setattr(sqp, "_ROUNDING_FLOOR", -1.0)
+    longer = _CountingTrials(flat, _a_row_with_a_rounding_floor)
+    raised = run_sqp(longer, start, np.zeros(0), limit=30)
+    assert raised.status == "stalled" and raised.penalty >= 1e3 * problem.options.elastic_penalty
+    assert raised.iterations > outcome.iterations and longer.trials > problem.trials + 25
+
+
 def test_failed_line_searches_far_from_feasible_are_left_to_the_crawl_stop(monkeypatch):
     """Far from feasible (contradicting rows: a restoration step takes the violation from 1
     to its floor of 1/2) at the largest penalty, a failed line search changes nothing
