@@ -943,6 +943,26 @@ def test_a_rigid_palm_turned_30_degrees_converges_without_creeping(robot):
     assert verify(robot, scenario.scene, stance, result).ok
 
 
+@pytest.mark.parametrize("degrees", [-20, -30])
+def test_a_rigid_palm_turned_the_other_way_is_reached(robot, degrees):
+    # The same palm turned the other way, not moved: without the second-order correction
+    # the steps along its turn rows were cut and the too-slow rule ended both as "print
+    # unreachable" (yaw 1.4e-5, pitch 5.2e-5 left after 49 and 42 iterations); both are
+    # feasible, verified postures.
+    import math
+
+    from environments.rigid_twin import rigid_twin
+
+    scenario = rigid_twin(environments.load("hand-on-cube"))
+    stance = scenario.stance("hand-on-cube")
+    p = stance.contact("right_palm").contact_print
+    stance = stance.with_contact(Contact("right_palm", ContactPrint(p.surface, p.x, p.y, p.theta + math.radians(degrees))))
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible, result.reason
+    assert result.statistics["corrections"] >= 1
+    assert verify(robot, scenario.scene, stance, result).ok
+
+
 def test_a_warm_start_stops_once_feasible_and_flat_and_the_answer_stays(robot, monkeypatch):
     # The rigid warm start of a soft stance only gives a starting posture: it stops once
     # an iteration gains under 1 % of its objective (at 1e-5 it took one more iteration
