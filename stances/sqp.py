@@ -127,7 +127,7 @@ _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
 _NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
-_ROUNDING_FLOOR = 10.0  # times the feasibility tolerance: a failed line search there ends the solve
+_ROUNDING_FLOOR = 3e-7  # scaled violation (three default tolerances) within which a failed line search ends the solve
 # The constraints' curvature (PostureOptions.constraint_curvature), see _with_curvature:
 _CURVATURE_PHASE = 0.1  # scaled violation below which it may enter the QP (from the start: no fewer iterations)
 _SLOW_CONTRACTION = 0.4  # step length ratio of Gauss-Newton beyond which it is switched on
@@ -451,14 +451,18 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 break
         if accepted is None:
             stalled += 1
-            if violation <= _ROUNDING_FLOOR * tolerance and elastic <= tolerance:
-                # Within a few tolerances, with a step that meets its linearised rows and a
-                # restoration that did no better: what is left is the rows' rounding (a
-                # steel-stiff print's rows read its micro-displacements times 1e11 Pa),
-                # which no penalty removes. The iterate goes to verify, whose tolerances
-                # are physical. hand-on-cube at E = 1e11 Pa sat at 1.5-2e-7 (scaled, the
-                # tolerance 1e-7) through three more failed searches, the penalty raised
-                # after each, ten contact solves a search.
+            if tolerance < violation <= _ROUNDING_FLOOR and elastic <= tolerance:
+                # Within three default tolerances, with a step that meets its linearised
+                # rows and a restoration that did no better: what is left is the rows'
+                # rounding (a steel-stiff print's rows read its micro-displacements times
+                # 1e11 Pa), which no penalty removes. The iterate goes to verify, whose
+                # tolerances are ten times the SQP's: it decides. The floor is absolute: a
+                # warm start's loose tolerance is not verified, and violations that far up
+                # are not rounding (a review found the rule, at ten tolerances, ending
+                # warm starts at 5e-3 that a raised penalty would have converged).
+                # hand-on-cube at E = 1e11 Pa sat at 1.5-2e-7 (scaled, the tolerance 1e-7)
+                # through three more failed searches, the penalty raised after each, ten
+                # contact solves a search.
                 stalled = _STALLED_SEARCHES
             elif violation > tolerance and penalty < _MAX_PENALTY:
                 penalty *= 10.0
@@ -475,6 +479,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
                 stalled = _STALLED_SEARCHES
             if stalled >= _STALLED_SEARCHES:
                 status = "stalled"
+                if linearization.met(tolerance):
+                    # A restoration can have landed above the best feasible objective.
+                    q, lam, linearization = _better(best, (q, lam, linearization))
                 break
             continue
         previous_objective = linearization.objective
