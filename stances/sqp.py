@@ -73,13 +73,6 @@ _NO_GAIN_ITERATIONS = 4
 # with a step predicted to gain 3e-6 of the objective, which the line search cut to
 # 1/128 through eight contact solves of both prints (60 ms of its 290).
 _PREDICTED_GAIN = _NO_GAIN
-# A nearly feasible iterate (within _NEARLY_FEASIBLE tolerances) whose step is predicted
-# to gain under _MINOR_GAIN of the objective cuts that step no shorter than
-# _CRAWL_ALPHA: below, the model is wrong (a node's mode switch within the step), and
-# each cut costs a contact solve per soft print for a gain the crawl rules would not wait
-# for. Measured on hand-on-cube's Coulomb stage: its last two line searches (predicted
-# 1e-4 of the objective) cut to 1/128 and 1/512, 18 evaluations, 30 of its 200 ms.
-_MINOR_GAIN = 1e-3
 # ... and one whose best feasible objective gained less than _SLOW_GAIN (relative) over
 # the last _SLOW_GAIN_ITERATIONS: a cycle that still creeps, a feasible iterate and a
 # barely infeasible neighbour in turn, each pair 7e-5 better (hand-on-cube's Coulomb
@@ -90,6 +83,13 @@ _MINOR_GAIN = 1e-3
 _SLOW_GAIN = 1e-3
 _SLOW_GAIN_ITERATIONS = 4
 _CRAWL_GAIN = _SLOW_GAIN / 8  # relative objective gain an iteration below which a cut step crawls
+# A nearly feasible iterate (within _NEARLY_FEASIBLE tolerances) whose step is predicted
+# to gain under _MINOR_GAIN of the objective cuts that step no shorter than
+# _CRAWL_ALPHA: below, the model is wrong (a node's mode switch within the step), and
+# each cut costs a contact solve per soft print for a gain the crawl rules would not wait
+# for. Measured on hand-on-cube's Coulomb stage: its last two line searches (predicted
+# 1e-4 of the objective) cut to 1/128 and 1/512, 18 evaluations, 30 of its 200 ms.
+_MINOR_GAIN = 1e-3
 # Far from feasible (scaled violation above _HOPELESS_VIOLATION: 0.1 mm, 0.01 N),
 # iterations whose line search cuts the step below _CRAWL_ALPHA (or finds no
 # step) _CRAWL_STEPS times in a row, with the violation falling by less than
@@ -723,17 +723,21 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     model, nv = problem.robot.model, problem.robot.model.nv
     tolerance = problem.options.feasibility_tolerance
     merit = linearization.objective + penalty * violation
+
+    def sufficient(objective, new_violation, fraction):
+        # Armijo on the merit, for a step ``fraction`` of the QP's.
+        return objective + penalty * new_violation <= merit - 1e-4 * fraction * max(predicted, 0.0)
+
     alpha = 1.0
     while alpha >= shortest:
         q_try = pin.integrate(model, q, alpha * step[:nv])
         lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
         trial = (problem.linearize if alpha == 1.0 else problem.evaluate)(q_try, lam_try, torque_weight)
         trial_violation, _ = trial.max_violation()
-        trial_merit = trial.objective + penalty * trial_violation
         # The second test is a filter-style escape from the Maratos effect: near
         # a solution a full step may raise the merit through curvature while
         # clearly improving feasibility; such a step is taken.
-        if trial_merit <= merit - 1e-4 * alpha * max(predicted, 0.0) or (
+        if sufficient(trial.objective, trial_violation, alpha) or (
             alpha == 1.0 and violation > tolerance and trial_violation < 0.5 * violation
             and trial.objective <= linearization.objective + 1e-3 * (1.0 + abs(linearization.objective))
         ):
@@ -744,7 +748,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
             corrected = _restoration_step(problem, trial, q_try, lam_try, correction)
             if corrected is not None:
                 values = problem.evaluate(*corrected, torque_weight)
-                if values.objective + penalty * values.max_violation()[0] <= merit - 1e-4 * max(predicted, 0.0):
+                if sufficient(values.objective, values.max_violation()[0], 1.0):
                     return (*corrected, problem.linearize(*corrected, torque_weight)), 1.0, True
         alpha *= 0.5
     return None, alpha, False

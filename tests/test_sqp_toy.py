@@ -468,36 +468,25 @@ def test_a_marginal_step_the_objective_refuses_ends_the_solve_without_backtracki
     assert np.all(outcome.q == 0.0)
 
 
-def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once():
+@pytest.mark.parametrize("slope, lengths", [(0.1, 10), (0.05, 5)], ids=["full-depth", "minor-gain"])
+def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once(slope, lengths):
     """At a feasible point the gradient asks for a step predicted to gain 5e-3, which the
     flat objective never gives: the line search tries ten lengths and finds none. Nothing
     the next iteration reads changes (the penalty stays, no curvature), so the solve ends
-    there, converged, rather than repeating that search three more times (41 trials)."""
-
-    def flat(q, lam):
-        return 1.0, np.array([-0.1, 0.0, 0.0]), np.eye(3)
-
-    problem = _CountingTrials(flat, lambda q, lam: [])
-    outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
-    assert outcome.feasible and outcome.status == "converged"
-    assert outcome.iterations == 1 and np.all(outcome.q == 0.0)
-    assert problem.trials == 1 + 10  # the start, then lengths 1, 1/2, ..., 1/512
-
-
-def test_a_minor_step_the_objective_refuses_is_cut_no_shorter_than_a_sixteenth():
-    """As above, but the step is predicted to gain 1.25e-3, 6e-4 of the objective (under
-    _MINOR_GAIN, above _PREDICTED_GAIN): the line search tries lengths down to 1/16
+    there, converged, rather than repeating that search three more times (41 trials).
+    At a slope of 0.05 the step is predicted to gain 1.25e-3, 6e-4 of the objective
+    (under _MINOR_GAIN, above _PREDICTED_GAIN): the line search tries lengths down to 1/16
     only, five trials instead of ten (each a contact solve per soft print; hand-on-cube's
     Coulomb stage cut such steps to 1/128 and 1/512, 30 of its 200 ms)."""
 
     def flat(q, lam):
-        return 1.0, np.array([-0.05, 0.0, 0.0]), np.eye(3)
+        return 1.0, np.array([-slope, 0.0, 0.0]), np.eye(3)
 
     problem = _CountingTrials(flat, lambda q, lam: [])
     outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=30)
     assert outcome.feasible and outcome.status == "converged"
     assert outcome.iterations == 1 and np.all(outcome.q == 0.0)
-    assert problem.trials == 1 + 5  # the start, then lengths 1, 1/2, ..., 1/16
+    assert problem.trials == 1 + lengths  # the start, then lengths 1, 1/2, ..., down to 1/512 or 1/16
 
 
 def _a_row_with_a_rounding_floor(q, lam):
