@@ -36,7 +36,7 @@ def initial_configuration(robot, scene, stance) -> np.ndarray:
     """
     q = np.array(robot.reference_configuration, dtype=float)
     model = robot.model
-    data = model.createData()
+    data = pin.Data(model)
     pin.framesForwardKinematics(model, data, q)
     feet = robot.surfaces_with_role(robot.support.role)
     contacts = [c for c in stance if c.robot_surface in feet]

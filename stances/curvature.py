@@ -63,7 +63,7 @@ class ConstraintCurvature:
 
     def __init__(self, model):
         self.model = model
-        self.data = model.createData()
+        self.data = pin.Data(model)
 
     def hessian(self, q, blocks, weights) -> np.ndarray:
         """``d^2 / d dq^2 sum_b weights_b . c_b(q (+) dq)`` at ``dq = 0``.

@@ -402,7 +402,7 @@ class PostureProblem:
         self.contacts = contacts
         self.options = options
         self.collision_checker = collision_checker
-        self.data = robot.model.createData()
+        self.data = pin.Data(robot.model)  # (createData returns a copy: 50 us more)
         self.loads = PointLoads.concatenate(c.loads for c in contacts)
         self.variable_slices, self.load_slices = [], []
         start = load_start = 0

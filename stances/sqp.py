@@ -860,7 +860,7 @@ def _field_producer(contact, model, q, forces):
     q, forces = np.array(q), np.array(forces)
 
     def produce():
-        data = model.createData()
+        data = pin.Data(model)
         pin.framesForwardKinematics(model, data, q)
         return contact.displacement_field(model, data, forces)
 

@@ -96,7 +96,7 @@ def verify_problem(
     tolerances = tolerances or VerificationTolerances()
     robot = problem.robot
     model = robot.model
-    data = model.createData()
+    data = pin.Data(model)
     q = np.asarray(result.q)
     reasons = []
     measures = {}
