@@ -60,6 +60,8 @@ class QPWorkspace:
         (False: every QP from x = 0).
     first_proximal_in : float
         Class setting: proxsuite's first proximal weight on the inequality rows.
+    preconditioner_iterations : int
+        Class setting: iterations of proxsuite's Ruiz equilibration at each QP's init.
     iterations : int
         proxsuite iterations spent by the last :meth:`solve`, an abandoned warm
         start included.
@@ -88,6 +90,7 @@ class QPWorkspace:
     # comparison (bench/qp_subproblems.py).
     warm_start = False
     first_proximal_in = _FIRST_PROXIMAL_IN
+    preconditioner_iterations = _PRECONDITIONER_ITERATIONS
 
     def __init__(self):
         self.qp = None
@@ -113,7 +116,7 @@ class QPWorkspace:
         qp.settings.verbose = False
         qp.settings.initial_guess = getattr(proxsuite.proxqp.InitialGuess, self.cold_guess)
         qp.settings.default_mu_in = self.first_proximal_in
-        qp.settings.preconditioner_max_iter = _PRECONDITIONER_ITERATIONS
+        qp.settings.preconditioner_max_iter = self.preconditioner_iterations
         return qp
 
     def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper, accuracy=1e-6):
