@@ -107,6 +107,10 @@ def main(argv=None):
     if args.run:
         workload(args.run, not args.setup_only)
         return
+    names = args.workloads.split(",")
+    unknown = sorted(set(names) - set(WORKLOADS))
+    if unknown:  # said before a worktree is made and valgrind started
+        raise SystemExit(f"unknown workload(s) {unknown}; known: {', '.join(WORKLOADS)}")
     if shutil.which("valgrind") is None:
         raise SystemExit("valgrind is not installed (apt install valgrind)")
     started = time.perf_counter()
@@ -119,7 +123,7 @@ def main(argv=None):
         subprocess.run(["git", "worktree", "add", "--detach", str(worktree), baseline], cwd=ROOT,
                        capture_output=True, check=True)
         try:
-            for name in args.workloads.split(","):
+            for name in names:
                 before, after = measure(worktree, name), measure(ROOT, name)
                 rows.append(f"| {name} | {before / 1e9:.2f} | {after / 1e9:.2f} | {after / before:.3f} |")
         finally:
