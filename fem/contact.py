@@ -51,8 +51,13 @@ __all__ = [
 STICK, SLIP, LIFT = 0, 1, 2
 _MAX_ITERATIONS = 60
 # Low-rank (Woodbury) factorisations where at most this fraction of the rows differ
-# from the compliance's: its cost grows as r^2 n against n^3 / 3 for LU.
-_LOW_RANK_ROWS = 0.25
+# from the compliance's: its cost grows as r^2 n against n^3 / 3 for LU. Measured
+# (factorisation, then one refined solve): n = 300, 128 rows 0.18 + 0.09 ms against
+# 1.2 + 0.02 ms dense, 170 rows 0.28 + 0.10 against 1.3; n = 738, 400 rows 1.9 + 0.3 against
+# 11.6. At 0.25 the sole and palm on foot-and-hand-on-foam's foam (n = 300, 77-128 rows
+# replaced where nodes both slip and lift) took the dense path 20 times a solve: at 0.6
+# that solve runs 14 % fewer instructions (1.11 -> 0.95 G).
+_LOW_RANK_ROWS = 0.6
 # Below this reciprocal condition number of the capacitance matrix the dense factorisation
 # serves. Measured on 897 factorisations of five scenes' plans (turn, rail-over-gap,
 # two-mats, foot-and-hand-on-foam, hand-on-cube): 8.9e-4 at worst, solving for a vector of

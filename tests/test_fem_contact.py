@@ -285,9 +285,10 @@ def test_infinite_friction_without_a_contact_state_is_refused_with_the_reason(pa
         fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
 
 
-@pytest.mark.parametrize("n_slip, n_lift", [(0, 0), (3, 0), (4, 6), (10, 2)])
+@pytest.mark.parametrize("n_slip, n_lift", [(0, 0), (3, 0), (4, 6), (10, 2), (15, 25), (25, 30)])
 def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_lift):
-    """The linearised law with a few slipping and lifted nodes, solved through C^-1 and a
+    """The linearised law with slipping and lifted nodes (up to 140 of 243 rows replaced,
+    58 %: the library takes this path up to 60 %), solved through C^-1 and a
     capacitance matrix (Woodbury), equals numpy's dense solve of the same matrix: a
     vector (refined) to 1e-12 and a block of columns (the Jacobian's) to 1e-9."""
     from fem.contact import _LowRankFactor, _compliance_rows, _mode_rows, _replace_rows
