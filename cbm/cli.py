@@ -204,7 +204,8 @@ def build_parser():
         "(plan.json holds the new posture); a step that still has no motion is taken out and the search runs "
         "again, three searches at most, each with the budgets above",
     )
-    plan.add_argument("--view", action="store_true", help="show the plan in meshcat (pip install meshcat)")
+    plan.add_argument("--view", action="store_true",
+                      help="show the plan in meshcat (pip install meshcat) and keep it open until you close it")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
     _add_robot_option(plan)
 
@@ -250,7 +251,9 @@ def build_parser():
     check.add_argument("--stance", help="name of the stance in the scenario (required unless checking a plan)")
     check.add_argument("--out", type=Path, default=None, help="directory for the stance's picture")
     check.add_argument("--quiet", action="store_true", help="warnings only")
-    check.add_argument("--view", action="store_true", help="show the stance in meshcat (pip install meshcat)")
+    check.add_argument("--view", action="store_true",
+                       help="show the stance (or the plan file) in meshcat (pip install meshcat) and keep it open "
+                       "until you close it")
     check.add_argument(
         "--refine", type=_at_least_two, default=None, metavar="FACTOR",
         help="solve the stance (or each soft stance of a plan) again on its soft meshes FACTOR times finer "
@@ -486,7 +489,7 @@ def _plan(args):
     if interrupted:
         return EXIT_INTERRUPTED
     if args.view:
-        result.show(scenario, robot, motions or ())
+        _view(result, scenario, robot, motions or ())
     return EXIT_OK if result.success else EXIT_FAILED
 
 
@@ -508,7 +511,7 @@ def _check(args):
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
-        return _check_plan(args.scenario, args.refine)
+        return _check_plan(args.scenario, args.refine, args.view)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
         names = ", ".join(sorted(scenario.stances)) or "(none)"
@@ -564,8 +567,29 @@ def _check(args):
         from .plan import Plan, PlannedStance, PlanStatistics
 
         planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result, args.stance)
-        Plan(check.feasible, verdict, (planned,), PlanStatistics(), scenario.name).show(scenario, robot)
+        _view(Plan(check.feasible, verdict, (planned,), PlanStatistics(), scenario.name), scenario, robot)
     return EXIT_OK if check.feasible and held else EXIT_FAILED
+
+
+def _view(plan, scenario=None, robot=None, motions=()):
+    """Open a plan in meshcat and keep its server up until the user is done.
+
+    The server lives in this process: returning at once, as ``Plan.show`` does for a
+    Python session, would close the page before anyone opened it. The first stance
+    is shown; Enter plays the plan (and its motions), ``q`` then Enter, or the end of
+    standard input (a non-interactive run), closes it.
+    """
+    view = plan.show(scenario, robot, motions, play=False)
+    print(f"  meshcat: {view.url}")
+    while True:
+        try:
+            answer = input("  Enter: play the plan, q then Enter: close the view > ")
+        except EOFError:
+            print()
+            return
+        if answer.strip().lower() in ("q", "quit", "exit"):
+            return
+        view.play()
 
 
 def _refined_scenario(scenario, factor):
@@ -579,7 +603,7 @@ def _refined_scenario(scenario, factor):
         return None
 
 
-def _check_plan(path, refine=None):
+def _check_plan(path, refine=None, view=False):
     from .plan import Plan
 
     plan = Plan.load(path)
@@ -588,11 +612,12 @@ def _check_plan(path, refine=None):
     print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}")
     for problem in report.problems:
         print(f"  {problem}")
-    if not report.ok:
-        return EXIT_FAILED
-    if refine is not None:
-        return _check_plan_refined(plan, refine)
-    return EXIT_OK
+    code = EXIT_OK if report.ok else EXIT_FAILED
+    if report.ok and refine is not None:
+        code = _check_plan_refined(plan, refine)
+    if view:
+        _view(plan)
+    return code
 
 
 def _check_plan_refined(plan, factor):

@@ -375,7 +375,8 @@ def plan(
         Seed of the neighbour shuffling that breaks ties between equally
         promising prints; the same seed gives the same plan.
     progress : bool
-        Show a tqdm progress bar (stderr) during the search.
+        Show a progress display (tqdm, stderr) during the search: stances expanded,
+        solves, cache hits, open stances, the best distance to the goal, the time left.
     solver_options : dict, optional
         Keyword arguments of ``stances.solve``.
     reach : ReachLimits or ReachModel
@@ -472,11 +473,14 @@ def plan(
     bar = None
     on_expand = None
     if progress:
-        bar = tqdm(total=max_expansions, desc=f"planning {scenario.name}", unit="stance", leave=False)
+        # A counter, not a bar against the expansion cap: a plan that reaches its goal
+        # after 9 of 200 allowed expansions is done, not at 4 %.
+        # Redrawn at every expansion (each costs at least a posture solve).
+        bar = tqdm(desc=f"planning {scenario.name}", unit=" expanded", leave=False, mininterval=0, miniters=1)
 
-        def on_expand(statistics):
-            bar.update(statistics.expanded - bar.n)
-            bar.set_postfix(solves=statistics.solver_calls, cached=statistics.cache_hits)
+        def on_expand(progress):
+            bar.set_postfix_str(_progress_text(progress, time_limit), refresh=False)
+            bar.update(progress.statistics.expanded - bar.n)
 
     try:
         searched = best_first_search(
@@ -516,6 +520,17 @@ def plan(
             reason += finer_grid_hint(rejected, sampling.spacing)
         reason += strain_bound_hint(rejected)
     return _plan_of(searched, scenario, robot, prints, reason)
+
+
+def _progress_text(progress, time_limit):
+    """What the progress display says after an expansion (a :class:`cbm.search.SearchProgress`):
+    solves, cache hits, open stances, the best distance to the goal, the time left."""
+    statistics = progress.statistics
+    text = (f"solves={statistics.solver_calls}, cached={statistics.cache_hits}, open={progress.queued}, "
+            f"to goal={progress.best_heuristic:.2f} m")
+    if time_limit is not None:
+        text += f", {max(time_limit - statistics.time, 0.0):.0f} s left"
+    return text
 
 
 def _rejected(searched):

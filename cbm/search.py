@@ -34,6 +34,7 @@ from .errors import CbmError
 __all__ = [
     "SearchLimits",
     "SearchStatistics",
+    "SearchProgress",
     "SearchResult",
     "best_first_search",
     "SearchInterrupted",
@@ -146,6 +147,26 @@ class SearchStatistics:
 
 
 @dataclass(frozen=True)
+class SearchProgress:
+    """Where a search stands, after an expansion (what a progress display shows).
+
+    Parameters
+    ----------
+    statistics : SearchStatistics
+        The counters so far.
+    best_heuristic : float
+        Heuristic value of the feasible node closest to the goal found so far (in
+        the heuristic's units; the planner's: metres to the goal regions).
+    queued : int
+        Entries waiting in the open list.
+    """
+
+    statistics: SearchStatistics
+    best_heuristic: float
+    queued: int
+
+
+@dataclass(frozen=True)
 class SearchResult:
     """Outcome of :func:`best_first_search`.
 
@@ -192,7 +213,7 @@ def best_first_search(
     eager: bool = False,
     shuffle_neighbours: bool = False,
     seed: int = 0,
-    on_expand: Callable[[SearchStatistics], None] | None = None,
+    on_expand: Callable[[SearchProgress], None] | None = None,
     submit: Callable[[Any, Any, Any], Any] | None = None,
     lookahead: int = 0,
 ) -> SearchResult:
@@ -251,7 +272,7 @@ def best_first_search(
     seed : int
         Seed of the shuffling generator.
     on_expand : callable, optional
-        Called with the current statistics after each expansion (progress).
+        Called with a :class:`SearchProgress` after each expansion (a progress display).
     submit : callable, optional
         Starts oracle calls ahead: ``submit(node, parent, parent_result)``
         returns a future (``result()``, ``done()``) of ``oracle``'s answer
@@ -459,7 +480,7 @@ def best_first_search(
                         continue
                 push(child, node, cost + float(step_cost(node, child, move)), node_costs)
             if on_expand is not None:
-                on_expand(statistics())
+                on_expand(SearchProgress(statistics(), best[0], len(heap)))
     except _BudgetExhausted as exhausted:
         return finish(False, f"budget exhausted: {exhausted.limit}", best[2] if best else None)
     except KeyboardInterrupt:

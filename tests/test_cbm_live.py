@@ -1,5 +1,6 @@
 """The live view: pinocchio's MeshcatVisualizer fed a plan, recorded instead of sent to a server."""
 
+import os
 import sys
 
 import numpy as np
@@ -122,3 +123,45 @@ def test_the_live_view_draws_the_robot_in_a_real_browser(tmp_path, robot):
     assert rows.max() - rows.min() > 0.25 * height
     assert columns.max() - columns.min() < rows.max() - rows.min()
     assert 0.25 * width < columns.mean() < 0.75 * width
+
+
+def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
+    """``cbm check ... --view`` serves the stance until the user answers ``q``: the page
+    answers while the command waits (before, the server was closed with the process a
+    second after it started), and standard input's end closes it too."""
+    import re
+    import subprocess
+    import time
+    import urllib.request
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    environment = {**os.environ, "PYTHONUNBUFFERED": "1",
+                   "PYTHONPATH": os.pathsep.join([str(root), os.environ.get("PYTHONPATH", "")])}
+    command = [sys.executable, "-m", "cbm", "check", "hand-on-table", "--stance", "hand-on-table", "--view"]
+    child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             env=environment, text=True)
+    try:
+        lines = []
+        for line in child.stdout:
+            lines.append(line)
+            if line.strip().startswith("meshcat: "):
+                break
+        url = re.search(r"meshcat: (\S+)", "".join(lines))
+        assert url is not None, "".join(lines) + child.stderr.read()
+        time.sleep(1.0)
+        assert child.poll() is None, "the view closed without being asked to"
+        with urllib.request.urlopen(url.group(1), timeout=30) as page:
+            assert page.status == 200 and b"<html" in page.read().lower()
+        child.stdin.write("q\n")
+        child.stdin.flush()
+        assert child.wait(timeout=60) == 0
+    finally:
+        child.kill()
+        child.wait()
+    rest = child.stdout.read()
+    assert "Enter: play the plan, q then Enter: close the view" in rest
+    # A non-interactive run (standard input at its end) does not hang.
+    closed = subprocess.run(command, stdin=subprocess.DEVNULL, capture_output=True, text=True, env=environment,
+                            timeout=240)
+    assert closed.returncode == 0 and "meshcat: http" in closed.stdout, closed.stderr

@@ -438,3 +438,21 @@ def test_ctrl_c_after_a_first_plan_keeps_it_with_its_motions(scenario, robot, mo
         replan.plan_with_motions(scenario, oracle=SyntheticOracle(), **options)
     assert _steps(stopped.value.plan) == _steps(first)
     assert [m.feasible for m in stopped.value.motions] == [step != bad for step in _steps(first)]
+
+
+def test_the_progress_display_counts_expansions_and_says_how_close_and_how_long(scenario, robot, capsys):
+    """The display is a counter of expanded stances (not a bar against the expansion cap,
+    which a plan reaching its goal after a few expansions left at a few percent), with
+    the solves, the open stances, the best distance to the goal and the time left."""
+    from cbm.planner import _progress_text
+    from cbm.search import SearchProgress, SearchStatistics
+
+    progress = SearchProgress(SearchStatistics(expanded=9, solver_calls=14, cache_hits=2, time=12.4), 0.4219, 31)
+    assert _progress_text(progress, 300.0) == "solves=14, cached=2, open=31, to goal=0.42 m, 288 s left"
+    assert _progress_text(progress, None) == "solves=14, cached=2, open=31, to goal=0.42 m"
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), max_expansions=100,
+                  progress=True)
+    assert result.success
+    shown = capsys.readouterr().err
+    assert f"planning walk: {result.statistics.expanded} expanded [" in shown and "%|" not in shown
+    assert "solves=" in shown and "to goal=" in shown

@@ -314,10 +314,12 @@ def test_time_limit_is_respected():
     assert sum(oracle.calls.values()) < 36
 
 
-def test_expand_callback_sees_growing_counts():
+def test_expand_callback_sees_growing_counts_and_the_best_distance_so_far():
     seen = []
     search_graph(diamond(), "s", "goal", CountingOracle(infeasible={"a"}), on_expand=seen.append)
-    assert [s.expanded for s in seen] == [1, 2, 3]
+    assert [p.statistics.expanded for p in seen] == [1, 2, 3]
+    # s (h 3) expanded, then b (h 2: a is infeasible), then c (h 1).
+    assert [p.best_heuristic for p in seen] == [3.0, 2.0, 1.0]
 
 
 # ------------------------------------------- node costs known only from the answer
