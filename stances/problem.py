@@ -513,8 +513,11 @@ class PostureProblem:
             limit) and its ``torque_joint``; ``joint_clearance`` (smallest
             distance to a position limit, as a fraction of the joint's range)
             and its ``clearance_joint``; ``at_margin``, the joints whose torque
-            or position sits on the bound its margin sets: the stance needs
-            them there (a margin of zero means on the limit itself).
+            or position sits on the bound its margin sets, which the solver
+            keeps (a margin of zero means on the limit itself). Torques are
+            moved off half their limit by the objective; positions are not, so
+            a joint may sit on its position margin where the posture term or a
+            constraint pulls it.
         """
         model, options = self.robot.model, self.options
         names = self.robot.actuated_joint_names

@@ -241,7 +241,7 @@ class PostureResult:
     limits : dict
         How close the posture comes to the robot's limits: largest torque
         usage and its joint, smallest joint clearance and its joint, and the
-        joints the stance needs on their margin (see
+        joints on the bound their margin sets (see
         :meth:`stances.problem.PostureProblem.limit_usage`).
     """
 

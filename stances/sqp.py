@@ -1017,10 +1017,12 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
 
 
 def _timed_out(result, time_budget) -> PostureResult:
-    """Say first in an infeasible answer's reason that the time budget stopped it."""
+    """Say first in an infeasible answer's reason that the time budget stopped it, then
+    what the last iterate still violated (a state when the time ran out, not a verdict)."""
     if result.feasible or result.statistics.get("status") != _OUT_OF_TIME:
         return result
-    return _with(result, reason=f"time budget of {float(time_budget):g} s spent before convergence: {result.reason}")
+    return _with(result, reason=f"time budget of {float(time_budget):g} s spent before convergence; "
+                                f"at the last iterate: {result.reason}")
 
 
 def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) -> PostureResult:

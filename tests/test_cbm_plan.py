@@ -292,7 +292,7 @@ def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
         ("indentation bound at node 375 of cube violated by 0.01 m", "soft support (indentation, strain, contact)"),
         ("friction cone of the resultant of right_palm on cube_top (-x) violated by 0.9 N", "friction"),
         ("time limit reached before this stance was solved", "time"),
-        ("time budget of 2 s spent before convergence: collision between a and b", "time"),
+        ("time budget of 2 s spent before convergence; at the last iterate: collision between a and b", "time"),
         ("verification failed: joint limit exceeded by 0.1 rad", "verification"),
         ("StanceError: the print of right_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed: "
          "refine the mesh of 'foam' where prints land", "soft mesh too coarse for the print"),

@@ -659,7 +659,7 @@ def test_a_spent_time_budget_stops_the_solve_and_says_so(robot):
     scenario = coarse_scenario("hand-on-cube")
     result = solve(robot, scenario.scene, scenario.stance("hand-on-cube"), time_budget=1e-6)
     assert not result.feasible
-    assert result.reason.startswith("time budget of 1e-06 s spent before convergence: ")
+    assert result.reason.startswith("time budget of 1e-06 s spent before convergence; at the last iterate: ")
     assert result.statistics["status"] == "time budget spent"
     assert result.iterations == 0
 
