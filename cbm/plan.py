@@ -193,10 +193,14 @@ class PlanStatistics(SearchStatistics):
         rejected them (``StanceCheck.rejected_by``); they are among the
         ``solver_calls`` (oracle answers), so the posture solves were
         ``solver_calls - sum(prefiltered.values())``.
+    print_spacing : float or None
+        Step of the print grid the plan was found on (or last searched), metres;
+        None where not recorded (a plan file written before it was).
     """
 
     prints: int = 0
     prefiltered: dict = field(default_factory=dict)
+    print_spacing: float | None = None
 
 
 @dataclass(frozen=True)

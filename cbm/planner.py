@@ -12,6 +12,7 @@ import logging
 import os
 import time
 from collections import Counter
+import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,7 +30,7 @@ from stances.errors import StanceError
 from .errors import CbmError, UnknownScenario
 from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
-from .rejections import finer_grid_hint, strain_bound_hint, summarise
+from .rejections import FINEST_GRID, finer_grid_hint, strain_bound_hint, summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import (
@@ -41,7 +42,14 @@ from .sampling import (
     sample_prints,
     with_prints,
 )
-from .search import DEFAULT_MAX_EXPANSIONS, DEFAULT_TIME_LIMIT, SearchInterrupted, SearchLimits, best_first_search
+from .search import (
+    DEFAULT_MAX_EXPANSIONS,
+    DEFAULT_TIME_LIMIT,
+    NO_FEASIBLE_NEIGHBOUR,
+    SearchInterrupted,
+    SearchLimits,
+    best_first_search,
+)
 from .stance_graph import StanceNeighbours
 from .terrain import TerrainCost, terrain_weight as _terrain_weight
 
@@ -363,7 +371,11 @@ def plan(
         Default: ``stances.Robot.load(scenario.robot)``.
     print_spacing : float, optional
         Print grid step, metres; default the scenario's ``print_spacing``
-        option, else a quarter of the robot's step, at most 0.1 m. The print
+        option, else a quarter of the robot's step, at most 0.1 m; on that
+        default grid, a search that finds no plan within ``max_expansions`` (or
+        runs out of feasible stances) is followed by one on a grid half as fine,
+        with the time left (the reason and ``statistics.print_spacing`` say so;
+        the statistics count both searches). The print
         headings are the scenario's ``theta_values_deg``, else the start's and
         the goal's foot headings and enough between them for the feet to turn
         (:func:`cbm.sampling.default_headings`).
@@ -445,81 +457,116 @@ def plan(
     headings = default_headings(
         tuple(start) + tuple(goal.contacts), scene.surfaces, feet, reach_model.limits.max_foot_yaw_difference
     )
-    sampling = options_from_scenario(
-        getattr(scenario, "options", None), print_spacing, default_print_spacing(reach_model.step_length), headings
-    )
-    usable = _usable_robot_surfaces(robot, getattr(scenario, "options", None))
-    print_sets = sample_prints(scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene))
-    print_sets = with_prints(print_sets, goal.contacts, scene.surfaces)
-    prints = sum(len(s) for s in print_sets.values())
-    logger.info(
-        "%s: %d prints sampled (spacing %.3f m, %d angles)",
-        scenario.name,
-        prints,
-        sampling.spacing,
-        len(sampling.theta_values),
-    )
-    neighbours = StanceNeighbours(print_sets, scene.surfaces, reach_model, required=goal.contacts, forbidden=forbidden)
+    options = getattr(scenario, "options", None)
+    usable = _usable_robot_surfaces(robot, options)
+    default_spacing = default_print_spacing(reach_model.step_length)
+    # The grid is the planner's own choice unless the user or the scenario sets it: then,
+    # where it finds no plan, a grid half as fine is tried before giving up.
+    own_grid = print_spacing is None and not (options or {}).get("print_spacing")
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None
     if check_workers(workers) > 1 and oracle is not None:
         raise CbmError("workers > 1 runs the posture oracle in worker processes; a custom oracle= needs workers=1")
+    started = time.perf_counter()
     if oracle is None:
-        deadline = None if time_limit is None else time.perf_counter() + time_limit
+        deadline = None if time_limit is None else started + time_limit
         oracle = PostureOracle(robot, scene, solver_options, deadline=deadline, prefilter=prefilter)
         if workers > 1:
             pool = PosturePool(workers, scenario, robot, solver_options, deadline=deadline, prefilter=prefilter)
 
-    bar = None
-    on_expand = None
-    if progress:
-        # A counter, not a bar against the expansion cap: a plan that reaches its goal
-        # after 9 of 200 allowed expansions is done, not at 4 %.
-        # Redrawn at every expansion (each costs at least a posture solve).
-        bar = tqdm(desc=f"planning {scenario.name}", unit=" expanded", leave=False, mininterval=0, miniters=1)
+    sampled = [0]  # prints sampled by each search so far (what an interrupted one reports)
 
-        def on_expand(progress):
-            bar.set_postfix_str(_progress_text(progress, time_limit), refresh=False)
-            bar.update(progress.statistics.expanded - bar.n)
-
-    try:
-        searched = best_first_search(
-            start,
-            neighbours=neighbours,
-            oracle=oracle,
-            heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
-            is_goal=lambda stance: goal.is_satisfied(stance, scene),
-            path_cost_weight=path_cost,
-            node_cost=TerrainCost(weight) if weight > 0 else None,
-            limits=limits,
-            eager=eager,
-            shuffle_neighbours=True,
-            seed=seed,
-            on_expand=on_expand,
-            submit=None if pool is None else pool.submit,
-            lookahead=workers,
+    def search(spacing, limits):
+        """The best-first search on one print grid: (search result, prints sampled, the grid's sampling)."""
+        sampling = options_from_scenario(options, spacing, default_spacing, headings)
+        print_sets = sample_prints(
+            scene.surfaces, {name: robot.surfaces[name] for name in usable}, sampling, obstacle_boxes(scene)
         )
+        print_sets = with_prints(print_sets, goal.contacts, scene.surfaces)
+        prints = sum(len(s) for s in print_sets.values())
+        sampled.append(prints)
+        logger.info(
+            "%s: %d prints sampled (spacing %.3f m, %d angles)",
+            scenario.name,
+            prints,
+            sampling.spacing,
+            len(sampling.theta_values),
+        )
+        neighbours = StanceNeighbours(
+            print_sets, scene.surfaces, reach_model, required=goal.contacts, forbidden=forbidden
+        )
+        bar = on_expand = None
+        if progress:
+            # A counter, not a bar against the expansion cap: a plan that reaches its goal
+            # after 9 of 200 allowed expansions is done, not at 4 %. Redrawn at every
+            # expansion (each costs at least a posture solve).
+            bar = tqdm(desc=f"planning {scenario.name}", unit=" expanded", leave=False, mininterval=0, miniters=1)
+
+            def on_expand(progress):
+                bar.set_postfix_str(_progress_text(progress, limits.time_limit), refresh=False)
+                bar.update(progress.statistics.expanded - bar.n)
+
+        try:
+            searched = best_first_search(
+                start,
+                neighbours=neighbours,
+                oracle=oracle,
+                heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
+                is_goal=lambda stance: goal.is_satisfied(stance, scene),
+                path_cost_weight=path_cost,
+                node_cost=TerrainCost(weight) if weight > 0 else None,
+                limits=limits,
+                eager=eager,
+                shuffle_neighbours=True,
+                seed=seed,
+                on_expand=on_expand,
+                submit=None if pool is None else pool.submit,
+                lookahead=workers,
+            )
+        finally:
+            if bar is not None:
+                bar.close()
+        return searched, prints, sampling
+
+    earlier = None  # (statistics, spacing) of a search on the default grid that found no plan
+    try:
+        searched, prints, sampling = search(print_spacing, limits)
+        finer = sampling.spacing / 2.0
+        if (own_grid and not searched.success and finer >= FINEST_GRID
+                and searched.reason in ("budget exhausted: max_expansions", NO_FEASIBLE_NEIGHBOUR)):
+            # The default grid can miss every chain of prints clear of the obstacles (a
+            # user's two 0.3 m mats end to end: 200 expansions, no plan, on 0.1 m; 11
+            # stances in 1.8 s on 0.05 m), and a finer one from the start would slow
+            # the many scenes where it does not (4x the prints). Same seed, the budgets
+            # left.
+            logger.info("%s: no plan on the %.3f m print grid (%s); searching a %.3f m one",
+                        scenario.name, sampling.spacing, searched.reason, finer)
+            earlier = (searched.statistics, sampling.spacing)
+            left = None if time_limit is None else max(time_limit - (time.perf_counter() - started), 0.0)
+            searched, prints, sampling = search(finer, SearchLimits(max_expansions, max_solver_calls, left))
     except SearchInterrupted as interrupted:
-        searched = interrupted.result
+        searched = _with_earlier(interrupted.result, earlier)
         s = searched.statistics
         reason = (
             f"{searched.reason} after {s.expanded} stances expanded and {s.solver_calls} solver calls; "
             "the stances are the best partial sequence found so far"
         )
-        raise PlanInterrupted(_plan_of(searched, scenario, robot, prints, reason)) from None
+        raise PlanInterrupted(_plan_of(searched, scenario, robot, sampled[-1], reason)) from None
     finally:
-        if bar is not None:
-            bar.close()
         if pool is not None:
             pool.close()
+    searched = _with_earlier(searched, earlier)
     reason = searched.reason
+    if earlier is not None:
+        reason += (f" on a {sampling.spacing:.3f} m print grid, after {earlier[0].expanded} stances expanded on "
+                   f"the default {earlier[1]:.3f} m one found no plan")
     if not searched.success and not reason.startswith("start infeasible"):
-        rejected, exhausted = _rejected(searched), reason.startswith("budget exhausted")
+        rejected, exhausted = _rejected(searched), searched.reason.startswith("budget exhausted")
         reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
-        if exhausted:
+        if exhausted and earlier is None:
             reason += finer_grid_hint(rejected, sampling.spacing)
         reason += strain_bound_hint(rejected)
-    return _plan_of(searched, scenario, robot, prints, reason)
+    return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing)
 
 
 def _progress_text(progress, time_limit):
@@ -542,7 +589,17 @@ def _rejected(searched):
     ]
 
 
-def _plan_of(searched, scenario, robot, prints, reason):
+def _with_earlier(searched, earlier):
+    """A search result whose counters add those of an earlier search, ``(statistics, spacing)``
+    (None: the result as it is): a plan's statistics count all the work it took."""
+    if earlier is None:
+        return searched
+    before, now = earlier[0].to_dict(), searched.statistics.to_dict()
+    summed = type(searched.statistics)(**{name: before[name] + now[name] for name in now})
+    return dataclasses.replace(searched, statistics=summed)
+
+
+def _plan_of(searched, scenario, robot, prints, reason, print_spacing=None):
     """The Plan of a search result: its path's stances with their postures and the statistics."""
     planned = []
     for index, (stance, check) in enumerate(zip(searched.path, searched.results)):
@@ -565,7 +622,8 @@ def _plan_of(searched, scenario, robot, prints, reason):
     prefiltered = Counter(getattr(a, "rejected_by", "") for a in answers if a is not None)
     prefiltered.pop("", None)
     # Every search counter, whatever SearchStatistics holds, the prints and the prefilter's rejections.
-    statistics = PlanStatistics(**s.to_dict(), prints=prints, prefiltered=dict(sorted(prefiltered.items())))
+    statistics = PlanStatistics(**s.to_dict(), prints=prints, prefiltered=dict(sorted(prefiltered.items())),
+                                print_spacing=print_spacing)
     return Plan(
         searched.success,
         reason,

@@ -456,3 +456,35 @@ def test_the_progress_display_counts_expansions_and_says_how_close_and_how_long(
     shown = capsys.readouterr().err
     assert f"planning walk: {result.statistics.expanded} expanded [" in shown and "%|" not in shown
     assert "solves=" in shown and "to goal=" in shown
+
+
+class CoarseGridOracle(SyntheticOracle):
+    """Rejects a stance with a floor print in 0 < x < 0.6 on the 0.1 m grid's points:
+    on that grid no chain of prints crosses the band, on a 0.05 m one the points
+    between them do (what an obstacle's sides did to a user's two mats)."""
+
+    def __call__(self, stance, parent, parent_check):
+        xs = [c.contact_print.x for c in stance if c.contact_print.surface == "floor"]
+        if any(0.0 < x < 0.6 and abs(x / 0.1 - round(x / 0.1)) < 1e-6 for x in xs):
+            self.calls.append(stance)
+            return StanceCheck(False, "collision between a foot and the band", None)
+        return super().__call__(stance, parent, parent_check)
+
+
+def test_a_plan_the_default_grid_misses_is_searched_on_a_grid_half_as_fine(scenario, robot):
+    """On the planner's own grid, a search that finds no plan is followed by one on a
+    grid half as fine: the plan says so and counts both searches; a grid the scenario
+    (or the user) sets is kept as it is."""
+    own = SimpleNamespace(**{**vars(scenario), "options": {}})
+    oracle = CoarseGridOracle()
+    result = plan(own, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=60)
+    assert result.success, result.reason
+    assert result.reason.startswith("goal reached on a 0.050 m print grid, after ")
+    assert result.reason.endswith(" stances expanded on the default 0.100 m one found no plan")
+    assert result.statistics.print_spacing == 0.05
+    assert result.statistics.solver_calls == len(oracle.calls)  # both searches counted
+    assert any(abs(c.contact_print.x - 0.05) < 1e-9 or abs(c.contact_print.x - 0.15) < 1e-9
+               for planned in result.stances for c in planned.stance if c.contact_print.surface == "floor")
+    kept = plan(scenario, robot=robot, reach=robot.reach, oracle=CoarseGridOracle(), max_expansions=60)
+    assert not kept.success and kept.statistics.print_spacing == 0.1
+    assert "print grid" not in kept.reason.split(";")[0]
