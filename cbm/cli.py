@@ -207,6 +207,9 @@ def build_parser():
     plan.add_argument("--view", action="store_true",
                       help="show the plan in meshcat (pip install meshcat) and keep it open until you close it")
     plan.add_argument("--quiet", action="store_true", help="no progress bar, warnings only")
+    plan.add_argument("--verbose", action="store_true",
+                      help="say in full why stances were rejected (every cause with a whole example) and, for a "
+                      "failed plan, where the search would have gone on (its open stances nearest the goal)")
     _add_robot_option(plan)
 
     batch = commands.add_parser(
@@ -466,9 +469,16 @@ def _plan(args):
         total = sum(entry["count"] for entry in result.rejections.values())
         causes = ", ".join(f"{entry['count']} {cause}" for cause, entry in result.rejections.items())
         print(f"  {total} stances rejected: {causes}")
-        if not result.success:
+        if not result.success or args.verbose:
             for cause, entry in result.rejections.items():
-                print(f"    {cause}, e.g. {_shortened(entry['example'])}")
+                example = entry["example"] if args.verbose else _shortened(entry["example"])
+                print(f"    {cause}, e.g. {example}")
+    if result.frontier and args.verbose:
+        print(f"  the search would have gone on with ({len(result.frontier)} open stances nearest the goal):")
+        for entry in result.frontier:
+            print(f"    {entry['goal_distance']:.2f} m from the goal: {entry['stance']} (by: {entry['move']})")
+    if args.verbose and s.print_spacing is not None:
+        print(f"  print grid: {s.print_spacing:.3f} m, {s.prints} prints")
     if moving is not None and moving.plans > 1:
         kept = ("the first" if not moving.avoided else
                 f"one avoiding {len(moving.avoided)} step(s) of earlier plans that had no motion")

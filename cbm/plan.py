@@ -45,6 +45,8 @@ __all__ = [
 logger = logging.getLogger(__name__)
 
 PLAN_FORMAT = "softcbm-plan"
+#: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
+FRONTIER_SIZE = 5
 PLAN_VERSION = 2
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
 #: stance's arrays inside its ``result``.
@@ -245,6 +247,12 @@ class Plan:
         Where the scenario came from (:func:`scenario_source`): ``path``,
         ``built_in``, its YAML ``text`` and each soft body's
         ``transform_body_to_world``.
+    frontier : tuple of dict
+        The search's open stances nearest the goal when it stopped, nearest first
+        (at most :data:`FRONTIER_SIZE`): ``goal_distance`` (the heuristic, metres),
+        ``stance`` (its contacts, each print in its surface's frame) and ``move``,
+        the step that reached it from a stance the search expanded.
+        Where a failed search would have gone on.
     """
 
     success: bool
@@ -255,9 +263,11 @@ class Plan:
     rejections: dict = field(default_factory=dict)
     robot: dict = field(default_factory=dict)
     scenario_source: dict = field(default_factory=dict)
+    frontier: tuple = ()
 
     def __post_init__(self):
         object.__setattr__(self, "stances", tuple(self.stances))
+        object.__setattr__(self, "frontier", tuple(dict(entry) for entry in self.frontier))
 
     def __len__(self):
         return len(self.stances)
@@ -275,6 +285,7 @@ class Plan:
             "reason": self.reason,
             "statistics": self.statistics.to_dict(),
             "rejections": dict(self.rejections),
+            "frontier": [dict(entry) for entry in self.frontier],
             "stances": [s.to_dict() for s in self.stances],
         }
 
@@ -311,6 +322,7 @@ class Plan:
                 rejections=dict(data.get("rejections", {})),
                 robot=robot,
                 scenario_source=source,
+                frontier=tuple(data.get("frontier", ())),
             )
         except (KeyError, TypeError) as error:
             raise PlanFileError(f"malformed plan (version {version}): missing or wrong entry {error}") from None

@@ -9,6 +9,7 @@ neighbours of a stance (:mod:`cbm.stance_graph`), the posture solver of
 from __future__ import annotations
 
 import logging
+import math
 import os
 import time
 from collections import Counter
@@ -28,7 +29,7 @@ from fem.errors import FemError
 from stances.errors import StanceError
 
 from .errors import CbmError, UnknownScenario
-from .plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
 from .rejections import FINEST_GRID, finer_grid_hint, strain_bound_hint, summarise
 from .prefilter import Prefilter
@@ -633,5 +634,30 @@ def _plan_of(searched, scenario, robot, prints, reason, print_spacing=None):
         summarise(_rejected(searched)),
         robot=robot_description(robot),
         scenario_source=scenario_source(scenario),
+        frontier=() if searched.success else _frontier(searched.graph),
+    )
+
+
+def _frontier(graph):
+    """The open stances of a search graph nearest the goal (:attr:`cbm.plan.Plan.frontier`):
+    sorted by heuristic, then by the move's text, so the same search gives the same list."""
+    entries = []
+    for node, attributes in graph.nodes(data=True):
+        if attributes.get("status") != "open" or attributes.get("result") is not None or "h" not in attributes:
+            continue
+        moves = sorted(str(graph.edges[parent, node]["move"]) for parent in graph.predecessors(node))
+        if moves:
+            entries.append({"goal_distance": float(attributes["h"]), "move": moves[0], "stance": _stance_text(node)})
+    entries.sort(key=lambda entry: (entry["goal_distance"], entry["stance"], entry["move"]))
+    return tuple(entries[:FRONTIER_SIZE])
+
+
+def _stance_text(stance):
+    """A stance's contacts in one line: each robot surface, its surface and its print (x, y
+    in metres and the heading in degrees, in that surface's frame)."""
+    return "; ".join(
+        f"{c.robot_surface} on {c.contact_print.surface} at ({c.contact_print.x:.3f}, {c.contact_print.y:.3f}) m, "
+        f"{math.degrees(c.contact_print.theta):.0f} deg"
+        for c in stance
     )
 

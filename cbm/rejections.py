@@ -33,6 +33,8 @@ INPUT_CAUSES = (
     ("print off its surface", ("lies off surface",)),
 )
 _QUALIFIERS = ("held rigid, ", "print unreachable: ")
+# The solver's list of constraints no step meets together (stances.sqp), after the reason.
+_CONFLICT = "; no step meets together: "
 
 
 def cause_of(reason: str) -> str:
@@ -46,16 +48,29 @@ def cause_of(reason: str) -> str:
     'torque limit'
     >>> cause_of("StanceError: the print of right_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed")
     'soft mesh too coarse for the print'
+
+    A print left unreached because a collision stands in the way (the solver names
+    both among the constraints no step meets together) is a collision: a user's
+    mats end to end gave 30 "reach (placement)" rejections, each a foot that could
+    not land without its heel meeting the next mat.
+
+    >>> cause_of("held rigid, print unreachable: placement of left_sole on mat_b_top (z) violated by 0.001 m "
+    ...          "or rad; no step meets together: collision between leg_left_6_link_0 and mat_a, placement of "
+    ...          "left_sole on mat_b_top (x)")
+    'collision'
     """
     text = str(reason)
     for cause, fragments in INPUT_CAUSES:
         if any(fragment in text for fragment in fragments):
             return cause
+    text, _, conflict = text.partition(_CONFLICT)
     for qualifier in _QUALIFIERS:
         if text.startswith(qualifier):
             text = text[len(qualifier):]
     for cause, prefixes in CAUSES:
         if text.startswith(prefixes):
+            if cause == "reach (placement)" and any(c.startswith("collision") for c in conflict.split(", ")):
+                return "collision"
             return cause
     return "other"
 

@@ -182,3 +182,51 @@ def test_a_quarter_turn_plans_with_default_headings():
     headings = {round(math.degrees(c.contact_print.theta)) for s in result.stances for c in s.stance}
     assert headings == {0, 45, 90}
     assert result.check(scenario).ok
+
+
+# A low wall across the way, 0.25 m ahead: every step forward puts a foot into it.
+_WALLED = """\
+robot: talos
+objects:
+  - {name: floor, type: floor, size: [3.0, 1.0]}
+  - {name: wall, type: box, size: [0.1, 1.0, 0.3], center: [0.25, 0.0, 0.15]}
+stances:
+  start:
+    left_sole: {surface: floor, x: 0.0, y: 0.085}
+    right_sole: {surface: floor, x: 0.0, y: -0.085}
+start: start
+goal:
+  regions:
+    - {robot_surface: left_sole, lower: [0.8, -0.4], upper: [1.2, 0.4]}
+    - {robot_surface: right_sole, lower: [0.8, -0.4], upper: [1.2, 0.4]}
+"""
+
+
+def test_cbm_plan_verbose_says_why_a_real_scene_fails_and_where_the_search_would_go(tmp_path, capsys):
+    """A scene built to fail, planned by the command line with --verbose: the summary
+    names the real cause (feet in the wall: collision) with a whole example, the search's
+    open stances nearest the goal, and the print grids tried; plan.json keeps the frontier."""
+    from cbm import cli
+    from cbm.plan import FRONTIER_SIZE, Plan
+
+    scene = tmp_path / "walled.yaml"
+    scene.write_text(_WALLED)
+    out = tmp_path / "results"
+    code = cli.main(["plan", str(scene), "--out", str(out), "--no-pictures", "--max-expansions", "3", "--quiet",
+                     "--verbose"])
+    printed = capsys.readouterr().out
+    assert code == cli.EXIT_FAILED
+    assert printed.startswith("walled: no plan: budget exhausted: max_expansions on a 0.050 m print grid, after 3 "
+                              "stances expanded on the default 0.100 m one found no plan")
+    rejected = next(line for line in printed.splitlines() if "stances rejected: " in line)
+    assert rejected.split("stances rejected: ")[1].startswith(tuple(f"{n} collision" for n in range(1, 1000)))
+    assert "    collision, e.g. collision of a placed link: at its print, leg_" in printed
+    assert "into wall whatever the posture" in printed
+    assert f"  the search would have gone on with ({FRONTIER_SIZE} open stances nearest the goal):" in printed
+    frontier = printed.split("nearest the goal):\n")[1].splitlines()[:FRONTIER_SIZE]
+    assert all(" m from the goal: left_" in line and " (by: place " in line for line in frontier)
+    assert "  print grid: 0.050 m, " in printed
+    saved = Plan.load(out / "plan.json")
+    assert len(saved.frontier) == FRONTIER_SIZE
+    distances = [entry["goal_distance"] for entry in saved.frontier]
+    assert distances == sorted(distances) and all(d > 0.5 for d in distances)

@@ -493,8 +493,10 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     holds); the default print grid follows its 0.17 m step (0.042 m, not 0.1 m); the
     front feet reach the foam and the saved plan verifies again, on a fine mesh and on the
     foam's default one (where 2 nodes lie inside a ball's print and more have cells it
-    covers in part). On a 10 cm mesh a ball's print covers no node's cell by 1 %: the plan
-    fails and says so, and how to fix it.
+    covers in part). On a 10 cm mesh a ball's print on the 0.042 m grid covers no node's
+    cell by 1 %: the plan fails and says so, and how to fix it. (Left to choose its grid,
+    the planner then searches a 0.021 m one, whose prints land near nodes, and plans: the
+    grid is set here to see the message.)
 
     Run through the command line in child processes, as a user would."""
     import subprocess
@@ -521,7 +523,7 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_defaults(tmp_p
     assert checked.returncode == 0 and "every stance verifies" in checked.stdout, checked.stdout + checked.stderr
 
     failed = cbm("plan", str(tmp_path / "solo-coarse.yaml"), "--out", str(tmp_path / "coarse"), "--no-pictures",
-                 "--max-expansions", "8", "--quiet")
+                 "--max-expansions", "8", "--quiet", "--print-spacing", "0.042")
     assert failed.returncode == 1, failed.stdout + failed.stderr
     assert "soft mesh too coarse for the print, e.g. StanceError: the print of" in failed.stdout
     assert "(a scenario's soft_box takes resolution and refine)" in failed.stdout
