@@ -11,6 +11,7 @@ from .assembly import assemble_stiffness, element_stiffness_matrices, element_st
 from .contact import LIFT, SLIP, STICK, PrintContact, PrintContactSystem, print_contact_with_modes, solve_print_contact
 from .body import DeformableBody, rotate_voigt, voigt_to_tensor_strain, von_mises
 from .cache import DiskCache
+from .deadline import SetupTimeout, check_deadline, deadline
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
 from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
@@ -43,6 +44,9 @@ __all__ = [
     "assemble_stiffness",
     "DeformableBody",
     "DiskCache",
+    "SetupTimeout",
+    "deadline",
+    "check_deadline",
     "ContactPatch",
     "von_mises",
     "voigt_to_tensor_strain",

@@ -13,6 +13,7 @@ import scipy.sparse as sp
 
 from .assembly import assemble_stiffness, shape_gradients
 from .cache import DiskCache, cache_digest, default_cache
+from .deadline import check_deadline
 from .errors import BoundaryError, FemError, FemWarning
 from .io import write_mesh
 from .material import LinearElasticMaterial
@@ -373,6 +374,8 @@ class DeformableBody:
             ):
                 columns = None
             if columns is None:
+                ready = sum(entry is not None for entry in found)
+                check_deadline(f"the compliance columns of {ids.size} nodes of a print ({ready} ready)")
                 columns = self._solve_node_columns(node)
                 self._store_entry(f"columns-{node}", {"columns": columns, "node": np.int64(node)})
             columns.setflags(write=False)

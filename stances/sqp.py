@@ -30,10 +30,11 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 import pinocchio as pin
 
+from fem.deadline import SetupTimeout, deadline as setup_deadline
 from fem.dense import single_threaded_blas
 
 from .errors import ConfigurationError, StanceError
-from .cold_start import starting_configuration
+from .cold_start import initial_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
@@ -912,10 +913,11 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         blend of the two stances they join.
     time_budget : float, optional
         Wall-clock seconds this call may take. No SQP iteration starts after
-        it is spent; the stance is then infeasible with a reason that says so
-        (unless the iterate reached is already feasible and verified). Setup
-        and the final verification are not interrupted: a planner's time limit
-        holds to within one of those.
+        it is spent, nor a soft print's compliance column (the long part of a
+        new print's setup on a large body, :mod:`fem.deadline`); the stance is
+        then infeasible with a reason that says so (unless the iterate reached
+        is already feasible and verified). A body's factorisation and the final
+        verification's other steps are not interrupted.
     constraints : sequence, optional
         Extra constraints, each an object with ``blocks(problem, iterate)``
         returning :class:`~stances.blocks.ConstraintBlock` rows (as the pieces
@@ -941,6 +943,24 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
+    try:
+        with setup_deadline(deadline):
+            return _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
+                          start, deadline)
+    except SetupTimeout as stop:
+        # Out of time while a soft print was set up: an answer, as a spent budget
+        # is anywhere else, from the posture the solve would have started at.
+        q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
+        return PostureResult(
+            feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
+            solve_time=time.perf_counter() - start, stance=stance, statistics={"status": _OUT_OF_TIME},
+            reason=f"time budget of {float(time_budget):g} s spent before convergence; {stop}",
+        )
+
+
+def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
+    """:func:`solve`'s work, from its arguments (``options`` the keyword ones), its start
+    time and deadline (``time.perf_counter()`` values)."""
     options = posture_options(options)
     constraints = tuple(constraints)
 

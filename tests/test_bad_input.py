@@ -441,11 +441,13 @@ def fake_planning(monkeypatch):
         reason = ""
         stances = ()
         rejections = {}
+        frontier = ()
 
         class statistics:  # noqa: N801 - stands in for PlanStatistics
             expanded = solver_calls = cache_hits = 0
             time = cpu_time = 0.0
             prefiltered = {}
+            print_spacing = None
 
     def plan(*args, **kwargs):
         calls.append("plan")

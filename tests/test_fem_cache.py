@@ -260,3 +260,26 @@ def test_entries_of_an_earlier_format_are_removed_and_later_ones_kept(tmp_path):
         (directory / ("0" * 64) / "columns-1.npz").write_bytes(b"x" * 100)
     DiskCache(tmp_path)
     assert not older.exists() and newer.exists()
+
+
+def test_a_deadline_stops_the_column_solves_and_keeps_what_they_computed(mesh):
+    """Within ``fem.deadline``, a print's compliance columns stop once it has passed (a
+    SetupTimeout, a FemError, that says what was under way); the columns already solved
+    stay, and the next call, without the deadline, gives the same bits as a body never
+    stopped."""
+    import time
+
+    from fem import SetupTimeout, deadline
+
+    ids = nodes_in_polygon(mesh, SQUARE)
+    body = make_body(mesh, False)
+    body.compliance_columns(ids[:3])  # solved before the deadline: kept in memory
+    with deadline(time.perf_counter() - 1.0), pytest.raises(SetupTimeout) as stopped:
+        body.compliance_columns(ids)
+    assert str(stopped.value) == (f"the deadline passed during the compliance columns of {ids.size} nodes of a "
+                                  "print (3 ready); what was computed is kept for the next call")
+    fresh = make_body(mesh, False).compliance_columns(ids)
+    with deadline(time.perf_counter() - 1.0):
+        assert np.array_equal(body.compliance_columns(ids[:3]), fresh[:, :9])  # no solve: no check
+    with deadline(None):
+        assert np.array_equal(body.compliance_columns(ids), fresh)

@@ -657,11 +657,28 @@ def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
 
 def test_a_spent_time_budget_stops_the_solve_and_says_so(robot):
     scenario = coarse_scenario("hand-on-cube")
+    solve(robot, scenario.scene, scenario.stance("hand-on-cube"))  # the print's setup done: the SQP is what stops
     result = solve(robot, scenario.scene, scenario.stance("hand-on-cube"), time_budget=1e-6)
     assert not result.feasible
     assert result.reason.startswith("time budget of 1e-06 s spent before convergence; at the last iterate: ")
     assert result.statistics["status"] == "time budget spent"
     assert result.iterations == 0
+
+
+def test_a_time_budget_spent_while_a_soft_print_is_set_up_stops_it_there(robot, monkeypatch):
+    """A new print on a body whose compliance columns are neither in memory nor on disk
+    needs one solve per node; a budget spent among them ends the solve there, as an
+    answer that says so, without its SQP."""
+    monkeypatch.setenv("SOFTCBM_CACHE", "off")
+    scenario = coarse_scenario("cross-two-mats")
+    result = solve(robot, scenario.scene, scenario.stance("one-on-each"), time_budget=1e-6)
+    assert not result.feasible and result.iterations == 0
+    assert result.reason.startswith("time budget of 1e-06 s spent before convergence; the deadline passed during "
+                                    "the compliance columns of ")
+    assert result.reason.endswith(" ready); what was computed is kept for the next call")
+    assert result.statistics["status"] == "time budget spent"
+    assert result.solve_time < 5.0  # the bodies' factorisations, not every column
+    assert solve(robot, scenario.scene, scenario.stance("one-on-each")).feasible  # no budget: it goes on
 
 
 def test_a_time_budget_that_does_not_bind_changes_nothing(robot):
