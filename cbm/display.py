@@ -92,6 +92,9 @@ class StanceDisplay:
         Placement of each of the robot's visual meshes
         (:class:`cbm.robot_mesh.RobotMeshes`), world frame; empty when the
         robot is drawn as its stick figure only.
+    frames : dict of str to (4, 4) float
+        Frames a user may show (off by default): the robot's base and the frame
+        of each robot surface in contact, world frame, at the stance's posture.
     """
 
     label: str
@@ -102,6 +105,7 @@ class StanceDisplay:
     deformables: tuple = field(default=())
     colours: dict = field(default_factory=dict)
     robot_transforms: np.ndarray = field(default_factory=lambda: np.zeros((0, 4, 4)))
+    frames: dict = field(default_factory=dict)
 
 
 def contact_colours(robot):
@@ -263,7 +267,27 @@ def stance_display(planned, scene, robot, label="", meshes=None):
         forces=np.array(forces, dtype=float).reshape(-1, 3),
         deformables=deformables,
         robot_transforms=np.zeros((0, 4, 4)) if meshes is None else meshes.transforms(robot.model, planned.q),
+        frames=stance_frames(robot, planned.q, [contact.robot_surface for contact in planned.stance]),
     )
+
+
+def stance_frames(robot, q, robot_surfaces):
+    """World placements of the robot's base (its first joint, the free flyer) and of the
+    frames of some robot surfaces, at posture ``q``.
+
+    Returns
+    -------
+    dict of str to (4, 4) float
+        ``"base"``, then each surface's frame by its frame name.
+    """
+    model = robot.model
+    data = pin.Data(model)
+    pin.framesForwardKinematics(model, data, np.asarray(q, dtype=float))
+    frames = {"base": np.array(data.oMi[1].homogeneous)}
+    for name in robot_surfaces:
+        frame = robot.surfaces[name].frame
+        frames[frame] = np.array(data.oMf[model.getFrameId(frame)].homogeneous)
+    return frames
 
 
 def plan_bounds(displays, margin=0.3):

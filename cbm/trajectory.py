@@ -110,8 +110,10 @@ def plan_trajectory(plan, motions, **speeds):
 def write_trajectory(trajectory, stem):
     """Write a trajectory as ``<stem>.csv`` and ``<stem>.npz``.
 
-    The CSV has one header row ``time, stance, segment, <names...>`` and one
-    row per sample; the NPZ holds ``times``, ``q``, ``stance``, ``segment``,
+    The CSV has one header row ``time, stance, segment, <names...>, <locked...>`` and
+    one row per sample: the locked joints at their fixed values last (a joint of
+    several coordinates as ``name[i]``), so that a row is the robot's whole URDF
+    configuration; the NPZ holds ``times``, ``q``, ``stance``, ``segment``,
     ``names``, ``locked_joints`` (a JSON string) and ``interpolation`` (how to
     replay between samples, :data:`INTERPOLATION`), readable without pickle.
 
@@ -130,9 +132,12 @@ def write_trajectory(trajectory, stem):
     csv_path, npz_path = stem.with_suffix(".csv"), stem.with_suffix(".npz")
     with open(csv_path, "w", newline="") as stream:
         writer = csv.writer(stream)
-        writer.writerow(["time", "stance", "segment", *trajectory.names])
+        locked = [(name if len(values) == 1 else f"{name}[{i}]", float(value))
+                  for name, values in trajectory.locked_joints.items() for i, value in enumerate(values)]
+        writer.writerow(["time", "stance", "segment", *trajectory.names, *(name for name, _ in locked)])
+        fixed = [repr(value) for _, value in locked]
         for t, s, g, q in zip(trajectory.times, trajectory.stance, trajectory.segment, trajectory.q):
-            writer.writerow([f"{t:.6f}", int(s), int(g), *(repr(float(v)) for v in q)])
+            writer.writerow([f"{t:.6f}", int(s), int(g), *(repr(float(v)) for v in q), *fixed])
     np.savez(
         npz_path, times=trajectory.times, q=trajectory.q, stance=trajectory.stance, segment=trajectory.segment,
         names=np.array(trajectory.names), locked_joints=np.array(json.dumps(trajectory.locked_joints)),

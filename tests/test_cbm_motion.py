@@ -185,10 +185,15 @@ def test_trajectory_files_name_the_joints_and_replay_the_plan(step_plan, motions
     csv_path, npz_path = write_trajectory(trajectory, tmp_path / "trajectory")
     with open(csv_path) as stream:
         rows = list(csv.reader(stream))
-    assert rows[0] == ["time", "stance", "segment", *step_plan.robot["configuration_names"]]
+    locked = step_plan.robot["locked_joints"]
+    assert locked and all(len(values) == 1 for values in locked.values())  # Talos's: one coordinate each
+    nq = len(step_plan.robot["configuration_names"])
+    # The locked joints last, at their values: a row is the whole URDF configuration.
+    assert rows[0] == ["time", "stance", "segment", *step_plan.robot["configuration_names"], *locked]
+    assert all([float(v) for v in row[3 + nq:]] == [values[0] for values in locked.values()] for row in rows[1:])
     assert len(rows) == 1 + 1 + 2 * 7  # the first stance, then each motion's samples and its arriving stance
     read = np.load(npz_path)
-    np.testing.assert_array_equal(read["q"], np.array([[float(v) for v in row[3:]] for row in rows[1:]]))
+    np.testing.assert_array_equal(read["q"], np.array([[float(v) for v in row[3:3 + nq]] for row in rows[1:]]))
     assert list(read["names"]) == step_plan.robot["configuration_names"]
     assert json.loads(str(read["locked_joints"])) == {k: list(v) for k, v in step_plan.robot["locked_joints"].items()}
     assert np.all(np.diff(read["times"]) > 0)

@@ -500,3 +500,33 @@ def test_icub_is_drawn_with_its_meshes_turned_where_its_links_are():
     icub = stances.Robot.load("icub")
     vertices, _ = robot_meshes(icub).posed(icub.model, icub.reference_configuration)
     assert vertices[:, 2].max() - vertices[:, 2].min() == pytest.approx(1.04, abs=0.01)
+
+
+def _viewer_data(files):
+    page = files.viewer.read_text()
+    start = page.index('type="application/json">') + len('type="application/json">')
+    return json.loads(page[start: page.index("</script>", start)])
+
+
+@pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
+def test_viewer_shows_the_base_and_contact_frames_on_request(synthetic_plan, scenario, robot, tmp_path):
+    """Each stance carries the base's and its contact surfaces' frames where the posture
+    puts them; the frames box (or #frames) draws their axes, x red, y green, z blue."""
+    import pinocchio as pin
+
+    files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
+    data = _viewer_data(files)
+    for planned, stance in zip(synthetic_plan.stances, data["stances"]):
+        expected = {"base": None} | {robot.surfaces[c.robot_surface].frame: None for c in planned.stance}
+        assert [f["name"] for f in stance["frames"]] == list(expected)
+        model = robot.model
+        pose = pin.Data(model)
+        pin.framesForwardKinematics(model, pose, np.asarray(planned.q))
+        for frame in stance["frames"][1:]:
+            placement = pose.oMf[model.getFrameId(frame["name"])].homogeneous[:3].ravel()
+            np.testing.assert_allclose(frame["transform"], placement, atol=1e-5)
+    plain, framed = page_screenshot(files.viewer, tmp_path), page_screenshot(files.viewer, tmp_path, "#frames")
+    changed = framed[np.abs(framed - plain).max(axis=2) > 0.1]
+    for axis in range(3):  # pixels of each axis colour appear
+        others = [k for k in range(3) if k != axis]
+        assert np.sum((changed[:, axis] > 0.45) & (changed[:, others].max(axis=1) < 0.6 * changed[:, axis])) > 20

@@ -64,7 +64,7 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend, *, me
         ``robot_colour``, ``camera_azimuth`` (rad), ``grid_spacing``,
         ``grid_height``, ``stances`` (each: ``label``, ``segments``,
         ``robot`` (placements as 12 numbers, row-major 3 x 4), ``polygons``,
-        ``forces``, ``deformables``) and ``motions`` (``from``, ``moving``,
+        ``forces``, ``frames`` (``name``, ``transform`` as 12 numbers), ``deformables``) and ``motions`` (``from``, ``moving``,
         ``times``, ``robot``: placements per sample).
     """
     max_displacement = max(
@@ -85,6 +85,8 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend, *, me
                     {"point": _rounded(point), "force": _rounded(force, 3)}
                     for point, force in zip(display.force_points, display.forces)
                 ],
+                "frames": [{"name": name, "transform": _transforms(placement)[0]}
+                           for name, placement in display.frames.items()],
                 "deformables": [
                     {
                         "name": d.name,

@@ -13,6 +13,7 @@
   var playButton = document.getElementById("play");
   var showRobot = document.getElementById("show-robot");
   var showGrid = document.getElementById("show-grid");
+  var showFrames = document.getElementById("show-frames");
   var lo = data.bounds[0], hi = data.bounds[1];
   var target = [(lo[0] + hi[0]) / 2, (lo[1] + hi[1]) / 2, (lo[2] + hi[2]) / 2];
   var radius = Math.max(hi[0] - lo[0], hi[1] - lo[1], hi[2] - lo[2]);
@@ -21,8 +22,9 @@
   var index = 0, playing = null;
   var ROBOT_RGB = data.robot_colour;
   var FORCE = "#9467bd";
-  // "#hide=robot" in the address hides the robot (as its checkbox does).
+  // "#hide=robot" in the address hides the robot (as its checkbox does); "#frames" shows the frames.
   if (window.location.hash.indexOf("hide=robot") >= 0) { showRobot.checked = false; }
+  if (window.location.hash.indexOf("frames") >= 0) { showFrames.checked = true; }
 
   // Timeline: each stance, then the interior samples of the motion that leaves it.
   var timeline = [];
@@ -134,7 +136,31 @@
     line(project, [0, 0, z], [0, 0, z + 0.2], "#1f77b4", 2);
   }
 
-  function arrow(project, f) {
+  function frames(project, stance) {
+    // Each frame's axes, 0.15 m: x red, y green, z blue, and its name.
+    (stance.frames || []).forEach(function (frame) {
+      var T = frame.transform, origin = [T[3], T[7], T[11]];
+      ["#d62728", "#2ca02c", "#1f77b4"].forEach(function (colour, k) {
+        line(project, origin, [origin[0] + 0.15 * T[k], origin[1] + 0.15 * T[4 + k], origin[2] + 0.15 * T[8 + k]], colour, 3);
+      });
+      var p = project(origin);
+      context.fillStyle = "#333";
+      context.font = "11px sans-serif";
+      context.fillText(frame.name, p[0] + 4, p[1] + 12);
+    });
+  }
+
+  function labelAt(text, x, y, placed) {
+    // Moved down, a line at a time, off the labels already drawn: two soles' equal
+    // forces put their labels on one spot.
+    var width = context.measureText(text).width, height = 14;
+    var clash = function (box) { return x < box[0] + box[2] && box[0] < x + width && y - height < box[1] && box[1] - height < y; };
+    for (var tries = 0; tries < 20 && placed.some(clash); tries++) { y += height; }
+    placed.push([x, y, width]);
+    context.fillText(text, x, y);
+  }
+
+  function arrow(project, f, placed) {
     var magnitude = Math.sqrt(f.force[0] * f.force[0] + f.force[1] * f.force[1] + f.force[2] * f.force[2]);
     if (magnitude < 1e-9) { return; }
     // Linear in the force, but never shorter than 6 cm, and labelled: a palm's 20 N stays legible.
@@ -151,7 +177,7 @@
     context.closePath();
     context.fill();
     context.font = "bold 13px sans-serif";
-    context.fillText(magnitude.toFixed(0) + " N", q[0] + 6, q[1] - 4);
+    labelAt(magnitude.toFixed(0) + " N", q[0] + 6, q[1] - 4, placed);
   }
 
   function draw() {
@@ -197,7 +223,9 @@
     if (showRobot.checked && !data.robot.meshes.length && frame.segments) {
       frame.segments.forEach(function (s) { line(project, s[0], s[1], "#111", 2.5); });
     }
-    if (frame.forces !== false) { stance.forces.forEach(function (f) { arrow(project, f); }); }
+    if (showFrames.checked && frame.segments) { frames(project, stance); }
+    var placed = [];
+    if (frame.forces !== false) { stance.forces.forEach(function (f) { arrow(project, f, placed); }); }
     label.textContent = frame.text;
     slider.value = String(index);
     document.body.dataset.status = "ok";
@@ -240,6 +268,7 @@
   window.addEventListener("resize", function () { resize(); if (timeline.length) { draw(); } });
   showRobot.addEventListener("change", draw);
   showGrid.addEventListener("change", draw);
+  showFrames.addEventListener("change", draw);
   slider.max = String(Math.max(timeline.length - 1, 0));
   slider.addEventListener("input", function () { index = Number(slider.value); draw(); });
   playButton.addEventListener("click", function () {
