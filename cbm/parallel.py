@@ -21,6 +21,8 @@ import logging
 import multiprocessing
 import os
 import signal
+import threading
+import time
 from dataclasses import dataclass
 from typing import Any
 
@@ -150,9 +152,11 @@ def _check(stance, parent_q):
 
     if isinstance(_ORACLE, Exception):
         raise CbmError(f"a worker process could not build the robot and scene: {_ORACLE}") from _ORACLE
+    started = time.process_time()
     check = _ORACLE(stance, None, None if parent_q is None else _WarmStart(parent_q))
     result = None if check.result is None else portable(check.result)
-    return StanceCheck(check.feasible, check.reason, result, check.rejected_by, check.bad_input)
+    answer = StanceCheck(check.feasible, check.reason, result, check.rejected_by, check.bad_input)
+    return answer, time.process_time() - started
 
 
 class _Answer:
@@ -168,7 +172,7 @@ class _Answer:
     def result(self) -> Any:
         from stances.portable import restore_deformations
 
-        check = self._pending.get()
+        check, _ = self._pending.get()
         if check.result is None:
             return check
         result = restore_deformations(self._pool.robot, self._pool.scene, check.result)
@@ -196,6 +200,12 @@ class PosturePool:
     prefilter : bool
         As :class:`~cbm.planner.PostureOracle`'s.
 
+    Attributes
+    ----------
+    worker_cpu : float
+        CPU seconds the workers spent on the checks they finished, answers the
+        search never used included (a plan's CPU time adds them).
+
     Notes
     -----
     Use as a context manager: leaving it terminates the workers, even those
@@ -206,6 +216,8 @@ class PosturePool:
         recipe = WorldRecipe.of(scenario, robot)
         self.robot, self.scene = robot, scenario.scene
         self.workers = check_workers(workers)
+        self.worker_cpu = 0.0
+        self._lock = threading.Lock()  # the pool's result thread adds to worker_cpu
         context = multiprocessing.get_context("spawn")
         self._pool = context.Pool(
             workers, _start_worker, (recipe, dict(solver_options or {}), retry_cold, deadline, prefilter)
@@ -223,7 +235,12 @@ class PosturePool:
         parent_q = None
         if parent_check is not None and parent_check.result is not None:
             parent_q = parent_check.result.q
-        return _Answer(self, self._pool.apply_async(_check, (stance, parent_q)))
+        return _Answer(self, self._pool.apply_async(_check, (stance, parent_q), callback=self._count))
+
+    def _count(self, answer):
+        """Add a finished check's CPU seconds (run in the pool's result thread)."""
+        with self._lock:
+            self.worker_cpu += answer[1]
 
     def close(self):
         """Terminate the workers (checks still running are abandoned)."""

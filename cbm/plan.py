@@ -185,6 +185,9 @@ class PlannedStance:
 class PlanStatistics(SearchStatistics):
     """Effort spent on a plan: the search's counters and the prints sampled.
 
+    ``cpu_time`` adds the worker processes' CPU seconds to this process's (a plan with
+    ``workers > 1``), and like every counter it covers every search the plan ran.
+
     Parameters
     ----------
     prints : int

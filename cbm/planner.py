@@ -557,6 +557,10 @@ def plan(
         if pool is not None:
             pool.close()
     searched = _with_earlier(searched, earlier)
+    if pool is not None:
+        # The workers' CPU too: what the plan cost, not only this process's share.
+        statistics = dataclasses.replace(searched.statistics, cpu_time=searched.statistics.cpu_time + pool.worker_cpu)
+        searched = dataclasses.replace(searched, statistics=statistics)
     reason = searched.reason
     if earlier is not None:
         reason += (f" on a {sampling.spacing:.3f} m print grid, after {earlier[0].expanded} stances expanded on "
