@@ -634,7 +634,7 @@ def _check_plan_refined(plan, factor):
     """Each stance of a plan with a soft print solved again on its soft meshes ``factor`` times finer."""
     from dataclasses import replace
 
-    from stances import Robot, check_refined
+    from stances import check_refined
     from stances.refined_check import soft_robot_surfaces
 
     scenario = plan.scenario()
@@ -646,7 +646,7 @@ def _check_plan_refined(plan, factor):
     fine = _refined_scenario(scenario, factor)
     if fine is None:
         return EXIT_BAD_INPUT
-    robot = Robot.load(plan.robot.get("source") or scenario.robot)
+    robot = plan.robot_model(scenario)
     failed = []
     for index in soft:
         planned = plan.stances[index]

@@ -385,7 +385,7 @@ class Plan:
         if scenario is None:
             scenario = self.scenario()
         if robot is None:
-            robot = stances.Robot.load(self.robot.get("source") or scenario.robot)
+            robot = self.robot_model(scenario)
         problems = []
         for index, planned in enumerate(self.stances):
             result = planned.result
@@ -439,12 +439,32 @@ class Plan:
         if scenario is None:
             scenario = self.scenario()
         if robot is None:
-            robot = stances.Robot.load(self.robot.get("source") or scenario.robot)
+            robot = self.robot_model(scenario)
         view = LiveView(self, scenario, robot, motions, viewer)
         logger.info("plan shown in meshcat at %s", view.url)
         if play:
             view.play(**timing)
         return view
+
+    def robot_model(self, scenario=None):
+        """The robot planned for, loaded again: from its description file, or from the
+        copy of it the plan carries where that file is gone (its relative model paths
+        then read from where the file was), or the built-in robot the scenario names.
+
+        Parameters
+        ----------
+        scenario : environments Scenario, optional
+            Default: :meth:`scenario`.
+
+        Returns
+        -------
+        stances Robot
+        """
+        source = self.robot.get("source") or (scenario or self.scenario()).robot
+        text = self.robot.get("text")
+        if text is not None and not Path(source).is_file():
+            return stances.Robot.from_description(stances.read_description_text(text, source))
+        return stances.Robot.load(source)
 
     def scenario(self):
         """The scenario planned: the embedded YAML read again, else the built-in one by name.
@@ -507,19 +527,25 @@ def robot_description(robot):
         built-in name or a description file; empty for a robot built in code),
         ``urdf`` (path or None),
         ``configuration_names`` (nq,), ``joint_names`` (actuated joints, torque
-        order), ``locked_joints`` (name -> locked coordinate values) and
-        ``mass`` (kg).
+        order), ``locked_joints`` (name -> locked coordinate values),
+        ``mass`` (kg) and, for a robot of a user's description file, its
+        ``text``: the plan loads its robot from it where the file is gone
+        (:meth:`Plan.robot_model`).
     """
     urdf = getattr(robot, "urdf", None)
-    return {
+    source = str(getattr(robot, "source", ""))
+    described = {
         "name": robot.name,
-        "source": str(getattr(robot, "source", "")),
+        "source": source,
         "urdf": None if urdf is None else str(urdf),
         "configuration_names": list(robot.configuration_names),
         "joint_names": list(robot.actuated_joint_names),
         "locked_joints": {name: list(values) for name, values in getattr(robot, "locked_joints", {}).items()},
         "mass": float(robot.mass),
     }
+    if source and source not in stances.builtin_robot_names() and Path(source).is_file():
+        described["text"] = Path(source).read_text(encoding="utf-8")
+    return described
 
 
 def scenario_source(scenario):

@@ -11,7 +11,14 @@ Build a problem, solve it, check it::
 """
 
 from .cold_start import initial_configuration
-from .description import RobotDescription, RobotDescriptionError, SupportRule, builtin_robot_names, read_description
+from .description import (
+    RobotDescription,
+    RobotDescriptionError,
+    SupportRule,
+    builtin_robot_names,
+    read_description,
+    read_description_text,
+)
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
 from .results import PointForce, PostureResult, SolveStatistics, Verification
@@ -43,6 +50,7 @@ __all__ = [
     "check_refined",
     "initial_configuration",
     "read_description",
+    "read_description_text",
     "solve",
     "solve_problem",
     "verify",

@@ -89,6 +89,7 @@ __all__ = [
     "example_robot_data_share",
     "point_print",
     "read_description",
+    "read_description_text",
 ]
 
 #: Roles a robot contact surface can have: a foot supports the robot and the
@@ -411,9 +412,25 @@ def read_description(name_or_file) -> RobotDescription:
     """
     path = description_path(name_or_file)
     try:
-        data = load_yaml(path.read_text(encoding="utf-8"))
+        text = path.read_text(encoding="utf-8")
     except (OSError, UnicodeDecodeError) as error:
         raise RobotDescriptionError(path, "", f"cannot read: {error}") from None
+    return read_description_text(text, path)
+
+
+def read_description_text(text: str, path) -> RobotDescription:
+    """Read and check a robot description given as text, as if it were the file ``path``:
+    its relative model paths are read from that file's folder, and errors name it (a
+    plan file carries its robot's description, so that it loads where the file is gone).
+
+    Raises
+    ------
+    RobotDescriptionError
+        For any invalid entry, naming ``path`` and the key.
+    """
+    path = Path(path)
+    try:
+        data = load_yaml(text)
     except yaml.YAMLError as error:
         raise RobotDescriptionError(path, "", f"YAML syntax error: {error}") from None
     return _Reader(path).description(data)

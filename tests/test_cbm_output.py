@@ -530,3 +530,24 @@ def test_viewer_shows_the_base_and_contact_frames_on_request(synthetic_plan, sce
     for axis in range(3):  # pixels of each axis colour appear
         others = [k for k in range(3) if k != axis]
         assert np.sum((changed[:, axis] > 0.45) & (changed[:, others].max(axis=1) < 0.6 * changed[:, axis])) > 20
+
+
+def test_a_plan_of_a_users_robot_file_checks_where_that_file_is_gone(synthetic_plan, tmp_path):
+    """plan.json carries the robot's description when it came from a user's file: moved
+    away, the plan still loads its robot (from that copy) and checks; a built-in robot's
+    plan carries no copy."""
+    from cbm.plan import robot_description
+
+    user_file = tmp_path / "my-talos.yaml"
+    user_file.write_text(stances.description.description_path("talos").read_text())
+    mine = stances.Robot.load(user_file)
+    plan = Plan(True, "goal reached", synthetic_plan.stances[:1], PlanStatistics(), synthetic_plan.scenario_name,
+                robot=robot_description(mine), scenario_source=synthetic_plan.scenario_source)
+    assert plan.robot["text"] == user_file.read_text() and "text" not in synthetic_plan.robot
+    saved = plan.save(tmp_path / "plan.json")
+    user_file.unlink()
+    loaded = Plan.load(saved)
+    robot = loaded.robot_model()
+    assert robot.name == mine.name and robot.configuration_names == mine.configuration_names
+    report = loaded.check()
+    assert not any("robot" in problem for problem in report.problems), report.problems
