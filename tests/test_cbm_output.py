@@ -328,6 +328,19 @@ def test_viewer_draws_the_robot_from_its_meshes_where_it_stands(synthetic_plan, 
 
 
 @pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
+def test_viewer_reports_a_console_error_in_its_status(synthetic_plan, scenario, robot, tmp_path):
+    """An error logged to the console, not thrown, marks the page too, and the drawing
+    that follows does not turn it back to ok."""
+    files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
+    page = files.viewer.read_text().replace("/*__VIEWER_JS__*/", "", 1)
+    logged = page.replace('  "use strict";', '  "use strict";\n  console.error("a logged failure");', 1)
+    assert logged != page
+    broken = tmp_path / "logged.html"
+    broken.write_text(logged)
+    assert page_status(broken, tmp_path) == "error: a logged failure"
+
+
+@pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")
 def test_viewer_reports_a_script_error_in_its_status(synthetic_plan, scenario, robot, tmp_path):
     # The check must be able to fail: break the page's data and expect an error status.
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
@@ -401,8 +414,9 @@ def test_cli_and_python_share_their_defaults():
 
     signature = inspect.signature(plan).parameters
     args = build_parser().parse_args(["plan"])
-    for name in ("max_expansions", "time_limit", "seed", "print_spacing"):
+    for name in ("max_expansions", "time_limit", "seed", "print_spacing", "workers", "terrain_weight", "robot"):
         assert getattr(args, name) == signature[name].default, name
+    assert (not args.no_prefilter) == signature["prefilter"].default
     assert signature["time_limit"].default == 300.0  # the value README and --help quote
 
 

@@ -228,7 +228,8 @@
     if (frame.forces !== false) { stance.forces.forEach(function (f) { arrow(project, f, placed); }); }
     label.textContent = frame.text;
     slider.value = String(index);
-    document.body.dataset.status = "ok";
+    // "ok" once drawn, unless an error came first: it stays what the page says.
+    if (document.body.dataset.status.indexOf("error") !== 0) { document.body.dataset.status = "ok"; }
   }
 
   function legend() {
