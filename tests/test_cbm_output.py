@@ -332,7 +332,7 @@ def test_viewer_reports_a_console_error_in_its_status(synthetic_plan, scenario, 
     """An error logged to the console, not thrown, marks the page too, and the drawing
     that follows does not turn it back to ok."""
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
-    page = files.viewer.read_text().replace("/*__VIEWER_JS__*/", "", 1)
+    page = files.viewer.read_text()
     logged = page.replace('  "use strict";', '  "use strict";\n  console.error("a logged failure");', 1)
     assert logged != page
     broken = tmp_path / "logged.html"
