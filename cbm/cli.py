@@ -17,6 +17,7 @@ import argparse
 import functools
 import logging
 import os
+import signal
 import sys
 from pathlib import Path
 
@@ -589,17 +590,29 @@ def _view(plan, scenario=None, robot=None, motions=()):
     is shown; Enter plays the plan (and its motions), ``q`` then Enter, or the end of
     standard input (a non-interactive run), closes it.
     """
-    view = plan.show(scenario, robot, motions, play=False)
-    print(f"  meshcat: {view.url}")
-    while True:
-        try:
-            answer = input("  Enter: play the plan, q then Enter: close the view > ")
-        except EOFError:
-            print()
-            return
-        if answer.strip().lower() in ("q", "quit", "exit"):
-            return
-        view.play()
+    # Closed from outside (the terminal closed, kill): leave as on Ctrl-C, through the
+    # interpreter's exit, which ends the meshcat server this process starts.
+    stops = [getattr(signal, name) for name in ("SIGTERM", "SIGHUP") if hasattr(signal, name)]
+    previous = {stop: signal.signal(stop, _exit_on_signal) for stop in stops}
+    try:
+        view = plan.show(scenario, robot, motions, play=False)
+        print(f"  meshcat: {view.url}")
+        while True:
+            try:
+                answer = input("  Enter: play the plan, q then Enter: close the view > ")
+            except EOFError:
+                print()
+                return
+            if answer.strip().lower() in ("q", "quit", "exit"):
+                return
+            view.play()
+    finally:
+        for stop, handler in previous.items():
+            signal.signal(stop, handler)
+
+
+def _exit_on_signal(number, frame):
+    raise SystemExit(128 + number)
 
 
 def _refined_scenario(scenario, factor):

@@ -467,7 +467,8 @@ class Plan:
         return stances.Robot.load(source)
 
     def scenario(self):
-        """The scenario planned: the embedded YAML read again, else the built-in one by name.
+        """The scenario planned: the embedded YAML read again, else the built-in one by name
+        (its robot file, when the plan carries a copy of it, need not exist any more).
 
         Raises
         ------
@@ -479,7 +480,11 @@ class Plan:
         text = self.scenario_source.get("text")
         if text is None:
             return environments.load(self.scenario_name)
-        return environments.load_string(text, path=self.scenario_source.get("path"), name=self.scenario_name)
+        # A robot file the plan carries a copy of need not be there any more (robot_model reads the copy).
+        source = self.robot.get("source")
+        carried = source if self.robot.get("text") is not None and source and not Path(source).is_file() else None
+        return environments.load_string(text, path=self.scenario_source.get("path"), name=self.scenario_name,
+                                        robot=carried)
 
     def full_configuration(self, index):
         """Stance ``index``'s configuration with the locked joints, by coordinate name.

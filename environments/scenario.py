@@ -271,7 +271,8 @@ def load(name_or_path: str | os.PathLike) -> Scenario:
     return load_string(text, path=path)
 
 
-def load_string(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> Scenario:
+def load_string(text: str, path: str | os.PathLike | None = None, name: str | None = None,
+                robot: str | None = None) -> Scenario:
     """Read a scenario from YAML text.
 
     Parameters
@@ -282,10 +283,13 @@ def load_string(text: str, path: str | os.PathLike | None = None, name: str | No
         File it came from (for messages and relative mesh files).
     name : str, optional
         Scenario name; default the ``name`` key, else the file stem.
+    robot : str, optional
+        The scenario's robot (a built-in name or a description file), given instead
+        of its ``robot`` key, which is then neither read nor checked.
 
     Raises
     ------
     ScenarioError
         On a syntax error (with its line) or any invalid entry.
     """
-    return Scenario(**read_scenario_fields(text, path, name), text=text)
+    return Scenario(**read_scenario_fields(text, path, name, robot), text=text)

@@ -82,7 +82,8 @@ def line_of(lines: dict, key: str) -> int | None:
     return lines.get(probe)
 
 
-def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None) -> dict:
+def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name: str | None = None,
+                         robot: str | None = None) -> dict:
     """Parse and validate a scenario YAML document into the fields of a ``Scenario``.
 
     Parameters
@@ -93,6 +94,10 @@ def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name:
         File it came from (for messages and relative mesh files).
     name : str, optional
         Scenario name; default the ``name`` key, else the file stem.
+    robot : str, optional
+        The robot the scenario asks for, given by the caller instead of read and
+        checked from the ``robot`` key (a plan that carries its robot's description
+        reads its scenario again where that robot file is gone).
 
     Returns
     -------
@@ -116,7 +121,7 @@ def read_scenario_fields(text: str, path: str | os.PathLike | None = None, name:
         raise ScenarioError(path, "", f"YAML syntax error: {problem}", line=line) from None
     except RecursionError:
         raise ScenarioError(path, "", f"YAML nested too deeply; a scenario needs fewer than {MAX_YAML_DEPTH} levels") from None
-    return _Reader(path, lines).scenario_fields(data, name)
+    return _Reader(path, lines, robot).scenario_fields(data, name)
 
 
 #: Most YAML nodes a scenario may expand to, aliases (``*name``) counted at every
@@ -193,9 +198,10 @@ _MATERIAL_KEYS = {"young_modulus": ("E", _MISSING, True), "poisson_ratio": ("nu"
 class _Reader:
     """Validating reader of the plain data of one scenario file."""
 
-    def __init__(self, path, lines: dict[str, int]) -> None:
+    def __init__(self, path, lines: dict[str, int], robot: str | None = None) -> None:
         self.path = None if path is None else Path(path)
         self.lines = lines
+        self.given_robot = robot
 
     # ------------------------------------------------------------------ basics
     def error(self, key: str, message: str) -> ScenarioError:
@@ -263,7 +269,8 @@ class _Reader:
         )
         default_name = self.path.stem if self.path is not None else "scenario"
         name = name if name is not None else self.string(top, "name", "", default_name)
-        robot = self.robot(self.string(top, "robot", "", "talos"))
+        robot = self.string(top, "robot", "", "talos")
+        robot = self.robot(robot) if self.given_robot is None else self.given_robot
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.error("description", f"must be text, got {kind_of(description)}")

@@ -2,6 +2,7 @@
 
 import os
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -125,15 +126,28 @@ def test_the_live_view_draws_the_robot_in_a_real_browser(tmp_path, robot):
     assert 0.25 * width < columns.mean() < 0.75 * width
 
 
+def _children(pid):
+    """Process ids whose parent is ``pid`` (Linux: read from /proc)."""
+    found = []
+    for stat in Path("/proc").glob("[0-9]*/stat"):
+        try:
+            fields = stat.read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            continue  # ended while read
+        if int(fields[1]) == pid:
+            found.append(stat.parent.name)
+    return found
+
+
 def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
     """``cbm check ... --view`` serves the stance until the user answers ``q``: the page
     answers while the command waits (before, the server was closed with the process a
     second after it started), and standard input's end closes it too."""
     import re
+    import signal
     import subprocess
     import time
     import urllib.request
-    from pathlib import Path
 
     root = Path(__file__).resolve().parents[1]
     environment = {**os.environ, "PYTHONUNBUFFERED": "1",
@@ -165,3 +179,20 @@ def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
     closed = subprocess.run(command, stdin=subprocess.DEVNULL, capture_output=True, text=True, env=environment,
                             timeout=240)
     assert closed.returncode == 0 and "meshcat: http" in closed.stdout, closed.stderr
+    # Closed from outside (SIGTERM, as a closing terminal's SIGHUP): it exits as on Ctrl-C and
+    # takes its meshcat server along (before, the server outlived it, holding its port).
+    child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             env=environment, text=True)
+    try:
+        for line in child.stdout:
+            if line.strip().startswith("meshcat: "):
+                break
+        servers = _children(child.pid)
+        assert servers, "no meshcat server process under the view"
+        child.send_signal(signal.SIGTERM)
+        assert child.wait(timeout=60) == 128 + signal.SIGTERM
+    finally:
+        child.kill()
+        child.wait()
+    time.sleep(1.0)
+    assert not any(Path(f"/proc/{pid}").exists() for pid in servers)

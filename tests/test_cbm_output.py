@@ -546,17 +546,28 @@ def test_viewer_shows_the_base_and_contact_frames_on_request(synthetic_plan, sce
         assert np.sum((changed[:, axis] > 0.45) & (changed[:, others].max(axis=1) < 0.6 * changed[:, axis])) > 20
 
 
-def test_a_plan_of_a_users_robot_file_checks_where_that_file_is_gone(synthetic_plan, tmp_path):
+@pytest.mark.parametrize("named_by", ["the command line", "the scenario file"])
+def test_a_plan_of_a_users_robot_file_checks_where_that_file_is_gone(synthetic_plan, tmp_path, named_by):
     """plan.json carries the robot's description when it came from a user's file: moved
-    away, the plan still loads its robot (from that copy) and checks; a built-in robot's
-    plan carries no copy."""
+    away, the plan still loads its robot (from that copy) and checks, whether the robot was
+    given apart (cbm plan --robot) or named by the user's scenario file, gone too; a
+    built-in robot's plan carries no copy."""
     from cbm.plan import robot_description
 
     user_file = tmp_path / "my-talos.yaml"
     user_file.write_text(stances.description.description_path("talos").read_text())
     mine = stances.Robot.load(user_file)
+    source = synthetic_plan.scenario_source
+    if named_by == "the scenario file":
+        text = environments.builtin_scenario_path("cross-soft-block").read_text()
+        scenario_file = tmp_path / "my-foam.yaml"
+        scenario_file.write_text(text.replace("robot: talos", "robot: my-talos.yaml"))
+        user_scenario = environments.load(scenario_file)
+        assert user_scenario.robot == str(user_file.resolve())
+        source = scenario_source(user_scenario)
+        scenario_file.unlink()
     plan = Plan(True, "goal reached", synthetic_plan.stances[:1], PlanStatistics(), synthetic_plan.scenario_name,
-                robot=robot_description(mine), scenario_source=synthetic_plan.scenario_source)
+                robot=robot_description(mine), scenario_source=source)
     assert plan.robot["text"] == user_file.read_text() and "text" not in synthetic_plan.robot
     saved = plan.save(tmp_path / "plan.json")
     user_file.unlink()
