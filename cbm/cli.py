@@ -628,6 +628,7 @@ def _refined_scenario(scenario, factor):
 
 def _check_plan(path, refine=None, view=False):
     from .plan import Plan
+    from .trajectory import read_trajectory
 
     plan = Plan.load(path)
     report = plan.check()
@@ -639,7 +640,9 @@ def _check_plan(path, refine=None, view=False):
     if report.ok and refine is not None:
         code = _check_plan_refined(plan, refine)
     if view:
-        _view(plan)
+        # The motions a cbm plan --motion wrote beside the plan, replayed between its stances.
+        saved = Path(path).parent / "trajectory.npz"
+        _view(plan, motions=read_trajectory(saved).motions() if saved.is_file() else ())
     return code
 
 

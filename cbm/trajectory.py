@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import CbmError
 
-__all__ = ["INTERPOLATION", "JointTrajectory", "plan_trajectory", "write_trajectory"]
+__all__ = ["INTERPOLATION", "JointTrajectory", "ReplayedMotion", "plan_trajectory", "read_trajectory", "write_trajectory"]
 
 #: How a replay goes from one sample to the next: what the motions' checks between
 #: samples (collisions, held contacts' strays) assumed.
@@ -68,6 +68,56 @@ class JointTrajectory:
             )
         if np.any(np.diff(self.times) <= 0):
             raise CbmError("trajectory times must increase")
+
+    def motions(self) -> tuple:
+        """The motions between stances this trajectory holds, as :class:`ReplayedMotion`
+        (a step whose motion was not found has no samples, and no entry)."""
+        stance_rows = {int(s): row for row, s in enumerate(self.stance) if s >= 0}
+        found = []
+        for index in range(len(stance_rows) - 1):
+            between = np.flatnonzero((self.segment == index) & (self.stance < 0))
+            if between.size:
+                rows = [stance_rows[index], *between.tolist(), stance_rows[index + 1]]
+                found.append(ReplayedMotion(index, self.q[rows]))
+        return tuple(found)
+
+
+@dataclass(frozen=True)
+class ReplayedMotion:
+    """A motion between two stances as a saved trajectory holds it: enough to replay it
+    (:class:`cbm.live.LiveView` reads ``index``, ``feasible`` and ``configurations``).
+
+    Parameters
+    ----------
+    index : int
+        The stance it leaves.
+    configurations : (k, nq) float
+        That stance's posture, the motion's samples, the next stance's posture.
+    feasible : bool
+        Always True: a saved trajectory keeps the samples of found motions only.
+    """
+
+    index: int
+    configurations: np.ndarray
+    feasible: bool = True
+
+
+def read_trajectory(path) -> "JointTrajectory":
+    """A trajectory written by :func:`write_trajectory`, from its ``.npz``.
+
+    Raises
+    ------
+    CbmError
+        If the file lacks an entry a trajectory needs.
+    """
+    with np.load(path, allow_pickle=False) as data:
+        try:
+            return JointTrajectory(
+                tuple(str(name) for name in data["names"]), data["times"], data["q"], data["stance"],
+                data["segment"], {name: tuple(values) for name, values in json.loads(str(data["locked_joints"])).items()},
+            )
+        except KeyError as error:
+            raise CbmError(f"{path}: not a trajectory written by cbm (no entry {error})") from None
 
 
 def plan_trajectory(plan, motions, **speeds):

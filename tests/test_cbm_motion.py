@@ -1103,3 +1103,17 @@ def test_a_free_foot_over_the_floor_has_no_retreat(step_plan, scenario, robot):
     assert near and min(near, key=lambda p: p.distance).name_b == "floor"
     assert np.hypot(*min(near, key=lambda p: p.distance).normal[:2]) < _ACROSS
     assert retreat(robot, scenario.scene, step_plan.stances[0], step_plan.stances[1], 0.05) is None
+
+
+def test_a_saved_trajectory_gives_back_each_motion_to_replay(step_plan, motions, tmp_path):
+    """read_trajectory(...).motions(): what cbm check plan.json --view replays between the
+    stances: each found motion's samples between its two stances' postures, bit for bit."""
+    from cbm.trajectory import read_trajectory
+
+    _, npz_path = write_trajectory(plan_trajectory(step_plan, motions), tmp_path / "trajectory")
+    replayed = read_trajectory(npz_path).motions()
+    found = [m for m in motions if m.feasible]
+    assert [m.index for m in replayed] == [m.index for m in found] and found
+    for again, motion in zip(replayed, found):
+        assert again.feasible
+        np.testing.assert_array_equal(again.configurations, motion.configurations)
