@@ -157,7 +157,8 @@ def write_outputs(plan, scenario, robot, out_dir, *, pictures=True, motions=None
     data = viewer_data(f"{plan.scenario_name} ({status})", displays, edges, bounds, scale, legend, meshes=meshes,
                        motions=played, camera_azimuth=azimuth)
     viewer_path = write_viewer(out / "viewer.html", data)
-    logger.info("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(vtu_paths))
+    # Debug: the command line writes into a temporary folder it then renames, and says where.
+    logger.debug("wrote %s: plan, %d pictures, %d meshes, viewer", out, len(picture_paths), len(vtu_paths))
     return OutputFiles(plan_path, tuple(picture_paths), tuple(vtu_paths), viewer_path, series, trajectory_paths,
                        tuple(robot_paths))
 

@@ -340,7 +340,7 @@ class Plan:
         """
         path = Path(path)
         path.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=True))
-        logger.info("plan written to %s", path)
+        logger.debug("plan written to %s", path)
         return path
 
     @classmethod

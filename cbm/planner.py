@@ -13,12 +13,14 @@ import math
 import os
 import time
 from collections import Counter
+import contextlib
 import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 from tqdm import tqdm
+from tqdm.contrib.logging import logging_redirect_tqdm
 
 import environments
 import stances
@@ -508,22 +510,24 @@ def plan(
                 bar.update(progress.statistics.expanded - bar.n)
 
         try:
-            searched = best_first_search(
-                start,
-                neighbours=neighbours,
-                oracle=oracle,
-                heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
-                is_goal=lambda stance: goal.is_satisfied(stance, scene),
-                path_cost_weight=path_cost,
-                node_cost=TerrainCost(weight) if weight > 0 else None,
-                limits=limits,
-                eager=eager,
-                shuffle_neighbours=True,
-                seed=seed,
-                on_expand=on_expand,
-                submit=None if pool is None else pool.submit,
-                lookahead=workers,
-            )
+            # Log lines above the progress line, not run into it.
+            with logging_redirect_tqdm() if bar is not None else contextlib.nullcontext():
+                searched = best_first_search(
+                    start,
+                    neighbours=neighbours,
+                    oracle=oracle,
+                    heuristic=LookaheadHeuristic(goal, scene, neighbours, feet),
+                    is_goal=lambda stance: goal.is_satisfied(stance, scene),
+                    path_cost_weight=path_cost,
+                    node_cost=TerrainCost(weight) if weight > 0 else None,
+                    limits=limits,
+                    eager=eager,
+                    shuffle_neighbours=True,
+                    seed=seed,
+                    on_expand=on_expand,
+                    submit=None if pool is None else pool.submit,
+                    lookahead=workers,
+                )
         finally:
             if bar is not None:
                 bar.close()
