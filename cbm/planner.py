@@ -33,7 +33,7 @@ from stances.errors import StanceError
 from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
-from .rejections import FINEST_GRID, finer_grid_hint, strain_bound_hint, summarise
+from .rejections import FINEST_GRID, cause_of, finer_grid_hint, strain_bound_hint, summarise
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import (
@@ -535,9 +535,10 @@ def plan(
 
     earlier = None  # (statistics, spacing) of a search on the default grid that found no plan
     try:
-        searched, prints, sampling = search(print_spacing, limits)
+        searched, prints, sampling = _out_of_time_said(search(print_spacing, limits))
         finer = sampling.spacing / 2.0
-        if (own_grid and not searched.success and finer >= FINEST_GRID
+        left = None if time_limit is None else time_limit - (time.perf_counter() - started)
+        if (own_grid and not searched.success and finer >= FINEST_GRID and (left is None or left > 0.0)
                 and searched.reason in ("budget exhausted: max_expansions", NO_FEASIBLE_NEIGHBOUR)):
             # The default grid can miss every chain of prints clear of the obstacles (a
             # user's two 0.3 m mats end to end: 200 expansions, no plan, on 0.1 m; 11
@@ -547,8 +548,8 @@ def plan(
             logger.info("%s: no plan on the %.3f m print grid (%s); searching a %.3f m one",
                         scenario.name, sampling.spacing, searched.reason, finer)
             earlier = (searched.statistics, sampling.spacing)
-            left = None if time_limit is None else max(time_limit - (time.perf_counter() - started), 0.0)
-            searched, prints, sampling = search(finer, SearchLimits(max_expansions, max_solver_calls, left))
+            finer_limits = SearchLimits(max_expansions, max_solver_calls, left)
+            searched, prints, sampling = _out_of_time_said(search(finer, finer_limits))
     except SearchInterrupted as interrupted:
         searched = _with_earlier(interrupted.result, earlier)
         s = searched.statistics
@@ -596,6 +597,17 @@ def _rejected(searched):
         for _, attributes in searched.graph.nodes(data=True)
         if attributes.get("status") == "infeasible"
     ]
+
+
+def _out_of_time_said(outcome):
+    """A search's ``(result, prints, sampling)``, its reason "budget exhausted: time_limit" where
+    it ran out of candidates because the posture checks ran out of time (the oracle's clock
+    starts before the prints are sampled, the search's after: the checks can reject every
+    candidate for time before the search's own limit is reached)."""
+    searched, prints, sampling = outcome
+    if searched.reason == NO_FEASIBLE_NEIGHBOUR and any(cause_of(r) == "time" for r in _rejected(searched)):
+        searched = dataclasses.replace(searched, reason="budget exhausted: time_limit")
+    return searched, prints, sampling
 
 
 def _with_earlier(searched, earlier):

@@ -488,3 +488,26 @@ def test_a_plan_the_default_grid_misses_is_searched_on_a_grid_half_as_fine(scena
     kept = plan(scenario, robot=robot, reach=robot.reach, oracle=CoarseGridOracle(), max_expansions=60)
     assert not kept.success and kept.statistics.print_spacing == 0.1
     assert "print grid" not in kept.reason.split(";")[0]
+
+
+class OutOfTimeOracle(SyntheticOracle):
+    """The start holds; every other stance comes back as the posture oracle answers once its
+    deadline has passed (its clock starts before the prints are sampled, the search's after)."""
+
+    def __call__(self, stance, parent, parent_check):
+        if parent is None:
+            return super().__call__(stance, parent, parent_check)
+        self.calls.append(stance)
+        return StanceCheck(False, "time limit reached before this stance was solved", None)
+
+
+def test_a_search_whose_checks_ran_out_of_time_says_so_and_tries_no_finer_grid(scenario, robot):
+    """Every candidate rejected for time empties the search's queue: that is the time limit,
+    not 'no feasible neighbour', and no finer grid is searched with no time left (an audit's
+    narrow gap with --time-limit 0.3 ended in a bad-input error: a finer search given 0 s)."""
+    own = SimpleNamespace(**{**vars(scenario), "options": {}})
+    result = plan(own, robot=robot, reach=robot.reach, oracle=OutOfTimeOracle(), max_expansions=60, time_limit=100.0)
+    assert not result.success
+    assert result.reason.startswith("budget exhausted: time_limit")
+    assert result.statistics.print_spacing == 0.1 and "print grid" not in result.reason
+    assert list(result.rejections) == ["time"]
