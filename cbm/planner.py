@@ -505,9 +505,9 @@ def plan(
             # expansion (each costs at least a posture solve).
             bar = tqdm(desc=f"planning {scenario.name}", unit=" expanded", leave=False, mininterval=0, miniters=1)
 
-            def on_expand(progress):
-                bar.set_postfix_str(_progress_text(progress, limits.time_limit), refresh=False)
-                bar.update(progress.statistics.expanded - bar.n)
+            def on_expand(state):
+                bar.set_postfix_str(_progress_text(state, limits.time_limit), refresh=False)
+                bar.update(state.statistics.expanded - bar.n)
 
         try:
             # Log lines above the progress line, not run into it.
