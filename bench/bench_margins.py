@@ -27,8 +27,6 @@ import sys  # noqa: E402
 import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-import numpy as np  # noqa: E402
-
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 sys.path.insert(0, str(Path(__file__).resolve().parent.parent))
 
@@ -42,18 +40,16 @@ RESULTS = Path(__file__).resolve().parent / "results"
 
 
 def stance_margins(robot, scenario, stance_name):
-    """One row's numbers: (verified, CPU s, torque usage, its joint, clearance, its joint, at margin)."""
+    """One row's numbers: (verified, CPU s, torque usage, its joint, clearance, its joint, at margin,
+    reason), read from the result's ``limits`` (:meth:`stances.problem.PostureProblem.limit_usage`;
+    tests/test_stances_solve.py recomputes them from q and the torques on ten stances)."""
     tic = time.process_time()
     result = stances.solve(robot, scenario.scene, scenario.stance(stance_name))
     seconds = time.process_time() - tic
-    names = robot.actuated_joint_names
-    model = robot.model
-    usage = np.abs(result.torques) / robot.effort_limits
-    lower, upper = model.lowerPositionLimit[7:], model.upperPositionLimit[7:]
-    clearance = np.minimum(result.q[7:] - lower, upper - result.q[7:]) / (upper - lower)
-    worst_torque, worst_joint = int(np.argmax(usage)), int(np.argmin(clearance))
-    return (result.feasible, seconds, float(usage[worst_torque]), names[worst_torque], float(clearance[worst_joint]),
-            names[worst_joint], tuple(result.limits.get("at_margin", ())), result.reason)
+    limits = result.limits  # empty where the solve stopped before a posture (a spent budget)
+    return (result.feasible, seconds, limits.get("torque_usage", float("nan")), limits.get("torque_joint", "-"),
+            limits.get("joint_clearance", float("nan")), limits.get("clearance_joint", "-"),
+            tuple(limits.get("at_margin", ())), result.reason)
 
 
 def main():

@@ -154,9 +154,9 @@ def _check(stance, parent_q):
 
     from .planner import StanceCheck
 
+    global _UNREPORTED_CPU
     if isinstance(_ORACLE, Exception):
         raise CbmError(f"a worker process could not build the robot and scene: {_ORACLE}") from _ORACLE
-    global _UNREPORTED_CPU
     started = time.process_time()
     check = _ORACLE(stance, None, None if parent_q is None else _WarmStart(parent_q))
     result = None if check.result is None else portable(check.result)

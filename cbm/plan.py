@@ -460,11 +460,18 @@ class Plan:
         -------
         stances Robot
         """
-        source = self.robot.get("source") or (scenario or self.scenario()).robot
-        text = self.robot.get("text")
-        if text is not None and not Path(source).is_file():
-            return stances.Robot.from_description(stances.read_description_text(text, source))
-        return stances.Robot.load(source)
+        carried = self._carried_robot_file()
+        if carried is not None:
+            return stances.Robot.from_description(stances.read_description_text(self.robot["text"], carried))
+        return stances.Robot.load(self.robot.get("source") or (scenario or self.scenario()).robot)
+
+    def _carried_robot_file(self):
+        """The robot's description file where it is gone and the plan carries its text
+        (:func:`robot_description`), else None."""
+        source = self.robot.get("source")
+        if self.robot.get("text") is not None and source and not Path(source).is_file():
+            return source
+        return None
 
     def scenario(self):
         """The scenario planned: the embedded YAML read again, else the built-in one by name
@@ -481,10 +488,8 @@ class Plan:
         if text is None:
             return environments.load(self.scenario_name)
         # A robot file the plan carries a copy of need not be there any more (robot_model reads the copy).
-        source = self.robot.get("source")
-        carried = source if self.robot.get("text") is not None and source and not Path(source).is_file() else None
         return environments.load_string(text, path=self.scenario_source.get("path"), name=self.scenario_name,
-                                        robot=carried)
+                                        robot=self._carried_robot_file())
 
     def full_configuration(self, index):
         """Stance ``index``'s configuration with the locked joints, by coordinate name.

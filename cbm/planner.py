@@ -8,13 +8,13 @@ neighbours of a stance (:mod:`cbm.stance_graph`), the posture solver of
 
 from __future__ import annotations
 
+import contextlib
+import dataclasses
 import logging
 import math
 import os
 import time
 from collections import Counter
-import contextlib
-import dataclasses
 from dataclasses import dataclass
 from typing import Any
 
@@ -52,6 +52,7 @@ from .search import (
     SearchInterrupted,
     SearchLimits,
     best_first_search,
+    budget_exhausted,
 )
 from .stance_graph import StanceNeighbours
 from .terrain import TerrainCost, terrain_weight as _terrain_weight
@@ -539,7 +540,7 @@ def plan(
         finer = sampling.spacing / 2.0
         left = None if time_limit is None else time_limit - (time.perf_counter() - started)
         if (own_grid and not searched.success and finer >= FINEST_GRID and (left is None or left > 0.0)
-                and searched.reason in ("budget exhausted: max_expansions", NO_FEASIBLE_NEIGHBOUR)):
+                and searched.reason in (budget_exhausted("max_expansions"), NO_FEASIBLE_NEIGHBOUR)):
             # The default grid can miss every chain of prints clear of the obstacles (a
             # user's two 0.3 m mats end to end: 200 expansions, no plan, on 0.1 m; 11
             # stances in 1.8 s on 0.05 m), and a finer one from the start would slow
@@ -606,7 +607,7 @@ def _out_of_time_said(outcome):
     candidate for time before the search's own limit is reached)."""
     searched, prints, sampling = outcome
     if searched.reason == NO_FEASIBLE_NEIGHBOUR and any(cause_of(r) == "time" for r in _rejected(searched)):
-        searched = dataclasses.replace(searched, reason="budget exhausted: time_limit")
+        searched = dataclasses.replace(searched, reason=budget_exhausted("time_limit"))
     return searched, prints, sampling
 
 

@@ -40,6 +40,7 @@ __all__ = [
     "SearchInterrupted",
     "NO_FEASIBLE_NEIGHBOUR",
     "INTERRUPTED",
+    "budget_exhausted",
     "DEFAULT_MAX_EXPANSIONS",
     "DEFAULT_TIME_LIMIT",
 ]
@@ -51,6 +52,11 @@ NO_FEASIBLE_NEIGHBOUR = "no feasible neighbour"
 
 #: Reason of the partial result carried by :class:`SearchInterrupted`.
 INTERRUPTED = "interrupted (Ctrl-C)"
+
+
+def budget_exhausted(limit: str) -> str:
+    """The reason of a search stopped by one of its :class:`SearchLimits` (its field name)."""
+    return f"budget exhausted: {limit}"
 
 
 class SearchInterrupted(KeyboardInterrupt):
@@ -482,7 +488,7 @@ def best_first_search(
             if on_expand is not None:
                 on_expand(SearchProgress(statistics(), best[0], len(heap)))
     except _BudgetExhausted as exhausted:
-        return finish(False, f"budget exhausted: {exhausted.limit}", best[2] if best else None)
+        return finish(False, budget_exhausted(exhausted.limit), best[2] if best else None)
     except KeyboardInterrupt:
         # Every node on the way to ``best`` has its answer in the cache and its
         # parent in came_from before ``best`` names it, wherever the interrupt falls.

@@ -11,7 +11,9 @@ import numpy as np
 
 from .errors import CbmError
 
-__all__ = ["INTERPOLATION", "JointTrajectory", "ReplayedMotion", "plan_trajectory", "read_trajectory", "write_trajectory"]
+__all__ = [
+    "INTERPOLATION", "JointTrajectory", "ReplayedMotion", "plan_trajectory", "read_trajectory", "write_trajectory",
+]
 
 #: How a replay goes from one sample to the next: what the motions' checks between
 #: samples (collisions, held contacts' strays) assumed.

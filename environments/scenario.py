@@ -285,7 +285,7 @@ def load_string(text: str, path: str | os.PathLike | None = None, name: str | No
         Scenario name; default the ``name`` key, else the file stem.
     robot : str, optional
         The scenario's robot (a built-in name or a description file), given instead
-        of its ``robot`` key, which is then neither read nor checked.
+        of its ``robot`` key, whose file is then neither looked for nor checked.
 
     Raises
     ------

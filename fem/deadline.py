@@ -53,7 +53,7 @@ def check_deadline(what: str) -> None:
     ----------
     what : str
         What was under way, for the message (e.g. "the compliance columns of 24
-        print nodes, 9 solved").
+        nodes of a print (9 ready)").
     """
     when = _DEADLINE.get()
     if when is not None and time.perf_counter() > when:

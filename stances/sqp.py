@@ -954,7 +954,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         return PostureResult(
             feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
             solve_time=time.perf_counter() - start, stance=stance, statistics={"status": _OUT_OF_TIME},
-            reason=f"time budget of {float(time_budget):g} s spent before convergence; {stop}",
+            reason=_budget_spent(time_budget, str(stop)),
         )
 
 
@@ -1041,8 +1041,12 @@ def _timed_out(result, time_budget) -> PostureResult:
     what the last iterate still violated (a state when the time ran out, not a verdict)."""
     if result.feasible or result.statistics.get("status") != _OUT_OF_TIME:
         return result
-    return _with(result, reason=f"time budget of {float(time_budget):g} s spent before convergence; "
-                                f"at the last iterate: {result.reason}")
+    return _with(result, reason=_budget_spent(time_budget, f"at the last iterate: {result.reason}"))
+
+
+def _budget_spent(time_budget, state) -> str:
+    """The reason of a solve its time budget stopped, then the state it stopped in."""
+    return f"time budget of {float(time_budget):g} s spent before convergence; {state}"
 
 
 def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) -> PostureResult:

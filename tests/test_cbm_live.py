@@ -139,6 +139,16 @@ def _children(pid):
     return found
 
 
+def _until_meshcat(child):
+    """A view's standard output read up to the line giving its meshcat address (the lines)."""
+    lines = []
+    for line in child.stdout:
+        lines.append(line)
+        if line.strip().startswith("meshcat: "):
+            break
+    return lines
+
+
 def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
     """``cbm check ... --view`` serves the stance until the user answers ``q``: the page
     answers while the command waits (before, the server was closed with the process a
@@ -156,11 +166,7 @@ def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
     child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              env=environment, text=True)
     try:
-        lines = []
-        for line in child.stdout:
-            lines.append(line)
-            if line.strip().startswith("meshcat: "):
-                break
+        lines = _until_meshcat(child)
         url = re.search(r"meshcat: (\S+)", "".join(lines))
         assert url is not None, "".join(lines) + child.stderr.read()
         time.sleep(1.0)
@@ -184,9 +190,7 @@ def test_cli_view_keeps_meshcat_open_until_the_user_closes_it(tmp_path):
     child = subprocess.Popen(command, stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE,
                              env=environment, text=True)
     try:
-        for line in child.stdout:
-            if line.strip().startswith("meshcat: "):
-                break
+        _until_meshcat(child)
         servers = _children(child.pid)
         assert servers, "no meshcat server process under the view"
         child.send_signal(signal.SIGTERM)

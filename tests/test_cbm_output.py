@@ -273,12 +273,18 @@ def test_plan_checks_with_its_embedded_scenario_when_the_scenario_file_is_gone(s
     assert "the plan says it succeeded but its last stance does not reach the scenario's goal" in report.problems
 
 
+def _viewer_data(files):
+    """The plan data a written viewer page embeds."""
+    page = files.viewer.read_text()
+    start = page.index('type="application/json">') + len('type="application/json">')
+    return json.loads(page[start: page.index("</script>", start)])
+
+
 def test_viewer_page_is_self_contained_and_embeds_every_stance(synthetic_plan, scenario, robot, tmp_path):
     files = write_outputs(synthetic_plan, scenario, robot, tmp_path, pictures=False)
     page = files.viewer.read_text()
     assert "http://" not in page and "https://" not in page and "<script src" not in page
-    start = page.index('type="application/json">') + len('type="application/json">')
-    data = json.loads(page[start: page.index("</script>", start)])
+    data = _viewer_data(files)
     assert len(data["stances"]) == 4
     dent = max(max(d["magnitude"]) for d in data["stances"][3]["deformables"])
     assert dent == pytest.approx(0.012, rel=1e-3)
@@ -514,12 +520,6 @@ def test_icub_is_drawn_with_its_meshes_turned_where_its_links_are():
     icub = stances.Robot.load("icub")
     vertices, _ = robot_meshes(icub).posed(icub.model, icub.reference_configuration)
     assert vertices[:, 2].max() - vertices[:, 2].min() == pytest.approx(1.04, abs=0.01)
-
-
-def _viewer_data(files):
-    page = files.viewer.read_text()
-    start = page.index('type="application/json">') + len('type="application/json">')
-    return json.loads(page[start: page.index("</script>", start)])
 
 
 @pytest.mark.skipif(chromium_binary() is None, reason="chromium is not installed (apt-get install chromium)")

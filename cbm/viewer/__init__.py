@@ -64,8 +64,9 @@ def viewer_data(title, displays, edges, bounds, force_scale, force_legend, *, me
         ``robot_colour``, ``camera_azimuth`` (rad), ``grid_spacing``,
         ``grid_height``, ``stances`` (each: ``label``, ``segments``,
         ``robot`` (placements as 12 numbers, row-major 3 x 4), ``polygons``,
-        ``forces``, ``frames`` (``name``, ``transform`` as 12 numbers), ``deformables``) and ``motions`` (``from``, ``moving``,
-        ``times``, ``robot``: placements per sample).
+        ``forces``, ``frames`` (``name``, ``transform`` as 12 numbers),
+        ``deformables``) and ``motions`` (``from``, ``moving``, ``times``,
+        ``robot``: placements per sample).
     """
     max_displacement = max(
         (float(d.magnitude.max()) for s in displays for d in s.deformables if len(d.magnitude)), default=0.0
