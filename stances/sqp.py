@@ -17,8 +17,8 @@ A stance is declared infeasible, with the label of the worst constraint, when
 the iterates stop moving while still violating constraints, when far from
 feasible the line search keeps cutting the steps without the violation
 falling, when the violation falls too slowly to reach the tolerance, or when
-the iteration limit is reached. Feasible answers are re-checked by
-:func:`stances.verify`.
+the iteration limit is reached (:mod:`stances.stopping` holds these rules and those
+that end a feasible solve). Feasible answers are re-checked by :func:`stances.verify`.
 """
 
 from __future__ import annotations
@@ -40,70 +40,15 @@ from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
+from .stopping import (
+    CRAWL_ALPHA, HOPELESS_VIOLATION, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, StoppingTest,
+    at_rounding_floor, better,
+)
 from .verify import verify_problem
 
 logger = logging.getLogger(__name__)
 
 _MAX_PENALTY = 1e8
-_STAGNATION_WINDOW = 8
-# At a penalty this large the QPs have long preferred feasibility: a violation that
-# still falls, but at a rate that would not reach the tolerance within twice the
-# iterations left, ends the solve (an infeasible quadruped stance fell 2 % an
-# iteration for 87 iterations of 170 ms QPs, 17 s, and never got there).
-_SLOW_PENALTY = 1e6
-_SLOW_GRACE = 12  # iterations a too-slow convergence may go on while its QPs meet their rows
-# Feasible iterates whose line search keeps cutting the step below this many
-# times in a row stop: the QP's model no longer predicts the objective (a
-# warm start at its loose tolerance crawled 70 iterations at alpha 1/256 on a
-# climb stance, for an objective change of 4 %). Cuts from nearly feasible
-# iterates that a restoration step follows count too when they gain less than
-# _CRAWL_GAIN of the objective (see run_sqp).
-_CRAWL_ALPHA = 1.0 / 16.0
-_CRAWL_STEPS = 3
-# A feasible iterate that no step of the next _NO_GAIN_ITERATIONS beats by more than
-# _NO_GAIN relative objective ends the SQP (at that iterate): near a node's mode
-# switch the steps cycle between it and barely infeasible neighbours (measured on
-# a two-sole stance of the turn scene: 14 iterations cycling, 1.4 s, objective
-# moving by 1e-5).
-_NO_GAIN = 1e-5
-_NO_GAIN_ITERATIONS = 4
-# A feasible iterate is also final when the QP's model predicts a merit decrease
-# below _NO_GAIN of the objective and the full step does not deliver it: the model
-# is wrong there (a node's mode switch), and cutting the step gains no more than the
-# rule above would wait for. Measured: foot-and-hand-on-foam's Coulomb stage ended
-# with a step predicted to gain 3e-6 of the objective, which the line search cut to
-# 1/128 through eight contact solves of both prints (60 ms of its 290).
-_PREDICTED_GAIN = _NO_GAIN
-# ... and one whose best feasible objective gained less than _SLOW_GAIN (relative) over
-# the last _SLOW_GAIN_ITERATIONS: a cycle that still creeps, a feasible iterate and a
-# barely infeasible neighbour in turn, each pair 7e-5 better (hand-on-cube's Coulomb
-# stage: 20 iterations, 0.07 % of the objective, 2.9 s, to its iteration cap). Four
-# iterations, not eight: a two-sole stance of the turn scene cycled so, 0.023 % of the
-# objective a pair, each cut step nine contact solves of its two soles (1.31 -> 0.88 s,
-# the posture 0.8 mrad apart; the other built-in soft and rigid stances the same bits).
-_SLOW_GAIN = 1e-3
-_SLOW_GAIN_ITERATIONS = 4
-_CRAWL_GAIN = _SLOW_GAIN / 8  # relative objective gain an iteration below which a cut step crawls
-# A nearly feasible iterate (within _NEARLY_FEASIBLE tolerances) whose step is predicted
-# to gain under _MINOR_GAIN of the objective cuts that step no shorter than
-# _CRAWL_ALPHA: below, the model is wrong (a node's mode switch within the step), and
-# each cut costs a contact solve per soft print for a gain the crawl rules would not wait
-# for. Measured on hand-on-cube's Coulomb stage: its last two line searches (predicted
-# 1e-4 of the objective) cut to 1/128 and 1/512, 18 evaluations, 30 of its 200 ms.
-_MINOR_GAIN = 1e-3
-# Far from feasible (scaled violation above _HOPELESS_VIOLATION: 0.1 mm, 0.01 N),
-# iterations whose line search cuts the step below _CRAWL_ALPHA (or finds no
-# step) _CRAWL_STEPS times in a row, with the violation falling by less than
-# _HOPELESS_PROGRESS over them, end the solve: the linear model does not
-# describe the constraints there (a collision distance turning a corner, a
-# contact that cannot be placed), and the steps left are the line search's
-# ten linearisations each. Measured on 176 feasible solves of planner runs and
-# perturbed planner stances: their crawls (three such cuts in a row) all began
-# below a violation of 7e-4; infeasible solves crawled at 0.05-7 and then
-# stalled (four line searches finding no step, 1-2 s on soft scenes).
-_HOPELESS_VIOLATION = 1e-2
-_STALLED_SEARCHES = 4  # failed line searches in a row (the penalty raised after each) that end a solve
-_HOPELESS_PROGRESS = 0.5
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
 _RESTORATION_PENALTY = 1e6
@@ -123,12 +68,9 @@ _CORRECTION_PHASE = 1e-2
 _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-3, "optimality_tolerance": 1e-2}
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _QP_FAILED = "the QP solver returned no finite step"
-_NO_PROGRESS = f"no progress toward feasibility: the line search cut {_CRAWL_STEPS} steps in a row below 1/16"
 _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows are compatible
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
-_NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
-_ROUNDING_FLOOR = 3e-7  # scaled violation (three default tolerances) within which a failed line search ends the solve
 # The constraints' curvature (PostureOptions.constraint_curvature), see _with_curvature:
 _CURVATURE_PHASE = 0.1  # scaled violation below which it may enter the QP (from the start: no fewer iterations)
 _SLOW_CONTRACTION = 0.4  # step length ratio of Gauss-Newton beyond which it is switched on
@@ -340,8 +282,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     workspace = QPWorkspace()
     restoration = QPWorkspace()
     tolerance = options.feasibility_tolerance
-    stalled = 0
-    history = []
+    stops = StoppingTest(tolerance, options.optimality_tolerance, limit)
     status = "iteration limit"
     # Far from feasible the torque-usage term steers steps into poor basins (the
     # soles of step-on-cube crossed); it joins the objective once the
@@ -360,11 +301,6 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     curved_iterations = 0
     corrections = 0
     local_steps = []  # lengths of full steps in the local phase
-    crawling = 0  # crawling iterations in a row near feasibility (see where it is counted)
-    slow_since = None  # the first iteration at which the violation fell too slowly to converge in time
-    crawls, crawl_start = 0, np.inf  # iterations in a row far from feasible whose step was cut below _CRAWL_ALPHA (or not found), and the violation where they began
-    best, best_iteration = None, 0  # the best feasible (q, lam, linearization) seen, and when
-    best_history = []  # the best feasible objective after each iteration once there is one
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
             status, iteration = _OUT_OF_TIME, iteration - 1
@@ -380,9 +316,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             # The usage term moves the loads: the last QP's multipliers are
             # those of another problem (measured: a step of 0.15 rad off).
             last_qp = None
-            # So are the objectives of any feasible iterate seen before: compared with
-            # the new ones, they would stop the solve as soon as a step is cut.
-            best, best_history = None, []
+            stops.forget_objectives()
         # The QP's model: the objective's Hessian, plus the constraints'
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
@@ -406,27 +340,26 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             status = _QP_FAILED
             break
         step, elastic = x[:-1], max(x[-1], 0.0)
+        step_length = float(np.max(np.abs(step[:nv])))
         last_qp = (curved, workspace.multipliers, penalty)
         predicted = _predicted_decrease(model, step, elastic, penalty, violation)
-        if linearization.met(tolerance) and (
-            np.max(np.abs(step[:nv])) < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
-        ):
+        if stops.converged_before_search(linearization, step_length, predicted):
             status = "converged"
             break
-        # (see _PREDICTED_GAIN)
-        marginal = linearization.met(tolerance) and predicted <= _PREDICTED_GAIN * (1.0 + abs(linearization.objective))
-        minor = violation <= _NEARLY_FEASIBLE * tolerance and predicted <= _MINOR_GAIN * (1.0 + abs(linearization.objective))
+        # (see stopping.PREDICTED_GAIN and MINOR_GAIN)
+        marginal = linearization.met(tolerance) and predicted <= PREDICTED_GAIN * (1.0 + abs(linearization.objective))
+        minor = violation <= NEARLY_FEASIBLE * tolerance and predicted <= MINOR_GAIN * (1.0 + abs(linearization.objective))
         # (A marginal step is only tried whole: no correction, which costs a QP and a
         # linearisation, for a gain the stop below would not wait for.)
         accepted, alpha, corrected = _line_search(
             problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-            shortest=1.0 if marginal else _CRAWL_ALPHA if minor else _SHORTEST_STEP,
+            shortest=1.0 if marginal else CRAWL_ALPHA if minor else _SHORTEST_STEP,
             correction=None if marginal else restoration,
         )
         corrections += corrected
         if marginal and accepted is None:
             status = "converged"
-            q, lam, linearization = _better(best, (q, lam, linearization))
+            q, lam, linearization = better(stops.best, (q, lam, linearization))
             break
         searched = alpha if accepted is not None else 0.0  # the optimality step's own cut
         # Near a feasible point the optimality step may cross a kink (a print
@@ -440,91 +373,38 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
                 accepted, alpha = restored, 1.0
-        crawls = crawls + 1 if violation > _HOPELESS_VIOLATION and (accepted is None or alpha < _CRAWL_ALPHA) else 0
-        if crawls == 1:
-            crawl_start = violation
-        if crawls >= _CRAWL_STEPS:
-            reached = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
-            if reached > _HOPELESS_PROGRESS * crawl_start:
-                if accepted is not None:
-                    q, lam, linearization = accepted
-                status = _NO_PROGRESS
-                break
+        if stops.hopeless(violation, accepted, alpha):
+            if accepted is not None:
+                q, lam, linearization = accepted
+            status = NO_PROGRESS
+            break
         if accepted is None:
-            stalled += 1
-            if tolerance < violation <= _ROUNDING_FLOOR and elastic <= tolerance:
-                # Within three default tolerances, with a step that meets its linearised
-                # rows and a restoration that did no better: what is left is the rows'
-                # rounding (a steel-stiff print's rows read its micro-displacements times
-                # 1e11 Pa), which no penalty removes. The iterate goes to verify, whose
-                # tolerances are ten times the SQP's: it decides. The floor is absolute: a
-                # warm start's loose tolerance is not verified, and violations that far up
-                # are not rounding (a review found the rule, at ten tolerances, ending
-                # warm starts at 5e-3 that a raised penalty would have converged).
-                # hand-on-cube at E = 1e11 Pa sat at 1.5-2e-7 (scaled, the tolerance 1e-7)
-                # through three more failed searches, the penalty raised after each, ten
-                # contact solves a search.
-                stalled = _STALLED_SEARCHES
-            elif violation > tolerance and penalty < _MAX_PENALTY:
+            raised = not at_rounding_floor(violation, elastic, tolerance) and violation > tolerance and penalty < _MAX_PENALTY
+            if raised:
                 penalty *= 10.0
-            elif violation <= _HOPELESS_VIOLATION and not (slow and violation <= _CURVATURE_PHASE):
-                # Nothing the next iteration reads has changed (the linearisation, the
-                # penalty, a model without the last QP's multipliers; QPs from a cold
-                # start): its QP and line search would be this one's again, but for
-                # the contact modes each soft print's solve starts from (the last
-                # trial's; where a print's Coulomb state is unique, the same answer).
-                # A soft palm on rail-over-gap's rail, feasible, repeated a failed line
-                # search three times, ten contact solves each (40 % of its solve). Far
-                # from feasible the repeats are left to the crawl stop, which ends them
-                # with its own reason (and _solve_coulomb tries no more from there).
-                stalled = _STALLED_SEARCHES
-            if stalled >= _STALLED_SEARCHES:
+            if stops.stalled(violation, elastic, raised, slow and violation <= _CURVATURE_PHASE):
                 status = "stalled"
                 if linearization.met(tolerance):
                     # A restoration can have landed above the best feasible objective.
-                    q, lam, linearization = _better(best, (q, lam, linearization))
+                    q, lam, linearization = better(stops.best, (q, lam, linearization))
                 break
             continue
-        previous_objective = linearization.objective
+        previous = linearization
         q, lam, linearization = accepted
         if options.constraint_curvature and not slow and torque_weight == options.torque_weight:
             # Two full steps in a row: a damped one says the model is off, not slow.
-            local_steps = local_steps[-1:] + [float(np.max(np.abs(step[:nv])))] if alpha == 1.0 else []
+            local_steps = local_steps[-1:] + [step_length] if alpha == 1.0 else []
             slow = len(local_steps) == 2 and local_steps[1] > _SLOW_CONTRACTION * local_steps[0]
-        stalled = 0
         new_violation, worst_label = linearization.max_violation()
         logger.debug(
             "iteration %d: step %.3g (alpha %.3g%s), violation %.3g (%s), objective %.6g, elastic %.3g, penalty %.3g",
-            iteration, float(np.max(np.abs(step[:nv]))), alpha, ", corrected" if corrected else "", new_violation, worst_label,
+            iteration, step_length, alpha, ", corrected" if corrected else "", new_violation, worst_label,
             linearization.objective, elastic, penalty,
         )
-        history.append(new_violation)
-        # Infeasible stances end here rather than at the iteration limit: the
-        # violation has not fallen by 1 % over the last iterations although
-        # the penalty is already large.
-        if (
-            len(history) > _STAGNATION_WINDOW
-            and new_violation > tolerance
-            and penalty >= 1e4
-            and new_violation > 0.99 * history[-_STAGNATION_WINDOW - 1]
-        ):
-            status = "stagnated"
+        diverging = stops.diverging(iteration, new_violation, elastic, penalty)
+        if diverging is not None:
+            status = diverging
             break
-        if len(history) > _STAGNATION_WINDOW and new_violation > tolerance and penalty >= _SLOW_PENALTY:
-            rate = (new_violation / history[-_STAGNATION_WINDOW - 1]) ** (1.0 / _STAGNATION_WINDOW)
-            needed = np.log(tolerance / new_violation) / np.log(rate) if rate < 1.0 else np.inf
-            too_slow = needed > 2.0 * (limit - iteration)
-            if too_slow and slow_since is None:
-                slow_since = iteration
-            # While the QP cannot meet its linearised rows (elastic > 0) that ends it; while
-            # it meets them the violation can still fall faster, so _SLOW_GRACE iterations
-            # more first (a rigid palm turned 30 degrees on hand-on-cube's cube crept 4 % an
-            # iteration at elastic 0 from iteration 29 and converged at 39; an infeasible
-            # two-feet-and-palm stance by a wall, creeping 2-6 % at elastic 0, now ends at
-            # 59 rather than at 30, where ignoring the rule at elastic 0 ran it to 100).
-            if too_slow and (elastic > tolerance or iteration - slow_since >= _SLOW_GRACE):
-                status = f"converging too slowly: {1.0 - rate:.1%} an iteration"
-                break
         # The QP kept some violation although the merit could trade it: raise rho.
         # Not when the optimality step was taken whole (no cut, no restoration in its
         # place) and held by the trust region: the violation left is what no step that
@@ -534,7 +414,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # against 918). A cut step says the model is off, and rho rises as before (an
         # infeasible quadruped stance, whose steps at the trust region were cut to
         # 1/8-1/2, relies on it to stop early).
-        bounded = searched == 1.0 and np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * options.trust_region
+        bounded = searched == 1.0 and step_length >= _TRUST_REGION_HELD * options.trust_region
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY and not bounded:
             penalty *= 10.0
         elif linearization.met(tolerance) and penalty > options.elastic_penalty:
@@ -545,81 +425,18 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             # constraints (turn's rigid warm start). Back to the first penalty;
             # the rule above raises it again if feasibility is lost.
             penalty = options.elastic_penalty
-        # Feasible (each row within its tolerance): the objective alone says
-        # whether a step still improves. The violations left are below what
-        # matters, and penalty times their change, as the SQP creeps linearly
-        # along the constraints, would keep the merit moving for 5-10 more
-        # iterations (hand-on-table: 19 iterations, now 11) for a posture that
-        # moves by 1e-5 rad.
-        # A crawl: a feasible iterate reached by a cut step; or, from any nearly
-        # feasible iterate, an optimality step cut below _CRAWL_ALPHA (whether or not
-        # a restoration step then replaced it) that gained next to nothing. Near a
-        # node's mode switch the QP's step turned out 1e6 times too long (a full
-        # step's violation 1.1 from 1e-10), each cut to 1/256 landed just outside the
-        # tolerance and a restoration brought it back at alpha 1, which reset a count
-        # of the first kind alone: the Coulomb stage of hand-on-cube took 8 such
-        # iterations, 11 contact solves each, for 0.03 % of the objective. The gain
-        # guard keeps that second kind from stopping a curved path that still
-        # improves (a point on a sphere: cut and restored, 0.3 % an iteration).
-        cut = searched < _CRAWL_ALPHA and violation <= _NEARLY_FEASIBLE * tolerance
-        gained = previous_objective - linearization.objective
-        crawling = crawling + 1 if (linearization.met(tolerance) and alpha < _CRAWL_ALPHA) or (
-            cut and gained < _CRAWL_GAIN * (1.0 + abs(previous_objective))
-        ) else 0
-        if linearization.met(tolerance) and (
-            alpha * np.max(np.abs(step[:nv])) < 1e-6
-            or abs(previous_objective - linearization.objective)
-            < options.optimality_tolerance * (1.0 + abs(previous_objective))
-            or crawling >= _CRAWL_STEPS
-            # A step cut below _CRAWL_ALPHA near feasibility, after which the iterate is
-            # feasible but next to no better than the best feasible one before it: the
-            # QP's model is wrong here (a node's mode switch within the step), and the
-            # next steps were seen to be the same step cut again (hand-on-cube's Coulomb
-            # stage: twice to 1/256, nine contact solves each; a two-sole turn stance
-            # on a mat: a 0.15 rad lean cut to 1/512 and restored, three times).
-            or (cut and (best is not None or violation <= tolerance)
-                and (previous_objective if best is None else best[2].objective) - linearization.objective
-                < _CRAWL_GAIN * (1.0 + abs(previous_objective)))
-        ):
+        answer = stops.converged(iteration, (q, lam, linearization), previous, violation, alpha, searched, step_length)
+        if answer is not None:
             status = "converged"
-            # A cut step restored to feasibility can land above the best feasible
-            # objective (restoration ignores the objective): that one is the answer.
-            q, lam, linearization = _better(best, (q, lam, linearization))
+            q, lam, linearization = answer
             break
-        if linearization.met(tolerance) and (
-            best is None or linearization.objective < best[2].objective - _NO_GAIN * (1.0 + abs(best[2].objective))
-        ):
-            best, best_iteration = (q, lam, linearization), iteration
-        elif best is not None and iteration - best_iteration >= _NO_GAIN_ITERATIONS:
-            q, lam, linearization = best
-            status = "converged"
-            break
-        if best is not None:
-            best_history.append(best[2].objective)
-            if len(best_history) > _SLOW_GAIN_ITERATIONS and (
-                best_history[-_SLOW_GAIN_ITERATIONS - 1] - best_history[-1]
-                < _SLOW_GAIN * (1.0 + abs(best_history[-1]))
-            ):
-                q, lam, linearization = best
-                status = "converged"
-                break
-    if best is not None and not linearization.met(tolerance):
-        # Stopped (iteration limit, time) at an infeasible iterate after a feasible one.
-        q, lam, linearization = best
+    q, lam, linearization = stops.final((q, lam, linearization))
     feasible = linearization.met(tolerance)
     if feasible and status == "stalled":
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
     return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations,
                       corrections)
-
-
-def _better(best, current):
-    """The feasible ``(q, lam, linearization)`` with the lower objective: ``best`` (None: none
-    yet) or ``current`` (ties to ``current``)."""
-    if best is not None and best[2].objective < current[2].objective:
-        return best
-    return current
 
 
 def _with_curvature(curvature, q, linearization, multipliers):
@@ -763,7 +580,7 @@ def _result(problem, outcome, elapsed, check=True) -> PostureResult:
     # An iterate that stopped just short of the SQP's tolerance (a floor of the QP's
     # accuracy on nearly rigid, statically indeterminate contacts) goes to the
     # independent check, whose tolerances are physical: it alone decides.
-    nearly = not feasible and violation <= _NEARLY_FEASIBLE * problem.options.feasibility_tolerance
+    nearly = not feasible and violation <= NEARLY_FEASIBLE * problem.options.feasibility_tolerance
     point_forces = problem_point_forces(problem, linearization, q)
     # A warm start's answer (not checked) is a starting posture only: no FEM field.
     deformations = deformation_fields(problem, q, point_forces) if check else {}
@@ -1077,7 +894,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
-    hopeless = status in ("stagnated", _NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+    hopeless = status in ("stagnated", NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
     if free.feasible or status == _OUT_OF_TIME or hopeless:
         return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
     # Cut short or stalled near a solution: go on from there; far from it: from the start.

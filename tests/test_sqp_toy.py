@@ -21,7 +21,7 @@ import pytest
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization, PostureOptions
 from stances.qp import QPWorkspace, elastic_qp, row_multipliers
-from stances import sqp
+from stances import sqp, stopping
 from stances.sqp import run_sqp
 
 
@@ -279,8 +279,8 @@ def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
     problem = ToyProblem(squared_distance_to(np.array([0.0, 0.3, 0.4])), below_a_kink)
     outcome = run_sqp(problem, np.array([0.005, 0.0, 0.0]), np.zeros(0), limit=100)
     assert not outcome.feasible
-    assert outcome.status == sqp._NO_PROGRESS
-    assert outcome.iterations == sqp._CRAWL_STEPS < 7
+    assert outcome.status == stopping.NO_PROGRESS
+    assert outcome.iterations == stopping.CRAWL_STEPS < 7
     assert abs(outcome.q[0]) < 0.005
     assert outcome.reason.startswith(
         "kink at q_x = 0 violated by 0.5 N (no progress toward feasibility: the line search cut 3 steps "
@@ -378,7 +378,7 @@ def test_feasible_iterates_that_no_step_improves_end_the_solve_at_the_best(monke
     monkeypatch.setattr(sqp, "_line_search", _steps_of_one_hundredth)
     outcome = run_sqp(_cycling_problem(), np.zeros(3), np.zeros(0), limit=100)
     assert outcome.feasible and outcome.status == "converged"
-    assert outcome.iterations == 1 + sqp._NO_GAIN_ITERATIONS
+    assert outcome.iterations == 1 + stopping.NO_GAIN_ITERATIONS
     assert outcome.q[0] == pytest.approx(0.01, abs=1e-12)  # the first accepted iterate, objective 1 - 2e-6
     assert outcome.linearization.objective == pytest.approx(1.0 - 2e-6, abs=1e-12)
 
@@ -396,8 +396,8 @@ def test_feasible_iterates_that_gain_too_slowly_end_the_solve(monkeypatch, gain,
     outcome = run_sqp(ToyProblem(objective, lambda q, lam: []), np.zeros(3), np.zeros(0), limit=20)
     assert outcome.feasible
     if stops:
-        assert outcome.status == "converged" and outcome.iterations == sqp._SLOW_GAIN_ITERATIONS + 1
-        assert outcome.q[0] == pytest.approx(0.01 * (sqp._SLOW_GAIN_ITERATIONS + 1), abs=1e-12)  # the last is the best
+        assert outcome.status == "converged" and outcome.iterations == stopping.SLOW_GAIN_ITERATIONS + 1
+        assert outcome.q[0] == pytest.approx(0.01 * (stopping.SLOW_GAIN_ITERATIONS + 1), abs=1e-12)  # the last is the best
     else:
         assert outcome.status == "iteration limit" and outcome.iterations == 20
 
@@ -475,7 +475,7 @@ def test_a_feasible_iterate_whose_line_search_finds_no_step_ends_at_once(slope, 
     the next iteration reads changes (the penalty stays, no curvature), so the solve ends
     there, converged, rather than repeating that search three more times (41 trials).
     At a slope of 0.05 the step is predicted to gain 1.25e-3, 6e-4 of the objective
-    (under _MINOR_GAIN, above _PREDICTED_GAIN): the line search tries lengths down to 1/16
+    (under stopping.MINOR_GAIN, above stopping.PREDICTED_GAIN): the line search tries lengths down to 1/16
     only, five trials instead of ten (each a contact solve per soft print; hand-on-cube's
     Coulomb stage cut such steps to 1/128 and 1/512, 30 of its 200 ms)."""
 
@@ -512,7 +512,7 @@ def test_a_failed_line_search_at_a_rounding_floor_ends_the_solve(monkeypatch):
     assert outcome.status == "stalled" and not outcome.feasible
     assert 1.5e-7 <= outcome.linearization.max_violation()[0] < 3e-7
     assert outcome.penalty == problem.options.elastic_penalty
-    monkeypatch.setattr(sqp, "_ROUNDING_FLOOR", -1.0)
+    monkeypatch.setattr(stopping, "ROUNDING_FLOOR", -1.0)
     longer = _CountingTrials(flat, _a_row_with_a_rounding_floor)
     raised = run_sqp(longer, start, np.zeros(0), limit=30)
     assert raised.status == "stalled" and raised.penalty == 1e8
@@ -545,7 +545,7 @@ def test_failed_line_searches_far_from_feasible_are_left_to_the_crawl_stop(monke
     problem.options = replace(problem.options, elastic_penalty=sqp._MAX_PENALTY)
     outcome = run_sqp(problem, np.zeros(3), np.zeros(0), limit=100)
     assert not outcome.feasible
-    assert outcome.status == sqp._NO_PROGRESS and outcome.iterations > sqp._CRAWL_STEPS
+    assert outcome.status == stopping.NO_PROGRESS and outcome.iterations > stopping.CRAWL_STEPS
 
 
 def test_a_feasible_step_cut_short_for_nothing_ends_the_solve(monkeypatch):

@@ -16,7 +16,7 @@ from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.results import LazyDeformations
 from stances.problem import PostureOptions, build_problem
-from stances import sqp
+from stances import sqp, stopping
 from stances.sqp import solve, solve_problem
 from stances.verify import verify
 
@@ -1049,7 +1049,7 @@ def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reas
     assert solve(robot, scene, stance).feasible
     result = solve(robot, fine, stance)
     assert not result.feasible
-    assert result.statistics["status"] == sqp._NO_PROGRESS
+    assert result.statistics["status"] == stopping.NO_PROGRESS
     assert result.iterations <= 9
     assert result.reason.startswith("held rigid, collision between leg_right_6_link_0 and foam violated by ")
     assert "m (no progress toward feasibility: the line search cut 3 steps in a row below 1/16 after " in result.reason

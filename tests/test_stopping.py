@@ -1,0 +1,122 @@
+"""The SQP's stopping test on its own: each rule fed a sequence that must fire it, and
+one just short of it that must not (the toy SQPs of test_sqp_toy.py run them inside
+the loop)."""
+
+import numpy as np
+import pytest
+
+from stances import stopping
+from stances.stopping import StoppingTest, at_rounding_floor, better
+
+TOLERANCE = 1e-7
+
+
+class _Iterate:
+    """The two things the rules read of a linearisation: its objective and its violation."""
+
+    def __init__(self, objective, violation=0.0):
+        self.objective, self.violation = objective, violation
+
+    def met(self, tolerance):
+        return self.violation <= tolerance
+
+    def max_violation(self):
+        return self.violation, "row"
+
+
+def _point(objective, violation=0.0):
+    return (np.zeros(1), np.zeros(0), _Iterate(objective, violation))
+
+
+@pytest.fixture
+def stops():
+    return StoppingTest(TOLERANCE, 1e-6, limit=100)
+
+
+def test_a_negligible_step_at_a_feasible_iterate_is_the_answer(stops):
+    assert stops.converged_before_search(_Iterate(1.0), 5e-8, 1.0)
+    assert stops.converged_before_search(_Iterate(1.0), 1.0, 1e-9)
+    assert not stops.converged_before_search(_Iterate(1.0), 1e-6, 1e-6)
+    assert not stops.converged_before_search(_Iterate(1.0, violation=1e-3), 0.0, 0.0)
+
+
+def test_stagnation_needs_a_full_window_a_large_penalty_and_no_1_percent_fall(stops):
+    window = stopping._STAGNATION_WINDOW
+    for iteration in range(1, window + 1):
+        assert stops.diverging(iteration, 1.0, 0.0, 1e4) is None
+    assert stops.diverging(window + 1, 0.995, 0.0, 1e3) is None  # the penalty still low
+    assert stops.diverging(window + 2, 0.995, 0.0, 1e4) == "stagnated"
+
+
+def test_a_violation_falling_too_slowly_ends_once_its_qp_cannot_meet_its_rows(stops):
+    window = stopping._STAGNATION_WINDOW
+    violations = 0.9 ** np.arange(window + 1)  # 10 % an iteration: 1e-7 is 150 away
+    for iteration, violation in enumerate(violations[:-1], start=1):
+        assert stops.diverging(iteration, violation, 0.0, 1e6) is None
+    assert stops.diverging(90, violations[-1], 0.0, 1e6) is None  # elastic 0: a grace
+    assert stops.diverging(91, violations[-1] * 0.9, 1.0, 1e6) == "converging too slowly: 10.0% an iteration"
+
+
+def test_cut_steps_far_from_feasible_end_the_solve_unless_the_violation_halves(stops):
+    violation = 1.0
+    for _ in range(stopping.CRAWL_STEPS - 1):
+        assert not stops.hopeless(violation, None, 0.0)
+    assert stops.hopeless(violation, _point(1.0, violation=0.6), 1.0 / 32)
+    fresh = StoppingTest(TOLERANCE, 1e-6, limit=100)
+    for _ in range(stopping.CRAWL_STEPS - 1):
+        fresh.hopeless(violation, None, 0.0)
+    assert not fresh.hopeless(violation, _point(1.0, violation=0.4), 1.0 / 32)
+    near = StoppingTest(TOLERANCE, 1e-6, limit=100)
+    assert not any(near.hopeless(1e-3, None, 0.0) for _ in range(10))  # not far from feasible
+
+
+def test_failed_searches_stall_after_four_or_at_once_where_nothing_changes(stops):
+    assert [stops.stalled(1.0, 1.0, True, False) for _ in range(4)] == [False, False, False, True]
+    assert StoppingTest(TOLERANCE, 1e-6, 100).stalled(1e-3, 0.0, False, False)  # the same QP again
+    assert not StoppingTest(TOLERANCE, 1e-6, 100).stalled(1e-3, 0.0, False, True)  # the curvature may enter
+    assert StoppingTest(TOLERANCE, 1e-6, 100).stalled(2e-7, 0.0, False, False)  # the rows' rounding
+
+
+def test_the_rounding_floor_is_absolute_and_needs_met_linearised_rows():
+    assert at_rounding_floor(2e-7, 0.0, 1e-7)
+    assert not at_rounding_floor(2e-7, 1e-6, 1e-7)  # the QP could not meet its rows
+    assert not at_rounding_floor(5e-3, 0.0, 1e-3)  # a warm start's loose tolerance
+    assert not at_rounding_floor(5e-8, 0.0, 1e-7)  # feasible
+
+
+def test_a_feasible_step_that_barely_moves_the_objective_is_final(stops):
+    first = _point(1.0)
+    assert stops.converged(1, first, _Iterate(2.0), 0.0, 1.0, 1.0, 1.0) is None
+    assert stops.best is first
+    # 1e-6 of 1 + |f|, under the optimality tolerance of 1e-6 relative to 2: final.
+    last = _point(1.0 - 1e-6)
+    assert stops.converged(2, last, first[2], 0.0, 1.0, 1.0, 1.0) is last
+    # 1e-3: not final.
+    assert StoppingTest(TOLERANCE, 1e-6, 100).converged(2, _point(0.999), first[2], 0.0, 1.0, 1.0, 1.0) is None
+
+
+def test_a_cycle_that_beats_the_best_by_less_than_no_gain_ends_at_the_best(stops):
+    best = _point(1.0)
+    stops.converged(1, best, _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)
+    answer = None
+    for iteration in range(2, 2 + stopping.NO_GAIN_ITERATIONS):
+        # infeasible neighbours with large objective moves: no convergence by gain
+        answer = stops.converged(iteration, _point(0.5, violation=1e-3), _Iterate(3.0), 1e-3, 1.0, 1.0, 1.0)
+    assert answer is best
+
+
+def test_after_the_objective_changes_old_iterates_are_forgotten(stops):
+    stops.converged(1, _point(1.0), _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)
+    stops.forget_objectives()
+    assert stops.best is None
+    infeasible = _point(5.0, violation=1.0)
+    assert stops.final(infeasible) is infeasible
+
+
+def test_an_infeasible_last_iterate_gives_way_to_the_best_feasible_one(stops):
+    best = _point(1.0)
+    stops.converged(1, best, _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)
+    assert stops.final(_point(0.5, violation=1.0)) is best
+    feasible = _point(0.9)
+    assert stops.final(feasible) is feasible
+    assert better(best, feasible) is feasible and better(best, _point(1.5)) is best and better(None, best) is best
