@@ -178,10 +178,15 @@ class QPWorkspace:
 def elastic_qp(linearization, penalty):
     """Elastic QP data from a linearisation (the QP of :mod:`stances.sqp`).
 
-    Each finite bound of a row gives one QP row (an equality gives two), so
-    one-sided constraints (collisions, no adhesion) cost a single row.
+    A row's bound that the iterate violates is relaxed by the elastic variable
+    (``value + J x <= upper + t s``, one QP row each); a row the iterate meets on
+    both sides (lower <= value <= upper, a torque or joint-velocity row inside its
+    limits) is one QP row, ``lower <= value + J x <= upper``, not relaxed: ``x = 0``
+    still meets it, so the QP stays feasible, and its step may not buy another row's
+    violation with a new one here. Each such row, half the rows of a rigid stance's
+    QP (torque limits), would otherwise be two.
     """
-    jacobian, lower_gap, upper_gap, scale, has_lower, has_upper = _scaled_rows(linearization)
+    jacobian, lower_gap, upper_gap, scale, upper, lower, held = _qp_rows(linearization)
     n = len(linearization.gradient)
     hessian = np.zeros((n + 1, n + 1))
     # A small regularisation keeps the QP strictly convex in directions the
@@ -192,18 +197,21 @@ def elastic_qp(linearization, penalty):
     scale_down = objective_scale(penalty)
     hessian /= scale_down
     gradient /= scale_down
-    upper_rows = np.hstack([jacobian[has_upper], -np.ones((has_upper.sum(), 1))])
-    lower_rows = np.hstack([jacobian[has_lower], np.ones((has_lower.sum(), 1))])
-    inequality = np.vstack([upper_rows, lower_rows])
-    qp_lower = np.concatenate([np.full(has_upper.sum(), -_INFINITY), lower_gap[has_lower]])
-    qp_upper = np.concatenate([upper_gap[has_upper], np.full(has_lower.sum(), _INFINITY)])
+    upper_rows = np.hstack([jacobian[upper], -np.ones((upper.sum(), 1))])
+    lower_rows = np.hstack([jacobian[lower], np.ones((lower.sum(), 1))])
+    held_rows = np.hstack([jacobian[held], np.zeros((held.sum(), 1))])
+    inequality = np.vstack([upper_rows, lower_rows, held_rows])
+    qp_lower = np.concatenate([np.full(upper.sum(), -_INFINITY), lower_gap[lower], lower_gap[held]])
+    qp_upper = np.concatenate([upper_gap[upper], np.full(lower.sum(), _INFINITY), upper_gap[held]])
     box_lower = np.append(np.maximum(linearization.step_lower, -_INFINITY), 0.0)
     box_upper = np.append(np.minimum(linearization.step_upper, _INFINITY), _INFINITY)
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
 
 
-def _scaled_rows(linearization):
-    """The stacked rows divided by their scale, the gaps to their bounds and which bounds are finite."""
+def _qp_rows(linearization):
+    """The stacked rows divided by their scale, the gaps to their bounds, and which
+    rows give the QP's relaxed upper rows, relaxed lower rows and held two-sided rows
+    (boolean masks over the rows, in that QP order)."""
     value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
     # Rows are divided by their scale: every row then reads in "violations
     # that matter", the elastic variable enters with coefficient one, and
@@ -212,7 +220,9 @@ def _scaled_rows(linearization):
         jacobian = np.zeros((0, len(linearization.gradient)))
     lower_gap = (lower - value) / scale
     upper_gap = (upper - value) / scale
-    return jacobian / scale[:, None], lower_gap, upper_gap, scale, np.isfinite(lower_gap), np.isfinite(upper_gap)
+    has_lower, has_upper = np.isfinite(lower_gap), np.isfinite(upper_gap)
+    held = has_lower & has_upper & (lower_gap <= 0.0) & (upper_gap >= 0.0) & (lower_gap < upper_gap)
+    return jacobian / scale[:, None], lower_gap, upper_gap, scale, has_upper & ~held, has_lower & ~held, held
 
 
 def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> dict:
@@ -236,11 +246,12 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> d
         bounds' terms), so ``y_i > 0`` where an upper bound holds and ``< 0``
         where a lower one does; an equality's two QP rows add up.
     """
-    _, _, _, scale, has_lower, has_upper = _scaled_rows(linearization)
-    uppers = int(has_upper.sum())
+    _, _, _, scale, upper, lower, held = _qp_rows(linearization)
+    uppers, lowers = int(upper.sum()), int(lower.sum())
     rows = np.zeros(len(scale))
-    rows[has_upper] += multipliers[:uppers]
-    rows[has_lower] += multipliers[uppers : uppers + int(has_lower.sum())]
+    rows[upper] += multipliers[:uppers]
+    rows[lower] += multipliers[uppers : uppers + lowers]
+    rows[held] += multipliers[uppers + lowers : uppers + lowers + int(held.sum())]
     rows *= objective_scale(penalty)  # the QP's objective was divided by it
     # proxsuite leaves specks (1e-70 to 1e-9) on inactive rows; a row that
     # weighs nothing should cost nothing downstream.

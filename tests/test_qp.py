@@ -60,6 +60,31 @@ def test_an_inequality_binds_only_when_it_must_and_scales_read_in_row_units():
     assert x[2] == pytest.approx(1.0, abs=1e-4)
 
 
+def test_a_row_met_on_both_sides_is_one_held_row_and_a_violated_one_is_relaxed():
+    """Two-sided rows -1 <= x0 <= 1 (met at the iterate: one QP row, no elastic term)
+    and 2 <= x1 <= 3 (violated: two relaxed rows), with x1 <= 0 (one-sided: one relaxed
+    row). x1's rows conflict: the elastic is 1 and x1 = 1. The objective pulls x0 to 5:
+    x0 stays held at 1, where relaxed it would take the elastic's slack (x0 = 2). The
+    held row's multiplier, mapped back, satisfies stationarity."""
+    from stances.qp import row_multipliers
+
+    lin = _linearization([
+        ConstraintBlock("held", np.zeros(1), np.array([[1.0, 0.0]]), -1.0, 1.0, 1.0, ("x0 in [-1, 1]",)),
+        ConstraintBlock("far", np.zeros(1), np.array([[0.0, 1.0]]), 2.0, 3.0, 1.0, ("x1 in [2, 3]",)),
+        ConstraintBlock("cap", np.zeros(1), np.array([[0.0, 1.0]]), -np.inf, 0.0, 1.0, ("x1 <= 0",)),
+    ])
+    lin.gradient[:] = [-5.0, 0.0]
+    _, _, inequality, lower, upper, _, _ = elastic_qp(lin, penalty=1e4)
+    assert inequality.shape == (4, 3)  # far's and cap's upper rows, far's lower row, the held row
+    np.testing.assert_array_equal(inequality[:, 2], [-1.0, -1.0, 1.0, 0.0])
+    assert (lower[3], upper[3]) == (-1.0, 1.0)
+    workspace = QPWorkspace()
+    x = workspace.solve(*elastic_qp(lin, penalty=1e4), accuracy=1e-10)
+    np.testing.assert_allclose(x, [1.0, 1.0, 1.0], atol=1e-6)
+    multipliers = row_multipliers(lin, workspace.multipliers, penalty=1e4)
+    assert multipliers["x0 in [-1, 1]"] == pytest.approx(4.0, abs=1e-5)  # H x + g + y = 1 - 5 + 4
+
+
 def test_a_warm_started_workspace_gives_the_cold_answer():
     row = equality("sum", np.array([-1.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 1"])
     workspace = QPWorkspace()
