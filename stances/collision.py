@@ -44,6 +44,7 @@ attached to its link.
 
 from __future__ import annotations
 
+import math
 import weakref
 from dataclasses import dataclass, replace
 
@@ -481,12 +482,12 @@ class CollisionChecker:
             scene_candidates = scene_pairs
         self_pairs = self._self_pairs
         if len(self_pairs):
+            # Spheres first, over every pair; boxes over the pairs whose spheres are near
+            # (a tenth of them): the larger bound within the limit is both within it.
             a, b = self_pairs[:, 0], self_pairs[:, 1]
-            gap = np.maximum(
-                _norms(centers[a] - centers[b]) - self._self_radii,
-                _box_gap(lows[a], highs[a], lows[b], highs[b]),
-            )
-            self_candidates = self_pairs[gap <= limit]
+            near = np.flatnonzero(_norms(centers[a] - centers[b]) - self._self_radii <= limit)
+            a, b = a[near], b[near]
+            self_candidates = self_pairs[near[_box_gap(lows[a], highs[a], lows[b], highs[b]) <= limit]]
         else:
             self_candidates = self_pairs
         return scene_candidates, self_candidates, centers
@@ -496,8 +497,9 @@ class CollisionChecker:
         reference_b, is_self)`` tuples, scene pairs first (coal placements made once)."""
         geometry = self._geometry
         scene_candidates, self_candidates, centers = self._broad_phase(rotation, translation)
-        used = np.union1d(scene_candidates[:, 0], self_candidates.ravel())
-        placements = {int(index): coal.Transform3s(rotation[index], translation[index]) for index in used}
+        used = np.zeros(len(geometry.names), dtype=bool)
+        used[scene_candidates[:, 0]] = used[self_candidates.ravel()] = True
+        placements = {index: coal.Transform3s(rotation[index], translation[index]) for index in np.flatnonzero(used).tolist()}
         # A scene pair's reference point for a degenerate normal (the nearest point of b's
         # bounds to a's centre) is left None: :meth:`_pair` finds it in the rare case it is needed.
         shapes, scene_shapes, scene_placements = geometry.shapes, self._scene_shapes, self._scene_placements
@@ -591,11 +593,22 @@ class CollisionChecker:
         -------
         list of CollisionPair
         """
-        query = DistanceQuery()
-        return [
-            self._pair(distance, query.witness(result), *candidate)
-            for _, candidate, distance, result in self._closest(data, count)
-        ]
+        names, joints, scene_names = self._geometry.names, self._geometry.joints, self.scene_names
+        query, out = DistanceQuery(), []
+        for _, candidate, distance, result in self._closest(data, count):
+            # coal's witness as it is, read here (20 pairs a linearisation): the common
+            # case of :meth:`_pair`, which takes the rest (no direction, a lost depth).
+            normal = -result.normal  # coal's normal points from a to b
+            length = math.sqrt(normal @ normal)
+            if not (length > 0.5 and distance >= -_DEEPEST):
+                out.append(self._pair(distance, query.witness(result), *candidate))
+                continue
+            a, b, is_self = candidate[0], candidate[2], candidate[7]
+            out.append(_measured_pair(
+                names[a], names[b] if is_self else scene_names[b], int(joints[a]), int(joints[b]) if is_self else 0,
+                np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2()), distance, normal / length,
+            ))
+        return out
 
     def _closest(self, data, count):
         """The ``count`` smallest of :meth:`_distances` (a stable sort, as :meth:`pairs` then ``sorted``)."""
