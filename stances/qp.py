@@ -175,7 +175,7 @@ class QPWorkspace:
         return np.array(self.qp.results.x)
 
 
-def elastic_qp(linearization, penalty):
+def elastic_qp(linearization, penalty, hold=True):
     """Elastic QP data from a linearisation (the QP of :mod:`stances.sqp`).
 
     A row's bound that the iterate violates is relaxed by the elastic variable
@@ -184,9 +184,11 @@ def elastic_qp(linearization, penalty):
     limits) is one QP row, ``lower <= value + J x <= upper``, not relaxed: ``x = 0``
     still meets it, so the QP stays feasible, and its step may not buy another row's
     violation with a new one here. Each such row, half the rows of a rigid stance's
-    QP (torque limits), would otherwise be two.
+    QP (torque limits), would otherwise be two. ``hold=False`` relaxes every row (the
+    conflict QP of an infeasible answer's reason, which names the rows sharing the
+    elastic variable, a torque at its limit among them).
     """
-    jacobian, lower_gap, upper_gap, scale, upper, lower, held = _qp_rows(linearization)
+    jacobian, lower_gap, upper_gap, scale, upper, lower, held = _qp_rows(linearization, hold)
     n = len(linearization.gradient)
     hessian = np.zeros((n + 1, n + 1))
     # A small regularisation keeps the QP strictly convex in directions the
@@ -208,10 +210,10 @@ def elastic_qp(linearization, penalty):
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
 
 
-def _qp_rows(linearization):
+def _qp_rows(linearization, hold=True):
     """The stacked rows divided by their scale, the gaps to their bounds, and which
     rows give the QP's relaxed upper rows, relaxed lower rows and held two-sided rows
-    (boolean masks over the rows, in that QP order)."""
+    (boolean masks over the rows, in that QP order; none held unless ``hold``)."""
     value, jacobian, lower, upper, scale, _ = stack(linearization.blocks)
     # Rows are divided by their scale: every row then reads in "violations
     # that matter", the elastic variable enters with coefficient one, and
@@ -221,7 +223,7 @@ def _qp_rows(linearization):
     lower_gap = (lower - value) / scale
     upper_gap = (upper - value) / scale
     has_lower, has_upper = np.isfinite(lower_gap), np.isfinite(upper_gap)
-    held = has_lower & has_upper & (lower_gap <= 0.0) & (upper_gap >= 0.0) & (lower_gap < upper_gap)
+    held = has_lower & has_upper & (lower_gap <= 0.0) & (upper_gap >= 0.0) & (lower_gap < upper_gap) & hold
     return jacobian / scale[:, None], lower_gap, upper_gap, scale, has_upper & ~held, has_lower & ~held, held
 
 

@@ -116,7 +116,9 @@ def _conflict(linearization, penalty) -> str:
     # limit with the elastic variable near zero (measured on two contradicting
     # rows: 4e-14 instead of 0.5); any penalty that makes the QP prefer
     # feasibility names the same rows, so it is capped where proxsuite is sure.
-    x = QPWorkspace().solve(*elastic_qp(linearization, min(penalty, _CONFLICT_PENALTY)))
+    # Every row relaxed (none held at its bound): a torque at its limit is part of the
+    # conflict it takes part in.
+    x = QPWorkspace().solve(*elastic_qp(linearization, min(penalty, _CONFLICT_PENALTY), hold=False))
     step, elastic = x[:-1], max(float(x[-1]), 0.0)
     if elastic <= _CONFLICT_FLOOR:
         return ""
@@ -555,7 +557,8 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     # A step at the trust region's bound from a feasible iterate: where the objective's
     # model sends the QP along rows curved at that scale (see below), cut trials are
     # corrected as well.
-    crawl_prone = violation <= tolerance and np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * problem.options.trust_region
+    crawl_prone = linearization.met(tolerance) and (
+        np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * problem.options.trust_region)
     alpha = 1.0
     while alpha >= shortest:
         q_try = pin.integrate(model, q, alpha * step[:nv])

@@ -85,6 +85,21 @@ def test_a_row_met_on_both_sides_is_one_held_row_and_a_violated_one_is_relaxed()
     assert multipliers["x0 in [-1, 1]"] == pytest.approx(4.0, abs=1e-5)  # H x + g + y = 1 - 5 + 4
 
 
+def test_a_conflict_names_a_row_held_at_its_bound_too():
+    """x0 <= 1 at its bound (a torque at its limit: a held row in the SQP's QP) against
+    x0 >= 2 (equilibrium, violated): the reason's conflict QP relaxes both, and both
+    share the elastic variable, 0.5 at x0 = 1.5, so both are named."""
+    from stances.sqp import _conflict
+
+    lin = _linearization([
+        ConstraintBlock("torque", np.array([1.0]), np.array([[1.0, 0.0]]), -1.0, 1.0, 1.0, ("torque limit",)),
+        ConstraintBlock("equilibrium", np.array([1.0]), np.array([[1.0, 0.0]]), 2.0, np.inf, 1.0, ("equilibrium",)),
+    ])
+    assert elastic_qp(lin, 100.0)[2].shape[0] == 2  # the SQP's QP: torque held, one row
+    assert elastic_qp(lin, 100.0, hold=False)[2].shape[0] == 3
+    assert _conflict(lin, 1e4) == "; no step meets together: equilibrium, torque limit"
+
+
 def test_a_warm_started_workspace_gives_the_cold_answer():
     row = equality("sum", np.array([-1.0]), np.array([[1.0, 2.0]]), 1.0, ["x0 + 2 x1 = 1"])
     workspace = QPWorkspace()

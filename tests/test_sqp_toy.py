@@ -273,7 +273,7 @@ def below_a_kink(q, lam):
 def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
     """From q_x = 0.005 each QP step (-0.3, the trust region) overshoots the kink: the
     line search cuts it to 1/32, then to 1/256 (the violation falls from 0.505 by
-    less than 0.005), and the loop ends after _CRAWL_STEPS such iterations with the
+    less than 0.005), and the loop ends after stopping.CRAWL_STEPS such iterations with the
     violation still 0.5. Without the test it stalled after 7 iterations (four
     line searches finding no step, ten trial linearisations each)."""
     problem = ToyProblem(squared_distance_to(np.array([0.0, 0.3, 0.4])), below_a_kink)
@@ -418,9 +418,9 @@ def test_a_step_held_by_the_trust_region_does_not_raise_the_penalty(monkeypatch)
     penalties = []
     qp = sqp.elastic_qp
 
-    def recording(linearization, penalty):
+    def recording(linearization, penalty, **options):
         penalties.append(penalty)
-        return qp(linearization, penalty)
+        return qp(linearization, penalty, **options)
 
     monkeypatch.setattr(sqp, "elastic_qp", recording)
 
@@ -538,7 +538,7 @@ def test_failed_line_searches_far_from_feasible_are_left_to_the_crawl_stop(monke
     """Far from feasible (contradicting rows: a restoration step takes the violation from 1
     to its floor of 1/2) at the largest penalty, a failed line search changes nothing
     either, but the solve goes on to the crawl stop, which ends it with its own reason
-    after _CRAWL_STEPS failures in a row (what _solve_coulomb reads as a stance that
+    after stopping.CRAWL_STEPS failures in a row (what _solve_coulomb reads as a stance that
     cannot be held), not as "stalled" at the first."""
     monkeypatch.setattr(sqp, "_line_search", lambda *args, **kwargs: (None, 2.0**-10, False))
     problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), contradicting_rows)
@@ -591,9 +591,9 @@ def test_a_cut_step_at_the_trust_region_restored_still_raises_the_penalty(monkey
     penalties = []
     qp = sqp.elastic_qp
 
-    def recording(linearization, penalty):
+    def recording(linearization, penalty, **options):
         penalties.append(penalty)
-        return qp(linearization, penalty)
+        return qp(linearization, penalty, **options)
 
     def cut(problem, q, lam, step, *args, **kwargs):
         q_next = q + step[:3] / 32.0
