@@ -44,7 +44,6 @@ attached to its link.
 
 from __future__ import annotations
 
-import math
 import weakref
 from dataclasses import dataclass, replace
 
@@ -593,22 +592,11 @@ class CollisionChecker:
         -------
         list of CollisionPair
         """
-        names, joints, scene_names = self._geometry.names, self._geometry.joints, self.scene_names
-        query, out = DistanceQuery(), []
-        for _, candidate, distance, result in self._closest(data, count):
-            # coal's witness as it is, read here (20 pairs a linearisation): the common
-            # case of :meth:`_pair`, which takes the rest (no direction, a lost depth).
-            normal = -result.normal  # coal's normal points from a to b
-            length = math.sqrt(normal @ normal)
-            if not (length > 0.5 and distance >= -_DEEPEST):
-                out.append(self._pair(distance, query.witness(result), *candidate))
-                continue
-            a, b, is_self = candidate[0], candidate[2], candidate[7]
-            out.append(_measured_pair(
-                names[a], names[b] if is_self else scene_names[b], int(joints[a]), int(joints[b]) if is_self else 0,
-                np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2()), distance, normal / length,
-            ))
-        return out
+        query = DistanceQuery()
+        return [
+            self._pair(distance, query.witness(result), *candidate)
+            for _, candidate, distance, result in self._closest(data, count)
+        ]
 
     def _closest(self, data, count):
         """The ``count`` smallest of :meth:`_distances` (a stable sort, as :meth:`pairs` then ``sorted``)."""
@@ -635,6 +623,11 @@ class CollisionChecker:
         geometry = self._geometry
         name_b, joint_b = (geometry.names[b], int(geometry.joints[b])) if is_self else (self.scene_names[b], 0)
         point_a, point_b, normal = witness
+        if normal is not None and distance >= -_DEEPEST:
+            # coal's witness as it is: the common case (20 pairs a linearisation); the
+            # fallbacks below take a pair without a direction or with a lost depth.
+            return _measured_pair(geometry.names[a], name_b, int(geometry.joints[a]), joint_b, point_a, point_b,
+                                  float(distance), normal)
         if reference_b is None and (normal is None or not distance >= -_DEEPEST):
             reference_b = np.clip(center_a, *self._scene_bounds[b])
         if not distance >= -_DEEPEST:

@@ -416,7 +416,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # against 918). A cut step says the model is off, and rho rises as before (an
         # infeasible quadruped stance, whose steps at the trust region were cut to
         # 1/8-1/2, relies on it to stop early).
-        bounded = searched == 1.0 and step_length >= _TRUST_REGION_HELD * options.trust_region
+        bounded = searched == 1.0 and _held_by_trust_region(step_length, options)
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY and not bounded:
             penalty *= 10.0
         elif linearization.met(tolerance) and penalty > options.elastic_penalty:
@@ -439,6 +439,12 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
     return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations,
                       corrections)
+
+
+def _held_by_trust_region(step_length, options) -> bool:
+    """Whether a QP step whose largest configuration component is ``step_length`` (rad or
+    m) was held by the trust region's bound (``options.trust_region``)."""
+    return step_length >= _TRUST_REGION_HELD * options.trust_region
 
 
 def _with_curvature(curvature, q, linearization, multipliers):
@@ -557,8 +563,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     # A step at the trust region's bound from a feasible iterate: where the objective's
     # model sends the QP along rows curved at that scale (see below), cut trials are
     # corrected as well.
-    crawl_prone = linearization.met(tolerance) and (
-        np.max(np.abs(step[:nv])) >= _TRUST_REGION_HELD * problem.options.trust_region)
+    crawl_prone = linearization.met(tolerance) and _held_by_trust_region(np.max(np.abs(step[:nv])), problem.options)
     alpha = 1.0
     while alpha >= shortest:
         q_try = pin.integrate(model, q, alpha * step[:nv])
