@@ -58,6 +58,13 @@ class ConstraintBlock:
         linearisation. :mod:`stances.curvature` differences it into the rows'
         second derivatives. None: the rows' curvature is left out of the SQP's
         Hessian.
+    curvature : callable, optional
+        ``curvature(model, data, weights) -> (nv, nv)``: the rows' weighted second
+        derivative ``sum_i weights_i d^2 c_i`` along the joints' motions, computed
+        directly at the configuration ``data`` holds (kinematics, joint Jacobians,
+        frame placements and kinematic Hessians computed); :mod:`stances.curvature`
+        adds the configuration space's own term and then skips the differences of
+        ``second_order``, which such a block still gives.
     """
 
     name: str
@@ -70,6 +77,7 @@ class ConstraintBlock:
     slack: float = 0.0
     accuracy: float = 0.0
     second_order: object = None
+    curvature: object = None
 
     def __post_init__(self) -> None:
         rows = len(self.value)
@@ -122,12 +130,12 @@ class ConstraintBlock:
 PLACEMENT_ACCURACY = 1e-7
 
 
-def equality(name, value, jacobian, scale, labels, accuracy=0.0, second_order=None) -> ConstraintBlock:
+def equality(name, value, jacobian, scale, labels, accuracy=0.0, second_order=None, curvature=None) -> ConstraintBlock:
     """Rows ``value + jacobian @ step = 0``, met within ``accuracy`` (rows' units)."""
     zeros = np.zeros(len(value))
     return ConstraintBlock(
         name, np.asarray(value, float), jacobian, zeros, zeros, scale, tuple(labels), accuracy=accuracy,
-        second_order=second_order,
+        second_order=second_order, curvature=curvature,
     )
 
 

@@ -40,6 +40,7 @@ from environments.geometry import signed_edge_distances
 from fem.prints import clip_polygon
 
 from .blocks import PLACEMENT_ACCURACY, equality
+from .curvature import frame_curvature
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
@@ -171,7 +172,8 @@ class RigidContact:
             residual, jacobian = self._placement_residual(data), None
         labels = [f"placement of {self.label} ({axis})" for axis in self._placement_axes]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement)]
+        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement,
+                         self._placement_curvature)]
 
     _placement_axes = ("x", "y", "z", "roll", "pitch", "yaw")
 
@@ -188,6 +190,13 @@ class RigidContact:
         """(nv,) ``weights @ jacobian`` of the placement rows at the kinematics in ``data``
         (their ``second_order``, see :mod:`stances.curvature`)."""
         return weights @ self._placement(model, data)[1]
+
+    def _placement_curvature(self, model, data, weights) -> np.ndarray:
+        """(nv, nv) ``sum_i weights_i d^2 r_i`` of the placement rows ``r = log6(P^-1 oMf)``
+        along the joints' motions (their ``curvature``, see :mod:`stances.curvature`): the
+        local gradient of ``weights . r`` is ``Jlog6(P^-1 oMf)^T weights``."""
+        print_inverse = self.print_placement.inverse()
+        return frame_curvature(model, data, self.frame_id, lambda placement: pin.Jlog6(print_inverse * placement).T @ weights)
 
     def cost(self, model, data, lam, options, columns, offset, derivatives=True):
         """No objective term of its own (lambda's is the problem's force term)."""
@@ -356,6 +365,14 @@ class PointContact(RigidContact):
     def _placement_residual(self, data) -> np.ndarray:
         """Placement residual of the ball's centre (3,) alone, at the frame placements in ``data``."""
         return _point_residual(data, self.frame_id, self.print_placement, self.radius)
+
+    def _placement_curvature(self, model, data, weights) -> np.ndarray:
+        """(nv, nv) ``sum_i weights_i d^2 r_i`` of the centre's rows ``r = R_p^T (c - o_p) - r
+        e_z``: the local gradient of ``weights . r`` is ``(R^T R_p weights, 0)``, R the
+        foot frame's rotation."""
+        pushed = self.print_placement.rotation @ weights
+        return frame_curvature(model, data, self.frame_id,
+                               lambda placement: np.concatenate([placement.rotation.T @ pushed, np.zeros(3)]))
 
     def _verify_placement(self, data, tolerances, measures) -> list:
         """The ball's centre ``radius`` above the print origin, along its normal."""

@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pinocchio as pin
 import pytest
 
 import environments
-from stances.curvature import ConstraintCurvature, bounded_below
+from stances import Robot
+from stances.curvature import ConstraintCurvature, _kinematic_hessian, bounded_below
 from stances.problem import PostureOptions, build_problem
 
 SEED = 20261122
@@ -45,9 +48,10 @@ def second_differences(model, q, value, step, columns=None):
 
 def test_placement_curvature_matches_second_differences_of_the_residuals(robot, hand_on_table):
     """sum_i y_i d2 c_i for the 18 placement rows (log6 of each contact frame vs its print)
-    at a random posture and random multipliers: within 1e-5 of second differences of the
-    residuals' values (measured 1.5e-6: the forward difference's step of 1e-5 times the
-    third derivative; the second differences' steps of 1e-4 leave 1e-8)."""
+    at a random posture and random multipliers, computed directly (frame_curvature):
+    within 1e-6 of second differences of the residuals' values (measured 3.9e-8, what the
+    second differences' steps of 1e-4 leave; the forward differences this replaced were
+    1.5e-6 off)."""
     rng = np.random.default_rng(SEED)
     model, problem = robot.model, hand_on_table
     q = random_configuration(robot, rng)
@@ -64,8 +68,82 @@ def test_placement_curvature_matches_second_differences_of_the_residuals(robot, 
     expected = second_differences(model, q, weighted_residuals, 1e-4)
     hessian = ConstraintCurvature(model).hessian(q, blocks, weights)
     assert np.abs(expected).max() > 0.1  # the rows are curved: the test can fail
-    np.testing.assert_allclose(hessian, expected, rtol=0, atol=1e-5)
+    np.testing.assert_allclose(hessian, expected, rtol=0, atol=1e-6)
     np.testing.assert_array_equal(hessian, hessian.T)
+
+
+def test_kinematic_hessian_is_read_as_the_derivative_of_each_jacobian_column(robot):
+    """pinocchio's kinematic Hessian, as :func:`_kinematic_hessian` reads it, is
+    ``[:, j, k] = d J_j / d q_k`` (J the joint's local Jacobian, k a tangent direction of
+    ``q (+) dq``): against central differences of the Jacobian, for a leg, an arm and the
+    free flyer's joint. The binding hands the tensor over with mixed-up strides; read as
+    it comes, it is wrong by O(1) (the test can fail)."""
+    rng = np.random.default_rng(SEED)
+    model = robot.model
+    q = random_configuration(robot, rng, 0.3)
+    data = model.createData()
+    pin.computeJointJacobians(model, data, q)
+    pin.computeJointKinematicHessians(model, data)
+    step = 1e-6
+
+    def jacobian(configuration, joint):
+        moved = model.createData()
+        pin.computeJointJacobians(model, moved, configuration)
+        return pin.getJointJacobian(model, moved, joint, pin.LOCAL)
+
+    for name in ("leg_left_6_joint", "arm_right_7_joint", "root_joint"):
+        joint = model.getJointId(name)
+        expected = np.stack([
+            (jacobian(pin.integrate(model, q, e), joint) - jacobian(pin.integrate(model, q, -e), joint)) / (2 * step)
+            for e in step * np.eye(model.nv)
+        ], axis=2)
+        read = _kinematic_hessian(model, data, joint)
+        np.testing.assert_allclose(read, expected, rtol=0, atol=1e-7, err_msg=name)
+        assert name == "root_joint" or np.abs(np.asarray(pin.getJointKinematicHessian(model, data, joint, pin.LOCAL)) - expected).max() > 0.1
+
+
+def test_placement_curvature_equals_the_differences_of_the_weighted_jacobians(robot, hand_on_table):
+    """The placement rows' direct curvature (:func:`stances.curvature.frame_curvature`)
+    against the forward differences of their weighted Jacobian (``second_order``), which
+    it replaces: within the differences' truncation error (measured 9e-7)."""
+    rng = np.random.default_rng(SEED + 1)
+    model, problem = robot.model, hand_on_table
+    q = random_configuration(robot, rng)
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    blocks = [block for block in linearization.blocks if block.name == "placement"]
+    assert all(block.curvature is not None for block in blocks)
+    weights = [rng.standard_normal(len(block)) for block in blocks]
+    curvature = ConstraintCurvature(model)
+    direct = curvature.hessian(q, blocks, weights)
+    differenced = curvature.hessian(q, [replace(block, curvature=None) for block in blocks], weights)
+    assert np.abs(direct).max() > 0.1
+    np.testing.assert_allclose(direct, differenced, rtol=0, atol=1e-5)
+
+
+def test_point_foot_curvature_matches_second_differences_of_the_residuals():
+    """A point foot's three placement rows (its ball's centre against its print) on
+    ANYmal's three-feet stance: the direct curvature against second differences of the
+    weighted residuals' values."""
+    anymal = Robot.load("anymal")
+    walk = environments.load("quadruped-walk")
+    problem = build_problem(anymal, walk.scene, walk.stance("three-feet"), PostureOptions(min_normal_force=5.0))
+    rng = np.random.default_rng(SEED + 2)
+    model = anymal.model
+    q = pin.integrate(model, anymal.reference_configuration, 0.1 * rng.standard_normal(model.nv))
+    linearization = problem.linearize(q, problem.initial_variables(q))
+    blocks = [block for block in linearization.blocks if block.name == "placement"]
+    assert [len(block) for block in blocks] == [3, 3, 3] and all(block.curvature is not None for block in blocks)
+    weights = [rng.standard_normal(3) for _ in blocks]
+    data = model.createData()
+
+    def weighted_residuals(configuration):
+        pin.framesForwardKinematics(model, data, configuration)
+        return sum(w @ contact._placement_residual(data) for contact, w in zip(problem.contacts, weights))
+
+    expected = second_differences(model, q, weighted_residuals, 1e-4)
+    hessian = ConstraintCurvature(model).hessian(q, blocks, weights)
+    assert np.abs(expected).max() > 0.05
+    np.testing.assert_allclose(hessian, expected, rtol=0, atol=1e-6)
 
 
 def test_collision_curvature_matches_second_differences_of_the_distances(robot, hand_on_table):
