@@ -41,6 +41,8 @@ objective's Hessian, made large across the active rows); see
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
@@ -217,13 +219,44 @@ def _kinematic_hessian(model, data, joint_id) -> np.ndarray:
     """(6, nv, nv) ``[:, j, k]``: the derivative of the joint's local Jacobian column j
     along tangent direction k (:func:`pinocchio.getJointKinematicHessian`).
 
-    pinocchio's binding hands over the tensor's column-major buffer with row-major
-    strides (read as (6, nv, nv) it mixes the indices): it is read back in Fortran
-    order (tests/test_curvature.py checks it against differences of the Jacobian).
+    pinocchio's binding (3.x) hands over the tensor's column-major buffer with
+    row-major strides (read as (6, nv, nv) it mixes the indices); how to read it is
+    found once per process (:func:`_kinematic_hessian_order`), so a binding that
+    hands it over right is read right too.
     """
     nv = model.nv
     raw = np.asarray(pin.getJointKinematicHessian(model, data, joint_id, pin.LOCAL))
-    return raw.reshape(-1).reshape((6, nv, nv), order="F")
+    return raw.reshape(-1).reshape((6, nv, nv), order=_kinematic_hessian_order())
+
+
+@functools.lru_cache(maxsize=1)
+def _kinematic_hessian_order() -> str:
+    """"C" or "F": the order in which pinocchio's kinematic Hessian buffer reads as
+    ``[:, j, k] = d J_j / d q_k``, told by central differences of a sample arm's
+    Jacobian (a few milliseconds, once)."""
+    model = pin.buildSampleModelManipulator()
+    data = model.createData()
+    q = pin.integrate(model, pin.neutral(model), np.linspace(0.3, -0.4, model.nv))
+    joint = model.njoints - 1
+    pin.computeJointJacobians(model, data, q)
+    pin.computeJointKinematicHessians(model, data)
+    raw = np.asarray(pin.getJointKinematicHessian(model, data, joint, pin.LOCAL)).reshape(-1)
+    step = 1e-6
+
+    def jacobian(configuration):
+        moved = model.createData()
+        pin.computeJointJacobians(model, moved, configuration)
+        return pin.getJointJacobian(model, moved, joint, pin.LOCAL)
+
+    expected = np.stack([(jacobian(pin.integrate(model, q, e)) - jacobian(pin.integrate(model, q, -e))) / (2 * step)
+                         for e in step * np.eye(model.nv)], axis=2)
+    for order in ("F", "C"):
+        if np.abs(raw.reshape((6, model.nv, model.nv), order=order) - expected).max() < 1e-6:
+            return order
+    raise RuntimeError(
+        f"pinocchio {pin.__version__}: getJointKinematicHessian reads as no derivative of the joint Jacobian; "
+        "stances.curvature cannot use it (report this with the pinocchio version)"
+    )
 
 
 def bounded_below(curvature, reference, floor):

@@ -76,8 +76,8 @@ def test_kinematic_hessian_is_read_as_the_derivative_of_each_jacobian_column(rob
     """pinocchio's kinematic Hessian, as :func:`_kinematic_hessian` reads it, is
     ``[:, j, k] = d J_j / d q_k`` (J the joint's local Jacobian, k a tangent direction of
     ``q (+) dq``): against central differences of the Jacobian, for a leg, an arm and the
-    free flyer's joint. The binding hands the tensor over with mixed-up strides; read as
-    it comes, it is wrong by O(1) (the test can fail)."""
+    free flyer's joint. pinocchio 3's binding hands the tensor over with mixed-up strides
+    (read as it comes, a leg's is wrong by O(1)); the order is found at run time."""
     rng = np.random.default_rng(SEED)
     model = robot.model
     q = random_configuration(robot, rng, 0.3)
@@ -99,7 +99,7 @@ def test_kinematic_hessian_is_read_as_the_derivative_of_each_jacobian_column(rob
         ], axis=2)
         read = _kinematic_hessian(model, data, joint)
         np.testing.assert_allclose(read, expected, rtol=0, atol=1e-7, err_msg=name)
-        assert name == "root_joint" or np.abs(np.asarray(pin.getJointKinematicHessian(model, data, joint, pin.LOCAL)) - expected).max() > 0.1
+        assert np.abs(expected).max() > 0.5
 
 
 def test_placement_curvature_equals_the_differences_of_the_weighted_jacobians(robot, hand_on_table):
