@@ -1,7 +1,9 @@
 """The SQP's quadratic subproblem: its data from a linearisation, and a solver.
 
-:func:`elastic_qp` turns a linearisation into the elastic QP of :mod:`stances.sqp`;
-:class:`QPWorkspace` solves such QPs with proxsuite (dense), each from a cold start.
+:func:`elastic_qp` turns a linearisation into the elastic QP of :mod:`stances.sqp`,
+always feasible; :func:`plain_qp` into the QP without the elastic variable, which the
+SQP solves first once its linearised rows are compatible (the previous elastic QP met
+them); :class:`QPWorkspace` solves either with proxsuite (dense), each from a cold start.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ from .qp_backend import proxsuite
 
 _INFINITY = 1e20  # proxsuite's stand-in for an absent bound
 _WARM_QP_ITERATIONS = 60
+_QP_ITERATIONS = 300  # proxsuite's iteration limit of a QP
 # proxsuite's first proximal weight on the inequality rows (its default_mu_in, 0.1 by
 # default). Measured on 76 QPs recorded from the SQPs of six stances (hand-on-table,
 # stand, foot-on-block; hand-on-cube, foot-and-hand-on-foam, cross-two-mats), each
@@ -65,6 +68,9 @@ class QPWorkspace:
     iterations : int
         proxsuite iterations spent by the last :meth:`solve`, an abandoned warm
         start included.
+    solved : bool
+        Whether the last :meth:`solve` reached its accuracy (not its iteration
+        limit, nor rows it found incompatible).
     multipliers : (m + n,) float
         proxsuite's multipliers of the last answer: the rows of ``inequality``,
         then the box bounds; positive where an upper bound holds, negative
@@ -96,6 +102,7 @@ class QPWorkspace:
         self.qp = None
         self.shape = None
         self.iterations = 0
+        self.solved = False
         self.multipliers = np.zeros(0)
 
     def _fresh(self, shape):
@@ -111,7 +118,7 @@ class QPWorkspace:
         qp.settings.eps_primal_inf = 1e-12
         # Bounded work per QP: an unlucky QP must not stall a search loop
         # (its step is still used; the line search judges it).
-        qp.settings.max_iter = 300
+        qp.settings.max_iter = _QP_ITERATIONS
         qp.settings.max_iter_in = 50
         qp.settings.verbose = False
         qp.settings.initial_guess = getattr(proxsuite.proxqp.InitialGuess, self.cold_guess)
@@ -119,12 +126,14 @@ class QPWorkspace:
         qp.settings.preconditioner_max_iter = self.preconditioner_iterations
         return qp
 
-    def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper, accuracy=1e-6):
+    def solve(self, hessian, gradient, inequality, lower, upper, box_lower, box_upper, accuracy=1e-6,
+              max_iterations=_QP_ITERATIONS):
         """Solve the QP ``min 1/2 x^T H x + g^T x, lower <= C x <= upper, box_lower <= x <= box_upper``.
 
         From a cold start (x = 0); with :attr:`warm_start`, from the previous
         answer when the previous QP had the same shape and cold when it did not,
-        or when the warm start does not finish.
+        or when the warm start does not finish. :attr:`solved` says whether
+        proxsuite reached its accuracy.
 
         Parameters
         ----------
@@ -135,11 +144,14 @@ class QPWorkspace:
         box_lower, box_upper : (n,) float, +-1e20 where a variable has no bound
         accuracy : float
             proxsuite's absolute accuracy (``eps_abs``) on the KKT residuals.
+        max_iterations : int
+            proxsuite's iteration limit.
 
         Returns
         -------
         x : (n,) float
-            The answer, or proxsuite's last iterate when it hit its iteration limit.
+            The answer, or proxsuite's last iterate when it hit its iteration limit
+            or found the rows incompatible.
         """
         shape = (len(gradient), inequality.shape[0])
         data = (hessian, gradient, None, None, inequality, lower, upper, box_lower, box_upper)
@@ -164,6 +176,7 @@ class QPWorkspace:
         # First solve, a change of size, or a warm start that did not finish.
         self.qp = self._fresh(shape)
         self.qp.settings.eps_abs = accuracy
+        self.qp.settings.max_iter = max_iterations
         self.shape = shape
         self.qp.init(*data)
         self.qp.solve()
@@ -171,6 +184,7 @@ class QPWorkspace:
         return self._answer()
 
     def _answer(self) -> np.ndarray:
+        self.solved = self.qp.results.info.status == proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED
         self.multipliers = np.array(self.qp.results.z)
         return np.array(self.qp.results.x)
 
@@ -210,6 +224,32 @@ def elastic_qp(linearization, penalty, hold=True):
     return hessian, gradient, inequality, qp_lower, qp_upper, box_lower, box_upper
 
 
+def plain_qp(linearization):
+    """QP data of the step that meets every linearised row: ``min 1/2 x^T H x + g^T x``,
+    ``lower <= value + J x <= upper`` for every row (one QP row each, an equality's
+    bounds equal), within the step bounds; no elastic variable.
+
+    Where the linearised rows are compatible, the elastic QP's answer has its elastic
+    variable at zero and is this QP's (an exact penalty), but the elastic QP has two
+    rows per violated equality and a variable that proxsuite weighs at 1e-8 against the
+    penalty: on the 389 QPs of the 60 random rigid stances whose elastic variable came
+    out zero, this QP took 3,061 proxsuite iterations against 3,905, 12 % less time, the
+    configuration steps equal within 1.2e-3 (proxsuite's accuracy). Where the rows are
+    not compatible it has no answer (:attr:`QPWorkspace.solved` False): the SQP then
+    solves the elastic QP. Its multipliers are the rows', in the stacked order
+    (:func:`row_multipliers` with ``plain``). Returns the arguments of
+    :meth:`QPWorkspace.solve`.
+    """
+    jacobian, lower_gap, upper_gap, *_ = _qp_rows(linearization, hold=False)
+    n = len(linearization.gradient)
+    hessian = linearization.hessian + 1e-8 * np.eye(n)  # as elastic_qp regularises it
+    lower = np.maximum(np.nan_to_num(lower_gap, nan=-_INFINITY, neginf=-_INFINITY), -_INFINITY)
+    upper = np.minimum(np.nan_to_num(upper_gap, nan=_INFINITY, posinf=_INFINITY), _INFINITY)
+    box_lower = np.maximum(linearization.step_lower, -_INFINITY)
+    box_upper = np.minimum(linearization.step_upper, _INFINITY)
+    return hessian, linearization.gradient.copy(), jacobian, lower, upper, box_lower, box_upper
+
+
 def _qp_rows(linearization, hold=True):
     """The stacked rows divided by their scale, the gaps to their bounds, and which
     rows give the QP's relaxed upper rows, relaxed lower rows and held two-sided rows
@@ -227,18 +267,20 @@ def _qp_rows(linearization, hold=True):
     return jacobian / scale[:, None], lower_gap, upper_gap, scale, has_upper & ~held, has_lower & ~held, held
 
 
-def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> dict:
-    """The multiplier of each constraint row of a linearisation, from its elastic QP's answer.
+def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plain=False) -> dict:
+    """The multiplier of each constraint row of a linearisation, from its QP's answer.
 
     Parameters
     ----------
     linearization : Linearization
-        What :func:`elastic_qp` was given.
+        What :func:`elastic_qp` (or :func:`plain_qp`) was given.
     multipliers : (rows + n + 1,) float
         :attr:`QPWorkspace.multipliers` after solving that QP.
     penalty : float
         The elastic penalty of that QP (its objective was divided by
         :func:`objective_scale` of it).
+    plain : bool
+        The QP was :func:`plain_qp`'s (``penalty`` is then not read).
 
     Returns
     -------
@@ -249,12 +291,15 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> d
         where a lower one does; an equality's two QP rows add up.
     """
     _, _, _, scale, upper, lower, held = _qp_rows(linearization)
-    uppers, lowers = int(upper.sum()), int(lower.sum())
-    rows = np.zeros(len(scale))
-    rows[upper] += multipliers[:uppers]
-    rows[lower] += multipliers[uppers : uppers + lowers]
-    rows[held] += multipliers[uppers + lowers : uppers + lowers + int(held.sum())]
-    rows *= objective_scale(penalty)  # the QP's objective was divided by it
+    if plain:
+        rows = np.array(multipliers[: len(scale)], dtype=float)  # one QP row a row, in order
+    else:
+        uppers, lowers = int(upper.sum()), int(lower.sum())
+        rows = np.zeros(len(scale))
+        rows[upper] += multipliers[:uppers]
+        rows[lower] += multipliers[uppers : uppers + lowers]
+        rows[held] += multipliers[uppers + lowers : uppers + lowers + int(held.sum())]
+        rows *= objective_scale(penalty)  # the QP's objective was divided by it
     # proxsuite leaves specks (1e-70 to 1e-9) on inactive rows; a row that
     # weighs nothing should cost nothing downstream.
     rows[np.abs(rows) < _INACTIVE_MULTIPLIER] = 0.0
@@ -264,4 +309,4 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE) -> d
     return dict(zip(labels, rows))
 
 
-__all__ = ["QPWorkspace", "elastic_qp", "objective_scale", "row_multipliers"]
+__all__ = ["QPWorkspace", "elastic_qp", "objective_scale", "plain_qp", "row_multipliers"]

@@ -37,7 +37,7 @@ from .errors import ConfigurationError, StanceError
 from .cold_start import initial_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
-from .qp import QPWorkspace, elastic_qp, row_multipliers
+from .qp import QPWorkspace, elastic_qp, plain_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
@@ -68,6 +68,10 @@ _CORRECTION_PHASE = 1e-2
 _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-3, "optimality_tolerance": 1e-2}
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _QP_FAILED = "the QP solver returned no finite step"
+# proxsuite's iteration limit for a QP without the elastic variable: a compatible one
+# took at most 35 on the 60 random rigid stances (341 QPs); one whose rows are not compatible
+# gives up here and is solved as the elastic QP.
+_PLAIN_QP_ITERATIONS = 100
 _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows are compatible
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
@@ -294,7 +298,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     iteration = 0
     qp_time = 0.0
     curvature = None  # a ConstraintCurvature, made on first use
-    last_qp = None  # (linearization, proxsuite multipliers, penalty) of the last QP, for the curvature's weights
+    last_qp = None  # (linearization, proxsuite multipliers, penalty, plain) of the last QP, for the curvature's weights
+    compatible = False  # whether the last QP met its linearised rows (its elastic variable at zero)
     # Where Gauss-Newton converges fast (most stances: stand, foot-on-block) the
     # curvature costs more (1-3 ms a Hessian) than it saves; it is switched on,
     # for good, once two full steps in the local phase shrink by less than
@@ -327,13 +332,21 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             curvature = curvature or ConstraintCurvature(problem.robot.model)
             curved, model = _with_curvature(curvature, q, linearization, row_multipliers(*last_qp))
             curved_iterations += 1
-        matrices = elastic_qp(curved, penalty)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
         # solution are cheap, and near it the outer loop keeps converging fast.
         accuracy = float(np.clip(0.01 * violation, 1e-9, 1e-6))
-        x = workspace.solve(*matrices, accuracy=accuracy)
+        # Once a QP has met its linearised rows, the next is first solved without the
+        # elastic variable (stances.qp.plain_qp: 12 % less proxsuite time); if its rows
+        # are not compatible, as the elastic QP.
+        plain = compatible
+        if plain:
+            x = workspace.solve(*plain_qp(curved), accuracy=accuracy, max_iterations=_PLAIN_QP_ITERATIONS)
+            plain = workspace.solved
+            x = np.append(x, 0.0)
+        if not plain:
+            x = workspace.solve(*elastic_qp(curved, penalty), accuracy=accuracy)
         qp_time += time.perf_counter() - tic
         if not np.all(np.isfinite(x)):
             # proxsuite can diverge at the largest penalties (measured: NaN at a
@@ -342,8 +355,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             status = _QP_FAILED
             break
         step, elastic = x[:-1], max(x[-1], 0.0)
+        compatible = elastic <= tolerance
         step_length = float(np.max(np.abs(step[:nv])))
-        last_qp = (curved, workspace.multipliers, penalty)
+        last_qp = (curved, workspace.multipliers, penalty, plain)
         predicted = _predicted_decrease(model, step, elastic, penalty, violation)
         if stops.converged_before_search(linearization, step_length, predicted):
             status = "converged"

@@ -5,7 +5,7 @@ import pytest
 
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization
-from stances.qp import QPWorkspace, elastic_qp
+from stances.qp import QPWorkspace, elastic_qp, plain_qp, row_multipliers
 from stances.qp_backend import proxsuite
 
 
@@ -28,6 +28,51 @@ def test_a_feasible_qp_gives_the_least_norm_step_and_no_elastic():
     x = QPWorkspace().solve(*elastic_qp(_linearization([row]), penalty=100.0), accuracy=1e-9)
     assert np.allclose(x[:2], [0.5, 0.5], atol=1e-6)
     assert abs(x[2]) <= 1e-6
+
+
+def test_the_plain_qp_of_compatible_rows_is_the_elastic_qps_answer_with_row_multipliers():
+    """min 1/2 |x - (2, 1)|^2 s.t. x0 + x1 = 1 (violated at the iterate: value -1) and
+    x0 <= 0.5 (scale 0.5), steps within 10: the plain QP (one row each, no elastic
+    variable) gives the elastic QP's x = (0.5, 0.5), whose elastic is zero, and its
+    multipliers, mapped to the rows, are stationarity's: (x - (2, 1)) + y_sum (1, 1) +
+    y_cap (1, 0) = 0, y_sum = 0.5 and y_cap = 1."""
+    lin = _linearization([
+        equality("sum", np.array([-1.0]), np.array([[1.0, 1.0]]), 1.0, ["x0 + x1 = 1"]),
+        ConstraintBlock("cap", np.zeros(1), np.array([[1.0, 0.0]]), -np.inf, 0.5, 0.5, ("x0 <= 0.5",)),
+    ])
+    lin.gradient[:] = [-2.0, -1.0]
+    data = plain_qp(lin)
+    assert data[2].shape == (2, 2)  # one QP row a row, no elastic column
+    np.testing.assert_array_equal(data[3], [1.0, -1e20])  # the equality's bounds are equal
+    np.testing.assert_array_equal(data[4], [1.0, 1.0])  # the cap's gap in its scale
+    plain = QPWorkspace()
+    x = plain.solve(*data, accuracy=1e-10)
+    assert plain.solved
+    relaxed = QPWorkspace()
+    elastic = relaxed.solve(*elastic_qp(lin, penalty=1e4), accuracy=1e-10)
+    np.testing.assert_allclose(x, [0.5, 0.5], atol=1e-6)
+    np.testing.assert_allclose(x, elastic[:2], atol=1e-6)
+    assert abs(elastic[2]) <= 1e-6
+    multipliers = row_multipliers(lin, plain.multipliers, plain=True)
+    assert multipliers["x0 + x1 = 1"] == pytest.approx(0.5, abs=1e-6)
+    assert multipliers["x0 <= 0.5"] == pytest.approx(1.0, abs=1e-6)
+    for label, value in row_multipliers(lin, relaxed.multipliers, penalty=1e4).items():
+        assert value == pytest.approx(multipliers[label], abs=1e-5), label  # the elastic QP's, mapped its way
+
+
+def test_the_plain_qp_of_conflicting_rows_is_not_solved():
+    """x0 = 1 and x0 = -1: no step meets both; the plain QP says so (``solved`` False,
+    within its iteration limit), where the elastic QP would relax them."""
+    rows = [
+        equality("a", np.array([-1.0]), np.array([[1.0, 0.0]]), 1.0, ["x0 = 1"]),
+        equality("b", np.array([1.0]), np.array([[1.0, 0.0]]), 1.0, ["x0 = -1"]),
+    ]
+    workspace = QPWorkspace()
+    workspace.solve(*plain_qp(_linearization(rows)), accuracy=1e-9, max_iterations=100)
+    assert not workspace.solved
+    assert workspace.iterations <= 100
+    workspace.solve(*elastic_qp(_linearization(rows), penalty=1e4), accuracy=1e-9)
+    assert workspace.solved
 
 
 def test_conflicting_rows_are_met_halfway_and_the_elastic_says_by_how_much():
