@@ -6,7 +6,8 @@ one for its restoration steps, and a soft stance several solves), in call order,
 that a replay in one workspace sees the QPs in the SQP's order (a policy with warm
 starts, such as the old one, starts each from the previous answer).
 :func:`replay` solves the sequences again with a *policy* (an object with
-``reset()`` and ``solve(data, accuracy) -> (x, iterations)``), timing each QP in CPU
+``reset()`` and ``solve(data, accuracy, max_iterations) -> (x, iterations)``; ``max_iterations``
+the limit the SQP gave proxsuite, or None), timing each QP in CPU
 time (``time.process_time``; the median over repeats), and :func:`quality` compares an
 answer with a tight reference solution.
 """
@@ -43,14 +44,15 @@ def record(robot, cases):
     original = stances.qp.QPWorkspace.solve
     sequences = []
 
-    def logging_solve(workspace, *data, accuracy=1e-6):
+    def logging_solve(workspace, *data, accuracy=1e-6, max_iterations=None):
         # Not keyed by id(): a later workspace may reuse a collected one's address.
         if not any(workspace is seen for seen in sequences):
             sequences.append(workspace)
         sequence = next(i for i, seen in enumerate(sequences) if seen is workspace)
-        qps.append({"case": current[0], "sequence": sequence, "accuracy": accuracy,
+        qps.append({"case": current[0], "sequence": sequence, "accuracy": accuracy, "max_iterations": max_iterations,
                     **{name: np.array(value, float) for name, value in zip(FIELDS, data)}})
-        return original(workspace, *data, accuracy=accuracy)
+        limit = {} if max_iterations is None else {"max_iterations": max_iterations}
+        return original(workspace, *data, accuracy=accuracy, **limit)
 
     current = [None]
     stances.qp.QPWorkspace.solve = logging_solve
@@ -70,6 +72,7 @@ def save(path, qps):
         arrays[f"{index}_case"] = np.array(qp["case"])
         arrays[f"{index}_sequence"] = np.array(qp["sequence"])
         arrays[f"{index}_accuracy"] = np.array(qp["accuracy"])
+        arrays[f"{index}_max_iterations"] = np.array(-1 if qp.get("max_iterations") is None else qp["max_iterations"])
         for name in FIELDS:
             arrays[f"{index}_{name}"] = qp[name]
     np.savez_compressed(path, count=len(qps), **arrays)
@@ -80,7 +83,9 @@ def load(path):
     with np.load(path) as data:
         return [
             {"case": str(data[f"{i}_case"]), "sequence": int(data[f"{i}_sequence"]),
-             "accuracy": float(data[f"{i}_accuracy"]), **{name: data[f"{i}_{name}"] for name in FIELDS}}
+             "accuracy": float(data[f"{i}_accuracy"]),
+             "max_iterations": None if int(data.get(f"{i}_max_iterations", -1)) < 0 else int(data[f"{i}_max_iterations"]),
+             **{name: data[f"{i}_{name}"] for name in FIELDS}}
             for i in range(int(data["count"]))
         ]
 
@@ -110,7 +115,7 @@ def replay(policy, qps, repeats=5):
                 previous = qp["sequence"]
             data = data_of(qp)
             tic = time.process_time()
-            x, count = policy.solve(data, qp["accuracy"])
+            x, count = policy.solve(data, qp["accuracy"], qp.get("max_iterations"))
             times[repeat, index] = time.process_time() - tic
             iterations[index], answers[index] = count, x
     return np.median(times, axis=0), iterations, answers
@@ -182,8 +187,9 @@ class Workspace:
     def reset(self):
         self.workspace = self.factory()
 
-    def solve(self, data, accuracy):
-        x = self.workspace.solve(*data, accuracy=accuracy)
+    def solve(self, data, accuracy, max_iterations=None):
+        limit = {} if max_iterations is None else {"max_iterations": max_iterations}
+        x = self.workspace.solve(*data, accuracy=accuracy, **limit)
         return x, self.workspace.iterations
 
 
@@ -203,7 +209,8 @@ class Piqp:
     def reset(self):
         pass
 
-    def solve(self, data, accuracy):
+    def solve(self, data, accuracy, max_iterations=None):
+        """piqp's answer and iterations (its own iteration limit: ``max_iterations`` is proxsuite's)."""
         import scipy.sparse
 
         hessian, gradient, inequality, lower, upper, box_lower, box_upper = data

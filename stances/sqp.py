@@ -670,7 +670,11 @@ def _restoration_step(problem, linearization, q, lam, workspace):
     # proxsuite iterations at 1e-6).
     metric[problem.robot.model.nv :] = 1e-2
     shortest = replace(linearization, objective=0.0, gradient=np.zeros(n), hessian=np.diag(metric))
-    x = workspace.solve(*elastic_qp(shortest, _RESTORATION_PENALTY), accuracy=1e-9)
+    # Without the elastic variable first (stances.qp.plain_qp): the rows are usually
+    # compatible here, a step from a nearly feasible point; if not, relaxed.
+    x = np.append(workspace.solve(*plain_qp(shortest), accuracy=1e-9, max_iterations=_PLAIN_QP_ITERATIONS), 0.0)
+    if not workspace.solved:
+        x = workspace.solve(*elastic_qp(shortest, _RESTORATION_PENALTY), accuracy=1e-9)
     if not np.all(np.isfinite(x)):
         return None
     nv = problem.robot.model.nv

@@ -683,3 +683,21 @@ def _run_scripted(monkeypatch, script):
     monkeypatch.setattr(sqp, "_line_search", scripted)
     monkeypatch.setattr(sqp, "_restoration", lambda *args: None)
     return run_sqp(ToyProblem(slope, below), np.zeros(3), np.zeros(0), limit=30)
+
+
+def test_a_restoration_step_is_the_shortest_step_onto_compatible_rows_and_relaxes_contradicting_ones():
+    """sqp._restoration_step from (0.4, 0, 0): onto q_x + q_y = 0.5, the shortest step
+    (solved without the elastic variable: the rows are compatible within the trust
+    region), to (0.45, 0.05, 0); onto q_x = 0 and q_x = 1, which no step meets, the
+    elastic QP's least violation, q_x = 1/2."""
+
+    def one_row(q, lam):
+        return [equality("sum", np.array([q[0] + q[1] - 0.5]), np.array([[1.0, 1.0, 0.0]]), 1.0, ["q_x + q_y = 0.5"])]
+
+    start = np.array([0.4, 0.0, 0.0])
+    for rows, expected in ((one_row, [0.45, 0.05, 0.0]), (contradicting_rows, [0.5, 0.0, 0.0])):
+        problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), rows)
+        workspace = QPWorkspace()
+        q, _ = sqp._restoration_step(problem, problem.linearize(start, np.zeros(0)), start, np.zeros(0), workspace)
+        np.testing.assert_allclose(q, expected, atol=1e-6)
+        assert workspace.solved
