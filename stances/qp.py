@@ -243,8 +243,8 @@ def plain_qp(linearization):
     jacobian, lower_gap, upper_gap, *_ = _qp_rows(linearization, hold=False)
     n = len(linearization.gradient)
     hessian = linearization.hessian + 1e-8 * np.eye(n)  # as elastic_qp regularises it
-    lower = np.maximum(np.nan_to_num(lower_gap, nan=-_INFINITY, neginf=-_INFINITY), -_INFINITY)
-    upper = np.minimum(np.nan_to_num(upper_gap, nan=_INFINITY, posinf=_INFINITY), _INFINITY)
+    lower = np.where(np.isfinite(lower_gap), lower_gap, -_INFINITY)
+    upper = np.where(np.isfinite(upper_gap), upper_gap, _INFINITY)
     box_lower = np.maximum(linearization.step_lower, -_INFINITY)
     box_upper = np.minimum(linearization.step_upper, _INFINITY)
     return hessian, linearization.gradient.copy(), jacobian, lower, upper, box_lower, box_upper

@@ -340,13 +340,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         # Once a QP has met its linearised rows, the next is first solved without the
         # elastic variable (stances.qp.plain_qp: 12 % less proxsuite time); if its rows
         # are not compatible, as the elastic QP.
-        plain = compatible
-        if plain:
-            x = workspace.solve(*plain_qp(curved), accuracy=accuracy, max_iterations=_PLAIN_QP_ITERATIONS)
-            plain = workspace.solved
-            x = np.append(x, 0.0)
-        if not plain:
-            x = workspace.solve(*elastic_qp(curved, penalty), accuracy=accuracy)
+        x, plain = _solve_step_qp(workspace, curved, penalty, accuracy, plain_first=compatible)
         qp_time += time.perf_counter() - tic
         if not np.all(np.isfinite(x)):
             # proxsuite can diverge at the largest penalties (measured: NaN at a
@@ -661,6 +655,18 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     return None if restored is None else (*restored, problem.linearize(*restored, torque_weight))
 
 
+def _solve_step_qp(workspace, linearization, penalty, accuracy, plain_first):
+    """The QP's answer ``(dq, dlambda, elastic)`` and whether it came from
+    :func:`~stances.qp.plain_qp` (elastic 0): tried first when ``plain_first``, the
+    elastic QP (``penalty``) solved when it was not or its rows proved incompatible
+    (proxsuite gives up within ``_PLAIN_QP_ITERATIONS``)."""
+    if plain_first:
+        x = workspace.solve(*plain_qp(linearization), accuracy=accuracy, max_iterations=_PLAIN_QP_ITERATIONS)
+        if workspace.solved:
+            return np.append(x, 0.0), True
+    return workspace.solve(*elastic_qp(linearization, penalty), accuracy=accuracy), False
+
+
 def _restoration_step(problem, linearization, q, lam, workspace):
     """The point :func:`_restoration` goes to, ``(q, lam)``, or None."""
     n = len(linearization.gradient)
@@ -670,11 +676,9 @@ def _restoration_step(problem, linearization, q, lam, workspace):
     # proxsuite iterations at 1e-6).
     metric[problem.robot.model.nv :] = 1e-2
     shortest = replace(linearization, objective=0.0, gradient=np.zeros(n), hessian=np.diag(metric))
-    # Without the elastic variable first (stances.qp.plain_qp): the rows are usually
-    # compatible here, a step from a nearly feasible point; if not, relaxed.
-    x = np.append(workspace.solve(*plain_qp(shortest), accuracy=1e-9, max_iterations=_PLAIN_QP_ITERATIONS), 0.0)
-    if not workspace.solved:
-        x = workspace.solve(*elastic_qp(shortest, _RESTORATION_PENALTY), accuracy=1e-9)
+    # Without the elastic variable first: the rows are usually compatible here, a step
+    # from a nearly feasible point.
+    x, _ = _solve_step_qp(workspace, shortest, _RESTORATION_PENALTY, 1e-9, plain_first=True)
     if not np.all(np.isfinite(x)):
         return None
     nv = problem.robot.model.nv
