@@ -6,8 +6,8 @@ one for its restoration steps, and a soft stance several solves), in call order,
 that a replay in one workspace sees the QPs in the SQP's order (a policy with warm
 starts, such as the old one, starts each from the previous answer).
 :func:`replay` solves the sequences again with a *policy* (an object with
-``reset()`` and ``solve(data, accuracy, max_iterations) -> (x, iterations)``; ``max_iterations``
-the limit the SQP gave proxsuite, or None), timing each QP in CPU
+``reset()`` and ``solve(data, accuracy, options) -> (x, iterations)``; ``options`` what else
+the SQP gave the workspace: its iteration limit and start point, where it gave them), timing each QP in CPU
 time (``time.process_time``; the median over repeats), and :func:`quality` compares an
 answer with a tight reference solution.
 """
@@ -37,22 +37,22 @@ def record(robot, cases):
     -------
     list of dict
         One per QP: ``case``, ``sequence`` (an integer naming the workspace, unique over
-        all cases), ``accuracy`` (the absolute accuracy the SQP asked for) and the arrays
-        of :data:`FIELDS`.
+        all cases), ``accuracy`` (the absolute accuracy the SQP asked for), ``options``
+        (the other keywords it passed: ``max_iterations``, ``start``) and the arrays of
+        :data:`FIELDS`.
     """
     qps = []
     original = stances.qp.QPWorkspace.solve
     sequences = []
 
-    def logging_solve(workspace, *data, accuracy=1e-6, max_iterations=None):
+    def logging_solve(workspace, *data, accuracy=1e-6, **options):
         # Not keyed by id(): a later workspace may reuse a collected one's address.
         if not any(workspace is seen for seen in sequences):
             sequences.append(workspace)
         sequence = next(i for i, seen in enumerate(sequences) if seen is workspace)
-        qps.append({"case": current[0], "sequence": sequence, "accuracy": accuracy, "max_iterations": max_iterations,
+        qps.append({"case": current[0], "sequence": sequence, "accuracy": accuracy, "options": dict(options),
                     **{name: np.array(value, float) for name, value in zip(FIELDS, data)}})
-        limit = {} if max_iterations is None else {"max_iterations": max_iterations}
-        return original(workspace, *data, accuracy=accuracy, **limit)
+        return original(workspace, *data, accuracy=accuracy, **options)
 
     current = [None]
     stances.qp.QPWorkspace.solve = logging_solve
@@ -72,7 +72,9 @@ def save(path, qps):
         arrays[f"{index}_case"] = np.array(qp["case"])
         arrays[f"{index}_sequence"] = np.array(qp["sequence"])
         arrays[f"{index}_accuracy"] = np.array(qp["accuracy"])
-        arrays[f"{index}_max_iterations"] = np.array(-1 if qp.get("max_iterations") is None else qp["max_iterations"])
+        options = qp.get("options", {})
+        arrays[f"{index}_max_iterations"] = np.array(options.get("max_iterations", -1))
+        arrays[f"{index}_start"] = np.asarray(options.get("start", np.zeros(0)), dtype=float)
         for name in FIELDS:
             arrays[f"{index}_{name}"] = qp[name]
     np.savez_compressed(path, count=len(qps), **arrays)
@@ -83,11 +85,20 @@ def load(path):
     with np.load(path) as data:
         return [
             {"case": str(data[f"{i}_case"]), "sequence": int(data[f"{i}_sequence"]),
-             "accuracy": float(data[f"{i}_accuracy"]),
-             "max_iterations": None if int(data.get(f"{i}_max_iterations", -1)) < 0 else int(data[f"{i}_max_iterations"]),
+             "accuracy": float(data[f"{i}_accuracy"]), "options": _options(data, i),
              **{name: data[f"{i}_{name}"] for name in FIELDS}}
             for i in range(int(data["count"]))
         ]
+
+
+def _options(data, index):
+    """The solve options of recorded QP ``index`` in a loaded ``.npz`` (those it was given)."""
+    options = {}
+    if int(data.get(f"{index}_max_iterations", -1)) >= 0:
+        options["max_iterations"] = int(data[f"{index}_max_iterations"])
+    if f"{index}_start" in data and data[f"{index}_start"].size:
+        options["start"] = data[f"{index}_start"]
+    return options
 
 
 def data_of(qp):
@@ -115,7 +126,7 @@ def replay(policy, qps, repeats=5):
                 previous = qp["sequence"]
             data = data_of(qp)
             tic = time.process_time()
-            x, count = policy.solve(data, qp["accuracy"], qp.get("max_iterations"))
+            x, count = policy.solve(data, qp["accuracy"], qp.get("options", {}))
             times[repeat, index] = time.process_time() - tic
             iterations[index], answers[index] = count, x
     return np.median(times, axis=0), iterations, answers
@@ -157,7 +168,7 @@ def reference_solution(qp):
         policy = Piqp(sparse=False, accuracy=1e-10)
     except ImportError:
         return None
-    return policy.solve(data_of(qp), 1e-10)[0]
+    return policy.solve(data_of(qp), 1e-10, {})[0]
 
 
 class LegacyWorkspace(stances.qp.QPWorkspace):
@@ -187,9 +198,8 @@ class Workspace:
     def reset(self):
         self.workspace = self.factory()
 
-    def solve(self, data, accuracy, max_iterations=None):
-        limit = {} if max_iterations is None else {"max_iterations": max_iterations}
-        x = self.workspace.solve(*data, accuracy=accuracy, **limit)
+    def solve(self, data, accuracy, options):
+        x = self.workspace.solve(*data, accuracy=accuracy, **options)
         return x, self.workspace.iterations
 
 
@@ -209,8 +219,8 @@ class Piqp:
     def reset(self):
         pass
 
-    def solve(self, data, accuracy, max_iterations=None):
-        """piqp's answer and iterations (its own iteration limit: ``max_iterations`` is proxsuite's)."""
+    def solve(self, data, accuracy, options):
+        """piqp's answer and iterations (its own iteration limit and start: ``options`` are proxsuite's)."""
         import scipy.sparse
 
         hessian, gradient, inequality, lower, upper, box_lower, box_upper = data

@@ -37,7 +37,7 @@ from .errors import ConfigurationError, StanceError
 from .cold_start import initial_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
-from .qp import QPWorkspace, elastic_qp, plain_qp, row_multipliers
+from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
@@ -666,7 +666,9 @@ def _solve_step_qp(workspace, linearization, penalty, accuracy, plain_first):
         x = workspace.solve(*plain_qp(linearization), accuracy=accuracy, max_iterations=_PLAIN_QP_ITERATIONS)
         if workspace.solved:
             return np.append(x, 0.0), True
-    return workspace.solve(*elastic_qp(linearization, penalty), accuracy=accuracy), False
+    data = elastic_qp(linearization, penalty)
+    # From the feasible point of no step (fewer proxsuite iterations than x = 0).
+    return workspace.solve(*data, accuracy=accuracy, start=elastic_start(data)), False
 
 
 def _restoration_step(problem, linearization, q, lam, workspace):

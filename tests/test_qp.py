@@ -5,7 +5,7 @@ import pytest
 
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization
-from stances.qp import QPWorkspace, elastic_qp, plain_qp, row_multipliers
+from stances.qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers
 from stances.qp_backend import proxsuite
 
 
@@ -128,6 +128,35 @@ def test_a_row_met_on_both_sides_is_one_held_row_and_a_violated_one_is_relaxed()
     np.testing.assert_allclose(x, [1.0, 1.0, 1.0], atol=1e-6)
     multipliers = row_multipliers(lin, workspace.multipliers, penalty=1e4)
     assert multipliers["x0 in [-1, 1]"] == pytest.approx(4.0, abs=1e-5)  # H x + g + y = 1 - 5 + 4
+
+
+def test_the_elastic_start_is_the_least_elastic_feasible_point_of_no_step_and_gives_the_same_answer():
+    """Rows x1 in [2, 3] (violated by 2 below), x1 <= 0 (met), x0 in [-1, 1] (held) and
+    x0 >= 0.5 (scale 0.25: violated by 2 scales) at the iterate: from x = 0 the elastic
+    variable must cover 2 scales, no less, every QP row and bound then holds; proxsuite
+    started there gives the answer it gives from x = 0."""
+    lin = _linearization([
+        ConstraintBlock("held", np.zeros(1), np.array([[1.0, 0.0]]), -1.0, 1.0, 1.0, ("x0 in [-1, 1]",)),
+        ConstraintBlock("far", np.zeros(1), np.array([[0.0, 1.0]]), 2.0, 3.0, 1.0, ("x1 in [2, 3]",)),
+        ConstraintBlock("cap", np.zeros(1), np.array([[0.0, 1.0]]), -np.inf, 0.0, 1.0, ("x1 <= 0",)),
+        ConstraintBlock("half", np.zeros(1), np.array([[1.0, 0.0]]), 0.5, np.inf, 0.25, ("x0 >= 0.5",)),
+    ])
+    lin.gradient[:] = [-5.0, 0.0]
+    data = elastic_qp(lin, penalty=1e4)
+    _, _, inequality, lower, upper, box_lower, box_upper = data
+    start = elastic_start(data)
+    np.testing.assert_array_equal(start, [0.0, 0.0, 2.0])
+    rows = inequality @ start
+    assert np.all(rows >= lower) and np.all(rows <= upper)
+    assert np.all(start >= box_lower) and np.all(start <= box_upper)
+    less = start - [0.0, 0.0, 1e-9]
+    assert np.any(inequality @ less < lower) or np.any(inequality @ less > upper)
+    cold, warm = QPWorkspace(), QPWorkspace()
+    x = cold.solve(*data, accuracy=1e-10)
+    y = warm.solve(*data, accuracy=1e-10, start=start)
+    assert cold.solved and warm.solved
+    np.testing.assert_allclose(y, x, atol=1e-6)
+    np.testing.assert_allclose(x, [1.0, 1.0, 1.0], atol=1e-6)  # x1's rows conflict: x1 = 1, elastic 1
 
 
 def test_a_conflict_names_a_row_held_at_its_bound_too():
