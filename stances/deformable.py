@@ -622,16 +622,22 @@ class DeformableContact:
         return d_displacements, d_forces[:, :nv], d_forces[:, nv:], d_nodes
 
     # -- contact set ---------------------------------------------------------
-    def freeze_modes(self, model, data, w) -> None:
+    def freeze_modes(self, model, data, w) -> np.ndarray:
         """Hold the current stick / slip / lift modes of every node (Coulomb law).
 
         The forces are then linear in the corrected displacement, so an SQP converges
         fast; :func:`stances.verify` still checks Signorini and Coulomb at the answer.
+
+        Returns
+        -------
+        (p,) int
+            The modes held, one per print node (a copy).
         """
         self.release_modes()
         self._values(model, data, w)
         self._frozen = self._modes
         self._cache_key = None
+        return np.array(self._frozen[0])
 
     def release_modes(self) -> None:
         """Let every node change mode again."""

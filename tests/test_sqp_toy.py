@@ -701,3 +701,51 @@ def test_a_restoration_step_is_the_shortest_step_onto_compatible_rows_and_relaxe
         q, _ = sqp._restoration_step(problem, problem.linearize(start, np.zeros(0)), start, np.zeros(0), workspace)
         np.testing.assert_allclose(q, expected, atol=1e-6)
         assert workspace.solved
+
+
+class _HeldModesContact:
+    """A soft contact whose nodes read the same modes wherever the solve stops."""
+
+    kind = "deformable"
+
+    def __init__(self):
+        self.frozen = 0
+
+    def freeze_modes(self, model, data, w):
+        self.frozen += 1
+        return np.array([0, 1, 2])
+
+    def release_modes(self):
+        pass
+
+
+def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monkeypatch):
+    """A Coulomb solve whose first stage stalls near feasibility, and whose held-mode
+    attempt stalls too where the nodes read the modes it held: a second attempt would hold
+    them again from there (measured: three identical attempts of 27 iterations on a palm
+    stance of rail-over-gap). One attempt is made, then the final free stage."""
+    from stances.results import PostureResult
+
+    model = point_model()
+    contact = _HeldModesContact()
+    problem = type("Problem", (), {})()
+    problem.robot = PointRobot(model)
+    problem.contacts = [contact]
+    problem.variable_slices = [slice(0, 2)]
+    problem.data = pin.Data(model)
+    problem.initial_variables = lambda q: np.zeros(2)
+    problem.check_configuration = lambda q: np.asarray(q, dtype=float)
+    calls = []
+
+    def stalled(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True):
+        calls.append(max_iterations)
+        return PostureResult(
+            feasible=False, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0), iterations=5,
+            solve_time=0.0, stance=None, statistics={"status": "stalled", "violation": 2.8e-7}, reason="stalled",
+        )
+
+    monkeypatch.setattr(sqp, "solve_problem", stalled)
+    result = sqp._solve_coulomb(problem, np.zeros(3))
+    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS, None]
+    assert contact.frozen == 2  # the second freeze finds the same modes: no second attempt
+    assert result.iterations == 15 and not result.feasible
