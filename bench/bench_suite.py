@@ -100,7 +100,8 @@ def timed_solves():
         try:
             return solve(*args, **kwargs)
         finally:
-            solves.append((time.process_time() - cpu, time.perf_counter() - wall, args[2]))
+            stance = kwargs.get("stance", args[2] if len(args) > 2 else None)
+            solves.append((time.process_time() - cpu, time.perf_counter() - wall, stance))
 
     original = cbm.planner.posture_api
     cbm.planner.posture_api = lambda: (timed, verify)

@@ -186,6 +186,11 @@ class LegacyWorkspace(stances.qp.QPWorkspace):
     first_proximal_in = 0.1
     preconditioner_iterations = 10  # proxsuite's default (3 since a4541c1)
 
+    def solve(self, *data, start=None, **options):
+        """As the library's, but a cold start begins at proxsuite's own guess, not at ``start``
+        (the library's elastic QPs start at :func:`stances.qp.elastic_start` since 07c9391)."""
+        return super().solve(*data, **options)
+
 
 class Workspace:
     """A policy that solves each sequence with one workspace (the library's, or another with its interface)."""

@@ -59,14 +59,16 @@ _USAGE_PHASE = 0.1  # scaled violation (1 mm, 1 N) below which torque usage ente
 # Scaled violation below which a full step that the merit refuses for the violation it
 # adds gets a second-order correction (see _line_search).
 _CORRECTION_PHASE = 1e-2
-# Warm starts give starting postures only: feasible within 1e-2 (scaled: 0.1 mm and mrad
+# Warm starts give starting postures only: feasible within 1e-2 (scaled: 0.1 mm and 0.1 mrad
 # of placement, 0.1 N of equilibrium, where a soft print then sinks millimetres), and done
 # once an iteration gains under 1 % of the objective. At 1e-5 the rigid warm start spent
 # its last 1-2 iterations confirming an objective the Coulomb stage then changes anyway
 # (plans on five soft suite scenes x 3 seeds, the same solver calls and stances, 5-6 % less
 # CPU at 1e-3); from 1e-3 to 1e-2 the 15 built-in soft stances took 14 warm-start
 # iterations fewer and 2 Coulomb iterations more (206 -> 194), all verified, -2.0 % of
-# their instructions.
+# their instructions. The early rejection of a stance that cannot be held rigid reads the
+# same tolerance: a rigid warm start stopping between 1e-3 and 1e-2 now goes on to the soft
+# solve (the suite's 200 plans as at b71a919 but one, whose path had moved by 85fe6b3).
 _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance": 1e-2}
 _OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
 _QP_FAILED = "the QP solver returned no finite step"
@@ -927,7 +929,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     forces linear in the displacements so the SQP converges fast; the answer is
     kept only if :func:`stances.verify` (Signorini and Coulomb at every node, on
     the full FEM model) accepts it, otherwise the modes are read again at the new
-    posture. If that does not settle, the SQP runs again with modes updated at
+    posture (and if they are those just held, no attempt holds them again). If that does not settle, the SQP runs again with modes updated at
     every linearisation, without a cap, from where the held-mode attempts began.
 
     An infeasible answer is the stage that ended it (the first stage's where it
@@ -951,16 +953,14 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     for _ in range(attempts):
         variables = problem.initial_variables(q)  # runs the kinematics at q
         pin.computeJointJacobians(model, problem.data, q)  # the print points' Jacobians
-        modes = [contact.freeze_modes(model, problem.data, variables[s]) for contact, s in deformable]
-        if held is not None and all(np.array_equal(a, b) for a, b in zip(modes, held)):
-            # Where the last attempt stopped the nodes are in the modes it held: holding
-            # them again repeats its stall (a palm stance of rail-over-gap: three attempts
-            # of 27 iterations each, 0.9 s, ending at the same 2.8e-7).
-            for contact, _ in deformable:
-                contact.release_modes()
-            break
-        held = modes
         try:
+            modes = [contact.freeze_modes(model, problem.data, variables[s]) for contact, s in deformable]
+            if held is not None and all(np.array_equal(a, b) for a, b in zip(modes, held)):
+                # Where the last attempt stopped the nodes are in the modes it held: holding
+                # them again repeats its stall (a palm stance of rail-over-gap: three attempts
+                # of 27 iterations each, 0.9 s, ending at the same 2.8e-7).
+                break
+            held = modes
             attempt = solve_problem(problem, q, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
         finally:
             for contact, _ in deformable:
