@@ -929,8 +929,9 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     forces linear in the displacements so the SQP converges fast; the answer is
     kept only if :func:`stances.verify` (Signorini and Coulomb at every node, on
     the full FEM model) accepts it, otherwise the modes are read again at the new
-    posture (and if they are those just held, no attempt holds them again). If that does not settle, the SQP runs again with modes updated at
-    every linearisation, without a cap, from where the held-mode attempts began.
+    posture (and if they are those just held, no attempt holds them again). If that
+    does not settle, the SQP runs again with modes updated at every linearisation,
+    without a cap, from where the held-mode attempts began.
 
     An infeasible answer is the stage that ended it (the first stage's where it
     came closer than held modes from the start): its ``reason`` and statistics are
