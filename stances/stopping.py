@@ -86,6 +86,18 @@ NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is h
 HOPELESS_VIOLATION = 1e-2
 _STALLED_SEARCHES = 4  # failed line searches in a row (the penalty raised after each) that end a solve
 _HOPELESS_PROGRESS = 0.5
+# An iterate nearly feasible (scaled violation above the tolerance, at most
+# LINGER_VIOLATION: a hundred default tolerances, the band an answer goes to verify
+# from; absolute, so a warm start's loose tolerance leaves the band empty) whose
+# violation has not halved over LINGER_ITERATIONS iterations ends the solve, stalled,
+# and goes to verify. Near a node's mode switch, or where two rows are nearly parallel
+# (a foot's equilibrium and strain rows on foam, cosine 0.99996, incompatible by 4e-7
+# once linearised), the steps alternate between a full one and one cut to 1/128 and
+# the violation hovers: a palm stance of rail-over-gap sat at 1.35-1.45e-7 for 13
+# iterations of a held-mode stage, twice; a quadruped stance on foam at 1.2e-6 for 6
+# iterations of its Coulomb stage, before held modes converged in 5.
+LINGER_VIOLATION = 1e-5
+LINGER_ITERATIONS = 4
 ROUNDING_FLOOR = 3e-7  # scaled violation (three default tolerances) within which a failed line search ends the solve
 NO_PROGRESS = f"no progress toward feasibility: the line search cut {CRAWL_STEPS} steps in a row below 1/16"
 
@@ -144,6 +156,7 @@ class StoppingTest:
         self._crawls, self._crawl_start = 0, np.inf  # cut steps in a row far from feasible, and the violation where they began
         self._crawling = 0  # crawling iterations in a row near feasibility (see converged)
         self._slow_since = None  # the first iteration at which the violation fell too slowly to converge in time
+        self._near = None  # (iteration, violation) since which a nearly feasible violation has not halved
 
     def forget_objectives(self) -> None:
         """The objective changed (torque usage joined it): objectives seen before are
@@ -163,6 +176,18 @@ class StoppingTest:
         return linearization.met(self.tolerance) and (
             step_length < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
         )
+
+    def lingering(self, iteration, violation) -> bool:
+        """Before an iteration's QP: whether the violation (scaled, at the iterate) has
+        stayed above the tolerance and at most ``LINGER_VIOLATION`` without halving for
+        ``LINGER_ITERATIONS`` iterations (failed line searches count)."""
+        if not self.tolerance < violation <= LINGER_VIOLATION:
+            self._near = None
+            return False
+        if self._near is None or violation <= 0.5 * self._near[1]:
+            self._near = (iteration, violation)
+            return False
+        return iteration - self._near[0] >= LINGER_ITERATIONS
 
     def hopeless(self, violation, accepted, alpha) -> bool:
         """After the line search: far from feasible, whether the last ``CRAWL_STEPS`` steps

@@ -517,6 +517,12 @@ def test_a_failed_line_search_at_a_rounding_floor_ends_the_solve(monkeypatch):
     assert 1.5e-7 <= outcome.linearization.max_violation()[0] < 3e-7
     assert outcome.penalty == problem.options.elastic_penalty
     monkeypatch.setattr(stopping, "ROUNDING_FLOOR", -1.0)
+    # Without the floor, the violation not halving ends it (stopping.LINGER_ITERATIONS)...
+    lingering = run_sqp(_CountingTrials(flat, _a_row_with_a_rounding_floor), start, np.zeros(0), limit=30)
+    assert lingering.status == "stalled" and lingering.iterations == stopping.LINGER_ITERATIONS + 1
+    assert lingering.penalty < 1e8
+    # ... and without that either, the penalty climbs to its cap.
+    monkeypatch.setattr(stopping, "LINGER_ITERATIONS", 1000)
     longer = _CountingTrials(flat, _a_row_with_a_rounding_floor)
     raised = run_sqp(longer, start, np.zeros(0), limit=30)
     assert raised.status == "stalled" and raised.penalty == 1e8
@@ -723,7 +729,8 @@ def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monk
     """A Coulomb solve whose first stage stalls near feasibility, and whose held-mode
     attempt stalls too where the nodes read the modes it held: a second attempt would hold
     them again from there (measured: three identical attempts of 27 iterations on a palm
-    stance of rail-over-gap). One attempt is made, then the final free stage."""
+    stance of rail-over-gap, and the final free stage after them the same 27). One attempt
+    is made, and it is the answer: the contact set has settled."""
     from stances.results import PostureResult
 
     model = point_model()
@@ -746,6 +753,6 @@ def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monk
 
     monkeypatch.setattr(sqp, "solve_problem", stalled)
     result = sqp._solve_coulomb(problem, np.zeros(3))
-    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS, None]
+    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS]
     assert contact.frozen == 2  # the second freeze finds the same modes: no second attempt
-    assert result.iterations == 15 and not result.feasible
+    assert result.iterations == 10 and not result.feasible

@@ -70,6 +70,27 @@ def test_cut_steps_far_from_feasible_end_the_solve_unless_the_violation_halves(s
     assert not any(near.hopeless(1e-3, None, 0.0) for _ in range(10))  # not far from feasible
 
 
+def test_a_nearly_feasible_violation_that_does_not_halve_lingers(stops):
+    window = stopping.LINGER_ITERATIONS
+    # Hovering at 1.35-1.45e-7 (a palm stance of rail-over-gap's held-mode stage).
+    hovering = [1.35e-7, 1.42e-7] * window
+    for iteration, violation in enumerate(hovering[:window], start=1):
+        assert not stops.lingering(iteration, violation)
+    assert stops.lingering(window + 1, hovering[window])
+    # Halving restarts the count; leaving the band (feasible, or far) resets it.
+    stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
+    falling = [8e-6, 5e-6, 3.9e-6, 2e-6, 1.5e-6, 9e-7, 5e-7]
+    assert not any(stops.lingering(i, v) for i, v in enumerate(falling, start=1))
+    for iteration, violation in ((8, 5e-7), (9, 5e-7), (10, 5e-8), (11, 5e-7), (12, 5e-7), (13, 5e-7), (14, 5e-7)):
+        assert not stops.lingering(iteration, violation)
+    assert stops.lingering(15, 5e-7)
+
+
+def test_a_warm_starts_loose_tolerance_leaves_the_lingering_band_empty():
+    stops = StoppingTest(1e-2, 1e-2, limit=100)
+    assert not any(stops.lingering(i, 0.06) for i in range(1, 20))  # not near: 0.06 > LINGER_VIOLATION
+
+
 def test_failed_searches_stall_after_four_or_at_once_where_nothing_changes(stops):
     assert [stops.stalled(1.0, 1.0, True, False) for _ in range(4)] == [False, False, False, True]
     assert StoppingTest(TOLERANCE, 1e-6, 100).stalled(1e-3, 0.0, False, False)  # the same QP again
