@@ -41,7 +41,7 @@ from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multiplier
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
-    CRAWL_ALPHA, HOPELESS_VIOLATION, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, StoppingTest,
+    CRAWL_ALPHA, HOPELESS_VIOLATION, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, StoppingTest,
     at_rounding_floor, better,
 )
 from .verify import verify_problem
@@ -223,7 +223,9 @@ class SqpOutcome:
     status : str
         "converged", "stalled", "stagnated", "iteration limit", "converging too
         slowly: ...", the no-progress status (a far-from-feasible line search
-        crawling), the QP-failure status, or the time-budget status.
+        crawling), the lingering status (a nearly feasible one hovering,
+        :data:`stances.stopping.LINGERING`), the QP-failure status, or the
+        time-budget status.
     penalty : float
         Final weight of the elastic variable (of the merit's violation).
     qp_time : float
@@ -317,9 +319,6 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             status, iteration = _OUT_OF_TIME, iteration - 1
             break
         violation, _ = linearization.max_violation()
-        if stops.lingering(iteration, violation):
-            status, iteration = "stalled", iteration - 1
-            break
         if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
             torque_weight = options.torque_weight
             # Only the objective changes: summed again where the problem can (what
@@ -390,6 +389,12 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
                 accepted, alpha = restored, 1.0
+        if stops.lingering(violation, linearization.met(tolerance),
+                           accepted is None or alpha < CRAWL_ALPHA or elastic > tolerance):
+            if accepted is not None and accepted[2].max_violation()[0] < violation:
+                q, lam, linearization = accepted
+            status = LINGERING
+            break
         if stops.hopeless(violation, accepted, alpha):
             if accepted is not None:
                 q, lam, linearization = accepted
@@ -449,7 +454,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             break
     q, lam, linearization = stops.final((q, lam, linearization))
     feasible = linearization.met(tolerance)
-    if feasible and status == "stalled":
+    if feasible and status in ("stalled", LINGERING):
         status = "converged"  # feasible, and the merit cannot decrease further
     reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
     return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations,
@@ -933,9 +938,9 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     kept only if :func:`stances.verify` (Signorini and Coulomb at every node, on
     the full FEM model) accepts it, otherwise the modes are read again at the new
     posture; if they are those just held, the contact set has settled and that
-    attempt is the answer. If the modes do not settle, the SQP runs again with modes
-    updated at every linearisation, without a cap, from where the held-mode attempts
-    began.
+    attempt is the answer (unless its iteration cap ended it). If the modes do not
+    settle, the SQP runs again with modes updated at every linearisation, without a
+    cap, from where the held-mode attempts began.
 
     An infeasible answer is the stage that ended it (the first stage's where it
     came closer than held modes from the start): its ``reason`` and statistics are
@@ -961,14 +966,17 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
         try:
             modes = [contact.freeze_modes(model, problem.data, variables[s]) for contact, s in deformable]
             if held is not None and all(np.array_equal(a, b) for a, b in zip(modes, held)):
-                # Where the last attempt stopped the nodes are in the modes it held: the
+                # Where the last attempt stalled the nodes are in the modes it held: the
                 # contact set is settled and it is not what fails. Holding the modes again
                 # repeats the stall (a palm stance of rail-over-gap: three attempts of 27
                 # iterations each, 0.9 s, ending at the same 2.8e-7), and so did the free
                 # stage from the start, its 27 iterations the attempt's (the only two
                 # final free stages of the suite's 701 Coulomb solves, 10 seeds: neither
-                # feasible). The attempt is the answer.
-                return _with(attempt, iterations=iterations)
+                # feasible). The attempt is the answer, unless its iteration cap, not a
+                # stall, ended it: the uncapped free stage below goes on.
+                if attempt.statistics["status"] != "iteration limit":
+                    return _with(attempt, iterations=iterations)
+                break
             held = modes
             attempt = solve_problem(problem, q, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
         finally:

@@ -8,9 +8,11 @@ fire, in the order the loop meets them:
 
 1. after the QP (:meth:`StoppingTest.converged_before_search`): a feasible iterate
    whose step is negligible is the answer;
-2. after the line search: far from feasible, steps cut again and again without the
-   violation falling (:meth:`StoppingTest.hopeless`); no step found four times in a
-   row, or at the constraints' rounding (:meth:`StoppingTest.stalled`);
+2. after the line search: nearly feasible, steps cut or not found again and again
+   without the violation halving (:meth:`StoppingTest.lingering`); far from feasible,
+   steps cut again and again without the violation falling
+   (:meth:`StoppingTest.hopeless`); no step found four times in a row, or at the
+   constraints' rounding (:meth:`StoppingTest.stalled`);
 3. after a step is taken: an infeasible iterate whose violation stagnates or falls
    too slowly to reach the tolerance (:meth:`StoppingTest.diverging`), a feasible one
    that no longer improves (:meth:`StoppingTest.converged`).
@@ -87,17 +89,22 @@ HOPELESS_VIOLATION = 1e-2
 _STALLED_SEARCHES = 4  # failed line searches in a row (the penalty raised after each) that end a solve
 _HOPELESS_PROGRESS = 0.5
 # An iterate nearly feasible (scaled violation above the tolerance, at most
-# LINGER_VIOLATION: a hundred default tolerances, the band an answer goes to verify
-# from; absolute, so a warm start's loose tolerance leaves the band empty) whose
-# violation has not halved over LINGER_ITERATIONS iterations ends the solve, stalled,
-# and goes to verify. Near a node's mode switch, or where two rows are nearly parallel
-# (a foot's equilibrium and strain rows on foam, cosine 0.99996, incompatible by 4e-7
-# once linearised), the steps alternate between a full one and one cut to 1/128 and
-# the violation hovers: a palm stance of rail-over-gap sat at 1.35-1.45e-7 for 13
+# LINGER_VIOLATION and within the NEARLY_FEASIBLE tolerances that send an answer to
+# verify; an absolute cap, so a warm start's loose tolerance leaves the band empty)
+# from which LINGER_ITERATIONS steps were cut below CRAWL_ALPHA, not found, or left
+# the QP's rows unmet, without the violation halving (or doubling) since, ends the
+# solve, and goes to verify. Near a node's mode switch, or where two rows are nearly
+# parallel (a foot's equilibrium and strain rows on foam, cosine 0.99996, incompatible
+# by 4e-7 once linearised), steps alternate between a full one and one cut to 1/128
+# and the violation hovers: a palm stance of rail-over-gap sat at 1.35-1.45e-7 for 13
 # iterations of a held-mode stage, twice; a quadruped stance on foam at 1.2e-6 for 6
-# iterations of its Coulomb stage, before held modes converged in 5.
+# iterations of its Coulomb stage, each with QPs at their iteration caps, before held
+# modes converged in 5. Whole steps do not count: Gauss-Newton creeping along a curved
+# row, 10 % an iteration, still converges (a point on a sphere: 86 iterations).
 LINGER_VIOLATION = 1e-5
 LINGER_ITERATIONS = 4
+LINGERING = (f"nearly feasible but not converging: {LINGER_ITERATIONS} steps cut below 1/16 or not found "
+             "without the violation halving")
 ROUNDING_FLOOR = 3e-7  # scaled violation (three default tolerances) within which a failed line search ends the solve
 NO_PROGRESS = f"no progress toward feasibility: the line search cut {CRAWL_STEPS} steps in a row below 1/16"
 
@@ -156,7 +163,7 @@ class StoppingTest:
         self._crawls, self._crawl_start = 0, np.inf  # cut steps in a row far from feasible, and the violation where they began
         self._crawling = 0  # crawling iterations in a row near feasibility (see converged)
         self._slow_since = None  # the first iteration at which the violation fell too slowly to converge in time
-        self._near = None  # (iteration, violation) since which a nearly feasible violation has not halved
+        self._near, self._troubles = None, 0  # the nearly feasible violation steps are counted from, and the count
 
     def forget_objectives(self) -> None:
         """The objective changed (torque usage joined it): objectives seen before are
@@ -177,17 +184,34 @@ class StoppingTest:
             step_length < 1e-7 or predicted <= 1e-9 * (1.0 + abs(linearization.objective))
         )
 
-    def lingering(self, iteration, violation) -> bool:
-        """Before an iteration's QP: whether the violation (scaled, at the iterate) has
-        stayed above the tolerance and at most ``LINGER_VIOLATION`` without halving for
-        ``LINGER_ITERATIONS`` iterations (failed line searches count)."""
-        if not self.tolerance < violation <= LINGER_VIOLATION:
+    def lingering(self, violation, met, troubled) -> bool:
+        """After the line search: whether a nearly feasible solve hovers (see
+        ``LINGER_ITERATIONS``).
+
+        Parameters
+        ----------
+        violation : float
+            Scaled violation of the iterate this iteration started from.
+        met : bool
+            Whether that iterate is feasible (:meth:`Linearization.met`).
+        troubled : bool
+            Whether this iteration's step was cut below ``CRAWL_ALPHA``, not found, or
+            left the QP's linearised rows unmet (elastic variable above the tolerance).
+
+        Returns
+        -------
+        bool
+            True when ``LINGER_ITERATIONS`` troubled steps were taken from iterates in the
+            band since the violation last halved or doubled there.
+        """
+        top = min(LINGER_VIOLATION, NEARLY_FEASIBLE * self.tolerance)
+        if met or not self.tolerance < violation <= top:
             self._near = None
             return False
-        if self._near is None or violation <= 0.5 * self._near[1]:
-            self._near = (iteration, violation)
-            return False
-        return iteration - self._near[0] >= LINGER_ITERATIONS
+        if self._near is None or not 0.5 * self._near < violation <= 2.0 * self._near:
+            self._near, self._troubles = violation, 0
+        self._troubles += bool(troubled)
+        return self._troubles >= LINGER_ITERATIONS
 
     def hopeless(self, violation, accepted, alpha) -> bool:
         """After the line search: far from feasible, whether the last ``CRAWL_STEPS`` steps

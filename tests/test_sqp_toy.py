@@ -153,6 +153,18 @@ def test_closest_point_on_a_sphere_at_the_rate_its_hessian_predicts(distance):
     assert np.all(ratios <= rate + 5e-3), (ratios, rate)
 
 
+def test_a_slow_but_steady_creep_near_feasibility_is_not_cut_short():
+    """Far out (|a| = 1.95, rate 0.95 with the objective's Hessian alone) the violation
+    creeps down 5-10 % an iteration near feasibility, every step taken whole: that is
+    progress, not hovering (stopping.LINGER_ITERATIONS counts only cut, failed or
+    elastic steps), and the solve converges to the optimum."""
+    target = 1.95 * np.array([1.0, 2.0, 2.0]) / 3.0
+    outcome = run_sqp(ToyProblem(squared_distance_to(target), on_the_sphere), START, np.zeros(0), limit=200)
+    assert outcome.feasible and outcome.status == "converged"
+    assert outcome.iterations > 40  # slow indeed: dozens of iterations in the lingering band
+    np.testing.assert_allclose(outcome.q, RADIUS * target / np.linalg.norm(target), atol=1e-3)
+
+
 @pytest.mark.parametrize("distance", [1.6, 0.5], ids=["outside-rate-0.6", "inside-rate-0.5"])
 def test_constraint_curvature_reaches_the_sphere_optimum_in_fewer_iterations(distance):
     """With the constraint's curvature (2 y I, y of either sign) the QP's Hessian is the
@@ -517,10 +529,12 @@ def test_a_failed_line_search_at_a_rounding_floor_ends_the_solve(monkeypatch):
     assert 1.5e-7 <= outcome.linearization.max_violation()[0] < 3e-7
     assert outcome.penalty == problem.options.elastic_penalty
     monkeypatch.setattr(stopping, "ROUNDING_FLOOR", -1.0)
-    # Without the floor, the violation not halving ends it (stopping.LINGER_ITERATIONS)...
+    # Without the floor, failed searches that do not halve the violation end it
+    # (stopping.LINGER_ITERATIONS)...
     lingering = run_sqp(_CountingTrials(flat, _a_row_with_a_rounding_floor), start, np.zeros(0), limit=30)
-    assert lingering.status == "stalled" and lingering.iterations == stopping.LINGER_ITERATIONS + 1
-    assert lingering.penalty < 1e8
+    # (two steps to 1.5e-7, then four cut or failed)
+    assert lingering.status == stopping.LINGERING and lingering.iterations == 2 + stopping.LINGER_ITERATIONS
+    assert lingering.penalty < 1e8 and not lingering.feasible
     # ... and without that either, the penalty climbs to its cap.
     monkeypatch.setattr(stopping, "LINGER_ITERATIONS", 1000)
     longer = _CountingTrials(flat, _a_row_with_a_rounding_floor)
@@ -716,13 +730,47 @@ class _HeldModesContact:
 
     def __init__(self):
         self.frozen = 0
+        self.released = 0
 
     def freeze_modes(self, model, data, w):
         self.frozen += 1
         return np.array([0, 1, 2])
 
     def release_modes(self):
-        pass
+        self.released += 1
+
+
+def _held_modes_problem():
+    """A stand-in problem with one soft contact of :class:`_HeldModesContact`."""
+    model = point_model()
+    problem = type("Problem", (), {})()
+    problem.robot = PointRobot(model)
+    problem.contacts = [_HeldModesContact()]
+    problem.variable_slices = [slice(0, 2)]
+    problem.data = pin.Data(model)
+    problem.initial_variables = lambda q: np.zeros(2)
+    problem.check_configuration = lambda q: np.asarray(q, dtype=float)
+    return problem
+
+
+def _scripted_stages(monkeypatch, attempt_status):
+    """Replace sqp.solve_problem by stages that stall near feasibility (a held-mode attempt
+    ending with ``attempt_status``), each moving q by 0.01; returns the list of the stages'
+    iteration caps it fills."""
+    from stances.results import PostureResult
+
+    calls = []
+
+    def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True):
+        calls.append(max_iterations)
+        status = attempt_status if max_iterations == sqp._FROZEN_ITERATIONS else "stalled"
+        return PostureResult(
+            feasible=False, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0), iterations=5,
+            solve_time=0.0, stance=None, statistics={"status": status, "violation": 2.8e-7}, reason=status,
+        )
+
+    monkeypatch.setattr(sqp, "solve_problem", stage)
+    return calls
 
 
 def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monkeypatch):
@@ -731,28 +779,24 @@ def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monk
     them again from there (measured: three identical attempts of 27 iterations on a palm
     stance of rail-over-gap, and the final free stage after them the same 27). One attempt
     is made, and it is the answer: the contact set has settled."""
-    from stances.results import PostureResult
-
-    model = point_model()
-    contact = _HeldModesContact()
-    problem = type("Problem", (), {})()
-    problem.robot = PointRobot(model)
-    problem.contacts = [contact]
-    problem.variable_slices = [slice(0, 2)]
-    problem.data = pin.Data(model)
-    problem.initial_variables = lambda q: np.zeros(2)
-    problem.check_configuration = lambda q: np.asarray(q, dtype=float)
-    calls = []
-
-    def stalled(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True):
-        calls.append(max_iterations)
-        return PostureResult(
-            feasible=False, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0), iterations=5,
-            solve_time=0.0, stance=None, statistics={"status": "stalled", "violation": 2.8e-7}, reason="stalled",
-        )
-
-    monkeypatch.setattr(sqp, "solve_problem", stalled)
+    problem = _held_modes_problem()
+    contact = problem.contacts[0]
+    calls = _scripted_stages(monkeypatch, "stalled")
     result = sqp._solve_coulomb(problem, np.zeros(3))
     assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS]
     assert contact.frozen == 2  # the second freeze finds the same modes: no second attempt
-    assert result.iterations == 10 and not result.feasible
+    assert contact.released == 2  # every freeze released, the early return's too
+    # The attempt's answer: from the first stage's q (0.01), one stage further.
+    np.testing.assert_allclose(result.q, 0.02)
+    assert result.iterations == 10 and not result.feasible and result.reason == "stalled"
+
+
+def test_a_held_mode_attempt_its_cap_ended_goes_on_free(monkeypatch):
+    """The same, but the held-mode attempt ran to its iteration cap, still moving: not a
+    stall, so the uncapped free stage runs from where the attempts began."""
+    problem = _held_modes_problem()
+    calls = _scripted_stages(monkeypatch, "iteration limit")
+    result = sqp._solve_coulomb(problem, np.zeros(3))
+    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS, None]
+    np.testing.assert_allclose(result.q, 0.02)  # the free stage from the first stage's q
+    assert result.iterations == 15 and result.reason == "stalled"

@@ -70,25 +70,43 @@ def test_cut_steps_far_from_feasible_end_the_solve_unless_the_violation_halves(s
     assert not any(near.hopeless(1e-3, None, 0.0) for _ in range(10))  # not far from feasible
 
 
-def test_a_nearly_feasible_violation_that_does_not_halve_lingers(stops):
+def test_nearly_feasible_steps_cut_without_the_violation_halving_linger(stops):
     window = stopping.LINGER_ITERATIONS
-    # Hovering at 1.35-1.45e-7 (a palm stance of rail-over-gap's held-mode stage).
-    hovering = [1.35e-7, 1.42e-7] * window
-    for iteration, violation in enumerate(hovering[:window], start=1):
-        assert not stops.lingering(iteration, violation)
-    assert stops.lingering(window + 1, hovering[window])
-    # Halving restarts the count; leaving the band (feasible, or far) resets it.
+    # A palm stance of rail-over-gap: a whole step and one cut to 1/128 in turn, the
+    # violation at 1.35-1.45e-7; only the cut ones count.
+    hovering = [(1.35e-7, False), (1.42e-7, True)] * window
+    fired = [stops.lingering(violation, False, troubled) for violation, troubled in hovering]
+    assert fired == [False] * (2 * window - 1) + [True]
+
+
+def test_whole_steps_halving_or_doubling_and_feasibility_restart_the_count(stops):
+    window = stopping.LINGER_ITERATIONS
+    # Whole steps creeping 10 % an iteration: progress, never counted.
+    assert not any(stops.lingering(5e-6 * 0.9**k, False, False) for k in range(20))
+    # Cut steps whose violation halves each time: counted from anew each time.
+    assert not any(stops.lingering(8e-6 * 0.45**k, False, True) for k in range(8))
+    # A rise beyond twice the reference starts the count again (then halving: never fires).
     stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
-    falling = [8e-6, 5e-6, 3.9e-6, 2e-6, 1.5e-6, 9e-7, 5e-7]
-    assert not any(stops.lingering(i, v) for i, v in enumerate(falling, start=1))
-    for iteration, violation in ((8, 5e-7), (9, 5e-7), (10, 5e-8), (11, 5e-7), (12, 5e-7), (13, 5e-7), (14, 5e-7)):
-        assert not stops.lingering(iteration, violation)
-    assert stops.lingering(15, 5e-7)
+    assert not any(stops.lingering(v, False, True) for v in [2e-7, 8e-6, 3.5e-6, 1.6e-6, 7e-7])
+    # A feasible iterate, or one outside the band, resets it.
+    stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
+    for _ in range(window - 1):
+        assert not stops.lingering(5e-7, False, True)
+    assert not stops.lingering(5e-7, True, True)  # met (a block's own accuracy)
+    assert not any(stops.lingering(5e-7, False, True) for _ in range(window - 1))
+    assert not stops.lingering(2e-5, False, True)  # above LINGER_VIOLATION
+    assert not any(stops.lingering(5e-7, False, True) for _ in range(window - 1))
+    assert stops.lingering(5e-7, False, True)
 
 
-def test_a_warm_starts_loose_tolerance_leaves_the_lingering_band_empty():
-    stops = StoppingTest(1e-2, 1e-2, limit=100)
-    assert not any(stops.lingering(i, 0.06) for i in range(1, 20))  # not near: 0.06 > LINGER_VIOLATION
+def test_the_lingering_band_is_within_the_verified_band_and_empty_for_warm_starts():
+    # A tighter tolerance: only iterates an answer would go to verify from (100 tolerances).
+    tight = StoppingTest(1e-9, 1e-6, limit=100)
+    assert not any(tight.lingering(5e-7, False, True) for _ in range(10))  # 500 tolerances: not near
+    assert any(tight.lingering(5e-8, False, True) for _ in range(10))
+    # A warm start's loose tolerance (1e-2): the band (1e-2, 1e-5] is empty.
+    loose = StoppingTest(1e-2, 1e-2, limit=100)
+    assert not any(loose.lingering(v, False, True) for v in (5e-6, 0.06) for _ in range(10))
 
 
 def test_failed_searches_stall_after_four_or_at_once_where_nothing_changes(stops):
