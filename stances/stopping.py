@@ -115,7 +115,9 @@ def at_rounding_floor(violation, elastic, tolerance) -> bool:
     Within three default tolerances (``ROUNDING_FLOOR``), with a step that meets its
     linearised rows (``elastic <= tolerance``): a steel-stiff print's rows read its
     micro-displacements times 1e11 Pa, which no penalty removes. Such an iterate goes
-    to verify, whose tolerances are ten times the SQP's: it decides. The floor is
+    to verify, whose tolerances are physical (1e-6 N of equilibrium, what the SQP's
+    tolerance is on those rows, scaled by 10 N; 1e-6 m of placement, a thousand times
+    the SQP's): it decides. The floor is
     absolute: a warm start's loose tolerance is not verified, and violations that far
     up are not rounding (a review found the rule, at ten tolerances, ending warm
     starts at 5e-3 that a raised penalty would have converged). hand-on-cube at
