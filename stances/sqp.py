@@ -363,7 +363,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             status = "converged"
             break
         # (see stopping.PREDICTED_GAIN and MINOR_GAIN)
-        marginal = linearization.met(tolerance) and predicted <= PREDICTED_GAIN * (1.0 + abs(linearization.objective))
+        met = linearization.met(tolerance)  # the iterate's, read again by the lingering test below
+        marginal = met and predicted <= PREDICTED_GAIN * (1.0 + abs(linearization.objective))
         minor = violation <= NEARLY_FEASIBLE * tolerance and predicted <= MINOR_GAIN * (1.0 + abs(linearization.objective))
         # (A marginal step is only tried whole: no correction, which costs a QP and a
         # linearisation, for a gain the stop below would not wait for.)
@@ -389,8 +390,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
             needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
                 accepted, alpha = restored, 1.0
-        if stops.lingering(violation, linearization.met(tolerance),
-                           accepted is None or alpha < CRAWL_ALPHA or elastic > tolerance):
+        if stops.lingering(violation, met, accepted is None or alpha < CRAWL_ALPHA or elastic > tolerance):
             if accepted is not None and accepted[2].max_violation()[0] < violation:
                 q, lam, linearization = accepted
             status = LINGERING
