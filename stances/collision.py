@@ -31,7 +31,11 @@ A posture solver's line search needs the distances only
 (:meth:`CollisionChecker.closest_distances`), the linearisation the witness
 points of the closest pairs (:meth:`CollisionChecker.closest_pairs`); the last
 measurement is kept, keyed on the geometry placements, so that the accepted
-trial's linearisation measures only the witnesses it uses.
+trial's linearisation measures only the witnesses it uses. Each pair's last
+separation bounds its distance at the next posture (a shape's points move by at
+most what its bounding sphere's centre and rotation say), and pairs that cannot
+be among the closest within the margin are not measured again (on the 15
+built-in soft stances, 9,320 coal calls instead of 12,551, the same answers).
 
 Sign conventions. ``distance <= 0`` means penetration (its magnitude is then
 the penetration depth). ``normal`` is the unit vector, world frame, along which
@@ -55,6 +59,10 @@ from .narrow_phase import CollisionSetupError, DistanceQuery, coal, robot_shape,
 # Broad-phase bounds within this of the margin reach coal, metres (coal's distances
 # are exact to 1e-13 m on polytopes, see stances.narrow_phase).
 _BOUND_SLACK = 1e-9
+# A distance measured before bounds the same pair's distance now: it moves by at most
+# how far a point of either shape moved (CollisionChecker._unreachable). The bounds are
+# widened by this, metres, for coal's accuracy on curved shapes and the bound's rounding.
+_COHERENCE_SLACK = 1e-7
 # Deepest penetration reported, metres (deeper than any two robot links can
 # overlap): the stand-in when coal cannot measure a depth.
 _DEEPEST = 1.0
@@ -325,7 +333,7 @@ class CollisionChecker:
         model = robot.model
         self._support = self._geometry.support  # once per robot: a Python loop over the joints
         self._geometry_index = None  # geometry name -> index, made on first use
-        self._last_distances = None  # (key, measured) of the last _distances
+        self._last_closest = None  # (key, closest) of the last _closest
 
         self.scene_names, self._scene_shapes, self._scene_placements, bounds, boxes = [], [], [], [], []
         for entry in scene_objects:
@@ -387,6 +395,14 @@ class CollisionChecker:
         keep = allowed_self[self_pairs[:, 0], self_pairs[:, 1]]
         self._self_pairs = self_pairs[keep]
         self._self_radii = geometry.sphere_radius[self._self_pairs[:, 0]] + geometry.sphere_radius[self._self_pairs[:, 1]]
+        # The last separation coal measured of each pair (scene pairs, then self pairs;
+        # NaN: none yet) and where its shapes were then: each one's bounding sphere's
+        # centre (world) and rotation (a scene object's never moves: zero motion).
+        self._all_pairs = np.concatenate([self._scene_pairs, self._self_pairs])
+        count = len(self._all_pairs)
+        self._known = np.full(count, np.nan)
+        self._known_centers = np.zeros((count, 2, 3))
+        self._known_rotations = np.zeros((count, 2, 3, 3))
 
     @property
     def pair_count(self) -> int:
@@ -415,7 +431,7 @@ class CollisionChecker:
                 raise CollisionSetupError(f"margin must be >= 0 metres, got {margin}")
             clone.margin = margin
         clone.exclude = tuple((key, other) for key, other in exclude)
-        clone._last_distances = None  # measured with the original's pairs
+        clone._last_closest = None  # measured with the original's pairs
         clone._build_pair_lists(self._robot.model)
         return clone
 
@@ -449,10 +465,10 @@ class CollisionChecker:
 
         Returns
         -------
-        scene_candidates : (k, 2) int
-            (robot geometry, scene object), in ``_scene_pairs`` order.
-        self_candidates : (l, 2) int
-            (robot geometry, robot geometry), in ``_self_pairs`` order.
+        candidates : (k,) int
+            Pair ids, ascending: ``i < len(_scene_pairs)`` is ``_scene_pairs[i]`` (robot
+            geometry, scene object), the others ``_self_pairs[i - len(_scene_pairs)]``
+            (robot geometry, robot geometry).
         centers : (g, 3) float
             Bounding sphere centres, metres, world frame.
         """
@@ -466,6 +482,7 @@ class CollisionChecker:
         # its box); the larger one is kept. The slack covers coal's own accuracy.
         limit = self.margin + _BOUND_SLACK
         scene_pairs = self._scene_pairs
+        scene_candidates = np.zeros(0, dtype=int)
         if len(scene_pairs):
             # (g, b) bounds of every robot geometry against every scene box, then the
             # least over each object's boxes (the object lies in their union).
@@ -476,26 +493,28 @@ class CollisionChecker:
                 _norms(np.maximum(np.maximum(lower - highs[:, None], lows[:, None] - upper), 0.0)),
             )
             gap = np.minimum.reduceat(per_box, self._scene_box_starts, axis=1)[scene_pairs[:, 0], scene_pairs[:, 1]]
-            scene_candidates = scene_pairs[gap <= limit]
-        else:
-            scene_candidates = scene_pairs
+            scene_candidates = np.flatnonzero(gap <= limit)
         self_pairs = self._self_pairs
+        self_candidates = np.zeros(0, dtype=int)
         if len(self_pairs):
             # Spheres first, over every pair; boxes over the pairs whose spheres are near
             # (a tenth of them): the larger bound within the limit is both within it.
             a, b = self_pairs[:, 0], self_pairs[:, 1]
             near = np.flatnonzero(_norms(centers[a] - centers[b]) - self._self_radii <= limit)
             a, b = a[near], b[near]
-            self_candidates = self_pairs[near[_box_gap(lows[a], highs[a], lows[b], highs[b]) <= limit]]
-        else:
-            self_candidates = self_pairs
-        return scene_candidates, self_candidates, centers
+            self_candidates = near[_box_gap(lows[a], highs[a], lows[b], highs[b]) <= limit]
+        return np.concatenate([scene_candidates, len(scene_pairs) + self_candidates]), centers
 
-    def _candidates(self, rotation, translation):
-        """The broad phase's pairs as ``(a, placement_a, b, shape_b, placement_b, centre_a,
-        reference_b, is_self)`` tuples, scene pairs first (coal placements made once)."""
+    def _candidates(self, rotation, translation, ids=None, centers=None):
+        """The broad phase's pairs (or the pairs ``ids``, with the sphere ``centers`` it
+        gave) as ``(a, placement_a, b, shape_b, placement_b, centre_a, reference_b,
+        is_self)`` tuples, scene pairs first (coal placements made once)."""
         geometry = self._geometry
-        scene_candidates, self_candidates, centers = self._broad_phase(rotation, translation)
+        if ids is None:
+            ids, centers = self._broad_phase(rotation, translation)
+        split = np.searchsorted(ids, len(self._scene_pairs))
+        scene_candidates = self._scene_pairs[ids[:split]]
+        self_candidates = self._self_pairs[ids[split:] - len(self._scene_pairs)]
         used = np.zeros(len(geometry.names), dtype=bool)
         used[scene_candidates[:, 0]] = used[self_candidates.ravel()] = True
         placements = {index: coal.Transform3s(rotation[index], translation[index]) for index in np.flatnonzero(used).tolist()}
@@ -532,32 +551,6 @@ class CollisionChecker:
         query = DistanceQuery()
         measured = [self._measure(query, *candidate) for candidate in self._candidates(rotation, translation)]
         return [pair for pair in measured if pair is not None]
-
-    def _distances(self, data):
-        """Every pair within ``margin`` at the joint placements in ``data``, distances only.
-
-        Returns
-        -------
-        list of (float, tuple, float, coal.DistanceResult)
-            Signed distance (clamped as :meth:`_pair` does), the pair's
-            :meth:`_candidates` entry, coal's distance and its result, in
-            :meth:`pairs` order. The last answer is kept, keyed on the geometry
-            placements and the margin.
-        """
-        rotation, translation = self._geometry_to_world(data, None)
-        key = (self.margin, rotation.tobytes(), translation.tobytes())
-        if self._last_distances is not None and self._last_distances[0] == key:
-            return self._last_distances[1]
-        geometry, query, margin = self._geometry, DistanceQuery(), self.margin
-        measured = []
-        for candidate in self._candidates(rotation, translation):
-            a, placement_a, _, shape_b, placement_b = candidate[:5]
-            # Each result is kept: the rows the linearisation keeps read their witness points there.
-            distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b)
-            if not distance > margin:
-                measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
-        self._last_distances = (key, measured)
-        return measured
 
     def closest_distances(self, model, data, count):
         """The distances of the ``count`` closest pairs within ``margin``, without witness points.
@@ -599,8 +592,91 @@ class CollisionChecker:
         ]
 
     def _closest(self, data, count):
-        """The ``count`` smallest of :meth:`_distances` (a stable sort, as :meth:`pairs` then ``sorted``)."""
-        return sorted(self._distances(data), key=lambda entry: entry[0])[:count]
+        """The ``count`` closest pairs within ``margin`` at the joint placements in ``data``.
+
+        What :meth:`pairs` then a stable sort by distance would give first, without
+        measuring the pairs that cannot be among them (:meth:`_unreachable`).
+
+        Returns
+        -------
+        list of (float, tuple, float, coal.DistanceResult)
+            Signed distance (clamped as :meth:`_pair` does), the pair's
+            :meth:`_candidates` entry, coal's distance and its result, ascending. The
+            last answer is kept, keyed on the geometry placements, the margin and ``count``.
+        """
+        rotation, translation = self._geometry_to_world(data, None)
+        key = (self.margin, count, rotation.tobytes(), translation.tobytes())
+        if self._last_closest is not None and self._last_closest[0] == key:
+            return self._last_closest[1]
+        ids, centers = self._broad_phase(rotation, translation)
+        ids = ids[~self._unreachable(ids, rotation, centers, count)]
+        geometry, query, margin = self._geometry, DistanceQuery(), self.margin
+        measured, separations = [], np.full(len(ids), np.nan)
+        for i, candidate in enumerate(self._candidates(rotation, translation, ids, centers)):
+            a, placement_a, _, shape_b, placement_b = candidate[:5]
+            # Each result is kept: the rows the linearisation keeps read their witness points there.
+            distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b)
+            if distance > 0.0:
+                separations[i] = distance
+            if not distance > margin:
+                measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
+        self._remember(ids, separations, rotation, centers)
+        closest = sorted(measured, key=lambda entry: entry[0])[:count]
+        self._last_closest = (key, closest)
+        return closest
+
+    def _unreachable(self, ids, rotation, centers, count) -> np.ndarray:
+        """(k,) bool: the pairs ``ids`` that cannot be among the ``count`` closest within
+        ``margin``, by the separations measured before (:meth:`_remember`).
+
+        A point of a shape has moved since by at most ``|c - c0| + |R - R0| r`` (its
+        bounding sphere's centre c and radius r, its rotation R; ``|.|`` the Frobenius
+        norm, which bounds the spectral one), so a pair's distance lies within the
+        sum ``m`` of its two shapes' such motions of the one measured: in ``[d0 - m,
+        d0 + m]``. A pair whose lower bound exceeds the margin, or exceeds the upper
+        bounds of ``count`` other pairs, is not among them; the others are measured, so
+        the answer is the one measuring every pair gives, bit for bit. Only separations
+        (d0 > 0, GJK's exact answer) are used. Measured on hand-on-cube's climb stance:
+        a third of the broad phase's pairs lie beyond the margin, and a third of those
+        within it beyond the closest 20.
+        """
+        known = self._known[ids]
+        history = np.flatnonzero(np.isfinite(known))
+        if history.size == 0:
+            return np.zeros(len(ids), dtype=bool)
+        pair_ids = ids[history]
+        a, b, is_self = self._pair_geometries(pair_ids)
+        radius = self._geometry.sphere_radius
+        moved = (_norms(centers[a] - self._known_centers[pair_ids, 0])
+                 + _norms((rotation[a] - self._known_rotations[pair_ids, 0]).reshape(-1, 9)) * radius[a])
+        b_self = b[is_self]
+        moved[is_self] += (_norms(centers[b_self] - self._known_centers[pair_ids[is_self], 1])
+                           + _norms((rotation[b_self] - self._known_rotations[pair_ids[is_self], 1]).reshape(-1, 9))
+                           * radius[b_self])
+        lower = np.full(len(ids), -np.inf)
+        upper = np.full(len(ids), np.inf)
+        lower[history] = known[history] - moved - _COHERENCE_SLACK
+        upper[history] = known[history] + moved + _COHERENCE_SLACK
+        # The count-th smallest upper bound: that many pairs lie no farther. A pair
+        # beyond it (and beyond the deepest stand-in, which ties) ranks after them.
+        floor = np.partition(upper, count - 1)[count - 1] if 0 < count <= len(ids) else np.inf
+        return (lower > self.margin + _BOUND_SLACK) | (lower > max(floor, -_DEEPEST))
+
+    def _remember(self, ids, separations, rotation, centers) -> None:
+        """Keep the pairs ``ids``' separations just measured (NaN: not separated) and
+        their shapes' placements then, for :meth:`_unreachable`."""
+        a, b, is_self = self._pair_geometries(ids)
+        self._known[ids] = separations
+        self._known_centers[ids, 0] = centers[a]
+        self._known_rotations[ids, 0] = rotation[a]
+        self._known_centers[ids[is_self], 1] = centers[b[is_self]]
+        self._known_rotations[ids[is_self], 1] = rotation[b[is_self]]
+
+    def _pair_geometries(self, ids):
+        """(k,) robot geometry a, (k,) b (a robot geometry where ``is_self``, else a scene
+        object) and (k,) ``is_self`` of the pair ids ``ids``."""
+        both = self._all_pairs[ids]
+        return both[:, 0], both[:, 1], ids >= len(self._scene_pairs)
 
     def _names(self, candidate):
         """``(name_a, name_b)`` of a :meth:`_candidates` entry."""

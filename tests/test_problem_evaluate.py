@@ -11,7 +11,9 @@ from conftest import coarse_scenario
 
 from dataclasses import replace
 
+from stances import initial_configuration
 from stances.errors import StanceError
+from stances.narrow_phase import DistanceQuery
 from stances.problem import PostureOptions, build_problem
 
 CASES = {
@@ -128,3 +130,38 @@ def test_closest_distances_and_pairs_are_the_closest_of_all_pairs(robot):
             assert pair.distance == reference.distance
             np.testing.assert_array_equal(pair.point_a, reference.point_a)
             np.testing.assert_array_equal(pair.normal, reference.normal)
+
+
+def test_pairs_skipped_by_earlier_distances_leave_the_closest_pairs_unchanged(robot, monkeypatch):
+    """Along a walk of SQP-sized steps, the closest pairs of a checker that skips
+    pairs by the distances it measured before (CollisionChecker._unreachable) are
+    those of a checker with no past, bit for bit, and it skips some coal calls."""
+    scenario = coarse_scenario("foot-and-hand-on-foam")
+    problem = build_problem(robot, scenario.scene, scenario.stance("foot-and-hand"))
+    checker, model, data = problem.collision_checker, robot.model, problem.data
+    calls = []
+    measure = DistanceQuery.kept_distance
+    monkeypatch.setattr(DistanceQuery, "kept_distance", lambda self, *args: calls.append(1) or measure(self, *args))
+    rng = np.random.default_rng(5)
+    q = initial_configuration(robot, scenario.scene, scenario.stance("foot-and-hand"))  # its feet and hand near the supports
+    skipped = 0
+    for size in (0.3, 0.03, 0.01, 0.003, 0.3, 0.001, 0.01, 0.0):
+        q = pin.integrate(model, q, size * rng.standard_normal(robot.nv))
+        pin.framesForwardKinematics(model, data, q)
+        fresh = checker.with_exclusions(checker.exclude)  # the same pairs, nothing measured yet
+        calls.clear()
+        expected = fresh.closest_pairs(model, data, 20)
+        every = len(calls)
+        calls.clear()
+        pairs = checker.closest_pairs(model, data, 20)
+        skipped += every - len(calls)
+        assert [(p.name_a, p.name_b) for p in pairs] == [(p.name_a, p.name_b) for p in expected]
+        for pair, reference in zip(pairs, expected):
+            assert pair.distance == reference.distance
+            np.testing.assert_array_equal(pair.point_a, reference.point_a)
+            np.testing.assert_array_equal(pair.point_b, reference.point_b)
+            np.testing.assert_array_equal(pair.normal, reference.normal)
+        distances, names = checker.closest_distances(model, data, 5)
+        assert names == [(p.name_a, p.name_b) for p in expected[:5]]
+        np.testing.assert_array_equal(distances, [p.distance for p in expected[:5]])
+    assert skipped > 0
