@@ -35,7 +35,7 @@ trial's linearisation measures only the witnesses it uses. Each pair's last
 separation bounds its distance at the next posture (a shape's points move by at
 most what its bounding sphere's centre and rotation say), and pairs that cannot
 be among the closest within the margin are not measured again (on the 15
-built-in soft stances, 9,320 coal calls instead of 12,551, the same answers).
+built-in soft stances, 9,509 coal calls instead of 12,551, the same answers).
 
 Sign conventions. ``distance <= 0`` means penetration (its magnitude is then
 the penetration depth). ``normal`` is the unit vector, world frame, along which
@@ -395,14 +395,16 @@ class CollisionChecker:
         keep = allowed_self[self_pairs[:, 0], self_pairs[:, 1]]
         self._self_pairs = self_pairs[keep]
         self._self_radii = geometry.sphere_radius[self._self_pairs[:, 0]] + geometry.sphere_radius[self._self_pairs[:, 1]]
-        # The last separation coal measured of each pair (scene pairs, then self pairs;
-        # NaN: none yet) and where its shapes were then: each one's bounding sphere's
-        # centre (world) and rotation (a scene object's never moves: zero motion).
-        self._all_pairs = np.concatenate([self._scene_pairs, self._self_pairs])
-        count = len(self._all_pairs)
-        self._known = np.full(count, np.nan)
-        self._known_centers = np.zeros((count, 2, 3))
-        self._known_rotations = np.zeros((count, 2, 3, 3))
+        # Bounds on each pair's distance (scene pairs, then self pairs; -inf and inf:
+        # none), from the separations coal measured, carried from one measurement to
+        # the next by how far the shapes moved in between (CollisionChecker._unreachable),
+        # and the placements they were carried to: each geometry's rotation and
+        # bounding sphere centre.
+        self._pair_a = np.concatenate([self._scene_pairs[:, 0], self._self_pairs[:, 0]])
+        self._pair_b = np.concatenate([np.full(len(self._scene_pairs), -1), self._self_pairs[:, 1]])
+        self._lower = np.full(len(self._pair_a), -np.inf)
+        self._upper = np.full(len(self._pair_a), np.inf)
+        self._bounds_at = None
 
     @property
     def pair_count(self) -> int:
@@ -611,16 +613,15 @@ class CollisionChecker:
         ids, centers = self._broad_phase(rotation, translation)
         ids = ids[~self._unreachable(ids, rotation, centers, count)]
         geometry, query, margin = self._geometry, DistanceQuery(), self.margin
-        measured, separations = [], np.full(len(ids), np.nan)
+        measured, distances = [], np.empty(len(ids))
         for i, candidate in enumerate(self._candidates(rotation, translation, ids, centers)):
             a, placement_a, _, shape_b, placement_b = candidate[:5]
             # Each result is kept: the rows the linearisation keeps read their witness points there.
             distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b)
-            if distance > 0.0:
-                separations[i] = distance
+            distances[i] = distance
             if not distance > margin:
                 measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
-        self._remember(ids, separations, rotation, centers)
+        self._remember(ids, distances, rotation, centers)
         closest = sorted(measured, key=lambda entry: entry[0])[:count]
         self._last_closest = (key, closest)
         return closest
@@ -629,54 +630,41 @@ class CollisionChecker:
         """(k,) bool: the pairs ``ids`` that cannot be among the ``count`` closest within
         ``margin``, by the separations measured before (:meth:`_remember`).
 
-        A point of a shape has moved since by at most ``|c - c0| + |R - R0| r`` (its
-        bounding sphere's centre c and radius r, its rotation R; ``|.|`` the Frobenius
-        norm, which bounds the spectral one), so a pair's distance lies within the
-        sum ``m`` of its two shapes' such motions of the one measured: in ``[d0 - m,
-        d0 + m]``. A pair whose lower bound exceeds the margin, or exceeds the upper
-        bounds of ``count`` other pairs, is not among them; the others are measured, so
-        the answer is the one measuring every pair gives, bit for bit. Only separations
-        (d0 > 0, GJK's exact answer) are used. Measured on hand-on-cube's climb stance:
-        a third of the broad phase's pairs lie beyond the margin, and a third of those
-        within it beyond the closest 20.
+        Since the bounds were last carried, a point of a shape has moved by at most
+        ``|c - c0| + |R - R0| r`` (its bounding sphere's centre c and radius r, its
+        rotation R; ``|.|`` the Frobenius norm, which bounds the spectral one; a scene
+        object does not move), so a pair's distance has changed by at most the sum of
+        its two shapes' motions: every pair's bounds are widened by it. A pair whose
+        lower bound exceeds the margin, or the upper bounds of ``count`` other pairs, is
+        not among the closest; the others are measured, so the answer is the one
+        measuring every pair gives, bit for bit. Measured on hand-on-cube's climb
+        stance: a third of the broad phase's pairs lie beyond the margin, and a third
+        of those within it beyond the closest 20.
         """
-        known = self._known[ids]
-        history = np.flatnonzero(np.isfinite(known))
-        if history.size == 0:
+        if self._bounds_at is None:
             return np.zeros(len(ids), dtype=bool)
-        pair_ids = ids[history]
-        a, b, is_self = self._pair_geometries(pair_ids)
+        old_rotation, old_centers = self._bounds_at
         radius = self._geometry.sphere_radius
-        moved = (_norms(centers[a] - self._known_centers[pair_ids, 0])
-                 + _norms((rotation[a] - self._known_rotations[pair_ids, 0]).reshape(-1, 9)) * radius[a])
-        b_self = b[is_self]
-        moved[is_self] += (_norms(centers[b_self] - self._known_centers[pair_ids[is_self], 1])
-                           + _norms((rotation[b_self] - self._known_rotations[pair_ids[is_self], 1]).reshape(-1, 9))
-                           * radius[b_self])
-        lower = np.full(len(ids), -np.inf)
-        upper = np.full(len(ids), np.inf)
-        lower[history] = known[history] - moved - _COHERENCE_SLACK
-        upper[history] = known[history] + moved + _COHERENCE_SLACK
+        moved = _norms(centers - old_centers) + _norms((rotation - old_rotation).reshape(-1, 9)) * radius
+        moved = np.append(moved, 0.0)  # index -1: a scene object
+        spread = moved[self._pair_a] + moved[self._pair_b] + _COHERENCE_SLACK
+        self._lower -= spread
+        self._upper += spread
+        self._bounds_at = (rotation, centers)
+        lower, upper = self._lower[ids], self._upper[ids]
         # The count-th smallest upper bound: that many pairs lie no farther. A pair
         # beyond it (and beyond the deepest stand-in, which ties) ranks after them.
         floor = np.partition(upper, count - 1)[count - 1] if 0 < count <= len(ids) else np.inf
         return (lower > self.margin + _BOUND_SLACK) | (lower > max(floor, -_DEEPEST))
 
-    def _remember(self, ids, separations, rotation, centers) -> None:
-        """Keep the pairs ``ids``' separations just measured (NaN: not separated) and
-        their shapes' placements then, for :meth:`_unreachable`."""
-        a, b, is_self = self._pair_geometries(ids)
-        self._known[ids] = separations
-        self._known_centers[ids, 0] = centers[a]
-        self._known_rotations[ids, 0] = rotation[a]
-        self._known_centers[ids[is_self], 1] = centers[b[is_self]]
-        self._known_rotations[ids[is_self], 1] = rotation[b[is_self]]
-
-    def _pair_geometries(self, ids):
-        """(k,) robot geometry a, (k,) b (a robot geometry where ``is_self``, else a scene
-        object) and (k,) ``is_self`` of the pair ids ``ids``."""
-        both = self._all_pairs[ids]
-        return both[:, 0], both[:, 1], ids >= len(self._scene_pairs)
+    def _remember(self, ids, distances, rotation, centers) -> None:
+        """Bound the pairs ``ids`` by the distances just measured (a separation, d > 0,
+        GJK's exact answer: both bounds; no bound from a penetration) at these placements."""
+        if self._bounds_at is None:
+            self._bounds_at = (rotation, centers)
+        separated = distances > 0.0
+        self._lower[ids] = np.where(separated, distances, -np.inf)
+        self._upper[ids] = np.where(separated, distances, np.inf)
 
     def _names(self, candidate):
         """``(name_a, name_b)`` of a :meth:`_candidates` entry."""
