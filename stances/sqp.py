@@ -41,7 +41,8 @@ from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multiplier
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
-    CRAWL_ALPHA, HOPELESS_VIOLATION, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, StoppingTest,
+    CRAWL_ALPHA, CREEPING, HOPELESS_VIOLATION, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN,
+    StoppingTest,
     at_rounding_floor, better,
 )
 from .verify import verify_problem
@@ -146,16 +147,18 @@ def _conflict(linearization, penalty) -> str:
 _STRAIN_ROUNDS = 2
 
 
-def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True) -> PostureResult:
+def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True,
+                  creep=False) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem` (one BLAS thread).
 
     See :func:`_solve_problem`.
     """
     with single_threaded_blas():
-        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline, check)
+        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline, check, creep)
 
 
-def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True) -> PostureResult:
+def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True,
+                   creep=False) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem`.
 
     Parameters
@@ -176,6 +179,10 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         bodies' displacement fields (default). A warm start, whose answer is
         only a starting posture, skips both: on a soft body they load the full
         FEM model and cost 10-30 ms.
+    creep : bool, optional
+        End the SQP far from feasible once its steps keep being cut without the
+        violation halving (:meth:`~stances.stopping.StoppingTest.creeping`): for a
+        stage that has a fallback.
 
     Returns
     -------
@@ -191,7 +198,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         else np.maximum(np.asarray(lam_init, float), problem.variable_lower)
     )
     limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
-    outcome = run_sqp(problem, q, lam, limit, deadline)
+    outcome = run_sqp(problem, q, lam, limit, deadline, creep)
     result = _result(problem, outcome, time.perf_counter() - start, check)
     iterations = outcome.iterations
     soft = [contact for contact in problem.contacts if contact.kind == "deformable"]
@@ -200,7 +207,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
         # from the prints): they look there from now on, and the SQP goes on.
         if result.feasible or not outcome.feasible or not any([contact.take_strain_outlier() for contact in soft]):
             break
-        outcome = run_sqp(problem, outcome.q, outcome.lam, limit, deadline)
+        outcome = run_sqp(problem, outcome.q, outcome.lam, limit, deadline, creep)
         iterations += outcome.iterations
         result = _with(_result(problem, outcome, time.perf_counter() - start, check), iterations=iterations)
     return result
@@ -255,7 +262,7 @@ class SqpOutcome:
     corrections: int = 0
 
 
-def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
+def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
     """The SQP iterations from ``(q, lam)``, on any problem that linearises like
     :class:`~stances.problem.PostureProblem`.
 
@@ -283,6 +290,8 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         Iteration limit.
     deadline : float, optional
         ``time.perf_counter()`` value after which no new iteration starts.
+    creep : bool, optional
+        Whether a creep far from feasibility ends it (:meth:`StoppingTest.creeping`).
 
     Returns
     -------
@@ -294,7 +303,7 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
     workspace = QPWorkspace()
     restoration = QPWorkspace()
     tolerance = options.feasibility_tolerance
-    stops = StoppingTest(tolerance, options.optimality_tolerance, limit)
+    stops = StoppingTest(tolerance, options.optimality_tolerance, limit, creep)
     status = "iteration limit"
     # Far from feasible the torque-usage term steers steps into poor basins (the
     # soles of step-on-cube crossed); it joins the objective once the
@@ -426,6 +435,9 @@ def run_sqp(problem, q, lam, limit, deadline=None) -> SqpOutcome:
         diverging = stops.diverging(iteration, new_violation, elastic, penalty)
         if diverging is not None:
             status = diverging
+            break
+        if stops.creeping(violation, alpha):
+            status = CREEPING
             break
         # The QP kept some violation although the merit could trade it: raise rho.
         # Not when the optimality step was taken whole (no cut, no restoration in its
@@ -926,7 +938,8 @@ def _budget_spent(time_budget, state) -> str:
 def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) -> PostureResult:
     """Coulomb prints: modes read at every linearisation, then, if that stalls, held.
 
-    First the SQP runs for at most ``_FREE_ITERATIONS`` with each node's mode
+    First the SQP runs for at most ``_FREE_ITERATIONS`` (ending early if it creeps far
+    from feasible, :meth:`~stances.stopping.StoppingTest.creeping`) with each node's mode
     (stick, slip, lift off) read again at every linearisation: on the built-in
     soft stances this converges in 3-36 iterations, where holding the modes of
     the bonded posture (what follows) needed up to three attempts of 16-30
@@ -950,7 +963,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     model = problem.robot.model
     deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
     q = starting_configuration(problem, q_init)
-    free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline)
+    free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline, creep=True)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
     hopeless = status in ("stagnated", NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION

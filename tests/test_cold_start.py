@@ -75,9 +75,9 @@ def test_a_solve_without_a_posture_starts_from_it(robot, monkeypatch):
     seen = {}
     real = sqp.run_sqp
 
-    def spy(problem, q, lam, limit, deadline=None):
+    def spy(problem, q, lam, limit, deadline=None, creep=False):
         seen["q"] = np.array(q)
-        return real(problem, q, lam, limit, deadline)
+        return real(problem, q, lam, limit, deadline, creep)
 
     monkeypatch.setattr(sqp, "run_sqp", spy)
     solve_problem(problem, check=False)

@@ -761,7 +761,9 @@ def _scripted_stages(monkeypatch, attempt_status):
 
     calls = []
 
-    def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True):
+    def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True, creep=False):
+        # Only the first stage, which the held-mode attempts can replace, may end creeping.
+        assert creep == (max_iterations == sqp._FREE_ITERATIONS)
         calls.append(max_iterations)
         status = attempt_status if max_iterations == sqp._FROZEN_ITERATIONS else "stalled"
         return PostureResult(
@@ -789,6 +791,32 @@ def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monk
     # The attempt's answer: from the first stage's q (0.01), one stage further.
     np.testing.assert_allclose(result.q, 0.02)
     assert result.iterations == 10 and not result.feasible and result.reason == "stalled"
+
+
+def test_a_first_stage_creeping_far_from_feasible_gives_way_to_held_modes_from_the_start(monkeypatch):
+    """The first (free-mode) Coulomb stage ends creeping far from feasible (a quadruped
+    planner stance on foam: 25 iterations cut to 1/8-1/2 from 0.28 to 0.10, 0.7 s): the
+    held-mode attempts follow, from where the solve started, not from the creep's end."""
+    from stances.results import PostureResult
+
+    problem = _held_modes_problem()
+    starts = []
+
+    def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True, creep=False):
+        starts.append((max_iterations, creep, float(np.asarray(q)[0])))
+        first = max_iterations == sqp._FREE_ITERATIONS
+        return PostureResult(
+            feasible=not first, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0),
+            iterations=7, solve_time=0.0, stance=None,
+            statistics={"status": stopping.CREEPING if first else "converged", "violation": 0.1 if first else 0.0},
+            reason=stopping.CREEPING if first else "",
+        )
+
+    monkeypatch.setattr(sqp, "solve_problem", stage)
+    result = sqp._solve_coulomb(problem, np.zeros(3))
+    assert starts == [(sqp._FREE_ITERATIONS, True, 0.0), (sqp._FROZEN_ITERATIONS, False, 0.0)]
+    assert result.feasible and result.iterations == 14
+    np.testing.assert_allclose(result.q, 0.01)
 
 
 def test_a_held_mode_attempt_its_cap_ended_goes_on_free(monkeypatch):

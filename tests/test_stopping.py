@@ -70,6 +70,35 @@ def test_cut_steps_far_from_feasible_end_the_solve_unless_the_violation_halves(s
     assert not any(near.hopeless(1e-3, None, 0.0) for _ in range(10))  # not far from feasible
 
 
+def _creep(stops, steps, iteration=1):
+    """Feed ``(violation before, violation after, alpha)`` steps to diverging then creeping;
+    the creeping answers."""
+    answers = []
+    for before, after, alpha in steps:
+        assert stops.diverging(iteration, after, 0.0, 100.0) is None
+        answers.append(stops.creeping(before, alpha))
+        iteration += 1
+    return answers
+
+
+def test_cut_steps_creeping_far_from_feasible_end_a_stage_that_has_a_fallback():
+    count = stopping.CREEP_STEPS
+    # The quadruped-foam planner stance's free Coulomb stage: cut to 1/8-1/2, 4 % an iteration.
+    violations = 0.28 * 0.96 ** np.arange(count + 3)
+    steps = [(violations[i], violations[i + 1], 0.25) for i in range(count + 2)]
+    creep = StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True)
+    assert _creep(creep, steps) == [False] * (count - 1) + [True] * 3
+    # Without a fallback the rule is off; a whole step restarts the count; halving, or
+    # creeping near feasibility, does not end it.
+    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25), steps))
+    whole = [(v, w, 1.0 if i == 1 else 0.25) for i, (v, w, _) in enumerate(steps)]
+    assert _creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), whole) == [False] * (count + 1) + [True]
+    halving = [(v, 0.85 * v, 0.25) for v in 0.28 * 0.85 ** np.arange(count + 2)]
+    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), halving))
+    near = [(v, 0.99 * v, 0.25) for v in 5e-3 * 0.99 ** np.arange(count + 2)]
+    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), near))
+
+
 def test_nearly_feasible_steps_cut_without_the_violation_halving_linger(stops):
     window = stopping.LINGER_ITERATIONS
     # A palm stance of rail-over-gap: a whole step and one cut to 1/128 in turn, the
