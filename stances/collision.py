@@ -272,6 +272,9 @@ def _matching_geometries(key, geometry: _RobotGeometry, model) -> np.ndarray:
 class CollisionChecker:
     """Distances, witness points and linearisation rows for one robot in one scene.
 
+    A checker keeps what it measured (the last closest pairs, every pair's distance
+    bounds): use one per thread.
+
     Parameters
     ----------
     robot : stances.Robot
@@ -652,10 +655,11 @@ class CollisionChecker:
         self._upper += spread
         self._bounds_at = (rotation, centers)
         lower, upper = self._lower[ids], self._upper[ids]
-        # The count-th smallest upper bound: that many pairs lie no farther. A pair
-        # beyond it (and beyond the deepest stand-in, which ties) ranks after them.
+        # The count-th smallest upper bound: that many pairs lie no farther, and a pair
+        # beyond it ranks after them (upper bounds come from separations only, so it is
+        # positive: the deepest stand-in, -_DEEPEST, never ties with it).
         floor = np.partition(upper, count - 1)[count - 1] if 0 < count <= len(ids) else np.inf
-        return (lower > self.margin + _BOUND_SLACK) | (lower > max(floor, -_DEEPEST))
+        return (lower > self.margin + _BOUND_SLACK) | (lower > floor)
 
     def _remember(self, ids, distances, rotation, centers) -> None:
         """Bound the pairs ``ids`` by the distances just measured (a separation, d > 0,

@@ -436,7 +436,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         if diverging is not None:
             status = diverging
             break
-        if stops.creeping(violation, alpha):
+        if stops.creeping(violation, new_violation, alpha):
             status = CREEPING
             break
         # The QP kept some violation although the merit could trade it: raise rho.

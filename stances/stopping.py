@@ -109,7 +109,7 @@ LINGERING = (f"nearly feasible but not converging: {LINGER_ITERATIONS} steps cut
              "without the violation halving")
 # A solve that has somewhere else to go (a Coulomb stage's first, free-mode stage: held
 # modes from its start follow) ends, far from feasible (above HOPELESS_VIOLATION), once
-# CREEP_STEPS steps in a row were cut and the violation fell by less than half over them:
+# CREEP_STEPS steps in a row were cut and the violation has not halved since the first:
 # the free modes' model is wrong there and the stage would spend its iterations creeping.
 # Measured on a quadruped-foam planner stance (seed 2): 25 free iterations, every step cut
 # to 1/8-1/2, the violation 0.28 -> 0.10 (700 ms of a 1.0 s solve), then held modes from
@@ -309,15 +309,28 @@ class StoppingTest:
             return f"converging too slowly: {1.0 - rate:.1%} an iteration"
         return None
 
-    def creeping(self, violation, alpha) -> bool:
-        """After :meth:`diverging` recorded a step of ``alpha`` (its fraction of the QP's
-        step) from an iterate at ``violation`` (scaled): with ``creep`` on, whether the
-        last ``CREEP_STEPS`` steps were all cut and, far from feasible (above
-        ``HOPELESS_VIOLATION``), the violation fell by less than half over them."""
+    def creeping(self, violation, reached, alpha) -> bool:
+        """After a step is taken: with ``creep`` on, whether ``CREEP_STEPS`` steps in a row
+        were cut and, far from feasible, the violation has not halved since the first of
+        them. Failed line searches (no step) neither count nor break the run.
+
+        Parameters
+        ----------
+        violation : float
+            Scaled violation before the step.
+        reached : float
+            Scaled violation after it.
+        alpha : float
+            The step's fraction of the QP's step (1: whole).
+
+        Returns
+        -------
+        bool
+            True when the solve ends, creeping (status :data:`CREEPING`).
+        """
         self._cuts = self._cuts + 1 if alpha < 1.0 else 0
         if self._cuts == 1:
             self._creep_start = violation
-        reached = self._history[-1]
         return (self.creep and self._cuts >= CREEP_STEPS and reached > HOPELESS_VIOLATION
                 and reached > _HOPELESS_PROGRESS * self._creep_start)
 

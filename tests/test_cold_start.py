@@ -76,12 +76,15 @@ def test_a_solve_without_a_posture_starts_from_it(robot, monkeypatch):
     real = sqp.run_sqp
 
     def spy(problem, q, lam, limit, deadline=None, creep=False):
-        seen["q"] = np.array(q)
+        seen["q"], seen["creep"] = np.array(q), creep
         return real(problem, q, lam, limit, deadline, creep)
 
     monkeypatch.setattr(sqp, "run_sqp", spy)
     solve_problem(problem, check=False)
     np.testing.assert_allclose(seen["q"], initial_configuration(robot, scenario.scene, stance), atol=1e-15)
+    assert seen["creep"] is False  # the creep stop is the Coulomb first stage's alone
+    solve_problem(problem, check=False, creep=True)
+    assert seen["creep"] is True
 
 
 def test_a_raised_stance_solves_from_no_posture(robot):

@@ -4,6 +4,7 @@ stances, in either order (the pieces memoise what a linearisation then reuses)."
 
 from __future__ import annotations
 
+import environments
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -13,7 +14,7 @@ from dataclasses import replace
 
 from stances import initial_configuration
 from stances.errors import StanceError
-from stances.narrow_phase import DistanceQuery
+from stances.narrow_phase import DistanceQuery, coal
 from stances.problem import PostureOptions, build_problem
 
 CASES = {
@@ -130,6 +131,51 @@ def test_closest_distances_and_pairs_are_the_closest_of_all_pairs(robot):
             assert pair.distance == reference.distance
             np.testing.assert_array_equal(pair.point_a, reference.point_a)
             np.testing.assert_array_equal(pair.normal, reference.normal)
+
+
+def test_a_shape_turned_about_its_bounding_centre_is_measured_again(robot, monkeypatch):
+    """The skip's bound counts rotation. The robot's largest geometry, tilted so that its
+    bounds let it through the broad phase, is placed 1 mm beyond the margin over the floor
+    and measured; turned about its bounding sphere's centre (which does not move) until it
+    lies within the margin, it is measured again and reported, as a checker with no past
+    reports it."""
+    scenario = environments.load("stand")  # a floor and nothing else
+    problem = build_problem(robot, scenario.scene, scenario.stance("stand"))
+    checker, model, data = problem.collision_checker, robot.model, problem.data
+    floor = checker.scene_names.index("floor")
+    shape_b, placement_b = checker._scene_shapes[floor], checker._scene_placements[floor]
+    geometry = checker._geometry
+    a = int(np.argmax(geometry.sphere_radius))
+    pin.framesForwardKinematics(model, data, robot.reference_configuration)
+    rotation, translation = checker._geometry_to_world(data, None)
+    centre = rotation[a] @ geometry.sphere_center[a] + translation[a]
+
+    def about_centre(turn, height):
+        """Placements with geometry a turned about its sphere's centre, then raised."""
+        r, t = rotation.copy(), translation.copy()
+        r[a] = turn @ rotation[a]
+        t[a] = centre - r[a] @ geometry.sphere_center[a] + [0.0, 0.0, height]
+        return r, t
+
+    def distance(placements):
+        r, t = placements
+        return DistanceQuery().distance(geometry.shapes[a], coal.Transform3s(r[a], t[a]), shape_b, placement_b)
+
+    tilt = pin.utils.rotate("x", 0.5)
+    height = checker.margin + 1e-3 - distance(about_centre(tilt, 0.0))
+    before = about_centre(tilt, height)
+    after = min((about_centre(pin.utils.rotate(axis, angle) @ tilt, height) for axis in "xy" for angle in (-0.3, 0.3)),
+                key=distance)
+    assert distance(after) < checker.margin - 1e-3
+    name = (geometry.names[a], "floor")
+
+    def placed(placements, check):
+        monkeypatch.setattr(check, "_geometry_to_world", lambda data, given: placements)
+        return check.closest_distances(model, data, 20)[1]
+
+    assert name not in placed(before, checker)
+    assert name in placed(after, checker)
+    assert placed(after, checker.with_exclusions(checker.exclude)) == placed(after, checker)
 
 
 def test_pairs_skipped_by_earlier_distances_leave_the_closest_pairs_unchanged(robot, monkeypatch):

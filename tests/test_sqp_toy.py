@@ -307,6 +307,16 @@ def test_a_line_search_crawling_far_from_feasible_stops_with_its_reason():
     assert again.q.tobytes() == outcome.q.tobytes() and again.reason == outcome.reason
 
 
+def test_a_creep_ends_the_loop_only_where_the_caller_has_a_fallback(monkeypatch):
+    """run_sqp hands ``creep`` to its stopping test, reads it after every step taken, and
+    ends with stopping.CREEPING when it fires (here at once, wherever it is on)."""
+    problem = ToyProblem(squared_distance_to(np.array([0.0, 0.3, 0.4])), below_a_kink)
+    monkeypatch.setattr(stopping.StoppingTest, "creeping", lambda self, violation, reached, alpha: self.creep)
+    outcome = run_sqp(problem, np.array([0.005, 0.0, 0.0]), np.zeros(0), limit=100, creep=True)
+    assert outcome.status == stopping.CREEPING and outcome.iterations == 1
+    assert run_sqp(problem, np.array([0.005, 0.0, 0.0]), np.zeros(0), limit=100).status == stopping.NO_PROGRESS
+
+
 def test_full_steps_that_leave_a_curved_row_are_corrected_back_onto_it(monkeypatch):
     """The Maratos effect: min 1/2 |q - (0, 3, 0)|^2 on the unit sphere from (1, 0, 0).
     Each QP step runs along the tangent (0.3, the trust region) and leaves the sphere by

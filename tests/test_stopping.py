@@ -70,15 +70,13 @@ def test_cut_steps_far_from_feasible_end_the_solve_unless_the_violation_halves(s
     assert not any(near.hopeless(1e-3, None, 0.0) for _ in range(10))  # not far from feasible
 
 
-def _creep(stops, steps, iteration=1):
-    """Feed ``(violation before, violation after, alpha)`` steps to diverging then creeping;
-    the creeping answers."""
-    answers = []
-    for before, after, alpha in steps:
-        assert stops.diverging(iteration, after, 0.0, 100.0) is None
-        answers.append(stops.creeping(before, alpha))
-        iteration += 1
-    return answers
+def _creep(stops, steps):
+    """Feed ``(violation before, violation after, alpha)`` steps to creeping; its answers."""
+    return [stops.creeping(before, after, alpha) for before, after, alpha in steps]
+
+
+def _creeper():
+    return StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True)
 
 
 def test_cut_steps_creeping_far_from_feasible_end_a_stage_that_has_a_fallback():
@@ -86,17 +84,21 @@ def test_cut_steps_creeping_far_from_feasible_end_a_stage_that_has_a_fallback():
     # The quadruped-foam planner stance's free Coulomb stage: cut to 1/8-1/2, 4 % an iteration.
     violations = 0.28 * 0.96 ** np.arange(count + 3)
     steps = [(violations[i], violations[i + 1], 0.25) for i in range(count + 2)]
-    creep = StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True)
-    assert _creep(creep, steps) == [False] * (count - 1) + [True] * 3
-    # Without a fallback the rule is off; a whole step restarts the count; halving, or
-    # creeping near feasibility, does not end it.
-    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25), steps))
+    assert _creep(_creeper(), steps) == [False] * (count - 1) + [True] * 3
+    # Any cut counts (3/4 too); a whole step restarts the count; without a fallback the
+    # rule is off.
+    assert _creep(_creeper(), [(v, w, 0.75) for v, w, _ in steps])[count - 1]
     whole = [(v, w, 1.0 if i == 1 else 0.25) for i, (v, w, _) in enumerate(steps)]
-    assert _creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), whole) == [False] * (count + 1) + [True]
-    halving = [(v, 0.85 * v, 0.25) for v in 0.28 * 0.85 ** np.arange(count + 2)]
-    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), halving))
+    assert _creep(_creeper(), whole) == [False] * (count + 1) + [True]
+    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25), steps))
+    # Half of the violation where the cuts began is the line: 0.55 of it after the sixth
+    # step ends the stage, 0.45 does not; nor does a creep near feasibility.
+    for ratio, ends in ((0.55, True), (0.45, False)):
+        falling = 0.28 * ratio ** (np.arange(count + 1) / count)
+        cut = [(falling[i], falling[i + 1], 0.25) for i in range(count)]
+        assert _creep(_creeper(), cut) == [False] * (count - 1) + [ends]
     near = [(v, 0.99 * v, 0.25) for v in 5e-3 * 0.99 ** np.arange(count + 2)]
-    assert not any(_creep(StoppingTest(TOLERANCE, 1e-6, limit=25, creep=True), near))
+    assert not any(_creep(_creeper(), near))
 
 
 def test_nearly_feasible_steps_cut_without_the_violation_halving_linger(stops):
