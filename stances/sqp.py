@@ -231,8 +231,9 @@ class SqpOutcome:
         "converged", "stalled", "stagnated", "iteration limit", "converging too
         slowly: ...", the no-progress status (a far-from-feasible line search
         crawling), the lingering status (a nearly feasible one hovering,
-        :data:`stances.stopping.LINGERING`), the QP-failure status, or the
-        time-budget status.
+        :data:`stances.stopping.LINGERING`), the creeping status (with ``creep``: far
+        from feasible, steps cut again and again, :data:`stances.stopping.CREEPING`),
+        the QP-failure status, or the time-budget status.
     penalty : float
         Final weight of the elastic variable (of the merit's violation).
     qp_time : float
