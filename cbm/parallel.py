@@ -36,6 +36,11 @@ logger = logging.getLogger(__name__)
 _ORACLE = None
 # CPU seconds this worker has spent and not yet reported (its start-up, until its first answer).
 _UNREPORTED_CPU = 0.0
+# Seconds PosturePool.close waits for multiprocessing's terminate before it kills the
+# workers itself: a worker killed while it holds the result queue's lock leaves the
+# pool's task thread waiting on that lock for good (seen once in CI: the test of one and
+# two workers hung in Pool.terminate, both workers already dead).
+_TERMINATE_WAIT = 10.0
 
 
 def check_workers(workers):
@@ -250,7 +255,21 @@ class PosturePool:
             self.worker_cpu += answer[1]
 
     def close(self):
-        """Terminate the workers (checks still running are abandoned)."""
+        """Terminate the workers (checks still running are abandoned).
+
+        multiprocessing's terminate runs in a thread of its own; if it has not returned
+        within ``_TERMINATE_WAIT`` seconds, the workers are killed and that thread (a
+        daemon, as are the pool's own) is left waiting: the planner goes on.
+        """
+        closer = threading.Thread(target=self._terminate, name="PosturePool.close", daemon=True)
+        closer.start()
+        closer.join(_TERMINATE_WAIT)
+        if closer.is_alive():
+            logger.warning("the posture workers did not stop within %g s: killed", _TERMINATE_WAIT)
+            for process in list(getattr(self._pool, "_pool", ())):  # the pool's worker processes
+                process.kill()
+
+    def _terminate(self):
         self._pool.terminate()
         self._pool.join()
 

@@ -1,6 +1,8 @@
 """Parallel expansions: the same search, and the same plan, whatever the number of workers."""
 
 import dataclasses
+import threading
+import time
 from concurrent.futures import ThreadPoolExecutor
 from types import SimpleNamespace
 
@@ -140,3 +142,41 @@ def test_workers_refuse_a_scenario_built_in_code(step_file):
 def test_cli_rejects_zero_workers(capsys):
     assert main(["plan", "stand", "--workers", "0"]) == 2
     assert "expected a positive integer, got '0'" in capsys.readouterr().err
+
+
+def test_closing_a_pool_whose_terminate_hangs_kills_its_workers_and_returns(monkeypatch):
+    """multiprocessing's terminate can wait for good on a lock a killed worker held (seen
+    once in CI); close waits for it only so long, then kills the workers itself."""
+    import cbm.parallel as parallel
+
+    class Worker:
+        killed = False
+
+        def kill(self):
+            self.killed = True
+
+    class HangingPool:
+        def __init__(self):
+            self._pool = [Worker(), Worker()]
+            self.release = threading.Event()
+
+        def terminate(self):
+            self.release.wait()
+
+        def join(self):
+            pass
+
+    monkeypatch.setattr(parallel, "_TERMINATE_WAIT", 0.2)
+    pool = object.__new__(parallel.PosturePool)
+    pool._pool = HangingPool()
+    started = time.perf_counter()
+    pool.close()
+    assert time.perf_counter() - started < 2.0
+    assert all(worker.killed for worker in pool._pool._pool)
+    pool._pool.release.set()  # let the stand-in's thread end
+    # A terminate that returns kills nothing.
+    quick = object.__new__(parallel.PosturePool)
+    quick._pool = HangingPool()
+    quick._pool.release.set()
+    quick.close()
+    assert not any(worker.killed for worker in quick._pool._pool)
