@@ -60,7 +60,7 @@ from .narrow_phase import CollisionSetupError, DistanceQuery, coal, robot_shape,
 # are exact to 1e-13 m on polytopes, see stances.narrow_phase).
 _BOUND_SLACK = 1e-9
 # A distance measured before bounds the same pair's distance now: it moves by at most
-# how far a point of either shape moved (CollisionChecker._unreachable). The bounds are
+# how far a point of either shape moved (CollisionChecker._carry_bounds). The bounds are
 # widened by this, metres, for coal's accuracy on curved shapes and the bound's rounding.
 _COHERENCE_SLACK = 1e-7
 # Deepest penetration reported, metres (deeper than any two robot links can
@@ -400,7 +400,7 @@ class CollisionChecker:
         self._self_radii = geometry.sphere_radius[self._self_pairs[:, 0]] + geometry.sphere_radius[self._self_pairs[:, 1]]
         # Bounds on each pair's distance (scene pairs, then self pairs; -inf and inf:
         # none), from the separations coal measured, carried from one measurement to
-        # the next by how far the shapes moved in between (CollisionChecker._unreachable),
+        # the next by how far the shapes moved in between (CollisionChecker._carry_bounds),
         # and the placements they were carried to: each geometry's rotation and
         # bounding sphere centre.
         self._pair_a = np.concatenate([self._scene_pairs[:, 0], self._self_pairs[:, 0]])
@@ -614,7 +614,8 @@ class CollisionChecker:
         if self._last_closest is not None and self._last_closest[0] == key:
             return self._last_closest[1]
         ids, centers = self._broad_phase(rotation, translation)
-        ids = ids[~self._unreachable(ids, rotation, centers, count)]
+        self._carry_bounds(rotation, centers)
+        ids = ids[~self._unreachable(ids, count)]
         geometry, query, margin = self._geometry, DistanceQuery(), self.margin
         measured, distances = [], np.empty(len(ids))
         for i, candidate in enumerate(self._candidates(rotation, translation, ids, centers)):
@@ -624,36 +625,40 @@ class CollisionChecker:
             distances[i] = distance
             if not distance > margin:
                 measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
-        self._remember(ids, distances, rotation, centers)
+        self._remember(ids, distances)
         closest = sorted(measured, key=lambda entry: entry[0])[:count]
         self._last_closest = (key, closest)
         return closest
 
-    def _unreachable(self, ids, rotation, centers, count) -> np.ndarray:
-        """(k,) bool: the pairs ``ids`` that cannot be among the ``count`` closest within
-        ``margin``, by the separations measured before (:meth:`_remember`).
+    def _carry_bounds(self, rotation, centers) -> None:
+        """Widen every pair's distance bounds by how far its shapes moved since they were
+        last carried, to these placements (the first call only records them).
 
-        Since the bounds were last carried, a point of a shape has moved by at most
-        ``|c - c0| + |R - R0| r`` (its bounding sphere's centre c and radius r, its
-        rotation R; ``|.|`` the Frobenius norm, which bounds the spectral one; a scene
-        object does not move), so a pair's distance has changed by at most the sum of
-        its two shapes' motions: every pair's bounds are widened by it. A pair whose
-        lower bound exceeds the margin, or the upper bounds of ``count`` other pairs, is
-        not among the closest; the others are measured, so the answer is the one
-        measuring every pair gives, bit for bit. Measured on hand-on-cube's climb
-        stance: a third of the broad phase's pairs lie beyond the margin, and a third
-        of those within it beyond the closest 20.
+        A point of a shape has moved by at most ``|c - c0| + |R - R0| r`` (its bounding
+        sphere's centre c and radius r, its rotation R; ``|.|`` the Frobenius norm, which
+        bounds the spectral one; a scene object does not move), so a pair's distance has
+        changed by at most the sum of its two shapes' motions.
         """
-        if self._bounds_at is None:
-            return np.zeros(len(ids), dtype=bool)
-        old_rotation, old_centers = self._bounds_at
-        radius = self._geometry.sphere_radius
-        moved = _norms(centers - old_centers) + _norms((rotation - old_rotation).reshape(-1, 9)) * radius
-        moved = np.append(moved, 0.0)  # index -1: a scene object
-        spread = moved[self._pair_a] + moved[self._pair_b] + _COHERENCE_SLACK
-        self._lower -= spread
-        self._upper += spread
+        if self._bounds_at is not None:
+            old_rotation, old_centers = self._bounds_at
+            radius = self._geometry.sphere_radius
+            moved = _norms(centers - old_centers) + _norms((rotation - old_rotation).reshape(-1, 9)) * radius
+            moved = np.append(moved, 0.0)  # index -1: a scene object
+            spread = moved[self._pair_a] + moved[self._pair_b] + _COHERENCE_SLACK
+            self._lower -= spread
+            self._upper += spread
         self._bounds_at = (rotation, centers)
+
+    def _unreachable(self, ids, count) -> np.ndarray:
+        """(k,) bool: the pairs ``ids`` that cannot be among the ``count`` closest within
+        ``margin``, by their bounds (:meth:`_carry_bounds`, :meth:`_remember`).
+
+        A pair whose lower bound exceeds the margin, or the upper bounds of ``count``
+        other pairs, is not among the closest; the others are measured, so the answer is
+        the one measuring every pair gives, bit for bit. Measured on hand-on-cube's climb
+        stance: a third of the broad phase's pairs lie beyond the margin, and a third of
+        those within it beyond the closest 20.
+        """
         lower, upper = self._lower[ids], self._upper[ids]
         # The count-th smallest upper bound: that many pairs lie no farther, and a pair
         # beyond it ranks after them (upper bounds come from separations only, so it is
@@ -661,11 +666,10 @@ class CollisionChecker:
         floor = np.partition(upper, count - 1)[count - 1] if 0 < count <= len(ids) else np.inf
         return (lower > self.margin + _BOUND_SLACK) | (lower > floor)
 
-    def _remember(self, ids, distances, rotation, centers) -> None:
-        """Bound the pairs ``ids`` by the distances just measured (a separation, d > 0,
-        GJK's exact answer: both bounds; no bound from a penetration) at these placements."""
-        if self._bounds_at is None:
-            self._bounds_at = (rotation, centers)
+    def _remember(self, ids, distances) -> None:
+        """Bound the pairs ``ids`` by the distances just measured at the placements the
+        bounds were carried to (a separation, d > 0, GJK's exact answer: both bounds; no
+        bound from a penetration)."""
         separated = distances > 0.0
         self._lower[ids] = np.where(separated, distances, -np.inf)
         self._upper[ids] = np.where(separated, distances, np.inf)

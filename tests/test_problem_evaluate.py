@@ -180,7 +180,7 @@ def test_a_shape_turned_about_its_bounding_centre_is_measured_again(robot, monke
 
 def test_pairs_skipped_by_earlier_distances_leave_the_closest_pairs_unchanged(robot, monkeypatch):
     """Along a walk of SQP-sized steps, the closest pairs of a checker that skips
-    pairs by the distances it measured before (CollisionChecker._unreachable) are
+    pairs by the distances it measured before (CollisionChecker._carry_bounds, _unreachable) are
     those of a checker with no past, bit for bit, and it skips some coal calls."""
     scenario = coarse_scenario("foot-and-hand-on-foam")
     problem = build_problem(robot, scenario.scene, scenario.stance("foot-and-hand"))
