@@ -703,7 +703,9 @@ class DeformableBody:
         """Voigt strain per tet (eq. 24), (M, 6), engineering shears, for u (N, 3) metres."""
         u = self._check_field(u)
         corners, gradients = self._strain_operands
-        nodal = u.T[:, corners]  # (3, 4, M): u_k,i of each tet's corner k
+        # (3, 4, M): u_k,i of each tet's corner k; np.take on rows laid out contiguously (fancy
+        # indexing of u.T gathered the same numbers in five times the time: 1.2 ms on 34,086 tets).
+        nodal = np.take(np.ascontiguousarray(u.T), corners, axis=1)
         # Displacement gradient du_i/dx_j = sum_k u_k,i dN_k/dx_j, then its symmetric part,
         # one component at a time over all tets (contiguous arrays), the corners summed in
         # turn: the same bits as einsum("eki,ekj->eij") in a third of its time (8.6 against

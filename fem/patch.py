@@ -746,4 +746,4 @@ def _ball_means(weights, b, nodal, rows) -> np.ndarray:
     """(C, 6) ball means of the tets' Voigt strains ``B_e u_e``: ``weights`` (C, E)
     averaging, ``b`` (E, 6, 12) strain matrices, ``nodal`` (q, 3) node displacements and
     ``rows`` (E, 4) each tet's nodes as rows of ``nodal``."""
-    return weights @ np.einsum("tik,tk->ti", b, nodal[rows].reshape(rows.shape[0], 12))
+    return weights @ np.einsum("tik,tk->ti", b, np.take(nodal, rows, axis=0).reshape(rows.shape[0], 12))

@@ -217,7 +217,7 @@ def _rough_fields(body, radius, averaging_path, seed, count):
     return averages, fields
 
 
-@pytest.mark.parametrize("radius", [0.012, 0.03])
+@pytest.mark.parametrize("radius", [0.0, 0.012, 0.03])
 def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radius, averaging_path):
     """Rough fields put the largest mean away from the most strained tet."""
     body, _ = slab
@@ -225,6 +225,23 @@ def test_the_largest_ball_mean_of_rough_fields_is_the_brute_force_one(slab, radi
     for voigt, expected in fields:
         value, tet = averages.largest_principal(voigt, radius)
         assert value == pytest.approx(expected.max(), rel=1e-12) and expected[tet] == pytest.approx(value, rel=1e-12)
+
+
+@pytest.mark.parametrize("radius", [0.012, 0.03])
+def test_the_mean_of_the_tets_norms_bounds_the_norm_of_their_mean(slab, radius):
+    """What the screen of every mean rests on (a norm is convex): the ball mean of the
+    tets' Frobenius norms is at least the Frobenius norm of the ball mean, which is at
+    least its largest principal strain magnitude; equal for a uniform field."""
+    body, _ = slab
+    averages, fields = _rough_fields(body, radius, "every mean", seed=3, count=3)
+    matrix = averages.mean_matrix(radius)
+    for voigt, magnitudes in fields:
+        bounds = matrix @ fem.strain_average._frobenius(voigt)
+        norms = fem.strain_average._frobenius(matrix @ voigt)
+        assert np.all(bounds >= norms * (1.0 - 1e-12)) and np.all(norms >= magnitudes * (1.0 - 1e-12))
+    uniform = np.tile([0.01, -0.02, 0.005, 0.004, 0.0, -0.006], (body.mesh.n_tets, 1))
+    np.testing.assert_allclose(matrix @ fem.strain_average._frobenius(uniform),
+                               fem.strain_average._frobenius(uniform), rtol=1e-12)
 
 
 @pytest.mark.parametrize("radius", [0.0, 0.012, 0.03])
