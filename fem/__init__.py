@@ -20,6 +20,7 @@ from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mes
 from .patch import ContactPatch
 from .prints import coverage_reach, nodes_in_polygon, print_coverage
 from .solvers import available_solvers
+from .strain_average import frobenius_norms
 
 __all__ = [
     "FemError",
@@ -50,6 +51,7 @@ __all__ = [
     "ContactPatch",
     "von_mises",
     "voigt_to_tensor_strain",
+    "frobenius_norms",
     "rotate_voigt",
     "nodes_in_polygon",
     "print_coverage",

@@ -20,7 +20,7 @@ from scipy.spatial import cKDTree
 from .errors import FemError
 from .mesh import tet_signed_volumes
 
-__all__ = ["BallAverages", "voigt_to_tensor_strain"]
+__all__ = ["BallAverages", "frobenius_norms", "voigt_to_tensor_strain"]
 
 # Ball means of largest Frobenius norm whose principal strains bound the largest one from
 # below (BallAverages.largest_principal), so that only means at least that strained are
@@ -193,7 +193,7 @@ class BallAverages:
         (float, int)
         """
         voigt = np.asarray(voigt, dtype=float)
-        norms = _frobenius(voigt)
+        norms = frobenius_norms(voigt)
         if self._all_means(radius):
             bounds, means_at = self._mean_bounds(voigt, radius, norms)
             bound = _principal(means_at(_most_strained(bounds))).max()
@@ -221,7 +221,7 @@ class BallAverages:
         voigt = np.asarray(voigt, dtype=float)
         if not threshold > 0.0:
             raise FemError(f"threshold must be a strain > 0, got {threshold!r}")
-        norms = _frobenius(voigt)
+        norms = frobenius_norms(voigt)
         if self._all_means(radius, question=False):
             bounds, means_at = self._mean_bounds(voigt, radius, norms)
             centres = np.flatnonzero(bounds >= threshold)
@@ -294,7 +294,7 @@ def _largest(means: np.ndarray, centres: np.ndarray) -> tuple[float, int]:
     return float(values[best]), int(centres[best])
 
 
-def _frobenius(voigt: np.ndarray) -> np.ndarray:
+def frobenius_norms(voigt: np.ndarray) -> np.ndarray:
     """(T,) Frobenius norms of the strain tensors of (T, 6) Voigt strains (shears halved).
 
     One matrix-vector product of the squares (numpy's sums along a row of six took ten

@@ -966,7 +966,7 @@ class DeformableContact:
         # The Frobenius norm of a strain tensor bounds its principal strains: the
         # tets below the activation by that norm are left out of the (costly)
         # eigendecomposition, which is per tet, so the others' answers are unchanged.
-        frobenius = np.sqrt(np.sum(voigt[:, :3] ** 2, axis=1) + 0.5 * np.sum(voigt[:, 3:] ** 2, axis=1))
+        frobenius = fem.frobenius_norms(voigt)
         screened = np.flatnonzero(frobenius >= (1.0 - 1e-9) * _STRAIN_ACTIVATION * self.strain_limit)
         if screened.size == 0:
             return None

@@ -236,12 +236,12 @@ def test_the_mean_of_the_tets_norms_bounds_the_norm_of_their_mean(slab, radius):
     averages, fields = _rough_fields(body, radius, "every mean", seed=3, count=3)
     matrix = averages.mean_matrix(radius)
     for voigt, magnitudes in fields:
-        bounds = matrix @ fem.strain_average._frobenius(voigt)
-        norms = fem.strain_average._frobenius(matrix @ voigt)
+        bounds = matrix @ fem.frobenius_norms(voigt)
+        norms = fem.frobenius_norms(matrix @ voigt)
         assert np.all(bounds >= norms * (1.0 - 1e-12)) and np.all(norms >= magnitudes * (1.0 - 1e-12))
     uniform = np.tile([0.01, -0.02, 0.005, 0.004, 0.0, -0.006], (body.mesh.n_tets, 1))
-    np.testing.assert_allclose(matrix @ fem.strain_average._frobenius(uniform),
-                               fem.strain_average._frobenius(uniform), rtol=1e-12)
+    np.testing.assert_allclose(matrix @ fem.frobenius_norms(uniform),
+                               fem.frobenius_norms(uniform), rtol=1e-12)
 
 
 @pytest.mark.parametrize("radius", [0.0, 0.012, 0.03])
