@@ -165,10 +165,27 @@ class _DenseFactor:
     """LU factorisation of a linearised law's matrix."""
 
     def __init__(self, matrix):
-        self._lu = scipy.linalg.lu_factor(matrix, check_finite=False)
+        self._lu = _lu_factor(matrix)
 
     def solve(self, rhs):
-        return scipy.linalg.lu_solve(self._lu, rhs, check_finite=False)
+        return _lu_solve(self._lu, rhs)
+
+
+def _lu_factor(matrix):
+    """``scipy.linalg.lu_factor``'s answer from LAPACK ``getrf`` directly (the same bits,
+    without the wrappers' checks: 7 us of a 60-row print's 36 us); a singular matrix is
+    left to ``lu_factor``, which warns as it always did."""
+    lu, pivots, info = scipy.linalg.lapack.dgetrf(matrix)
+    return (lu, pivots) if info == 0 else scipy.linalg.lu_factor(matrix, check_finite=False)
+
+
+def _lu_solve(factor, rhs):
+    """``scipy.linalg.lu_solve`` by LAPACK ``getrs`` directly (the same bits; 2 us
+    instead of 9 for a 60-row print's vector)."""
+    x, info = scipy.linalg.lapack.dgetrs(*factor, rhs)
+    if info != 0:
+        raise FemError(f"LAPACK getrs failed (info {info}); this is a bug worth reporting")
+    return x
 
 
 class _LowRankFactor:
@@ -215,7 +232,7 @@ class _LowRankFactor:
             unit = np.zeros((compliance.shape[0], rows.size))
             unit[rows, np.arange(rows.size)] = 1.0  # C S E = E
             capacitance = law.values(self._columns, unit)
-            self._lu = scipy.linalg.lu_factor(capacitance, check_finite=False)
+            self._lu = _lu_factor(capacitance)
             self.reciprocal_condition = float(
                 scipy.linalg.lapack.dgecon(self._lu[0], np.abs(capacitance).sum(axis=0).max(), norm="1")[0])
         else:
@@ -245,7 +262,7 @@ class _LowRankFactor:
         if self._lu is None:
             return y  # every node sticks: A = C
         law = self._law
-        return y - self._columns @ scipy.linalg.lu_solve(self._lu, law.values(y, rhs) - rhs[law.rows], check_finite=False)
+        return y - self._columns @ _lu_solve(self._lu, law.values(y, rhs) - rhs[law.rows])
 
 
 class PrintContactSystem:
