@@ -456,8 +456,9 @@ class CollisionChecker:
                     f"(one per collision geometry), got shape {homogeneous.shape}"
                 )
             return homogeneous[:, :3, :3], homogeneous[:, :3, 3]
-        # One python loop over joints, then numpy over geometries.
-        joint_to_world = np.array([placement.homogeneous for placement in data.oMi])
+        # One python loop over joints, then numpy over geometries (over a list of the
+        # placements: indexing pinocchio's vector element by element took half the loop).
+        joint_to_world = np.array([placement.homogeneous for placement in data.oMi.tolist()])
         rotation_joint = joint_to_world[geometry.joints, :3, :3]
         translation_joint = joint_to_world[geometry.joints, :3, 3]
         rotation = rotation_joint @ geometry.rotation_geometry_to_joint
