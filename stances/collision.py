@@ -338,6 +338,7 @@ class CollisionChecker:
         self._geometry_index = None  # geometry name -> index, made on first use
         self._last_closest = None  # (key, closest) of the last _closest
         self._query = DistanceQuery()  # coal's request, made once (0.6 % of a soft solve made it per call)
+        self._results = []  # coal results _closest measures into, reused from call to call
 
         self.scene_names, self._scene_shapes, self._scene_placements, bounds, boxes = [], [], [], [], []
         for entry in scene_objects:
@@ -438,7 +439,7 @@ class CollisionChecker:
             clone.margin = margin
         clone.exclude = tuple((key, other) for key, other in exclude)
         clone._last_closest = None  # measured with the original's pairs
-        clone._query = DistanceQuery()
+        clone._query, clone._results = DistanceQuery(), []
         clone._build_pair_lists(self._robot.model)
         return clone
 
@@ -621,10 +622,13 @@ class CollisionChecker:
         ids = ids[~self._unreachable(ids, count)]
         geometry, query, margin = self._geometry, self._query, self.margin
         measured, distances = [], np.empty(len(ids))
+        # Each result is kept till the next measurement: the rows the linearisation keeps
+        # read their witness points there (the answer kept above holds them till then too).
+        results = self._results
+        results.extend(coal.DistanceResult() for _ in range(len(ids) - len(results)))
         for i, candidate in enumerate(self._candidates(rotation, translation, ids, centers)):
             a, placement_a, _, shape_b, placement_b = candidate[:5]
-            # Each result is kept: the rows the linearisation keeps read their witness points there.
-            distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b)
+            distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b, results[i])
             distances[i] = distance
             if not distance > margin:
                 measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
