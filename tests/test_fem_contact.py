@@ -324,6 +324,8 @@ def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_l
             tangential[:, 3 * node + 2] -= MU * d
             expected[3 * node : 3 * node + 2] = tangential
     np.testing.assert_allclose(matrix, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+    # The dense path places the rows; the low-rank path applies the law: the same numbers.
+    assert np.array_equal(matrix[law.rows], law.values(np.eye(3 * p), system.c_local))
     factor = _LowRankFactor(system.c_local, spd_inverse(system.c_local, "C"), law)
     vector, block = rng.normal(size=3 * p), rng.normal(size=(3 * p, 5))
     exact_vector, exact_block = np.linalg.solve(matrix, vector), np.linalg.solve(matrix, block)
