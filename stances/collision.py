@@ -561,6 +561,34 @@ class CollisionChecker:
         measured = [self._measure(query, *candidate) for candidate in self._candidates(rotation, translation)]
         return [pair for pair in measured if pair is not None]
 
+    def distances(self, model, data, geometry_placements=None) -> list:
+        """Every pair closer than ``margin``, measured afresh, without witness points.
+
+        What a check of clearance needs (:func:`stances.verify`): the same pairs, order and
+        distances as :meth:`pairs`, without reading and building what linearisation rows
+        need (48 witness points and pairs on a climb stance, 0.3 ms of its check).
+
+        Parameters
+        ----------
+        model, data, geometry_placements
+            As :meth:`pairs`.
+
+        Returns
+        -------
+        list of ((str, str), float)
+            ``(name_a, name_b)`` and the signed distance, metres, as
+            :class:`CollisionPair` gives them.
+        """
+        rotation, translation = self._geometry_to_world(data, geometry_placements)
+        query, shapes, margin, out = self._query, self._geometry.shapes, self.margin, []
+        for candidate in self._candidates(rotation, translation):
+            a, placement_a, _, shape_b, placement_b = candidate[:5]
+            distance = query.distance(shapes[a], placement_a, shape_b, placement_b)
+            if not distance > margin:
+                # The deepest stand-in where coal's EPA gave up, as _pair sets it.
+                out.append((self._names(candidate), float(distance if distance >= -_DEEPEST else -_DEEPEST)))
+        return out
+
     def closest_distances(self, model, data, count):
         """The distances of the ``count`` closest pairs within ``margin``, without witness points.
 

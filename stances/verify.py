@@ -169,14 +169,11 @@ def verify_problem(
 
     # Collisions, measured afresh.
     if problem.collision_checker is not None:
-        pairs = problem.collision_checker.pairs(model, data)
-        closest = min((p.distance for p in pairs), default=np.inf)
-        measures["closest_distance"] = float(closest)
-        for pair in pairs:
-            if pair.distance < -tolerances.penetration:
-                reasons.append(
-                    f"collision between {pair.name_a} and {pair.name_b} (depth {-pair.distance:.3g} m)"
-                )
+        pairs = problem.collision_checker.distances(model, data)
+        measures["closest_distance"] = float(min((distance for _, distance in pairs), default=np.inf))
+        for (name_a, name_b), distance in pairs:
+            if distance < -tolerances.penetration:
+                reasons.append(f"collision between {name_a} and {name_b} (depth {-distance:.3g} m)")
     return Verification(not reasons, tuple(reasons), measures)
 
 

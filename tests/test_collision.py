@@ -310,3 +310,28 @@ def test_a_pair_without_a_direction_or_depth_from_coal_falls_back_on_the_bounds(
     np.testing.assert_array_equal(lost.point_a, centre)
     np.testing.assert_array_equal(lost.point_b, nearest)
     assert not lost.point_a.flags.writeable and not np.shares_memory(lost.point_a, candidate[5])
+
+
+def test_distances_alone_are_the_pairs_names_and_distances(robot, floor, feet_on_floor, data, monkeypatch):
+    """The clearance check's distances (no witness points) are :meth:`pairs`' names,
+    order and distances, at random postures near the reference, a wrist inside a box,
+    and where coal's penetration solver gives up (the same -1 m stand-in)."""
+    rng = np.random.default_rng(3)
+    placed_at(robot, data, robot.reference_configuration)
+    cylinder_to_world, geometry = geometry_to_world(robot, data, "wrist_left_ft_tool_link_0")
+    inside = box((0.2, 0.2, 0.2), cylinder_to_world.act(np.array([geometry.geometry.radius + 0.09, 0.0, 0.0])),
+                 cylinder_to_world.rotation)
+    checker = CollisionChecker(robot, [("floor", floor), ("box", inside)], exclude=feet_on_floor, margin=0.1)
+    for step in [0.0] + [0.2] * 5:
+        q = pin.integrate(robot.model, robot.reference_configuration, step * rng.standard_normal(robot.model.nv))
+        placed_at(robot, data, q)
+        expected = [((pair.name_a, pair.name_b), pair.distance) for pair in checker.pairs(robot.model, data)]
+        assert checker.distances(robot.model, data) == expected and len(expected) > 0
+    placed_at(robot, data, robot.reference_configuration)
+    assert ("wrist_left_ft_tool_link_0", "box") in dict(checker.distances(robot.model, data))
+    assert dict(checker.distances(robot.model, data))[("wrist_left_ft_tool_link_0", "box")] == pytest.approx(-0.01, abs=1e-6)
+    original = checker._query.distance
+    monkeypatch.setattr(checker._query, "distance", lambda *shapes: -np.inf if original(*shapes) < 0.0 else original(*shapes))
+    lost = dict(checker.distances(robot.model, data))
+    assert lost[("wrist_left_ft_tool_link_0", "box")] == -1.0
+    assert lost == {(pair.name_a, pair.name_b): pair.distance for pair in checker.pairs(robot.model, data)}
