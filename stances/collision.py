@@ -585,8 +585,7 @@ class CollisionChecker:
             a, placement_a, _, shape_b, placement_b = candidate[:5]
             distance = query.distance(shapes[a], placement_a, shape_b, placement_b)
             if not distance > margin:
-                # The deepest stand-in where coal's EPA gave up, as _pair sets it.
-                out.append((self._names(candidate), float(distance if distance >= -_DEEPEST else -_DEEPEST)))
+                out.append((self._names(candidate), float(_deepest_clamped(distance))))
         return out
 
     def closest_distances(self, model, data, count):
@@ -659,7 +658,7 @@ class CollisionChecker:
             distance, result = query.kept_distance(geometry.shapes[a], placement_a, shape_b, placement_b, results[i])
             distances[i] = distance
             if not distance > margin:
-                measured.append((distance if distance >= -_DEEPEST else -_DEEPEST, candidate, distance, result))
+                measured.append((_deepest_clamped(distance), candidate, distance, result))
         self._remember(ids, distances)
         closest = sorted(measured, key=lambda entry: entry[0])[:count]
         self._last_closest = (key, closest)
@@ -852,6 +851,12 @@ class CollisionChecker:
         rotation = joint.rotation @ geometry.rotation_geometry_to_joint[index]
         translation = joint.rotation @ geometry.translation_geometry_to_joint[index] + joint.translation
         return coal.Transform3s(rotation, translation)
+
+
+def _deepest_clamped(distance):
+    """A measured distance, or the deepest stand-in (-_DEEPEST) where coal's EPA gave up
+    (a depth below it, or NaN), as :meth:`CollisionChecker._pair` reports it."""
+    return distance if distance >= -_DEEPEST else -_DEEPEST
 
 
 def _box_gap(low_a, high_a, low_b, high_b) -> np.ndarray:

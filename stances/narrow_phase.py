@@ -311,14 +311,14 @@ class DistanceQuery:
         self._result.clear()
         return float(coal.distance(shape_a, placement_a, shape_b, placement_b, self._request, self._result))
 
-    def kept_distance(self, shape_a, placement_a, shape_b, placement_b, result=None):
-        """:meth:`distance` into a result of its own, kept for a later :meth:`witness`.
+    def kept_distance(self, shape_a, placement_a, shape_b, placement_b, result):
+        """:meth:`distance` into ``result``, kept for a later :meth:`witness`.
 
         Parameters
         ----------
-        result : coal.DistanceResult, optional
-            A result to measure into (cleared first; one made per call costs a fifth of
-            it); by default a new one.
+        result : coal.DistanceResult
+            Where to measure (cleared first): the caller keeps it, and reuses it once
+            the witness is read (a result made per call cost a fifth of it).
 
         Returns
         -------
@@ -327,10 +327,7 @@ class DistanceQuery:
         result : coal.DistanceResult
             Pass it to :meth:`witness` to read this measurement's witness points.
         """
-        if result is None:
-            result = coal.DistanceResult()
-        else:
-            result.clear()
+        result.clear()
         return float(coal.distance(shape_a, placement_a, shape_b, placement_b, self._request, result)), result
 
     def witness(self, result=None):
