@@ -332,9 +332,30 @@ def test_full_steps_that_leave_a_curved_row_are_corrected_back_onto_it(monkeypat
     assert outcome.feasible and outcome.iterations <= 10 and outcome.corrections >= 3
     assert outcome.linearization.objective < 2.01
     monkeypatch.setattr(sqp, "_CORRECTION_PHASE", -1.0)  # no correction
+    monkeypatch.setattr(sqp, "_CORRECTION_GROWTH", np.inf)
     crept = run_sqp(problem, start, np.zeros(0), limit=60)
     assert crept.iterations == 60 and crept.status == "iteration limit" and crept.corrections == 0
     assert crept.linearization.objective > 3.0
+
+
+def test_a_full_step_that_doubles_a_small_violation_is_corrected(monkeypatch):
+    """The same sphere from (1.02, 0, 0), 0.04 off it: above the correction phase (1e-2),
+    below the torque-usage one (0.1). The first full step runs 0.3 along the tangent and
+    leaves the sphere by 0.09, more than twice the violation it started from: corrected,
+    it lands 0.002 off the sphere, taken whole. Without the correction the merit cut it
+    to half (0.043 off), and the solve took 23 iterations instead of 9."""
+    problem = ToyProblem(squared_distance_to(np.array([0.0, 3.0, 0.0])), on_the_sphere)
+    start = np.array([1.02, 0.0, 0.0])
+    first = run_sqp(problem, start, np.zeros(0), limit=1)
+    assert first.corrections == 1 and first.linearization.max_violation()[0] < 0.01
+    assert first.q[1] > 0.28  # about the whole 0.3 along the tangent
+    outcome = run_sqp(problem, start, np.zeros(0), limit=60)
+    assert outcome.feasible and outcome.iterations <= 10 and outcome.linearization.objective < 2.01
+    monkeypatch.setattr(sqp, "_CORRECTION_GROWTH", np.inf)  # the correction phase alone
+    cut = run_sqp(problem, start, np.zeros(0), limit=1)
+    assert cut.corrections == 0 and cut.linearization.max_violation()[0] > 0.04
+    assert cut.q[1] == pytest.approx(0.15)  # the step halved
+    assert run_sqp(problem, start, np.zeros(0), limit=60).iterations > 15
 
 
 def test_cut_steps_that_still_gain_are_not_a_crawl():
