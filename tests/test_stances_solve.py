@@ -15,6 +15,7 @@ from conftest import coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.results import LazyDeformations
+from stances.contacts import friction_cone_generators
 from stances.problem import PostureOptions, build_problem
 from stances import sqp, stopping
 from stances.sqp import solve, solve_problem
@@ -529,30 +530,37 @@ def test_soles_closer_than_a_cell_share_no_node_each_going_to_the_one_covering_i
         assert soft.coverage[position] == each[owner][node]
 
 
-def test_a_prints_resultant_is_kept_in_the_inner_square_of_its_cone_less_the_margin(robot):
-    """Each print's resultant is kept in ``|f . t_i| <= margin mu / sqrt(2) f . n`` on both
-    tangent axes, both signs (the square whose corners touch the Coulomb cone, shrunk by
-    ``friction_margin``): a resultant just inside each side passes every row, one just
-    outside fails exactly one; the square's corner lies on the shrunk cone."""
+def test_a_prints_resultant_is_kept_in_a_rigid_contacts_pyramid_less_the_margin(robot):
+    """Each print's resultant is kept in ``|f . t1| + |f . t2| <= margin mu f . n``, the
+    pyramid of a rigid contact (:func:`stances.contacts.friction_cone_generators`, mu
+    scaled by ``friction_margin``): each edge of it lies on two faces and inside the
+    others, a resultant just inside each face passes every row, one just outside fails
+    exactly that one, and along a tangent axis the pyramid reaches the shrunk cone."""
     scenario = coarse_scenario("step-on-cube")
     problem = build_problem(robot, scenario.scene, scenario.stance("step-on-cube"), PostureOptions(friction_margin=0.7))
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
     rotation = soft.print_placements[0].rotation
-    normal, tangents = rotation[:, 2], rotation[:, :2].T
-    side = 0.7 * soft.friction[0] / np.sqrt(2.0)
+    mu = 0.7 * soft.friction[0]
 
     def rows(resultant):
         forces = np.zeros((len(soft.node_ids), 3))
         forces[:2] = 0.5 * resultant  # any split: the rows read the sum
         return soft._resultant_rows(forces, None)[0]
 
-    for tangent in tangents:
-        for sign in (1.0, -1.0):
-            assert np.all(rows(normal + sign * (1.0 - 1e-9) * side * tangent) >= 0.0)
-            assert np.sum(rows(normal + sign * (1.0 + 1e-6) * side * tangent) < 0.0) == 1
-    corner = normal + side * (tangents[0] - tangents[1])
-    assert np.isclose(np.linalg.norm(corner - normal), 0.7 * soft.friction[0])
-    assert np.all(rows(corner) >= -1e-12)
+    edges = friction_cone_generators(mu) @ rotation.T  # (4, 3) world, unit
+    for edge in edges:
+        values = rows(10.0 * edge)
+        assert np.sum(np.abs(values) < 1e-12) == 2 and np.all(values >= -1e-12)
+        np.testing.assert_allclose(np.linalg.norm(edge - (edge @ rotation[:, 2]) * rotation[:, 2]),
+                                   mu * (edge @ rotation[:, 2]), rtol=1e-12)  # on the shrunk cone
+    normal, (t1, t2) = rotation[:, 2], rotation[:, :2].T
+    for face, (s1, s2) in enumerate([(1, 1), (-1, -1), (-1, 1), (1, -1)]):
+        # The middle of the face whose tangential part is s1 t1 + s2 t2, and beyond it.
+        middle = normal - 0.5 * mu * (s1 * t1 + s2 * t2)
+        inside = rows(normal + (1.0 - 1e-9) * (middle - normal))
+        outside = rows(normal + (1.0 + 1e-6) * (middle - normal))
+        assert np.all(inside >= 0.0)
+        assert np.flatnonzero(outside < 0.0).tolist() == [face]
 
 
 def test_strain_rows_go_to_the_tets_strained_most_in_compression_as_in_stretch(robot):
