@@ -75,6 +75,9 @@ TARGET_SUCCESS = 1.0  # issue 9: 100 % verified success kept
 TARGET_MEDIAN = 0.015  # s, issue 9 (rigid, CPU)
 TARGET_SOFT_MEDIAN = 0.060  # s, issues 8 and 9 (the built-in soft stances, CPU)
 SOFT_REPEATS = 3  # timed solves of each soft stance
+# IPOPT's median CPU time over the 60 stances on a quiet host (the run at 85fe6b3,
+# bench/results/posture-85fe6b3-quiet.md): what the targets' "quiet 2-core machine" ran.
+QUIET_IPOPT_MEDIAN = 0.1004  # s
 
 # Perturbations: (dx, dy) ranges in metres, dtheta in degrees, per (scenario, robot surface).
 # Feet only move outwards in y so the soles never overlap; prints off their surface are redrawn.
@@ -176,9 +179,17 @@ def soft_stances():
                 yield scenario_name, scenario, stance_name
 
 
-def soft_section():
+def soft_section(reference=None):
     """The built-in soft stances solved with and without the constraints' curvature, as
-    markdown, and the median CPU seconds over them with the default (curvature on)."""
+    markdown, the median CPU seconds over them with the default (curvature on), and the
+    CPU seconds of ``reference()`` timed once before each stance's solves (none without one).
+
+    ``reference`` is a fixed workload whose time the rigid section knows (an IPOPT solve of
+    the stance whose IPOPT time is the median there): this section runs minutes after that
+    one, and the speed of a shared host moves in between (Romeo's stance took 315.8 ms in a
+    run whose rigid section put the host at 2x slow, 199-290 ms in others at 3x), so the soft
+    median is judged against the same workload timed beside it."""
+    reference_times = []
     rows = [
         "| stance | curvature | verified | iterations (+ warm starts) | CPU ms (median of 3) |",
         "|---|---|---|---|---|",
@@ -191,6 +202,10 @@ def soft_section():
         robot = robots[scenario.robot]
         stance = scenario.stance(stance_name)
         solve(robot, scenario.scene, stance)  # pays the setup (mesh, factorisation, compliance)
+        if reference is not None:
+            cpu = time.process_time()
+            reference()
+            reference_times.append(time.process_time() - cpu)
         for curvature in (False, True):
             times = []
             for _ in range(SOFT_REPEATS):
@@ -208,7 +223,7 @@ def soft_section():
     text = (f"Built-in soft stances (`stances.solve`, every stance of a built-in scenario with a print on a soft "
             f"surface; {SOFT_REPEATS} solves each after a first that pays the setup):\n\n" + "\n".join(rows)
             + f"\n\nMedian over the {len(default)} stances, curvature on (the default): {1e3 * median:.1f} ms CPU.")
-    return text, median
+    return text, median, reference_times
 
 
 def qp_section(robot):
@@ -321,7 +336,31 @@ def main():
             line += f" | {np.mean([r.ok for r in runs]):.0%} | {1e3 * np.median([r.cpu_seconds for r in runs]):.1f}"
         scenario_rows.append(line + " |")
 
-    soft_text, soft_median = soft_section()
+    reference_text, reference = "", None
+    if solve_ipopt is not None:
+        # The host's speed beside the soft section: IPOPT on the stance of its median time here.
+        ipopt_cpu = [run.cpu_seconds for run in baselines["IPOPT"]]
+        middle = int(np.argsort(ipopt_cpu, kind="stable")[len(ipopt_cpu) // 2])
+        _, middle_scene, middle_stance = cases[middle]
+        reference = lambda: solve_ipopt(robot, middle_scene, middle_stance)  # noqa: E731
+    soft_text, soft_median, reference_times = soft_section(reference)
+    if reference_times:
+        ipopt_median = float(np.median(ipopt_cpu))
+        beside = float(np.median(reference_times))
+        rigid_ratio = float(np.median(curved["cpu"])) / ipopt_median
+        soft_ratio = soft_median / beside
+        reference_text = f"""
+The host's speed, judged by IPOPT (the targets are for a quiet host, where IPOPT's median over
+the {len(cases)} stances was {1e3 * QUIET_IPOPT_MEDIAN:.1f} ms): here IPOPT's median was
+{1e3 * ipopt_median:.1f} ms, and IPOPT on the stance of that median time (stance {middle},
+{1e3 * ipopt_cpu[middle]:.1f} ms in the rigid section) took a median of {1e3 * beside:.1f} ms
+timed once before each soft stance's solves (from {1e3 * min(reference_times):.1f} to
+{1e3 * max(reference_times):.1f} ms). As ratios to the IPOPT time measured beside each: rigid
+median {rigid_ratio:.3f} of IPOPT's median, soft median {soft_ratio:.3f} of that stance's IPOPT
+time; times {1e3 * QUIET_IPOPT_MEDIAN:.1f} ms, the quiet host's IPOPT median, they read
+{1e3 * rigid_ratio * QUIET_IPOPT_MEDIAN:.1f} and {1e3 * soft_ratio * QUIET_IPOPT_MEDIAN:.1f} ms
+(an estimate: a host's slowness is not the same for every workload).
+"""
     # Issue 9's targets, on the library's default (the constraints' curvature), CPU time.
     success = float(np.mean(curved["ok"]))
     median = float(np.median(curved["cpu"]))
@@ -384,7 +423,7 @@ multipliers, in the QP's Hessian (`stances/curvature.py`). Mean iterations over 
 of the {len(cases)} solves: {1e3 * np.sum(ours["cpu"]):.0f} ms without, {1e3 * np.sum(curved["cpu"]):.0f} ms with.
 
 {soft_text}
-
+{reference_text}
 Targets (stances.solve):
 
 {chr(10).join(verdicts)}
