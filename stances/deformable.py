@@ -872,8 +872,9 @@ class DeformableContact:
         }
 
     def _resultant_rows(self, forces, d_forces):
-        """Each print's resultant inside its friction pyramid, of ``friction_margin`` times its mu (4 rows
-        each, labels ``_labels["resultant"]``); jacobians None when ``d_forces`` (p, 3, columns) is."""
+        """Each print's resultant inside its friction pyramid, mu scaled by ``friction_margin``
+        (4 rows each, labels ``_labels["resultant"]``); jacobians None when ``d_forces``
+        (p, 3, columns) is."""
         values, jacobians = [], []
         for i in range(len(self.prints)):
             rows = self.print_of_node == i
@@ -894,8 +895,9 @@ class DeformableContact:
         stiff body carries the loads a rigid contact does. (The axis-aligned square
         ``|f . t_i| <= mu / sqrt(2) f . n`` before, its corners on the cone, carries 71 %
         of that along an axis: with the margin of 0.8 it had, hand-on-cube's palm on the
-        cube at E = 1e10 pressed with 96 N where the rigid contact needs 71 N.) Faces ``(mu n + s1 t1 + s2 t2) / sqrt(2)``, one
-        per sign pair (``_DIAGONALS``): ``|f . t1| + |f . t2| <= mu f . n``.
+        cube at E = 1e10 pressed with 96 N where the rigid contact needs 71 N.) Faces
+        ``(mu n + s1 t1 + s2 t2) / sqrt(2)``, one per sign pair (``_DIAGONALS``):
+        ``|f . t1| + |f . t2| <= mu f . n``.
 
         ``normals`` (k, 3), ``tangents`` (k, 2, 3), ``friction`` (k,).
         """
