@@ -127,9 +127,9 @@ def test_a_palm_on_a_stiff_soft_cube_carries_about_the_rigid_contacts_load(robot
     within 3 % of the rigid support's palm force (measured 2.95 %: the split of load
     between palm and soles is set by the objective, and the two contact models' force
     terms differ), both on the bound of the same friction pyramid (the soft one's mu less
-    its ``friction_margin``, 1 %). With the axis-aligned square the
-    soft prints had (its corners on the cone) and its margin of 0.8, the palm pressed
-    with 96 N against the rigid 71 N (31 % off)."""
+    its ``friction_margin``, 1 %). With the axis-aligned square the soft prints had (its
+    corners on the cone) and its margin of 0.8, the palm pressed with 96 N against the
+    rigid 71 N (31 % off)."""
     text = environments.builtin_scenario_path("hand-on-cube").read_text()
     rigid_scenario = environments.load_string(text, name="hand-on-cube")
     stance = rigid_scenario.stance("hand-on-cube")
@@ -141,7 +141,9 @@ def test_a_palm_on_a_stiff_soft_cube_carries_about_the_rigid_contacts_load(robot
     frame = robot.surface("right_palm").frame
     expected, palm = (sum(np.array(p.force) for p in r.point_forces if p.frame == frame) for r in (rigid, result))
     assert np.linalg.norm(palm - expected) < 0.03 * np.linalg.norm(expected)
-    mu = 0.7  # the scene's cube, as the rigid answer: |f . x| + |f . y| <= mu f . z, at the bound
+    # The rigid answer on its pyramid's bound, |f . x| + |f . y| = mu f . z (the cube's top is level).
+    (on_cube,) = [c.contact_print.surface for c in stance.contacts if c.robot_surface == "right_palm"]
+    mu = stiff.scene.surface(on_cube).friction
     assert abs(expected[0]) + abs(expected[1]) == pytest.approx(mu * expected[2], rel=1e-4)
     margin = PostureOptions().friction_margin
     assert abs(palm[0]) + abs(palm[1]) == pytest.approx(margin * mu * palm[2], rel=1e-4)
