@@ -1,0 +1,217 @@
+"""Where the soft palm's stiff limit stands against the rigid support (issue 8, item 5).
+
+Run as ``.venv/bin/python bench/bench_palm_limit.py [--fine]``; prints markdown tables and
+writes them to ``bench/results/palm_limit.md``.
+
+``hand-on-cube``: both soles on the floor, the right palm on a cube made weightless and
+steel-stiff (E = 1e10 Pa, where the stiffness sweep of ``bench_deformable.py --sweeps`` has
+long settled), against the same stance on the cube held rigid. The palm is 100 x 70 mm; y
+below is across it, in its contact frame, its edges at +-35 mm.
+
+1. Mesh: the cube meshed with a spacing of 22.5 mm where prints land (the default), 15 mm
+   and, with ``--fine`` (about four more minutes, its setup), 10 mm. For each: the palm's
+   force, its difference to the rigid answer's, the palm's centre of pressure across it and
+   the outermost print node's position, and a Richardson extrapolation of the difference
+   to a converged mesh (from the last three meshes, the order they show).
+2. The load split: the rigid palm with the +y edge of its polygon moved in, so that its
+   centre of pressure cannot pass it: the posture problem's objective and the palm's force
+   as the edge comes in, against the soft answer on the default mesh.
+3. Reach: whether any of the soft print's own 6 force variables W gives Coulomb forces whose
+   wrench is the rigid answer's palm wrench (least squares from 8 starts; the default mesh).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import os
+import sys
+import time
+
+# One BLAS thread, set before numpy loads (see bench_posture.py).
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+import numpy as np  # noqa: E402
+import pinocchio as pin  # noqa: E402
+import scipy.optimize  # noqa: E402
+
+sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
+
+from benchmark_info import code_version, machine  # noqa: E402
+
+import environments  # noqa: E402
+import stances  # noqa: E402
+from stances.description import read_description  # noqa: E402
+from stances.problem import PostureOptions, build_problem  # noqa: E402
+
+SCENARIO = "hand-on-cube"
+PALM, PALM_FRAME = "right_palm", "right_palm_contact"
+YOUNG_MODULUS = 1e10  # Pa
+SPACINGS = (0.0225, 0.015)  # m, fine node spacing where prints land ("default" is 0.0225)
+FINE_SPACING = 0.010
+EDGES = (0.035, 0.0326, 0.030, 0.026, 0.0255)  # m, the rigid palm's +y edge (0.035: its own)
+STARTS = 8
+
+
+def scenario_text(spacing=None) -> str:
+    """The scenario's YAML with the cube weightless at YOUNG_MODULUS (and meshed at ``spacing``)."""
+    text = environments.builtin_scenario_path(SCENARIO).read_text()
+    text = text.replace("E: 1.0e+6", f"E: {YOUNG_MODULUS:.1e}").replace("rho: 1.0e+3", "rho: 0.0")
+    if spacing is not None:
+        text = text.replace("resolution: default", f"resolution: {spacing}")
+    return text
+
+
+def palm_wrench(robot, result) -> np.ndarray:
+    """(6,) force and moment of the palm's point forces, palm frame, about its origin."""
+    model = robot.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, np.asarray(result.q))
+    frame = data.oMf[model.getFrameId(PALM_FRAME)]
+    wrench = np.zeros(6)
+    for point_force in result.point_forces:
+        if point_force.frame == PALM_FRAME:
+            force = frame.rotation.T @ point_force.force
+            wrench[:3] += force
+            wrench[3:] += np.cross(frame.rotation.T @ (point_force.point - frame.translation), force)
+    return wrench
+
+
+def outermost_node(robot, result) -> float:
+    """The largest y of the palm's print nodes (where their forces act), palm frame, m."""
+    model = robot.model
+    data = model.createData()
+    pin.framesForwardKinematics(model, data, np.asarray(result.q))
+    frame = data.oMf[model.getFrameId(PALM_FRAME)]
+    return max(float((frame.rotation.T @ (p.point - frame.translation))[1]) for p in result.point_forces
+               if p.frame == PALM_FRAME)
+
+
+def objective(robot, scene, stance, result, **options) -> float:
+    """The posture problem's objective at a result's answer."""
+    problem = build_problem(robot, scene, stance, PostureOptions(**options))
+    return problem.evaluate(np.asarray(result.q), np.asarray(result.statistics["lambda"])).objective
+
+
+def difference(force, reference) -> float:
+    return float(np.linalg.norm(force - reference) / np.linalg.norm(reference))
+
+
+def mesh_table(robot, rigid_force, spacings):
+    rows = ["| node spacing (mm) | print nodes | CPU s (first solve, with setup) | palm force (N) | "
+            "difference to the rigid support | centre of pressure y (mm) | outermost node y (mm) |",
+            "|---|---|---|---|---|---|---|"]
+    differences = []
+    for spacing in spacings:
+        scenario = environments.load_string(scenario_text(spacing), name=SCENARIO)
+        tic = time.process_time()
+        result = stances.solve(robot, scenario.scene, scenario.stance(SCENARIO))
+        seconds = time.process_time() - tic
+        wrench = palm_wrench(robot, result)
+        nodes = sum(p.frame == PALM_FRAME for p in result.point_forces)
+        differences.append(difference(wrench[:3], rigid_force))
+        rows.append(f"| {1e3 * spacing:g} | {nodes} | {seconds:.1f} | {np.round(wrench[:3], 2).tolist()} | "
+                    f"{differences[-1]:.2%}{'' if result.feasible else ' (not verified)'} | "
+                    f"{1e3 * wrench[3] / wrench[2]:.1f} | {1e3 * outermost_node(robot, result):.1f} |")
+        print(rows[-1], flush=True)
+    if len(spacings) >= 3:
+        # e(h) = e0 + c h^p from the last three meshes (spacings in ratio r each).
+        (h1, h2, h3), (e1, e2, e3) = spacings[-3:], differences[-3:]
+        ratio = (e1 - e2) / (e2 - e3)
+        order = np.log(ratio) / np.log(h2 / h3) if ratio > 0 else float("nan")
+        limit = e3 - (e2 - e3) / ((h2 / h3) ** order - 1.0) if np.isfinite(order) else float("nan")
+        rows += ["", f"Richardson extrapolation: order {order:.2f}, difference on a converged mesh {limit:.2%}."]
+    return rows
+
+
+def robot_with_palm_edge(edge) -> stances.Robot:
+    """Talos with its right palm's polygon cut at y = ``edge`` (palm frame, m)."""
+    description = read_description("talos")
+    surfaces = tuple(
+        dataclasses.replace(s, polygon=np.minimum(s.polygon, [np.inf, edge])) if s.name == PALM else s
+        for s in description.surfaces
+    )
+    return stances.Robot.from_description(dataclasses.replace(description, surfaces=surfaces))
+
+
+def split_table(scene, stance, soft_wrench, soft_objective):
+    rows = ["| rigid palm's +y edge (mm) | objective | palm force (N) | centre of pressure y (mm) | "
+            "difference to the soft palm (default mesh) |",
+            "|---|---|---|---|---|"]
+    for edge in EDGES:
+        robot = robot_with_palm_edge(edge)
+        result = stances.solve(robot, scene, stance, deformable_as_rigid=True)
+        wrench = palm_wrench(robot, result)
+        rows.append(f"| {1e3 * edge:g} | {objective(robot, scene, stance, result, deformable_as_rigid=True):.5f} | "
+                    f"{np.round(wrench[:3], 2).tolist()} | {1e3 * wrench[3] / wrench[2]:.1f} | "
+                    f"{difference(wrench[:3], soft_wrench[:3]):.2%} |")
+        print(rows[-1], flush=True)
+    rows.append(f"| soft palm, default mesh | {soft_objective:.5f} | {np.round(soft_wrench[:3], 2).tolist()} | "
+                f"{1e3 * soft_wrench[3] / soft_wrench[2]:.1f} | |")
+    return rows
+
+
+def reach_rows(robot, scene, stance, rigid):
+    """Least squares over the soft print's W for the rigid answer's palm wrench."""
+    rigid_problem = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True))
+    problem = build_problem(robot, scene, stance, PostureOptions())
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    columns = next(s for c, s in zip(problem.contacts, problem.variable_slices) if c is contact)
+    variables = problem.variables_from_rigid(rigid_problem, rigid.statistics["lambda"], rigid.point_forces)
+    target = variables[columns]  # the rigid palm wrench, body frame, about the print's origin
+    problem.evaluate(np.asarray(rigid.q), variables)  # kinematics at the rigid posture
+    origin, rotation = contact.print_placements[0].translation, contact.rotation_body
+    points = contact.link_points_at_rest
+
+    def wrench(w):
+        forces = contact.forces(problem.robot.model, problem.data, w)
+        return np.r_[rotation.T @ forces.sum(axis=0), rotation.T @ np.cross(points - origin, forces).sum(axis=0)]
+
+    rng = np.random.default_rng(0)
+    best = None
+    for start in range(STARTS):
+        guess = target if start == 0 else target * (1.0 + 0.5 * rng.standard_normal(6))
+        fit = scipy.optimize.least_squares(lambda w: wrench(w) - target, guess, x_scale=[10, 10, 10, 0.5, 0.5, 0.5],
+                                           xtol=1e-12, ftol=1e-12, gtol=1e-12)
+        best = fit if best is None or fit.cost < best.cost else best
+    miss = wrench(best.x) - target
+    return [f"The rigid answer's palm wrench (body frame, about the print's origin): {np.round(target, 3).tolist()}.",
+            f"Its W gives Coulomb forces of wrench {np.round(wrench(target), 3).tolist()}; the best of {STARTS} "
+            f"least-squares fits misses by {np.round(miss, 3).tolist()} (N, N m), with W = {np.round(best.x, 1).tolist()}."]
+
+
+def main():
+    robot = stances.Robot.load("talos")
+    spacings = SPACINGS + ((FINE_SPACING,) if "--fine" in sys.argv[1:] else ())
+    base = environments.load_string(scenario_text(), name=SCENARIO)
+    stance = base.stance(SCENARIO)
+    rigid = stances.solve(robot, base.scene, stance, deformable_as_rigid=True)
+    soft = stances.solve(robot, base.scene, stance)
+    rigid_wrench, soft_wrench = palm_wrench(robot, rigid), palm_wrench(robot, soft)
+    lines = [
+        f"# The soft palm's stiff limit ({datetime.date.today()}, {code_version()})",
+        "",
+        f"Machine: {machine()}.",
+        "",
+        f"`{SCENARIO}`, the cube weightless at E = {YOUNG_MODULUS:.0e} Pa. Rigid support: palm force "
+        f"{np.round(rigid_wrench[:3], 2).tolist()} N, centre of pressure y {1e3 * rigid_wrench[3] / rigid_wrench[2]:.1f} mm "
+        f"(the palm's edge: 35 mm), objective {objective(robot, base.scene, stance, rigid, deformable_as_rigid=True):.5f}.",
+        "",
+        "## Mesh",
+        "",
+    ]
+    print("\n".join(lines), flush=True)
+    lines += mesh_table(robot, rigid_wrench[:3], spacings)
+    lines += ["", "## The load split", ""]
+    lines += split_table(base.scene, stance, soft_wrench, objective(robot, base.scene, stance, soft))
+    lines += ["", "## Reach", ""]
+    lines += reach_rows(robot, base.scene, stance, rigid)
+    text = "\n".join(lines) + "\n"
+    print(text[text.index("## Reach"):], flush=True)
+    with open(os.path.join(os.path.dirname(__file__), "results", "palm_limit.md"), "w") as handle:
+        handle.write(text)
+
+
+if __name__ == "__main__":
+    main()
