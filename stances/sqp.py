@@ -386,6 +386,15 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             break
         # (see stopping.PREDICTED_GAIN and MINOR_GAIN)
         met = linearization.met(tolerance)  # the iterate's, read again by the lingering test below
+        if torque_weight == options.torque_weight and stops.finishing(
+                met, violation, _optimality_gain(model, step), linearization.objective):
+            # Converged but for the violation its last step left: the shortest step onto
+            # the rows finishes it (see stopping.FINISHING_VIOLATION).
+            finished = _restoration(problem, linearization, q, lam, restoration, torque_weight)
+            if finished is not None and finished[2].met(tolerance):
+                q, lam, linearization = better(stops.best, finished)
+                status = "converged"
+                break
         marginal = met and predicted <= PREDICTED_GAIN * (1.0 + abs(linearization.objective))
         minor = violation <= NEARLY_FEASIBLE * tolerance and predicted <= MINOR_GAIN * (1.0 + abs(linearization.objective))
         # (A marginal step is only tried whole: no correction, which costs a QP and a
@@ -732,6 +741,18 @@ def _solve_step_qp(workspace, linearization, penalty, accuracy, plain_first):
     data = elastic_qp(linearization, penalty)
     # From the feasible point of no step (fewer proxsuite iterations than x = 0).
     return workspace.solve(*data, accuracy=accuracy, start=elastic_start(data)), False
+
+
+def _optimality_gain(linearization, step) -> float:
+    """What the QP's ``step`` gains of the objective by optimality, not by feasibility:
+    ``1/2 step^T H step`` (H the linearisation's Hessian).
+
+    At the QP's answer ``g + H s + A^T y = 0`` and ``A s = -c`` on its active rows, so the
+    model's decrease ``-(g^T s + 1/2 s^T H s)`` is ``1/2 s^T H s - y^T c``: the second
+    term is what restoring the violation c costs, which near feasibility can hide the
+    first (a point just outside a sphere, its target outside too).
+    """
+    return 0.5 * float(step @ linearization.hessian @ step)
 
 
 def _restoration_step(problem, linearization, q, lam, workspace):

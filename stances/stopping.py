@@ -77,6 +77,20 @@ _CRAWL_GAIN = _SLOW_GAIN / 8  # relative objective gain an iteration below which
 # 1e-4 of the objective) cut to 1/128 and 1/512, 18 evaluations, 30 of its 200 ms.
 MINOR_GAIN = 1e-3
 NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is handed to verify
+# A nearly feasible iterate (scaled violation within FINISHING_VIOLATION: a micrometre of
+# placement, a millinewton of equilibrium) whose QP step would gain less than
+# FINISHING_GAIN optimality tolerances of the objective by optimality has converged but
+# for the violation its last step left (second order in that step): a restoration step,
+# the shortest one onto the rows linearised there, removes it at once, where the
+# optimality steps took one to three more iterations, each shrinking the step by the
+# linear rate of the objective's Hessian. Measured at the defaults: the 60 random rigid
+# stances 424 -> 387 iterations, the 15 soft ones 200 -> 185, objectives within 1.6e-6
+# (relative) and postures within 2.3 mrad of the answers without it. Counting the step's
+# whole model decrease instead of its optimality part (see stances.sqp._optimality_gain),
+# a point just off a sphere stopped 2e-5 above its optimum; at one optimality tolerance
+# of that part, 406 rigid iterations.
+FINISHING_VIOLATION = 1e-4
+FINISHING_GAIN = 10.0
 # Far from feasible (scaled violation above HOPELESS_VIOLATION: 0.1 mm, 0.01 N),
 # iterations whose line search cuts the step below CRAWL_ALPHA (or finds no
 # step) CRAWL_STEPS times in a row, with the violation falling by less than
@@ -194,6 +208,15 @@ class StoppingTest:
         if self.best is not None and not current[2].met(self.tolerance):
             return self.best
         return current
+
+    def finishing(self, met, violation, gain, objective) -> bool:
+        """After the QP: whether an iterate not feasible (``met`` False) but within
+        ``FINISHING_VIOLATION`` (its scaled ``violation``), whose QP step would gain
+        ``gain`` of the ``objective`` by optimality (not by feasibility), less than
+        ``FINISHING_GAIN`` optimality tolerances, is finished by a restoration step rather
+        than a line search (see ``FINISHING_VIOLATION``)."""
+        return (not met and violation <= FINISHING_VIOLATION
+                and gain <= FINISHING_GAIN * self.optimality_tolerance * (1.0 + abs(objective)))
 
     def converged_before_search(self, linearization, step_length, predicted) -> bool:
         """After the QP: a feasible iterate whose step is negligible (in length, radians

@@ -707,13 +707,15 @@ def test_a_bad_time_budget_is_rejected(robot, budget):
 
 
 def test_default_margins_keep_a_palm_stance_off_its_limits_and_report_them(robot):
-    """hand-on-table with no margin and no torque term puts arm_right_4 on its
-    effort limit; by default the load moves where the robot is strong."""
+    """hand-on-table with no margin and no torque term puts an arm joint on its
+    effort limit (within 1e-5: the solve ends with a restoration step once optimality
+    gains nothing more, stopping.FINISHING_VIOLATION, measured 0.9999913); by default
+    the load moves where the robot is strong."""
     scenario = environments.load("hand-on-table")
     stance = scenario.stance("hand-on-table")
     bare = solve(robot, scenario.scene, stance, effort_margin=0.0, joint_margin=0.0, torque_weight=0.0)
     assert bare.feasible
-    assert bare.limits["torque_usage"] == pytest.approx(1.0, abs=1e-6)
+    assert bare.limits["torque_usage"] == pytest.approx(1.0, abs=1e-5)
     assert any(entry.startswith(f"torque of {bare.limits['torque_joint']}") for entry in bare.limits["at_margin"])
     result = solve(robot, scenario.scene, stance)
     assert result.feasible, result.reason

@@ -40,6 +40,18 @@ def test_a_negligible_step_at_a_feasible_iterate_is_the_answer(stops):
     assert not stops.converged_before_search(_Iterate(1.0, violation=1e-3), 0.0, 0.0)
 
 
+def test_a_restoration_finishes_only_an_infeasible_iterate_within_the_band_whose_step_gains_nothing(stops):
+    """The optimality tolerance is 1e-6 here: the gain bound is FINISHING_GAIN of it, times
+    (1 + |objective|); each condition failed alone keeps the line search."""
+    bound = stopping.FINISHING_GAIN * 1e-6 * 2.0  # objective 1
+    inside = stopping.FINISHING_VIOLATION
+    assert stops.finishing(False, inside, 0.99 * bound, 1.0)
+    assert stops.finishing(False, inside, 0.99 * bound, -1.0)
+    assert not stops.finishing(True, inside, 0.0, 1.0)  # feasible: the usual stops decide
+    assert not stops.finishing(False, 1.01 * inside, 0.0, 1.0)  # too far for one restoration
+    assert not stops.finishing(False, inside, 1.01 * bound, 1.0)  # optimality still gains
+
+
 def test_stagnation_needs_a_full_window_a_large_penalty_and_no_1_percent_fall(stops):
     window = stopping._STAGNATION_WINDOW
     for iteration in range(1, window + 1):
