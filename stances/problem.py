@@ -92,7 +92,9 @@ class PostureOptions:
         equilibrium, 1e-7 N m beyond a torque limit.
     optimality_tolerance : float
         A feasible iterate is final once a step changes the merit function by
-        less than this, relative.
+        less than this, relative. A nearly feasible one (within 1e-4, scaled) whose
+        step would gain less than ten times this of the objective is finished by a
+        restoration step (:data:`stances.stopping.FINISHING_GAIN`).
     collision_distance : float
         Minimum distance kept between the robot and the scene or itself, m.
     collision_activation : float

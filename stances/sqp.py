@@ -368,7 +368,8 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # Once a QP has met its linearised rows, the next is first solved without the
         # elastic variable (stances.qp.plain_qp: 12 % less proxsuite time); if its rows
         # are not compatible, as the elastic QP.
-        x, plain = _solve_step_qp(workspace, _within(curved, region, nv), penalty, accuracy, plain_first=compatible)
+        bounded_qp = _within(curved, region, nv)
+        x, plain = _solve_step_qp(workspace, bounded_qp, penalty, accuracy, plain_first=compatible)
         qp_time += time.perf_counter() - tic
         if not np.all(np.isfinite(x)):
             # proxsuite can diverge at the largest penalties (measured: NaN at a
@@ -386,10 +387,14 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             break
         # (see stopping.PREDICTED_GAIN and MINOR_GAIN)
         met = linearization.met(tolerance)  # the iterate's, read again by the lingering test below
-        if torque_weight == options.torque_weight and stops.finishing(
-                met, violation, _optimality_gain(model, step), linearization.objective):
-            # Converged but for the violation its last step left: the shortest step onto
-            # the rows finishes it (see stopping.FINISHING_VIOLATION).
+        finished = None  # the finishing restoration, when tried (reused below)
+        # Converged but for the violation its last step left: the shortest step onto the
+        # rows finishes it (see stopping.FINISHING_VIOLATION). Not when the rows were not
+        # compatible, nor when a bound held the step: 1/2 s^T H s leaves out what the
+        # bounds' multipliers take (a step held by the trust region along a direction of
+        # little curvature gains far more than it reads).
+        if (torque_weight == options.torque_weight and compatible and not _held_by_bounds(bounded_qp, step, accuracy)
+                and stops.finishing(met, violation, _optimality_gain(model, step), linearization.objective)):
             finished = _restoration(problem, linearization, q, lam, restoration, torque_weight)
             if finished is not None and finished[2].met(tolerance):
                 q, lam, linearization = better(stops.best, finished)
@@ -416,7 +421,8 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # step to the linearised constraints, stays within the current piece and
         # brings feasibility back quadratically.
         if violation > tolerance and (accepted is None or alpha < 0.1):
-            restored = _restoration(problem, linearization, q, lam, restoration, torque_weight)
+            restored = finished if finished is not None else _restoration(
+                problem, linearization, q, lam, restoration, torque_weight)
             # Taken when it does better on feasibility than the crawling step.
             needed = violation if accepted is None else min(violation, accepted[2].max_violation()[0])
             if restored is not None and restored[2].max_violation()[0] < needed:
@@ -444,9 +450,12 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             continue
         previous = linearization
         q, lam, linearization = accepted
-        if alpha < CRAWL_ALPHA and previous.met(tolerance):
+        # The bound follows the optimality step's own cut (a restoration taken in its
+        # place is no full step); the penalty rule below reads the bound the QP had.
+        qp_region = region
+        if searched < CRAWL_ALPHA and previous.met(tolerance):
             region = min(options.trust_region, max(_SMALLEST_REGION, _CRAWL_REGION * step_length))
-        elif alpha == 1.0:
+        elif searched == 1.0:
             region = min(options.trust_region, 2.0 * region)
         if options.constraint_curvature and not slow and torque_weight == options.torque_weight:
             # Two full steps in a row: a damped one says the model is off, not slow.
@@ -474,7 +483,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # against 918). A cut step says the model is off, and rho rises as before (an
         # infeasible quadruped stance, whose steps at the trust region were cut to
         # 1/8-1/2, relies on it to stop early).
-        bounded = searched == 1.0 and _held_by_trust_region(step_length, region)
+        bounded = searched == 1.0 and _held_by_trust_region(step_length, qp_region)
         if elastic > tolerance and new_violation > 0.5 * violation and penalty < _MAX_PENALTY and not bounded:
             penalty *= 10.0
         elif linearization.met(tolerance) and penalty > options.elastic_penalty:
@@ -503,6 +512,15 @@ def _held_by_trust_region(step_length, region) -> bool:
     """Whether a QP step whose largest configuration component is ``step_length`` (rad or
     m) was held by the trust region's bound ``region`` (rad or m)."""
     return step_length >= _TRUST_REGION_HELD * region
+
+
+def _held_by_bounds(linearization, step, accuracy) -> bool:
+    """Whether a bound of the QP ``linearization`` held some component of its answer ``step``
+    that moved (by more than ``accuracy``, the QP's, rad, m or N)."""
+    moved = np.abs(step) > accuracy
+    at_lower = step <= linearization.step_lower + accuracy
+    at_upper = step >= linearization.step_upper - accuracy
+    return bool(np.any(moved & (at_lower | at_upper)))
 
 
 def _within(linearization, region, nv):

@@ -178,6 +178,31 @@ def test_a_nearly_feasible_iterate_that_optimality_no_longer_moves_is_finished_b
     assert abs(plain.linearization.objective - optimum) < 0.1 * allowed  # the finishing's price, no more
 
 
+def test_a_step_held_by_a_bound_is_not_finished_however_little_curvature_it_reads(monkeypatch):
+    """min 1/2 q_y^2 + 1/2 1e-5 (q_z - 300)^2 on the plane q_x = 0, from 5e-5 off it (found by
+    review). The QP's step runs 0.3 along z, held by the trust region: 1/2 s^T H s reads
+    4.5e-7, under the finishing bound, but the step gains 9e-4 (the bound's multiplier takes
+    the rest). It is not finished: the solve goes on along z like the one without the rule
+    (finished, it stopped 'converged' at its first iteration, objective 0.45)."""
+    curvature = np.diag([0.0, 1.0, 1e-5]) + 1e-12 * np.eye(3)
+    far = np.array([0.0, 0.0, 300.0])
+
+    def objective(q, lam):
+        error = q - far
+        return 0.5 * float(error @ curvature @ error), curvature @ error, curvature.copy()
+
+    def on_the_plane(q, lam):
+        return [equality("plane", np.array([q[0]]), np.array([[1.0, 0.0, 0.0]]), 1.0, ["on the plane"])]
+
+    problem = ToyProblem(objective, on_the_plane)
+    start = np.array([5e-5, 0.0, 0.0])
+    outcome = run_sqp(problem, start, np.zeros(0), limit=20)
+    monkeypatch.setattr(stopping, "FINISHING_VIOLATION", 0.0)
+    plain = run_sqp(problem, start, np.zeros(0), limit=20)
+    assert outcome.iterations == plain.iterations == 20 and outcome.q[2] > 5.0
+    np.testing.assert_array_equal(outcome.q, plain.q)
+
+
 def test_a_slow_but_steady_creep_near_feasibility_is_not_cut_short():
     """Far out (|a| = 1.95, rate 0.95 with the objective's Hessian alone) the violation
     creeps down 5-10 % an iteration near feasibility, every step taken whole: that is
