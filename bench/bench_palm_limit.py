@@ -63,29 +63,26 @@ def scenario_text(spacing=None) -> str:
     return text
 
 
-def palm_wrench(robot, result) -> np.ndarray:
-    """(6,) force and moment of the palm's point forces, palm frame, about its origin."""
+def palm_points_and_forces(robot, result):
+    """(k, 3) points and (k, 3) forces of the palm's point forces, palm frame (about its origin)."""
     model = robot.model
     data = model.createData()
     pin.framesForwardKinematics(model, data, np.asarray(result.q))
     frame = data.oMf[model.getFrameId(PALM_FRAME)]
-    wrench = np.zeros(6)
-    for point_force in result.point_forces:
-        if point_force.frame == PALM_FRAME:
-            force = frame.rotation.T @ point_force.force
-            wrench[:3] += force
-            wrench[3:] += np.cross(frame.rotation.T @ (point_force.point - frame.translation), force)
-    return wrench
+    on_palm = [p for p in result.point_forces if p.frame == PALM_FRAME]
+    points = np.array([p.point for p in on_palm]) - frame.translation
+    return points @ frame.rotation, np.array([p.force for p in on_palm]) @ frame.rotation
+
+
+def palm_wrench(robot, result) -> np.ndarray:
+    """(6,) force and moment of the palm's point forces, palm frame, about its origin."""
+    points, forces = palm_points_and_forces(robot, result)
+    return np.r_[forces.sum(axis=0), np.cross(points, forces).sum(axis=0)]
 
 
 def outermost_node(robot, result) -> float:
     """The largest y of the palm's print nodes (where their forces act), palm frame, m."""
-    model = robot.model
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, np.asarray(result.q))
-    frame = data.oMf[model.getFrameId(PALM_FRAME)]
-    return max(float((frame.rotation.T @ (p.point - frame.translation))[1]) for p in result.point_forces
-               if p.frame == PALM_FRAME)
+    return float(palm_points_and_forces(robot, result)[0][:, 1].max())
 
 
 def objective(robot, scene, stance, result, **options) -> float:

@@ -410,19 +410,25 @@ def test_a_full_step_that_doubles_a_small_violation_is_corrected(monkeypatch):
     assert run_sqp(problem, start, np.zeros(0), limit=60).iterations > 15
 
 
+# A small sphere (radius 0.3) and a far target: near its closest point each QP step runs
+# along the tangent and leaves the sphere at second order (found by random search).
+SMALL_RADIUS = 0.3
+SMALL_TARGET = np.array([-0.5839, 0.2164, -0.3533])
+SMALL_START = np.array([0.29409485308260214, -0.027094620993184458, -0.052686800173842044])
+
+
+def on_the_small_sphere(q, lam):
+    return [equality("sphere", np.array([q @ q - SMALL_RADIUS**2]), 2.0 * q[None, :], 1.0, ["on the sphere"])]
+
+
 def test_cut_steps_that_still_gain_are_not_a_crawl():
-    """Near the closest point of a small sphere (radius 0.3) to a far target, each step
-    is cut below 1/16 (its curvature takes it off the sphere) and a restoration step
-    brings it back, yet the objective still falls, 0.1-0.3 % an iteration: the solve
-    goes on. Counting such cuts as a crawl without their gain (as between c63f641 and
-    this test) stopped it after 3 iterations, 'converged' at 0.459 (optimum 0.087)."""
-    radius, target = 0.3, np.array([-0.5839, 0.2164, -0.3533])
-
-    def on_small_sphere(q, lam):
-        return [equality("sphere", np.array([q @ q - radius**2]), 2.0 * q[None, :], 1.0, ["on the sphere"])]
-
-    start = np.array([0.29409485308260214, -0.027094620993184458, -0.052686800173842044])
-    outcome = run_sqp(ToyProblem(squared_distance_to(target), on_small_sphere), start, np.zeros(0), limit=12)
+    """Near the closest point of the small sphere, each step is cut below 1/16 (its
+    curvature takes it off the sphere) and a restoration step brings it back, yet the
+    objective still falls, 0.1-0.3 % an iteration: the solve goes on. Counting such cuts
+    as a crawl without their gain (as between c63f641 and this test) stopped it after 3
+    iterations, 'converged' at 0.459 (optimum 0.087)."""
+    problem = ToyProblem(squared_distance_to(SMALL_TARGET), on_the_small_sphere)
+    outcome = run_sqp(problem, SMALL_START, np.zeros(0), limit=12)
     assert outcome.feasible
     assert outcome.iterations == 12 and outcome.status == "iteration limit"
     assert outcome.linearization.objective < 0.455
@@ -435,19 +441,13 @@ def test_after_a_crawl_the_steps_are_bounded_and_the_solve_reaches_the_optimum(m
     stopped, 'converged', 17 % above the optimum (29 iterations, 0.1009 against 0.0865).
     Bounded by a tenth of the cut step's length after each crawl, the steps stay where the
     model holds: within 0.5 % of the optimum (24 iterations, measured 0.0868)."""
-    radius, target = 0.3, np.array([-0.5839, 0.2164, -0.3533])
-    optimum = 0.5 * (np.linalg.norm(target) - radius) ** 2
-
-    def on_small_sphere(q, lam):
-        return [equality("sphere", np.array([q @ q - radius**2]), 2.0 * q[None, :], 1.0, ["on the sphere"])]
-
-    problem = ToyProblem(squared_distance_to(target), on_small_sphere)
-    start = np.array([0.29409485308260214, -0.027094620993184458, -0.052686800173842044])
-    bounded = run_sqp(problem, start, np.zeros(0), limit=100)
+    optimum = 0.5 * (np.linalg.norm(SMALL_TARGET) - SMALL_RADIUS) ** 2
+    problem = ToyProblem(squared_distance_to(SMALL_TARGET), on_the_small_sphere)
+    bounded = run_sqp(problem, SMALL_START, np.zeros(0), limit=100)
     assert bounded.feasible and bounded.status == "converged"
     assert bounded.linearization.objective < 1.005 * optimum
     monkeypatch.setattr(sqp, "_CRAWL_REGION", np.inf)  # the whole trust region at every step
-    whole = run_sqp(problem, start, np.zeros(0), limit=100)
+    whole = run_sqp(problem, SMALL_START, np.zeros(0), limit=100)
     assert whole.feasible and whole.status == "converged"
     assert whole.linearization.objective > 1.1 * optimum
 
