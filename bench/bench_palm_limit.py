@@ -18,6 +18,9 @@ below is across it, in its contact frame, its edges at +-35 mm.
    as the edge comes in, against the soft answer on the default mesh.
 3. Reach: whether any of the soft print's own 6 force variables W gives Coulomb forces whose
    wrench is the rigid answer's palm wrench (least squares from 8 starts; the default mesh).
+4. The print's variables: at the soft answer, the Jacobian of the wrench the Coulomb forces
+   carry with respect to W (contact modes fixed, as the SQP linearises them), its singular
+   values, and the change of W that moves the palm's centre of pressure 1 mm outwards.
 """
 
 from __future__ import annotations
@@ -178,6 +181,49 @@ def reach_rows(robot, scene, stance, rigid):
             f"least-squares fits misses by {np.round(miss, 3).tolist()} (N, N m), with W = {np.round(best.x, 1).tolist()}."]
 
 
+def carried_wrench(contact, problem, w):
+    """The wrench the print's forces carry, (6,), and its derivative in W, (6, 6): body frame,
+    moments about the print's origin (the problem's kinematics at the iterate)."""
+    model, data = problem.robot.model, problem.data
+    origin, rotation = contact.print_placements[0].translation, contact.rotation_body
+    levers = contact.link_points_at_rest - origin  # (p, 3) world
+    forces = contact.forces(model, data, w)
+    d_forces = contact.force_jacobians(model, data, w)[1].reshape(len(levers), 3, -1)  # (p, 3, 6) world
+    wrench = np.r_[rotation.T @ forces.sum(axis=0), rotation.T @ np.cross(levers, forces).sum(axis=0)]
+    d_moments = np.einsum("pij,pjk->ik", np.array([pin.skew(v) for v in levers]), d_forces)
+    return wrench, np.vstack([rotation.T @ d_forces.sum(axis=0), rotation.T @ d_moments])
+
+
+def variables_rows(robot, scene, stance, soft):
+    """The soft print's W against the wrench its forces carry, at the soft answer."""
+    problem = build_problem(robot, scene, stance, PostureOptions())
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    columns = next(s for c, s in zip(problem.contacts, problem.variable_slices) if c is contact)
+    q, variables = np.asarray(soft.q), np.asarray(soft.statistics["lambda"])
+    problem.evaluate(q, variables)
+    pin.computeJointJacobians(robot.model, problem.data, q)
+    w = variables[columns]
+    wrench, jacobian = carried_wrench(contact, problem, w)
+    left, singular, _ = np.linalg.svd(jacobian)
+    weakest = left[:, -1]
+    # 1 mm further out across the palm (y) at the same force: the moment about x grows by f_z * 1 mm.
+    target = np.zeros(6)
+    target[3] = 1e-3 * wrench[2]
+    step = np.linalg.lstsq(jacobian, target, rcond=None)[0]
+    # First-order change of the force term (force_weight / 2 W^T M W): on W, as the soft print
+    # weighs it, and on the carried wrench itself, as the same metric would.
+    weight = PostureOptions().force_weight
+    on_w = weight * float(contact.force_metric @ w @ step)
+    on_carried = weight * float(contact.force_metric @ wrench @ target)
+    return [f"At the soft answer (default mesh) W = {np.round(w, 3).tolist()}; its Coulomb forces carry "
+            f"{np.round(wrench, 3).tolist()} (N, N m).",
+            f"Singular values of d(carried wrench)/dW: {np.round(singular, 4).tolist()}; the weakest carried "
+            f"direction {np.round(weakest, 3).tolist()} (force, moment).",
+            f"Moving the centre of pressure 1 mm outwards (the moment about x by {target[3]:.4f} N m) takes W's moment "
+            f"about x by {step[3]:.3f} N m (|dW| = {np.linalg.norm(step):.3f}); the force term changes by {on_w:.2e} "
+            f"(on W, as the soft print weighs it) against {on_carried:.2e} (the same metric on the carried wrench)."]
+
+
 def main():
     robot = stances.Robot.load("talos")
     spacings = SPACINGS + ((FINE_SPACING,) if "--fine" in sys.argv[1:] else ())
@@ -204,6 +250,8 @@ def main():
     lines += split_table(base.scene, stance, soft_wrench, objective(robot, base.scene, stance, soft))
     lines += ["", "## Reach", ""]
     lines += reach_rows(robot, base.scene, stance, rigid)
+    lines += ["", "## The print's variables", ""]
+    lines += variables_rows(robot, base.scene, stance, soft)
     text = "\n".join(lines) + "\n"
     print(text[text.index("## Reach"):], flush=True)
     with open(os.path.join(os.path.dirname(__file__), "results", "palm_limit.md"), "w") as handle:
