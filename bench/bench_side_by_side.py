@@ -1,0 +1,165 @@
+"""The posture solver against an older commit of itself, on the same host, in the same minutes.
+
+The speed targets of issues 8 and 9 are for a quiet host this machine is not, and a host's
+speed moves by tens of percent between runs; a ratio to another code timed beside it does
+not. This benchmark times ``stances.solve`` (build, solve and final check: what a caller
+waits for) of this checkout and of an older one, processes alternating, on
+
+- the 60 random rigid stances of ``bench_posture.py`` (same seed, same draw), and
+- the built-in soft stances both checkouts have,
+
+and prints each side's medians and their ratio. The older checkout runs in its own virtual
+environment (its dependencies differ: python-fcl before coal). For the code the issues were
+filed on::
+
+    git worktree add --detach /tmp/old a83c2c6
+    python3 -m venv /tmp/venv_old
+    /tmp/venv_old/bin/pip install numpy==2.4.6 scipy==1.17.1 pin==4.1.0 proxsuite==0.8.0 \\
+        example-robot-data==6.0.0 cvxopt==1.3.3 gmsh==4.15.2 meshio==5.3.5 networkx==3.6.1 \\
+        PyYAML==6.0.4 matplotlib==3.11.2 tqdm==4.70.1 trimesh==5.2.0 python-fcl
+    /tmp/venv_old/bin/pip install --no-deps -e /tmp/old
+    .venv/bin/python bench/bench_side_by_side.py /tmp/old /tmp/venv_old/bin/python [--rounds 3]
+
+(the versions pinned are this checkout's own, so that only the code differs). Writes
+``bench/results/side_by_side.md``.
+"""
+
+from __future__ import annotations
+
+import datetime
+import json
+import os
+import subprocess
+import sys
+import time
+
+# One BLAS thread, for this process and the workers it starts (see bench_posture.py).
+for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_variable, "1")
+
+HERE = os.path.dirname(os.path.abspath(__file__))
+ROOT = os.path.dirname(HERE)
+SOFT_REPEATS = 3  # a soft stance's time: the least of this many solves, after one that pays its setup
+
+
+def measure(repository: str) -> dict:
+    """CPU seconds of ``stances.solve`` on the rigid and soft stances, with ``repository``'s code.
+
+    Runs in a process of its own (``--worker``): the code measured is imported from
+    ``repository`` only.
+    """
+    sys.path[:0] = [repository, os.path.join(repository, "bench")]
+    import numpy as np
+
+    import bench_posture
+    import environments
+    import stances
+
+    if not os.path.abspath(stances.__file__).startswith(os.path.abspath(repository)):
+        raise SystemExit(f"stances was imported from {stances.__file__}, not from {repository}")
+    robot = stances.Robot.load("talos")
+    cases = bench_posture.random_stances(robot, np.random.default_rng(bench_posture.SEED))
+    stances.solve(robot, cases[0][1], cases[0][2])  # imports and first-call caches
+    rigid, verified = [], 0
+    for _, scene, stance in cases:
+        cpu = time.process_time()
+        result = stances.solve(robot, scene, stance)
+        rigid.append(time.process_time() - cpu)
+        verified += bool(result.feasible)
+    soft, robots = {}, {"talos": robot}
+    for name in environments.scenario.scenario_names():
+        scenario = environments.load(name)
+        for stance_name, stance in scenario.stances.items():
+            if not any(scenario.scene.surface(c.contact_print.surface).deformable for c in stance):
+                continue
+            if scenario.robot not in robots:
+                robots[scenario.robot] = stances.Robot.load(scenario.robot)
+            solve = (lambda r=robots[scenario.robot], s=scenario.scene, st=stance: stances.solve(r, s, st))
+            solve()  # pays the setup (mesh, factorisation, compliance)
+            times = []
+            for _ in range(SOFT_REPEATS):
+                cpu = time.process_time()
+                result = solve()
+                times.append(time.process_time() - cpu)
+            soft[f"{name}/{stance_name}"] = (min(times), bool(result.feasible))
+    return {"rigid": rigid, "rigid_verified": verified, "soft": soft}
+
+
+def run_worker(python: str, repository: str) -> dict:
+    completed = subprocess.run([python, os.path.abspath(__file__), "--worker", repository],
+                               capture_output=True, text=True, check=True)
+    return json.loads(completed.stdout.strip().splitlines()[-1])
+
+
+def main(old_repository: str, old_python: str, rounds: int) -> None:
+    sys.path.insert(0, HERE)
+    import numpy as np
+
+    from benchmark_info import code_version, machine
+
+    def commit(path):
+        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=path, capture_output=True,
+                              text=True, check=True).stdout.strip()
+
+    sides = {"old": (old_python, old_repository), "new": (sys.executable, ROOT)}
+    runs = {"old": [], "new": []}
+    for index in range(rounds):
+        for side in (("old", "new") if index % 2 == 0 else ("new", "old")):  # alternating
+            runs[side].append(run_worker(*sides[side]))
+            print(f"round {index + 1}: {side} done", file=sys.stderr, flush=True)
+    common = sorted(set(runs["old"][0]["soft"]) & set(runs["new"][0]["soft"]))
+
+    def rigid_median(run):
+        return float(np.median(run["rigid"]))
+
+    def soft_median(run):
+        return float(np.median([run["soft"][name][0] for name in common]))
+
+    rows = ["| round | old rigid median (ms) | new rigid median (ms) | ratio | old soft median (ms) | "
+            "new soft median (ms) | ratio |", "|---|---|---|---|---|---|---|"]
+    for index, (old, new) in enumerate(zip(runs["old"], runs["new"])):
+        rows.append(f"| {index + 1} | {1e3 * rigid_median(old):.1f} | {1e3 * rigid_median(new):.1f} | "
+                    f"{rigid_median(new) / rigid_median(old):.3f} | {1e3 * soft_median(old):.1f} | "
+                    f"{1e3 * soft_median(new):.1f} | {soft_median(new) / soft_median(old):.3f} |")
+    per_stance = ["| soft stance | old CPU ms (least of 3) | new CPU ms | ratio |", "|---|---|---|---|"]
+    for name in common:
+        old = min(run["soft"][name][0] for run in runs["old"])
+        new = min(run["soft"][name][0] for run in runs["new"])
+        flags = "".join(f" ({side} not verified)" for side in ("old", "new")
+                        if not all(run["soft"][name][1] for run in runs[side]))
+        per_stance.append(f"| {name}{flags} | {1e3 * old:.1f} | {1e3 * new:.1f} | {new / old:.3f} |")
+    verified = {side: [run["rigid_verified"] for run in runs[side]] for side in runs}
+    text = "\n".join([
+        f"# The posture solver side by side with {commit(old_repository)} ({datetime.date.today()})",
+        "",
+        f"Machine: {machine()}.",
+        f"Code: new {code_version()}, old {commit(old_repository)} ({old_repository}, {old_python}).",
+        "",
+        f"CPU time of `stances.solve` (build, solve, final check), {rounds} rounds, processes alternating. "
+        f"Rigid: the 60 stances of `bench_posture.py`, verified {verified['old']} (old) and {verified['new']} "
+        f"(new). Soft: the {len(common)} built-in soft stances both have, each the least of {SOFT_REPEATS} "
+        "solves after one that pays its setup.",
+        "",
+        *rows,
+        "",
+        *per_stance,
+        "",
+    ])
+    print(text)
+    with open(os.path.join(HERE, "results", "side_by_side.md"), "w") as handle:
+        handle.write(text)
+
+
+if __name__ == "__main__":
+    arguments = sys.argv[1:]
+    if arguments[:1] == ["--worker"]:
+        print(json.dumps(measure(arguments[1])))
+    else:
+        count = 3
+        if "--rounds" in arguments:
+            at = arguments.index("--rounds")
+            count = int(arguments[at + 1])
+            del arguments[at : at + 2]
+        if len(arguments) != 2:
+            raise SystemExit(__doc__)
+        main(arguments[0], arguments[1], count)
