@@ -161,12 +161,9 @@ def reach_rows(robot, scene, stance, rigid):
     variables = problem.variables_from_rigid(rigid_problem, rigid.statistics["lambda"], rigid.point_forces)
     target = variables[columns]  # the rigid palm wrench, body frame, about the print's origin
     problem.evaluate(np.asarray(rigid.q), variables)  # kinematics at the rigid posture
-    origin, rotation = contact.print_placements[0].translation, contact.rotation_body
-    points = contact.link_points_at_rest
 
     def wrench(w):
-        forces = contact.forces(problem.robot.model, problem.data, w)
-        return np.r_[rotation.T @ forces.sum(axis=0), rotation.T @ np.cross(points - origin, forces).sum(axis=0)]
+        return carried_wrench(contact, problem, w)
 
     rng = np.random.default_rng(0)
     best = None
@@ -181,15 +178,18 @@ def reach_rows(robot, scene, stance, rigid):
             f"least-squares fits misses by {np.round(miss, 3).tolist()} (N, N m), with W = {np.round(best.x, 1).tolist()}."]
 
 
-def carried_wrench(contact, problem, w):
-    """The wrench the print's forces carry, (6,), and its derivative in W, (6, 6): body frame,
-    moments about the print's origin (the problem's kinematics at the iterate)."""
+def carried_wrench(contact, problem, w, derivative=False):
+    """The wrench the print's forces carry, (6,), body frame, moments about the print's origin
+    (the problem's kinematics at the iterate); with ``derivative``, also its derivative in W,
+    (6, 6), the contact modes fixed (the problem's joint Jacobians computed)."""
     model, data = problem.robot.model, problem.data
     origin, rotation = contact.print_placements[0].translation, contact.rotation_body
     levers = contact.link_points_at_rest - origin  # (p, 3) world
     forces = contact.forces(model, data, w)
-    d_forces = contact.force_jacobians(model, data, w)[1].reshape(len(levers), 3, -1)  # (p, 3, 6) world
     wrench = np.r_[rotation.T @ forces.sum(axis=0), rotation.T @ np.cross(levers, forces).sum(axis=0)]
+    if not derivative:
+        return wrench
+    d_forces = contact.force_jacobians(model, data, w)[1].reshape(len(levers), 3, -1)  # (p, 3, 6) world
     d_moments = np.einsum("pij,pjk->ik", np.array([pin.skew(v) for v in levers]), d_forces)
     return wrench, np.vstack([rotation.T @ d_forces.sum(axis=0), rotation.T @ d_moments])
 
@@ -203,7 +203,7 @@ def variables_rows(robot, scene, stance, soft):
     problem.evaluate(q, variables)
     pin.computeJointJacobians(robot.model, problem.data, q)
     w = variables[columns]
-    wrench, jacobian = carried_wrench(contact, problem, w)
+    wrench, jacobian = carried_wrench(contact, problem, w, derivative=True)
     left, singular, _ = np.linalg.svd(jacobian)
     weakest = left[:, -1]
     # 1 mm further out across the palm (y) at the same force: the moment about x grows by f_z * 1 mm.
