@@ -67,6 +67,8 @@ def measure(repository: str) -> dict:
         rigid.append(time.process_time() - cpu)
         verified += bool(result.feasible)
     soft, robots = {}, {"talos": robot}
+    # The soft stances as bench_posture.soft_stances finds them, written out: the older
+    # checkouts' bench_posture (a83c2c6's) has no such function.
     for name in environments.scenario.scenario_names():
         scenario = environments.load(name)
         for stance_name, stance in scenario.stances.items():

@@ -607,7 +607,7 @@ def _predicted_decrease(linearization, step, elastic, penalty, violation) -> flo
 
 
 def _line_search(problem, q, lam, step, linearization, violation, penalty, predicted, torque_weight,
-                 shortest=_SHORTEST_STEP, correction=None, region=None):
+                 shortest=_SHORTEST_STEP, correction=None, *, region):
     """Backtracking on the exact-penalty merit from ``linearization`` (whose largest
     scaled violation is ``violation``): ``((q, lam, linearization), alpha, corrected)``
     with the step length accepted and whether a second-order correction followed it,
@@ -639,7 +639,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     nearly feasible iterates, took 16-18 iterations instead of 11 with every cut trial
     corrected. ``correction`` is the QP workspace it solves with; None: no correction.
     ``region`` is the configuration step's bound the QP had (``options.trust_region``, or
-    less after a crawl: see ``_CRAWL_REGION``); None: the trust region.
+    less after a crawl: see ``_CRAWL_REGION``).
 
     Farther out, up to ``_USAGE_PHASE``, a full step gets the correction when it at least
     doubles the violation (``_CORRECTION_GROWTH``): the torque-usage term, entering the
@@ -660,7 +660,6 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     # A step at the trust region's bound from a feasible iterate: where the objective's
     # model sends the QP along rows curved at that scale (see below), cut trials are
     # corrected as well.
-    region = problem.options.trust_region if region is None else region
     crawl_prone = linearization.met(tolerance) and _held_by_trust_region(np.max(np.abs(step[:nv])), region)
     alpha = 1.0
     while alpha >= shortest:
