@@ -54,7 +54,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 import pinocchio as pin
 
-from .narrow_phase import CollisionSetupError, DistanceQuery, coal, robot_shape, scene_shape, world_bounds, world_boxes
+from .narrow_phase import (
+    CollisionSetupError, DistanceQuery, coal, robot_shape, scene_shape, witnesses, world_bounds, world_boxes,
+)
 
 # Broad-phase bounds within this of the margin reach coal, metres (coal's distances
 # are exact to 1e-13 m on polytopes, see stances.narrow_phase).
@@ -71,6 +73,7 @@ __all__ = [
     "CollisionChecker",
     "CollisionPair",
     "CollisionSetupError",
+    "MeasuredPairs",
     "contact_exclusions",
 ]
 
@@ -135,6 +138,66 @@ def _measured_pair(name_a, name_b, joint_a, joint_b, point_a, point_b, distance,
     pair.__dict__.update(name_a=name_a, name_b=name_b, joint_a=joint_a, joint_b=joint_b, point_a=point_a,
                          point_b=point_b, distance=distance, normal=normal)
     return pair
+
+
+@dataclass(frozen=True)
+class MeasuredPairs:
+    """Pairs of one measurement as arrays: what a linearisation reads of them.
+
+    :meth:`CollisionChecker.closest` gives them without making a :class:`CollisionPair`
+    for each; :meth:`pair` and :meth:`pairs` make those.
+
+    Attributes
+    ----------
+    names : tuple of (str, str)
+        ``(name_a, name_b)`` of each pair, as in :class:`CollisionPair`.
+    joint_a, joint_b : (k,) int
+        Joints carrying a and b (0, the universe, for a scene object).
+    points_a, points_b : (k, 3) float
+        Witness points, metres, world frame.
+    distances : (k,) float
+        Signed distances, metres.
+    normals : (k, 3) float
+        Unit vectors, world frame, along which translating a increases the distance.
+    """
+
+    names: tuple
+    joint_a: np.ndarray
+    joint_b: np.ndarray
+    points_a: np.ndarray
+    points_b: np.ndarray
+    distances: np.ndarray
+    normals: np.ndarray
+
+    def __post_init__(self) -> None:
+        for field in ("joint_a", "joint_b", "points_a", "points_b", "distances", "normals"):
+            getattr(self, field).setflags(write=False)
+
+    @classmethod
+    def of(cls, pairs) -> "MeasuredPairs":
+        """The arrays of a list of :class:`CollisionPair`."""
+        return cls(
+            names=tuple((pair.name_a, pair.name_b) for pair in pairs),
+            joint_a=np.array([pair.joint_a for pair in pairs], dtype=int),
+            joint_b=np.array([pair.joint_b for pair in pairs], dtype=int),
+            points_a=np.array([pair.point_a for pair in pairs], dtype=float).reshape(-1, 3),
+            points_b=np.array([pair.point_b for pair in pairs], dtype=float).reshape(-1, 3),
+            distances=np.array([pair.distance for pair in pairs], dtype=float),
+            normals=np.array([pair.normal for pair in pairs], dtype=float).reshape(-1, 3),
+        )
+
+    def __len__(self) -> int:
+        return len(self.distances)
+
+    def pair(self, i: int) -> CollisionPair:
+        """Pair ``i`` as a :class:`CollisionPair` (its vectors are read-only views of the arrays)."""
+        name_a, name_b = self.names[i]
+        return _measured_pair(name_a, name_b, int(self.joint_a[i]), int(self.joint_b[i]), self.points_a[i],
+                              self.points_b[i], float(self.distances[i]), self.normals[i])
+
+    def pairs(self) -> list:
+        """Every pair as a :class:`CollisionPair`, in order."""
+        return [self.pair(i) for i in range(len(self))]
 
 
 @dataclass(frozen=True)
@@ -339,6 +402,7 @@ class CollisionChecker:
         self._last_closest = None  # (key, closest) of the last _closest
         self._query = DistanceQuery()  # coal's request, made once (0.6 % of a soft solve made it per call)
         self._results = []  # coal results _closest measures into, reused from call to call
+        self._placements = _geometry_placements(self._geometry)
 
         self.scene_names, self._scene_shapes, self._scene_placements, bounds, boxes = [], [], [], [], []
         for entry in scene_objects:
@@ -440,6 +504,7 @@ class CollisionChecker:
         clone.exclude = tuple((key, other) for key, other in exclude)
         clone._last_closest = None  # measured with the original's pairs
         clone._query, clone._results = DistanceQuery(), []
+        clone._placements = _geometry_placements(clone._geometry)
         clone._build_pair_lists(self._robot.model)
         return clone
 
@@ -526,7 +591,13 @@ class CollisionChecker:
         self_candidates = self._self_pairs[ids[split:] - len(self._scene_pairs)]
         used = np.zeros(len(geometry.names), dtype=bool)
         used[scene_candidates[:, 0]] = used[self_candidates.ravel()] = True
-        placements = {index: coal.Transform3s(rotation[index], translation[index]) for index in np.flatnonzero(used).tolist()}
+        # The coal placements of the geometries used, set in place (making them anew cost
+        # twice as much); what was measured at the last ones has been read by now.
+        placements = self._placements
+        for index in np.flatnonzero(used).tolist():
+            placement = placements[index]
+            placement.setRotation(rotation[index])
+            placement.setTranslation(translation[index])
         # A scene pair's reference point for a degenerate normal (the nearest point of b's
         # bounds to a's centre) is left None: :meth:`_pair` finds it in the rare case it is needed.
         shapes, scene_shapes, scene_placements = geometry.shapes, self._scene_shapes, self._scene_placements
@@ -611,21 +682,46 @@ class CollisionChecker:
         closest = self._closest(data, count)
         return np.array([entry[0] for entry in closest]), [self._names(entry[1]) for entry in closest]
 
-    def closest_pairs(self, model, data, count) -> list:
-        """The ``count`` closest pairs within ``margin``, ascending, with witness points.
+    def closest(self, model, data, count) -> MeasuredPairs:
+        """The ``count`` closest pairs within ``margin``, ascending, with witness points, as arrays.
 
         The first ``count`` of :meth:`pairs` sorted by distance (ties in
         :meth:`pairs` order); only those pairs' witness points are read.
 
+        Parameters
+        ----------
+        model : pinocchio.Model
+        data : pinocchio.Data
+            After ``pin.forwardKinematics`` (``data.oMi``) at the configuration.
+        count : int
+
         Returns
         -------
-        list of CollisionPair
+        MeasuredPairs
         """
-        query = self._query
-        return [
-            self._pair(distance, query.witness(result), *candidate)
-            for _, candidate, distance, result in self._closest(data, count)
-        ]
+        closest = self._closest(data, count)
+        geometry = self._geometry
+        points_a, points_b, normals, directed = witnesses([entry[3] for entry in closest])
+        distances = np.array([entry[2] for entry in closest], dtype=float)
+        # A pair without a direction, or deeper than coal could measure: the stand-ins of
+        # _pair (rare: none in the 60 random rigid stances).
+        for i in np.flatnonzero(~(directed & (distances >= -_DEEPEST))).tolist():
+            pair = self._pair(distances[i], (points_a[i], points_b[i], normals[i] if directed[i] else None),
+                              *closest[i][1])
+            points_a[i], points_b[i], normals[i], distances[i] = pair.point_a, pair.point_b, pair.normal, pair.distance
+        a = np.array([entry[1][0] for entry in closest], dtype=int)
+        b = np.array([entry[1][2] for entry in closest], dtype=int)
+        is_self = np.array([entry[1][7] for entry in closest], dtype=bool)
+        joint_b = np.zeros(len(closest), dtype=int)
+        joint_b[is_self] = geometry.joints[b[is_self]]
+        return MeasuredPairs(
+            names=tuple(self._names(entry[1]) for entry in closest), joint_a=geometry.joints[a], joint_b=joint_b,
+            points_a=points_a, points_b=points_b, distances=distances, normals=normals,
+        )
+
+    def closest_pairs(self, model, data, count) -> list:
+        """:meth:`closest` as a list of :class:`CollisionPair`."""
+        return self.closest(model, data, count).pairs()
 
     def _closest(self, data, count):
         """The ``count`` closest pairs within ``margin`` at the joint placements in ``data``.
@@ -761,8 +857,8 @@ class CollisionChecker:
         data : pinocchio.Data
             After ``pin.forwardKinematics`` at the configuration the pairs were
             measured at; ``data.J`` is overwritten (``pin.computeJointJacobians``).
-        pairs : list of CollisionPair
-            From :meth:`pairs`.
+        pairs : list of CollisionPair, or MeasuredPairs
+            From :meth:`pairs` or :meth:`closest`.
 
         Returns
         -------
@@ -771,15 +867,14 @@ class CollisionChecker:
         """
         if len(pairs) == 0:
             return np.zeros((0, model.nv))
-        normal = np.array([pair.normal for pair in pairs])
-        point_a = np.array([pair.point_a for pair in pairs])
-        point_b = np.array([pair.point_b for pair in pairs])
-        joint_a = np.array([pair.joint_a for pair in pairs])
-        joint_b = np.array([pair.joint_b for pair in pairs])
-        return self._rows(pin.computeJointJacobians(model, data), normal, point_a, point_b, joint_a, joint_b)
+        return self._rows(pin.computeJointJacobians(model, data), pairs)
 
-    def _rows(self, jacobian_world, normal, point_a, point_b, joint_a, joint_b) -> np.ndarray:
-        """(k, nv) ``n^T (J_a(p_a) - J_b(p_b))`` from ``data.J``; points (k, 3), world frame."""
+    def _rows(self, jacobian_world, pairs) -> np.ndarray:
+        """(k, nv) ``n^T (J_a(p_a) - J_b(p_b))`` from ``data.J``, for a list of
+        :class:`CollisionPair` or :class:`MeasuredPairs`."""
+        if not isinstance(pairs, MeasuredPairs):
+            pairs = MeasuredPairs.of(pairs)
+        normal, point_a, point_b = pairs.normals, pairs.points_a, pairs.points_b
         # data.J stacks the motion subspaces in the world frame: a column moves
         # a world point p at v + omega x p. A point of joint i only sees the
         # columns of i's ancestors, hence the support mask.
@@ -788,7 +883,7 @@ class CollisionChecker:
         along_normal = normal @ linear
         rows_a = along_normal + _cross(point_a, normal) @ angular
         rows_b = along_normal + _cross(point_b, normal) @ angular
-        return self._support[joint_a] * rows_a - self._support[joint_b] * rows_b
+        return self._support[pairs.joint_a] * rows_a - self._support[pairs.joint_b] * rows_b
 
     def remeasured_rows(self, model, data, pairs) -> np.ndarray:
         """The same geometry pairs' distance rows at another configuration, measured again.
@@ -835,14 +930,7 @@ class CollisionChecker:
                     pair.is_self_collision, margin=np.inf,
                 )
             )
-        return self._rows(
-            data.J,
-            np.array([pair.normal for pair in measured]),
-            np.array([pair.point_a for pair in measured]),
-            np.array([pair.point_b for pair in measured]),
-            np.array([pair.joint_a for pair in measured]),
-            np.array([pair.joint_b for pair in measured]),
-        )
+        return self._rows(data.J, measured)
 
     def _placement(self, data, index):
         """coal placement of robot geometry ``index`` at the joint placements in ``data``."""
@@ -851,6 +939,11 @@ class CollisionChecker:
         rotation = joint.rotation @ geometry.rotation_geometry_to_joint[index]
         translation = joint.rotation @ geometry.translation_geometry_to_joint[index] + joint.translation
         return coal.Transform3s(rotation, translation)
+
+
+def _geometry_placements(geometry: _RobotGeometry) -> list:
+    """One coal placement per robot geometry, for a checker to set in place."""
+    return [coal.Transform3s() for _ in geometry.names]
 
 
 def _deepest_clamped(distance):

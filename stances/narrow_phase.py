@@ -54,7 +54,10 @@ from .errors import StanceError
 
 import coal  # pinocchio's collision library since pinocchio 3.4 (hpp-fcl before, other names)
 
-__all__ = ["CollisionSetupError", "DistanceQuery", "box_shape", "robot_shape", "scene_shape", "world_bounds", "world_boxes"]
+__all__ = [
+    "CollisionSetupError", "DistanceQuery", "box_shape", "robot_shape", "scene_shape", "witnesses", "world_bounds",
+    "world_boxes",
+]
 
 
 class CollisionSetupError(StanceError):
@@ -344,9 +347,38 @@ class DistanceQuery:
             Unit vector, world frame, along which translating a increases the
             distance; None when coal gives no direction.
         """
-        result = self._result if result is None else result
-        # coal's normal points from a to b, apart or penetrating.
-        normal = -np.array(result.normal)
-        length = math.sqrt(normal @ normal)
-        normal = normal / length if length > 0.5 else None
-        return np.array(result.getNearestPoint1()), np.array(result.getNearestPoint2()), normal
+        points_a, points_b, normals, directed = witnesses([self._result if result is None else result])
+        return points_a[0], points_b[0], normals[0] if directed[0] else None
+
+
+def witnesses(results):
+    """Witness points and separating directions of several measurements at once.
+
+    What :meth:`DistanceQuery.witness` gives each, read into arrays (the linearisation
+    reads some 20 a call: one by one, the conversions cost as much as coal's distances).
+
+    Parameters
+    ----------
+    results : sequence of coal.DistanceResult
+        k measurements (:meth:`DistanceQuery.kept_distance`).
+
+    Returns
+    -------
+    points_a, points_b : (k, 3) float
+        Witness points, metres, world frame, as :meth:`DistanceQuery.witness`.
+    normals : (k, 3) float
+        Unit vectors, world frame, along which translating a increases the distance;
+        where ``directed`` is False, coal's (near zero) vector as it gave it.
+    directed : (k,) bool
+        Whether coal gave a direction.
+    """
+    # coal's normal points from a to b, apart or penetrating; ``result.normal`` is a view
+    # into the result, hence the copy.
+    normals = -np.array([result.normal for result in results], dtype=float).reshape(-1, 3)
+    # Summed in the order of ``v @ v`` (a three-term einsum differs in the last bit).
+    lengths = np.sqrt((normals * normals).sum(axis=1))
+    directed = lengths > 0.5
+    normals[directed] /= lengths[directed, None]
+    points_a = np.array([result.getNearestPoint1() for result in results], dtype=float).reshape(-1, 3)
+    points_b = np.array([result.getNearestPoint2() for result in results], dtype=float).reshape(-1, 3)
+    return points_a, points_b, normals, directed

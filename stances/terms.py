@@ -316,42 +316,32 @@ class CollisionConstraint:
 
     def blocks(self, problem, iterate):
         model, data = problem.robot.model, problem.data
+        jacobian, second_order = None, None
+        if iterate.derivatives:
+            pairs = self.checker.closest(model, data, self.rows)
+            distances, names, count = pairs.distances, pairs.names, len(pairs)
+            jacobian = np.zeros((self.rows, problem.n_step))
+            if count:
+                jacobian[:count, : model.nv] = self.checker.jacobian_rows(model, data, pairs)
+                checker = self.checker
+
+                def second_order(model, moved, weights):
+                    # Only the pairs that weigh are measured again (a few of the 20).
+                    used = np.flatnonzero(weights[:count])
+                    return weights[used] @ checker.remeasured_rows(model, moved, [pairs.pair(i) for i in used.tolist()])
+        else:
+            # Distances alone: no witness points (line-search trials).
+            distances, names = self.checker.closest_distances(model, data, self.rows)
         value = np.zeros(self.rows)
         lower = np.full(self.rows, -np.inf)
         labels = ["(inactive collision row)"] * self.rows
-        if not iterate.derivatives:
-            # Distances alone: no witness points (line-search trials).
-            distances, names = self.checker.closest_distances(model, data, self.rows)
-            value[: len(distances)] = distances
-            lower[: len(distances)] = [self._lower(pair) for pair in names]
-            labels[: len(names)] = [f"collision between {a} and {b}" for a, b in names]
-            return [
-                ConstraintBlock(
-                    "collision", value, None, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
-                    slack=COLLISION_SLACK,
-                )
-            ]
-        pairs = self.checker.closest_pairs(model, data, self.rows)
-        jacobian = np.zeros((self.rows, problem.n_step))
-        second_order = None
-        if pairs:
-            jacobian[: len(pairs), : model.nv] = self.checker.jacobian_rows(model, data, pairs)
-            for i, pair in enumerate(pairs):
-                value[i] = pair.distance
-                lower[i] = self._lower((pair.name_a, pair.name_b))
-                labels[i] = f"collision between {pair.name_a} and {pair.name_b}"
-            checker, count = self.checker, len(pairs)
-
-            def second_order(model, moved, weights):
-                # Only the pairs that weigh are measured again (a few of the 20).
-                used = np.flatnonzero(weights[:count])
-                return weights[used] @ checker.remeasured_rows(model, moved, [pairs[i] for i in used])
-
+        value[: len(distances)] = distances
+        lower[: len(distances)] = [self._lower(pair) for pair in names]
+        labels[: len(names)] = [f"collision between {a} and {b}" for a, b in names]
         return [
             ConstraintBlock(
                 "collision", value, jacobian, lower, np.full(self.rows, np.inf), 1e-2, tuple(labels),
-                slack=COLLISION_SLACK,
-                second_order=second_order,
+                slack=COLLISION_SLACK, second_order=second_order,
             )
         ]
 

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from operator import attrgetter
+
 import coal
 import numpy as np
 import pinocchio as pin
@@ -335,3 +337,47 @@ def test_distances_alone_are_the_pairs_names_and_distances(robot, floor, feet_on
     lost = dict(checker.distances(robot.model, data))
     assert lost[("wrist_left_ft_tool_link_0", "box")] == -1.0
     assert lost == {(pair.name_a, pair.name_b): pair.distance for pair in checker.pairs(robot.model, data)}
+
+
+def test_the_closest_pairs_as_arrays_are_the_pairs_sorted_with_their_stand_ins(
+        robot, floor, feet_on_floor, data, monkeypatch):
+    """:meth:`closest` (the linearisation's arrays, witness points read all at once) holds
+    the pairs of :meth:`pairs` sorted by distance, field by field, and their Jacobian rows;
+    where coal's penetration solver gives up, the same -1 m stand-in between the bounds."""
+    placed_at(robot, data, robot.reference_configuration)
+    cylinder_to_world, geometry = geometry_to_world(robot, data, "wrist_left_ft_tool_link_0")
+    inside = box((0.2, 0.2, 0.2), cylinder_to_world.act(np.array([geometry.geometry.radius + 0.09, 0.0, 0.0])),
+                 cylinder_to_world.rotation)
+    checker = CollisionChecker(robot, [("floor", floor), ("box", inside)], exclude=feet_on_floor, margin=0.1)
+
+    def agree(count):
+        expected = sorted(checker.pairs(robot.model, data), key=lambda pair: pair.distance)[:count]
+        measured = checker.closest(robot.model, data, count)
+        assert len(measured) == len(expected) > 0
+        assert measured.names == tuple((pair.name_a, pair.name_b) for pair in expected)
+        for field, name in (("distances", "distance"), ("points_a", "point_a"), ("points_b", "point_b"),
+                            ("normals", "normal"), ("joint_a", "joint_a"), ("joint_b", "joint_b")):
+            np.testing.assert_array_equal(getattr(measured, field), [getattr(pair, name) for pair in expected])
+        for pair, reference in zip(measured.pairs(), expected):
+            assert (pair.name_a, pair.name_b, pair.joint_a, pair.joint_b, pair.distance) == (
+                reference.name_a, reference.name_b, reference.joint_a, reference.joint_b, reference.distance)
+            np.testing.assert_array_equal(np.vstack([pair.point_a, pair.point_b, pair.normal]),
+                                          np.vstack([reference.point_a, reference.point_b, reference.normal]))
+            assert not pair.normal.flags.writeable
+        np.testing.assert_array_equal(checker.jacobian_rows(robot.model, data, measured),
+                                      checker.jacobian_rows(robot.model, data, expected))
+        return measured
+
+    wrist = ("wrist_left_ft_tool_link_0", "box")
+    assert dict(zip(*attrgetter("names", "distances")(agree(20))))[wrist] == pytest.approx(-0.01, abs=1e-6)
+    query = checker._query
+    distance, kept = query.distance, query.kept_distance
+    monkeypatch.setattr(query, "distance", lambda *shapes: -np.inf if distance(*shapes) < 0.0 else distance(*shapes))
+
+    def lost_depth(*arguments):
+        measured, result = kept(*arguments)
+        return (-np.inf if measured < 0.0 else measured), result
+
+    monkeypatch.setattr(query, "kept_distance", lost_depth)
+    checker._last_closest = None  # measured again, with the depth lost
+    assert dict(zip(*attrgetter("names", "distances")(agree(20))))[wrist] == -1.0
