@@ -56,16 +56,25 @@ class PointLoads:
 
     @cached_property
     def groups(self) -> tuple:
-        """``(joint, mask, rows)`` of each loaded joint, ascending: the (k,) bool mask and
-        the sorted indices of the points it carries (made once: every linearisation and
-        evaluation reads them)."""
+        """``(joint, take, skews, levers)`` of each loaded joint, ascending, made once (every
+        linearisation and evaluation reads them):
+
+        - ``take`` selects the joint's points (a slice where they are consecutive, as
+          each contact's are; else their sorted indices);
+        - ``skews``, (n, 3, 3): their cross-product matrices ``[p]x``;
+        - ``levers``, (3, 3n): the same side by side, so that ``levers @ f.ravel()`` sums
+          ``p x f`` over the joint's points.
+        """
         out = []
         for joint in np.unique(self.joints).tolist():
-            mask = self.joints == joint
-            rows = np.flatnonzero(mask)
-            mask.setflags(write=False)
-            rows.setflags(write=False)
-            out.append((joint, mask, rows))
+            rows = np.flatnonzero(self.joints == joint)
+            consecutive = rows[-1] - rows[0] == len(rows) - 1
+            take = slice(int(rows[0]), int(rows[-1]) + 1) if consecutive else rows
+            skews = _skews(self.points_in_joint[rows])
+            levers = np.ascontiguousarray(skews.transpose(1, 0, 2).reshape(3, -1))
+            for array in (rows, skews, levers):
+                array.setflags(write=False)
+            out.append((joint, take, skews, levers))
         return tuple(out)
 
     @staticmethod
@@ -96,9 +105,9 @@ def points_in_world(data: pin.Data, loads: PointLoads) -> np.ndarray:
     """
     out = np.empty((len(loads), 3))
     # One product per joint: a deformable print puts dozens of points on one link.
-    for joint, rows, _ in loads.groups:
+    for joint, take, _, _ in loads.groups:
         placement = data.oMi[joint]
-        out[rows] = loads.points_in_joint[rows] @ placement.rotation.T + placement.translation
+        out[take] = loads.points_in_joint[take] @ placement.rotation.T + placement.translation
     return out
 
 
@@ -111,16 +120,12 @@ def _external_forces(model, data, loads: PointLoads, forces_in_world: np.ndarray
     # Zero wrenches on every joint but the loaded ones (a copy of a kept list: building it
     # joint by joint took 11 us a call).
     fext = pin.StdVec_Force(_zero_forces(model.njoints))
-    for joint, rows, _ in loads.groups:
-        local = forces_in_world[rows] @ data.oMi[joint].rotation  # R^T f, row-wise
-        forces_local[rows] = local
-        points = loads.points_in_joint[rows]
-        moments = np.column_stack([
-            points[:, 1] * local[:, 2] - points[:, 2] * local[:, 1],
-            points[:, 2] * local[:, 0] - points[:, 0] * local[:, 2],
-            points[:, 0] * local[:, 1] - points[:, 1] * local[:, 0],
-        ])
-        fext[joint] = pin.Force(local.sum(axis=0), moments.sum(axis=0))
+    for joint, take, _, levers in loads.groups:
+        local = forces_in_world[take] @ data.oMi[joint].rotation  # R^T f, row-wise
+        forces_local[take] = local
+        # sum p x R^T f in one product with the points' cross-product matrices (a
+        # column_stack of the three components cost a tenth of a rigid linearisation).
+        fext[joint] = pin.Force(local.sum(axis=0), levers @ local.ravel())
     return fext, forces_local
 
 
@@ -194,24 +199,29 @@ def static_torque_derivatives(model, data, q, loads: PointLoads, forces_in_world
     dtau_dforces = np.zeros((nv, 3 * len(loads)))
     # Group forces by joint: the rotation term involves each joint's Jacobian once.
     per_load = dtau_dforces.reshape(nv, len(loads), 3)
-    for joint, _, rows in loads.groups:
+    for joint, take, skews, _ in loads.groups:
         jacobian_local = pin.getJointJacobian(model, data, joint, pin.LOCAL)
         rotation = data.oMi[joint].rotation
-        points, local = loads.points_in_joint[rows], forces_local[rows]
+        points, local = loads.points_in_joint[take], forces_local[take]
         # d(R^T f) = [R^T f]x omega_local; d(p x R^T f) = [p]x [R^T f]x omega_local,
         # summed over the joint's loads with [p]x [f]x = f p^T - (p . f) I.
-        d_linear = pin.skew(local.sum(axis=0))
-        d_angular = local.T @ points - np.einsum("ij,ij->", points, local) * np.eye(3)
-        d_wrench = np.vstack([d_linear, d_angular]) @ jacobian_local[3:]
-        dtau_dq -= jacobian_local.T @ d_wrench
+        x, y, z = local.sum(axis=0).tolist()
+        d_wrench = np.empty((6, 3))
+        d_wrench[:3] = ((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0))
+        np.matmul(local.T, points, out=d_wrench[3:])
+        dot = d_wrench[3:].trace()  # sum of p . f
+        d_wrench[3, 0] -= dot
+        d_wrench[4, 1] -= dot
+        d_wrench[5, 2] -= dot
+        dtau_dq -= jacobian_local.T @ (d_wrench @ jacobian_local[3:])
         # tau = ... - J^T [R^T f; p x R^T f] for each load.
         linear = jacobian_local[:3].T @ rotation.T  # (nv, 3)
         # angular[v, n, k] = (J_w^T [p_n]x R^T)[v, k]: one matrix product over all the
         # joint's loads (a three-index einsum took 1.5 ms per call on a sole pair's 114
         # print nodes, the largest cost of a soft linearisation).
-        levers = (_skews(points) @ rotation.T).transpose(1, 0, 2).reshape(3, -1)  # (3, n * 3)
-        angular = (jacobian_local[3:].T @ levers).reshape(nv, len(rows), 3)
-        per_load[:, rows, :] = -(linear[:, None, :] + angular)
+        levers = (skews @ rotation.T).transpose(1, 0, 2).reshape(3, -1)  # (3, n * 3)
+        angular = (jacobian_local[3:].T @ levers).reshape(nv, len(skews), 3)
+        per_load[:, take, :] = -(linear[:, None, :] + angular)
     return tau, dtau_dq, dtau_dforces
 
 
@@ -236,8 +246,8 @@ def point_jacobians(model, data, loads: PointLoads) -> np.ndarray:
         ``d p_k / d q`` for a tangent step, world frame.
     """
     out = np.empty((len(loads), 3, model.nv))
-    for joint, rows, _ in loads.groups:
+    for joint, take, _, _ in loads.groups:
         jacobian = pin.getJointJacobian(model, data, joint, pin.LOCAL_WORLD_ALIGNED)
-        levers = loads.points_in_joint[rows] @ data.oMi[joint].rotation.T
-        out[rows] = jacobian[:3][None] - _skews(levers) @ jacobian[3:]
+        levers = loads.points_in_joint[take] @ data.oMi[joint].rotation.T
+        out[take] = jacobian[:3][None] - _skews(levers) @ jacobian[3:]
     return out
