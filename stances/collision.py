@@ -55,7 +55,7 @@ import numpy as np
 import pinocchio as pin
 
 from .narrow_phase import (
-    CollisionSetupError, DistanceQuery, coal, robot_shape, scene_shape, witnesses, world_bounds, world_boxes,
+    CollisionSetupError, DistanceQuery, coal, robot_shape, scene_geometry, witnesses,
 )
 
 # Broad-phase bounds within this of the margin reach coal, metres (coal's distances
@@ -206,6 +206,7 @@ class _RobotGeometry:
 
     names: tuple
     joints: np.ndarray  # (g,) int, parent joint of each geometry
+    joint_names: tuple  # (g,) str, the name of each geometry's parent joint
     rotation_geometry_to_joint: np.ndarray  # (g, 3, 3)
     translation_geometry_to_joint: np.ndarray  # (g, 3) metres
     sphere_center: np.ndarray  # (g, 3) metres, geometry frame
@@ -244,6 +245,7 @@ def _robot_geometry(robot) -> _RobotGeometry:
     geometry = _RobotGeometry(
         names=tuple(names),
         joints=np.array(joints, dtype=int),
+        joint_names=tuple(robot.model.names[joint] for joint in joints),
         rotation_geometry_to_joint=np.array(rotations).reshape(-1, 3, 3),
         translation_geometry_to_joint=np.array(translations).reshape(-1, 3),
         sphere_center=np.array(centers).reshape(-1, 3),
@@ -317,16 +319,15 @@ def _support_columns(model) -> np.ndarray:
     return mask
 
 
-def _matching_geometries(key, geometry: _RobotGeometry, model) -> np.ndarray:
+def _matching_geometries(key, geometry: _RobotGeometry) -> np.ndarray:
     """Indices of the robot geometries an exclusion key designates (may be empty)."""
     if isinstance(key, (int, np.integer)):
         return np.flatnonzero(geometry.joints == int(key))
-    joint_names = [model.names[int(joint)] for joint in geometry.joints]
     return np.array(
         [
             index
-            for index, name in enumerate(geometry.names)
-            if name == key or joint_names[index] == key or name.startswith(key)
+            for index, (name, joint_name) in enumerate(zip(geometry.names, geometry.joint_names))
+            if name == key or joint_name == key or name.startswith(key)
         ],
         dtype=int,
     )
@@ -396,7 +397,6 @@ class CollisionChecker:
         self.self_collision = bool(self_collision)
         self._robot = robot
         self._geometry = _robot_geometry(robot)
-        model = robot.model
         self._support = self._geometry.support  # once per robot: a Python loop over the joints
         self._geometry_index = None  # geometry name -> index, made on first use
         self._last_closest = None  # (key, closest) of the last _closest
@@ -417,12 +417,12 @@ class CollisionChecker:
                     f"scene object name {name!r} is used twice, or is '*' or a robot "
                     "geometry name; give each scene object a unique name"
                 )
-            shape, rotation, translation = scene_shape(name, collision_object)
+            shape, rotation, translation, object_bounds, object_boxes = scene_geometry(name, collision_object)
             self.scene_names.append(name)
             self._scene_shapes.append(shape)
             self._scene_placements.append(coal.Transform3s(rotation, translation))
-            bounds.append(world_bounds(shape, rotation, translation))
-            boxes.append(world_boxes(shape, rotation, translation))
+            bounds.append(object_bounds)
+            boxes.append(object_boxes)
         self.scene_names = tuple(self.scene_names)
         self._scene_bounds = np.array(bounds).reshape(-1, 2, 3)
         # Every scene object's boxes (one for a primitive, many for a mesh), stacked,
@@ -430,15 +430,15 @@ class CollisionChecker:
         self._scene_boxes = (np.concatenate(boxes) if boxes else np.zeros((0, 2, 3))).reshape(-1, 2, 3)
         self._scene_box_starts = np.cumsum([0] + [len(b) for b in boxes[:-1]]).astype(int)
         self.exclude = tuple((key, other) for key, other in exclude)
-        self._build_pair_lists(model)
+        self._build_pair_lists()
 
-    def _build_pair_lists(self, model) -> None:
+    def _build_pair_lists(self) -> None:
         geometry = self._geometry
         count = len(geometry.names)
         allowed_scene = np.ones((count, len(self.scene_names)), dtype=bool)
         allowed_self = np.ones((count, count), dtype=bool)
         for key, other in self.exclude:
-            rows = _matching_geometries(key, geometry, model)
+            rows = _matching_geometries(key, geometry)
             if len(rows) == 0:
                 raise CollisionSetupError(
                     f"exclusion key {key!r} matches no robot geometry; use a geometry "
@@ -450,7 +450,7 @@ class CollisionChecker:
             elif other in self.scene_names:
                 allowed_scene[rows, self.scene_names.index(other)] = False
             else:
-                columns = _matching_geometries(other, geometry, model)
+                columns = _matching_geometries(other, geometry)
                 if len(columns) == 0:
                     raise CollisionSetupError(
                         f"exclusion target {other!r} is neither a scene object "
@@ -505,7 +505,7 @@ class CollisionChecker:
         clone._last_closest = None  # measured with the original's pairs
         clone._query, clone._results = DistanceQuery(), []
         clone._placements = _geometry_placements(clone._geometry)
-        clone._build_pair_lists(self._robot.model)
+        clone._build_pair_lists()
         return clone
 
     def _geometry_to_world(self, data, geometry_placements):
@@ -534,7 +534,7 @@ class CollisionChecker:
         )
         return rotation, translation
 
-    def _broad_phase(self, rotation, translation):
+    def _broad_phase(self, rotation, translation, bounds=False):
         """Pairs whose bounds come within ``margin`` at these geometry placements.
 
         Returns
@@ -545,6 +545,10 @@ class CollisionChecker:
             (robot geometry, robot geometry).
         centers : (g, 3) float
             Bounding sphere centres, metres, world frame.
+        lower : (k,) float
+            With ``bounds``: each candidate's lower bound on its signed distance, metres
+            (coal's is at least this less ``_BOUND_SLACK``): the gap between its bounds
+            where they are apart, -inf where they meet (the shapes may overlap by any depth).
         """
         geometry = self._geometry
         centers = np.einsum("gij,gj->gi", rotation, geometry.sphere_center) + translation
@@ -568,16 +572,26 @@ class CollisionChecker:
             )
             gap = np.minimum.reduceat(per_box, self._scene_box_starts, axis=1)[scene_pairs[:, 0], scene_pairs[:, 1]]
             scene_candidates = np.flatnonzero(gap <= limit)
+            scene_lower = gap[scene_candidates]
         self_pairs = self._self_pairs
-        self_candidates = np.zeros(0, dtype=int)
+        self_candidates, self_lower = np.zeros(0, dtype=int), np.zeros(0)
         if len(self_pairs):
             # Spheres first, over every pair; boxes over the pairs whose spheres are near
             # (a tenth of them): the larger bound within the limit is both within it.
             a, b = self_pairs[:, 0], self_pairs[:, 1]
-            near = np.flatnonzero(_norms(centers[a] - centers[b]) - self._self_radii <= limit)
+            sphere_gap = _norms(centers[a] - centers[b]) - self._self_radii
+            near = np.flatnonzero(sphere_gap <= limit)
             a, b = a[near], b[near]
-            self_candidates = near[_box_gap(lows[a], highs[a], lows[b], highs[b]) <= limit]
-        return np.concatenate([scene_candidates, len(scene_pairs) + self_candidates]), centers
+            box_gap = _box_gap(lows[a], highs[a], lows[b], highs[b])
+            within = box_gap <= limit
+            self_candidates = near[within]
+            if bounds:
+                self_lower = np.maximum(sphere_gap[self_candidates], box_gap[within])
+        candidates = np.concatenate([scene_candidates, len(scene_pairs) + self_candidates])
+        if bounds:
+            lower = np.concatenate([scene_lower if len(scene_pairs) else np.zeros(0), self_lower])
+            return candidates, centers, np.where(lower > 0.0, lower, -np.inf)
+        return candidates, centers
 
     def _candidates(self, rotation, translation, ids=None, centers=None):
         """The broad phase's pairs (or the pairs ``ids``, with the sphere ``centers`` it
@@ -658,6 +672,47 @@ class CollisionChecker:
             if not distance > margin:
                 out.append((self._names(candidate), float(_deepest_clamped(distance))))
         return out
+
+    def clearance(self, model, data, depth):
+        """The least distance within ``margin`` and the pairs deeper than ``depth``, measured
+        afresh: what :meth:`distances` gives of them, measuring only the pairs that can
+        change them.
+
+        Pairs are measured in the order of their broad-phase lower bounds, until the
+        next bound exceeds both the least distance measured and ``-depth``: no pair
+        beyond can be nearer or that deep. What a check of clearance needs
+        (:func:`stances.verify`): on the 60 random rigid bench stances, 43 coal calls a
+        check with :meth:`distances`.
+
+        Parameters
+        ----------
+        model, data
+            As :meth:`pairs` (``data.oMi`` at the configuration).
+        depth : float
+            Metres: pairs whose signed distance is below ``-depth`` are returned.
+
+        Returns
+        -------
+        least : float
+            The least signed distance of the pairs within ``margin``, metres (inf if none).
+        deep : list of ((str, str), float)
+            The pairs deeper than ``depth``, as :meth:`distances` gives them, in its order.
+        """
+        rotation, translation = self._geometry_to_world(data, None)
+        ids, centers, lower = self._broad_phase(rotation, translation, bounds=True)
+        candidates = self._candidates(rotation, translation, ids, centers)
+        query, shapes, margin = self._query, self._geometry.shapes, self.margin
+        least, deep = np.inf, []
+        for i in np.argsort(lower, kind="stable").tolist():
+            if lower[i] - _BOUND_SLACK > max(least, -depth):
+                break
+            a, placement_a, _, shape_b, placement_b = candidates[i][:5]
+            distance = _deepest_clamped(query.distance(shapes[a], placement_a, shape_b, placement_b))
+            if not distance > margin:
+                least = min(least, float(distance))
+                if distance < -depth:
+                    deep.append((i, self._names(candidates[i]), float(distance)))
+        return least, [(names, distance) for _, names, distance in sorted(deep)]
 
     def closest_distances(self, model, data, count):
         """The distances of the ``count`` closest pairs within ``margin``, without witness points.
@@ -1016,13 +1071,16 @@ def contact_exclusions(robot, surface_or_frame: str, object_name: str, *, includ
     )
     frame_name = surface.frame if surface is not None else surface_or_frame
     joint = robot.model.frames[robot.frame_id(frame_name)].parentJoint
-    geometries = robot.collision_model.geometryObjects
+    # The checker's converted geometry (names and joints in collision-model order): reading
+    # pinocchio's geometry objects took most of a stance's exclusions.
+    geometry = _robot_geometry(robot)
+    parents = geometry.joints.tolist()
     if surface is not None and surface.contact_geometries:
         names = set(surface.contact_geometries)
     else:
-        names = {geometry.name for geometry in geometries if geometry.parentJoint == joint}
+        names = {name for name, parent in zip(geometry.names, parents) if parent == joint}
     if include_parent_joint and joint != 0:
-        parent = robot.model.parents[joint]
-        names |= {geometry.name for geometry in geometries if geometry.parentJoint == parent}
+        above = robot.model.parents[joint]
+        names |= {name for name, parent in zip(geometry.names, parents) if parent == above}
     # In collision-model order, so that the entries do not depend on set order.
-    return [(geometry.name, object_name) for geometry in geometries if geometry.name in names]
+    return [(name, object_name) for name in geometry.names if name in names]

@@ -33,6 +33,8 @@ small interface to the problem builder:
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 
@@ -63,6 +65,12 @@ def friction_cone_generators(friction: float, n_edges: int = 4) -> np.ndarray:
         Unit edge directions in the contact frame (z = surface normal). Any
         non-negative combination lies inside the cone |f_t| <= mu f_n.
     """
+    return _cone_generators(float(friction), int(n_edges)).copy()
+
+
+@functools.lru_cache(maxsize=64)
+def _cone_generators(friction: float, n_edges: int) -> np.ndarray:
+    """:func:`friction_cone_generators`, made once per coefficient (a contact per stance asks)."""
     angles = 2.0 * np.pi * np.arange(n_edges) / n_edges
     edges = np.column_stack([friction * np.cos(angles), friction * np.sin(angles), np.ones(n_edges)])
     return edges / np.linalg.norm(edges, axis=1, keepdims=True)

@@ -55,8 +55,8 @@ from .errors import StanceError
 import coal  # pinocchio's collision library since pinocchio 3.4 (hpp-fcl before, other names)
 
 __all__ = [
-    "CollisionSetupError", "DistanceQuery", "box_shape", "robot_shape", "scene_shape", "witnesses", "world_bounds",
-    "world_boxes",
+    "CollisionSetupError", "DistanceQuery", "box_shape", "robot_shape", "scene_geometry", "scene_shape", "witnesses",
+    "world_bounds", "world_boxes",
 ]
 
 
@@ -236,6 +236,35 @@ def scene_shape(name: str, scene_object):
     transform = scene_object.transform_shape_to_world
     shape = box_shape(scene_object.box_size) if scene_object.box_size is not None else _mesh_shape(scene_object)
     return shape, np.array(transform[:3, :3]), np.array(transform[:3, 3])
+
+
+# A scene shape's coal shape, placement and world bounds, made once per shape (a checker is
+# built per stance; a stepped mesh's boxes took a millisecond to group).
+_SCENE_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def scene_geometry(name: str, scene_object):
+    """:func:`scene_shape` of a scene object with its :func:`world_bounds` and
+    :func:`world_boxes`, made once per :class:`~environments.geometry.CollisionShape`.
+
+    Returns
+    -------
+    shape, rotation, translation
+        As :func:`scene_shape` (the arrays read-only).
+    bounds : (2, 3) float
+    boxes : (b, 2, 3) float
+    """
+    known = _SCENE_CACHE.get(scene_object) if isinstance(scene_object, CollisionShape) else None
+    if known is not None:
+        return known
+    shape, rotation, translation = scene_shape(name, scene_object)
+    known = (shape, rotation, translation, world_bounds(shape, rotation, translation),
+             world_boxes(shape, rotation, translation))
+    for array in known[1:]:
+        array.setflags(write=False)
+    if isinstance(scene_object, CollisionShape):
+        _SCENE_CACHE[scene_object] = known
+    return known
 
 
 def world_bounds(shape, rotation, translation) -> np.ndarray:

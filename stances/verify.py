@@ -169,11 +169,10 @@ def verify_problem(
 
     # Collisions, measured afresh.
     if problem.collision_checker is not None:
-        pairs = problem.collision_checker.distances(model, data)
-        measures["closest_distance"] = float(min((distance for _, distance in pairs), default=np.inf))
-        for (name_a, name_b), distance in pairs:
-            if distance < -tolerances.penetration:
-                reasons.append(f"collision between {name_a} and {name_b} (depth {-distance:.3g} m)")
+        least, deep = problem.collision_checker.clearance(model, data, tolerances.penetration)
+        measures["closest_distance"] = least
+        for (name_a, name_b), distance in deep:
+            reasons.append(f"collision between {name_a} and {name_b} (depth {-distance:.3g} m)")
     return Verification(not reasons, tuple(reasons), measures)
 
 

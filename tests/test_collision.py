@@ -381,3 +381,33 @@ def test_the_closest_pairs_as_arrays_are_the_pairs_sorted_with_their_stand_ins(
     monkeypatch.setattr(query, "kept_distance", lost_depth)
     checker._last_closest = None  # measured again, with the depth lost
     assert dict(zip(*attrgetter("names", "distances")(agree(20))))[wrist] == -1.0
+
+
+def test_clearance_is_what_every_distance_gives_for_fewer_measurements(robot, floor, feet_on_floor, data, monkeypatch):
+    """:meth:`clearance` (the final check's collision test) gives the least distance within
+    the margin and the pairs deeper than the depth exactly as :meth:`distances` does, at
+    random postures near the reference with a wrist inside a box, measuring fewer pairs."""
+    placed_at(robot, data, robot.reference_configuration)
+    cylinder_to_world, geometry = geometry_to_world(robot, data, "wrist_left_ft_tool_link_0")
+    inside = box((0.2, 0.2, 0.2), cylinder_to_world.act(np.array([geometry.geometry.radius + 0.09, 0.0, 0.0])),
+                 cylinder_to_world.rotation)
+    checker = CollisionChecker(robot, [("floor", floor), ("box", inside)], exclude=feet_on_floor, margin=0.1)
+    calls = []
+    measure = checker._query.distance
+    monkeypatch.setattr(checker._query, "distance", lambda *shapes: calls.append(1) or measure(*shapes))
+    rng = np.random.default_rng(4)
+    deep_seen, every, fewer = 0, 0, 0
+    for step in [0.0] + [0.15] * 12:
+        q = pin.integrate(robot.model, robot.reference_configuration, step * rng.standard_normal(robot.model.nv))
+        placed_at(robot, data, q)
+        for depth in (1e-4, 0.02):
+            calls.clear()
+            pairs = checker.distances(robot.model, data)
+            every += len(calls)
+            calls.clear()
+            least, deep = checker.clearance(robot.model, data, depth)
+            fewer += len(calls)
+            assert least == min((distance for _, distance in pairs), default=np.inf)
+            assert deep == [(names, distance) for names, distance in pairs if distance < -depth]
+            deep_seen += len(deep)
+    assert deep_seen > 0 and fewer < 0.6 * every
