@@ -8,9 +8,12 @@ waits for) of this checkout and of an older one, processes alternating, on
 - the 60 random rigid stances of ``bench_posture.py`` (same seed, same draw), and
 - the built-in soft stances both checkouts have,
 
-and prints each side's medians and their ratio. The older checkout runs in its own virtual
-environment (its dependencies differ: python-fcl before coal). For the code the issues were
-filed on::
+and prints each side's medians and their ratio. With ``--instructions`` it also counts the
+instructions the 60 rigid solves execute on each side (valgrind's callgrind, two runs a side:
+with the solves and without, the difference theirs): a count does not move with the host's
+load, which moved the time ratio by a fifth between rounds of one run (about ten more
+minutes). The older checkout runs in its own virtual environment (its dependencies differ:
+python-fcl before coal). For the code the issues were filed on::
 
     git worktree add --detach /tmp/old a83c2c6
     python3 -m venv /tmp/venv_old
@@ -18,7 +21,7 @@ filed on::
         example-robot-data==6.0.0 cvxopt==1.3.3 gmsh==4.15.2 meshio==5.3.5 networkx==3.6.1 \\
         PyYAML==6.0.4 matplotlib==3.11.2 tqdm==4.70.1 trimesh==5.2.0 python-fcl
     /tmp/venv_old/bin/pip install --no-deps -e /tmp/old
-    .venv/bin/python bench/bench_side_by_side.py /tmp/old /tmp/venv_old/bin/python [--rounds 3]
+    .venv/bin/python bench/bench_side_by_side.py /tmp/old /tmp/venv_old/bin/python [--rounds 3] [--instructions]
 
 (the versions pinned are this checkout's own, so that only the code differs). Writes
 ``bench/results/side_by_side.md``.
@@ -26,11 +29,13 @@ filed on::
 
 from __future__ import annotations
 
+import concurrent.futures
 import datetime
 import json
 import os
 import subprocess
 import sys
+import tempfile
 import time
 
 # One BLAS thread, for this process and the workers it starts (see bench_posture.py).
@@ -42,24 +47,32 @@ ROOT = os.path.dirname(HERE)
 SOFT_REPEATS = 3  # a soft stance's time: the least of this many solves, after one that pays its setup
 
 
-def measure(repository: str) -> dict:
-    """CPU seconds of ``stances.solve`` on the rigid and soft stances, with ``repository``'s code.
-
-    Runs in a process of its own (``--worker``): the code measured is imported from
-    ``repository`` only.
-    """
+def rigid_cases(repository: str):
+    """The robot and the 60 rigid stances, with ``repository``'s code, after one solve that
+    pays the imports and first-call caches."""
     sys.path[:0] = [repository, os.path.join(repository, "bench")]
     import numpy as np
 
     import bench_posture
-    import environments
     import stances
 
     if not os.path.abspath(stances.__file__).startswith(os.path.abspath(repository)):
         raise SystemExit(f"stances was imported from {stances.__file__}, not from {repository}")
     robot = stances.Robot.load("talos")
     cases = bench_posture.random_stances(robot, np.random.default_rng(bench_posture.SEED))
-    stances.solve(robot, cases[0][1], cases[0][2])  # imports and first-call caches
+    stances.solve(robot, cases[0][1], cases[0][2])
+    return stances, robot, cases
+
+
+def measure(repository: str) -> dict:
+    """CPU seconds of ``stances.solve`` on the rigid and soft stances, with ``repository``'s code.
+
+    Runs in a process of its own (``--worker``): the code measured is imported from
+    ``repository`` only.
+    """
+    stances, robot, cases = rigid_cases(repository)
+    import environments
+
     rigid, verified = [], 0
     for _, scene, stance in cases:
         cpu = time.process_time()
@@ -88,13 +101,41 @@ def measure(repository: str) -> dict:
             "soft": soft}
 
 
+def instructions(python: str, repository: str, solve: bool) -> int:
+    """Instructions callgrind counts in a process that sets up the rigid stances (and, with
+    ``solve``, solves them once), with ``repository``'s code."""
+    with tempfile.TemporaryDirectory() as folder:
+        out = os.path.join(folder, "callgrind.out")
+        subprocess.run(["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", python,
+                        os.path.abspath(__file__), "--count-worker", repository, str(int(solve))],
+                       capture_output=True, text=True, check=True, env={**os.environ, "PYTHONHASHSEED": "0"})
+        with open(out) as handle:
+            summary = next(line for line in handle if line.startswith(("summary:", "totals:")))
+    return int(summary.split()[1])
+
+
+def instruction_rows(sides) -> list:
+    """The instructions of the 60 rigid solves on each side, and their ratio, as markdown."""
+    jobs = {(side, solve): (python, repository, solve) for side, (python, repository) in sides.items()
+            for solve in (False, True)}
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:  # one process a core
+        counts = dict(zip(jobs, pool.map(lambda job: instructions(*job), jobs.values())))
+    solves = {side: counts[side, True] - counts[side, False] for side in sides}
+    return [f"Instructions of the 60 rigid solves (callgrind, `stances.solve` with build and final check; "
+            "a run with them less a run with the setup alone):", "",
+            "| side | setup alone (G) | with the solves (G) | the solves (G) |", "|---|---|---|---|",
+            *(f"| {side} | {counts[side, False] / 1e9:.3f} | {counts[side, True] / 1e9:.3f} | {solves[side] / 1e9:.3f} |"
+              for side in sides),
+            "", f"Ratio new / old: {solves['new'] / solves['old']:.3f}.", ""]
+
+
 def run_worker(python: str, repository: str) -> dict:
     completed = subprocess.run([python, os.path.abspath(__file__), "--worker", repository],
                                capture_output=True, text=True, check=True)
     return json.loads(completed.stdout.strip().splitlines()[-1])
 
 
-def main(old_repository: str, old_python: str, rounds: int) -> None:
+def main(old_repository: str, old_python: str, rounds: int, count_instructions: bool = False) -> None:
     sys.path.insert(0, HERE)
     import numpy as np
 
@@ -157,6 +198,7 @@ def main(old_repository: str, old_python: str, rounds: int) -> None:
         "",
         *per_stance,
         "",
+        *(instruction_rows(sides) if count_instructions else []),
     ])
     print(text)
     with open(os.path.join(HERE, "results", "side_by_side.md"), "w") as handle:
@@ -167,12 +209,19 @@ if __name__ == "__main__":
     arguments = sys.argv[1:]
     if arguments[:1] == ["--worker"]:
         print(json.dumps(measure(arguments[1])))
+    elif arguments[:1] == ["--count-worker"]:
+        stances, robot, cases = rigid_cases(arguments[1])
+        for _, scene, stance in cases if arguments[2] == "1" else ():
+            stances.solve(robot, scene, stance)
     else:
         count = 3
+        count_instructions = "--instructions" in arguments
+        if count_instructions:
+            arguments.remove("--instructions")
         if "--rounds" in arguments:
             at = arguments.index("--rounds")
             count = int(arguments[at + 1])
             del arguments[at : at + 2]
         if len(arguments) != 2:
             raise SystemExit(__doc__)
-        main(arguments[0], arguments[1], count)
+        main(arguments[0], arguments[1], count, count_instructions)
