@@ -29,13 +29,16 @@ mesh (0.7 ms of coal's mesh queries) no longer reach coal.
 
 A posture solver's line search needs the distances only
 (:meth:`CollisionChecker.closest_distances`), the linearisation the witness
-points of the closest pairs (:meth:`CollisionChecker.closest_pairs`); the last
+points of the closest pairs, read as arrays (:meth:`CollisionChecker.closest`); the last
 measurement is kept, keyed on the geometry placements, so that the accepted
 trial's linearisation measures only the witnesses it uses. Each pair's last
 separation bounds its distance at the next posture (a shape's points move by at
 most what its bounding sphere's centre and rotation say), and pairs that cannot
 be among the closest within the margin are not measured again (on the 15
-built-in soft stances, 9,509 coal calls instead of 12,551, the same answers).
+built-in soft stances, 9,509 coal calls instead of 12,551, the same answers). A
+check of clearance (:meth:`CollisionChecker.clearance`) measures the pairs in the
+order of their broad-phase bounds and stops where none beyond can be nearer or
+penetrate.
 
 Sign conventions. ``distance <= 0`` means penetration (its magnitude is then
 the penetration depth). ``normal`` is the unit vector, world frame, along which
