@@ -721,7 +721,7 @@ class CollisionChecker:
         """The distances of the ``count`` closest pairs within ``margin``, without witness points.
 
         What a line search needs: the same numbers, in the same order, as the
-        pairs of :meth:`closest_pairs`, for fewer coal calls.
+        pairs of :meth:`closest`, for fewer coal calls.
 
         Parameters
         ----------
@@ -748,10 +748,8 @@ class CollisionChecker:
 
         Parameters
         ----------
-        model : pinocchio.Model
-        data : pinocchio.Data
-            After ``pin.forwardKinematics`` (``data.oMi``) at the configuration.
-        count : int
+        model, data, count
+            As :meth:`closest_distances`.
 
         Returns
         -------
