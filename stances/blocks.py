@@ -120,7 +120,12 @@ class ConstraintBlock:
 
     def met(self, tolerance: float) -> bool:
         """Whether every row is within ``tolerance`` (scaled) or its own ``accuracy``."""
-        return bool(np.all(self.violation() <= np.maximum(tolerance, self.accuracy / self.scale)))
+        violation = self.violation()
+        if not self.accuracy:
+            # The largest row against the tolerance alone (a NaN row fails either way):
+            # the SQP asks this of some thirty blocks a linearisation, three times.
+            return not len(violation) or bool(violation.max() <= tolerance)
+        return bool(np.all(violation <= np.maximum(tolerance, self.accuracy / self.scale)))
 
 
 #: Placement rows (metres and radians) are met within this: a tenth of what

@@ -158,14 +158,28 @@ class ConstraintCurvature:
 
 def _integration_curvature(model):
     """The tangent directions along which ``pin.dIntegrate(model, q, dq, ARG1)`` moves at
-    ``dq = 0``, and its derivative along each: ``(k,)`` int and ``(k, nv, nv)`` float.
+    ``dq = 0``, and its derivative along each: ``(k,)`` int and ``(k, nv, nv)`` float,
+    read-only.
 
     Only the joints on a curved group (the free flyer's SE(3), a spherical joint's
     SO(3)) have one, and it does not depend on q there (the derivative of the
-    group's exponential's Jacobian at the identity): it is taken once, by central
-    differences, exact to rounding for these maps (their Jacobians are even in dq
-    up to the odd term read here).
+    group's exponential's Jacobian at the identity): it is taken once per kind of
+    model (its joints' types, in order: 2 nv calls of ``dIntegrate`` and an (nv, nv,
+    nv) array, once a solve when made per curvature object), by central differences,
+    exact to rounding for these maps (their Jacobians are even in dq up to the odd
+    term read here).
     """
+    key = tuple(joint.shortname() for joint in model.joints)
+    known = _INTEGRATION_CURVATURES.get(key)
+    if known is None:
+        known = _INTEGRATION_CURVATURES[key] = _integration_curvature_of(model)
+    return known
+
+
+_INTEGRATION_CURVATURES: dict = {}  # joint types -> _integration_curvature's answer
+
+
+def _integration_curvature_of(model):
     q, nv = pin.neutral(model), model.nv
     step = 1e-4
     derivatives = np.zeros((nv, nv, nv))
@@ -175,7 +189,10 @@ def _integration_curvature(model):
         derivatives[k] = (pin.dIntegrate(model, q, direction, pin.ARG1)
                           - pin.dIntegrate(model, q, -direction, pin.ARG1)) / (2.0 * step)
     curved = np.flatnonzero(np.abs(derivatives).max(axis=(1, 2)) > 1e-9)
-    return curved, derivatives[curved]
+    derivatives = derivatives[curved]
+    for array in (curved, derivatives):
+        array.setflags(write=False)
+    return curved, derivatives
 
 
 def frame_curvature(model, data, frame_id, local_gradient) -> np.ndarray:

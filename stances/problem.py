@@ -285,8 +285,12 @@ class _Rows:
     (both hold ``blocks``, a list of :class:`~stances.blocks.ConstraintBlock`)."""
 
     def met(self, tolerance: float) -> bool:
-        """Whether every row is within ``tolerance`` (scaled) or its block's ``accuracy``."""
-        return all(block.met(tolerance) for block in self.blocks if len(block))
+        """Whether every row is within ``tolerance`` (scaled) or its block's ``accuracy``
+        (found once per tolerance, as :meth:`worst_row`)."""
+        known = self.__dict__.setdefault("_met", {})
+        if tolerance not in known:
+            known[tolerance] = all(block.met(tolerance) for block in self.blocks if len(block))
+        return known[tolerance]
 
     def max_violation(self) -> tuple[float, str]:
         """Largest scaled violation and the label of its row."""
