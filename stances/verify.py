@@ -53,16 +53,16 @@ def _external_forces(model, data, point_forces):
         joints[i] = parents[point_force.frame]
     forces = np.array([p.force for p in point_forces], dtype=float).reshape(-1, 3)
     points = np.array([p.point for p in point_forces], dtype=float).reshape(-1, 3)
-    total = np.zeros((model.njoints, 3))
-    moment = np.zeros((model.njoints, 3))  # about the world origin
-    np.add.at(total, joints, forces)
-    np.add.at(moment, joints, np.cross(points, forces))
+    moments = np.cross(points, forces)  # about the world origin
     fext = pin.StdVec_Force()
-    for joint in range(model.njoints):
+    for _ in range(model.njoints):
+        fext.append(pin.Force.Zero())
+    for joint in np.unique(joints).tolist():
         # The world-frame wrench about the world origin, seen from the joint's frame:
         # (R^T f, R^T (m - o x f)), one pinocchio call (np.cross on one vector cost
-        # about 20 times as much).
-        fext.append(data.oMi[joint].actInv(pin.Force(total[joint], moment[joint])))
+        # about 20 times as much); the joints that carry nothing keep a zero wrench.
+        mine = joints == joint
+        fext[joint] = data.oMi[joint].actInv(pin.Force(forces[mine].sum(axis=0), moments[mine].sum(axis=0)))
     return fext
 
 
