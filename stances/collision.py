@@ -134,7 +134,8 @@ class CollisionPair:
 def _measured_pair(name_a, name_b, joint_a, joint_b, point_a, point_b, distance, normal) -> CollisionPair:
     """A :class:`CollisionPair` from the checker's own measurement, without the
     constructor's checks and copies (20 pairs a linearisation): the three vectors
-    must be (3,) float arrays that nothing else holds; they are made read-only."""
+    must be (3,) float arrays that nothing writes to (own arrays, or views of
+    :class:`MeasuredPairs`' read-only ones); they are made read-only."""
     for vector in (point_a, point_b, normal):
         vector.setflags(write=False)
     pair = object.__new__(CollisionPair)
@@ -563,7 +564,7 @@ class CollisionChecker:
         # its box); the larger one is kept. The slack covers coal's own accuracy.
         limit = self.margin + _BOUND_SLACK
         scene_pairs = self._scene_pairs
-        scene_candidates = np.zeros(0, dtype=int)
+        scene_candidates, scene_lower = np.zeros(0, dtype=int), np.zeros(0)
         if len(scene_pairs):
             # (g, b) bounds of every robot geometry against every scene box, then the
             # least over each object's boxes (the object lies in their union).
@@ -592,7 +593,7 @@ class CollisionChecker:
                 self_lower = np.maximum(sphere_gap[self_candidates], box_gap[within])
         candidates = np.concatenate([scene_candidates, len(scene_pairs) + self_candidates])
         if bounds:
-            lower = np.concatenate([scene_lower if len(scene_pairs) else np.zeros(0), self_lower])
+            lower = np.concatenate([scene_lower, self_lower])
             return candidates, centers, np.where(lower > 0.0, lower, -np.inf)
         return candidates, centers
 
@@ -652,9 +653,10 @@ class CollisionChecker:
     def distances(self, model, data, geometry_placements=None) -> list:
         """Every pair closer than ``margin``, measured afresh, without witness points.
 
-        What a check of clearance needs (:func:`stances.verify`): the same pairs, order and
-        distances as :meth:`pairs`, without reading and building what linearisation rows
-        need (48 witness points and pairs on a climb stance, 0.3 ms of its check).
+        The same pairs, order and distances as :meth:`pairs`, without reading and building
+        what linearisation rows need (48 witness points and pairs on a climb stance, 0.3 ms);
+        :meth:`clearance` gives the least distance and the deep pairs of these for fewer
+        measurements.
 
         Parameters
         ----------

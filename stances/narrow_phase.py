@@ -42,7 +42,6 @@ every hull above a floor against its lowest mesh vertex.
 from __future__ import annotations
 
 import functools
-import math
 import weakref
 
 import numpy as np

@@ -117,9 +117,8 @@ def _external_forces(model, data, loads: PointLoads, forces_in_world: np.ndarray
     # per-point loop of small numpy calls cost 17 % of a soft posture solve.
     forces_in_world = np.asarray(forces_in_world, dtype=float)
     forces_local = np.empty_like(forces_in_world)
-    # Zero wrenches on every joint but the loaded ones (a copy of a kept list: building it
-    # joint by joint took 11 us a call).
-    fext = pin.StdVec_Force(_zero_forces(model.njoints))
+    # Zero wrenches on every joint but the loaded ones.
+    fext = zero_wrenches(model.njoints)
     for joint, take, _, levers in loads.groups:
         local = forces_in_world[take] @ data.oMi[joint].rotation  # R^T f, row-wise
         forces_local[take] = local
@@ -132,14 +131,15 @@ def _external_forces(model, data, loads: PointLoads, forces_in_world: np.ndarray
 _ZERO_FORCES: dict = {}
 
 
-def _zero_forces(count: int):
-    """A ``pin.StdVec_Force`` of ``count`` zero wrenches, made once per count (copy it)."""
+def zero_wrenches(count: int):
+    """A new ``pin.StdVec_Force`` of ``count`` zero wrenches: a copy of one made once per
+    count (building it wrench by wrench took 11 us a call)."""
     known = _ZERO_FORCES.get(count)
     if known is None:
         known = _ZERO_FORCES[count] = pin.StdVec_Force()
         for _ in range(count):
             known.append(pin.Force.Zero())
-    return known
+    return pin.StdVec_Force(known)
 
 
 def static_torques(model, data, q, loads: PointLoads, forces_in_world) -> np.ndarray:

@@ -20,7 +20,7 @@ from environments.geometry import axes_across
 from .collision import CollisionChecker, contact_exclusions
 from .problem import PostureOptions, build_problem
 from .results import Verification
-from .statics import points_in_world
+from .statics import points_in_world, zero_wrenches
 
 
 @dataclass(frozen=True)
@@ -54,9 +54,7 @@ def _external_forces(model, data, point_forces):
     forces = np.array([p.force for p in point_forces], dtype=float).reshape(-1, 3)
     points = np.array([p.point for p in point_forces], dtype=float).reshape(-1, 3)
     moments = np.cross(points, forces)  # about the world origin
-    fext = pin.StdVec_Force()
-    for _ in range(model.njoints):
-        fext.append(pin.Force.Zero())
+    fext = zero_wrenches(model.njoints)
     for joint in np.unique(joints).tolist():
         # The world-frame wrench about the world origin, seen from the joint's frame:
         # (R^T f, R^T (m - o x f)), one pinocchio call (np.cross on one vector cost
