@@ -78,6 +78,7 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     # robot's side of the soft bodies (camera_azimuth), and the forces and
     # prints, small and important, stay on top of the robot's legs.
     axes.computed_zorder = False
+    heavy = []  # the many-triangle collections, left out of the layout pass (see _save)
     for name, lines in (edges or {}).items():
         axes.add_collection3d(Line3DCollection(lines, colors="0.55", linewidths=0.8, zorder=0))
     mappable = None
@@ -96,12 +97,13 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
             zorder=1,
         )
         axes.add_collection3d(faces)
+        heavy.append(faces)
         mappable = cm.ScalarMappable(norm=norm, cmap=colormap)
     if azimuth is None:
         azimuth = camera_azimuth([display])
     elevation = 18.0
     if meshes is not None and len(display.robot_transforms):
-        _draw_robot(axes, meshes, display.robot_transforms, azimuth, elevation)
+        heavy.append(_draw_robot(axes, meshes, display.robot_transforms, azimuth, elevation))
     else:
         axes.add_collection3d(Line3DCollection(display.segments, colors="k", linewidths=2.0, zorder=2))
         joints = display.segments.reshape(-1, 3)
@@ -146,7 +148,7 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     if mappable is not None:
         colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
         colorbar.set_label("displacement (mm)")
-    figure.savefig(path, bbox_inches="tight", pad_inches=0.15)
+    _save(figure, path, heavy)
     plt.close(figure)
     logger.debug("picture written to %s", path)
     return path
@@ -176,7 +178,8 @@ def camera_azimuth(displays) -> float:
 
 
 def _draw_robot(axes, meshes, transforms, azimuth, elevation):
-    """The robot's meshes, flat-shaded by a light at the camera (one collection: sorted by depth)."""
+    """The robot's meshes, flat-shaded by a light at the camera (one collection: sorted by depth),
+    added to ``axes`` and returned."""
     vertices, offset, triangles = [], 0, []
     for mesh, transform in zip(meshes.meshes, transforms):
         vertices.append(mesh.vertices @ transform[:3, :3].T + transform[:3, 3])
@@ -189,7 +192,28 @@ def _draw_robot(axes, meshes, transforms, azimuth, elevation):
     towards_camera = np.array([np.cos(e) * np.cos(a), np.cos(e) * np.sin(a), np.sin(e)])
     light = 0.45 + 0.55 * np.abs(normals @ towards_camera)
     colours = np.clip(np.outer(light, np.asarray(ROBOT_RGB) / 255.0), 0.0, 1.0)
-    axes.add_collection3d(Poly3DCollection(faces, facecolors=colours, edgecolors="none", zorder=2))
+    robot = Poly3DCollection(faces, facecolors=colours, edgecolors="none", zorder=2)
+    axes.add_collection3d(robot)
+    return robot
+
+
+def _save(figure, path, heavy, pad=0.15):
+    """Save the figure cropped to its drawn parts, as ``bbox_inches="tight"`` would, drawing
+    it once.
+
+    matplotlib's "tight" crop draws the figure twice (a layout pass, then the picture),
+    and each pass projects every triangle anew (Talos: 33,000 robot triangles). The crop
+    is set by the axes' labels, title, legend and colour bar; the ``heavy`` collections
+    lie inside the axes' limits, so the layout pass runs without them. Measured on the
+    default plan's 9 pictures: the same pixels, 0.94 -> 0.55-0.65 CPU s a picture.
+    """
+    for artist in heavy:
+        artist.set_visible(False)
+    figure.draw_without_rendering()  # the layout pass savefig's "tight" runs
+    box = figure.get_tightbbox().padded(pad)
+    for artist in heavy:
+        artist.set_visible(True)
+    figure.savefig(path, bbox_inches=box)
 
 
 def _round_force(value):

@@ -106,6 +106,23 @@ def test_outputs_write_every_file(synthetic_plan, scenario, robot, tmp_path):
     )
 
 
+def test_pictures_are_cropped_as_matplotlibs_tight_crop_draws_them(synthetic_plan, scenario, robot, tmp_path,
+                                                                     monkeypatch):
+    # render._save draws once, its layout pass without the robot's and the foam's
+    # triangles; matplotlib's own "tight" crop draws everything twice. Same pixels.
+    import matplotlib.pyplot as plt
+
+    from cbm import render
+
+    ours = write_outputs(synthetic_plan, scenario, robot, tmp_path / "ours")
+    monkeypatch.setattr(render, "_save", lambda figure, path, heavy: figure.savefig(
+        path, bbox_inches="tight", pad_inches=0.15))
+    tight = write_outputs(synthetic_plan, scenario, robot, tmp_path / "tight")
+    assert len(ours.pictures) == len(tight.pictures) == len(synthetic_plan.stances)
+    for mine, reference in zip(ours.pictures, tight.pictures):
+        np.testing.assert_array_equal(plt.imread(mine), plt.imread(reference))
+
+
 def test_pvd_plays_the_plan_one_stance_per_time_step(synthetic_plan, scenario, robot, tmp_path):
     import xml.etree.ElementTree as ElementTree
 
