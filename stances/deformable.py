@@ -1129,8 +1129,9 @@ class DeformableContact:
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh. Reported, not
-        # checked: the contact law holds at the coupling's end (the independent audit of
-        # 2026-11-26 found up to 2.8 mm on hand-on-soft-cube's palm).
+        # checked: the contact law holds at the coupling's end (independent audits: up to
+        # 2.8 mm on hand-on-soft-cube's palm on 2026-11-26; 3.6 mm there and 5.2 mm on the
+        # paper's coarse cube, 4 nodes under the palm, on 2026-12-03).
         overlap = -np.einsum("pij,pj->pi", self.node_frames, displacements - field[self.node_ids])[:, 2]
         measures[f"mesh overlap into the links on {name}"] = float(overlap.max())
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
