@@ -114,6 +114,8 @@ _STRAIN_ACTIVATION = 0.5
 # others are far from it (a sole pair on a mat: 123 rows, none near, were 46 % of the
 # QP's rows). stances.verify checks every node.
 _INDENTATION_ACTIVATION = 0.5
+# Nodes whose mesh overlap (see _overlap_block) is beyond this fraction of its bound enter the QP.
+_OVERLAP_ACTIVATION = 0.5
 # Tets the body's own weight alone strains to this fraction of the bound are strain-row
 # centres wherever they lie, not only near the prints.
 _REST_STRAIN = 0.25
@@ -233,7 +235,7 @@ class DeformableContact:
         The robot surfaces pressing this object, in stance order.
     options : stances.PostureOptions
         ``reaction_model``, ``indentation_limit`` / ``max_indentation``,
-        ``deformation_weight``, ``max_strain_rows``.
+        ``max_mesh_overlap``, ``deformation_weight``, ``max_strain_rows``.
 
     Raises
     ------
@@ -253,6 +255,7 @@ class DeformableContact:
         self.strain_limit = float(deformable_object.strain_limit)
         self.strain_radius = float(deformable_object.strain_radius)
         self.max_slip = float(options.max_slip)
+        self.max_mesh_overlap = float(options.max_mesh_overlap)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
         self.rotation_body = body_placement.rotation
@@ -791,6 +794,7 @@ class DeformableContact:
             "indentation", depth[deep], jacobian, -np.inf, self.max_indentation, 1e-2,
             tuple(labels["indentation"][i] for i in deep),
         ))
+        blocks.append(self._overlap_block(displacements, d_displacements, nodes, d_nodes_full, columns))
         if self.method == "traction":
             strain = self._strain_block(nodes, d_nodes_full, columns)
         else:
@@ -800,6 +804,39 @@ class DeformableContact:
         if strain is not None:
             blocks.append(strain)
         return blocks
+
+    def _overlap_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
+        """How far the body's print nodes reach past their link points along the print normal,
+        within ``max_mesh_overlap`` (``options.max_mesh_overlap``).
+
+        A node the print's outline covers in part lies its coupling's stretch ``D f`` behind
+        its link point (the module docstring), so the deformed mesh passes into the link at
+        the print's edge; a fully covered node follows its link. Rows for the nodes past
+        half the bound (the others are far from it; :meth:`verify` checks every node).
+
+        Parameters
+        ----------
+        displacements : (p, 3) float
+            The link points' motion U, metres, body frame.
+        d_displacements : (3p, nv) float or None
+            Its derivative in the configuration step (None: values only).
+        nodes : (3p,) float
+            The body's print-node displacements, metres, body frame.
+        d_nodes : (3p, columns) float or None
+            Their derivative in the whole step.
+        """
+        p = len(self.node_ids)
+        overlap = np.einsum("pj,pj->p", nodes.reshape(p, 3) - displacements.reshape(p, 3), self.normals_in_body)
+        near = np.flatnonzero(overlap >= _OVERLAP_ACTIVATION * self.max_mesh_overlap)
+        jacobian = None
+        if d_nodes is not None:
+            jacobian = np.einsum("pj,pjc->pc", self.normals_in_body[near], d_nodes.reshape(p, 3, columns)[near])
+            jacobian[:, : d_displacements.shape[1]] -= np.einsum(
+                "pj,pjv->pv", self.normals_in_body[near], d_displacements.reshape(p, 3, -1)[near])
+        return ConstraintBlock(
+            "mesh overlap", overlap[near], jacobian, -np.inf, self.max_mesh_overlap, 1e-3,
+            tuple(self._labels["overlap"][i] for i in near),
+        )
 
     def _slip_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
         """Small slip: the largest tangential motions of link points over their nodes.
@@ -869,6 +906,7 @@ class DeformableContact:
             "resultant": resultant,
             "node contact": node_contact,
             "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
+            "overlap": tuple(f"mesh overlap bound at node {n} of {name}" for n in self.node_ids),
         }
 
     def _resultant_rows(self, forces, d_forces):
@@ -1128,12 +1166,18 @@ class DeformableContact:
         relative = np.einsum("pij,pj->pi", self.node_frames, displacements - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
-        # behind its link point, at the print's edge on a coarse mesh. Reported, not
-        # checked: the contact law holds at the coupling's end (independent audits: up to
-        # 2.8 mm on hand-on-soft-cube's palm on 2026-11-26; 3.6 mm there and 5.2 mm on the
-        # paper's coarse cube, 4 nodes under the palm, on 2026-12-03).
+        # behind its link point, at the print's edge on a coarse mesh (the contact law holds
+        # at the coupling's end): bounded by max_mesh_overlap (unbounded, independent audits
+        # found 2.8 mm on hand-on-soft-cube's palm on 2026-11-26; 3.6 mm there and 5.2 mm on
+        # the paper's coarse cube, 4 nodes under the palm, on 2026-12-03).
         overlap = -np.einsum("pij,pj->pi", self.node_frames, displacements - field[self.node_ids])[:, 2]
         measures[f"mesh overlap into the links on {name}"] = float(overlap.max())
+        if overlap.max() > self.max_mesh_overlap + tolerances.deformable_placement:
+            node = int(self.node_ids[int(np.argmax(overlap))])
+            reasons.append(
+                f"node {node} of {name} reaches {overlap.max():.3g} m into its link, beyond the mesh overlap "
+                f"bound {self.max_mesh_overlap:g} m (max_mesh_overlap)"
+            )
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])

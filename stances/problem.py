@@ -137,6 +137,15 @@ class PostureOptions:
         node spacing of 22.5 mm). Contact is solved on the nodes under the
         declared print (small slip, as small strain); a link sliding farther
         would touch other nodes.
+    max_mesh_overlap : float
+        Deformable supports: how far the deformed body may reach into a link's
+        contact face, metres, along the print normal (2 mm). A node the print's
+        outline covers in part lies its coupling's stretch ``D f`` behind its link
+        point (see :mod:`stances.deformable`), so the mesh passes into the link at
+        the print's edge; unbounded, a tilted palm's edge let it in by 3.6 mm
+        (hand-on-soft-cube) and 5.2 mm (the paper's coarse cube, 4 nodes under
+        the palm), several times the body's own displacement there. Rows bound
+        it; :func:`stances.verify` checks every node.
     max_strain_rows : int
         Deformable supports: at most this many tets (the most strained ones
         near the prints) bound their principal strains in each QP; the bound
@@ -198,6 +207,7 @@ class PostureOptions:
     min_normal_force: float = 0.0
     friction_margin: float = 0.99
     max_slip: float = 0.02
+    max_mesh_overlap: float = 2e-3
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
     deformable_as_rigid: bool = False
@@ -275,6 +285,7 @@ _NON_NEGATIVE = (
 )
 _POSITIVE = (
     "trust_region", "feasibility_tolerance", "optimality_tolerance", "indentation_limit", "elastic_penalty", "max_slip",
+    "max_mesh_overlap",
 )
 
 _ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it

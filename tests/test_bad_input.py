@@ -400,6 +400,7 @@ def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
         ("min_normal_force", float("inf"), "min_normal_force must be >= 0 and finite, got inf"),
         ("optimality_tolerance", float("nan"), "optimality_tolerance must be > 0 and finite, got nan"),
         ("max_slip", -1.0, "max_slip must be > 0 and finite, got -1.0"),
+        ("max_mesh_overlap", 0.0, "max_mesh_overlap must be > 0 and finite, got 0.0"),
         ("trust_region", float("inf"), "trust_region must be > 0 and finite, got inf"),
         ("max_indentation", float("nan"), "max_indentation must be > 0 metres and finite (or None), got nan"),
         ("posture_weight", "1", "posture_weight must be a number, got '1'"),

@@ -107,9 +107,11 @@ def linearised_problems(robot):
         problem = build_problem(robot, scenario.scene, stance, PostureOptions(min_normal_force=5.0, **options))
         for contact in problem.contacts:
             if contact.kind == "deformable":
-                # Tiny bounds activate the strain and indentation rows, so they are checked too.
+                # Tiny bounds activate the strain, indentation and mesh overlap rows, so
+                # they are checked too.
                 contact.strain_limit = 1e-5
                 contact.max_indentation = 1e-6
+                contact.max_mesh_overlap = 1e-9
         rng = np.random.default_rng(7)
         q = pin.integrate(robot.model, warm.q, 2e-3 * rng.normal(size=robot.nv))
         lam = problem.initial_variables(q) + rng.uniform(1.0, 50.0, size=problem.n_variables)
@@ -185,7 +187,8 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             # worst case, and 1e-10 absolute.
             tolerance = 2e-5 * size + 1e-10 + 4.0 * noise[key] / EPS
             assert error <= tolerance, f"{label}: {key} off by {error:.3g} (row size {size:.3g}, noise {noise[key]:.2g})"
-    assert {"placement", "touch", "node contact", "indentation", "strain", "equilibrium", "torque limit", "normal load"} <= names
+    assert {"placement", "touch", "node contact", "indentation", "mesh overlap", "strain", "equilibrium", "torque limit",
+            "normal load"} <= names
 
 
 def test_objective_gradient_matches_finite_differences(linearised_problems):

@@ -264,6 +264,24 @@ def test_both_checks_refuse_a_print_deeper_than_the_bound_it_was_solved_with(rob
     assert report.problems == (f"stance 0: {expected}",)
 
 
+def test_both_checks_refuse_a_mesh_overlap_beyond_the_bound_it_was_solved_with(robot, scenario, solved):
+    """The soft sole's partly covered nodes lie their coupling's stretch behind the sole:
+    verify with a bound under that overlap names the node and the bound; Plan.check with the
+    bound recorded in the result's options."""
+    overlap = stances.verify(robot, scenario.scene, solved.stance, solved).measures["mesh overlap into the links on cube"]
+    assert 0.0 < overlap <= stances.PostureOptions().max_mesh_overlap
+    bound = 0.5 * overlap
+    pattern = rf"node [0-9]+ of cube reaches {overlap:.3g} m into its link, beyond the mesh overlap bound {bound:g} m " \
+              r"\(max_mesh_overlap\)"
+    check = stances.verify(robot, scenario.scene, solved.stance, solved, max_mesh_overlap=bound)
+    assert not check.ok
+    _assert_named(check.reasons, pattern)
+    recorded = dataclasses.replace(solved, statistics={**solved.statistics, "options": {"max_mesh_overlap": bound}})
+    report = _plan_of(robot, scenario, recorded, solved).check(scenario, robot)
+    assert not report.ok
+    _assert_named(report.problems, "stance 0: " + pattern)
+
+
 def test_a_sole_turned_on_its_print_is_reported_in_metres_and_radians_apart(robot, scenario, solved, problem):
     """The placement check reads the residual's translation (m) and rotation (rad) apart:
     1 mm off and 0.02 rad turned reads so, not 0.02 m."""
