@@ -12,7 +12,9 @@ The print's nodes (``reaction_model="consistent"``) are every surface node whose
 cell the robot's polygon covers, even in part (``fem.print_coverage``); a node
 covered by a fraction ``w < 1`` is coupled to its link point through a series
 compliance ``(1 - w) / w C_ii`` (``fem.ContactPatch``), so the link points move by
-``(C + D) f`` and the print's force does not jump as node rows enter or leave it.
+``(C + D) f`` and the print's force does not jump as node rows enter or leave it. Such a
+node lies ``D f`` behind its link point, the deformed mesh reaching into the link at the
+print's edge: rows keep that within ``max_mesh_overlap``.
 A partly covered node's link point is its rest position, at most a cell outside
 the polygon, where it carries a small share of the load. The ``traction`` model
 keeps the nodes inside the polygon.
@@ -695,7 +697,7 @@ class DeformableContact:
         return state[3], state[4]
 
     def blocks(self, model, data, w, columns, offset, derivatives=True):
-        """Elastic placement, per-node no adhesion and friction, indentation, strain.
+        """Elastic placement, per-node no adhesion and friction, indentation, mesh overlap, strain.
 
         Parameters
         ----------
