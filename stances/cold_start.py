@@ -35,9 +35,6 @@ def initial_configuration(robot, scene, stance) -> np.ndarray:
         mean heading about world z. An empty stance gives the reference posture.
     """
     q = np.array(robot.reference_configuration, dtype=float)
-    model = robot.model
-    data = pin.Data(model)
-    pin.framesForwardKinematics(model, data, q)
     feet = robot.surfaces_with_role(robot.support.role)
     contacts = [c for c in stance if c.robot_surface in feet]
     # The same feet on both sides: a quadruped on three feet puts those three
@@ -46,7 +43,7 @@ def initial_configuration(robot, scene, stance) -> np.ndarray:
     contacts = contacts or list(stance)
     if not contacts:
         return q
-    reference_feet = np.mean([data.oMf[model.getFrameId(robot.surfaces[s].frame)].translation for s in used], axis=0)
+    reference_feet = np.mean([robot.reference_position(robot.surfaces[s].frame) for s in used], axis=0)
     transforms = [scene.transform_print_to_world(c.contact_print) for c in contacts]
     target = np.mean([t[:3, 3] for t in transforms], axis=0)
     # At the highest print's height: every foot starts at or above its support,

@@ -238,6 +238,7 @@ class Robot:
         self.source = ""
         # Self-collision pairs the SRDF enables but that are not checked (see from_urdf).
         self.ignored_pairs = ()
+        self._reference_positions = (None, {})  # see reference_position
 
     @classmethod
     def load(cls, name_or_file="talos") -> "Robot":
@@ -569,6 +570,32 @@ class Robot:
             for name, surface in self.surfaces.items()
             if surface.role == role and (limb is None or surface.limb == limb)
         ]
+
+    def reference_position(self, frame: str) -> np.ndarray:
+        """(3,) float: where frame ``frame`` is at the reference posture, metres, world frame.
+
+        Made once per reference posture (every cold start reads its feet's: a
+        pinocchio Data and forward kinematics, 0.2 ms, for the same answer each time).
+
+        Raises
+        ------
+        FrameNotFound
+            If the model has no such frame.
+        """
+        key, positions = self._reference_positions
+        reference = np.asarray(self.reference_configuration, dtype=float)
+        if key != reference.tobytes():
+            data = pin.Data(self.model)
+            pin.framesForwardKinematics(self.model, data, reference)
+            positions = {}
+            for frame_data, placement in zip(self.model.frames, data.oMf):
+                positions.setdefault(frame_data.name, placement.translation.copy())  # the first, as getFrameId
+            self._reference_positions = (reference.tobytes(), positions)
+        try:
+            position = positions[frame]
+        except KeyError:
+            raise FrameNotFound("frame", frame, list(positions)) from None
+        return position.copy()
 
     def frame_id(self, name: str) -> int:
         """Pinocchio frame index of ``name``, with a helpful error."""

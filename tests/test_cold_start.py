@@ -106,3 +106,27 @@ def test_a_soft_stance_without_warm_start_or_posture_starts_over_its_prints(robo
     result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"), rigid_warm_start=False)
     assert result.feasible, result.reason
     assert "rigid_warm_start_iterations" not in result.statistics
+
+
+def test_reference_positions_are_the_reference_postures_and_follow_it():
+    """``Robot.reference_position`` (kept between cold starts) gives what forward kinematics
+    at the reference posture gives, names an unknown frame, and follows a new reference."""
+    robot = stances.Robot.load("talos")  # its own: the reference is replaced below
+    frames = [robot.surface(s).frame for s in robot.surfaces] + ["base_link"]
+    reference = np.array(robot.reference_configuration)
+
+    def kinematics(q):
+        data = robot.model.createData()
+        pin.framesForwardKinematics(robot.model, data, q)
+        return np.array([data.oMf[robot.frame_id(f)].translation for f in frames])
+
+    np.testing.assert_array_equal([robot.reference_position(f) for f in frames], kinematics(reference))
+    with pytest.raises(stances.FrameNotFound, match="unknown frame 'no_such_frame'; known frames: "):
+        robot.reference_position("no_such_frame")
+    moved = reference.copy()
+    moved[2] += 0.1
+    moved[7:] += 0.05
+    robot.reference_configuration = moved
+    np.testing.assert_array_equal([robot.reference_position(f) for f in frames], kinematics(moved))
+    with pytest.raises(AssertionError):
+        np.testing.assert_allclose(kinematics(moved), kinematics(reference), atol=1e-3)
