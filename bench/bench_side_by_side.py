@@ -24,7 +24,10 @@ python-fcl before coal). For the code the issues were filed on::
     .venv/bin/python bench/bench_side_by_side.py /tmp/old /tmp/venv_old/bin/python [--rounds 3] [--instructions]
 
 (the versions pinned are this checkout's own, so that only the code differs). Writes
-``bench/results/side_by_side.md``.
+``bench/results/side_by_side.md``. A recent checkout needs no environment of its own: against
+85fe6b3, the code measured on the quiet host, ``git worktree add --detach /tmp/old85 85fe6b3``
+and ``.venv/bin/python bench/bench_side_by_side.py /tmp/old85 .venv/bin/python --instructions``
+(that run is kept as ``bench/results/side_by_side-85fe6b3.md``).
 """
 
 from __future__ import annotations

@@ -147,7 +147,7 @@ def test_point_foot_curvature_matches_second_differences_of_the_residuals():
     np.testing.assert_allclose(hessian, expected, rtol=0, atol=1e-6)
 
 
-def test_collision_curvature_matches_second_differences_of_the_distances(robot):
+def test_collision_curvature_matches_second_differences_of_the_distances(robot, hand_on_table):
     """Each collision row's curvature (its pair measured again along the differences)
     against second differences of the distance the checker reports (full broad and
     narrow phase), pair by pair, for the pairs whose distance is smooth there.
@@ -160,11 +160,8 @@ def test_collision_curvature_matches_second_differences_of_the_distances(robot):
     largest curvature, per entry (the forward difference's step of 1e-5 times the
     third derivative; measured 3e-6 on most pairs, 1.7e-4 of 0.73 on the soles' hulls)."""
     rng = np.random.default_rng(SEED + 1)
-    # Pairs linearised within 5 cm (the default is 3 cm): more of them to compare.
-    scenario = environments.load("hand-on-table")
-    problem = build_problem(robot, scenario.scene, scenario.stances["hand-on-table"],
-                            PostureOptions(collision_activation=0.05))
-    model, checker = robot.model, problem.collision_checker
+    model, problem = robot.model, hand_on_table
+    checker = problem.collision_checker
     q = random_configuration(robot, rng, 0.05)
     linearization = problem.linearize(q, problem.initial_variables(q))
     (block,) = [block for block in linearization.blocks if block.name == "collision"]

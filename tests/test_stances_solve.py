@@ -943,17 +943,11 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
         Contact("right_front_foot", ContactPrint("floor", 0.36, -0.2)),
         Contact("right_hind_foot", ContactPrint("floor", -0.1, -0.1)),
     ))
-    # With pairs linearised from 5 cm (the default is 3 cm) it crawls, 7 % an iteration,
-    # and the too-slow rule stops it.
-    result = solve(anymal, scenario.scene, stance, collision_activation=0.05)
+    result = solve(anymal, scenario.scene, stance)
     assert not result.feasible
     assert result.iterations <= 30
     assert result.statistics["status"].startswith("converging too slowly: ")
     assert "% an iteration after " in result.reason
-    assert "no step meets together: " in result.reason and "_ADAPTER_0 and floor" in result.reason
-    # From 3 cm its line search stalls sooner (8 iterations), and the reason names the same conflict.
-    result = solve(anymal, scenario.scene, stance)
-    assert not result.feasible and result.iterations <= 30
     assert "no step meets together: " in result.reason and "_ADAPTER_0 and floor" in result.reason
 
 
