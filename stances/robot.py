@@ -584,13 +584,14 @@ class Robot:
         """
         key, positions = self._reference_positions
         reference = np.asarray(self.reference_configuration, dtype=float)
-        if key != reference.tobytes():
+        current = reference.tobytes()
+        if key != current:
             data = pin.Data(self.model)
             pin.framesForwardKinematics(self.model, data, reference)
             positions = {}
             for frame_data, placement in zip(self.model.frames, data.oMf):
                 positions.setdefault(frame_data.name, placement.translation.copy())  # the first, as getFrameId
-            self._reference_positions = (reference.tobytes(), positions)
+            self._reference_positions = (current, positions)
         try:
             position = positions[frame]
         except KeyError:
