@@ -90,18 +90,25 @@ def load_scene(name, defaults=False):
 @contextlib.contextmanager
 def timed_solves():
     """Within it, every posture solve the planner makes (through ``cbm.planner.posture_api``,
-    where it looks its solver up) is timed: yields the list of ``(CPU s, wall s, stance)``
-    it fills. Solves in worker processes are not seen (the suite plans in one process)."""
+    where it looks its solver up) is timed: yields the list of ``(CPU s, wall s, stance,
+    SQP iterations)`` it fills, the iterations those of every stage of the solve (its
+    warm starts' too; None when the solve raised): a count the host's load does not move,
+    to compare two versions of the solver by. Solves in worker processes are not seen
+    (the suite plans in one process)."""
     solves = []
     solve, verify = cbm.planner.posture_api()
 
     def timed(*args, **kwargs):
         cpu, wall = time.process_time(), time.perf_counter()
+        result = None
         try:
-            return solve(*args, **kwargs)
+            result = solve(*args, **kwargs)
+            return result
         finally:
             stance = kwargs.get("stance", args[2] if len(args) > 2 else None)
-            solves.append((time.process_time() - cpu, time.perf_counter() - wall, stance))
+            iterations = None if result is None else (
+                result.iterations + result.statistics.get("rigid_warm_start_iterations", 0))
+            solves.append((time.process_time() - cpu, time.perf_counter() - wall, stance, iterations))
 
     original = cbm.planner.posture_api
     cbm.planner.posture_api = lambda: (timed, verify)
@@ -118,7 +125,7 @@ def run_once(scenario, robot, seed, time_limit):
         wall, cpu = time.perf_counter(), time.process_time()
         result = cbm.plan(scenario, robot=robot, seed=seed, time_limit=time_limit)
         wall, cpu = time.perf_counter() - wall, time.process_time() - cpu
-    longest = max(solves, key=lambda entry: entry[0], default=(0.0, 0.0, None))
+    longest = max(solves, key=lambda entry: entry[0], default=(0.0, 0.0, None, None))
     return {
         "seed": seed,
         "success": bool(result.success),
@@ -136,6 +143,10 @@ def run_once(scenario, robot, seed, time_limit):
         "longest_solve_cpu": longest[0],
         "longest_solve_wall": longest[1],
         "longest_solve_stance": "" if longest[2] is None else json.dumps(longest[2].to_dict()),
+        "longest_solve_iterations": longest[3],
+        # Every solve's SQP iterations, warm starts included (raised solves left out).
+        "solver_iterations": sum(entry[3] for entry in solves if entry[3] is not None),
+        "code": code_version(),
     }
 
 
@@ -268,11 +279,16 @@ def longest_solve(records, names):
         return []
     worst = max(timed, key=lambda r: r["longest_solve_cpu"])
     over = sum(r["longest_solve_cpu"] > TARGET_LONGEST_SOLVE for r in timed)
+    counted = [r for r in timed if "solver_iterations" in r]
+    iterations = ""
+    if counted:
+        iterations = (f"; SQP iterations of every solve, warm starts included: {sum(r['solver_iterations'] for r in counted)} "
+                      f"over {len(counted)} plans (the longest solve's: {worst.get('longest_solve_iterations')})")
     return [
         f"- longest posture solve over the {len(timed)} plans (scenes and twins, "
         f"{sum(r['solver_calls'] for r in timed)} solver calls): {worst['longest_solve_cpu']:.2f} s CPU "
         f"({worst['longest_solve_wall']:.2f} s wall), {worst['scene']} ({worst['variant']}) seed {worst['seed']}; "
-        f"plans with a solve over {TARGET_LONGEST_SOLVE:g} s CPU (issue 9): {over}",
+        f"plans with a solve over {TARGET_LONGEST_SOLVE:g} s CPU (issue 9): {over}{iterations}",
     ]
 
 
@@ -291,10 +307,14 @@ def report(records, names, header):
     loads = [r["load_before"] for r in records] + [r["load_after"] for r in records]
     options = {r["scene"]: r["options"] for r in records}
     needing = [f"{name} ({', '.join(options[name])})" for name in names if options.get(name)]
+    # Runs resumed from an older results file may be of other code than the header's.
+    codes = sorted({r.get("code", "code not recorded") for r in records})
+    mixed = [f"**Runs of several code versions** in these records: {'; '.join(codes)}."] if len(codes) > 1 else []
     return "\n".join([
         "# Planner benchmark suite (issue 11 item 8)",
         "",
         header,
+        *mixed,
         f"Load average (1 min) over the runs: {min(loads):.1f} to {max(loads):.1f}, mean {np.mean(loads):.1f}.",
         "",
         "Times are of `cbm.plan` on the loaded scenario (loading and meshing excluded), wall and CPU "

@@ -141,3 +141,35 @@ def test_the_suite_table_reports_the_misses_against_the_targets():
     ]
     row = SUITE.table(records, ["a"]).splitlines()[-1]
     assert row.startswith("| a | yes | 50 % of 2 | 17.0 / 27.4 |") and row.endswith("| 6.80 (1.00) |")
+
+
+def test_timed_solves_records_each_solves_sqp_iterations_warm_starts_included(monkeypatch):
+    import types
+
+    import cbm.planner
+
+    def fake_solve(robot, scene, stance, **options):
+        if stance == "raises":
+            raise ValueError("bad stance")
+        return types.SimpleNamespace(iterations=5, statistics={"rigid_warm_start_iterations": 3} if stance else {})
+
+    monkeypatch.setattr(cbm.planner, "posture_api", lambda: (fake_solve, None))
+    with SUITE.timed_solves() as solves:
+        solve, _ = cbm.planner.posture_api()
+        solve(None, None, "soft")
+        solve(None, None, None)
+        with pytest.raises(ValueError, match="bad stance"):
+            solve(None, None, "raises")
+    assert [entry[2:] for entry in solves] == [("soft", 8), (None, 5), ("raises", None)]
+    assert cbm.planner.posture_api()[0] is fake_solve  # put back
+
+
+def test_the_suite_report_says_when_its_records_come_from_several_code_versions():
+    run = {"variant": "scene", "soft": False, "success": True, "wall": 1.0, "cpu": 1.0, "solver_calls": 3, "stances": 2,
+           "reason": "", "rejections": {}, "load_before": 0.5, "load_after": 0.5, "options": [], "scene": "a", "seed": 0,
+           "longest_solve_cpu": 0.2, "longest_solve_wall": 0.2, "longest_solve_iterations": 9, "solver_iterations": 20}
+    same = SUITE.report([{**run, "code": "commit abc"}, {**run, "seed": 1, "code": "commit abc"}], ["a"], "header")
+    assert "several code versions" not in same
+    assert "SQP iterations of every solve, warm starts included: 40 over 2 plans (the longest solve's: 9)" in same
+    mixed = SUITE.report([{**run, "code": "commit abc"}, {**run, "seed": 1, "code": "commit def"}], ["a"], "header")
+    assert "**Runs of several code versions** in these records: commit abc; commit def." in mixed
