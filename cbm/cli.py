@@ -178,7 +178,7 @@ def build_parser():
         "--print-spacing",
         type=_positive_float,
         default=None,
-        help="print grid step, metres (default: the scenario's print_spacing option, else 0.1)",
+        help="print grid step, metres (default: the scenario's print_spacing option, else a quarter of the robot's step, at most 0.1)",
     )
     plan.add_argument(
         "--workers", type=_positive_int, default=1, help="processes solving stances in parallel (same plan for any number)"

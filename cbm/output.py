@@ -192,7 +192,8 @@ class StagedOutput:
     ------
     OutputDirectoryError
         If ``out_dir`` is a file, is not empty (without ``force``), or its
-        parent cannot be written (checked by making the temporary folder there).
+        parent cannot be made (missing folders are made) or written (checked by
+        making the temporary folder there).
 
     Examples
     --------
@@ -217,10 +218,19 @@ class StagedOutput:
                 "replace its content"
             )
         parent = self.out.parent
-        if not parent.is_dir():
+        # Missing parents are made, as ``mkdir -p`` would (``--out runs/today/plan``); a
+        # file in the way is the user's to move.
+        blocking = next((path for path in (parent, *parent.parents) if path.exists() and not path.is_dir()), None)
+        if blocking is not None:
             raise OutputDirectoryError(
-                f"cannot create output folder {str(self.out)!r}: its parent {str(parent)!r} is not a folder"
+                f"cannot create output folder {str(self.out)!r}: {str(blocking)!r} is a file, not a folder"
             )
+        try:
+            parent.mkdir(parents=True, exist_ok=True)
+        except OSError as error:
+            raise OutputDirectoryError(
+                f"cannot create output folder {str(self.out)!r}: {error.strerror or error} making {str(parent)!r}"
+            ) from None
         try:
             # In the same parent, so the final move is a rename on one file system.
             self.folder = Path(tempfile.mkdtemp(prefix=f".{self.out.name}.partial-", dir=parent))

@@ -37,6 +37,7 @@ from .rejections import FINEST_GRID, cause_of, finer_grid_hint, strain_bound_hin
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
 from .sampling import (
+    check_goal_regions,
     coarse_grid_hint,
     default_headings,
     default_print_spacing,
@@ -371,8 +372,9 @@ def plan(
     start : environments Stance or str, optional
         Start stance, or a stance name of the scenario; default the
         scenario's start.
-    robot : stances Robot, optional
-        Default: ``stances.Robot.load(scenario.robot)``.
+    robot : stances Robot or str, optional
+        The robot, or a built-in robot's name or a description file (loaded, as
+        ``cbm plan --robot`` does). Default: ``stances.Robot.load(scenario.robot)``.
     print_spacing : float, optional
         Print grid step, metres; default the scenario's ``print_spacing``
         option, else a quarter of the robot's step, at most 0.1 m; on that
@@ -453,8 +455,8 @@ def plan(
         scenario.check_self_weight()  # naming the file and the object's line
     else:  # a scenario-like object built in code (tests)
         check_self_weight(scene)
-    if robot is None:
-        robot = stances.Robot.load(scenario.robot)
+    if robot is None or isinstance(robot, (str, os.PathLike)):
+        robot = stances.Robot.load(scenario.robot if robot is None else robot)
     check_robot_surfaces(scenario, robot, goal)
     reach_model = reach if isinstance(reach, ReachModel) else ReachModel.of(robot, reach)
     feet = reach_model.supports(robot.surfaces)
@@ -467,6 +469,8 @@ def plan(
     # The grid is the planner's own choice unless the user or the scenario sets it: then,
     # where it finds no plan, a grid half as fine is tried before giving up.
     own_grid = print_spacing is None and not (options or {}).get("print_spacing")
+    check_goal_regions(goal.regions, scene.surfaces, {name: robot.surfaces[name] for name in usable},
+                       options_from_scenario(options, print_spacing, default_spacing, headings))
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None
     if check_workers(workers) > 1 and oracle is not None:

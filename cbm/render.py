@@ -11,8 +11,9 @@ matplotlib.use("Agg")  # files only: never open a window, work without a display
 
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
-from matplotlib import cm, colors  # noqa: E402
+from matplotlib import cm, colors, transforms  # noqa: E402
 from matplotlib.ticker import MaxNLocator  # noqa: E402
+from mpl_toolkits.mplot3d import proj3d  # noqa: E402
 from mpl_toolkits.mplot3d.art3d import Line3DCollection, Poly3DCollection  # noqa: E402
 
 from .display import ROBOT_RGB  # noqa: E402
@@ -129,8 +130,8 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
             arrow_length_ratio=0.2,
             zorder=4,
         )
-        for tip, magnitude in zip(display.force_points + arrows, magnitudes):
-            axes.text(*tip, f" {magnitude:.0f} N", color="tab:purple", fontsize=8, fontweight="bold", zorder=5)
+        labels = [axes.text(*tip, f" {magnitude:.0f} N", color="tab:purple", fontsize=8, fontweight="bold", zorder=5)
+                  for tip, magnitude in zip(display.force_points + arrows, magnitudes)]
         reference = _round_force(0.25 / scale)
         axes.plot([], [], color="tab:purple",
                   label=f"contact force (arrow {reference * scale:.2f} m = {reference:g} N, at least {MIN_ARROW} m)")
@@ -148,10 +149,59 @@ def render_stance(display, path, *, edges=None, bounds=None, scale=1e-3, max_dis
     if mappable is not None:
         colorbar = figure.colorbar(mappable, ax=axes, shrink=0.6, pad=0.1)
         colorbar.set_label("displacement (mm)")
+    if len(display.forces):
+        spread_labels(axes, labels)  # once the camera and the axes' place are final
     _save(figure, path, heavy)
     plt.close(figure)
     logger.debug("picture written to %s", path)
     return path
+
+
+def spread_labels(axes, labels) -> np.ndarray:
+    """Lift labels of a 3D picture until none overlaps another (two soles' force labels,
+    their arrows' tips side by side as the camera sees them, were drawn over each other).
+
+    Each label's box on the picture is estimated from its font size and its characters;
+    from the lowest up, a label that meets one already placed goes just above it.
+
+    Parameters
+    ----------
+    axes : mpl_toolkits.mplot3d.Axes3D
+        With its camera and limits set.
+    labels : sequence of mpl_toolkits.mplot3d.art3d.Text3D
+        Left-aligned texts; each is moved by an offset added to its transform.
+
+    Returns
+    -------
+    (len(labels),) float
+        Each label's lift, points.
+    """
+    lifts = np.zeros(len(labels))
+    if len(labels) < 2:
+        return lifts
+    anchors = np.array([label.get_position_3d() for label in labels], dtype=float)
+    x, y, _ = proj3d.proj_transform(anchors[:, 0], anchors[:, 1], anchors[:, 2], axes.get_proj())
+    pixels = axes.transData.transform(np.column_stack([x, y]))
+    per_point = axes.figure.dpi / 72.0
+    placed = []  # (left, bottom, width, height), pixels
+    for index in np.lexsort((pixels[:, 0], pixels[:, 1])).tolist():
+        size = labels[index].get_fontsize() * per_point
+        width, height = 0.62 * size * len(labels[index].get_text()), 1.25 * size
+        left, bottom = pixels[index]
+        lifted = bottom
+        while True:
+            over = [top for other_left, other_bottom, other_width, top in placed
+                    if left < other_left + other_width and other_left < left + width
+                    and lifted < top and other_bottom < lifted + height]
+            if not over:
+                break
+            lifted = max(over)
+        placed.append((left, lifted, width, lifted + height))
+        lifts[index] = (lifted - bottom) / per_point
+        if lifts[index] > 0.0:
+            labels[index].set_transform(labels[index].get_transform() + transforms.ScaledTranslation(
+                0.0, lifts[index] / 72.0, axes.figure.dpi_scale_trans))
+    return lifts
 
 
 def camera_azimuth(displays) -> float:

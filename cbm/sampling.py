@@ -152,6 +152,54 @@ def _candidate_surfaces(surfaces, robot_surfaces, options):
     ]
 
 
+def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOptions()):
+    """Refuse goal regions no print can lie in, before a search looks for them.
+
+    A region is unreachable when its robot surface is not among those the planner
+    places, when it misses the sampling region, or when it overlaps no surface the
+    robot surface may go on (feet only on surfaces facing up): a search would spend its
+    whole budget, then blame the grid. Checked on the surfaces' world xy bounds, so a
+    region that passes may still hold no print of a coarse grid.
+
+    Parameters
+    ----------
+    regions : sequence of environments GoalRegion
+    surfaces, robot_surfaces, options
+        As for :func:`sample_prints`.
+
+    Raises
+    ------
+    CbmError
+        Naming the region, why no print can lie in it, and what to change.
+    """
+    pairs = _candidate_surfaces(surfaces, robot_surfaces, options)
+    for region in regions:
+        where = (f"the goal region of {region.robot_surface} (x {region.lower[0]:g}..{region.upper[0]:g}, "
+                 f"y {region.lower[1]:g}..{region.upper[1]:g} m)")
+        if region.robot_surface not in robot_surfaces:
+            raise CbmError(f"{where} names a robot surface the planner does not place (it places "
+                           f"{', '.join(sorted(robot_surfaces))}); add it to options.robot_surfaces or drop the region")
+        lower, upper = np.asarray(region.lower, dtype=float), np.asarray(region.upper, dtype=float)
+        region_lower = np.full(2, -np.inf) if options.region_lower is None else np.asarray(options.region_lower)
+        region_upper = np.full(2, np.inf) if options.region_upper is None else np.asarray(options.region_upper)
+        if np.any(upper < region_lower) or np.any(lower > region_upper):
+            raise CbmError(
+                f"{where} lies outside the sampling region (x {region_lower[0]:g}..{region_upper[0]:g}, "
+                f"y {region_lower[1]:g}..{region_upper[1]:g} m, options.sampling_region), the only place prints are "
+                "sampled; widen the sampling region or move the goal region into it")
+        bounds = {}
+        for _, name in (pair for pair in pairs if pair[0] == region.robot_surface):
+            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
+            polygon = np.asarray(surfaces[name].polygon, dtype=float)
+            corners = np.column_stack([polygon, np.zeros(len(polygon))]) @ transform[:3, :3].T + transform[:3, 3]
+            bounds[name] = (corners[:, :2].min(axis=0), corners[:, :2].max(axis=0))
+        if not any(np.all(upper >= low) and np.all(lower <= high) for low, high in bounds.values()):
+            extents = "; ".join(f"{name} x {low[0]:g}..{high[0]:g}, y {low[1]:g}..{high[1]:g}"
+                                for name, (low, high) in sorted(bounds.items()))
+            raise CbmError(f"{where} overlaps no surface {region.robot_surface} can go on "
+                           f"({extents or 'none'}); move the region onto one of them")
+
+
 def count_candidate_prints(surfaces, robot_surfaces, options=SamplingOptions()):
     """How many candidate prints :func:`sample_prints` would test, without sampling.
 
@@ -600,6 +648,7 @@ def options_from_scenario(scenario_options: Mapping | None, spacing=None, defaul
 
 
 __all__ += [
+    "check_goal_regions",
     "with_prints",
     "contacts_in_world",
     "options_from_scenario",

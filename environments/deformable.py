@@ -230,11 +230,15 @@ class DeformableObject:
                 # A fixed base is clamped: at its edges the strain is singular and grows as
                 # the mesh is refined, which the user should know when it decides.
                 at_base = bool(self.body.fixed_mask[self.mesh.tets[tet]].any())
+                # Its height in the message: a size typed in millimetres makes a body
+                # hundreds of metres tall, which its weight then strains (rho g h / E).
+                height = float(np.ptp(self.points_in_world(self.mesh.nodes)[:, 2]))
                 raise SceneError(
                     f"object {self.name!r}: its own weight strains it {strain:.3g} at ({centre[0]:.3f}, "
                     f"{centre[1]:.3f}, {centre[2]:.3f}) m{' (a tet on its fixed base, clamped there)' if at_base else ''}, "
                     f"beyond its strain bound {self.strain_limit:g}: linear elasticity cannot describe it even at "
-                    "rest; raise its Young's modulus E, lower its density rho or raise its strain_limit"
+                    "rest; raise its Young's modulus E, lower its density rho or raise its strain_limit "
+                    f"(it stands {height:.3g} m tall: are its sizes in metres?)"
                 )
         return field
 

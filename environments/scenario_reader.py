@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+import warnings
 from collections.abc import Mapping
 from pathlib import Path
 
@@ -481,7 +482,20 @@ class _Reader:
         values = {field: self.number(material_data, key, material_key, default, positive)
                   for field, (key, default, positive) in _MATERIAL_KEYS.items()}
         try:
-            return fem.LinearElasticMaterial(**values)
+            with warnings.catch_warnings(record=True) as raised:
+                warnings.simplefilter("always")
+                material = fem.LinearElasticMaterial(**values)
+            # Said where the file says it, as its errors are (path:line: key: message; the
+            # line itself printed below), not at this reader's line.
+            for warning in raised:
+                text, where = str(warning.message), material_key
+                field = next((field for field in _MATERIAL_KEYS if text.startswith(field + " ")), None)
+                if field is not None:  # fem's name of the field, as the file names it
+                    where, text = join_key(material_key, _MATERIAL_KEYS[field][0]), text[len(field) + 1:]
+                warnings.warn_explicit(f"{where}: {text}", warning.category,
+                                       str(self.path) if self.path is not None else "<scenario>",
+                                       line_of(self.lines, where) or 0)
+            return material
         except ValueError as error:
             if not _is_fem_error(error):
                 raise

@@ -18,6 +18,8 @@ functions of q (eq. 29, 44).
 from __future__ import annotations
 
 import numbers
+import os
+from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -724,6 +726,30 @@ class PostureProblem:
         return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian)
 
 
+def check_posture_arguments(robot, scene, stance) -> None:
+    """Refuse the arguments a caller most often swaps for the robot, scene and stance.
+
+    A robot's name, a scenario where its scene belongs, a stance's name or its plain
+    dictionary would otherwise fail deep inside, on a missing attribute.
+
+    Raises
+    ------
+    TypeError
+        Saying what was given and how to get what is needed.
+    """
+    if isinstance(robot, (str, os.PathLike)):
+        raise TypeError(f"robot must be a stances.Robot, got the name {str(robot)!r}: load it once with "
+                        f"stances.Robot.load({str(robot)!r}) and pass that (loading takes about half a second)")
+    if hasattr(scene, "stances") and hasattr(scene, "scene"):
+        raise TypeError("scene must be an environments.Scene, got a scenario: pass scenario.scene")
+    if isinstance(stance, str):
+        raise TypeError(f"stance must be an environments.Stance, got the name {stance!r}: "
+                        f"scenario.stance({stance!r}) gives the scenario's stance of that name")
+    if isinstance(stance, Mapping):
+        raise TypeError("stance must be an environments.Stance, got a mapping: environments.Stance.from_dict(...) "
+                        "reads one ({robot surface: {surface, x, y, theta}})")
+
+
 def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:
     """Turn a stance into a posture problem.
 
@@ -746,6 +772,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         For an empty stance, an unknown robot surface or scene surface, or a
         print whose origin lies off its surface.
     """
+    check_posture_arguments(robot, scene, stance)
     options = options or PostureOptions()
     if len(stance) == 0:
         raise StanceError("the stance has no contact; a robot cannot stand on nothing")

@@ -487,9 +487,16 @@ def test_out_that_cannot_be_written_exits_2_before_the_search(tmp_path, fake_pla
 
 def test_out_under_a_file_exits_2(tmp_path, fake_planning, capsys):
     (tmp_path / "file").write_text("")
-    assert cli.main(["plan", "stand", "--out", str(tmp_path / "file" / "results"), "--quiet"]) == 2
-    assert "is not a folder" in capsys.readouterr().err
+    assert cli.main(["plan", "stand", "--out", str(tmp_path / "file" / "deeper" / "results"), "--quiet"]) == 2
+    assert f"{str(tmp_path / 'file')!r} is a file, not a folder" in capsys.readouterr().err
     assert fake_planning == []
+
+
+def test_missing_folders_above_out_are_made(tmp_path):
+    staged = StagedOutput(tmp_path / "runs" / "today" / "results")
+    (staged.folder / "plan.json").write_text("{}")
+    assert staged.publish() == tmp_path / "runs" / "today" / "results"
+    assert [p.name for p in (tmp_path / "runs" / "today" / "results").iterdir()] == ["plan.json"]
 
 
 def test_non_empty_out_is_refused_unless_forced_and_then_replaced_whole(tmp_path, fake_planning, capsys):
@@ -626,3 +633,52 @@ def test_cli_check_of_a_body_too_soft_for_its_own_weight_is_bad_input(tmp_path, 
     assert captured.err.startswith(f"cbm check: error: {path}:{line}: objects[")
     assert "]: object 'cube': its own weight strains it" in captured.err
     assert "infeasible" not in captured.out
+
+
+@pytest.mark.parametrize("swap, message", [
+    ("robot name", "robot must be a stances.Robot, got the name 'talos': load it once with stances.Robot.load('talos')"),
+    ("scenario", "scene must be an environments.Scene, got a scenario: pass scenario.scene"),
+    ("stance name", "stance must be an environments.Stance, got the name 'stand': scenario.stance('stand') gives"),
+    ("stance dict", "stance must be an environments.Stance, got a mapping: environments.Stance.from_dict(...) reads one"),
+])
+def test_a_name_or_a_scenario_in_place_of_the_robot_scene_or_stance_is_a_type_error_saying_what_to_pass(robot, swap, message):
+    import stances
+
+    scenario = environments.load("stand")
+    arguments = {"robot name": ("talos", scenario.scene, scenario.stance("stand")),
+                 "scenario": (robot, scenario, scenario.stance("stand")),
+                 "stance name": (robot, scenario.scene, "stand"),
+                 "stance dict": (robot, scenario.scene, scenario.stance("stand").to_dict())}[swap]
+    with pytest.raises(TypeError, match=re.escape(message)):
+        stances.solve(*arguments)
+    with pytest.raises(TypeError, match=re.escape(message)):
+        stances.verify(*arguments, result=None)
+
+
+def test_plan_takes_a_robot_by_name_as_the_command_line_does_and_refuses_one_the_scenario_cannot_use():
+    import cbm
+
+    with pytest.raises(ScenarioError, match="robot surface 'left_sole' is not a surface of robot 'anymal'"):
+        cbm.plan(coarse_scenario("hand-on-cube"), robot="anymal")
+
+
+def test_a_material_warning_is_said_at_the_scenario_files_line_and_key(tmp_path):
+    from fem.errors import FemWarning
+
+    path = tmp_path / "nu.yaml"
+    path.write_text(textwrap.dedent("""\
+        robot: talos
+        objects:
+          - {name: floor, type: floor}
+          - name: mat
+            type: soft_box
+            size: [0.4, 0.8, 0.05]
+            center: [0.5, 0.0, 0.025]
+            material: {E: 2.0e+6, nu: 0.49}
+            resolution: 0.1
+        stances:
+          stand: {left_sole: {surface: floor, x: 0.0, y: 0.085}, right_sole: {surface: floor, x: 0.0, y: -0.085}}
+        """))
+    with pytest.warns(FemWarning, match=r"^objects\[1\]\.material\.nu: 0\.49 is above 0\.45: linear tetrahedra lock") as caught:
+        environments.load(path)
+    assert [(w.filename, w.lineno) for w in caught if issubclass(w.category, FemWarning)] == [(str(path), 8)]

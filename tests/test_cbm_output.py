@@ -593,3 +593,23 @@ def test_a_plan_of_a_users_robot_file_checks_where_that_file_is_gone(synthetic_p
     assert robot.name == mine.name and robot.configuration_names == mine.configuration_names
     report = loaded.check()
     assert not any("robot" in problem for problem in report.problems), report.problems
+
+
+def test_force_labels_whose_anchors_meet_on_the_picture_are_lifted_apart_and_lone_ones_stay():
+    import matplotlib.pyplot as plt
+
+    from cbm.render import spread_labels
+
+    figure = plt.figure(figsize=(8, 7), dpi=90)
+    axes = figure.add_subplot(projection="3d")
+    axes.view_init(elev=18.0, azim=-60.0)
+    # Two soles' resultants 1 cm apart (one label over the other, as drawn before), and one far away.
+    labels = [axes.text(0.0, 0.0, 0.5, " 443 N", fontsize=8), axes.text(0.0, 0.01, 0.5, " 443 N", fontsize=8),
+              axes.text(0.8, -0.8, 0.0, " 12 N", fontsize=8)]
+    lifts = spread_labels(axes, labels)
+    plt.close(figure)
+    assert lifts[2] == 0.0 and min(lifts[:2]) == 0.0
+    # The one lifted clears the other by its own height (1.25 x 8 pt), no more.
+    assert max(lifts[:2]) == pytest.approx(10.0, abs=2.0)
+    offsets = [label.get_transform().transform((0.0, 0.0)) - axes.transData.transform((0.0, 0.0)) for label in labels]
+    assert np.allclose(offsets[2], 0.0) and abs(offsets[0][1] - offsets[1][1]) == pytest.approx(10.0 * 90 / 72, abs=2.5)

@@ -204,6 +204,15 @@ def test_missing_goal_is_a_clear_error(scenario, robot):
         plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle())
 
 
+def test_a_goal_region_on_no_surface_is_refused_before_any_solve(scenario, robot):
+    scenario.goal = Goal(regions=(GoalRegion("left_sole", (20.0, -0.4), (21.0, 0.4)),))
+    oracle = SyntheticOracle()
+    with pytest.raises(CbmError, match=r"the goal region of left_sole \(x 20\.\.21, y -0\.4\.\.0\.4 m\) overlaps no "
+                                       r"surface left_sole can go on \(floor x -1\.5\.\.1\.5, .*step_top x 0\.6\.\.1\.2"):
+        plan(scenario, robot=robot, reach=robot.reach, oracle=oracle)
+    assert oracle.calls == []
+
+
 def test_unknown_start_stance_names_the_valid_ones(scenario, robot):
     with pytest.raises(CbmError, match="stances: start"):
         plan(scenario, robot=robot, reach=robot.reach, start="sit", oracle=SyntheticOracle())

@@ -6,6 +6,7 @@ import numpy as np
 import pytest
 
 from environments.geometry import pose_from_center_yaw, transform_from_rotation_translation
+from environments.goal import GoalRegion
 from environments.stance import Contact, ContactPrint, Stance
 from environments.surfaces import ContactSurface, rectangle
 
@@ -13,7 +14,7 @@ from conftest import ARM_REACH, LEG, hand_made_biped
 from stances.robot import RobotSurface
 
 from cbm.errors import CbmError
-from cbm.sampling import SamplingOptions, contacts_in_world, sample_prints, with_prints
+from cbm.sampling import SamplingOptions, check_goal_regions, contacts_in_world, sample_prints, with_prints
 from cbm.stance_graph import StanceNeighbours, differ_by_one_contact
 
 ROBOT, REACH = hand_made_biped()
@@ -315,3 +316,33 @@ def test_default_headings_are_world_headings_on_a_yawed_surface(surfaces):
     sets = sample_prints({"block_top": surfaces["block_top"]}, {"left_sole": ROBOT["left_sole"]}, options)
     yaws = {round(math.degrees(math.atan2(a[1], a[0])), 6) for a in sets["left_sole"].x_axes_in_world}
     assert {0.0, 45.0, 90.0} <= yaws
+
+
+def test_goal_regions_that_some_print_can_reach_pass_the_check(surfaces):
+    check_goal_regions([GoalRegion("left_sole", [0.5, -0.1], [0.9, 0.1]), GoalRegion("left_palm", [0.6, 0.0], [0.6, 0.1])],
+                       surfaces, ROBOT, SamplingOptions(spacing=0.1))
+
+
+def test_a_goal_region_off_every_surface_its_robot_surface_may_use_is_refused_before_a_search(surfaces):
+    # Beyond the floor and the block: nothing there.
+    with pytest.raises(CbmError, match=r"the goal region of left_sole \(x 3\.\.4, y -0\.1\.\.0\.1 m\) overlaps no "
+                                       r"surface left_sole can go on \(block_top x .*; floor x -1\.\.1, y -0\.6\.\.0\.6\); "
+                                       r"move the region onto one of them"):
+        check_goal_regions([GoalRegion("left_sole", [3.0, -0.1], [4.0, 0.1])], surfaces, ROBOT, SamplingOptions())
+    # A sole's region on the wall's footprint alone (no floor under it): a wall takes hands, not feet.
+    wall_only = {"wall": surfaces["wall"]}
+    with pytest.raises(CbmError, match=r"overlaps no surface left_sole can go on \(none\)"):
+        check_goal_regions([GoalRegion("left_sole", [0.55, -0.1], [0.65, 0.1])], wall_only, ROBOT, SamplingOptions())
+    check_goal_regions([GoalRegion("left_palm", [0.55, -0.1], [0.65, 0.1])], wall_only, ROBOT, SamplingOptions())
+
+
+def test_a_goal_region_outside_the_sampling_region_or_for_an_unplaced_surface_is_refused(surfaces):
+    options = SamplingOptions(region_lower=(-0.5, -0.5), region_upper=(0.2, 0.5))
+    with pytest.raises(CbmError, match=r"lies outside the sampling region \(x -0\.5\.\.0\.2, y -0\.5\.\.0\.5 m, "
+                                       r"options\.sampling_region\), the only place prints are sampled"):
+        check_goal_regions([GoalRegion("left_sole", [0.3, -0.1], [0.6, 0.1])], surfaces, ROBOT, options)
+    check_goal_regions([GoalRegion("left_sole", [0.2, -0.1], [0.6, 0.1])], surfaces, ROBOT, options)  # touches it
+    feet = {name: ROBOT[name] for name in ("left_sole", "right_sole")}
+    with pytest.raises(CbmError, match=r"names a robot surface the planner does not place \(it places left_sole, "
+                                       r"right_sole\); add it to options\.robot_surfaces"):
+        check_goal_regions([GoalRegion("left_palm", [0.3, -0.1], [0.6, 0.1])], surfaces, feet, SamplingOptions())

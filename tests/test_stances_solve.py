@@ -1311,7 +1311,8 @@ def test_a_body_too_soft_for_its_own_weight_is_refused(robot):
     scenario = coarse_scenario("step-on-cube", young_modulus=1e4)
     with pytest.raises(environments.SceneError, match=r"object 'cube': its own weight strains it 0\.1\d+ at .* m \(a tet on its "
                        r"fixed base, clamped there\), beyond its strain bound 0\.05: linear elasticity cannot describe it "
-                       r"even at rest; raise its Young's modulus E"):
+                       r"even at rest; raise its Young's modulus E, lower its density rho or raise its strain_limit "
+                       r"\(it stands 0\.3 m tall: are its sizes in metres\?\)"):
         solve(robot, scenario.scene, scenario.stance("step-on-cube"))
 
 
