@@ -27,7 +27,11 @@ python-fcl before coal). For the code the issues were filed on::
 ``bench/results/side_by_side.md``. A recent checkout needs no environment of its own: against
 85fe6b3, the code measured on the quiet host, ``git worktree add --detach /tmp/old85 85fe6b3``
 and ``.venv/bin/python bench/bench_side_by_side.py /tmp/old85 .venv/bin/python --instructions``
-(that run is kept as ``bench/results/side_by_side-85fe6b3.md``).
+(that run is kept as ``bench/results/side_by_side-85fe6b3.md``). With ``--instructions`` it
+counts each built-in soft stance's solve too; ``--soft-instructions OLD PYTHON`` counts those
+alone (``bench/results/side_by_side_soft_instructions.md``): against 85fe6b3, whose soft
+stances were timed on the quiet host (``results/posture-85fe6b3-quiet.md``), each count's
+ratio times that time estimates the stance's time there.
 """
 
 from __future__ import annotations
@@ -36,6 +40,7 @@ import concurrent.futures
 import datetime
 import json
 import os
+import statistics
 import subprocess
 import sys
 import tempfile
@@ -48,6 +53,7 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 HERE = os.path.dirname(os.path.abspath(__file__))
 ROOT = os.path.dirname(HERE)
 SOFT_REPEATS = 3  # a soft stance's time: the least of this many solves, after one that pays its setup
+_MARK = "zlib_adler32"  # the C function of zlib.adler32, the soft count worker's mark between solves
 
 
 def rigid_cases(repository: str):
@@ -82,9 +88,24 @@ def measure(repository: str) -> dict:
         result = stances.solve(robot, scene, stance)
         rigid.append(time.process_time() - cpu)
         verified += bool(result.feasible)
-    soft, robots = {}, {"talos": robot}
-    # The soft stances as bench_posture.soft_stances finds them, written out: the older
-    # checkouts' bench_posture (a83c2c6's) has no such function.
+    soft = {}
+    for name, solve in soft_solves(stances, environments, {"talos": robot}):
+        times = []
+        for _ in range(SOFT_REPEATS):
+            cpu = time.process_time()
+            result = solve()
+            times.append(time.process_time() - cpu)
+        soft[name] = (min(times), bool(result.feasible))
+    return {"rigid": rigid, "rigid_scenarios": [name for name, _, _ in cases], "rigid_verified": verified,
+            "soft": soft}
+
+
+def soft_solves(stances, environments, robots):
+    """``(scenario/stance, solve)`` of every built-in stance with a print on a soft surface,
+    each ``solve()`` its ``stances.solve`` call, run once here to pay its setup (mesh,
+    factorisation, compliance). The stances as bench_posture.soft_stances finds them, written
+    out: the older checkouts' bench_posture (a83c2c6's) has no such function."""
+    out = []
     for name in environments.scenario.scenario_names():
         scenario = environments.load(name)
         for stance_name, stance in scenario.stances.items():
@@ -93,15 +114,9 @@ def measure(repository: str) -> dict:
             if scenario.robot not in robots:
                 robots[scenario.robot] = stances.Robot.load(scenario.robot)
             solve = (lambda r=robots[scenario.robot], s=scenario.scene, st=stance: stances.solve(r, s, st))
-            solve()  # pays the setup (mesh, factorisation, compliance)
-            times = []
-            for _ in range(SOFT_REPEATS):
-                cpu = time.process_time()
-                result = solve()
-                times.append(time.process_time() - cpu)
-            soft[f"{name}/{stance_name}"] = (min(times), bool(result.feasible))
-    return {"rigid": rigid, "rigid_scenarios": [name for name, _, _ in cases], "rigid_verified": verified,
-            "soft": soft}
+            solve()
+            out.append((f"{name}/{stance_name}", solve))
+    return out
 
 
 def instructions(python: str, repository: str, solve: bool) -> int:
@@ -115,6 +130,49 @@ def instructions(python: str, repository: str, solve: bool) -> int:
         with open(out) as handle:
             summary = next(line for line in handle if line.startswith(("summary:", "totals:")))
     return int(summary.split()[1])
+
+
+def soft_instructions(python: str, repository: str) -> dict:
+    """Instructions callgrind counts in each soft stance's solve (one after the one that
+    paid its setup), with ``repository``'s code: scenario/stance -> count.
+
+    The worker (``--soft-count-worker``) calls ``zlib.adler32``, which neither side's code
+    calls, between the solves; callgrind dumps its counts before each call, so each dump
+    between two marks holds one solve's instructions.
+    """
+    with tempfile.TemporaryDirectory() as folder:
+        out = os.path.join(folder, "callgrind.out")
+        completed = subprocess.run(
+            ["valgrind", "--tool=callgrind", f"--callgrind-out-file={out}", f"--dump-before={_MARK}", python,
+             os.path.abspath(__file__), "--soft-count-worker", repository],
+            capture_output=True, text=True, check=True, env={**os.environ, "PYTHONHASHSEED": "0"})
+        names = json.loads(completed.stdout.strip().splitlines()[-1])
+        counts = []
+        for index in range(2, len(names) + 2):  # dump 1: up to the first mark (the setup)
+            with open(f"{out}.{index}") as handle:
+                counts.append(int(next(line for line in handle if line.startswith(("summary:", "totals:"))).split()[1]))
+        if os.path.exists(f"{out}.{len(names) + 2}"):
+            raise RuntimeError(f"more marks than solves in {repository}'s run: something else called {_MARK}")
+    return dict(zip(names, counts))
+
+
+def soft_counts(sides) -> dict:
+    """:func:`soft_instructions` of both sides, side -> scenario/stance -> count."""
+    with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:  # one process a core
+        return dict(zip(sides, pool.map(lambda side: soft_instructions(*sides[side]), sides)))
+
+
+def soft_instruction_rows(counts) -> list:
+    """Each soft stance's solve instructions on each side (:func:`soft_counts`), their ratios
+    and median, as markdown."""
+    common = sorted(set(counts["old"]) & set(counts["new"]))
+    ratios = [counts["new"][name] / counts["old"][name] for name in common]
+    return ["Instructions of each built-in soft stance's solve (callgrind; `stances.solve` once after the "
+            "solve that paid its setup):", "",
+            "| soft stance | old (G) | new (G) | ratio |", "|---|---|---|---|",
+            *(f"| {name} | {counts['old'][name] / 1e9:.3f} | {counts['new'][name] / 1e9:.3f} | {ratio:.3f} |"
+              for name, ratio in zip(common, ratios)),
+            "", f"Median ratio over the {len(common)} stances: {statistics.median(ratios):.3f}.", ""]
 
 
 def instruction_rows(sides) -> list:
@@ -202,6 +260,7 @@ def main(old_repository: str, old_python: str, rounds: int, count_instructions: 
         *per_stance,
         "",
         *(instruction_rows(sides) if count_instructions else []),
+        *(soft_instruction_rows(soft_counts(sides)) if count_instructions else []),
     ])
     print(text)
     with open(os.path.join(HERE, "results", "side_by_side.md"), "w") as handle:
@@ -212,6 +271,34 @@ if __name__ == "__main__":
     arguments = sys.argv[1:]
     if arguments[:1] == ["--worker"]:
         print(json.dumps(measure(arguments[1])))
+    elif arguments[:1] == ["--soft-instructions"]:
+        # The soft stances' counts alone (two callgrind runs, about 35 minutes on a loaded
+        # 2-core host), written to results/side_by_side_soft_instructions.md.
+        old_repository, old_python = arguments[1:3]
+        sys.path.insert(0, HERE)
+        from benchmark_info import code_version, machine
+
+        counts = soft_counts({"old": (old_python, old_repository), "new": (sys.executable, ROOT)})
+        old_commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=old_repository, capture_output=True,
+                                    text=True, check=True).stdout.strip()
+        text = "\n".join([f"# Soft stances' instructions side by side with {old_commit} ({datetime.date.today()})", "",
+                          f"Machine: {machine()}.", f"Code: new {code_version()}, old {old_commit} ({old_repository}).",
+                          "", *soft_instruction_rows(counts), "```json", json.dumps(counts), "```", ""])
+        print(text)
+        with open(os.path.join(HERE, "results", "side_by_side_soft_instructions.md"), "w") as handle:
+            handle.write(text)
+    elif arguments[:1] == ["--soft-count-worker"]:
+        import zlib
+
+        stances, robot, _ = rigid_cases(arguments[1])
+        import environments
+
+        solves = soft_solves(stances, environments, {"talos": robot})
+        for _, solve in solves:
+            zlib.adler32(b"")  # the mark: callgrind dumps before it (see soft_instructions)
+            solve()
+        zlib.adler32(b"")
+        print(json.dumps([name for name, _ in solves]))
     elif arguments[:1] == ["--count-worker"]:
         stances, robot, cases = rigid_cases(arguments[1])
         for _, scene, stance in cases if arguments[2] == "1" else ():
