@@ -155,11 +155,12 @@ def _candidate_surfaces(surfaces, robot_surfaces, options):
 def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOptions()):
     """Refuse goal regions no print can lie in, before a search looks for them.
 
-    A region is unreachable when its robot surface is not among those the planner
-    places, when it misses the sampling region, or when it overlaps no surface the
-    robot surface may go on (feet only on surfaces facing up): a search would spend its
-    whole budget, then blame the grid. Checked on the surfaces' world xy bounds, so a
-    region that passes may still hold no print of a coarse grid.
+    A region of a robot surface the planner places is unreachable when it misses the
+    sampling region or overlaps no surface the robot surface may go on (feet only on
+    surfaces facing up): a search would spend its whole budget, then blame the grid.
+    Checked on the surfaces' world xy bounds, so a region that passes may still hold no
+    print of a coarse grid. A region of a surface the planner does not place (not in
+    ``robot_surfaces``) is left to the start stance, which alone can meet it.
 
     Parameters
     ----------
@@ -177,8 +178,8 @@ def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOption
         where = (f"the goal region of {region.robot_surface} (x {region.lower[0]:g}..{region.upper[0]:g}, "
                  f"y {region.lower[1]:g}..{region.upper[1]:g} m)")
         if region.robot_surface not in robot_surfaces:
-            raise CbmError(f"{where} names a robot surface the planner does not place (it places "
-                           f"{', '.join(sorted(robot_surfaces))}); add it to options.robot_surfaces or drop the region")
+            # Not placed by the planner (options.robot_surfaces): only the start can meet it.
+            continue
         lower, upper = np.asarray(region.lower, dtype=float), np.asarray(region.upper, dtype=float)
         region_lower = np.full(2, -np.inf) if options.region_lower is None else np.asarray(options.region_lower)
         region_upper = np.full(2, np.inf) if options.region_upper is None else np.asarray(options.region_upper)
