@@ -469,7 +469,10 @@ def plan(
     # The grid is the planner's own choice unless the user or the scenario sets it: then,
     # where it finds no plan, a grid half as fine is tried before giving up.
     own_grid = print_spacing is None and not (options or {}).get("print_spacing")
-    check_goal_regions(goal.regions, scene.surfaces, {name: robot.surfaces[name] for name in usable},
+    # Regions the start already meets need no print of the grid.
+    unmet = [region for region, distance in zip(goal.regions, goal.distances(start, scene)[len(goal.contacts):])
+             if distance > 0.0]
+    check_goal_regions(unmet, scene.surfaces, {name: robot.surfaces[name] for name in usable},
                        options_from_scenario(options, print_spacing, default_spacing, headings))
     limits = SearchLimits(max_expansions=max_expansions, max_solver_calls=max_solver_calls, time_limit=time_limit)
     pool = None

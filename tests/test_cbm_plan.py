@@ -211,6 +211,10 @@ def test_a_goal_region_on_no_surface_is_refused_before_any_solve(scenario, robot
                                        r"surface left_sole can go on \(floor x -1\.5\.\.1\.5, .*step_top x 0\.6\.\.1\.2"):
         plan(scenario, robot=robot, reach=robot.reach, oracle=oracle)
     assert oracle.calls == []
+    # Met by the start already (its left sole at x -0.5), a region outside the sampling region is no error.
+    scenario.goal = Goal(regions=(GoalRegion("left_sole", (-0.6, 0.0), (-0.4, 0.2)),))
+    scenario.options = {**scenario.options, "sampling_region": {"lower": [0.0, -0.5], "upper": [1.5, 0.5]}}
+    assert plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle()).success
 
 
 def test_unknown_start_stance_names_the_valid_ones(scenario, robot):
