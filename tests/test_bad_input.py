@@ -665,20 +665,10 @@ def test_plan_takes_a_robot_by_name_as_the_command_line_does_and_refuses_one_the
 def test_a_material_warning_is_said_at_the_scenario_files_line_and_key(tmp_path):
     from fem.errors import FemWarning
 
+    material = "material: {E: 1.0e+6, nu: 0.4}"
     path = tmp_path / "nu.yaml"
-    path.write_text(textwrap.dedent("""\
-        robot: talos
-        objects:
-          - {name: floor, type: floor}
-          - name: mat
-            type: soft_box
-            size: [0.4, 0.8, 0.05]
-            center: [0.5, 0.0, 0.025]
-            material: {E: 2.0e+6, nu: 0.49}
-            resolution: 0.1
-        stances:
-          stand: {left_sole: {surface: floor, x: 0.0, y: 0.085}, right_sole: {surface: floor, x: 0.0, y: -0.085}}
-        """))
+    path.write_text(SCENARIO.replace(material, material.replace("nu: 0.4", "nu: 0.49")))
+    line = next(i for i, row in enumerate(path.read_text().splitlines(), 1) if "nu: 0.49" in row)
     with pytest.warns(FemWarning, match=r"^objects\[1\]\.material\.nu: 0\.49 is above 0\.45: linear tetrahedra lock") as caught:
         environments.load(path)
-    assert [(w.filename, w.lineno) for w in caught if issubclass(w.category, FemWarning)] == [(str(path), 8)]
+    assert [(w.filename, w.lineno) for w in caught if issubclass(w.category, FemWarning)] == [(str(path), line)]
