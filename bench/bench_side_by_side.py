@@ -190,6 +190,12 @@ def instruction_rows(sides) -> list:
             "", f"Ratio new / old: {solves['new'] / solves['old']:.3f}.", ""]
 
 
+def commit(path: str) -> str:
+    """The short commit of the checkout at ``path``."""
+    return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=path, capture_output=True,
+                          text=True, check=True).stdout.strip()
+
+
 def run_worker(python: str, repository: str) -> dict:
     completed = subprocess.run([python, os.path.abspath(__file__), "--worker", repository],
                                capture_output=True, text=True, check=True)
@@ -201,10 +207,6 @@ def main(old_repository: str, old_python: str, rounds: int, count_instructions: 
     import numpy as np
 
     from benchmark_info import code_version, machine
-
-    def commit(path):
-        return subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=path, capture_output=True,
-                              text=True, check=True).stdout.strip()
 
     sides = {"old": (old_python, old_repository), "new": (sys.executable, ROOT)}
     runs = {"old": [], "new": []}
@@ -279,8 +281,7 @@ if __name__ == "__main__":
         from benchmark_info import code_version, machine
 
         counts = soft_counts({"old": (old_python, old_repository), "new": (sys.executable, ROOT)})
-        old_commit = subprocess.run(["git", "rev-parse", "--short", "HEAD"], cwd=old_repository, capture_output=True,
-                                    text=True, check=True).stdout.strip()
+        old_commit = commit(old_repository)
         text = "\n".join([f"# Soft stances' instructions side by side with {old_commit} ({datetime.date.today()})", "",
                           f"Machine: {machine()}.", f"Code: new {code_version()}, old {old_commit} ({old_repository}).",
                           "", *soft_instruction_rows(counts), "```json", json.dumps(counts), "```", ""])

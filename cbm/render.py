@@ -183,7 +183,7 @@ def spread_labels(axes, labels) -> np.ndarray:
     x, y, _ = proj3d.proj_transform(anchors[:, 0], anchors[:, 1], anchors[:, 2], axes.get_proj())
     pixels = axes.transData.transform(np.column_stack([x, y]))
     per_point = axes.figure.dpi / 72.0
-    placed = []  # (left, bottom, width, height), pixels
+    placed = []  # (left, bottom, width, top), pixels
     for index in np.lexsort((pixels[:, 0], pixels[:, 1])).tolist():
         size = labels[index].get_fontsize() * per_point
         width, height = 0.62 * size * len(labels[index].get_text()), 1.25 * size

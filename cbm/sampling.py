@@ -173,27 +173,29 @@ def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOption
     CbmError
         Naming the region, why no print can lie in it, and what to change.
     """
+    region_lower = np.full(2, -np.inf) if options.region_lower is None else np.asarray(options.region_lower)
+    region_upper = np.full(2, np.inf) if options.region_upper is None else np.asarray(options.region_upper)
     pairs = _candidate_surfaces(surfaces, robot_surfaces, options)
+    extents = {}  # surface name -> its world xy bounds, (2,) lower and upper
+    for _, name in pairs:
+        if name not in extents:
+            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
+            polygon = np.asarray(surfaces[name].polygon, dtype=float)
+            corners = np.column_stack([polygon, np.zeros(len(polygon))]) @ transform[:3, :3].T + transform[:3, 3]
+            extents[name] = (corners[:, :2].min(axis=0), corners[:, :2].max(axis=0))
     for region in regions:
-        where = (f"the goal region of {region.robot_surface} (x {region.lower[0]:g}..{region.upper[0]:g}, "
-                 f"y {region.lower[1]:g}..{region.upper[1]:g} m)")
         if region.robot_surface not in robot_surfaces:
             # Not placed by the planner (options.robot_surfaces): only the start can meet it.
             continue
+        where = (f"the goal region of {region.robot_surface} (x {region.lower[0]:g}..{region.upper[0]:g}, "
+                 f"y {region.lower[1]:g}..{region.upper[1]:g} m)")
         lower, upper = np.asarray(region.lower, dtype=float), np.asarray(region.upper, dtype=float)
-        region_lower = np.full(2, -np.inf) if options.region_lower is None else np.asarray(options.region_lower)
-        region_upper = np.full(2, np.inf) if options.region_upper is None else np.asarray(options.region_upper)
         if np.any(upper < region_lower) or np.any(lower > region_upper):
             raise CbmError(
                 f"{where} lies outside the sampling region (x {region_lower[0]:g}..{region_upper[0]:g}, "
                 f"y {region_lower[1]:g}..{region_upper[1]:g} m, options.sampling_region), the only place prints are "
                 "sampled; widen the sampling region or move the goal region into it")
-        bounds = {}
-        for _, name in (pair for pair in pairs if pair[0] == region.robot_surface):
-            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
-            polygon = np.asarray(surfaces[name].polygon, dtype=float)
-            corners = np.column_stack([polygon, np.zeros(len(polygon))]) @ transform[:3, :3].T + transform[:3, 3]
-            bounds[name] = (corners[:, :2].min(axis=0), corners[:, :2].max(axis=0))
+        bounds = {name: extents[name] for robot_surface, name in pairs if robot_surface == region.robot_surface}
         if not any(np.all(upper >= low) and np.all(lower <= high) for low, high in bounds.values()):
             extents = "; ".join(f"{name} x {low[0]:g}..{high[0]:g}, y {low[1]:g}..{high[1]:g}"
                                 for name, (low, high) in sorted(bounds.items()))
