@@ -19,12 +19,20 @@ A partly covered node's link point is its rest position, at most a cell outside
 the polygon, where it carries a small share of the load. The ``traction`` model
 keeps the nodes inside the polygon.
 
-A point foot (a ball of radius r) presses the nodes under its print octagon,
+A point foot (a ball of radius r) may press the nodes under its print octagon,
 which circumscribes the ball's circle: its link points are all the ball's
 centre, ``x_n`` is replaced by the centre's rest position r above the print,
 and ``U_n = R_b^T (c(q) - c_0)``: the print translates with the ball and does
 not turn with the foot (the ball rolls freely, and every node's force acts at
-its centre, as in the rigid point contact of :mod:`stances.contacts`).
+its centre, as in the rigid point contact of :mod:`stances.contacts`). A node
+at distance rho from the print's origin lies the ball's profile
+``g_n = r - sqrt(r^2 - rho^2)`` below it (:func:`ball_gaps`): the contact solve
+sees the motion ``U_n + g_n n``, so a node is pressed only once the ball has sunk
+that far, and the contact spreads as the ball sinks (Hertz's contact, solved on
+the mesh; until 2026-12-03 every node followed the ball from the start, a flat
+punch of radius r: 42-154 N where Hertz and a fine mesh give 1-9 N at the same
+depth). This needs the ``coulomb`` law (nodes lift off) and a mesh fine against
+the contact radius ``sqrt(r d)`` at depth d.
 
 The body pushes back with forces linear in ``U`` over the union of the
 prints' nodes, ``f = R U`` (R: fem's reaction matrix over the union, ``-S_P``
@@ -122,6 +130,9 @@ _OVERLAP_ACTIVATION = 0.5
 # centres wherever they lie, not only near the prints.
 _REST_STRAIN = 0.25
 _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
+# A ball's start depth (DeformableContact.variables_from_forces): up to 2^12 times the flat
+# print's, then the scale's bracket halved (in log) to 2^(1/2^5) = 1.022.
+_BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
 # A friction pyramid's faces, as (t1, t2) components of their tangential part (see
 # DeformableContact._pyramid_faces), and their labels.
 _DIAGONALS = np.array([[1.0, 1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2.0)
@@ -220,6 +231,32 @@ class _PrintValues:
     solved: Any
 
 
+def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
+    """How far a ball resting on a print is above each node: its profile's height there.
+
+    The ball of radius ``R`` touches the print plane at the print's origin; over a
+    point at distance ``rho`` from it, its lowest point is ``R - sqrt(R^2 - rho^2)``
+    above the plane (``~ rho^2 / 2R``, the paraboloid of Hertz's contact near the
+    centre), and nothing of it is below ``R`` beyond ``rho = R``.
+
+    Parameters
+    ----------
+    nodes_in_print : (p, 3) float
+        Node rest positions, metres, print frame (z along the outward normal).
+    radius : float
+        Ball radius, metres.
+
+    Returns
+    -------
+    (p,) float
+        Gap from each node up to the ball, metres, >= 0 (a node above the print plane
+        by more than its profile height is touching: 0).
+    """
+    rho_squared = np.minimum(np.einsum("pi,pi->p", nodes_in_print[:, :2], nodes_in_print[:, :2]), radius * radius)
+    profile = radius - np.sqrt(radius * radius - rho_squared)
+    return np.maximum(profile - nodes_in_print[:, 2], 0.0)
+
+
 def _skew_rows(points: np.ndarray) -> np.ndarray:
     """(p, 3) -> (p, 3, 3) cross-product matrices."""
     return np.array([pin.skew(p) for p in points]) if len(points) else np.zeros((0, 3, 3))
@@ -242,7 +279,8 @@ class DeformableContact:
     Raises
     ------
     StanceError
-        A point foot presses the body with the traction model, a print holds fewer than three mesh nodes, two prints share nodes,
+        A point foot presses the body with the traction model or a law other than
+        ``coulomb``, a print holds fewer than three mesh nodes, two prints share nodes,
         or a print's nodes cannot hold a rigid link (collinear).
     """
 
@@ -264,8 +302,16 @@ class DeformableContact:
         self.prints = list(prints)
         self.label = " and ".join(p.label for p in self.prints)
 
+        if options.max_indentation is not None:
+            self.max_indentation = float(options.max_indentation)
+        else:
+            # Thickness of the body along each print's normal, from its mesh.
+            heights = [np.ptp(body.mesh.nodes @ (self.rotation_body.T @ spec.transform_print_to_world[:3, 2]))
+                       for spec in self.prints]
+            self.max_indentation = float(options.indentation_limit * min(heights))
         node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
+        gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
@@ -273,6 +319,12 @@ class DeformableContact:
                 raise StanceError(
                     f"{spec.label}: a point foot's print needs the consistent reaction model "
                     "(its nodes follow the ball's centre, not the foot's turn)"
+                )
+            if surface_model.is_point and self.law != "coulomb":
+                raise StanceError(
+                    f"{spec.label}: a point foot on a soft body needs contact_law 'coulomb': a ball touches the "
+                    f"nodes its profile reaches as it sinks, which the {self.law!r} law (every print node held "
+                    "to the link) cannot say"
                 )
             frame_id = robot.frame_id(surface_model.frame)
             frame = robot.model.frames[frame_id]
@@ -288,6 +340,14 @@ class DeformableContact:
                 ids = np.asarray(ids, dtype=np.int64)
             else:
                 ids, covered = inside, np.ones(len(inside))
+            if surface_model.is_point:
+                # A ball touches a node once it has sunk the node's gap, and it sinks no
+                # further than the nearest node's gap plus the indentation bound: the
+                # nodes beyond that never touch (20 of the octagon's 58 on ANYmal's feet
+                # on foam, every contact solve and compliance the smaller for it).
+                gap = ball_gaps(self._in_print(body.mesh.nodes[ids], body_placement, placement), surface_model.radius)
+                kept = gap <= self.max_indentation + gap.min()
+                ids, covered = ids[kept], covered[kept]
             if len(ids) < MINIMUM_PRINT_NODES:
                 raise StanceError(
                     f"the print of {spec.label} holds {len(ids)} mesh node(s); at least "
@@ -311,11 +371,11 @@ class DeformableContact:
                     keep_there[there[mine]] = False
                     node_sets[index], coverages[index] = other_ids[keep_there], coverages[index][keep_there]
                     joints[index], points_in_joint[index] = joints[index][keep_there], points_in_joint[index][keep_there]
+                    gaps[index] = gaps[index][keep_there]
                     keep_here = np.ones(len(ids), dtype=bool)
                     keep_here[here[~mine]] = False
                     ids, covered = ids[keep_here], covered[keep_here]
-            nodes_in_world = body.mesh.nodes[ids] @ body_placement.rotation.T + body_placement.translation
-            nodes_in_print = (nodes_in_world - placement.translation) @ placement.rotation
+            nodes_in_print = self._in_print(body.mesh.nodes[ids], body_placement, placement)
             node_sets.append(ids)
             coverages.append(covered)
             insides.append(inside)
@@ -324,8 +384,10 @@ class DeformableContact:
                 # Every node of a ball's print follows the ball's centre, where its force acts.
                 points_in_joint.append(np.tile(frame.placement.translation, (len(ids), 1)))
                 point_rests.append((len(node_sets) - 1, placement.translation + surface_model.radius * placement.rotation[:, 2]))
+                gaps.append(ball_gaps(nodes_in_print, surface_model.radius))
             else:
                 points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
+                gaps.append(np.zeros(len(ids)))
             frames.append(surface_model.frame)
             self.frame_ids.append(frame_id)
             self.print_placements.append(placement)
@@ -420,6 +482,10 @@ class DeformableContact:
         self.load_normals = self.normals
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
+        # (p, 3) body frame: from each node at rest up to its link's surface along the
+        # print normal, nonzero under a ball (its profile, eq. above); the link points
+        # then press a node once they have moved that far: U + gap is the node's motion.
+        self.gaps = np.concatenate(gaps)[:, None] * normals_in_body
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
         self._modes = None  # (modes, slip directions) of the last contact solve: its warm start
@@ -428,17 +494,16 @@ class DeformableContact:
         # Strain-row centres verify found over the bound outside the rows (take_strain_outlier).
         self._found_centres = None
         self._strain_outlier = None  # the tet of the last verify's strain failure outside the rows
-        if options.max_indentation is not None:
-            self.max_indentation = float(options.max_indentation)
-        else:
-            # Thickness of the body along each print's normal, from its mesh.
-            heights = [np.ptp(body.mesh.nodes @ (r[:, 2])) for r in print_rotations_in_body]
-            self.max_indentation = float(options.indentation_limit * min(heights))
         # The iterate's values (_PrintValues) and derivatives, memoised by _values.
         self._load_joints = [int(joint) for joint in np.unique(self.loads.joints)]
         self._cache_key = None
         self._cache = None
         self._derivatives = None
+
+    @staticmethod
+    def _in_print(nodes, body_placement, placement) -> np.ndarray:
+        """(k, 3) body-frame points in a print's frame, metres."""
+        return (nodes @ body_placement.rotation.T + body_placement.translation - placement.translation) @ placement.rotation
 
     # -- kinematics of the prints -------------------------------------------
     def _displacements(self, data) -> np.ndarray:
@@ -560,19 +625,9 @@ class DeformableContact:
         # nanometres of bending, far more than the nanometres the body gives).
         imposed = self.rigid_motion @ w + self._rotation_residue(w)
         if self.law == "coulomb":
-            # Contact solved at that motion: f = L U~, continuous in W when nodes change modes.
-            corrected = imposed.reshape(-1, 3)
-            if self._contact_system is None:
-                # It keeps the factorisation of each contact set it meets: the
-                # SQP holds a set or comes back to it at most linearisations.
-                self._contact_system = fem.PrintContactSystem(self.patch.link_compliance, self.node_frames, self.node_mu)
-            if self._frozen is not None:
-                solved = self._contact_system.with_modes(corrected, *self._frozen)
-            else:
-                warm = (None, None) if self._modes is None else self._modes
-                solved = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
-                self._modes = (solved.modes, solved.directions)
-            forces_body = solved.forces.reshape(-1)  # L U~
+            # Contact solved at that motion: f = L (U~ + gap), continuous in W when nodes change modes.
+            solved = self._contact(imposed)
+            forces_body = solved.forces.reshape(-1)
         else:
             if self.method == "traction":
                 # Eq. (44) at the link points' own motion, turned normals included, with
@@ -590,6 +645,22 @@ class DeformableContact:
         self._cache = _PrintValues(displacements, forces, forces_body, nodes, solved)
         self._derivatives = None
         return self._cache
+
+    def _contact(self, imposed) -> fem.PrintContact:
+        """Signorini-Coulomb contact of the nodes under link points moved by ``imposed``
+        (3p,), metres, body frame; warm started from the last solve's modes, or held to
+        :meth:`freeze_modes`'s. A node is pressed once its link point has closed its gap."""
+        corrected = imposed.reshape(-1, 3) + self.gaps
+        if self._contact_system is None:
+            # It keeps the factorisation of each contact set it meets: the
+            # SQP holds a set or comes back to it at most linearisations.
+            self._contact_system = fem.PrintContactSystem(self.patch.link_compliance, self.node_frames, self.node_mu)
+        if self._frozen is not None:
+            return self._contact_system.with_modes(corrected, *self._frozen)
+        warm = (None, None) if self._modes is None else self._modes
+        solved = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
+        self._modes = (solved.modes, solved.directions)
+        return solved
 
     def _state(self, model, data, w):
         """U, dU/dq, forces (world) and their derivatives in q and W, the body's print
@@ -667,6 +738,11 @@ class DeformableContact:
         W read off a posture whose links barely touch (:meth:`initial_variables`) leaves
         every node at the point of lifting off, with no force gradient.
 
+        A ball (point foot) must sink further than a flat print to carry the same load,
+        its nodes touching only where its profile reaches them: its W is scaled up (by
+        doublings, then halvings of the step) until the contact solve gives its print
+        the normal force the wrench asks for (a few percent more).
+
         Parameters
         ----------
         model : pinocchio.Model
@@ -681,7 +757,35 @@ class DeformableContact:
             moment = sum((np.cross(point - placement.translation, f) for point, f in on_link), np.zeros(3))
             w[6 * i : 6 * i + 3] = self.rotation_body.T @ force
             w[6 * i + 3 : 6 * i + 6] = self.rotation_body.T @ moment
+        if self.law == "coulomb":
+            for i in self.point_prints:
+                w[6 * i : 6 * i + 3] *= self._ball_load_scale(w, int(i))
         return w
+
+    def _ball_load_scale(self, w, i: int) -> float:
+        """How many times ball print ``i``'s W must be scaled for the contact solve to give
+        it the normal force ``W`` asks for (1 when it already does, or asks for none)."""
+        normal = self.print_placements[i].rotation[:, 2] @ self.rotation_body
+        target = float(normal @ w[6 * i : 6 * i + 3])
+        rows = self.print_of_node == i
+
+        def carried(scale):
+            trial = np.array(w)
+            trial[6 * i : 6 * i + 3] *= scale
+            forces = self._contact(self.rigid_motion @ trial + self._rotation_residue(trial)).forces
+            return float(forces[rows].sum(axis=0) @ normal)
+
+        if target <= 0.0 or carried(1.0) >= target:
+            return 1.0
+        low, high = 1.0, 2.0
+        for _ in range(_BALL_DOUBLINGS):
+            if carried(high) >= target:
+                break
+            low, high = high, 2.0 * high
+        for _ in range(_BALL_HALVINGS):
+            middle = np.sqrt(low * high)
+            low, high = (middle, high) if carried(middle) < target else (low, middle)
+        return high
 
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
@@ -828,7 +932,7 @@ class DeformableContact:
             Their derivative in the whole step.
         """
         p = len(self.node_ids)
-        overlap = np.einsum("pj,pj->p", nodes.reshape(p, 3) - displacements.reshape(p, 3), self.normals_in_body)
+        overlap = np.einsum("pj,pj->p", nodes.reshape(p, 3) - displacements.reshape(p, 3) - self.gaps, self.normals_in_body)
         near = np.flatnonzero(overlap >= _OVERLAP_ACTIVATION * self.max_mesh_overlap)
         jacobian = None
         if d_nodes is not None:
@@ -1165,14 +1269,14 @@ class DeformableContact:
         ends = field[self.node_ids]
         if self._coupling is not None:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
-        relative = np.einsum("pij,pj->pi", self.node_frames, displacements - ends)
+        relative = np.einsum("pij,pj->pi", self.node_frames, displacements + self.gaps - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
         # at the coupling's end): bounded by max_mesh_overlap (unbounded, independent audits
         # found 2.8 mm on hand-on-soft-cube's palm on 2026-11-26; 3.6 mm there and 5.2 mm on
         # the paper's coarse cube, 4 nodes under the palm, on 2026-12-03).
-        overlap = -np.einsum("pij,pj->pi", self.node_frames, displacements - field[self.node_ids])[:, 2]
+        overlap = -np.einsum("pij,pj->pi", self.node_frames, displacements + self.gaps - field[self.node_ids])[:, 2]
         measures[f"mesh overlap into the links on {name}"] = float(overlap.max())
         if overlap.max() > self.max_mesh_overlap + tolerances.deformable_placement:
             node = int(self.node_ids[int(np.argmax(overlap))])
