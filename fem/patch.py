@@ -496,11 +496,20 @@ class ContactPatch:
         _, _, averaging, block, rows, b, _, _ = self._strain_set(radius, also, key)
         weights = np.asarray(weights, dtype=float)
         start, stop = averaging.indptr[tet], averaging.indptr[tet + 1]
+        members, shares = averaging.indices[start:stop], averaging.data[start:stop]
+        if per == "load":
+            # Per load, the tets' nodes move by their rows of C[:, P] as they are: each
+            # node's weight summed over the ball's tets first, then one product with its
+            # rows (a loop over the tets cost 4 ms a row on a 10 mm foam mesh, hundreds
+            # of tets to a 20 mm ball: 15 of a plan's 43 s).
+            coefficients = shares[:, None] * np.einsum("j,kjm->km", weights, b[members])  # (K, 12)
+            node_weights = np.zeros((block.shape[0], 3))
+            np.add.at(node_weights, rows[members].ravel(), coefficients.reshape(-1, 3))
+            used = np.unique(rows[members])
+            return np.einsum("nj,njm->m", node_weights[used], block[used])
         row = np.zeros(3 * self._ids.size)
-        for k, share in zip(averaging.indices[start:stop], averaging.data[start:stop]):
-            # Per load, the tet's nodes move by their rows of C[:, P] as they are.
-            nodes = self._member_map(key, int(k), also) if per == "displacement" else block[rows[k]].reshape(12, -1)
-            row += share * ((weights @ b[k]) @ nodes)
+        for k, share in zip(members, shares):
+            row += share * ((weights @ b[k]) @ self._member_map(key, int(k), also))
         return row
 
     def _member_map(self, set_key: tuple, k: int, also=None) -> np.ndarray:
