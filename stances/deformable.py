@@ -1160,8 +1160,10 @@ class DeformableContact:
 
         - Force term: ``force_weight / 2 W^T M W``, M the rigid contact's metric
           (:func:`rigid_force_metric`), so that a stiff print weighs its load as a rigid
-          one does; a ball's force part is the force its nodes carry
-          (:meth:`_weighed_loads`), Gauss-Newton Hessian.
+          one does. (A ball's W is the flat print's bonded wrench at its depth, more
+          than it carries. Weighing its carried force instead, tried 2026-12-03, solved
+          none of five quadruped-foam stances of which W's term solves three: that force
+          is only piecewise smooth in W as nodes enter the contact.)
         - Deformation term (paper note 2): with ``deformation_cost="energy"``
           (default) the elastic energy the body stores, ``1/2 f^T C f`` (C: the
           condensed compliance of the print nodes), weighed per joule; it vanishes as
@@ -1169,14 +1171,13 @@ class DeformableContact:
           paper's ``1/2 |f|^2`` of the nodal reactions, per N^2.
         """
         n_w = self.n_variables
-        loads, d_loads = self._weighed_loads(model, data, w, derivatives)
-        weighted = options.force_weight * (self.force_metric @ loads)
-        value = 0.5 * float(loads @ weighted)
+        weighted = options.force_weight * (self.force_metric @ w)
+        value = 0.5 * float(w @ weighted)
         gradient = hessian = None
         if derivatives:
             gradient, hessian = np.zeros(columns), np.zeros((columns, columns))
-            gradient[offset : offset + n_w] = d_loads.T @ weighted
-            hessian[offset : offset + n_w, offset : offset + n_w] = options.force_weight * (d_loads.T @ self.force_metric @ d_loads)
+            gradient[offset : offset + n_w] = weighted
+            hessian[offset : offset + n_w, offset : offset + n_w] = options.force_weight * self.force_metric
         weight = options.deformation_weight
         if weight == 0.0:
             return value, gradient, hessian
@@ -1208,30 +1209,6 @@ class DeformableContact:
         gradient[moved] += weight * term_gradient
         hessian[np.ix_(moved, moved)] += weight * term_hessian
         return value, gradient, hessian
-
-    def _weighed_loads(self, model, data, w, derivatives):
-        """What the force term weighs, (6L,), and its derivative in W (6L, 6L) or None.
-
-        W, except each ball's force part: the force its nodes carry (body frame). A
-        flat print's W is the wrench its nodes carry (:meth:`variables_from_forces`); a
-        ball's is the flat print's bonded wrench at its depth, several times what the
-        ball carries (12 times 1 mm deep in tests/test_ball_contact.py), and weighed as
-        such it made the solver unload balls on soft ground (HyQ's foot on its pad
-        carried nothing).
-        """
-        n_w = self.n_variables
-        loads = np.array(w, dtype=float)
-        d_loads = np.eye(n_w) if derivatives else None
-        if not len(self.point_prints):
-            return loads, d_loads
-        forces = self._values(model, data, w).forces_body.reshape(-1, 3)
-        d_forces = self._body_rows(self._state(model, data, w)[4]).reshape(len(forces), 3, n_w) if derivatives else None
-        for i in self.point_prints:
-            rows = self.print_of_node == i
-            loads[6 * i : 6 * i + 3] = forces[rows].sum(axis=0)
-            if derivatives:
-                d_loads[6 * i : 6 * i + 3] = d_forces[rows].sum(axis=0)
-        return loads, d_loads
 
     def _body_rows(self, rows: np.ndarray) -> np.ndarray:
         """Stacked per-node world 3-vectors' rows (3p, m) turned into the body frame."""

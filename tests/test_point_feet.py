@@ -229,31 +229,6 @@ def test_soft_point_print_rows_match_finite_differences(anymal, on_foam):
     assert {"placement", "touch", "node contact", "indentation"} <= names
 
 
-def test_the_force_term_weighs_what_a_ball_carries_and_its_gradient_matches_finite_differences(anymal, on_foam):
-    # At the answer, with the balls pressed: the term's load for a ball is its nodes'
-    # force (not W, the flat print's bonded wrench at its depth), its W-gradient exact.
-    problem, result = on_foam
-    (term,) = [t for t in problem.costs if type(t).__name__ == "ContactCosts"]
-    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
-    lam = np.asarray(result.statistics.lam, dtype=float)
-    w = lam[problem.variable_slices[problem.contacts.index(soft)]]
-    problem.iterate(result.q, lam, derivatives=False)  # kinematics at the answer, in problem.data
-    loads, _ = soft._weighed_loads(anymal.model, problem.data, w, False)
-    forces = soft.forces(anymal.model, problem.data, w) @ soft.rotation_body
-    for i in soft.point_prints:
-        np.testing.assert_allclose(loads[6 * i : 6 * i + 3], forces[soft.print_of_node == i].sum(axis=0), rtol=1e-12)
-        assert loads[6 * i + 2] < w[6 * i + 2]  # the ball carries less than its W says
-
-    def value(y):
-        return term.evaluate(problem, problem.iterate(result.q, y, derivatives=False))[0]
-
-    _, gradient, _ = term.evaluate(problem, problem.iterate(result.q, lam))
-    step = 1e-4 * np.maximum(np.abs(lam), 1.0)
-    numeric = np.array([(value(lam + e) - value(lam - e)) / (2 * e.max()) for e in np.diag(step)])
-    analytic = gradient[anymal.model.nv :]
-    np.testing.assert_allclose(numeric, analytic, rtol=1e-4, atol=1e-6 * np.abs(analytic).max())
-
-
 def test_a_point_foot_refuses_the_traction_reaction_model(anymal, foam):
     with pytest.raises(StanceError, match=re.escape(
         "left_front_foot on foam_top: a point foot's print needs the consistent reaction model "
