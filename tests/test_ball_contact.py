@@ -38,21 +38,34 @@ def ball_body(size, spacing, centre, margin):
     return body
 
 
-def ball_force(body, centre, depth: float, flat: bool = False, reach: float | None = None):
-    """The ball's normal force (N) and its pressed nodes at ``depth`` (m) below touching.
-
-    Every top node within ``reach`` (default the ball's radius) of the centre may touch; with
-    ``flat`` they all follow the ball from the start (no profile): a flat punch.
-    """
+def top_nodes_near(body, centre, reach: float) -> np.ndarray:
+    """(k,) sorted ids of the body's top nodes within ``reach`` (m) of ``centre`` (xy, m)."""
     nodes = body.mesh.nodes
     top = np.isclose(nodes[:, 2], nodes[:, 2].max())
+    return np.flatnonzero(top & (np.linalg.norm(nodes[:, :2] - np.asarray(centre), axis=1) < reach))
+
+
+def ball_force(body, centre, depth: float, flat: bool = False, reach: float | None = None, known=None):
+    """The ball's normal force (N), its pressed nodes and contact state at ``depth`` (m)
+    below touching.
+
+    Every top node within ``reach`` (default the ball's radius) of the centre may touch; with
+    ``flat`` they all follow the ball from the start (no profile): a flat punch. ``known``:
+    (sorted node ids, their compliance) covering those nodes, read instead of solving.
+    """
+    nodes = body.mesh.nodes
     offsets = nodes[:, :2] - np.asarray(centre)
-    ids = np.flatnonzero(top & (np.linalg.norm(offsets, axis=1) < (reach or RADIUS)))
+    ids = top_nodes_near(body, centre, reach or RADIUS)
     in_print = np.column_stack([offsets[ids], np.zeros(ids.size)])
     motion = np.zeros((ids.size, 3))
     motion[:, 2] = -depth + (0.0 if flat else ball_gaps(in_print, RADIUS))
     frames = np.tile(np.eye(3), (ids.size, 1, 1))
-    state = fem.solve_print_contact(body.compliance(ids), motion, frames, np.full(ids.size, FRICTION))
+    if known is None:
+        compliance = body.compliance(ids)
+    else:
+        dofs = (3 * np.searchsorted(known[0], ids)[:, None] + np.arange(3)).ravel()
+        compliance = known[1][np.ix_(dofs, dofs)]
+    state = fem.solve_print_contact(compliance, motion, frames, np.full(ids.size, FRICTION))
     pressed = state.modes != fem.LIFT
     return float(state.forces[:, 2].sum()), ids[pressed], state
 
