@@ -237,7 +237,8 @@ def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
     The ball of radius ``R`` touches the print plane at the print's origin; over a
     point at distance ``rho`` from it, its lowest point is ``R - sqrt(R^2 - rho^2)``
     above the plane (``~ rho^2 / 2R``, the paraboloid of Hertz's contact near the
-    centre), and nothing of it is below ``R`` beyond ``rho = R``.
+    centre); beyond ``rho = R`` the gap is ``R``, its equator's height (a node there is
+    never touched from above).
 
     Parameters
     ----------
@@ -483,7 +484,7 @@ class DeformableContact:
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
         # (p, 3) body frame: from each node at rest up to its link's surface along the
-        # print normal, nonzero under a ball (its profile, eq. above); the link points
+        # print normal, nonzero under a ball (its profile, ball_gaps); the link points
         # then press a node once they have moved that far: U + gap is the node's motion.
         self.gaps = np.concatenate(gaps)[:, None] * normals_in_body
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
