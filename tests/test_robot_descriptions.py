@@ -11,9 +11,10 @@ import yaml
 import environments
 import stances
 from environments.errors import ScenarioError
-from stances import Robot, RobotDescriptionError, RobotNotFound
+from stances import Robot, RobotDescriptionError, RobotNotFound, StanceError
 from stances.collision import _robot_geometry
 from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
+from stances.problem import build_problem
 
 from cbm.cli import EXIT_BAD_INPUT, main
 from cbm.plan import Plan
@@ -491,18 +492,16 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_default_planne
     """Solo-12, described in a short file as a new user would: its base and upper-leg
     hulls overlap by 4 mm standing, so the file ignores those pairs (else no stance
     holds); the default print grid follows its 0.17 m step (0.042 m, not 0.1 m); the
-    front feet reach the foam (meshed at 12 mm) and the saved plan verifies again. On the
-    foam's default mesh (22.5 mm) a 16 mm ball reaches one node within the indentation
-    bound wherever it stands on the 0.042 m grid: the plan fails and says the mesh is too
-    coarse for the print, and how to fix it.
-
-    Run through the command line in child processes, as a user would."""
+    front feet reach the foam (meshed at 12 mm) and the saved plan verifies again, run
+    through the command line in child processes, as a user would. On the foam's default
+    mesh (22.5 mm) a 16 mm ball reaches two nodes within the indentation bound: a stance
+    with a front foot there is refused, saying the mesh is too coarse for the print and
+    which keys refine it (what a failed plan reports, tests/test_cbm_plan.py)."""
     import subprocess
     import sys
 
     _write(tmp_path / "solo12.yaml", SOLO)
     (tmp_path / "solo-foam.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", "resolution: 0.012"))
-    (tmp_path / "solo-default.yaml").write_text(SOLO_FOAM.replace("RESOLUTION", ""))
 
     def cbm(*arguments):
         return subprocess.run([sys.executable, "-m", "cbm", *arguments], capture_output=True, text=True, timeout=300)
@@ -514,11 +513,16 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_default_planne
     checked = cbm("check", str(tmp_path / "out" / "plan.json"))
     assert checked.returncode == 0 and "every stance verifies" in checked.stdout, checked.stdout + checked.stderr
 
-    failed = cbm("plan", str(tmp_path / "solo-default.yaml"), "--out", str(tmp_path / "default"), "--no-pictures",
-                 "--max-expansions", "8", "--quiet", "--print-spacing", "0.042")
-    assert failed.returncode == 1, failed.stdout + failed.stderr
-    assert "soft mesh too coarse for the print, e.g. StanceError: the print of" in failed.stdout
-    assert "(a scenario's soft_box takes resolution and refine)" in failed.stdout
+    default = environments.load_string(SOLO_FOAM.replace("RESOLUTION", ""), path=tmp_path / "solo-default.yaml")
+    solo = Robot.load(tmp_path / "solo12.yaml")
+    stance = environments.Stance.from_dict({
+        **default.stance("start").to_dict(), "left_front_foot": {"surface": "foam_top", "x": -0.1, "y": 0.169},
+    })
+    with pytest.raises(StanceError, match=re.escape(
+        "the print of left_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed: refine the mesh of "
+        "'foam' where prints land (a scenario's soft_box takes resolution and refine)"
+    )):
+        build_problem(solo, default.scene, stance)
 
 
 def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_path, caplog):
