@@ -179,9 +179,8 @@ def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOption
     extents = {}  # surface name -> its world xy bounds, (2,) lower and upper
     for _, name in pairs:
         if name not in extents:
-            transform = np.asarray(surfaces[name].transform_surface_to_world, dtype=float)
-            polygon = np.asarray(surfaces[name].polygon, dtype=float)
-            corners = np.column_stack([polygon, np.zeros(len(polygon))]) @ transform[:3, :3].T + transform[:3, 3]
+            # The surface's own outline, as a print of it at its origin.
+            corners = surfaces[name].print_polygon_in_world(surfaces[name].polygon, 0.0, 0.0, 0.0)
             extents[name] = (corners[:, :2].min(axis=0), corners[:, :2].max(axis=0))
     for region in regions:
         if region.robot_surface not in robot_surfaces:
@@ -197,10 +196,10 @@ def check_goal_regions(regions, surfaces, robot_surfaces, options=SamplingOption
                 "sampled; widen the sampling region or move the goal region into it")
         bounds = {name: extents[name] for robot_surface, name in pairs if robot_surface == region.robot_surface}
         if not any(np.all(upper >= low) and np.all(lower <= high) for low, high in bounds.values()):
-            extents = "; ".join(f"{name} x {low[0]:g}..{high[0]:g}, y {low[1]:g}..{high[1]:g}"
-                                for name, (low, high) in sorted(bounds.items()))
+            listed = "; ".join(f"{name} x {low[0]:g}..{high[0]:g}, y {low[1]:g}..{high[1]:g}"
+                               for name, (low, high) in sorted(bounds.items()))
             raise CbmError(f"{where} overlaps no surface {region.robot_surface} can go on "
-                           f"({extents or 'none'}); move the region onto one of them")
+                           f"({listed or 'none'}); move the region onto one of them")
 
 
 def count_candidate_prints(surfaces, robot_surfaces, options=SamplingOptions()):

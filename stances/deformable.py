@@ -1274,14 +1274,15 @@ class DeformableContact:
         ends = field[self.node_ids]
         if self._coupling is not None:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
-        relative = np.einsum("pij,pj->pi", self.node_frames, displacements + self.gaps - ends)
+        reached = displacements + self.gaps  # where each link point's surface over its node has moved
+        relative = np.einsum("pij,pj->pi", self.node_frames, reached - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
         # at the coupling's end): bounded by max_mesh_overlap (unbounded, independent audits
         # found 2.8 mm on hand-on-soft-cube's palm on 2026-11-26; 3.6 mm there and 5.2 mm on
         # the paper's coarse cube, 4 nodes under the palm, on 2026-12-03).
-        overlap = -np.einsum("pij,pj->pi", self.node_frames, displacements + self.gaps - field[self.node_ids])[:, 2]
+        overlap = -np.einsum("pij,pj->pi", self.node_frames, reached - field[self.node_ids])[:, 2]
         measures[f"mesh overlap into the links on {name}"] = float(overlap.max())
         if overlap.max() > self.max_mesh_overlap + tolerances.deformable_placement:
             node = int(self.node_ids[int(np.argmax(overlap))])
