@@ -54,15 +54,12 @@ LEVELS = (1, 2, 4)
 REACH = float(np.sqrt(2 * 0.031 * 1.5 * max(DEPTHS)))
 
 
-def scene_row(depth: float) -> list:
-    """The ball on the scene's own foam (its full size and refined region) at h, on a node."""
-    scenario = environments.load("quadruped-foam")
-    body = scenario.scene.deformable_of_surface("foam_top").body
-    top = body.mesh.nodes[:, 2].max()
+def scene_row(body, depth: float) -> list:
+    """The ball on the scene's own foam ``body`` (its full size and refined region) at h, on a node."""
     # A node of the refined region near the front prints' (-0.1, 0.2) of the top frame
     # (body frame: centred, base at z = 0).
-    on_top = np.flatnonzero(np.isclose(body.mesh.nodes[:, 2], top))
-    node = on_top[np.argmin(np.linalg.norm(body.mesh.nodes[on_top, :2] - [-0.1, 0.2], axis=1))]
+    near = top_nodes_near(body, (-0.1, 0.2), SPACING)
+    node = near[np.argmin(np.linalg.norm(body.mesh.nodes[near, :2] - [-0.1, 0.2], axis=1))]
     force, pressed, _ = ball_force(body, body.mesh.nodes[node, :2], depth, reach=REACH + SPACING)
     return [f"| scene's foam 0.4 x 1.0 m | {1e3 * depth:g} | {1e3 * SPACING:g} | on a node | {body.mesh.n_nodes} | "
             f"{pressed.size} | {force:.2f} | | |"]
@@ -93,9 +90,12 @@ def main() -> None:
                     raise RuntimeError(f"pressed nodes reach {spread:.4f} m, past the nodes kept ({reach:.4f} m)")
                 forces[depth, level, offset] = (force, pressed.size, body.mesh.n_nodes)
         forces[level, "time"] = time.process_time() - tic
+        if level == 1:
+            default_body = body  # the flat punch's, below
         print(level, forces, flush=True)
+    foam = environments.load("quadruped-foam").scene.deformable_of_surface("foam_top").body
     for depth in DEPTHS:
-        lines += scene_row(depth)
+        lines += scene_row(foam, depth)
         order, limit = richardson([forces[depth, level, OFFSETS[0]][0] for level in LEVELS])
         reference = "Richardson limit"
         if not np.isfinite(limit):  # not monotone: the finest mesh's force on a node serves
@@ -108,7 +108,7 @@ def main() -> None:
                     f"| block 0.2 x 0.2 m | {1e3 * depth:g} | {1e3 * SPACING / level:g} | {where} | {nodes} | {pressed} | "
                     f"{force:.2f} | {force / limit - 1:+.1%} | {forces[level, 'time']:.1f} |"
                 )
-        flat, _, _ = ball_force(ball_body(BLOCK, SPACING, (0.0, 0.0), MARGIN), (0.0, 0.0), depth, flat=True)
+        flat, _, _ = ball_force(default_body, (0.0, 0.0), depth, flat=True)
         notes.append(
             f"At {1e3 * depth:g} mm: order p = {order:.2f}, reference {limit:.2f} N ({reference}); Hertz's half-space "
             f"{hertz_force(depth):.2f} N (the 50 mm layer on its fixed base is stiffer); the flat punch at h = "
