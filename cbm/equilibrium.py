@@ -154,6 +154,7 @@ class _PrintForces:
     friction: float
     margin: float = 0.0
     free_moment: bool = False
+    min_load: float = 0.0  # least normal load, in weights
 
 
 class EquilibriumFilter:
@@ -166,7 +167,7 @@ class EquilibriumFilter:
     scene : environments Scene
     options : stances PostureOptions, optional
         The options ``stances.solve`` runs with (default: its defaults):
-        contact law, indentation and slip bounds, ``min_normal_force`` and
+        contact law, indentation and slip bounds, ``min_normal_force``, ``support_load`` and
         ``deformable_as_rigid`` shape the LP.
 
     Examples
@@ -200,10 +201,10 @@ class EquilibriumFilter:
         prints = [self._print_forces(contact) for contact in stance]
         if not prints:
             return ""
-        if _feasible(prints, self.com_bounds, self.options.min_normal_force / self.weight, moments=True):
+        if _feasible(prints, self.com_bounds, moments=True):
             return ""
         labels = ", ".join(p.label for p in prints)
-        if not _feasible(prints, self.com_bounds, self.options.min_normal_force / self.weight, moments=False):
+        if not _feasible(prints, self.com_bounds, moments=False):
             return (
                 f"{EQUILIBRIUM_IMPOSSIBLE}: the friction cones of {labels} cannot carry the robot's weight "
                 f"({self.mass:.1f} kg) whatever the posture"
@@ -225,8 +226,13 @@ class EquilibriumFilter:
         else:
             points = robot_surface.vertices_in_frame @ rotation.T + origin
         label = f"{contact.robot_surface} on {surface.name}"
+        # The least load the posture solver asks of the print (PostureProblem._min_normal_loads).
+        share = self.robot.support.load if self.options.support_load is None else self.options.support_load
+        min_load = max(self.options.min_normal_force / self.weight,
+                       share if robot_surface.role == self.robot.support.role else 0.0)
         if not surface.deformable or self.options.deformable_as_rigid:
-            return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction))
+            return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction),
+                                min_load=min_load)
         body = self.scene.deformable_of_surface(surface.name)
         reach = 0.0
         if not robot_surface.is_point and self.options.reaction_model == "consistent":
@@ -240,6 +246,7 @@ class EquilibriumFilter:
             float(surface.friction),
             soft_print_margin(body, rotation[:, 2], self.options) + reach,
             self.options.contact_law == "bonded",
+            min_load,
         )
 
 
@@ -254,7 +261,7 @@ def _covered_reach(deformable_object, polygon_in_world) -> float:
         return 0.0  # stances.solve refuses such a print with its own reason
 
 
-def _feasible(prints, com_bounds, min_normal, moments) -> bool:
+def _feasible(prints, com_bounds, moments) -> bool:
     """Whether the equilibrium LP of ``prints`` has a solution (forces in units of the weight).
 
     Unknowns: each print's point forces (3 per point, world), the centre of
@@ -292,8 +299,8 @@ def _feasible(prints, com_bounds, min_normal, moments) -> bool:
                 line = np.zeros(n)
                 line[columns] = np.tile(row, k)
                 inequalities.append((line, 0.0))
-        if min_normal > 0:
-            inequalities.append((-normal_sum, -min_normal))
+        if p.min_load > 0:
+            inequalities.append((-normal_sum, -p.min_load))
         moment_slack = slice(slack + 3 * index, slack + 3 * index + 3)
         equalities[3:, moment_slack] = np.eye(3)
         if not p.free_moment:

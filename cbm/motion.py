@@ -306,10 +306,12 @@ class ContactSample:
         rigid on the undeformed surface (``rigid_prints``: a print that carries nothing deforms
         nothing, and as a soft print every node would sit exactly where it lifts off, where the
         contact model gives the SQP no direction: cross-two-mats' touch-down of a sole on a soft
-        mat stalled 2 N from unloaded) and no print need carry ``min_normal_force``."""
+        mat stalled 2 N from unloaded) and no print need carry ``min_normal_force``. Loaded or
+        not, the sample moves load onto or off its print, through less than the support
+        share of the weight the stances keep on each foot: no ``support_load`` holds."""
         if not self.unloaded:
-            return dict(options)
-        return {**options, "rigid_prints": (self.robot_surface,), "min_normal_force": 0.0}
+            return {**options, "support_load": 0.0}
+        return {**options, "rigid_prints": (self.robot_surface,), "min_normal_force": 0.0, "support_load": 0.0}
 
     def load(self, result) -> float:
         """Newtons: the magnitude of the resultant force on the frame's link in a result."""

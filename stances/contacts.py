@@ -144,6 +144,7 @@ class RigidContact:
         self.load_frames = (surface.frame,) * n_vertices
         # One print: every vertex load pushes along the print normal.
         self.print_labels = (label,)
+        self.print_surfaces = (robot_surface,)  # the robot surface of each print
         self.load_prints = np.zeros(n_vertices, dtype=int)
         self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
 

@@ -406,6 +406,7 @@ class DeformableContact:
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))
         self.print_labels = tuple(spec.label for spec in self.prints)
+        self.print_surfaces = tuple(spec.robot_surface for spec in self.prints)
         self.load_prints = self.print_of_node
         self.load_frames = tuple(frames[i] for i in self.print_of_node)
         self.patch = body.contact_patch(self.node_ids, self.coverage if self.method == "consistent" else None)

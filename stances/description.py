@@ -135,16 +135,30 @@ class SupportRule:
     keep : int
         Smallest number of surfaces of that role in contact (>= 1): a biped
         keeps one foot down.
+    load : float
+        Smallest share of the robot's weight each of those surfaces carries
+        while in contact, in ``[0, 1)``. On three point feet a foot carries the
+        weight times the centre of mass's distance from the edge opposite the
+        foot over the foot's own, so a quadruped's ``0.1`` keeps its centre of
+        mass a tenth of the way in from each edge of the support triangle
+        instead of on an edge with a foot just touching. 0: a foot may just
+        touch.
     """
 
     role: str = "foot"
     keep: int = 1
+    load: float = 0.0
 
     def __post_init__(self) -> None:
         if self.role not in ROLES:
             raise StanceError(f"support role must be one of {', '.join(ROLES)}, got {self.role!r}")
         if isinstance(self.keep, bool) or not isinstance(self.keep, int) or self.keep < 1:
             raise StanceError(f"support 'keep' must be an integer >= 1, got {self.keep!r}")
+        if isinstance(self.load, bool) or not isinstance(self.load, (int, float)) or not 0.0 <= self.load < 1.0:
+            raise StanceError(
+                f"support 'load' must be a share of the robot's weight in [0, 1), got {self.load!r}"
+            )
+        object.__setattr__(self, "load", float(self.load))
 
 
 def _check_polygon(polygon, owner: str) -> np.ndarray:
@@ -325,6 +339,13 @@ class RobotDescription:
         if not any(surface.role == self.support.role for surface in self.surfaces):
             raise StanceError(
                 f"robot {self.name!r}: the support rule keeps {self.support.role} surfaces but the robot has none"
+            )
+        count = sum(surface.role == self.support.role for surface in self.surfaces)
+        if count * self.support.load >= 1.0:
+            raise StanceError(
+                f"robot {self.name!r}: the support rule asks each of its {count} {self.support.role} surfaces to "
+                f"carry {self.support.load:g} of the weight, {count * self.support.load:g} in all when all touch; "
+                f"give a 'load' below {1.0 / count:.4g}"
             )
         object.__setattr__(self, "limbs", dict(self.limbs))
 
@@ -516,7 +537,7 @@ class _Reader:
         if not isinstance(surfaces_data, Mapping) or not surfaces_data:
             raise self.error("surfaces", f"must be a non-empty mapping of surface names to surfaces, got {kind_of(surfaces_data)}")
         surfaces = tuple(self.surface(str(surface), item, limbs) for surface, item in surfaces_data.items())
-        support_data = self.mapping(top.get("support", {}), "support", ("role", "keep"))
+        support_data = self.mapping(top.get("support", {}), "support", ("role", "keep", "load"))
         pairs = {key: self.geometry_pairs(top.get(key, []), key) for key in ("checked_pairs", "ignored_pairs")}
         both = set(pairs["checked_pairs"]) & {p for pair in pairs["ignored_pairs"] for p in (pair, pair[::-1])}
         if both:

@@ -43,6 +43,7 @@ from .terms import (
     PostureCost,
     TorqueLimitConstraint,
     TorqueUsageCost,
+    print_normal_loads,
 )
 
 
@@ -129,6 +130,13 @@ class PostureOptions:
         a contact is a support, not a touch. With the torque-usage term a
         palm whose load the legs can take carries nothing by default; set a
         bound where a stance means the hand to push.
+    support_load : float or None
+        Each print of a surface with the robot's support role (its feet)
+        carries at least this share of the robot's weight along its normal, so
+        the centre of mass keeps inside the support polygon rather than on its
+        edge; None (default) takes the robot's support rule
+        (``SupportRule.load``: ANYmal 0.1, the bipeds 0), 0 lets a foot just
+        touch. A print's bound is the larger of this and ``min_normal_force``.
     friction_margin : float
         Deformable supports: each print's resultant force stays within the
         friction pyramid of a rigid contact (edges on the Coulomb cone) with mu
@@ -210,6 +218,7 @@ class PostureOptions:
     max_indentation: float | None = None
     contact_law: str = "coulomb"
     min_normal_force: float = 0.0
+    support_load: float | None = None
     friction_margin: float = 0.99
     max_slip: float = 0.02
     max_mesh_overlap: float = 2e-3
@@ -266,6 +275,14 @@ class PostureOptions:
             raise StanceError(
                 f"collision_activation ({self.collision_activation:g} m) must be at least collision_distance "
                 f"({self.collision_distance:g} m): pairs nearer than the distance they keep would not be checked"
+            )
+        if self.support_load is not None and (
+            isinstance(self.support_load, bool) or not isinstance(self.support_load, numbers.Real)
+            or not 0.0 <= self.support_load < 1.0
+        ):
+            raise StanceError(
+                f"support_load must be a share of the robot's weight in [0, 1) (or None: the robot's support "
+                f"rule), got {self.support_load!r}"
             )
         if self.max_indentation is not None and not 0.0 < self.max_indentation < np.inf:
             raise StanceError(f"max_indentation must be > 0 metres and finite (or None), got {self.max_indentation}")
@@ -465,8 +482,9 @@ class PostureProblem:
         self.force_step = _FORCE_STEP_IN_WEIGHTS * robot.mass * 9.81  # N, bound on a force variable's step
         # The pieces linearize stacks, in this order (rows and costs), see stances.terms.
         self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint.for_robot(robot, options.effort_margin)]
-        if options.min_normal_force > 0:
-            self.constraints.append(NormalLoadConstraint(options.min_normal_force))
+        self.min_normal_loads = self._min_normal_loads(robot, contacts, options)
+        if np.any(self.min_normal_loads > 0):
+            self.constraints.append(NormalLoadConstraint(self.min_normal_loads))
         self.constraints.append(ContactConstraints())
         if collision_checker is not None:
             self.constraints.append(
@@ -530,14 +548,26 @@ class PostureProblem:
                 out[s] = np.asarray(lam)[slices[contact.robot_surface]]
         return out
 
-    def limit_usage(self, q, torques) -> dict:
-        """How close a posture comes to the robot's joint and effort limits.
+    @staticmethod
+    def _min_normal_loads(robot, contacts, options) -> np.ndarray:
+        """(k,) newtons: the least load each print carries along its normal, in the
+        order of :func:`stances.terms.print_normal_loads`: ``min_normal_force``, and
+        for a print of a support surface (a foot) the support share of the weight."""
+        share = robot.support.load if options.support_load is None else options.support_load
+        surfaces = [surface for contact in contacts for surface in contact.print_surfaces]
+        feet = np.array([robot.surface(surface).role == robot.support.role for surface in surfaces], dtype=bool)
+        return np.maximum(options.min_normal_force, np.where(feet, share * robot.mass * 9.81, 0.0))
+
+    def limit_usage(self, q, torques, iterate=None) -> dict:
+        """How close a posture comes to the robot's joint, effort and load limits.
 
         Parameters
         ----------
         q : (nq,) float
         torques : (nv - 6,) float
             Actuated joint torques, N m.
+        iterate : Iterate, optional
+            The iterate whose contact forces give the prints' loads.
 
         Returns
         -------
@@ -550,7 +580,11 @@ class PostureProblem:
             keeps (a margin of zero means on the limit itself). Torques are
             moved off half their limit by the objective; positions are not, so
             a joint may sit on its position margin where the posture term or a
-            constraint pulls it.
+            constraint pulls it. With ``iterate`` and contacts, ``least_load``
+            (the smallest load a print carries along its normal, as a share of
+            the robot's weight) and its ``least_load_print``; a print on the
+            least load its support share or ``min_normal_force`` asks is in
+            ``at_margin`` too.
         """
         model, options = self.robot.model, self.options
         names = self.robot.actuated_joint_names
@@ -565,13 +599,23 @@ class PostureProblem:
             for i in np.flatnonzero(clearance <= options.joint_margin + _ON_BOUND)
         ]
         worst_torque, worst_joint = int(np.argmax(usage)), int(np.argmin(clearance))
-        return {
+        usage = {
             "torque_usage": float(usage[worst_torque]),
             "torque_joint": names[worst_torque],
             "joint_clearance": float(clearance[worst_joint]),
             "clearance_joint": names[worst_joint],
-            "at_margin": at_margin,
         }
+        if iterate is not None and len(iterate.forces):
+            labels, loads, _ = print_normal_loads(self, iterate)
+            weight = self.robot.mass * 9.81
+            bound = self.min_normal_loads > 0
+            at_margin += [
+                f"{labels[i]} carrying {100 * loads[i] / weight:.1f} % of the weight, its least"
+                for i in np.flatnonzero(bound & (loads <= self.min_normal_loads + _ON_BOUND * weight))
+            ]
+            least = int(np.argmin(loads))
+            usage.update(least_load=float(loads[least] / weight), least_load_print=labels[least])
+        return {**usage, "at_margin": at_margin}
 
     def check_configuration(self, q) -> np.ndarray:
         """A validated copy of ``q`` (size, finite, unit quaternion renormalised)."""

@@ -719,7 +719,7 @@ def _result(problem, outcome, elapsed, check=True) -> PostureResult:
         reason=outcome.reason,
         stance=problem.stance,
         deformations=deformations,
-        limits=problem.limit_usage(q, linearization.torques[6:]),
+        limits=problem.limit_usage(q, linearization.torques[6:], linearization.iterate),
         statistics={
             "status": outcome.status, "qp_time": outcome.qp_time, "penalty": outcome.penalty,
             "lambda": lam.tolist(), "violation": violation, "curvature_iterations": outcome.curved_iterations,

@@ -219,14 +219,15 @@ class TorqueLimitConstraint:
 
 @dataclass(frozen=True)
 class NormalLoadConstraint:
-    """Each print's load along its normal, at least ``minimum`` newtons.
+    """Each print's load along its normal, at least its ``minimum``.
 
     Parameters
     ----------
-    minimum : float
+    minimum : (k,) float
+        Newtons, one per print in the order of :func:`print_normal_loads`.
     """
 
-    minimum: float
+    minimum: np.ndarray
 
     def blocks(self, problem, iterate):
         if not len(iterate.forces):
@@ -235,7 +236,7 @@ class NormalLoadConstraint:
         count = len(value)
         return [
             ConstraintBlock(
-                "normal load", value, jacobian, np.full(count, self.minimum), np.full(count, np.inf), 1.0,
+                "normal load", value, jacobian, np.asarray(self.minimum, float), np.full(count, np.inf), 1.0,
                 tuple(f"normal load of {label}" for label in labels),
             )
         ]

@@ -314,6 +314,15 @@ BAD_DESCRIPTIONS = {
                                            {"links": ["base_link"], "rpy_deg": [0, 90, 0]}]),
         "mesh_rotations: link 'base_link' is listed twice; give each link one rotation",
     ),
+    "support load not a share": (
+        lambda d: d.update(support={"role": "foot", "keep": 1, "load": 1.5}),
+        "support 'load' must be a share of the robot's weight in [0, 1), got 1.5",
+    ),
+    "support load the feet cannot all carry": (
+        lambda d: d.update(support={"role": "foot", "keep": 1, "load": 0.5}),
+        "robot 'talos': the support rule asks each of its 2 foot surfaces to carry 0.5 of the weight, 1 in all "
+        "when all touch; give a 'load' below 0.5",
+    ),
     "unknown key": (
         lambda d: d["surfaces"]["left_sole"].update(colour="red"),
         "surfaces.left_sole.colour: unknown key 'colour'; valid keys: role, limb, link, xyz, rpy_deg, polygon, point, plate, geometries",
