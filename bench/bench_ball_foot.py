@@ -3,8 +3,9 @@
 Run as ``.venv/bin/python bench/bench_ball_foot.py``; prints a markdown table and writes it
 to ``bench/results/ball_foot.md``.
 
-ANYmal's ball foot (radius 31 mm) pressed straight down into quadruped-foam's foam (E = 1e6
-Pa, nu = 0.4, 50 mm thick, base fixed, friction 0.7) by a fixed depth: 2.5 mm (quadruped-foam's
+ANYmal's ball foot (radius 31 mm) pressed straight down into quadruped-foam's foam (its
+material: E = 1e6 Pa until 2026-12-03, 3e6 Pa since, and at a fixed depth every force
+scales with E; nu = 0.4, 50 mm thick, base fixed, friction 0.7) by a fixed depth: 2.5 mm (quadruped-foam's
 planned stances press it 2.4-3.9 mm deep) and 1 mm. The print's nodes lie the
 ball's profile below it (``stances.deformable.ball_gaps``) and the Signorini-Coulomb contact
 is solved on their condensed compliance, as the posture solver does. The study's block is
