@@ -54,6 +54,18 @@ def robot():
     return Robot.load("talos")
 
 
+@pytest.fixture(scope="session")
+def anymal():
+    """ANYmal, the built-in quadruped with ball feet, loaded once per test session."""
+    return Robot.load("anymal")
+
+
+@pytest.fixture(scope="session")
+def walk():
+    """The scenario quadruped-walk (rigid floor and step), loaded once per test session."""
+    return environments.load("quadruped-walk")
+
+
 @functools.lru_cache(maxsize=None)
 def coarse_scenario(name: str, resolution: str = "0.04", young_modulus: float | None = None,
                     density: float | None = None):

@@ -13,7 +13,7 @@ import pytest
 import environments
 import stances
 from conftest import assert_point_feet_are_their_spheres
-from stances import Robot, StanceError
+from stances import StanceError
 from stances.contacts import PointContact, point_placement_residual
 from stances.description import point_print
 from stances.problem import PostureOptions, build_problem
@@ -21,16 +21,6 @@ from stances.verify import verify_problem
 
 EPS = 1e-6
 FOOT_RADIUS = 0.031  # ANYmal's foot spheres, from its URDF
-
-
-@pytest.fixture(scope="module")
-def anymal():
-    return Robot.load("anymal")
-
-
-@pytest.fixture(scope="module")
-def walk():
-    return environments.load("quadruped-walk")
 
 
 @pytest.fixture(scope="module")

@@ -12,21 +12,11 @@ import environments
 import stances
 from cbm.equilibrium import EQUILIBRIUM_IMPOSSIBLE, EquilibriumFilter
 from cbm.motion import ContactSample
-from stances import Robot, StanceError
+from stances import StanceError
 from stances.description import SupportRule
 from stances.problem import PostureOptions, build_problem
 
 GRAVITY = 9.81
-
-
-@pytest.fixture(scope="module")
-def anymal():
-    return Robot.load("anymal")
-
-
-@pytest.fixture(scope="module")
-def walk():
-    return environments.load("quadruped-walk")
 
 
 def _normal_loads(result):
