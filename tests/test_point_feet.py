@@ -12,6 +12,7 @@ import pytest
 
 import environments
 import stances
+from environments import Contact, ContactPrint, Stance
 from conftest import assert_point_feet_are_their_spheres
 from stances import StanceError
 from stances.contacts import PointContact, point_placement_residual
@@ -166,6 +167,36 @@ def foam():
 def on_foam(anymal, foam):
     stance = foam.stance("front-feet-on-foam")
     return build_problem(anymal, foam.scene, stance), stances.solve(anymal, foam.scene, stance)
+
+
+# A posture quadruped-foam's planner (seed 2) started a stance from: its rigid warm start
+# took 65 SQP iterations, and from there the Coulomb stage crept far from feasible.
+PLANNER_WARM_START = [
+    0.2119381614724711, -0.003299890539567971, 0.5678880800936528, 0.021932978182187365, -0.07713108870319813,
+    0.0728318832134845, 0.9941153134375792, -0.04807209690463005, -0.0059163506300570915, 0.1620439951841167,
+    -0.2384878578762019, -0.5855250631579606, 0.8408347257480575, 0.1533802553563615, 0.7534386481523025,
+    -0.9946798667703981, -0.03922253555209754, -0.4360520734139958, 0.7856335742076938,
+]
+
+
+def test_held_contact_modes_start_from_the_rigid_answers_forces_where_the_free_stage_failed(anymal, foam):
+    """Both front balls on the foam, the left one 0.1 m beside its hip. The modes held from
+    the rigid answer's posture are those of its loads pressing the balls in: W read off that
+    posture instead leaves every node lifting off, where no load row has a gradient (an
+    attempt that began 29.9 N short of each foot's share, the stance declared unreachable)."""
+    # The planner's print grid, to its last bit (0.1 m steps summed from the start's feet).
+    stance = Stance(tuple(Contact(foot, ContactPrint(surface, x, y)) for foot, surface, x, y in (
+        ("left_front_foot", "foam_top", -0.1, 0.30000000000000004),
+        ("right_front_foot", "foam_top", 0.0, -0.19999999999999996),
+        ("left_hind_foot", "floor", -0.09999999999999964, 0.10000000000000053),
+        ("right_hind_foot", "floor", -0.09999999999999964, -0.2999999999999998),
+    )))
+    result = stances.solve(anymal, foam.scene, stance, q_init=np.array(PLANNER_WARM_START))
+    assert result.feasible, result.reason
+    weight = anymal.mass * 9.81
+    assert result.limits["least_load"] >= 0.1 * (1 - 1e-6)
+    assert stances.verify(anymal, foam.scene, stance, result).ok
+    assert sum(p.force[2] for p in result.point_forces) == pytest.approx(weight, rel=1e-6)
 
 
 def test_a_ball_foot_presses_the_foam_nodes_under_its_print_from_its_centre(anymal, foam, on_foam):
