@@ -50,6 +50,7 @@ import pinocchio as pin
 from scipy.optimize import linprog
 
 import fem
+from stances.problem import PostureOptions, min_normal_load
 
 __all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
 
@@ -180,8 +181,6 @@ class EquilibriumFilter:
     """
 
     def __init__(self, robot, scene, options=None):
-        from stances.problem import PostureOptions
-
         self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
@@ -226,10 +225,8 @@ class EquilibriumFilter:
         else:
             points = robot_surface.vertices_in_frame @ rotation.T + origin
         label = f"{contact.robot_surface} on {surface.name}"
-        # The least load the posture solver asks of the print (PostureProblem._min_normal_loads).
-        share = self.robot.support.load if self.options.support_load is None else self.options.support_load
-        min_load = max(self.options.min_normal_force / self.weight,
-                       share if robot_surface.role == self.robot.support.role else 0.0)
+        # The least load the posture solver asks of the print, in weights.
+        min_load = min_normal_load(self.robot, contact.robot_surface, self.options) / (self.robot.mass * 9.81)
         if not surface.deformable or self.options.deformable_as_rigid:
             return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction),
                                 min_load=min_load)

@@ -550,13 +550,10 @@ class PostureProblem:
 
     @staticmethod
     def _min_normal_loads(robot, contacts, options) -> np.ndarray:
-        """(k,) newtons: the least load each print carries along its normal, in the
-        order of :func:`stances.terms.print_normal_loads`: ``min_normal_force``, and
-        for a print of a support surface (a foot) the support share of the weight."""
-        share = robot.support.load if options.support_load is None else options.support_load
+        """(k,) newtons: :func:`min_normal_load` of each print, in the order of
+        :func:`stances.terms.print_normal_loads`."""
         surfaces = [surface for contact in contacts for surface in contact.print_surfaces]
-        feet = np.array([robot.surface(surface).role == robot.support.role for surface in surfaces], dtype=bool)
-        return np.maximum(options.min_normal_force, np.where(feet, share * robot.mass * 9.81, 0.0))
+        return np.array([min_normal_load(robot, surface, options) for surface in surfaces], dtype=float)
 
     def limit_usage(self, q, torques, iterate=None) -> dict:
         """How close a posture comes to the robot's joint, effort and load limits.
@@ -768,6 +765,15 @@ class PostureProblem:
         pin.updateFramePlacements(model, data)
         tau_jacobian = np.hstack([dtau_dq + dtau_dforces @ force_dq, dtau_dforces @ force_dlam])
         return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian)
+
+
+def min_normal_load(robot, robot_surface: str, options: PostureOptions) -> float:
+    """Newtons: the least load a print of ``robot_surface`` carries along its normal,
+    ``min_normal_force`` or, for a surface of the robot's support role (a foot), its
+    share of the weight (``options.support_load``, else the robot's support rule), the larger."""
+    share = robot.support.load if options.support_load is None else options.support_load
+    foot = robot.surface(robot_surface).role == robot.support.role
+    return max(options.min_normal_force, share * robot.mass * 9.81 if foot else 0.0)
 
 
 def check_posture_arguments(robot, scene, stance) -> None:
