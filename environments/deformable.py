@@ -52,9 +52,9 @@ DEFAULT_STRAIN_RADIUS = 0.02
 """Radius (metres) of the ball over which a soft object's strain is averaged before
 its bound is applied (:class:`fem.strain_average.BallAverages`). A tet's own strain
 under a rigid print's edge grows without bound as the mesh is refined (a palm on the
-foam mat: 0.121 on the default mesh, 0.182 refined twice), so a bound on it would
-make the answer depend on the mesh; the mean over a 2 cm ball (about a default cell)
-gives 0.076 on both."""
+foam mat: 0.117 on the default mesh, 0.163 refined twice, 0.215 four times), so a bound
+on it would make the answer depend on the mesh; the mean over a 2 cm ball (about a
+default cell) gives 0.072, 0.069 and 0.072."""
 
 RESOLUTIONS = {"coarse": 0.05, "default": 0.0225}
 """Fine node spacing h of a soft box's mesh where prints land, metres.
@@ -64,13 +64,12 @@ every cell, in plane and in depth. ``default`` is chosen so that a Talos palm pr
 (0.10 m x 0.07 m) placed anywhere, at any angle, on the refined region covers at
 least 9 surface nodes (a grid of spacing h, sampled over offsets and angles, leaves
 at least 10 under such a rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m)
-covers about 30. At this spacing a rigid print's force is still 7-18 % above that
-of the mesh refined twice, and 13-21 % (1 m cube) to 29-42 % (0.1 m mat) above the
-extrapolated converged value (``bench/results/mesh_convergence.md``): linear tets
-resolve the edge of a rigid print slowly, in h^1.3. Those figures are for a print whose
-edges lie on node rows, the worst placement; averaged over where a print lands, the
-default mesh's force is within 5 % of the refined mesh's and of the limit (single
-placements measured: -5 % to +13 % of the limit).
+covers about 30. At this spacing the force of a print made of the nodes inside it is
+still 6-15 % above that of the mesh refined twice, and 11-49 % above the extrapolated
+converged value (``bench/results/mesh_convergence.md``): linear tets resolve the edge
+of a rigid print slowly. Those figures are for a print whose edges lie on node rows,
+the worst placement; the covered print the posture solver uses changes by at most
+2.4 % from the default mesh to the refined one, wherever it lies.
 ``coarse`` is for fast tests: a sole print still covers several nodes, a palm
 print may cover fewer than 9.
 """

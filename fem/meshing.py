@@ -24,8 +24,7 @@ MAX_TENSOR_NODES = 2_000_000
 def _kuhn_tets() -> np.ndarray:
     """The 6 tets of the unit cube around its diagonal 000-111, positively oriented.
 
-    Corners are numbered ``i + 2 j + 4 k``. Every cube uses the same diagonal, so the
-    subdivision (Kuhn / Freudenthal) is conforming across faces.
+    Corners are numbered ``i + 2 j + 4 k`` (the Kuhn / Freudenthal subdivision).
     """
     tets = []
     for perm in itertools.permutations(range(3)):
@@ -42,6 +41,40 @@ def _kuhn_tets() -> np.ndarray:
 
 
 _CUBE_TETS = _kuhn_tets()
+
+# An odd number of mirrorings reverses a tet's orientation: swap its last two nodes.
+_REVERSES = np.array([bin(f).count("1") % 2 == 1 for f in range(8)])
+
+
+def _mirrored_tets(corners: np.ndarray, flips: np.ndarray) -> np.ndarray:
+    """Tets of cells split around alternating diagonals: each cell the mirror image of its neighbours.
+
+    One diagonal everywhere (Kuhn) makes the mesh stiffer along it: a vertical point
+    load on a top node of a 10 mm foam mesh moved the node sideways by 0.12 of its
+    sinking, along (+x, +y) at every node, and a ball or a sole pressed straight
+    down got a sideways reaction of 10 % or 2 % of its load, always the same way.
+    Mirroring the cells of odd index along an axis across that axis keeps the mesh
+    conforming (neighbours split their shared face along the same face diagonal)
+    and makes it symmetric about every grid plane, so that bias cancels: the
+    sideways motion falls to under 0.001 of the sinking.
+
+    Parameters
+    ----------
+    corners : (c, 8) int
+        Node ids of each cell's corners in ``i + 2 j + 4 k`` order.
+    flips : (c,) int
+        Bit a set: mirror the cell along axis a.
+
+    Returns
+    -------
+    (6 c, 4) int
+        Positively oriented tets.
+    """
+    mirrored = np.take_along_axis(corners, np.arange(8)[None, :] ^ flips[:, None], axis=1)
+    tets = mirrored[:, _CUBE_TETS]  # (c, 6, 4)
+    reverse = _REVERSES[flips]
+    tets[reverse] = tets[reverse][:, :, [0, 1, 3, 2]]
+    return tets.reshape(-1, 4)
 
 
 def _check_axis(name: str, values: Sequence[float]) -> np.ndarray:
@@ -60,7 +93,8 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float], c
     """Mesh the box ``[xs[0], xs[-1]] x [ys[0], ys[-1]] x [zs[0], zs[-1]]`` (or some of its cells) with tets.
 
     Each cell of the grid ``xs x ys x zs`` is split into 6 positively oriented tets
-    around its diagonal, the same way everywhere, so the mesh is conforming. Uneven
+    around a diagonal, each cell the mirror image of its neighbours (so the mesh is
+    conforming and has no preferred direction, :func:`_mirrored_tets`). Uneven
     spacings let a scene refine only where prints land.
 
     Parameters
@@ -105,18 +139,20 @@ def tensor_mesh(xs: Sequence[float], ys: Sequence[float], zs: Sequence[float], c
         [dx + nx * (dy + ny * dz) for dz in (0, 1) for dy in (0, 1) for dx in (0, 1)]
     )
     corners = base[:, None] + corner_offsets[None, :]  # (cells, 8) in i + 2j + 4k order
+    # Bit a of flips: the cell is mirrored along axis a (odd index along it).
+    flips = ((i % 2) + 2 * (j % 2) + 4 * (k % 2)).ravel()
     if cells is not None:
         cells = np.asarray(cells)
         if cells.shape != (nx - 1, ny - 1, nz - 1) or cells.dtype != bool:
             raise MeshError(f"cells must be a boolean array of shape {(nx - 1, ny - 1, nz - 1)}, got {cells.dtype} {cells.shape}")
         if not cells.any():
             raise MeshError("cells keeps no cell of the grid: nothing to mesh")
-        corners = corners[cells.ravel()]
+        corners, flips = corners[cells.ravel()], flips[cells.ravel()]
         used = np.unique(corners)
         renumber = np.full(len(nodes), -1)
         renumber[used] = np.arange(used.size)
         nodes, corners = nodes[used], renumber[corners]
-    tets = corners[:, _CUBE_TETS].reshape(-1, 4)
+    tets = _mirrored_tets(corners, flips)
     return TetMesh(nodes, tets)
 
 

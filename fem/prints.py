@@ -155,8 +155,8 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     >>> from fem import box_mesh
     >>> mesh = box_mesh((1, 1, 1), (4, 4, 4))     # top nodes every 0.25 m
     >>> ids, coverage = print_coverage(mesh, [[0.25, 0.25, 1], [0.75, 0.25, 1], [0.75, 0.75, 1], [0.25, 0.75, 1]])
-    >>> ids.size, sorted(set(coverage.round(3).tolist()))   # corners (1 or 2 of 6 triangles), edges, centre
-    (9, [0.167, 0.333, 0.5, 1.0])
+    >>> ids.size, sorted(set(coverage.round(3).tolist()))   # corners, edges, centre: a quarter, half, all
+    (9, [0.25, 0.5, 1.0])
     """
     key = (np.asarray(polygon_in_body, dtype=float).tobytes(), float(tolerance))
     cached = _COVERAGE_CACHE.setdefault(mesh, {})

@@ -213,8 +213,11 @@ def print_forces(cells):
 
 
 def test_traction_and_consistent_total_forces_agree_better_on_finer_meshes():
+    # The print's edges lie on odd node rows (1, 3 and 5 cells in): rows of the same kind
+    # (the mesh's cells alternate), so the meshes differ in cell size only.
+    # Measured 0.42, 0.24, 0.19 (0.49, 0.39, 0.33 at 8, 16, 24 cells).
     gaps = []
-    for cells in (4, 8, 12):
+    for cells in (4, 12, 20):
         consistent, traction = print_forces(cells)
         gaps.append(abs(traction[:, 2].sum() / consistent[:, 2].sum() - 1.0))
     assert gaps[0] > gaps[1] > gaps[2]

@@ -42,6 +42,42 @@ def test_tensor_mesh_is_conforming_every_interior_face_shared_twice():
     assert mesh.volumes.sum() == pytest.approx(1.0, rel=1e-12)
 
 
+def test_tensor_mesh_cells_are_mirror_images_so_it_is_symmetric_about_every_grid_plane():
+    # Splitting every cell around the same diagonal (Kuhn) has no such symmetry: its
+    # mirror image about a grid plane is a different mesh.
+    mesh = tensor_mesh(np.linspace(0.0, 0.4, 5), [0.0, 0.1, 0.2, 0.35], [0.0, 0.02, 0.04, 0.1])
+    points = mesh.nodes.round(12)
+    own = {tuple(sorted(map(tuple, points[t].tolist()))) for t in mesh.tets}
+    nodes = {tuple(p) for p in points.tolist()}
+    for axis, plane in ((0, 0.1), (0, 0.2), (0, 0.3), (1, 0.1), (2, 0.02)):
+        mirrored = points.copy()
+        mirrored[:, axis] = (2.0 * plane - mirrored[:, axis]).round(12)
+        on_nodes = np.array([tuple(p) in nodes for p in mirrored.tolist()])
+        kept = mesh.tets[on_nodes[mesh.tets].all(axis=1)]  # tets whose image lies on the grid
+        images = [tuple(sorted(map(tuple, mirrored[t].tolist()))) for t in kept]
+        assert len(images) >= 24 and all(image in own for image in images), (axis, plane)
+
+
+def test_a_vertical_load_moves_a_top_node_straight_down_and_a_centred_print_gets_no_sideways_force():
+    # One diagonal everywhere moved the node sideways by 0.12 of its sinking, along
+    # (+x, +y), and pushed a centred print sideways by 2-4 % of its load.
+    from fem import DeformableBody, LinearElasticMaterial, print_coverage
+
+    mesh = box_mesh((0.4, 0.4, 0.1), (16, 16, 4))
+    body = DeformableBody(mesh, LinearElasticMaterial(1e6, 0.45), np.flatnonzero(mesh.nodes[:, 2] == 0.0), cache=False)
+    top = np.flatnonzero(np.isclose(mesh.nodes[:, 2], 0.1))
+    for x, y in ((0.2, 0.2), (0.15, 0.25), (0.175, 0.2)):
+        node = top[np.argmin(np.linalg.norm(mesh.nodes[top, :2] - [x, y], axis=1))]
+        column = body.compliance([node])[:, 2]
+        # Off the centre the pad's edges pull it sideways a little (continuum, not mesh).
+        assert np.abs(column[:2]).max() < 0.01 * column[2], (x, y, column)
+    half = np.array([0.05, 0.025])
+    polygon = [[0.2 + sx * half[0], 0.2 + sy * half[1], 0.1] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
+    ids, coverage = print_coverage(mesh, polygon)
+    forces = body.contact_patch(ids, coverage).reaction_forces(np.tile([0.0, 0.0, -0.002], (ids.size, 1))).sum(axis=0)
+    assert np.abs(forces[:2]).max() < 1e-9 * forces[2]
+
+
 def test_surface_normals_point_outward(graded_box):
     mesh = graded_box
     weighted = (mesh.surface_normals * mesh.surface_areas[:, None]).sum(axis=0)
