@@ -184,8 +184,8 @@ class EquilibriumFilter:
         self.options = options if options is not None else PostureOptions()
         self.robot = robot
         self.scene = scene
-        self.mass = float(pin.computeTotalMass(robot.model))
-        self.weight = self.mass * float(np.linalg.norm(robot.model.gravity.linear))
+        self.mass = robot.mass
+        self.weight = robot.weight
         self.com_bounds = com_distance_bounds(robot)
 
     def __call__(self, stance) -> str:
@@ -226,7 +226,7 @@ class EquilibriumFilter:
             points = robot_surface.vertices_in_frame @ rotation.T + origin
         label = f"{contact.robot_surface} on {surface.name}"
         # The least load the posture solver asks of the print, in weights.
-        min_load = min_normal_load(self.robot, contact.robot_surface, self.options) / (self.robot.mass * 9.81)
+        min_load = min_normal_load(self.robot, contact.robot_surface, self.options) / self.weight
         if not surface.deformable or self.options.deformable_as_rigid:
             return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction),
                                 min_load=min_load)

@@ -479,7 +479,7 @@ class PostureProblem:
         self.q_lower, self.q_upper = lower + keep, upper - keep
         self.effort_limits = robot.effort_limits  # (nv - 6,) N m, read at every linearisation
         self.effort = (1.0 - options.effort_margin) * self.effort_limits
-        self.force_step = _FORCE_STEP_IN_WEIGHTS * robot.mass * 9.81  # N, bound on a force variable's step
+        self.force_step = _FORCE_STEP_IN_WEIGHTS * robot.weight  # N, bound on a force variable's step
         # The pieces linearize stacks, in this order (rows and costs), see stances.terms.
         self.constraints = [EquilibriumConstraint(), TorqueLimitConstraint.for_robot(robot, options.effort_margin)]
         self.min_normal_loads = self._min_normal_loads(robot, contacts, options)
@@ -507,7 +507,7 @@ class PostureProblem:
         lam = np.zeros(self.n_variables)
         rigid = [(c, s) for c, s in zip(self.contacts, self.variable_slices) if c.kind == "rigid"]
         if rigid:
-            weight = self.robot.mass * 9.81
+            weight = self.robot.weight
             # Cone edges are tilted: each carries cos(edge, normal) vertically.
             vertical = min(c.generators[2::3].sum(axis=0).max() for c, _ in rigid)
             count = sum(c.n_variables for c, _ in rigid)
@@ -604,7 +604,7 @@ class PostureProblem:
         }
         if iterate is not None and len(iterate.forces):
             labels, loads, _ = print_normal_loads(self, iterate)
-            weight = self.robot.mass * 9.81
+            weight = self.robot.weight
             bound = self.min_normal_loads > 0
             at_margin += [
                 f"{labels[i]} carrying {100 * loads[i] / weight:.1f} % of the weight, its least"
@@ -773,7 +773,7 @@ def min_normal_load(robot, robot_surface: str, options: PostureOptions) -> float
     share of the weight (``options.support_load``, else the robot's support rule), the larger."""
     share = robot.support.load if options.support_load is None else options.support_load
     foot = robot.surface(robot_surface).role == robot.support.role
-    return max(options.min_normal_force, share * robot.mass * 9.81 if foot else 0.0)
+    return max(options.min_normal_force, share * robot.weight if foot else 0.0)
 
 
 def check_posture_arguments(robot, scene, stance) -> None:

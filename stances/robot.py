@@ -537,6 +537,11 @@ class Robot:
         """Total mass, kilograms."""
         return float(pin.computeTotalMass(self.model))
 
+    @property
+    def weight(self) -> float:
+        """Weight, newtons: the mass times the model's gravity."""
+        return self.mass * float(np.linalg.norm(self.model.gravity.linear))
+
     def surface(self, name: str) -> RobotSurface:
         """The robot contact surface called ``name``.
 
