@@ -4,7 +4,7 @@ Rigid objects, deformable (FEM) objects, the contact surfaces on them, stances
 (sets of contact prints), goals, and scenario files that put them together.
 """
 
-from .deformable import DeformableObject, soft_box
+from .deformable import DeformableObject, RefineLines, soft_box
 from .errors import ScenarioError, SceneError
 from .goal import Goal, GoalRegion
 from .mesh_surfaces import SurfaceSearch, auto_surfaces, find_surfaces
@@ -25,6 +25,7 @@ __all__ = [
     "FixedPlane",
     "Goal",
     "GoalRegion",
+    "RefineLines",
     "RigidObject",
     "Scenario",
     "ScenarioError",

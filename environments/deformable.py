@@ -35,6 +35,7 @@ __all__ = [
     "RESOLUTIONS",
     "soft_box_coordinates",
     "grid_coordinates",
+    "RefineLines",
     "DEFAULT_STRAIN_LIMIT",
     "GRAVITY",
     "DEFAULT_STRAIN_RADIUS",
@@ -461,7 +462,125 @@ def _fine_spacing(resolution) -> float:
     return fine
 
 
-def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+@dataclass(frozen=True)
+class RefineLines:
+    """Bands of finer cells along lines of a soft box's top face, where point feet land.
+
+    A ball foot presses a contact of radius ``sqrt(r d)`` (5-9 mm for ANYmal's 31 mm
+    foot 0.7-2.5 mm deep), smaller than the cells a whole region can afford. Its
+    force converges only on cells of a few millimetres, which a planner needs only
+    at its print origins: a grid of lines. Each line gets cells of ``resolution``
+    within ``half_width`` of it, and the top layer is ``resolution`` thick; the
+    rest of the mesh is the box's own (:func:`soft_box_coordinates`). On
+    quadruped-foam's foam (5 mm bands 15 mm wide either side of the print lines,
+    33,000 nodes against 14,790), a ball on a print origin 0.7 / 1.5 / 2.5 mm deep
+    carries within +5 %, +5 % and -1 % of the same bands at 2.5 mm, where the 10 mm
+    mesh is +37 %, -13 % and -13 % off.
+
+    Parameters
+    ----------
+    x, y : sequence of float
+        Lines ``x = c`` and ``y = c`` of the top face, metres, top-surface frame
+        (origin at the top-face centre); at least one line in all.
+    half_width : float
+        Metres either side of a line meshed at ``resolution``.
+    resolution : float
+        Cell size along the bands and the top layer's thickness, metres, finer
+        than the box's resolution.
+    """
+
+    x: tuple = ()
+    y: tuple = ()
+    half_width: float = 0.015
+    resolution: float = 0.005
+
+    def __post_init__(self) -> None:
+        for axis in ("x", "y"):
+            try:
+                values = tuple(float(v) for v in getattr(self, axis))
+            except (TypeError, ValueError):
+                raise SceneError(f"refine_lines {axis} must be a list of coordinates in metres, got {getattr(self, axis)!r}") from None
+            if not all(math.isfinite(v) for v in values):
+                raise SceneError(f"refine_lines {axis} must be finite coordinates in metres, got {list(values)}")
+            object.__setattr__(self, axis, values)
+        if not (self.x or self.y):
+            raise SceneError("refine_lines needs at least one line: give x, y or both (metres, top-surface frame)")
+        for name in ("half_width", "resolution"):
+            value = getattr(self, name)
+            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0.0):
+                raise SceneError(f"refine_lines {name} must be > 0 metres, got {value!r}")
+        if self.half_width < self.resolution:
+            raise SceneError(
+                f"refine_lines half_width ({self.half_width:g} m) must be at least its resolution "
+                f"({self.resolution:g} m): a band narrower than a cell refines nothing"
+            )
+
+    def scaled(self, factor: float) -> RefineLines:
+        """The same lines with ``resolution`` divided by ``factor`` (a mesh refined ``factor`` times)."""
+        return RefineLines(self.x, self.y, self.half_width, self.resolution / factor)
+
+    def coordinates(self, xs: np.ndarray, ys: np.ndarray, zs: np.ndarray, half: np.ndarray) -> tuple:
+        """A box's grid lines ``xs, ys, zs`` with the bands added, ``half`` its top face's half sizes."""
+        for axis, values in (("x", self.x), ("y", self.y)):
+            outside = [v for v in values if abs(v) > half["xy".index(axis)] + 1e-12]
+            if outside:
+                raise SceneError(
+                    f"refine_lines {axis} = {outside[0]:g} m lies off the top face "
+                    f"(|{axis}| <= {half['xy'.index(axis)]:g} m, top-surface frame)"
+                )
+        xs = _banded(xs, self.x, self.half_width, self.resolution)
+        ys = _banded(ys, self.y, self.half_width, self.resolution)
+        return xs, ys, _graded_top(zs, self.resolution)
+
+
+#: Thickness ratio of successive layers under refine lines' top layer.
+_LAYER_GROWTH = 1.5
+
+
+def _graded_top(zs: np.ndarray, fine: float) -> np.ndarray:
+    """Heights ``zs`` with layers from ``fine`` at the top, each :data:`_LAYER_GROWTH`
+    times thicker, until they are as thick as the box's own layers there; stretched
+    (or shrunk) to end on the nearest of the box's own heights, below which those stay."""
+    depths = zs[-1] - zs[::-1]  # 0 at the top, increasing
+    graded, layer = [0.0], fine
+    while True:
+        j = int(np.searchsorted(depths, graded[-1], side="right"))  # in the box's layer j - 1 .. j
+        if j >= depths.size or layer >= depths[j] - depths[j - 1]:
+            break
+        graded.append(graded[-1] + layer)
+        layer *= _LAYER_GROWTH
+    end = graded[-1]
+    if end == 0.0:
+        return zs
+    target = depths[np.argmin(np.abs(depths[1:] - end)) + 1]
+    stretched = np.asarray(graded) * (target / end)
+    merged = np.union1d(stretched, depths[depths > target * (1.0 + 1e-12)])
+    return np.sort(zs[-1] - merged)
+
+
+def _banded(lines: np.ndarray, centres, half_width: float, fine: float) -> np.ndarray:
+    """Grid ``lines`` with lines every ``fine`` within ``half_width`` of each centre.
+
+    A line of ``lines`` closer than ``0.6 fine`` to a band's line is dropped (no
+    sliver cells); the ends are kept.
+    """
+    if not centres:
+        return lines
+    low, high = float(lines[0]), float(lines[-1])
+    steps = int(round(half_width / fine))
+    band = np.concatenate([c + fine * np.arange(-steps, steps + 1) for c in centres])
+    band = band[(band > low + 0.6 * fine) & (band < high - 0.6 * fine)]
+    kept = [v for v in lines if v in (low, high) or np.min(np.abs(band - v), initial=np.inf) > 0.6 * fine]
+    merged = np.unique(np.round(np.concatenate([kept, band]), 12))
+    # Bands that overlap: drop the line of the later band that comes too close.
+    out = [merged[0]]
+    for v in merged[1:]:
+        if v - out[-1] > 0.6 * fine or v == high:
+            out.append(v)
+    return np.array(out)
+
+
+def soft_box_coordinates(size, resolution="default", refine=None, refine_lines=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Grid coordinates of a soft box's tensor mesh, body frame (base centre, z up).
 
     Cells are at most h on the refined region of the top face and the top layer is
@@ -480,6 +599,9 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
         ``[[x_min, y_min], [x_max, y_max]]`` of the top-face region where prints
         land, metres, top-surface frame (origin at the top-face centre). Default:
         the whole top face. Its edges are grid lines.
+    refine_lines : RefineLines, optional
+        Bands of finer cells along lines of the top face (where point feet land)
+        and a top layer as thin.
 
     Returns
     -------
@@ -522,6 +644,19 @@ def soft_box_coordinates(size, resolution="default", refine=None) -> tuple[np.nd
     xs = _axis_coordinates(-half[0], half[0], region[0, 0], region[1, 0], fine)
     ys = _axis_coordinates(-half[1], half[1], region[0, 1], region[1, 1], fine)
     zs = _height_coordinates(float(size[2]), fine)
+    if refine_lines is not None:
+        if refine_lines.resolution >= fine:
+            raise SceneError(
+                f"refine_lines resolution ({refine_lines.resolution:g} m) must be finer than the box's "
+                f"resolution ({fine:g} m)"
+            )
+        xs, ys, zs = refine_lines.coordinates(xs, ys, zs, half)
+        nodes = xs.size * ys.size * zs.size
+        if nodes > MAX_SOFT_BOX_NODES:
+            raise SceneError(
+                f"refine_lines give {nodes} nodes, more than the limit of {MAX_SOFT_BOX_NODES}; "
+                "use fewer lines, narrower bands or a coarser resolution"
+            )
     return xs, ys, zs
 
 
@@ -598,6 +733,7 @@ def soft_box(
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
     strain_radius: float = DEFAULT_STRAIN_RADIUS,
     grid=None,
+    refine_lines=None,
 ) -> tuple[DeformableObject, ContactSurface]:
     """A deformable box standing on the floor, base fixed, top face a contact surface.
 
@@ -635,6 +771,8 @@ def soft_box(
     grid : (3,) sequence of 1-D float sequences, optional
         The mesh's grid lines given by hand (see :func:`grid_coordinates`), in
         place of ``resolution`` and ``refine``.
+    refine_lines : RefineLines, optional
+        Bands of finer cells along lines of the top face, where point feet land.
 
     Returns
     -------
@@ -649,9 +787,10 @@ def soft_box(
     fem = _fem()
     size = readonly_array(size, (3,), f"object {name!r} size")
     if grid is None:
-        xs, ys, zs = soft_box_coordinates(size, resolution, refine)
-    elif refine is not None:
-        raise SceneError(f"object {name!r}: give either grid or refine, not both (grid fixes every grid line)")
+        xs, ys, zs = soft_box_coordinates(size, resolution, refine, refine_lines)
+    elif refine is not None or refine_lines is not None:
+        which = "refine" if refine is not None else "refine_lines"
+        raise SceneError(f"object {name!r}: give either grid or {which}, not both (grid fixes every grid line)")
     else:
         xs, ys, zs = grid_coordinates(size, grid)
     mesh = fem.tensor_mesh(xs, ys, zs)

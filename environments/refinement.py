@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from .deformable import RESOLUTIONS
+from .deformable import RESOLUTIONS, RefineLines
 from .errors import ScenarioError, SceneError
 from .scenario import Scenario, load_string
 from .soft_mesh import TET_MESH_SUFFIXES
@@ -28,7 +28,8 @@ def refined(scenario: Scenario, factor: int = 2) -> Scenario:
     """The same scenario with every soft object's mesh ``factor`` times finer.
 
     A soft box or soft blocks get their node spacing ``resolution`` divided by
-    ``factor`` (in plane and in depth, refined regions kept); a soft box given
+    ``factor`` (in plane and in depth, refined regions kept; a soft box's
+    ``refine_lines`` their resolution too, their bands as wide); a soft box given
     by its grid lines gets each interval cut into ``factor``; a soft mesh made
     from a surface file is tetrahedralised again with edges ``factor`` times
     shorter.
@@ -88,6 +89,9 @@ def _refine_object(item: dict, factor: int) -> None:
     resolution = item.get("resolution", "default")
     spacing = RESOLUTIONS[resolution] if isinstance(resolution, str) else float(resolution)
     item["resolution"] = spacing / factor
+    if isinstance(item.get("refine_lines"), dict):
+        lines = item["refine_lines"]
+        lines["resolution"] = float(lines.get("resolution", RefineLines.resolution)) / factor
 
 
 def _subdivided(lines, factor: int) -> list:

@@ -17,7 +17,9 @@ from pathlib import Path
 import numpy as np
 import yaml
 
-from .deformable import DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, _fem, soft_blocks, soft_box
+from .deformable import (
+    DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, soft_blocks, soft_box,
+)
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
 from .objects import DEFAULT_FRICTION, RigidObject, box, box_surfaces, floor, mesh_object, rpy_rotation, surface_from_pose
@@ -42,8 +44,8 @@ OBJECT_KEYS = {
     "floor": ("name", "type", "size", "friction"),
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
     "soft_box": (
-        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "grid", "friction", "strain_limit",
-        "strain_radius", "floating",
+        "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "refine_lines", "grid", "friction",
+        "strain_limit", "strain_radius", "floating",
     ),
     "soft_blocks": (
         "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius", "floating",
@@ -421,6 +423,7 @@ class _Reader:
                 raise self.error(join_key(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
             refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
         grid = self.grid(item, key)
+        refine_lines = self.refine_lines(item, key)
         material = self.material(item, key)
         obj, top = soft_box(
             name,
@@ -430,6 +433,7 @@ class _Reader:
             resolution=resolution,
             refine=refine,
             grid=grid,
+            refine_lines=refine_lines,
             yaw=math.radians(self.number(item, "yaw_deg", key, 0.0)),
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
@@ -453,6 +457,27 @@ class _Reader:
                 raise self.error(join_key(where, axis), f"must be a list of numbers, got {kind_of(values)}")
             lines.append([self.to_number(v, f"{join_key(where, axis)}[{i}]") for i, v in enumerate(values)])
         return lines
+
+    def refine_lines(self, item: Mapping, key: str):
+        """A soft box's ``refine_lines: {x: [...], y: [...], half_width, resolution}``, or None."""
+        if "refine_lines" not in item:
+            return None
+        where = join_key(key, "refine_lines")
+        if "grid" in item:
+            raise self.error(where, "a grid fixes every grid line: remove 'refine_lines' or the grid")
+        lines = self.mapping(item["refine_lines"], where, ("x", "y", "half_width", "resolution"), ())
+        axes = {}
+        for axis in "xy":
+            values = lines.get(axis, [])
+            if not isinstance(values, list):
+                raise self.error(join_key(where, axis), f"must be a list of numbers, got {kind_of(values)}")
+            axes[axis] = [self.to_number(v, f"{join_key(where, axis)}[{i}]") for i, v in enumerate(values)]
+        half_width = self.number(lines, "half_width", where, RefineLines.half_width, positive=True)
+        resolution = self.number(lines, "resolution", where, RefineLines.resolution, positive=True)
+        try:
+            return RefineLines(axes["x"], axes["y"], half_width, resolution)
+        except SceneError as error:
+            raise self.error(where, str(error).removeprefix("refine_lines ")) from None
 
     def strain_radius(self, item: Mapping, key: str) -> float:
         """A soft object's ``strain_radius``: metres, >= 0 (default :data:`DEFAULT_STRAIN_RADIUS`)."""

@@ -1,0 +1,120 @@
+"""Refine lines: bands of fine cells on a soft box's top face where ball feet land.
+
+A ball foot's contact radius (5-9 mm for ANYmal's 31 mm foot) is below the cells a whole
+region can afford; bands along the planner's print lines give those cells where the
+balls land and nowhere else.
+"""
+
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+import environments
+import fem
+from environments.deformable import RefineLines, soft_box_coordinates
+from environments.refinement import refined
+from stances.deformable import ball_gaps
+
+FOAM = fem.LinearElasticMaterial(3e6, 0.4, 100.0)
+BLOCK = (0.2, 0.2, 0.05)  # metres: a 5 cm foam block, base fixed
+RADIUS = 0.031  # ANYmal's ball, metres
+
+
+def ball_force(coordinates, depth: float) -> float:
+    """Normal force (N) of a ball pressed ``depth`` (m) into the block's top centre, friction 0.8."""
+    mesh = fem.tensor_mesh(*coordinates)
+    body = fem.DeformableBody(mesh, FOAM, np.flatnonzero(mesh.nodes[:, 2] < 1e-12), cache=False)
+    nodes = mesh.nodes
+    top = np.flatnonzero(np.isclose(nodes[:, 2], nodes[:, 2].max()))
+    ids = top[np.linalg.norm(nodes[top, :2], axis=1) < 0.013]  # every node the ball reaches 2.5 mm deep
+    motion = np.zeros((ids.size, 3))
+    motion[:, 2] = -depth + ball_gaps(nodes[ids] - [0.0, 0.0, nodes[:, 2].max()], RADIUS)
+    state = fem.solve_print_contact(body.compliance(ids), motion, np.tile(np.eye(3), (ids.size, 1, 1)), np.full(ids.size, 0.8))
+    return float(state.forces[:, 2].sum())
+
+
+def test_bands_have_cells_of_their_resolution_and_the_rest_is_the_boxs_mesh():
+    lines = RefineLines(x=[-0.05, 0.03], y=[0.0], half_width=0.015, resolution=0.005)
+    xs, ys, zs = soft_box_coordinates(BLOCK, 0.01, refine_lines=lines)
+    base_xs, base_ys, base_zs = soft_box_coordinates(BLOCK, 0.01)
+    for coordinates, centres, base in ((xs, lines.x, base_xs), (ys, lines.y, base_ys)):
+        for centre in centres:
+            band = coordinates[np.abs(coordinates - centre) <= 0.015 + 1e-12]
+            np.testing.assert_allclose(band, centre + 0.005 * np.arange(-3, 4), atol=1e-12)
+        far = base[np.min(np.abs(base[:, None] - np.asarray(centres)[None, :]), axis=1) > 0.015 + 0.006]
+        assert np.all(np.isin(far.round(12), coordinates.round(12)))  # the box's own lines away from the bands
+    # The top layer is the bands' resolution, the layers under it thicken by 1.5 (here
+    # 4.4, 6.6, 9.9 mm, stretched to end on one of the box's own heights).
+    layers = np.diff(zs)[::-1]
+    assert layers[0] == pytest.approx(0.005, rel=0.15) and np.all(layers[1:3] / layers[:2] == pytest.approx(1.5))
+    assert zs[0] == 0.0 and zs[-1] == BLOCK[2] and np.all(np.isin(base_zs[base_zs < 0.03].round(12), zs.round(12)))
+
+
+def test_a_balls_force_on_5_mm_bands_is_within_5_percent_of_bands_twice_as_fine():
+    # Measured: 10 mm mesh 28.3 / 60.6 / 103.7 N at 0.7 / 1.5 / 2.5 mm; 5 mm bands 17.9 /
+    # 60.4 / 129.2 N; 2.5 mm bands 18.1 / 59.5 / 134.1 N (an independent brick-element FEM
+    # converged at 1 mm on the scene's foam: within about 5 % of those).
+    coarse = soft_box_coordinates(BLOCK, 0.01)
+    bands = soft_box_coordinates(BLOCK, 0.01, refine_lines=RefineLines([0.0], [0.0], 0.015, 0.005))
+    finer = soft_box_coordinates(BLOCK, 0.01, refine_lines=RefineLines([0.0], [0.0], 0.015, 0.0025))
+    errors_bands, errors_coarse = [], []
+    for depth in (0.0007, 0.0015, 0.0025):
+        reference = ball_force(finer, depth)
+        errors_bands.append(ball_force(bands, depth) / reference - 1.0)
+        errors_coarse.append(ball_force(coarse, depth) / reference - 1.0)
+    assert np.abs(errors_bands).max() < 0.05, errors_bands
+    assert np.abs(errors_coarse).max() > 0.2, errors_coarse  # what the bands are for
+
+
+def test_a_scenario_refines_a_soft_box_along_its_print_lines_and_a_refined_scenario_halves_them():
+    text = environments.builtin_scenario_path("quadruped-foam").read_text()
+    lines = "    refine_lines: {x: [-0.1, 0.0], y: [-0.2, 0.2], half_width: 0.01, resolution: 0.005}\n"
+    marked = text.replace("    refine: [[-0.2, -0.35], [0.05, 0.35]]\n", "    refine: [[-0.2, -0.35], [0.05, 0.35]]\n" + lines)
+    assert marked != text
+    scenario = environments.load_string(marked, name="quadruped-foam-lines")
+    nodes = scenario.scene.deformable("foam").body.mesh.nodes
+    top = nodes[np.isclose(nodes[:, 2], 0.05)]
+    xs = np.unique(top[:, 0].round(9))
+    np.testing.assert_allclose(xs[np.abs(xs + 0.1) <= 0.01 + 1e-9], -0.1 + 0.005 * np.arange(-2, 3), atol=1e-9)
+    twice = refined(scenario, 2).scene.deformable("foam").body.mesh.nodes
+    xs2 = np.unique(twice[np.isclose(twice[:, 2], 0.05), 0].round(9))
+    np.testing.assert_allclose(xs2[np.abs(xs2 + 0.1) <= 0.01 + 1e-9], -0.1 + 0.0025 * np.arange(-4, 5), atol=1e-9)
+
+
+def _with_lines(value: str) -> str:
+    text = environments.builtin_scenario_path("quadruped-foam").read_text()
+    return text.replace("    refine: [[-0.2, -0.35], [0.05, 0.35]]\n",
+                        "    refine: [[-0.2, -0.35], [0.05, 0.35]]\n    refine_lines: " + value + "\n")
+
+
+@pytest.mark.parametrize("value, message", [
+    ("{x: [-0.3]}", "objects[1]: refine_lines x = -0.3 m lies off the top face (|x| <= 0.2 m, top-surface frame)"),
+    ("{x: [0.0], resolution: 0.02}",
+     "objects[1].refine_lines: half_width (0.015 m) must be at least its resolution (0.02 m): a band narrower than a "
+     "cell refines nothing"),
+    ("{x: [0.0], half_width: 0.03, resolution: 0.02}",
+     "objects[1]: refine_lines resolution (0.02 m) must be finer than the box's resolution (0.01 m)"),
+    ("{}", "objects[1].refine_lines: needs at least one line: give x, y or both (metres, top-surface frame)"),
+    ("{x: 0.1}", "objects[1].refine_lines.x: must be a list of numbers, got float 0.1"),
+    ("{x: [0.0], z: [1]}", "objects[1].refine_lines.z: unknown key 'z'; valid keys: x, y, half_width, resolution"),
+    ("{y: [0.0], resolution: -1}", "objects[1].refine_lines.resolution: must be > 0, got -1"),
+])
+def test_bad_refine_lines_are_refused_with_the_reason(value, message):
+    with pytest.raises(environments.ScenarioError, match=re.escape(message)):
+        environments.load_string(_with_lines(value))
+
+
+def test_refine_lines_and_a_grid_are_refused_together():
+    with pytest.raises(environments.SceneError, match=re.escape(
+            "object 'foam': give either grid or refine_lines, not both (grid fixes every grid line)")):
+        environments.soft_box("foam", BLOCK, (0, 0, 0.025), FOAM, grid=[[-0.1, 0.1], [-0.1, 0.1], [0, 0.05]],
+                              refine_lines=RefineLines([0.0]))
+    with pytest.raises(environments.ScenarioError, match=re.escape(
+            "refine_lines: a grid fixes every grid line: remove 'refine_lines' or the grid")):
+        text = _with_lines("{x: [0.0]}").replace("    resolution: 0.01\n", "").replace(
+            "    refine: [[-0.2, -0.35], [0.05, 0.35]]\n",
+            "    grid: {x: [-0.2, 0.2], y: [-0.5, 0.5], z: [0, 0.05]}\n")
+        environments.load_string(text)
