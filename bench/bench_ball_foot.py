@@ -39,7 +39,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 from benchmark_info import write_report  # noqa: E402
-from test_ball_contact import ball_body, ball_force, hertz_force, top_nodes_near  # noqa: E402
+from test_ball_contact import FOAM, ball_body, ball_force, hertz_force, top_nodes_near  # noqa: E402
 from test_mesh_convergence import richardson  # noqa: E402
 
 import environments  # noqa: E402
@@ -56,14 +56,16 @@ REACH = float(np.sqrt(2 * 0.031 * 1.5 * max(DEPTHS)))
 
 
 def scene_row(body, depth: float) -> list:
-    """The ball on the scene's own foam ``body`` (its full size and refined region) at h, on a node."""
+    """The ball on the scene's own foam ``body`` (its full size and refined region) at h, on a
+    node; its force also at the block's E (at a fixed depth every force scales with E)."""
     # A node of the refined region near the front prints' (-0.1, 0.2) of the top frame
     # (body frame: centred, base at z = 0).
     near = top_nodes_near(body, (-0.1, 0.2), SPACING)
     node = near[np.argmin(np.linalg.norm(body.mesh.nodes[near, :2] - [-0.1, 0.2], axis=1))]
     force, pressed, _ = ball_force(body, body.mesh.nodes[node, :2], depth, reach=REACH + SPACING)
-    return [f"| scene's foam 0.4 x 1.0 m | {1e3 * depth:g} | {1e3 * SPACING:g} | on a node | {body.mesh.n_nodes} | "
-            f"{pressed.size} | {force:.2f} | | |"]
+    scale = FOAM.young_modulus / body.material.young_modulus
+    return [f"| scene's foam 0.4 x 1.0 m, E = {body.material.young_modulus:.3g} Pa | {1e3 * depth:g} | {1e3 * SPACING:g} | "
+            f"on a node | {body.mesh.n_nodes} | {pressed.size} | {force:.2f} ({force * scale:.2f} at the block's E) | | |"]
 
 
 def main() -> None:

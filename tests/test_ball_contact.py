@@ -19,7 +19,7 @@ from environments.deformable import soft_box_coordinates
 from stances.deformable import ball_gaps
 
 RADIUS = 0.031  # m, ANYmal's foot
-FOAM = fem.LinearElasticMaterial(1e6, 0.4)  # quadruped-foam's foam
+FOAM = fem.LinearElasticMaterial(1e6, 0.4)  # quadruped-foam's foam until 2026-12-03 (3e6 Pa since)
 FRICTION = 0.7
 
 
