@@ -18,7 +18,8 @@ import numpy as np
 import yaml
 
 from .deformable import (
-    DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, soft_blocks, soft_box,
+    DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, _fine_spacing,
+    soft_blocks, soft_box,
 )
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
@@ -475,7 +476,9 @@ class _Reader:
         half_width = self.number(lines, "half_width", where, RefineLines.half_width, positive=True)
         resolution = self.number(lines, "resolution", where, RefineLines.resolution, positive=True)
         try:
-            return RefineLines(axes["x"], axes["y"], half_width, resolution)
+            refine_lines = RefineLines(axes["x"], axes["y"], half_width, resolution)
+            refine_lines.check(self.vector(item, "size", key, 3, positive=True), _fine_spacing(self.resolution(item, key)))
+            return refine_lines
         except SceneError as error:
             raise self.error(where, str(error).removeprefix("refine_lines ")) from None
 

@@ -59,8 +59,8 @@ def test_tensor_mesh_cells_are_mirror_images_so_it_is_symmetric_about_every_grid
 
 
 def test_a_vertical_load_moves_a_top_node_straight_down_and_a_centred_print_gets_no_sideways_force():
-    # One diagonal everywhere moved the node sideways by 0.12 of its sinking, along
-    # (+x, +y), and pushed a centred print sideways by 2-4 % of its load.
+    # One diagonal everywhere moved a node pressed down sideways by 0.12 of its sinking,
+    # toward (-x, -y), and pushed a centred print on this pad sideways by 2-4 % of its load.
     from fem import DeformableBody, LinearElasticMaterial, print_coverage
 
     mesh = box_mesh((0.4, 0.4, 0.1), (16, 16, 4))

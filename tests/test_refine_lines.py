@@ -46,11 +46,25 @@ def test_bands_have_cells_of_their_resolution_and_the_rest_is_the_boxs_mesh():
             np.testing.assert_allclose(band, centre + 0.005 * np.arange(-3, 4), atol=1e-12)
         far = base[np.min(np.abs(base[:, None] - np.asarray(centres)[None, :]), axis=1) > 0.015 + 0.006]
         assert np.all(np.isin(far.round(12), coordinates.round(12)))  # the box's own lines away from the bands
-    # The top layer is the bands' resolution, the layers under it thicken by 1.5 (here
-    # 4.4, 6.6, 9.9 mm, stretched to end on one of the box's own heights).
+    # The top layer is the bands' resolution, the layers under it thicken by 1.5 (5, 7.5,
+    # 11.25 mm) while thinner than the box's own there; the box's heights below stay.
     layers = np.diff(zs)[::-1]
-    assert layers[0] == pytest.approx(0.005, rel=0.15) and np.all(layers[1:3] / layers[:2] == pytest.approx(1.5))
-    assert zs[0] == 0.0 and zs[-1] == BLOCK[2] and np.all(np.isin(base_zs[base_zs < 0.03].round(12), zs.round(12)))
+    assert layers[0] == pytest.approx(0.005, rel=1e-9) and np.all(layers[1:3] / layers[:2] == pytest.approx(1.5))
+    graded_bottom = BLOCK[2] - layers[:3].sum()
+    assert zs[0] == 0.0 and zs[-1] == BLOCK[2]
+    assert np.all(np.isin(base_zs[base_zs < graded_bottom - 1e-9].round(12), zs.round(12)))
+    # Out of a band, cells grow by 1.5 to the box's own: no neighbours more than 1.5 apart here.
+    cells = np.diff(xs)
+    assert np.max(np.maximum(cells[1:] / cells[:-1], cells[:-1] / cells[1:])) <= 1.5 + 1e-9
+
+
+@pytest.mark.parametrize("spacing", [0.006, 0.007, 0.0075, 0.008])
+def test_the_top_layer_is_the_bands_resolution_even_when_the_box_is_nearly_as_fine(spacing):
+    _, _, zs = soft_box_coordinates((0.4, 0.4, 0.1), spacing, refine_lines=RefineLines([0.0], [0.0], 0.015, 0.005))
+    layers = np.diff(zs)[::-1]
+    assert layers[0] == pytest.approx(0.005, rel=1e-9)
+    assert np.all(np.diff(zs) > 0.0) and layers.min() >= 0.005 * (1 - 1e-9)
+    assert np.max(layers[1:] / layers[:-1]) < 2.0  # no layer twice as thick as the one above it
 
 
 def test_a_balls_force_on_5_mm_bands_is_within_5_percent_of_bands_twice_as_fine():
@@ -91,12 +105,20 @@ def _with_lines(value: str) -> str:
 
 
 @pytest.mark.parametrize("value, message", [
-    ("{x: [-0.3]}", "objects[1]: refine_lines x = -0.3 m lies off the top face (|x| <= 0.2 m, top-surface frame)"),
+    ("{x: [-0.3]}", "objects[1].refine_lines: x = -0.3 m must lie on the top face (|x| <= 0.2 m, top-surface frame), "
+                    "on an edge or at least 0.003 m inside it"),
+    ("{x: [0.199]}", "objects[1].refine_lines: x = 0.199 m must lie on the top face (|x| <= 0.2 m, top-surface frame), "
+                     "on an edge or at least 0.003 m inside it"),
+    ("{x: [0.0], half_width: 1.0e+6, resolution: 1.0e-6}",
+     "objects[1].refine_lines: give at least 1.6e+06 nodes, more than the limit of 1000000; use fewer lines"),
+    ("{x: [0.0], y: [0.0], half_width: 1.0e+300, resolution: 1.0e-300}",
+     "objects[1].refine_lines: give far more nodes, more than the limit of 1000000"),
+    ("{x: '12'}", "objects[1].refine_lines.x: must be a list of numbers, got str '12'"),
     ("{x: [0.0], resolution: 0.02}",
      "objects[1].refine_lines: half_width (0.015 m) must be at least its resolution (0.02 m): a band narrower than a "
      "cell refines nothing"),
     ("{x: [0.0], half_width: 0.03, resolution: 0.02}",
-     "objects[1]: refine_lines resolution (0.02 m) must be finer than the box's resolution (0.01 m)"),
+     "objects[1].refine_lines: resolution (0.02 m) must be finer than the box's resolution (0.01 m)"),
     ("{}", "objects[1].refine_lines: needs at least one line: give x, y or both (metres, top-surface frame)"),
     ("{x: 0.1}", "objects[1].refine_lines.x: must be a list of numbers, got float 0.1"),
     ("{x: [0.0], z: [1]}", "objects[1].refine_lines.z: unknown key 'z'; valid keys: x, y, half_width, resolution"),
