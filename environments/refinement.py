@@ -14,7 +14,7 @@ from pathlib import Path
 
 import yaml
 
-from .deformable import RESOLUTIONS, RefineLines
+from .deformable import RefineLines, _fine_spacing
 from .errors import ScenarioError, SceneError
 from .scenario import Scenario, load_string
 from .soft_mesh import TET_MESH_SUFFIXES
@@ -86,9 +86,7 @@ def _refine_object(item: dict, factor: int) -> None:
     if "grid" in item:
         item["grid"] = {axis: _subdivided(lines, factor) for axis, lines in item["grid"].items()}
         return
-    resolution = item.get("resolution", "default")
-    spacing = RESOLUTIONS[resolution] if isinstance(resolution, str) else float(resolution)
-    item["resolution"] = spacing / factor
+    item["resolution"] = _fine_spacing(item.get("resolution", "default")) / factor
     if isinstance(item.get("refine_lines"), dict):
         lines = item["refine_lines"]
         lines["resolution"] = float(lines.get("resolution", RefineLines.resolution)) / factor

@@ -424,11 +424,12 @@ class _Reader:
                 raise self.error(join_key(key, "refine"), f"must be [[x_min, y_min], [x_max, y_max]], got {refine!r}")
             refine = [[self.to_number(v, f"{key}.refine[{i}][{j}]") for j, v in enumerate(row)] for i, row in enumerate(refine)]
         grid = self.grid(item, key)
-        refine_lines = self.refine_lines(item, key)
+        size = self.vector(item, "size", key, 3, positive=True)
+        refine_lines = self.refine_lines(item, key, size, resolution)
         material = self.material(item, key)
         obj, top = soft_box(
             name,
-            self.vector(item, "size", key, 3, positive=True),
+            size,
             self.vector(item, "center", key, 3),
             material,
             resolution=resolution,
@@ -459,8 +460,9 @@ class _Reader:
             lines.append([self.to_number(v, f"{join_key(where, axis)}[{i}]") for i, v in enumerate(values)])
         return lines
 
-    def refine_lines(self, item: Mapping, key: str):
-        """A soft box's ``refine_lines: {x: [...], y: [...], half_width, resolution}``, or None."""
+    def refine_lines(self, item: Mapping, key: str, size, box_resolution):
+        """A soft box's ``refine_lines: {x: [...], y: [...], half_width, resolution}``, or None,
+        checked against the box's ``size`` and resolution (as read)."""
         if "refine_lines" not in item:
             return None
         where = join_key(key, "refine_lines")
@@ -477,7 +479,7 @@ class _Reader:
         resolution = self.number(lines, "resolution", where, RefineLines.resolution, positive=True)
         try:
             refine_lines = RefineLines(axes["x"], axes["y"], half_width, resolution)
-            refine_lines.check(self.vector(item, "size", key, 3, positive=True), _fine_spacing(self.resolution(item, key)))
+            refine_lines.check(size, _fine_spacing(box_resolution))
             return refine_lines
         except SceneError as error:
             raise self.error(where, str(error).removeprefix("refine_lines ")) from None
