@@ -89,16 +89,16 @@ class BallAverages:
             # for thousands of balls: 5 -> 1 ms on a foam mat): the same pairs, summed in
             # the same order, so the same bits.
             rows = every[centres]
-            members, columns = np.unique(rows.indices, return_inverse=True)
-            return members, sp.csr_matrix((rows.data, columns.ravel(), rows.indptr), shape=(centres.size, members.size))
+            members, columns = _distinct(rows.indices, self.volumes.size)
+            return members, sp.csr_matrix((rows.data, columns, rows.indptr), shape=(centres.size, members.size))
         owner, flat = self._pairs(centres, radius)
-        members, columns = np.unique(flat, return_inverse=True)
+        members, columns = _distinct(flat, self.volumes.size)
         counts = np.bincount(owner, minlength=centres.size)
         data = self.volumes[flat]
         indptr = np.concatenate([[0], np.cumsum(counts)])
         totals = np.add.reduceat(data, indptr[:-1]) if data.size else np.zeros(0)
         data = data / np.repeat(totals, counts)
-        return members, sp.csr_matrix((data, columns.ravel(), indptr), shape=(centres.size, members.size))
+        return members, sp.csr_matrix((data, columns, indptr), shape=(centres.size, members.size))
 
     def near(self, tets, radius: float) -> np.ndarray:
         """(n,) sorted ids of the given tets and of every tet whose centroid lies within
@@ -280,6 +280,15 @@ def _checked_radius(radius) -> float:
     if not (np.isfinite(radius) and radius >= 0.0):
         raise FemError(f"strain averaging radius must be >= 0 metres (0: each tet's own strain), got {radius!r}")
     return radius
+
+
+def _distinct(ids: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
+    """The sorted distinct values of (n,) ids in [0, size) and each id's position among
+    them, (k,) and (n,) int: ``np.unique(ids, return_inverse=True)`` from a mask instead
+    of a sort (1.6 million ball pairs on a 167,700-tet foam mesh: 7 ms against 70 ms)."""
+    present = np.zeros(size, dtype=bool)
+    present[ids] = True
+    return np.flatnonzero(present), (np.cumsum(present) - 1)[ids]
 
 
 def _most_strained(norms: np.ndarray) -> np.ndarray:

@@ -1118,18 +1118,18 @@ class DeformableContact:
         """
         if self.max_strain_rows == 0:
             return None
-        strains = self.patch.neighbour_strains if per == "displacement" else self.patch.neighbour_strains_under_loads
-        voigt = strains(u, self.strain_radius, self._row_also)  # (T', 6), ball means
-        if self._weight_strains is not None:
-            voigt = voigt + self._weight_strains
         # The Frobenius norm of a strain tensor bounds its principal strains: the
-        # tets below the activation by that norm are left out of the (costly)
-        # eigendecomposition, which is per tet, so the others' answers are unchanged.
-        frobenius = fem.frobenius_norms(voigt)
-        screened = np.flatnonzero(frobenius >= (1.0 - 1e-9) * _STRAIN_ACTIVATION * self.strain_limit)
-        if screened.size == 0:
+        # centres whose ball mean is below the activation by that norm are left out of
+        # the (costly) eigendecomposition, which is per tet, so the others' answers are
+        # unchanged; the patch averages only where a bound on that norm reaches it.
+        floor = (1.0 - 1e-9) * _STRAIN_ACTIVATION * self.strain_limit
+        near, voigt = self.patch.strained_centres(
+            u, floor, self.strain_radius, self._row_also, per=per, offset=self._weight_strains)  # (k,), (k, 6) ball means
+        kept = np.flatnonzero(fem.frobenius_norms(voigt) >= floor)
+        if kept.size == 0:
             return None
-        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt[screened]))
+        screened, voigt = near[kept], voigt[kept]
+        values, vectors = np.linalg.eigh(fem.voigt_to_tensor_strain(voigt))
         largest, smallest = values[:, 2], values[:, 0]
         ratio = np.maximum(largest, -smallest) / self.strain_limit
         candidates = np.flatnonzero(ratio >= _STRAIN_ACTIVATION)  # indices into screened

@@ -159,6 +159,34 @@ def test_strains_under_print_loads_are_those_of_the_full_field_under_them(slab, 
         patch.neighbour_strain_row(mix, 0, radius, per="force")
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.02])
+@pytest.mark.parametrize("per", ["load", "displacement"])
+def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(slab, radius, per):
+    """The strain rows' screen (``ContactPatch.strained_centres``) keeps every centre
+    whose mean, plus an offset, reaches the floor, each mean the bits of the product over
+    every centre; at floors the means straddle it leaves most of the others out."""
+    body, ids = slab
+    patch = body.contact_patch(ids)
+    rng = np.random.default_rng(11)
+    # A sheared press: strains concentrated under the print's edges, as under a foot.
+    u = rng.normal(scale=5.0, size=(ids.size, 3)) + np.array([5.0, 0.0, -40.0])
+    u = (u if per == "load" else (patch.compliance @ u.ravel()).reshape(-1, 3)).ravel()
+    every = (patch.neighbour_strains_under_loads if per == "load" else patch.neighbour_strains)(u, radius)
+    offset = rng.normal(scale=1e-4, size=every.shape)
+    norms = fem.frobenius_norms(every + offset)
+    for floor in np.quantile(norms, [0.0, 0.5, 0.9, 0.99]).tolist() + [1.01 * norms.max()]:
+        positions, voigt = patch.strained_centres(u, floor, radius, per=per, offset=offset)
+        assert np.all(np.diff(positions) > 0)
+        assert set(np.flatnonzero(norms >= floor).tolist()) <= set(positions.tolist())
+        assert np.array_equal(voigt, (every + offset)[positions])
+        if floor > np.quantile(norms, 0.9):
+            assert positions.size < 0.5 * norms.size  # a screen, not every centre
+    positions, voigt = patch.strained_centres(u, 0.5 * norms.max(), radius, per=per)
+    assert np.array_equal(voigt, every[positions])
+    with pytest.raises(fem.PrintError, match="per must be 'displacement' or 'load', got 'force'"):
+        patch.strained_centres(u, 0.1, radius, per="force")
+
+
 def test_the_ball_mean_at_a_rigid_palms_edge_converges_where_a_tets_own_strain_does_not():
     """A palm pressed 5 mm into the foam mat on the default mesh and on the mesh refined
     twice (1,792 and 10,759 nodes). Measured: the tets' own largest strain 0.117 -> 0.163
