@@ -20,6 +20,11 @@ __all__ = ["ContactPatch", "check_node_ids", "VOIGT_TO_TENSOR"]
 
 METHODS = ("consistent", "traction")
 
+# ContactPatch.strained_centres bounds the ball means through the hot tets' columns of
+# the averaging weights while those hold at most this share of them, else through the
+# product of every column with the tets' norms.
+_HOT_SHARE = 0.125
+
 # VOIGT_TO_TENSOR[i, j, v]: sigma_ij = sum_v VOIGT_TO_TENSOR[i, j, v] {sigma}_v; the
 # duplication matrix D of eq. (51) reshaped to (3, 3, 6).
 VOIGT_TO_TENSOR = np.zeros((3, 3, 6))
@@ -455,8 +460,10 @@ class ContactPatch:
         product with every column (under a ball foot on a 10 mm foam mesh, 2,700
         centres of 144 tets each: the tet under the ball is strained to 0.07-0.17, the
         largest 2 cm mean to 0.006-0.016, and the means were 70 % of a strain block's
-        time). Each centre kept is averaged as in the product over every centre: the
-        same bits.
+        time). Where the hot columns hold more than :data:`_HOT_SHARE` of the weights
+        (5 mm cells under a ball), the bound is the mean of the norms, one product with
+        a single column. Each centre kept is averaged as in the product over every
+        centre: the same bits.
 
         Parameters
         ----------
@@ -491,16 +498,21 @@ class ContactPatch:
         norms = frobenius_norms(tets)
         hot = norms >= 0.5 * floor
         cold = float(norms[~hot].max()) if not hot.all() else 0.0
-        bound = np.full(weights.shape[0], cold) if offset is None else cold + frobenius_norms(offset)
-        if hot.any():
+        indptr, centres, shares = self._weight_columns(key, weights)
+        hot = np.flatnonzero(hot)
+        starts, counts = indptr[hot], indptr[hot + 1] - indptr[hot]
+        if counts.sum() <= _HOT_SHARE * shares.size:
             # The hot tets' columns of the weights, gathered from their CSC arrays (scipy's
             # column indexing cost 0.4 ms a call here).
-            indptr, centres, shares = self._weight_columns(key, weights)
-            hot = np.flatnonzero(hot)
-            starts, counts = indptr[hot], indptr[hot + 1] - indptr[hot]
             entries = np.repeat(starts - np.cumsum(counts) + counts, counts) + np.arange(counts.sum())
-            bound += np.bincount(centres[entries], shares[entries] * np.repeat(norms[hot] - cold, counts),
-                                 minlength=bound.size)
+            bound = cold + np.bincount(centres[entries], shares[entries] * np.repeat(norms[hot] - cold, counts),
+                                       minlength=weights.shape[0])
+        else:
+            # Strained broadly (5 mm cells under a ball: most tets hot): the mean of
+            # every ball's norms, one product with a single column.
+            bound = weights @ norms
+        if offset is not None:
+            bound = bound + frobenius_norms(offset)
         # The bound exceeds the norm it bounds by far more than its rounding (1e-16).
         positions = np.flatnonzero(bound >= floor * (1.0 - 1e-9))
         if positions.size == 0:

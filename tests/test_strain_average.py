@@ -161,10 +161,13 @@ def test_strains_under_print_loads_are_those_of_the_full_field_under_them(slab, 
 
 @pytest.mark.parametrize("radius", [0.0, 0.02])
 @pytest.mark.parametrize("per", ["load", "displacement"])
-def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(slab, radius, per):
+@pytest.mark.parametrize("hot_share", [0.0, 0.125, 1.0])
+def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(slab, radius, per, hot_share, monkeypatch):
     """The strain rows' screen (``ContactPatch.strained_centres``) keeps every centre
     whose mean, plus an offset, reaches the floor, each mean the bits of the product over
-    every centre; at floors the means straddle it leaves most of the others out."""
+    every centre; at floors the means straddle it leaves most of the others out. Both
+    bounds: the hot tets' columns (``hot_share`` 1), every column (0), and the switch."""
+    monkeypatch.setattr(fem.patch, "_HOT_SHARE", hot_share)
     body, ids = slab
     patch = body.contact_patch(ids)
     rng = np.random.default_rng(11)
