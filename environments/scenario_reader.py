@@ -496,12 +496,15 @@ class _Reader:
 
     def resolution(self, item: Mapping, key: str):
         resolution = item.get("resolution", "default")
-        if isinstance(resolution, str):
-            if resolution not in RESOLUTIONS:
+        if isinstance(resolution, str) and resolution not in RESOLUTIONS:
+            try:
+                resolution = float(resolution)  # YAML 1.1 reads "1e-2" (no dot) as a string
+            except ValueError:
                 raise self.error(
                     join_key(key, "resolution"),
                     f"unknown resolution {resolution!r}; valid: {', '.join(RESOLUTIONS)} or a spacing in metres",
-                )
+                ) from None
+        if isinstance(resolution, str):
             return resolution
         return self.to_number(resolution, join_key(key, "resolution"), positive=True)
 

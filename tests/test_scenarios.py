@@ -280,6 +280,11 @@ def test_soft_box_material_errors_name_the_material_key(tmp_path):
     assert scenario.scene.deformable("cube").body.material.young_modulus == 1e6
     with pytest.raises(ScenarioError, match=r"objects\[2\].resolution: unknown resolution 'fine'"):
         load(write(tmp_path, soft.replace("coarse", "fine")))
+    # So is a spacing written "5e-2": the same mesh as 0.05, and its errors a number's.
+    spaced = load(write(tmp_path, soft.replace("nu: 0.5", "nu: 0.3").replace("coarse", "5e-2")))
+    assert np.array_equal(spaced.scene.deformable("cube").body.mesh.nodes, scenario.scene.deformable("cube").body.mesh.nodes)
+    with pytest.raises(ScenarioError, match=r"objects\[2\].resolution: must be > 0, got -0.05$"):
+        load(write(tmp_path, soft.replace("nu: 0.5", "nu: 0.3").replace("coarse", "-5e-2")))
 
 
 def test_the_paper_like_coarse_cube_has_its_grid_and_the_palm_print_on_its_nodes(loaded):
