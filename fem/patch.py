@@ -21,8 +21,9 @@ __all__ = ["ContactPatch", "check_node_ids", "VOIGT_TO_TENSOR"]
 METHODS = ("consistent", "traction")
 
 # ContactPatch.strained_centres bounds the ball means through the hot tets' columns of
-# the averaging weights while those hold at most this share of them, else through the
-# product of every column with the tets' norms.
+# the averaging weights while those columns hold at most this share of the weights'
+# stored entries (a count of entries, not of weight), else through the product of every
+# column with the tets' norms.
 _HOT_SHARE = 0.125
 
 # VOIGT_TO_TENSOR[i, j, v]: sigma_ij = sum_v VOIGT_TO_TENSOR[i, j, v] {sigma}_v; the
@@ -460,8 +461,8 @@ class ContactPatch:
         product with every column (under a ball foot on a 10 mm foam mesh, 2,700
         centres of 144 tets each: the tet under the ball is strained to 0.07-0.17, the
         largest 2 cm mean to 0.006-0.016, and the means were 70 % of a strain block's
-        time). Where the hot columns hold more than :data:`_HOT_SHARE` of the weights
-        (5 mm cells under a ball), the bound is the mean of the norms, one product with
+        time). Where the hot columns hold more than :data:`_HOT_SHARE` of the weights'
+        stored entries (5 mm cells under a ball), the bound is the mean of the norms, one product with
         a single column. Each centre kept is averaged as in the product over every
         centre: the same bits.
 
@@ -493,10 +494,16 @@ class ContactPatch:
         key = self._set_key(radius, also)
         strain_set = self._strain_set(radius, also, key)
         weights, b, rows = strain_set[2], strain_set[5], strain_set[4]
+        if offset is not None:
+            offset = np.asarray(offset, dtype=float)
+            if offset.shape != (weights.shape[0], 6):
+                raise PrintError(f"offset must be ({weights.shape[0]}, 6) Voigt strains, one row a strain "
+                                 f"centre, got shape {offset.shape}")
         nodal = self._set_nodal(strain_set, u, per)
         tets = _tet_strains(b, nodal, rows)
         norms = frobenius_norms(tets)
-        hot = norms >= 0.5 * floor
+        # A NaN norm counts as hot, so that it reaches the bound rather than the cold max.
+        hot = ~(norms < 0.5 * floor)
         cold = float(norms[~hot].max()) if not hot.all() else 0.0
         indptr, centres, shares = self._weight_columns(key, weights)
         hot = np.flatnonzero(hot)
@@ -513,7 +520,9 @@ class ContactPatch:
             bound = weights @ norms
         if offset is not None:
             bound = bound + frobenius_norms(offset)
-        # The bound exceeds the norm it bounds by far more than its rounding (1e-16).
+        # The bound can be tight (a ball of one tet, a uniform field, an offset along the
+        # mean), and then the mean computed below can exceed it by rounding (7e-14
+        # relative measured): the slack covers that rounding.
         positions = np.flatnonzero(bound >= floor * (1.0 - 1e-9))
         if positions.size == 0:
             return positions, np.zeros((0, 6))

@@ -288,7 +288,12 @@ def _distinct(ids: np.ndarray, size: int) -> tuple[np.ndarray, np.ndarray]:
     of a sort (1.6 million ball pairs on a 167,700-tet foam mesh: 7 ms against 70 ms)."""
     present = np.zeros(size, dtype=bool)
     present[ids] = True
-    return np.flatnonzero(present), (np.cumsum(present) - 1)[ids]
+    members = np.flatnonzero(present)
+    # A lookup written only at the members: a cumulative sum over every tet costs 5 ms
+    # on a 495k-tet mesh for a ball of 64 ids.
+    lookup = np.empty(size, dtype=np.intp)
+    lookup[members] = np.arange(members.size)
+    return members, lookup[ids]
 
 
 def _most_strained(norms: np.ndarray) -> np.ndarray:
