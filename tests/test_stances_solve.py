@@ -1343,3 +1343,29 @@ def test_strain_rows_and_verify_count_the_strain_of_the_bodys_own_weight(robot):
     expected = body.largest_principal_strain(field + weight, radius)[0]
     assert result.verification.measures["largest strain of cube"] == pytest.approx(expected, rel=1e-12)
     assert expected != pytest.approx(body.largest_principal_strain(field, radius)[0], rel=1e-3)
+
+
+# A quadruped-foam planner stance (seed 6) whose front feet's adapters meet the foam: held
+# rigid, it crept 1 % an iteration at the 0.3 trust region to the options' cap of 100.
+_ADAPTERS_IN_FOAM = Stance((
+    Contact("left_front_foot", ContactPrint("foam_top", 0.0, 0.1)),
+    Contact("left_hind_foot", ContactPrint("floor", -0.1, 0.2)),
+    Contact("right_front_foot", ContactPrint("foam_top", -0.1, -0.1)),
+    Contact("right_hind_foot", ContactPrint("floor", -0.1, -0.3)),
+))
+
+
+@pytest.mark.parametrize("max_iterations", [None, 20])
+def test_a_rigid_warm_start_that_cannot_reach_its_tolerance_ends_at_its_own_cap(anymal, max_iterations):
+    """The warm start stops at _WARM_START_ITERATIONS (every one of 906 that reached its
+    tolerance in 160 plans took at most 39), or at the options' cap where that is lower, and
+    the stance is rejected as one that cannot be held rigid."""
+    scene = environments.load("quadruped-foam").scene
+    options = {} if max_iterations is None else {"max_iterations": max_iterations}
+    result = solve(anymal, scene, _ADAPTERS_IN_FOAM, **options)
+    cap = sqp._WARM_START_ITERATIONS if max_iterations is None else max_iterations
+    assert not result.feasible
+    assert result.statistics["status"] == "iteration limit"
+    assert result.statistics["rigid_warm_start_iterations"] == cap
+    assert result.reason.startswith("held rigid, print unreachable: ")
+    assert f"(iteration limit after {cap} iterations)" in result.reason
