@@ -523,7 +523,9 @@ class ContactPatch:
         # The bound can be tight (a ball of one tet, a uniform field, an offset along the
         # mean), and then the mean computed below can exceed it by rounding (7e-14
         # relative measured): the slack covers that rounding.
-        positions = np.flatnonzero(bound >= floor * (1.0 - 1e-9))
+        # A NaN bound (a NaN strain in its ball) keeps its centre, whose mean is then NaN as
+        # the product over every centre gives it: a NaN is shown, never screened out.
+        positions = np.flatnonzero(~(bound < floor * (1.0 - 1e-9)))
         if positions.size == 0:
             return positions, np.zeros((0, 6))
         voigt = weights[positions] @ tets

@@ -191,6 +191,15 @@ def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(s
     norms = fem.frobenius_norms(every)
     positions, voigt = patch.strained_centres(u, 0.5 * norms.max(), radius, per=per)
     assert np.array_equal(voigt, every[positions])
+    # A NaN load reaches every mean it enters, as in the product over every centre.
+    broken = u.copy()
+    broken[0] = np.nan
+    spoilt = np.flatnonzero(np.isnan((patch.neighbour_strains_under_loads if per == "load"
+                                      else patch.neighbour_strains)(broken, radius)).any(axis=1))
+    assert spoilt.size > 0
+    positions, voigt = patch.strained_centres(broken, 0.5 * norms.max(), radius, per=per)
+    assert set(spoilt.tolist()) <= set(positions.tolist())
+    assert np.isnan(voigt[np.isin(positions, spoilt)]).any(axis=1).all()
     with pytest.raises(fem.PrintError, match="per must be 'displacement' or 'load', got 'force'"):
         patch.strained_centres(u, 0.1, radius, per="force")
     with pytest.raises(fem.PrintError, match=re.escape(
