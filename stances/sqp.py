@@ -405,7 +405,8 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # bounds' multipliers take (a step held by the trust region along a direction of
         # little curvature gains far more than it reads).
         if (torque_weight == options.torque_weight and compatible and not _held_by_bounds(bounded_qp, step, accuracy)
-                and stops.finishing(met, violation, _optimality_gain(model, step), linearization.objective)):
+                and stops.finishing(met, violation, _optimality_gain(model, step), linearization.objective,
+                                   iteration)):
             finished = _restoration(problem, linearization, q, lam, restoration, torque_weight)
             if finished is not None and finished[2].met(tolerance):
                 q, lam, linearization = better(stops.best, finished)

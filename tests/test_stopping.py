@@ -52,6 +52,36 @@ def test_a_restoration_finishes_only_an_infeasible_iterate_within_the_band_whose
     assert not stops.finishing(False, inside, 1.01 * bound, 1.0)  # optimality still gains
 
 
+def test_a_gauss_newton_tail_is_finished_once_what_it_would_still_gain_is_negligible():
+    """Gains falling at r = 0.8 (left-on-platform's Coulomb stage) finish once
+    gain / (1 - r) is under FINISHING_TAIL tolerances; a slow tail (r = 0.95), gains from
+    iterations not in a row, a rising gain or forgotten objectives do not use the rule."""
+    unit = 1e-6 * 2.0  # optimality tolerance 1e-6, objective 1
+    tail = stopping.FINISHING_TAIL * unit
+    inside = stopping.FINISHING_VIOLATION
+
+    def finishes(gains, iterations=None, forget=False):
+        stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
+        answers = []
+        for index, gain in enumerate(gains):
+            if forget and index == len(gains) - 1:
+                stops.forget_objectives()
+            iteration = (iterations or range(1, len(gains) + 1))[index]
+            answers.append(stops.finishing(False, inside, gain, 1.0, iteration))
+        return answers
+
+    assert stopping.FINISHING_GAIN * unit < 0.19 * tail  # the gain alone never decides here
+    assert finishes([0.19 * tail / 0.8, 0.19 * tail]) == [False, True]  # 0.95 of the bound left
+    assert finishes([0.21 * tail / 0.8, 0.21 * tail]) == [False, False]  # 1.05 of it
+    assert finishes([0.19 * tail / 0.95, 0.19 * tail])[-1] is False  # slow: 3.8 times the bound left
+    assert finishes([0.19 * tail / 0.8, 0.19 * tail], iterations=[1, 3])[-1] is False
+    assert finishes([0.19 * tail, 0.19 * tail / 0.8])[-1] is False  # rising
+    assert finishes([0.19 * tail / 0.8, 0.19 * tail], forget=True)[-1] is False
+    stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
+    assert not stops.finishing(False, inside, 0.19 * tail / 0.8, 1.0, 1)
+    assert not stops.finishing(True, inside, 0.19 * tail, 1.0, 2)  # feasible: the usual stops decide
+
+
 def test_stagnation_needs_a_full_window_a_large_penalty_and_no_1_percent_fall(stops):
     window = stopping._STAGNATION_WINDOW
     for iteration in range(1, window + 1):
