@@ -86,7 +86,8 @@ class PostureOptions:
     reaction_model : {"consistent", "traction"}
         How deformable supports react (see :mod:`fem`).
     max_iterations : int
-        SQP iteration limit.
+        SQP iteration limit (a soft stance's rigid or bonded warm start stops at 60, or
+        at this where lower: :data:`stances.sqp._WARM_START_ITERATIONS`).
     trust_region : float
         Bound on each component of a step, rad or m.
     feasibility_tolerance : float
@@ -96,8 +97,10 @@ class PostureOptions:
     optimality_tolerance : float
         A feasible iterate is final once a step changes the merit function by
         less than this, relative. A nearly feasible one (within 1e-4, scaled) whose
-        step would gain less than ten times this of the objective is finished by a
-        restoration step (:data:`stances.stopping.FINISHING_GAIN`).
+        step would gain less than ten times this of the objective, or whose last three
+        steps' gains fall at a rate that leaves less than a hundred times this to gain
+        in all, is finished by a restoration step (:data:`stances.stopping.FINISHING_GAIN`,
+        :data:`stances.stopping.FINISHING_TAIL`).
     collision_distance : float
         Minimum distance kept between the robot and the scene or itself, m.
     collision_activation : float

@@ -82,7 +82,9 @@ _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance":
 # starts in the plans of 16 soft scenes x 10 seeds (2026-12-04), every one that reached its
 # loose tolerance did so within 39 iterations; the two that ran to the options' cap of 100
 # crept there at 1 % an iteration at the 0.3 trust region (quadruped-foam seeds 6 and 10,
-# 1.0 and 1.3 s), each then rejected as a stance that cannot be held rigid.
+# 1.0 and 1.3 s), each then rejected as a stance that cannot be held rigid. The bonded warm
+# start (after a Coulomb solve that failed near feasibility) has the same cap: none ran in
+# those plans, so it is not measured.
 _WARM_START_ITERATIONS = 60
 # A step cut below CRAWL_ALPHA from a feasible iterate says the QP's model holds over a
 # small part of it only (rows curved at that scale): the next steps are bounded by this

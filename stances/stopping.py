@@ -92,19 +92,23 @@ NEARLY_FEASIBLE = 100.0  # times the feasibility tolerance: such an iterate is h
 # and no bound held a component of the step (1/2 s^T H s leaves out what the bounds'
 # multipliers take: a step held by the trust region along a direction of little
 # curvature read 4.5e-7 and gained 9e-4; found by review).
-# Where the last iteration's step also came to this test, the gains fall at an observed
-# rate r (a Gauss-Newton tail), and what the steps left would gain in all, gain / (1 - r),
-# ends the solve once under FINISHING_TAIL optimality tolerances: 1e-5 of the objective at
-# the default tolerance, the gain the other rules call none (_NO_GAIN, PREDICTED_GAIN). On
-# the mirrored-cell mesh climb-with-soft-support's left-on-platform ended its Coulomb
-# stage with six Gauss-Newton steps of 2.1 -> 1.3 mrad, each predicted to gain
-# 6e-6 -> 2e-6 of the objective, 80 % of the one before. A tail that falls slowly waits:
-# at r = 0.95 (a point far off a sphere) gain / (1 - r) is twenty gains, and the rule on
-# the gain alone decides, as before (a plain FINISHING_GAIN of 100 stopped that point
-# 2.0e-3 off its optimum, 6.5e-4 at 10). Measured 2026-12-04: left-on-platform 13 -> 8
-# iterations, 3.8e-6 of the objective higher, 2.5 mrad apart; over the 37 built-in and 60
-# random rigid stances four answers moved, by at most 2.5 mrad and 2.8e-5 of their
-# objective, all verified.
+# Where the last two iterations' steps also came to this test, with gains falling, the
+# gains shrink at a rate r (a Gauss-Newton tail; a gain 1/2 s^T H s falls as the square of
+# the step), read as the larger of the two last ratios, so that one sudden drop (a part of
+# the problem that converged at once) is no rate; what the steps left would gain in all,
+# gain / (1 - r), ends the solve once under FINISHING_TAIL optimality tolerances: 1e-5 of
+# the objective at the default tolerance, the gain the other rules call none (_NO_GAIN,
+# PREDICTED_GAIN). On the mirrored-cell mesh climb-with-soft-support's left-on-platform
+# ended its Coulomb stage with six Gauss-Newton steps of 2.1 -> 1.3 mrad, each predicted to
+# gain 6e-6 -> 2e-6 of the objective, 75-82 % of the one before. A tail that falls slowly
+# waits: a point far off a sphere, its steps shrinking by 0.95 and its gains by 0.90, reads
+# ten gains, and the rule on the gain alone decides there (a plain FINISHING_GAIN of 100
+# stopped that point 2.0e-3 off its optimum, 6.5e-4 at 10). Measured 2026-12-04:
+# left-on-platform 13 -> 8 iterations, 3.8e-6 of the objective higher, 2.5 mrad apart; over
+# the 37 built-in and 60 random rigid stances three answers moved, by at most 2.5 mrad and
+# 2.8e-5 of their objective, all verified. One ratio alone read a sudden drop (a variable
+# converged at once) as a fast tail: a review's toy stopped 48.7 tolerances above its
+# optimum, as FINISHING_GAIN = 100 did.
 FINISHING_VIOLATION = 1e-4
 FINISHING_GAIN = 10.0
 FINISHING_TAIL = 100.0
@@ -213,13 +217,13 @@ class StoppingTest:
         self._crawling = 0  # crawling iterations in a row near feasibility (see converged)
         self._slow_since = None  # the first iteration at which the violation fell too slowly to converge in time
         self._near, self._troubles = None, 0  # the nearly feasible violation steps are counted from, and the count
-        self._last_gain = None  # (iteration, gain) of the last finishing test
+        self._gains = []  # (iteration, gain) of the finishing tests of the last three iterations
 
     def forget_objectives(self) -> None:
         """The objective changed (torque usage joined it): objectives seen before are
         another function's, and would stop the solve as soon as a step is cut."""
         self.best, self._best_history = None, []
-        self._last_gain = None
+        self._gains = []
 
     def final(self, current):
         """The answer of a solve stopped at ``current``: the best feasible iterate seen
@@ -234,17 +238,21 @@ class StoppingTest:
         ``gain`` of the ``objective`` by optimality (not by feasibility), less than
         ``FINISHING_GAIN`` optimality tolerances, is finished by a restoration step rather
         than a line search (see ``FINISHING_VIOLATION``). With ``iteration`` given, and the
-        previous iteration's gain known and larger, the gains' tail ``gain / (1 - r)`` (r
-        their ratio) under ``FINISHING_TAIL`` tolerances finishes it too."""
-        previous, self._last_gain = self._last_gain, (iteration, gain)
+        gains of the two iterations before it known and falling to this one, the tail
+        ``gain / (1 - r)`` (r the larger of the two ratios) under ``FINISHING_TAIL``
+        tolerances finishes it too."""
+        self._gains = [g for g in self._gains if iteration is not None and g[0] >= iteration - 2] + [(iteration, gain)]
         if met or violation > FINISHING_VIOLATION:
             return False
         unit = self.optimality_tolerance * (1.0 + abs(objective))
         if gain <= FINISHING_GAIN * unit:
             return True
-        if iteration is None or previous is None or previous[0] != iteration - 1 or not 0.0 < gain < previous[1]:
+        if len(self._gains) < 3:
             return False
-        return gain / (1.0 - gain / previous[1]) <= FINISHING_TAIL * unit
+        (first, a), (second, b), (_, c) = self._gains
+        if first != iteration - 2 or second != iteration - 1 or not 0.0 < c < b < a:
+            return False
+        return c / (1.0 - max(b / a, c / b)) <= FINISHING_TAIL * unit
 
     def converged_before_search(self, linearization, step_length, predicted) -> bool:
         """After the QP: a feasible iterate whose step is negligible (in length, radians

@@ -53,9 +53,10 @@ def test_a_restoration_finishes_only_an_infeasible_iterate_within_the_band_whose
 
 
 def test_a_gauss_newton_tail_is_finished_once_what_it_would_still_gain_is_negligible():
-    """Gains falling at r = 0.8 (left-on-platform's Coulomb stage) finish once
-    gain / (1 - r) is under FINISHING_TAIL tolerances; a slow tail (r = 0.95), gains from
-    iterations not in a row, a rising gain or forgotten objectives do not use the rule."""
+    """Gains of three iterations in a row falling at r = 0.8 (left-on-platform's Coulomb
+    stage) finish once gain / (1 - r) is under FINISHING_TAIL tolerances; a slow tail
+    (r = 0.9, a point far off a sphere), one sudden drop, gains from iterations not in a row,
+    a rising gain or forgotten objectives do not use the rule."""
     unit = 1e-6 * 2.0  # optimality tolerance 1e-6, objective 1
     tail = stopping.FINISHING_TAIL * unit
     inside = stopping.FINISHING_VIOLATION
@@ -70,16 +71,28 @@ def test_a_gauss_newton_tail_is_finished_once_what_it_would_still_gain_is_neglig
             answers.append(stops.finishing(False, inside, gain, 1.0, iteration))
         return answers
 
+    def falling(last, *ratios):
+        """Gains ending at ``last``, each the one before times its ratio."""
+        gains = [last]
+        for ratio in reversed(ratios):
+            gains.insert(0, gains[0] / ratio)
+        return gains
+
     assert stopping.FINISHING_GAIN * unit < 0.19 * tail  # the gain alone never decides here
-    assert finishes([0.19 * tail / 0.8, 0.19 * tail]) == [False, True]  # 0.95 of the bound left
-    assert finishes([0.21 * tail / 0.8, 0.21 * tail]) == [False, False]  # 1.05 of it
-    assert finishes([0.19 * tail / 0.95, 0.19 * tail])[-1] is False  # slow: 3.8 times the bound left
-    assert finishes([0.19 * tail / 0.8, 0.19 * tail], iterations=[1, 3])[-1] is False
-    assert finishes([0.19 * tail, 0.19 * tail / 0.8])[-1] is False  # rising
-    assert finishes([0.19 * tail / 0.8, 0.19 * tail], forget=True)[-1] is False
+    assert finishes(falling(0.19 * tail, 0.8, 0.8)) == [False, False, True]  # 0.95 of the bound left
+    assert finishes(falling(0.21 * tail, 0.8, 0.8))[-1] is False  # 1.05 of it
+    assert finishes(falling(0.19 * tail, 0.9, 0.9))[-1] is False  # slow: 1.9 times the bound
+    assert finishes(falling(0.19 * tail, 0.8))[-1] is False  # one ratio is no rate
+    assert finishes(falling(0.19 * tail, 0.95, 0.001))[-1] is False  # a sudden drop: r is 0.95
+    assert finishes(falling(0.19 * tail, 0.001, 0.8))[-1] is True  # a drop, then a steady 0.8
+    assert finishes(falling(0.19 * tail, 0.8, 0.8), iterations=[1, 2, 4])[-1] is False
+    assert finishes(falling(0.19 * tail, 0.8, 0.8), iterations=[1, 3, 4])[-1] is False
+    assert finishes(falling(0.19 * tail, 0.8, 1.25))[-1] is False  # rising
+    assert finishes(falling(0.19 * tail, 0.8, 0.8), forget=True)[-1] is False
     stops = StoppingTest(TOLERANCE, 1e-6, limit=100)
-    assert not stops.finishing(False, inside, 0.19 * tail / 0.8, 1.0, 1)
-    assert not stops.finishing(True, inside, 0.19 * tail, 1.0, 2)  # feasible: the usual stops decide
+    for iteration, gain in enumerate(falling(0.19 * tail, 0.8, 0.8)[:-1], start=1):
+        stops.finishing(False, inside, gain, 1.0, iteration)
+    assert not stops.finishing(True, inside, 0.19 * tail, 1.0, 3)  # feasible: the usual stops decide
 
 
 def test_stagnation_needs_a_full_window_a_large_penalty_and_no_1_percent_fall(stops):
