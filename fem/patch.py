@@ -462,9 +462,9 @@ class ContactPatch:
         centres of 144 tets each: the tet under the ball is strained to 0.07-0.17, the
         largest 2 cm mean to 0.006-0.016, and the means were 70 % of a strain block's
         time). Where the hot columns hold more than :data:`_HOT_SHARE` of the weights'
-        stored entries (5 mm cells under a ball), the bound is the mean of the norms, one product with
-        a single column. Each centre kept is averaged as in the product over every
-        centre: the same bits.
+        stored entries (5 mm cells under a ball), the bound is the mean of the norms, one
+        product with a single column. Each centre kept is averaged as in the product over
+        every centre: the same bits.
 
         Parameters
         ----------

@@ -174,7 +174,8 @@ def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(s
     # A sheared press: strains concentrated under the print's edges, as under a foot.
     u = rng.normal(scale=5.0, size=(ids.size, 3)) + np.array([5.0, 0.0, -40.0])
     u = (u if per == "load" else (patch.compliance @ u.ravel()).reshape(-1, 3)).ravel()
-    every = (patch.neighbour_strains_under_loads if per == "load" else patch.neighbour_strains)(u, radius)
+    mean_strains = patch.neighbour_strains_under_loads if per == "load" else patch.neighbour_strains
+    every = mean_strains(u, radius)
     # A small random offset, and one along the means (the body's weight pressing as the
     # print does), where the bound's offset term is tight.
     for offset in (rng.normal(scale=1e-4, size=every.shape), 2.0 * every):
@@ -194,8 +195,7 @@ def test_the_strained_centres_are_every_centre_at_the_floor_with_the_same_bits(s
     # A NaN load reaches every mean it enters, as in the product over every centre.
     broken = u.copy()
     broken[0] = np.nan
-    spoilt = np.flatnonzero(np.isnan((patch.neighbour_strains_under_loads if per == "load"
-                                      else patch.neighbour_strains)(broken, radius)).any(axis=1))
+    spoilt = np.flatnonzero(np.isnan(mean_strains(broken, radius)).any(axis=1))
     assert spoilt.size > 0
     positions, voigt = patch.strained_centres(broken, 0.5 * norms.max(), radius, per=per)
     assert set(spoilt.tolist()) <= set(positions.tolist())
