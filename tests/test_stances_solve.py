@@ -1369,3 +1369,28 @@ def test_a_rigid_warm_start_that_cannot_reach_its_tolerance_ends_at_its_own_cap(
     assert result.statistics["rigid_warm_start_iterations"] == cap
     assert result.reason.startswith("held rigid, print unreachable: ")
     assert f"(iteration limit after {cap} iterations)" in result.reason
+
+
+# quadruped-walk's planner stance (seed 1) with the right hind foot under the body: from
+# the cold start the QP's steps sit at the 0.3 trust region, cut to 1/16-1/8, and its
+# shortfall on the linearised rows falls (see sqp._ELASTIC_PROGRESS).
+_HIND_FOOT_UNDER_THE_BODY = Stance((
+    Contact("left_front_foot", ContactPrint("floor", 0.363, 0.201)),
+    Contact("left_hind_foot", ContactPrint("floor", -0.363, 0.201)),
+    Contact("right_front_foot", ContactPrint("floor", 0.363, -0.201)),
+    Contact("right_hind_foot", ContactPrint("floor", -0.1, 0.0)),
+))
+
+
+def test_a_stance_whose_rows_lie_beyond_the_trust_region_keeps_its_penalty_and_solves(anymal, monkeypatch):
+    """While the elastic QP's shortfall keeps falling with its step held by the trust region,
+    the penalty is not raised: the stance solves, and verifies. Raising it at every cut step
+    ended the solve 'converging too slowly' (penalty 1e8), as it still does with the rule off."""
+    scene = environments.load("quadruped-walk").scene
+    result = solve(anymal, scene, _HIND_FOOT_UNDER_THE_BODY)
+    assert result.feasible, result.reason
+    assert result.verification.ok
+    monkeypatch.setattr(sqp, "_ELASTIC_PROGRESS", 0.0)  # no shortfall counts as falling
+    without = solve(anymal, scene, _HIND_FOOT_UNDER_THE_BODY)
+    assert not without.feasible
+    assert without.statistics["status"].startswith("converging too slowly")
