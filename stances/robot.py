@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
+from .ball_cover import trim_into_balls
 from .collision import KEPT_DISTANCE, hull_overlaps, ignore_self_pairs
 from .description import (
     BUILTIN_DIRECTORY,
@@ -405,7 +406,7 @@ class Robot:
             if geometry_name.startswith(tuple(removed_geometry_prefixes)):
                 collision_model.removeGeometryObject(geometry_name)
 
-        frame_names, plates = {}, {}
+        frame_names, plates, balls = {}, {}, []
         for declaration in surfaces:
             if not model.existFrame(declaration.parent_frame):
                 raise FrameNotFound(
@@ -419,6 +420,8 @@ class Robot:
                     model, collision_model, parent.parentJoint, placement, declaration.polygon, declaration.plate
                 )
             frame_names[declaration.name] = f"{declaration.name}_contact"
+            if declaration.radius is not None:
+                balls.append((parent.parentJoint, placement.translation.copy(), declaration.radius, declaration.geometries))
             frame_id = model.addFrame(
                 pin.Frame(frame_names[declaration.name], parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME)
             )
@@ -428,6 +431,7 @@ class Robot:
                 )
                 collision_model.addGeometryObject(plate)
                 plates[declaration.name] = (plate.name,)
+        trim_into_balls(collision_model, balls)
         # After the plates: the SRDF knows nothing of them (they hang on new
         # frames), so a plate is checked against every link of other joints.
         collision_model.addAllCollisionPairs()

@@ -70,14 +70,13 @@ _CORRECTION_GROWTH = 2.0
 # A QP whose elastic value (its shortfall on the linearised rows) is at most this fraction of
 # the last step's, its step held by the trust region, leaves the penalty as it is, even when
 # the line search cut the step: the rows lie beyond the region's reach rather than being
-# incompatible, and each iteration brings them closer. Raising it tenfold at each such
-# iteration (1e3 -> 1e8 in six) ended feasible stances 'converging too slowly' while the
-# shortfall fell 0.061 -> 0.007: quadruped-walk's stance with its right hind foot under the
-# body (seed 1), infeasible from both starts, now solves from the cold one; over 10 seeds
-# of quadruped-walk and quadruped-foam, 33 failed warm attempts -> 29 and 7,038 -> 6,937
-# linearisations (6,483 -> 6,238 trial evaluations); six other soft scenes x 5 seeds 5,839 ->
-# 5,726 (2,977 -> 2,921). A shortfall that stalls (an infeasible stance's hovered at
-# 0.035-0.039 for 80 iterations) raises it as before, and the solve stops as early.
+# incompatible, and each iteration brings them closer. Raised tenfold at each such step
+# instead, turn's stance turning the right sole 45 degrees (from the posture on the left sole
+# alone) took 17 Coulomb iterations instead of 9 and 18 in its rigid warm start instead of 15;
+# over 10 seeds of quadruped-foam, quadruped-walk, climb-with-soft-support and turn, 5,316
+# linearisations instead of 5,108 (2,837 trial evaluations instead of 2,761). A shortfall that
+# stalls (an infeasible stance's hovered at 0.035-0.039 for 80 iterations) raises it as
+# before, and the solve stops as early.
 _ELASTIC_PROGRESS = 0.9
 # Warm starts give starting postures only: feasible within 1e-2 (scaled: 0.1 mm and 0.1 mrad
 # of placement, 0.1 N of equilibrium, where a soft print then sinks millimetres), and done

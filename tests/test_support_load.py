@@ -41,11 +41,11 @@ def test_anymal_keeps_a_tenth_of_its_weight_on_each_of_three_feet(anymal, walk):
     assert held.limits["least_load_print"].endswith(" on floor")
     assert any(re.fullmatch(r"\w+_foot on floor carrying 10\.0 % of the weight, its least", entry)
                for entry in held.limits["at_margin"])
-    # Without the share the reference posture's centre of mass lies on the support
-    # triangle's diagonal: one foot just touches.
+    # Without the share the objective leaves a foot under it (7.6 % of the weight; under 2 %
+    # while the adapters' ends inside the balls, trimmed since, kept the shanks upright).
     touching = stances.solve(anymal, walk.scene, stance, support_load=0.0)
     assert touching.feasible, touching.reason
-    assert touching.limits["least_load"] < 0.02
+    assert touching.limits["least_load"] < 0.1 * (1 - 1e-3)
     assert not any("of the weight" in entry for entry in touching.limits["at_margin"])
 
 
