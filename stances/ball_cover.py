@@ -15,7 +15,10 @@ The part cut off lies inside the ball, so the robot's shape (the union of its ge
 is unchanged: against anything but the ball's own support the ball's distance is never more
 than that part's. Only cylinders on the ball's own joint (rigidly attached to it) whose
 end cap lies inside the ball are trimmed; a cylinder the ball does not reach, or that passes
-through it, is left as it is.
+through it, is left as it is. The ball is the foot's own collision sphere, never the radius
+its description declares. One thing does change: the pairs checked. A self-collision pair
+the SRDF enables for the cylinder but disables for the ball (ANYmal's hips against its feet)
+no longer checks the part cut off.
 """
 
 from __future__ import annotations
@@ -70,38 +73,48 @@ def trimmed_span(half_length, covered):
     return (covered[1], half_length) if low_in else (-half_length, covered[0])
 
 
-def trim_into_balls(collision_model, balls) -> list:
-    """Trim, in place, the collision cylinders whose end lies inside a point foot's ball.
+def trim_into_balls(collision_model, feet) -> list:
+    """Trim, in place, the collision cylinders whose end lies inside a foot's ball.
+
+    The balls are the feet's own collision spheres, as the collision model has them (a
+    declared radius is not trusted: a foot without a sphere trims nothing).
 
     Parameters
     ----------
     collision_model : pinocchio.GeometryModel
-    balls : iterable of (int, (3,) float, float, iterable of str)
-        Per point foot: its parent joint, its ball's centre in that joint's frame
-        (metres), its radius (metres) and its own contact geometries (never trimmed).
+    feet : iterable of iterable of str
+        Per point foot, its contact geometries' names; those that are spheres are its
+        balls (never trimmed themselves).
 
     Returns
     -------
     list of (str, float)
         The trimmed geometries and the length cut off each, metres (also logged).
     """
+    by_name = {geometry.name: geometry for geometry in collision_model.geometryObjects}
     trimmed = []
-    for joint, centre, ball_radius, own in balls:
+    for own in feet:
         own = set(own)
-        for geometry in collision_model.geometryObjects:
-            shape = geometry.geometry
-            if geometry.parentJoint != joint or geometry.name in own or not isinstance(shape, coal.Cylinder):
+        for name in sorted(own):
+            ball = by_name.get(name)
+            if ball is None or not isinstance(ball.geometry, coal.Sphere):
                 continue
-            placement = geometry.placement
-            offset = placement.rotation.T @ (np.asarray(centre, dtype=float) - placement.translation)
-            span = trimmed_span(shape.halfLength, covered_span(shape.radius, offset, ball_radius))
-            if span is None:
-                continue
-            low, high = span
-            geometry.geometry = coal.Cylinder(shape.radius, high - low)
-            placement.translation = placement.translation + placement.rotation[:, 2] * (0.5 * (low + high))
-            geometry.placement = placement
-            trimmed.append((geometry.name, 2.0 * shape.halfLength - (high - low)))
+            centre, ball_radius = ball.placement.translation, float(ball.geometry.radius)
+            for geometry in collision_model.geometryObjects:
+                shape = geometry.geometry
+                if (geometry.parentJoint != ball.parentJoint or geometry.name in own
+                        or not isinstance(shape, coal.Cylinder)):
+                    continue
+                placement = geometry.placement
+                offset = placement.rotation.T @ (centre - placement.translation)
+                span = trimmed_span(shape.halfLength, covered_span(shape.radius, offset, ball_radius))
+                if span is None:
+                    continue
+                low, high = span
+                geometry.geometry = coal.Cylinder(shape.radius, high - low)
+                placement.translation = placement.translation + placement.rotation[:, 2] * (0.5 * (low + high))
+                geometry.placement = placement
+                trimmed.append((geometry.name, 2.0 * shape.halfLength - (high - low)))
     if trimmed:
         logger.info("collision cylinders trimmed to where they leave a foot's ball: %s",
                     ", ".join(f"{name} by {cut * 1e3:.2f} mm" for name, cut in trimmed))

@@ -406,7 +406,7 @@ class Robot:
             if geometry_name.startswith(tuple(removed_geometry_prefixes)):
                 collision_model.removeGeometryObject(geometry_name)
 
-        frame_names, plates, balls = {}, {}, []
+        frame_names, plates, feet = {}, {}, []
         for declaration in surfaces:
             if not model.existFrame(declaration.parent_frame):
                 raise FrameNotFound(
@@ -421,7 +421,7 @@ class Robot:
                 )
             frame_names[declaration.name] = f"{declaration.name}_contact"
             if declaration.radius is not None:
-                balls.append((parent.parentJoint, placement.translation.copy(), declaration.radius, declaration.geometries))
+                feet.append(declaration.geometries)
             frame_id = model.addFrame(
                 pin.Frame(frame_names[declaration.name], parent.parentJoint, parent_id, placement, pin.FrameType.OP_FRAME)
             )
@@ -431,7 +431,7 @@ class Robot:
                 )
                 collision_model.addGeometryObject(plate)
                 plates[declaration.name] = (plate.name,)
-        trim_into_balls(collision_model, balls)
+        trim_into_balls(collision_model, feet)
         # After the plates: the SRDF knows nothing of them (they hang on new
         # frames), so a plate is checked against every link of other joints.
         collision_model.addAllCollisionPairs()

@@ -56,13 +56,13 @@ def _leg():
     geometry.addGeometryObject(pin.GeometryObject("ball", knee, at(BALL_CENTRE[2]), coal.Sphere(BALL)))
     geometry.addGeometryObject(pin.GeometryObject("through", knee, at(BALL_CENTRE[2]), coal.Cylinder(0.005, 0.2)))
     geometry.addGeometryObject(pin.GeometryObject("elsewhere", other, at(-ADAPTER_HALF), coal.Cylinder(ADAPTER, 2 * ADAPTER_HALF)))
-    return geometry, knee
+    return geometry
 
 
 def test_the_adapter_ends_where_it_leaves_the_ball_and_nothing_else_changes():
-    geometry, knee = _leg()
+    geometry = _leg()
     before = {g.name: (g.geometry, g.placement.copy()) for g in geometry.geometryObjects}
-    trimmed = trim_into_balls(geometry, [(knee, BALL_CENTRE, BALL, ("ball",))])
+    trimmed = trim_into_balls(geometry, [("ball",)])
     leaves = BALL_CENTRE[2] + math.sqrt(BALL**2 - ADAPTER**2)  # -0.2709 m
     assert trimmed == [("adapter", pytest.approx(leaves + 2 * ADAPTER_HALF, abs=1e-15))]
     adapter = geometry.geometryObjects[geometry.getGeometryId("adapter")]
@@ -75,9 +75,17 @@ def test_the_adapter_ends_where_it_leaves_the_ball_and_nothing_else_changes():
         assert g.geometry is before[name][0] and g.placement == before[name][1]
 
 
+def test_a_foot_without_a_collision_sphere_trims_nothing():
+    """The ball is the foot's own sphere in the collision model, never a declared radius."""
+    geometry = _leg()
+    assert trim_into_balls(geometry, [("adapter",), ("no such geometry",)]) == []
+    adapter = geometry.geometryObjects[geometry.getGeometryId("adapter")]
+    assert adapter.geometry.halfLength == ADAPTER_HALF
+
+
 def test_what_is_cut_off_lies_in_the_ball():
-    geometry, knee = _leg()
-    trim_into_balls(geometry, [(knee, BALL_CENTRE, BALL, ("ball",))])
+    geometry = _leg()
+    trim_into_balls(geometry, [("ball",)])
     adapter = geometry.geometryObjects[geometry.getGeometryId("adapter")]
     bottom = adapter.placement.translation[2] - adapter.geometry.halfLength
     # The rim of every cross-section of the part cut off, from the old end to the new one.
