@@ -3,9 +3,11 @@
 from __future__ import annotations
 
 import functools
+import importlib.util
 import os
 import shutil
 import tempfile
+from pathlib import Path
 
 import coal
 import numpy as np
@@ -82,6 +84,17 @@ def coarse_scenario(name: str, resolution: str = "0.04", young_modulus: float | 
     if density is not None:
         text = text.replace("rho: 1.0e+3", f"rho: {density:.6e}").replace("rho: 100.0", f"rho: {density:.6e}")
     return environments.load_string(text, name=name)
+
+
+BENCH = Path(__file__).resolve().parents[1] / "bench"
+
+
+def bench_module(name: str):
+    """The benchmark script ``bench/<name>.py``, imported as a module (bench/ is no package)."""
+    spec = importlib.util.spec_from_file_location(name, BENCH / f"{name}.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    return module
 
 
 def fingerprint(result) -> tuple:

@@ -2,27 +2,15 @@
 
 from __future__ import annotations
 
-import importlib.util
-from pathlib import Path
-
 import numpy as np
 import pytest
 
 import environments
+from conftest import BENCH, bench_module
 from environments import SceneError
 from environments.rigid_twin import rigid_object_of, rigid_twin
 
-BENCH = Path(__file__).resolve().parent.parent / "bench"
-
-
-def _suite_module():
-    spec = importlib.util.spec_from_file_location("bench_suite", BENCH / "bench_suite.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-SUITE = _suite_module()
+SUITE = bench_module("bench_suite")
 
 
 def test_every_suite_scene_is_a_file_of_bench_scenes_or_a_built_in_and_every_file_is_in_the_suite():

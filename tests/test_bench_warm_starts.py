@@ -2,27 +2,16 @@
 
 from __future__ import annotations
 
-import importlib.util
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 import environments
 from cbm.planner import StanceCheck
+from conftest import bench_module
 
-BENCH = Path(__file__).resolve().parent.parent / "bench"
-
-
-def _module():
-    spec = importlib.util.spec_from_file_location("bench_warm_starts", BENCH / "bench_warm_starts.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
-
-
-WARM_STARTS = _module()
+WARM_STARTS = bench_module("bench_warm_starts")
 
 
 @pytest.fixture

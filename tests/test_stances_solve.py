@@ -5,7 +5,6 @@ from __future__ import annotations
 import json
 import math
 import warnings
-from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -13,7 +12,7 @@ import pytest
 
 import environments
 import fem
-from conftest import coarse_scenario
+from conftest import BENCH, coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.results import LazyDeformations
@@ -1382,7 +1381,7 @@ def test_a_stance_whose_rows_lie_beyond_the_trust_region_keeps_its_penalty(monke
     from the posture on the left sole alone: 9 Coulomb iterations (15 in the rigid warm
     start); raising the penalty at every cut step, 17 (and 18), to the same verified answer
     within the tolerances."""
-    scenario = environments.load(str(Path(__file__).resolve().parent.parent / "bench" / "scenes" / "turn.yaml"))
+    scenario = environments.load(BENCH / "scenes" / "turn.yaml")
     robot = Robot.load(scenario.robot)
     on_left = Stance((Contact("left_sole", ContactPrint("mat_top", -0.2, 0.0, 0.0)),))
     turned = Stance(on_left.contacts + (Contact("right_sole", ContactPrint("mat_top", 0.1, -0.1, math.pi / 4)),))
