@@ -22,6 +22,7 @@ compliance columns on a foam mat, 192 kB, took 0.46-0.97 ms CPU in zip and heade
 parsing, now 0.15-0.32 ms, measured side by side; solving them takes about 4 ms.) Writes go
 to a temporary file renamed into place, so a reader never sees half an entry. The
 directory is kept under a size bound by removing the least recently used entries.
+(``cbm.robot_mesh`` keeps a robot's drawn meshes here too, under a digest of its own.)
 
 Environment variables (read when a body is made):
 
