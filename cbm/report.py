@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from stances.deformable import RESOLVED_BALL_NODES
+
 __all__ = ["stance_report"]
 
 
@@ -48,6 +50,11 @@ def stance_report(result, robot, stance):
             strain = measures.get(f"largest strain of {name}")
             strained = "" if strain is None else f", largest strain {100 * strain:.2f} %"
             lines.append(f"    {name}: indented {1e3 * measures[f'indentation of {name}']:.2f} mm{strained}")
+        for key in measures:
+            if key.startswith("pressed nodes under "):
+                count = measures[key]
+                coarse = " (a contact smaller than the cells: its force depends on the mesh)" if count < RESOLVED_BALL_NODES else ""
+                lines.append(f"    {key[len('pressed nodes under '):]}: {count} mesh node(s) pressed{coarse}")
     lines.append("  margins:")
     limits = result.limits or {}
     if "torque_usage" in limits:

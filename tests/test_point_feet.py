@@ -364,3 +364,55 @@ def test_a_cold_start_puts_the_stance_feet_over_their_prints(anymal, walk):
     feet = np.mean([data.oMf[anymal.frame_id(anymal.surface(c.robot_surface).frame)].translation for c in stance], axis=0)
     prints = np.mean([walk.scene.transform_print_to_world(c.contact_print)[:3, 3] for c in stance], axis=0)
     np.testing.assert_allclose(feet[:2], prints[:2], atol=1e-9)
+
+
+def test_verify_counts_the_nodes_a_ball_presses_and_says_once_when_they_are_too_few(anymal, on_foam, caplog, monkeypatch):
+    """On quadruped-foam's 10 mm foam a ball 1.7 mm deep presses one node: a contact smaller
+    than the cells, whose force a converged mesh would not give (bench/results/ball_foot.md).
+    Verify counts each ball's pressed nodes, logs it once for the body, and the stance's
+    report shows it; the stance stays accepted by the model's own checks."""
+    from cbm.report import stance_report
+    from stances import deformable
+
+    problem, result = on_foam
+    monkeypatch.setattr(deformable, "_COARSE_BALLS_LOGGED", set())
+    with caplog.at_level("WARNING", logger="stances.deformable"):
+        first = verify_problem(problem, result)
+        second = verify_problem(problem, result)
+    assert first.ok and second.ok
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    forces = np.array([p.force for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    for i, spec in enumerate(soft.prints):
+        normal = forces[soft.print_of_node == i, 2]
+        expected = int(np.count_nonzero(normal > 1e-3 * normal.max()))
+        assert first.measures[f"pressed nodes under {spec.label}"] == expected < deformable.RESOLVED_BALL_NODES
+    warnings = [r.getMessage() for r in caplog.records if "mesh node(s) of 'foam'" in r.getMessage()]
+    assert len(warnings) == 1, warnings
+    assert warnings[0].startswith(f"{soft.prints[0].label} presses {expected} mesh node(s) of 'foam': a ball contact smaller")
+    lines = stance_report(dataclasses.replace(result, verification=first), anymal, problem.stance)
+    for spec in soft.prints:
+        assert f"    {spec.label}: {expected} mesh node(s) pressed (a contact smaller than the cells: its force depends on the mesh)" in lines
+
+
+def test_a_ball_pressing_enough_nodes_is_counted_without_a_word(anymal, on_foam, caplog, monkeypatch):
+    """Nine pressed nodes or more (5 mm cells under a ball 1-2.5 mm deep: within 2.3 % of a
+    converged mesh) and nothing is logged; forces below a thousandth of the largest do not count."""
+    from stances import deformable
+
+    problem, _ = on_foam
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    monkeypatch.setattr(deformable, "_COARSE_BALLS_LOGGED", set())
+    normal = np.zeros(soft.print_of_node.size)
+    for i in range(len(soft.prints)):
+        rows = np.flatnonzero(soft.print_of_node == i)
+        normal[rows[:deformable.RESOLVED_BALL_NODES]] = 10.0
+        normal[rows[deformable.RESOLVED_BALL_NODES]] = 0.009  # under a thousandth of 10 N
+    measures = {}
+    with caplog.at_level("WARNING", logger="stances.deformable"):
+        soft._count_pressed_nodes(normal, measures)
+    assert [measures[f"pressed nodes under {spec.label}"] for spec in soft.prints] == [deformable.RESOLVED_BALL_NODES] * 2
+    assert not [r for r in caplog.records if "mesh node(s)" in r.getMessage()]
+    normal[np.flatnonzero(soft.print_of_node == 1)] = 0.0  # a ball resting on the foam, carrying nothing
+    soft._count_pressed_nodes(normal, measures)
+    assert measures[f"pressed nodes under {soft.prints[1].label}"] == 0
+    assert not [r for r in caplog.records if "mesh node(s)" in r.getMessage()]
