@@ -52,9 +52,14 @@ def stance_report(result, robot, stance):
             lines.append(f"    {name}: indented {1e3 * measures[f'indentation of {name}']:.2f} mm{strained}")
         for key in measures:
             if key.startswith("pressed nodes under "):
+                label = key[len("pressed nodes under "):]
                 count = measures[key]
                 coarse = " (a contact smaller than the cells: its force depends on the mesh)" if count < RESOLVED_BALL_NODES else ""
-                lines.append(f"    {key[len('pressed nodes under '):]}: {count} mesh node(s) pressed{coarse}")
+                estimate = measures.get(f"ball force estimate under {label}")
+                against = "" if estimate is None else (
+                    f"; a continuous layer carries {estimate:.1f} N at its depth, the mesh "
+                    f"{100 * measures[f'ball force error under {label}']:+.0f} %")
+                lines.append(f"    {label}: {count} mesh node(s) pressed{coarse}{against}")
     lines.append("  margins:")
     limits = result.limits or {}
     if "torque_usage" in limits:

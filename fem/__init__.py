@@ -14,6 +14,7 @@ from .cache import DiskCache
 from .deadline import SetupTimeout, check_deadline, deadline
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
+from .layer_contact import sphere_on_layer_force
 from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
@@ -49,6 +50,7 @@ __all__ = [
     "deadline",
     "check_deadline",
     "ContactPatch",
+    "sphere_on_layer_force",
     "von_mises",
     "voigt_to_tensor_strain",
     "frobenius_norms",

@@ -11,6 +11,7 @@ import pinocchio as pin
 import pytest
 
 import environments
+import fem
 import stances
 from environments import Contact, ContactPrint, Stance
 from conftest import assert_point_feet_are_their_spheres
@@ -391,7 +392,42 @@ def test_verify_counts_the_nodes_a_ball_presses_and_says_once_when_they_are_too_
     assert warnings[0].startswith(f"{soft.prints[0].label} presses {expected} mesh node(s) of 'foam': a ball contact smaller")
     lines = stance_report(dataclasses.replace(result, verification=first), anymal, problem.stance)
     for spec in soft.prints:
-        assert f"    {spec.label}: {expected} mesh node(s) pressed (a contact smaller than the cells: its force depends on the mesh)" in lines
+        estimate = first.measures[f"ball force estimate under {spec.label}"]
+        error = first.measures[f"ball force error under {spec.label}"]
+        assert (f"    {spec.label}: {expected} mesh node(s) pressed (a contact smaller than the cells: its force depends "
+                f"on the mesh); a continuous layer carries {estimate:.1f} N at its depth, the mesh {100 * error:+.0f} %") in lines
+
+
+def test_verify_sets_each_balls_force_beside_a_continuous_layers_at_its_depth(anymal, foam, on_foam):
+    """The foam is a 5 cm layer on a held base: at each ball's depth (its centre's sinking
+    below where it rests on the foam) fem.sphere_on_layer_force gives what a mesh fine
+    enough would carry; on the 10 mm mesh the ball on its node carries less (the
+    2026-12-03 audit's converged FEM found the same stance's balls under-loaded too)."""
+    problem, result = on_foam
+    verification = verify_problem(problem, result)
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    material = foam.scene.deformable_of_surface("foam_top").body.material
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, result.q)
+    forces = np.array([p.force for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    for i, spec in enumerate(soft.prints):
+        centre = data.oMf[anymal.frame_id(anymal.surface(spec.robot_surface).frame)].translation
+        sinking = spec.transform_print_to_world[2, 3] + FOOT_RADIUS - centre[2]
+        estimate, contact = fem.sphere_on_layer_force(sinking, FOOT_RADIUS, 0.05, material.young_modulus, material.poisson_ratio)
+        assert verification.measures[f"ball force estimate under {spec.label}"] == pytest.approx(estimate, rel=1e-9)
+        carried = forces[soft.print_of_node == i, 2].sum()
+        assert verification.measures[f"ball force error under {spec.label}"] == pytest.approx(carried / estimate - 1, abs=1e-9)
+        assert -0.3 < carried / estimate - 1 < -0.05 and contact < 0.6 * 0.05
+    # A print nearer the foam's side than its thickness is outside the layer's formula.
+    soft.__dict__.pop("_layers", None)
+    placement = soft.print_placements[0]
+    try:
+        moved = pin.SE3(placement.rotation, placement.translation + np.array([0.0, 0.3 - 0.04, 0.0]))  # 4 cm from y = 0.5
+        soft.print_placements[0] = moved
+        assert soft._layer_under(0) is None and soft._layer_under(1) == pytest.approx(0.05)
+    finally:
+        soft.print_placements[0] = placement
+        soft.__dict__.pop("_layers", None)
 
 
 def test_a_ball_pressing_enough_nodes_is_counted_without_a_word(anymal, on_foam, caplog, monkeypatch):

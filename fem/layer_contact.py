@@ -1,0 +1,177 @@
+"""A rigid sphere pressed into an elastic layer bonded to a rigid base: the continuum's force.
+
+What a mesh cannot give when the contact is smaller than its cells (a ball foot 1-2.5 mm
+deep in foam meshed at 10 mm touches one node), the continuum gives in closed form up to
+one quadrature: the sphere's own contact on a half-space (Segedin's exact-profile
+solution, Hertz's as the ball sinks little) and the layer's far field, the compliance of a
+layer of thickness t bonded to a rigid base less a half-space's, for the contact's
+Hertzian pressure. The contact radius a solves
+
+    d = delta_0(a) + F_0(a) (dc(a) + a dc'(a) / 6)
+
+(first order in the far field; the a dc'/6 term from the contact's complementary energy),
+and the force is F_0(a). Frictionless; friction 0.7 adds 0.2-0.8 % at these depths. Against
+a ring-discretised continuum solution of the same layer it agrees to 0.1 % (41.76 N at 2.5 mm
+and 9.88 N at 1 mm for ANYmal's 31 mm ball in 50 mm of foam at E = 1e6 Pa, nu = 0.4), and the
+library's FEM with node contact converges to it (``docs/ball-subgrid.md``).
+
+The layer is laterally infinite: a print near a body's side face or over a non-uniform
+support is outside the formula.
+"""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+from scipy.optimize import brentq
+
+from .errors import FemError
+
+__all__ = ["sphere_on_half_space", "layer_correction", "sphere_on_layer_force"]
+
+# Gauss-Legendre nodes on x = xi t in [0, _X_MAX]: the layer's kernel K(x) - 1 falls as
+# exp(-2 x), below 1e-15 of its value at 0 past x = 20.
+_X_MAX = 24.0
+_NODES = 256
+
+
+def sphere_on_half_space(a, radius: float, effective_modulus: float):
+    """A rigid sphere's approach and force on an elastic half-space at contact radius ``a``.
+
+    Segedin's solution for the sphere's exact profile: ``delta = a/2 L``,
+    ``F = E*/2 ((a^2 + R^2) L - 2 a R)`` with ``L = ln((R + a)/(R - a))``; Hertz's
+    ``a^2 / R`` and ``4 E* a^3 / (3 R)`` as a / R -> 0.
+
+    Parameters
+    ----------
+    a : float or array
+        Contact radius, metres, 0 <= a < radius.
+    radius : float
+        Sphere radius R, metres.
+    effective_modulus : float
+        ``E* = E / (1 - nu^2)``, pascals.
+
+    Returns
+    -------
+    delta, force : float or array
+        Metres and newtons.
+    """
+    a = np.asarray(a, dtype=float)
+    log = np.log((radius + a) / (radius - a))
+    return 0.5 * a * log, 0.5 * effective_modulus * ((a * a + radius * radius) * log - 2.0 * a * radius)
+
+
+def _kernel(x, poisson_ratio: float):
+    """The layer-on-rigid-base kernel K(x), x = xi t: the ratio of the layer's surface
+    displacement under a harmonic pressure of wavenumber xi to a half-space's (-> 1 as x
+    grows, ~ x (1 - 2 nu) / (2 (1 - nu)^2) as x -> 0)."""
+    kappa = 3.0 - 4.0 * poisson_ratio
+    x = np.asarray(x, dtype=float)
+    out = np.ones_like(x)
+    small = x < 18.0  # past it K = 1 to rounding
+    xs = x[small]
+    out[small] = (2.0 * kappa * np.sinh(2.0 * xs) - 4.0 * xs) / (
+        2.0 * kappa * np.cosh(2.0 * xs) + 1.0 + kappa * kappa + 4.0 * xs * xs
+    )
+    return out
+
+
+@functools.lru_cache(maxsize=16)
+def _rule(poisson_ratio: float):
+    """Quadrature nodes x (n,) and weights times K(x) - 1 (n,) on [0, _X_MAX]."""
+    x, w = np.polynomial.legendre.leggauss(_NODES)
+    x = 0.5 * _X_MAX * (x + 1.0)
+    return x, 0.5 * _X_MAX * w * (_kernel(x, poisson_ratio) - 1.0)
+
+
+def _pressure_transform(s):
+    """2 pi times the Hankel transform of a unit-force Hertzian pressure of radius a, at
+    s = xi a: 3 (sin s - s cos s) / s^3 (1 at s = 0)."""
+    s = np.asarray(s, dtype=float)
+    out = np.ones_like(s)
+    big = s > 1e-3
+    sb = s[big]
+    out[big] = 3.0 * (np.sin(sb) - sb * np.cos(sb)) / sb**3
+    out[~big] = 1.0 - 0.1 * s[~big] ** 2  # its series, 1 - s^2/10 + ...
+    return out
+
+
+def layer_correction(a, thickness: float, effective_modulus: float, poisson_ratio: float):
+    """The layer's far field: its compliance less a half-space's for a unit-force
+    Hertzian pressure of radius ``a``, weighted by that pressure, m/N (negative: the
+    layer is stiffer).
+
+    ``dc = 1 / (pi E* t) int_0^inf Pbar(x a / t)^2 (K(x) - 1) dx``, ``Pbar`` the pressure's
+    transform (:func:`_pressure_transform`); by one fixed Gauss-Legendre rule.
+
+    Parameters
+    ----------
+    a : float or array
+        Contact radius, metres.
+    thickness : float
+        Layer thickness t, metres.
+    effective_modulus : float
+        ``E*``, pascals.
+    poisson_ratio : float
+
+    Returns
+    -------
+    float or array
+        m/N.
+    """
+    x, weights = _rule(float(poisson_ratio))
+    a = np.asarray(a, dtype=float)
+    transform = _pressure_transform(np.multiply.outer(a / thickness, x))
+    return (transform**2 @ weights) / (np.pi * effective_modulus * thickness)
+
+
+def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_modulus: float, poisson_ratio: float):
+    """The force a rigid sphere pressed ``depth`` into an elastic layer needs, and its
+    contact radius (the continuum's, frictionless; module docstring).
+
+    Parameters
+    ----------
+    depth : float
+        The sphere's sinking below the layer's surface at rest, metres, >= 0.
+    radius, thickness : float
+        Metres, > 0.
+    young_modulus : float
+        Pascals, > 0.
+    poisson_ratio : float
+        In [0, 0.5).
+
+    Returns
+    -------
+    force, contact_radius : float
+        Newtons and metres (0 and 0 at depth 0).
+
+    Raises
+    ------
+    FemError
+        On a bad argument, or a depth of the sphere's radius or more.
+    """
+    for name, value in (("radius", radius), ("thickness", thickness), ("young_modulus", young_modulus)):
+        if not (np.isfinite(value) and value > 0.0):
+            raise FemError(f"{name} must be finite and > 0, got {value!r}")
+    if not (np.isfinite(depth) and depth >= 0.0):
+        raise FemError(f"depth must be finite and >= 0 metres, got {depth!r}")
+    if not 0.0 <= poisson_ratio < 0.5:
+        raise FemError(f"poisson_ratio must lie in [0, 0.5), got {poisson_ratio!r}")
+    if depth >= radius:
+        raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m deep: its radius or more")
+    if depth == 0.0:
+        return 0.0, 0.0
+    modulus = young_modulus / (1.0 - poisson_ratio**2)
+
+    def residual(a):
+        delta, force = sphere_on_half_space(a, radius, modulus)
+        step = 1e-4 * a
+        slope = (layer_correction(a + step, thickness, modulus, poisson_ratio)
+                 - layer_correction(a - step, thickness, modulus, poisson_ratio)) / (2.0 * step)
+        return delta + force * (layer_correction(a, thickness, modulus, poisson_ratio) + a * slope / 6.0) - depth
+
+    # delta_0 grows without bound as a -> R (logarithmically), so a root lies below R.
+    low, high = 1e-9 * radius, (1.0 - 1e-9) * radius
+    a = brentq(residual, low, high, xtol=1e-15, rtol=1e-13)
+    return float(sphere_on_half_space(a, radius, modulus)[1]), float(a)
