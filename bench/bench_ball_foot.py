@@ -39,10 +39,11 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 from benchmark_info import write_report  # noqa: E402
-from test_ball_contact import FOAM, ball_body, ball_force, hertz_force, top_nodes_near  # noqa: E402
+from test_ball_contact import FOAM, RADIUS, ball_body, ball_force, hertz_force, top_nodes_near  # noqa: E402
 from test_mesh_convergence import richardson  # noqa: E402
 
 import environments  # noqa: E402
+import fem  # noqa: E402
 
 SPACING = 0.010  # m, quadruped-foam's resolution
 BLOCK = (0.2, 0.2, 0.05)  # m
@@ -65,14 +66,21 @@ def scene_row(body, depth: float) -> list:
     force, pressed, _ = ball_force(body, body.mesh.nodes[node, :2], depth, reach=REACH + SPACING)
     scale = FOAM.young_modulus / body.material.young_modulus
     return [f"| scene's foam 0.4 x 1.0 m, E = {body.material.young_modulus:.3g} Pa | {1e3 * depth:g} | {1e3 * SPACING:g} | "
-            f"on a node | {body.mesh.n_nodes} | {pressed.size} | {force:.2f} ({force * scale:.2f} at the block's E) | | |"]
+            f"on a node | {body.mesh.n_nodes} | {pressed.size} | {force:.2f} ({force * scale:.2f} at the block's E) | | "
+            f"{force * scale / continuum(depth) - 1:+.1%} | |"]
+
+
+def continuum(depth: float) -> float:
+    """The continuum's force on the block's foam, a layer of its thickness on a rigid base,
+    frictionless (fem.sphere_on_layer_force; friction 0.7 adds 0.2-0.8 % here)."""
+    return fem.sphere_on_layer_force(depth, RADIUS, BLOCK[2], FOAM.young_modulus, FOAM.poisson_ratio)[0]
 
 
 def main() -> None:
     started = time.perf_counter()
     lines = [
-        "| body | depth (mm) | h (mm) | ball | nodes | pressed nodes | force (N) | error vs reference | CPU for the mesh (s) |",
-        "|---|---|---|---|---|---|---|---|---|",
+        "| body | depth (mm) | h (mm) | ball | nodes | pressed nodes | force (N) | error vs reference | vs the continuum | CPU for the mesh (s) |",
+        "|---|---|---|---|---|---|---|---|---|---|",
     ]
     notes = []
     forces = {}
@@ -109,13 +117,14 @@ def main() -> None:
                 where = "on a node" if offset == (0.0, 0.0) else f"off by ({offset[0]:g}, {offset[1]:g}) h"
                 lines.append(
                     f"| block 0.2 x 0.2 m | {1e3 * depth:g} | {1e3 * SPACING / level:g} | {where} | {nodes} | {pressed} | "
-                    f"{force:.2f} | {force / limit - 1:+.1%} | {forces[level, 'time']:.1f} |"
+                    f"{force:.2f} | {force / limit - 1:+.1%} | {force / continuum(depth) - 1:+.1%} | {forces[level, 'time']:.1f} |"
                 )
         flat, _, _ = ball_force(default_body, (0.0, 0.0), depth, flat=True)
         notes.append(
             f"At {1e3 * depth:g} mm: order p = {order:.2f}, reference {limit:.2f} N ({reference}); Hertz's half-space "
             f"{hertz_force(depth):.2f} N (the 50 mm layer on its fixed base is stiffer); the flat punch at h = "
-            f"{1e3 * SPACING:g} mm {flat:.1f} N ({flat / limit:.1f} times the limit)."
+            f"{1e3 * SPACING:g} mm {flat:.1f} N ({flat / limit:.1f} times the limit); the continuum (a laterally infinite "
+            f"layer, frictionless: fem.sphere_on_layer_force) {continuum(depth):.2f} N."
         )
     write_report(
         os.path.join(os.path.dirname(__file__), "results", "ball_foot.md"),
