@@ -54,7 +54,7 @@ def stance_report(result, robot, stance):
             if key.startswith("pressed nodes under "):
                 label = key[len("pressed nodes under "):]
                 count = measures[key]
-                coarse = " (a contact smaller than the cells: its force depends on the mesh)" if count < RESOLVED_BALL_NODES else ""
+                coarse = " (a contact smaller than the cells: its force depends on the mesh)" if 0 < count < RESOLVED_BALL_NODES else ""
                 estimate = measures.get(f"ball force estimate under {label}")
                 against = "" if estimate is None else (
                     f"; a continuous layer carries {estimate:.1f} N at its depth, the mesh "

@@ -272,6 +272,11 @@ def _load(key, cell):
         if known is not None:
             return known
     geometry_objects = _visual_geometry(*key).geometryObjects
+    # Stamped before trimesh reads them and again after: an entry is stored only if no file
+    # changed in between. (pinocchio's copies, for files trimesh cannot read, are those
+    # this process loaded first: a file edited since is not seen until a new process.)
+    files = sorted({g.meshPath for g in geometry_objects if _is_mesh_file(g)})
+    stamps = [_stamp(path) for path in files]
     meshes = []
     for geometry_object in geometry_objects:
         read = _geometry_mesh(geometry_object)
@@ -284,9 +289,7 @@ def _load(key, cell):
         )
     meshes = RobotMeshes(tuple(meshes))
     if digest is not None:
-        files = sorted({g.meshPath for g in geometry_objects if _is_mesh_file(g)})
-        stamps = [_stamp(path) for path in files]
-        if all(stamp is not None for stamp in stamps):
+        if all(stamp is not None for stamp in stamps) and stamps == [_stamp(path) for path in files]:
             cache.store(digest, _ENTRY, _to_arrays(meshes, list(zip(files, stamps))))
     return meshes
 
@@ -343,10 +346,12 @@ def _from_arrays(arrays):
     meta = json.loads(arrays["meta"].tobytes())
     if any(_stamp(path) != stamp for path, stamp in meta["files"]):
         return None
-    vertices = np.split(arrays["vertices"], np.cumsum(arrays["vertex_counts"])[:-1])
-    triangles = np.split(arrays["triangles"], np.cumsum(arrays["triangle_counts"])[:-1])
+    # Copies: the cache's arrays are read-only views of one buffer, and meshes read from
+    # their files are not.
+    vertices = np.split(arrays["vertices"].copy(), np.cumsum(arrays["vertex_counts"])[:-1])
+    triangles = np.split(arrays["triangles"].copy(), np.cumsum(arrays["triangle_counts"])[:-1])
     return RobotMeshes(tuple(
-        LinkMesh(name, int(joint), placement, v, t)
+        LinkMesh(name, int(joint), placement.copy(), v, t)
         for name, joint, placement, v, t in zip(meta["names"], arrays["joints"], arrays["placements"], vertices, triangles)
     ))
 

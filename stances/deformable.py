@@ -108,6 +108,7 @@ import scipy.spatial
 
 import fem
 from fem.dense import block_diagonal_product
+from fem.layer_contact import VALID_CONTACT_SHARE
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
@@ -126,13 +127,10 @@ MINIMUM_PRINT_NODES = 3
 # nodes: +12 % of a continuous layer's force): the estimate beside it says how far.
 RESOLVED_BALL_NODES = 9
 
-# fem.sphere_on_layer_force's first-order far field holds while the contact radius is at
-# most this share of the layer's thickness (0.2 % from a converged FEM at 0.6; 12 % low at 1.26).
-_LAYER_CONTACT_SHARE = 0.6
 
 logger = logging.getLogger(__name__)
 
-# Soft bodies whose coarse ball contact this process has logged (once each).
+# Soft bodies (their fem bodies' ids) whose coarse ball contact this process has logged (once each).
 _COARSE_BALLS_LOGGED: set = set()
 
 # The inner square of a disc: |s . t_i| <= r / sqrt(2) on both axes implies |s| <= r.
@@ -332,6 +330,7 @@ class DeformableContact:
         node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.ball_radii = {}  # print index -> its ball's radius, metres, for point feet
+        self._layers = {}  # print index -> the layer's thickness under it or None (_layer_under)
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
@@ -1361,26 +1360,28 @@ class DeformableContact:
         ball another force."""
         for index in self.point_prints.tolist():
             pushed = normal[self.print_of_node == index]
-            count = int(np.count_nonzero(pushed > 1e-3 * max(float(pushed.max()), 0.0))) if pushed.max() > 0.0 else 0
+            count = int(np.count_nonzero(pushed > 1e-3 * pushed.max())) if pushed.max() > 0.0 else 0
             label = self.prints[index].label
             measures[f"pressed nodes under {label}"] = count
-            name = self.deformable_object.name
-            if 0 < count < RESOLVED_BALL_NODES and name not in _COARSE_BALLS_LOGGED:
-                _COARSE_BALLS_LOGGED.add(name)
+            body = id(self.deformable_object.body)
+            if 0 < count < RESOLVED_BALL_NODES and body not in _COARSE_BALLS_LOGGED:
+                _COARSE_BALLS_LOGGED.add(body)
                 logger.warning(
                     "%s presses %d mesh node(s) of %r: a ball contact smaller than the cells, whose force depends on "
-                    "where the ball stands against the nodes (1-5 nodes: -46 %% to +31 %% of a converged mesh's; the "
-                    "verification's 'ball force error under <print>' compares it with a continuous layer's); refine "
-                    "the mesh where balls land (a soft_box's refine_lines, or a finer resolution)", label, count, name)
+                    "where the ball stands against the nodes (1-5 nodes: -46 %% to +31 %% of a converged mesh's; where "
+                    "the body is a layer, the verification's 'ball force error under <print>' compares it with a "
+                    "continuous layer's); refine the mesh where balls land (a soft_box's refine_lines, or a finer "
+                    "resolution)", label, count, self.deformable_object.name)
 
     def _estimate_ball_forces(self, points, normal, measures) -> None:
         """``ball force estimate under <print>`` (newtons) and ``ball force error under
         <print>`` (the mesh's over it, less 1) of each ball foot pressed into a layer: the
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
-        formula holds (:meth:`_layer_under`): a body whose nodes at the far side from the
-        print are its fixed nodes, the print at least a thickness from the sides, the
-        contact radius at most 0.6 of the thickness."""
+        formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
+        face, at least a thickness from the sides) and the contact radius is at most
+        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness (within 0.5 % of the
+        continuum there). Never raises: a ball sunk past what the formula takes gets none."""
         material = self.deformable_object.body.material
         for index in self.point_prints.tolist():
             thickness = self._layer_under(index)
@@ -1389,12 +1390,13 @@ class DeformableContact:
             rows = self.print_of_node == index
             placement = self.print_placements[index]
             sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ placement.rotation[:, 2])
-            if not sinking > 0.0:
-                continue
             radius = self.ball_radii[index]
+            # Hertz's contact radius sqrt(R d) is under the layer's: past the share, no estimate.
+            if not 0.0 < sinking < radius or np.sqrt(radius * sinking) > VALID_CONTACT_SHARE * thickness:
+                continue
             estimate, contact = fem.sphere_on_layer_force(sinking, radius, thickness, material.young_modulus,
                                                           material.poisson_ratio)
-            if contact > _LAYER_CONTACT_SHARE * thickness:
+            if contact > VALID_CONTACT_SHARE * thickness:
                 continue
             label = self.prints[index].label
             measures[f"ball force estimate under {label}"] = estimate
@@ -1402,28 +1404,30 @@ class DeformableContact:
 
     def _layer_under(self, index: int):
         """The body's thickness under point print ``index`` if the body is a layer there,
-        else None (kept): the print's normal along one of the body's axes, the nodes
-        farthest from the print along it exactly the body's fixed nodes (a base held), and
-        the print at least a thickness inside the body's faces along the other two axes
-        (the formula's layer is laterally infinite)."""
-        known = self.__dict__.setdefault("_layers", {})
-        if index not in known:
-            known[index] = None
+        else None (kept): a box (its tets fill its bounding box), the print's normal along
+        one of its axes and the print on that face, the nodes of the opposite face exactly
+        the body's fixed nodes (a held base), and the print at least a thickness inside the
+        box's faces along the other two axes (the formula's layer is laterally infinite)."""
+        if index not in self._layers:
+            self._layers[index] = None
             body = self.deformable_object.body
             placement = self.print_placements[index]
             normal = self.rotation_body.T @ placement.rotation[:, 2]  # body frame
             axis = int(np.argmax(np.abs(normal)))
-            if abs(normal[axis]) > 1.0 - 1e-9:
-                nodes = body.mesh.nodes
+            nodes = body.mesh.nodes
+            extent = np.ptp(nodes, axis=0)
+            box = abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9
+            if box and abs(normal[axis]) > 1.0 - 1e-9:
                 origin = self.rotation_body.T @ (placement.translation - self.deformable_object.transform_body_to_world[:3, 3])
                 height = nodes[:, axis] * np.sign(normal[axis])
-                thickness = float(np.ptp(height))
+                thickness = float(extent[axis])
+                on_face = abs(origin[axis] * np.sign(normal[axis]) - height.max()) <= 1e-6 * thickness
                 base = height <= height.min() + 1e-9 * thickness
                 sides = [k for k in range(3) if k != axis]
                 inside = min(min(origin[k] - nodes[:, k].min(), nodes[:, k].max() - origin[k]) for k in sides)
-                if np.array_equal(base, body.fixed_mask) and inside >= thickness:
-                    known[index] = thickness
-        return known[index]
+                if on_face and np.array_equal(base, body.fixed_mask) and inside >= thickness:
+                    self._layers[index] = thickness
+        return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:
         """Signorini and Coulomb at every node, from forces and relative motions in node frames."""

@@ -383,19 +383,22 @@ def test_verify_counts_the_nodes_a_ball_presses_and_says_once_when_they_are_too_
     assert first.ok and second.ok
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
     forces = np.array([p.force for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    expected = {}
     for i, spec in enumerate(soft.prints):
         normal = forces[soft.print_of_node == i, 2]
-        expected = int(np.count_nonzero(normal > 1e-3 * normal.max()))
-        assert first.measures[f"pressed nodes under {spec.label}"] == expected < deformable.RESOLVED_BALL_NODES
+        expected[spec.label] = int(np.count_nonzero(normal > 1e-3 * normal.max()))
+        assert first.measures[f"pressed nodes under {spec.label}"] == expected[spec.label] < deformable.RESOLVED_BALL_NODES
     warnings = [r.getMessage() for r in caplog.records if "mesh node(s) of 'foam'" in r.getMessage()]
     assert len(warnings) == 1, warnings
-    assert warnings[0].startswith(f"{soft.prints[0].label} presses {expected} mesh node(s) of 'foam': a ball contact smaller")
+    first_label = soft.prints[0].label
+    assert warnings[0].startswith(f"{first_label} presses {expected[first_label]} mesh node(s) of 'foam': a ball contact smaller")
     lines = stance_report(dataclasses.replace(result, verification=first), anymal, problem.stance)
     for spec in soft.prints:
         estimate = first.measures[f"ball force estimate under {spec.label}"]
         error = first.measures[f"ball force error under {spec.label}"]
-        assert (f"    {spec.label}: {expected} mesh node(s) pressed (a contact smaller than the cells: its force depends "
-                f"on the mesh); a continuous layer carries {estimate:.1f} N at its depth, the mesh {100 * error:+.0f} %") in lines
+        assert (f"    {spec.label}: {expected[spec.label]} mesh node(s) pressed (a contact smaller than the cells: its force "
+                f"depends on the mesh); a continuous layer carries {estimate:.1f} N at its depth, the mesh "
+                f"{100 * error:+.0f} %") in lines
 
 
 def test_verify_sets_each_balls_force_beside_a_continuous_layers_at_its_depth(anymal, foam, on_foam):
@@ -419,15 +422,49 @@ def test_verify_sets_each_balls_force_beside_a_continuous_layers_at_its_depth(an
         assert verification.measures[f"ball force error under {spec.label}"] == pytest.approx(carried / estimate - 1, abs=1e-9)
         assert -0.3 < carried / estimate - 1 < -0.05 and contact < 0.6 * 0.05
     # A print nearer the foam's side than its thickness is outside the layer's formula.
-    soft.__dict__.pop("_layers", None)
     placement = soft.print_placements[0]
     try:
-        moved = pin.SE3(placement.rotation, placement.translation + np.array([0.0, 0.3 - 0.04, 0.0]))  # 4 cm from y = 0.5
-        soft.print_placements[0] = moved
+        soft._layers.clear()
+        soft.print_placements[0] = pin.SE3(placement.rotation, placement.translation + np.array([0.0, 0.26, 0.0]))  # 4 cm from y = 0.5
         assert soft._layer_under(0) is None and soft._layer_under(1) == pytest.approx(0.05)
     finally:
         soft.print_placements[0] = placement
-        soft.__dict__.pop("_layers", None)
+        soft._layers.clear()
+    # A ball sunk past what the formula takes (deeper than its radius) gets no estimate, and verify goes on.
+    points = np.array([p.point for p in result.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    points[soft.print_of_node == 0] -= 0.04 * placement.rotation[:, 2]
+    measures = {}
+    soft._estimate_ball_forces(points, forces[:, 2], measures)
+    assert f"ball force estimate under {soft.prints[0].label}" not in measures
+    assert f"ball force estimate under {soft.prints[1].label}" in measures
+
+
+def test_a_soft_step_is_no_layer_under_a_ball_on_its_tread(anymal):
+    """A tread 5 cm thick beside a 30 cm ledge, one soft body held on the floor: its far
+    face is its fixed set, but it is no box, and its extent is not the tread's thickness."""
+    text = """
+robot: anymal
+objects:
+  - {name: floor, type: floor}
+  - name: step
+    type: soft_blocks
+    material: {E: 3.0e+6, nu: 0.4, rho: 0.0}
+    resolution: 0.02
+    blocks:
+      - {name: tread, size: [0.8, 1.0, 0.05], center: [0.8, 0.0, 0.025]}
+      - {name: ledge, size: [0.8, 1.0, 0.3], center: [1.6, 0.0, 0.15]}
+stances:
+  on-tread:
+    left_front_foot: {surface: step_tread, x: 0.0, y: 0.2}
+    right_front_foot: {surface: step_tread, x: 0.0, y: -0.2}
+    left_hind_foot: {surface: floor, x: 0.0, y: 0.2}
+    right_hind_foot: {surface: floor, x: 0.0, y: -0.2}
+start: on-tread
+"""
+    scenario = environments.load_string(text)
+    problem = build_problem(anymal, scenario.scene, scenario.stance("on-tread"))
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    assert [soft._layer_under(i) for i in range(len(soft.prints))] == [None, None]
 
 
 def test_a_ball_pressing_enough_nodes_is_counted_without_a_word(anymal, on_foam, caplog, monkeypatch):
