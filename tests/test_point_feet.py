@@ -449,7 +449,7 @@ objects:
   - name: step
     type: soft_blocks
     material: {E: 3.0e+6, nu: 0.4, rho: 0.0}
-    resolution: 0.02
+    resolution: 0.03
     blocks:
       - {name: tread, size: [0.8, 1.0, 0.05], center: [0.8, 0.0, 0.025]}
       - {name: ledge, size: [0.8, 1.0, 0.3], center: [1.6, 0.0, 0.15]}
