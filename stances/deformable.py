@@ -96,7 +96,6 @@ body at rest under gravity), but its strain is there before any robot comes.
 from __future__ import annotations
 
 import logging
-
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any
@@ -126,7 +125,6 @@ MINIMUM_PRINT_NODES = 3
 # and says so. More nodes is no guarantee (5 mm bands 15 mm wide on quadruped-foam's foam, 9
 # nodes: +12 % of a continuous layer's force): the estimate beside it says how far.
 RESOLVED_BALL_NODES = 9
-
 
 logger = logging.getLogger(__name__)
 
@@ -1414,17 +1412,17 @@ class DeformableContact:
             placement = self.print_placements[index]
             normal = self.rotation_body.T @ placement.rotation[:, 2]  # body frame
             axis = int(np.argmax(np.abs(normal)))
-            nodes = body.mesh.nodes
-            extent = np.ptp(nodes, axis=0)
+            low, high = body.mesh.bounding_box
+            extent = high - low
             box = abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9
             if box and abs(normal[axis]) > 1.0 - 1e-9:
                 origin = self.rotation_body.T @ (placement.translation - self.deformable_object.transform_body_to_world[:3, 3])
-                height = nodes[:, axis] * np.sign(normal[axis])
+                face, base_face = (high, low) if normal[axis] > 0.0 else (low, high)
                 thickness = float(extent[axis])
-                on_face = abs(origin[axis] * np.sign(normal[axis]) - height.max()) <= 1e-6 * thickness
-                base = height <= height.min() + 1e-9 * thickness
+                on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
+                base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
                 sides = [k for k in range(3) if k != axis]
-                inside = min(min(origin[k] - nodes[:, k].min(), nodes[:, k].max() - origin[k]) for k in sides)
+                inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in sides)
                 if on_face and np.array_equal(base, body.fixed_mask) and inside >= thickness:
                     self._layers[index] = thickness
         return self._layers[index]
