@@ -37,15 +37,21 @@ def scene_distance(a, b) -> float:
 def pytest_configure(config):
     """Point the fem disk cache at a fresh directory for this run (inherited by subprocesses).
 
-    So tests never read or fill the user's cache, and run as on a fresh machine.
+    So tests never read or fill the user's cache, and run as on a fresh machine. Under
+    pytest-xdist the controller makes the directory and its workers, which inherit it,
+    share it: the cache writes each entry atomically, and a body one worker factorised the
+    other reads.
     """
     global _CACHE_DIRECTORY
+    if os.environ.get("PYTEST_XDIST_WORKER") and os.environ.get("SOFTCBM_TEST_CACHE_DIR"):
+        os.environ["SOFTCBM_CACHE_DIR"] = os.environ["SOFTCBM_TEST_CACHE_DIR"]
+        return
     _CACHE_DIRECTORY = tempfile.mkdtemp(prefix="softcbm-test-cache-")
-    os.environ["SOFTCBM_CACHE_DIR"] = _CACHE_DIRECTORY
+    os.environ["SOFTCBM_CACHE_DIR"] = os.environ["SOFTCBM_TEST_CACHE_DIR"] = _CACHE_DIRECTORY
 
 
 def pytest_unconfigure(config):
-    """Remove this run's cache directory."""
+    """Remove this run's cache directory (the process that made it)."""
     if _CACHE_DIRECTORY is not None:
         shutil.rmtree(_CACHE_DIRECTORY, ignore_errors=True)
 

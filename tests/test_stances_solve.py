@@ -937,7 +937,10 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
     # meet the foam before the floor. At the largest penalties the violation falls a few
     # % an iteration; the solve stops there rather than at its 100 iterations. (The stance
     # this test used before, hind feet 0.2 m apart, was refused only by the adapters' ends
-    # inside the balls, trimmed since: stances.ball_cover.)
+    # inside the balls, trimmed since: stances.ball_cover.) Which early stop ends it depends
+    # on the last bits of the iterates: with numpy 2.4.6, pin 4.1.0 and coal 3.0.3 (this
+    # test's machine of 2026-12-04) the line search stalls after 12 iterations instead, so
+    # either stop is this stance's answer; the stops themselves: tests/test_stopping.py.
     scenario = environments.load("quadruped-foam")
     stance = Stance((
         Contact("left_front_foot", ContactPrint("floor", 0.75, 0.2)),
@@ -948,8 +951,9 @@ def test_an_infeasible_stance_converging_too_slowly_stops_early_with_its_reason(
     result = solve(anymal, scenario.scene, stance)
     assert not result.feasible
     assert result.iterations <= 30
-    assert result.statistics["status"].startswith("converging too slowly: ")
-    assert "% an iteration after " in result.reason
+    status = result.statistics["status"]
+    assert status.startswith(("converging too slowly: ", "no progress toward feasibility: "))
+    assert f"({status} after {result.iterations} iterations)" in result.reason
     assert "no step meets together: " in result.reason and "_FOOT_0 and foam" in result.reason
 
 
