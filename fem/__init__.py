@@ -14,11 +14,12 @@ from .cache import DiskCache
 from .deadline import SetupTimeout, check_deadline, deadline
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
-from .layer_contact import sphere_on_layer_force
+from .layer_contact import BallOnLayer, sphere_on_layer_force
 from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
+from .pressure_loads import hertz_load_shares
 from .prints import coverage_reach, nodes_in_polygon, print_coverage
 from .solvers import available_solvers
 from .strain_average import frobenius_norms
@@ -51,6 +52,8 @@ __all__ = [
     "check_deadline",
     "ContactPatch",
     "sphere_on_layer_force",
+    "BallOnLayer",
+    "hertz_load_shares",
     "von_mises",
     "voigt_to_tensor_strain",
     "frobenius_norms",

@@ -26,13 +26,15 @@ support is outside the formula.
 from __future__ import annotations
 
 import functools
+from dataclasses import dataclass, field
 
 import numpy as np
+from scipy.interpolate import CubicSpline
 from scipy.optimize import brentq
 
 from .errors import FemError
 
-__all__ = ["VALID_CONTACT_SHARE", "sphere_on_half_space", "layer_correction", "sphere_on_layer_force"]
+__all__ = ["VALID_CONTACT_SHARE", "BallOnLayer", "sphere_on_half_space", "layer_correction", "sphere_on_layer_force"]
 
 #: Contact radius over thickness up to which the first-order far field is within 0.5 % of the
 #: continuum (nu = 0.4; 1 % at nu = 0.49), always low (module docstring).
@@ -50,6 +52,12 @@ _SEARCHED_SHARE = 3.0
 # x, take one more panel per two thicknesses.
 _X_MAX = 24.0
 _NODES = 64
+
+# BallOnLayer's table: contact radii on a cosine grid (dense where the contact is small and
+# the force grows fastest), and the share of the sphere's radius it stops at (the exact
+# profile's approach grows without bound as a -> R; indentation bounds stop far before).
+_TABLE_POINTS = 65
+_TABLE_RADIUS_SHARE = 0.7
 
 
 def sphere_on_half_space(a, radius: float, effective_modulus: float):
@@ -76,6 +84,14 @@ def sphere_on_half_space(a, radius: float, effective_modulus: float):
     a = np.asarray(a, dtype=float)
     log = np.log((radius + a) / (radius - a))
     return 0.5 * a * log, 0.5 * effective_modulus * ((a * a + radius * radius) * log - 2.0 * a * radius)
+
+
+def _approach(a: float, radius: float, thickness: float, effective_modulus: float, poisson_ratio: float):
+    """The sphere's approach (metres) and force (newtons) at contact radius ``a`` on the
+    layer: ``d = delta_0 + F_0 (dc + a dc' / 6)``, ``F = F_0`` (module docstring)."""
+    delta, force = sphere_on_half_space(a, radius, effective_modulus)
+    correction, slope = _correction(a, thickness, effective_modulus, poisson_ratio)
+    return float(delta + force * (correction + a * slope / 6.0)), float(force)
 
 
 def _kernel(x, poisson_ratio: float):
@@ -202,9 +218,7 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
     modulus = young_modulus / (1.0 - poisson_ratio**2)
 
     def residual(a):
-        delta, force = sphere_on_half_space(a, radius, modulus)
-        correction, slope = _correction(a, thickness, modulus, poisson_ratio)
-        return delta + force * (correction + a * slope / 6.0) - depth
+        return _approach(a, radius, thickness, modulus, poisson_ratio)[0] - depth
 
     low, high = 1e-9 * radius, min((1.0 - 1e-9) * radius, _SEARCHED_SHARE * thickness)
     if not residual(high) > 0.0:
@@ -212,3 +226,107 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
                        f"touches it over more than {_SEARCHED_SHARE:g} thicknesses, beyond the formula")
     a = brentq(residual, low, high, xtol=1e-15, rtol=1e-13)
     return float(sphere_on_half_space(a, radius, modulus)[1]), float(a)
+
+
+@dataclass(frozen=True)
+class BallOnLayer:
+    """A rigid ball's sinking into an elastic layer as a function of its force, tabulated
+    for a posture solver: :func:`sphere_on_layer_force`'s law inverted, smooth, with its
+    derivative, in microseconds.
+
+    The law is parametric in the contact radius a (``depth(a)``, ``F(a)``, module
+    docstring): on a grid of a it is exact, and between the grid's points a cubic spline
+    interpolates ``H(v) = depth / F^(2/3)`` in ``v = F^(1/3)``, smooth and finite at 0 where
+    Hertz's ``depth = (3 F / (4 E* sqrt(R)))^(2/3)`` holds. The table ends at the contact
+    radius :data:`VALID_CONTACT_SHARE` of the thickness, or 0.7 of the ball's radius if
+    smaller: :attr:`force_limit`; past it the sinking goes on along the last slope, a smooth
+    extension for a solver's trial steps, not the law (bound the force there).
+
+    Parameters
+    ----------
+    radius, thickness : float
+        The ball's radius and the layer's thickness, metres, > 0.
+    young_modulus : float
+        Pascals, > 0.
+    poisson_ratio : float
+        In [0, 0.5).
+
+    Examples
+    --------
+    >>> law = BallOnLayer(0.031, 0.05, 1e6, 0.4)
+    >>> print(f"{law.sinking(41.76)[0] * 1e3:.3f} mm")  # the continuum's 41.76 N at 2.5 mm
+    2.500 mm
+    """
+
+    radius: float
+    thickness: float
+    young_modulus: float
+    poisson_ratio: float
+    _table: tuple = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        for name in ("radius", "thickness", "young_modulus"):
+            value = getattr(self, name)
+            if not (np.isfinite(value) and value > 0.0):
+                raise FemError(f"{name} must be finite and > 0, got {value!r}")
+        if not 0.0 <= self.poisson_ratio < 0.5:
+            raise FemError(f"poisson_ratio must lie in [0, 0.5), got {self.poisson_ratio!r}")
+        modulus = self.young_modulus / (1.0 - self.poisson_ratio**2)
+        largest = min(VALID_CONTACT_SHARE * self.thickness, _TABLE_RADIUS_SHARE * self.radius)
+        radii = largest * 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))[1:]
+        law = np.array([_approach(a, self.radius, self.thickness, modulus, self.poisson_ratio) for a in radii])
+        depths, forces = law[:, 0], law[:, 1]
+        if not (np.all(np.diff(depths) > 0.0) and np.all(np.diff(forces) > 0.0)):
+            raise FemError(f"a ball of radius {self.radius:g} m on a layer {self.thickness:g} m thick: its law is "
+                           "not monotone on the table's contact radii; the formula does not hold there")
+        v = np.concatenate([[0.0], np.cbrt(forces)])
+        hertz = (3.0 / (4.0 * modulus * np.sqrt(self.radius))) ** (2.0 / 3.0)
+        h = np.concatenate([[hertz], depths / forces ** (2.0 / 3.0)])
+        # The contact radius for a field's pressure: a / F^(1/3), Hertz's (3 R / (4 E*))^(1/3) at 0.
+        r = np.concatenate([[(3.0 * self.radius / (4.0 * modulus)) ** (1.0 / 3.0)], radii / v[1:]])
+        object.__setattr__(self, "_table", (CubicSpline(v, h), CubicSpline(v, r), float(forces[-1]), float(depths[-1])))
+
+    @property
+    def force_limit(self) -> float:
+        """Newtons: the largest force the law is read for (the table's end)."""
+        return self._table[2]
+
+    @property
+    def depth_limit(self) -> float:
+        """Metres: the sinking at :attr:`force_limit`."""
+        return self._table[3]
+
+    def sinking(self, force: float) -> tuple[float, float]:
+        """The ball's sinking under a normal force, and its derivative.
+
+        Parameters
+        ----------
+        force : float
+            Newtons; 0 and below sink nothing.
+
+        Returns
+        -------
+        depth : float
+            Metres below the layer's surface at rest.
+        slope : float
+            d depth / d force, m/N; infinite at 0 (Hertz: depth ~ F^(2/3)), so a caller's
+            Jacobian should hold the force above 0.
+        """
+        spline, _, limit, depth_at_limit = self._table
+        if force <= 0.0:
+            return 0.0, np.inf
+        if force > limit:
+            _, slope = self.sinking(limit)
+            return float(depth_at_limit + slope * (force - limit)), slope
+        v = float(np.cbrt(force))
+        h, dh = float(spline(v)), float(spline(v, 1))
+        # depth = h(v) v^2, dv/dF = 1 / (3 v^2)
+        return h * v * v, dh / 3.0 + 2.0 * h / (3.0 * v)
+
+    def contact_radius(self, force: float) -> float:
+        """Metres: the contact's radius under ``force`` newtons (0 at 0; the table's last
+        beyond :attr:`force_limit`)."""
+        if force <= 0.0:
+            return 0.0
+        v = np.cbrt(min(force, self._table[2]))
+        return float(self._table[1](v)) * v

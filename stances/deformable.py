@@ -112,6 +112,7 @@ from fem.layer_contact import VALID_CONTACT_SHARE
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
 from .errors import StanceError
+from .layer_ball import layer_thickness
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
@@ -1402,29 +1403,9 @@ class DeformableContact:
 
     def _layer_under(self, index: int):
         """The body's thickness under point print ``index`` if the body is a layer there,
-        else None (kept): a box (its tets fill its bounding box), the print's normal along
-        one of its axes and the print on that face, the nodes of the opposite face exactly
-        the body's fixed nodes (a held base), and the print at least a thickness inside the
-        box's faces along the other two axes (the formula's layer is laterally infinite)."""
+        else None (:func:`stances.layer_ball.layer_thickness`; kept)."""
         if index not in self._layers:
-            self._layers[index] = None
-            body = self.deformable_object.body
-            placement = self.print_placements[index]
-            normal = self.rotation_body.T @ placement.rotation[:, 2]  # body frame
-            axis = int(np.argmax(np.abs(normal)))
-            low, high = body.mesh.bounding_box
-            extent = high - low
-            box = abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9
-            if box and abs(normal[axis]) > 1.0 - 1e-9:
-                origin = self.rotation_body.T @ (placement.translation - self.deformable_object.transform_body_to_world[:3, 3])
-                face, base_face = (high, low) if normal[axis] > 0.0 else (low, high)
-                thickness = float(extent[axis])
-                on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
-                base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
-                sides = [k for k in range(3) if k != axis]
-                inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in sides)
-                if on_face and np.array_equal(base, body.fixed_mask) and inside >= thickness:
-                    self._layers[index] = thickness
+            self._layers[index] = layer_thickness(self.deformable_object, self.print_placements[index].homogeneous)
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

@@ -30,6 +30,7 @@ from environments.errors import SceneError
 from .collision import KEPT_DISTANCE, CollisionChecker, contact_exclusions
 from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
+from .layer_ball import LayerBalls, layer_thickness
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives, static_torques
 from .terms import (
@@ -128,6 +129,14 @@ class PostureOptions:
         ``"bonded"`` the paper's model: bonded nodes push, only each print's
         resultant is kept in the cone. ``"coulomb"`` needs the consistent
         reaction model.
+    ball_contact : {"nodes", "layer"}
+        Deformable supports, how a ball foot (a point foot) presses one: ``"nodes"``
+        (default) the mesh's nodes touch the ball's profile where it reaches them (its
+        force moves with where the ball stands against the nodes when the contact is
+        smaller than the cells); ``"layer"`` where the body is a layer under every ball on
+        it and only balls press it (a box held on its base, each print a thickness inside
+        its sides), each ball sinks by the continuum's law of a sphere on a layer
+        (:mod:`stances.layer_ball`); elsewhere the nodes.
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a
@@ -220,6 +229,7 @@ class PostureOptions:
     indentation_limit: float = 0.25
     max_indentation: float | None = None
     contact_law: str = "coulomb"
+    ball_contact: str = "nodes"
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
@@ -255,6 +265,8 @@ class PostureOptions:
                 raise StanceError(f"{name} must be >= 0 and finite, got {getattr(self, name)}")
         if self.contact_law not in LAWS:
             raise StanceError(f"contact_law must be one of {LAWS}, got {self.contact_law!r}")
+        if self.ball_contact not in BALL_CONTACTS:
+            raise StanceError(f"ball_contact must be one of {BALL_CONTACTS}, got {self.ball_contact!r}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
             raise StanceError(
                 "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "
@@ -304,6 +316,9 @@ class PostureOptions:
 
 #: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
 #: tolerances, penalties, metres), checked by :class:`PostureOptions`.
+#: How a ball foot presses a soft body (PostureOptions.ball_contact).
+BALL_CONTACTS = ("nodes", "layer")
+
 _NON_NEGATIVE = (
     "posture_weight", "base_orientation_weight", "force_weight", "torque_weight", "deformation_weight",
     "min_normal_force", "collision_distance", "collision_activation",
@@ -466,10 +481,10 @@ class PostureProblem:
             load_start += len(contact.loads)
         self.n_variables = start
         self.variable_lower = np.concatenate([c.variable_lower for c in contacts]) if contacts else np.zeros(0)
-        # The force term spreads the rigid contacts' cone coefficients; a soft print
+        # The force term spreads the rigid contacts' cone coefficients (and balls' on layers); a soft print
         # weighs its generalised force W itself (DeformableContact.cost).
         self.force_weights = np.concatenate(
-            [np.full(c.n_variables, 1.0 if c.kind == "rigid" else 0.0) for c in contacts]
+            [np.full(c.n_variables, 1.0 if c.kind in ("rigid", "layer") else 0.0) for c in contacts]
         ) if contacts else np.zeros(0)
         model = robot.model
         self.posture_weights = np.full(model.nv, options.posture_weight)
@@ -508,7 +523,8 @@ class PostureProblem:
         """Force variables at ``q``: the robot's weight shared evenly among rigid
         contacts' cone coefficients, and each deformable contact's own start."""
         lam = np.zeros(self.n_variables)
-        rigid = [(c, s) for c, s in zip(self.contacts, self.variable_slices) if c.kind == "rigid"]
+        # Ball feet on layers carry pyramids as rigid contacts do.
+        rigid = [(c, s) for c, s in zip(self.contacts, self.variable_slices) if c.kind in ("rigid", "layer")]
         if rigid:
             weight = self.robot.weight
             # Cone edges are tilted: each carries cos(edge, normal) vertically.
@@ -547,6 +563,8 @@ class PostureProblem:
         for contact, s in zip(self.contacts, self.variable_slices):
             if contact.kind == "deformable":
                 out[s] = contact.variables_from_forces(self.robot.model, point_forces)
+            elif contact.kind == "layer":
+                out[s] = np.concatenate([np.asarray(lam)[slices[ball.robot_surface]] for ball in contact.balls])
             else:
                 out[s] = np.asarray(lam)[slices[contact.robot_surface]]
         return out
@@ -867,9 +885,12 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
             contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
     if deformable_prints:
         contacts = [
-            DeformableContact(robot, c, deformable_prints[c.name], options) if not isinstance(c, RigidContact) else c
+            c if isinstance(c, RigidContact) else
+            LayerBalls(robot, c, deformable_prints[c.name], options) if _on_layer(robot, c, deformable_prints[c.name], options)
+            else DeformableContact(robot, c, deformable_prints[c.name], options)
             for c in contacts
         ]
+    if any(c.kind == "deformable" for c in contacts):
         # Soft prints' rows (elastic placement, node forces) carry no second
         # derivatives: with only the collision rows' curvature the Coulomb
         # stage of foot-and-hand took 19 iterations instead of 11 (measured).
@@ -877,6 +898,15 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         options = replace(options, constraint_curvature=False)
     checker = stance_collision_checker(robot, scene, stance, options)
     return PostureProblem(robot, scene, stance, contacts, options, checker)
+
+
+def _on_layer(robot, deformable_object, prints, options: PostureOptions) -> bool:
+    """Whether a soft body's prints sink by the layer's law (``ball_contact="layer"``):
+    ball feet only, each on the body where it is a layer."""
+    return options.ball_contact == "layer" and all(
+        robot.surface(p.robot_surface).is_point and layer_thickness(deformable_object, p.transform_print_to_world)
+        is not None for p in prints
+    )
 
 
 def touching_pairs(robot, scene, options: PostureOptions) -> frozenset:

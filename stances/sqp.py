@@ -845,7 +845,7 @@ def deformation_fields(problem, q, point_forces) -> LazyDeformations:
                 contact, model, q, [p.force for p in point_forces[loads]]
             )
             for contact, loads in zip(problem.contacts, problem.load_slices)
-            if contact.kind == "deformable"
+            if contact.kind in ("deformable", "layer")
         }
     )
 

@@ -111,3 +111,101 @@ def test_anymals_ball_in_its_foam_carries_the_continuum_solutions_force():
 def test_bad_arguments_are_refused_with_the_reason(arguments, message):
     with pytest.raises(fem.FemError, match=re.escape(message)):
         sphere_on_layer_force(*arguments)
+
+
+# -- BallOnLayer: the law inverted and tabulated for the posture solver ---------------------
+
+@pytest.fixture(scope="module")
+def law():
+    return fem.BallOnLayer(0.031, 0.05, E, NU)
+
+
+def test_the_tabulated_sinking_is_the_laws_solved_afresh(law):
+    # sphere_on_layer_force solves the law for its contact radius at a depth; the table
+    # interpolates between exact points: the two agree to 1e-7 over the whole range.
+    for depth in np.linspace(2e-5, 0.999 * law.depth_limit, 40):
+        force, contact = sphere_on_layer_force(depth, 0.031, 0.05, E, NU)
+        assert law.sinking(force)[0] == pytest.approx(depth, rel=1e-7)
+        assert law.contact_radius(force) == pytest.approx(contact, rel=1e-7)
+    # Below the table's first point (5e-7 m here) too, and Hertz's (3 F / (4 E* sqrt(R)))^(2/3)
+    # as the load vanishes (the layer's stiffening then falls as the contact's radius).
+    force = sphere_on_layer_force(2e-7, 0.031, 0.05, E, NU)[0]
+    assert law.sinking(force)[0] == pytest.approx(2e-7, rel=1e-6)
+    hertz = [(3 * f / (4 * E_STAR * np.sqrt(0.031))) ** (2 / 3) for f in (1e-4, 1e-7)]
+    # (1.6e-3 under at 1e-4 N, ten times less at a thousandth of it: a tenth of the radius)
+    assert [law.sinking(f)[0] / h - 1 for f, h in zip((1e-4, 1e-7), hertz)] == [pytest.approx(-1.6e-3, rel=0.05),
+                                                                              pytest.approx(-1.6e-4, rel=0.05)]
+
+
+@pytest.mark.parametrize("force", [0.01, 1.0, 41.76, 300.0, 2000.0])
+def test_the_sinkings_slope_is_its_finite_difference(law, force):
+    step = 1e-6 * force
+    difference = (law.sinking(force + step)[0] - law.sinking(force - step)[0]) / (2 * step)
+    assert law.sinking(force)[1] == pytest.approx(difference, rel=1e-6)
+
+
+def test_past_its_table_the_sinking_goes_on_along_its_last_slope(law):
+    limit = law.force_limit
+    depth, slope = law.sinking(limit)
+    assert depth == pytest.approx(law.depth_limit, rel=1e-12)
+    # The table ends where the contact is 0.6 thicknesses or 0.7 ball radii wide.
+    assert law.contact_radius(limit) == pytest.approx(min(0.6 * 0.05, 0.7 * 0.031), rel=1e-9)
+    assert law.sinking(2 * limit) == (pytest.approx(depth + slope * limit, rel=1e-12), slope)
+    assert law.sinking(0.0) == (0.0, np.inf) and law.sinking(-1.0) == (0.0, np.inf)
+
+
+def test_a_stiffer_layer_sinks_less_and_nothing_as_it_becomes_rigid():
+    depths = [fem.BallOnLayer(0.031, 0.05, e, NU).sinking(100.0)[0] for e in (1e5, 1e6, 1e8, 1e11)]
+    assert depths == sorted(depths, reverse=True)
+    # Hertz's depth ~ E^(-2/3): 1000 times stiffer, 100 times shallower (2.3 um under 100 N
+    # at 1e11 Pa, where the rigid point contact is 0), 3 % more for the layer's stiffening,
+    # which fades as the contact narrows (2.6 mm wide at 1e8 Pa, 0.27 mm at 1e11).
+    assert depths[-1] == pytest.approx(1.03 * depths[-2] / 100, rel=0.005)
+    assert depths[-1] < 2.5e-6
+
+
+@pytest.mark.parametrize("arguments, message", [
+    ((0.0, 0.05, E, NU), "radius must be finite and > 0"),
+    ((0.031, -1.0, E, NU), "thickness must be finite and > 0"),
+    ((0.031, 0.05, np.nan, NU), "young_modulus must be finite and > 0"),
+    ((0.031, 0.05, E, 0.5), r"poisson_ratio must lie in \[0, 0.5\)"),
+])
+def test_a_bad_law_is_refused_with_the_reason(arguments, message):
+    with pytest.raises(fem.FemError, match=message):
+        fem.BallOnLayer(*arguments)
+
+
+# -- The ball's Hertzian pressure as consistent nodal loads -----------------------------------
+
+@pytest.mark.parametrize("centre", [(0.1, 0.1), (0.1025, 0.101), (0.105, 0.105)])
+def test_hertz_shares_add_to_one_and_keep_the_pressures_centre(centre):
+    mesh = fem.box_mesh((0.2, 0.2, 0.05), (20, 20, 5))
+    point = np.array([*centre, 0.05])
+    ids, shares = fem.hertz_load_shares(mesh, point, (0.0, 0.0, 1.0), 0.007)
+    assert shares.sum() == pytest.approx(1.0, abs=1e-14) and shares.min() >= 0.0
+    # Linear shape functions reproduce x: the loads' first moment is the pressure's centre.
+    np.testing.assert_allclose(shares @ mesh.nodes[ids], point, atol=1e-15)
+    assert np.all(mesh.nodes[ids, 2] == 0.05)
+
+
+def test_on_a_fine_mesh_each_share_is_the_pressure_over_its_nodes_area():
+    # 1 mm cells under a 7 mm contact: node i's share tends to p(x_i) A_i / F.
+    mesh = fem.box_mesh((0.04, 0.04, 0.01), (40, 40, 2))
+    a, centre = 0.007, np.array([0.02, 0.02, 0.01])
+    ids, shares = fem.hertz_load_shares(mesh, centre, (0.0, 0.0, 1.0), a)
+    rho = np.linalg.norm(mesh.nodes[ids, :2] - centre[:2], axis=1)
+    pressure = 1.5 / (np.pi * a * a) * np.sqrt(np.clip(1 - (rho / a) ** 2, 0, None))
+    # A node's area is a third of its top triangles' (the mirrored cells give 4 or 8 each).
+    top = mesh.surface_normals[:, 2] > 0.5
+    area = np.bincount(mesh.surface_triangles[top].ravel(), weights=np.repeat(mesh.surface_areas[top] / 3, 3),
+                       minlength=mesh.n_nodes)[ids]
+    inner = rho < 0.7 * a
+    np.testing.assert_allclose(shares[inner], pressure[inner] * area[inner], rtol=0.03)
+
+
+def test_a_contact_past_the_faces_edge_or_of_no_size_is_refused():
+    mesh = fem.box_mesh((0.2, 0.2, 0.05), (20, 20, 5))
+    with pytest.raises(fem.FemError, match="reaches past the surface facing its normal"):
+        fem.hertz_load_shares(mesh, (0.199, 0.1, 0.05), (0.0, 0.0, 1.0), 0.007)
+    with pytest.raises(fem.FemError, match="contact_radius must be finite and > 0"):
+        fem.hertz_load_shares(mesh, (0.1, 0.1, 0.05), (0.0, 0.0, 1.0), 0.0)

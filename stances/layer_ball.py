@@ -1,0 +1,369 @@
+"""Ball feet on a soft layer: each ball sinks by the continuum's law under its own force.
+
+A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
+mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
+where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a layer
+(a box held on its base, the ball on the opposite face, at least a thickness from its
+sides) the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid sphere on an
+elastic layer bonded to a rigid base, within 0.5 % of an exact solution while the
+contact's radius is at most 0.6 of the thickness. Each ball is then a point contact
+(:class:`stances.contacts.PointContact`) whose normal placement gives way by the layer's
+sinking under its normal force, the compliance form of contact:
+
+    R_p^T (c - o_p) - (0, 0, r) + (0, 0, delta(f_n)) = 0,    f_n = n . f
+
+(as E grows, delta -> 0: the rigid point contact). Its force is a friction pyramid's, as on
+a rigid support; the pyramid lies inside the Coulomb cone, and so does every node's load
+(below). The force is bounded where the law stops holding: the contact's radius at 0.6 of
+the thickness (or 0.7 of the ball's radius) and the sinking at the indentation bound.
+
+The body's field (the pictures, the files, the strain bound) is the mesh's under the
+ball's Hertzian pressure, as consistent nodal loads (:func:`fem.hertz_load_shares`): each
+node carries a share of the ball's force, so each node's load is in its cone when the
+force is. The balls on one body are coupled only through the far field, which this leaves
+out: under a 5 cm mat another ball 0.4 m away moves a ball by about 1 % of its sinking
+(Boussinesq). `stances.verify` checks each ball's sinking against the law solved afresh
+(:func:`fem.sphere_on_layer_force`), its cone, its nodes' cones, and the body's strain.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import scipy.linalg
+
+import fem
+from fem.layer_contact import VALID_CONTACT_SHARE, BallOnLayer
+
+from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
+from .contacts import PointContact
+from .errors import StanceError
+from .statics import PointLoads, points_in_world
+
+__all__ = ["LayerBalls", "layer_thickness"]
+
+# The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
+# linearisation takes it at no less than this share of the robot's weight.
+_SLOPE_FLOOR = 1e-3
+
+# Gauss-Legendre points of the stored energy's integral (deformation_energy).
+_ENERGY_POINTS = 8
+
+
+def layer_thickness(deformable_object, transform_print_to_world) -> float | None:
+    """The body's thickness under a print if the body is a layer there, else None.
+
+    A layer: a box (its tets fill its bounding box), the print's normal along one of its
+    axes and the print on that face, the nodes of the opposite face exactly the body's
+    fixed nodes (a held base), and the print at least a thickness inside the box's faces
+    along the other two axes (the continuum's layer is laterally infinite).
+
+    Parameters
+    ----------
+    deformable_object : environments.DeformableObject
+    transform_print_to_world : (4, 4) float
+        The print frame (z: the surface's outward normal), world.
+
+    Returns
+    -------
+    float or None
+        Metres.
+    """
+    body = deformable_object.body
+    to_world = np.asarray(deformable_object.transform_body_to_world, dtype=float)
+    placement = np.asarray(transform_print_to_world, dtype=float)
+    normal = to_world[:3, :3].T @ placement[:3, 2]  # body frame
+    axis = int(np.argmax(np.abs(normal)))
+    low, high = body.mesh.bounding_box
+    extent = high - low
+    box = abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9
+    if not (box and abs(normal[axis]) > 1.0 - 1e-9):
+        return None
+    origin = to_world[:3, :3].T @ (placement[:3, 3] - to_world[:3, 3])
+    face, base_face = (high, low) if normal[axis] > 0.0 else (low, high)
+    thickness = float(extent[axis])
+    on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
+    base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
+    inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in range(3) if k != axis)
+    if on_face and np.array_equal(base, body.fixed_mask) and inside >= thickness:
+        return thickness
+    return None
+
+
+class LayerBalls:
+    """Every ball foot on one soft layer, each sinking by the layer's law.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    deformable_object : environments.DeformableObject
+        The layer: :func:`layer_thickness` must hold under every print.
+    prints : sequence of stances.deformable.PrintSpec
+        Point feet only, in stance order.
+    options : stances.PostureOptions
+        ``indentation_limit`` / ``max_indentation``.
+
+    Raises
+    ------
+    StanceError
+        A print is not a point foot's, or the body is not a layer under it.
+    """
+
+    kind = "layer"
+    application = "its balls' centres"
+
+    def __init__(self, robot, deformable_object, prints, options):
+        self.deformable_object = deformable_object
+        self.prints = list(prints)
+        self.label = " and ".join(p.label for p in self.prints)
+        material = deformable_object.body.material
+        self.rotation_body = np.asarray(deformable_object.transform_body_to_world, dtype=float)[:3, :3]
+        balls, laws, thicknesses = [], [], []
+        for spec in self.prints:
+            if not robot.surface(spec.robot_surface).is_point:
+                raise StanceError(f"{spec.label}: only ball feet sink by a layer's law; a polygon presses the mesh")
+            thickness = layer_thickness(deformable_object, spec.transform_print_to_world)
+            if thickness is None:
+                raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
+                                  "(a box on its held base, the print a thickness inside its sides)")
+            ball = PointContact(robot, spec.robot_surface, spec.transform_print_to_world, spec.surface.friction,
+                                spec.label, surface=spec.surface)
+            balls.append(ball)
+            thicknesses.append(thickness)
+            laws.append(BallOnLayer(ball.radius, thickness, material.young_modulus, material.poisson_ratio))
+        self.balls, self.laws, self.thicknesses = tuple(balls), tuple(laws), tuple(thicknesses)
+        self.frame_ids = tuple(b.frame_id for b in balls)
+        # The law's force bound: its table's end or the indentation bound, whichever comes first.
+        self.max_indentation = tuple(
+            float(options.max_indentation) if options.max_indentation is not None
+            else float(options.indentation_limit * t) for t in thicknesses
+        )
+        self.force_limits = np.array([
+            law.force_limit if law.depth_limit <= depth
+            else fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
+            for law, depth in zip(laws, self.max_indentation)
+        ])
+        self.slope_floor = _SLOPE_FLOOR * robot.weight
+        self.loads = PointLoads(np.concatenate([b.loads.joints for b in balls]),
+                                np.concatenate([b.loads.points_in_joint for b in balls]))
+        self.load_frames = tuple(frame for b in balls for frame in b.load_frames)
+        self.generators = scipy.linalg.block_diag(*[b.generators for b in balls])
+        self.n_variables = self.generators.shape[1]
+        self.variable_lower = np.zeros(self.n_variables)
+        self.print_labels = tuple(b.label for b in balls)
+        self.print_surfaces = tuple(b.robot_surface for b in balls)
+        self.load_prints = np.arange(len(balls))
+        self.load_normals = np.array([b.print_placement.rotation[:, 2] for b in balls])
+        # Each ball's normal force is normals_rows[i] @ its pyramid coefficients.
+        self._pyramid = [slice(sum(b.n_variables for b in balls[:i]), sum(b.n_variables for b in balls[: i + 1]))
+                         for i in range(len(balls))]
+        self._normal_rows = [self.load_normals[i] @ b.generators for i, b in enumerate(balls)]
+
+    # -- the problem builder's interface (stances.contacts) --------------------
+    def forces(self, model, data, lam) -> np.ndarray:
+        """(L, 3) world forces on the robot at the balls' centres, newtons."""
+        return (self.generators @ lam).reshape(-1, 3)
+
+    def force_jacobians(self, model, data, lam):
+        """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
+        return np.zeros((self.generators.shape[0], model.nv)), self.generators
+
+    def normal_forces(self, lam) -> np.ndarray:
+        """(L,) each ball's normal force, newtons."""
+        return np.array([row @ lam[s] for row, s in zip(self._normal_rows, self._pyramid)])
+
+    def blocks(self, model, data, lam, columns, offset, derivatives=True):
+        """Each ball's centre on its print, its normal row sunk by the law (3 rows a ball);
+        each ball's normal force within the law's bound (1 row a ball).
+
+        Parameters
+        ----------
+        columns : int
+            Width of the step vector (nv + m).
+        offset : int
+            Column of this contact's first variable.
+        derivatives : bool
+            False: the rows' values only, ``jacobian`` None.
+        """
+        lam = np.asarray(lam, dtype=float)
+        normal = self.normal_forces(lam)
+        residuals, jacobians, labels = [], [], []
+        force_rows = np.zeros((len(self.balls), columns)) if derivatives else None
+        for i, (ball, law) in enumerate(zip(self.balls, self.laws)):
+            depth, _ = law.sinking(float(normal[i]))
+            columns_i = slice(offset + self._pyramid[i].start, offset + self._pyramid[i].stop)
+            if derivatives:
+                residual, jacobian_q = ball._placement(model, data)
+                jacobian = np.zeros((3, columns))
+                jacobian[:, : model.nv] = jacobian_q
+                # The slope at no less than a small load: infinite at none.
+                jacobian[2, columns_i] = law.sinking(max(float(normal[i]), self.slope_floor))[1] * self._normal_rows[i]
+                jacobians.append(jacobian)
+                force_rows[i, columns_i] = self._normal_rows[i]
+            else:
+                residual = ball._placement_residual(data)
+            residuals.append(residual + np.array([0.0, 0.0, depth]))
+            labels.extend(f"placement of {ball.label} ({axis})" for axis in ("x", "y", "z"))
+        placement = equality(
+            "placement", np.concatenate(residuals), np.vstack(jacobians) if derivatives else None, 1e-2, labels,
+            PLACEMENT_ACCURACY, self._weighted_placement, self._placement_curvature,
+        )
+        bound = ConstraintBlock(
+            "layer law bound", normal, force_rows, -np.inf, self.force_limits, 10.0,
+            tuple(f"force of {b.label} within its layer's law" for b in self.balls),
+        )
+        return [placement, bound]
+
+    def _weighted_placement(self, model, data, weights) -> np.ndarray:
+        """(nv,) ``weights @ jacobian`` of the placement rows in the configuration columns (the
+        sinking depends on the forces only)."""
+        return sum(ball._weighted_placement(model, data, weights[3 * i : 3 * i + 3])
+                   for i, ball in enumerate(self.balls))
+
+    def _placement_curvature(self, model, data, weights) -> np.ndarray:
+        """(nv, nv) the placement rows' curvature along the joints' motions: each ball's
+        centre rows' (the sinking is constant in q)."""
+        return sum(ball._placement_curvature(model, data, weights[3 * i : 3 * i + 3])
+                   for i, ball in enumerate(self.balls))
+
+    def cost(self, model, data, lam, options, columns, offset, derivatives=True):
+        """No objective term of its own (lambda's is the problem's force term)."""
+        return None
+
+    # -- the body's field ------------------------------------------------------
+    def ball_loads(self, forces) -> list:
+        """Each pressing ball's Hertzian pressure on the body as consistent nodal loads.
+
+        Parameters
+        ----------
+        forces : (L, 3) float
+            The balls' forces on the robot, world frame, newtons.
+
+        Returns
+        -------
+        list of (ball index, node_ids (k,) int, loads (k, 3) float)
+            Forces on the body, newtons, body frame; the balls that press only.
+        """
+        body = self.deformable_object.body
+        origin = np.asarray(self.deformable_object.transform_body_to_world, dtype=float)[:3, 3]
+        out = []
+        for i, (ball, law, force) in enumerate(zip(self.balls, self.laws, np.asarray(forces, dtype=float).reshape(-1, 3))):
+            normal = float(ball.print_placement.rotation[:, 2] @ force)
+            if normal <= 0.0:
+                continue
+            centre = self.rotation_body.T @ (ball.print_placement.translation - origin)
+            node_ids, shares = fem.hertz_load_shares(
+                body.mesh, centre, self.rotation_body.T @ ball.print_placement.rotation[:, 2], law.contact_radius(normal))
+            out.append((i, node_ids, shares[:, None] * (-(force @ self.rotation_body))[None]))
+        return out
+
+    def displacement_field(self, model, data, forces) -> np.ndarray:
+        """(N, 3) displacement of every node of the body under the balls' pressures, metres,
+        body frame (one sparse solve; zero where no ball presses)."""
+        body = self.deformable_object.body
+        pressed = self.ball_loads(forces)
+        if not pressed:
+            return np.zeros((body.mesh.n_nodes, 3))
+        node_ids, where = np.unique(np.concatenate([ids for _, ids, _ in pressed]), return_inverse=True)
+        loads = np.zeros((len(node_ids), 3))
+        np.add.at(loads, where, np.concatenate([load for _, _, load in pressed]))
+        return body.displacement_under_loads(node_ids, loads)
+
+    # -- independent check -----------------------------------------------------
+    def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:
+        """Each ball on its print, sunk as the layer's law solved afresh gives for its force
+        (:func:`fem.sphere_on_layer_force`, not the solver's table), within the law's
+        bounds and its friction cone; every node's load in its cone; the body's strain.
+
+        Parameters
+        ----------
+        points, forces : (L, 3) float
+            Reported application points and forces, world frame.
+        field : (N, 3) float, optional
+            :meth:`displacement_field` of these forces (computed here otherwise).
+        """
+        name = self.deformable_object.name
+        expected = points_in_world(data, self.loads)
+        if len(points) != len(expected) or np.abs(points - expected).max() > tolerances.placement:
+            return [f"forces of {self.label} are not applied at {self.application}"]
+        reasons = []
+        for ball, law, bound, force in zip(self.balls, self.laws, self.max_indentation, forces):
+            reasons.extend(self._verify_ball(data, ball, law, bound, force, tolerances, measures))
+        for i, _, loads in self.ball_loads(forces):
+            # Every node's load on the robot in its ball's cone: read back from the loads
+            # themselves (non-negative shares keep the resultant's ratio).
+            ball = self.balls[i]
+            local = -loads @ (self.rotation_body.T @ ball.print_placement.rotation)
+            margin = np.minimum(local[:, 2], ball.friction * local[:, 2] - np.linalg.norm(local[:, :2], axis=1))
+            measures[f"node cone margin of {ball.label}"] = float(margin.min())
+            if margin.min() < -tolerances.cone:
+                reasons.append(f"a node under {ball.label} leaves its friction cone by {-margin.min():.3g} N")
+        field = self.displacement_field(model, data, forces) if field is None else field
+        body = self.deformable_object.body
+        measures[f"deformation energy of {name}"] = float(sum(
+            self._stored_energy(law, float(ball.print_placement.rotation[:, 2] @ force))
+            for ball, law, force in zip(self.balls, self.laws, forces)))
+        strain, tet = body.largest_principal_strain(field + self.deformable_object.self_weight_field,
+                                                    self.deformable_object.strain_radius)
+        measures[f"largest strain of {name}"] = strain
+        if strain > self.deformable_object.strain_limit + 1e-6:
+            centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
+            reasons.append(
+                f"strain {strain:.3g} of {name} (its own weight's included) at ({centre[0]:.3f}, {centre[1]:.3f}, "
+                f"{centre[2]:.3f}) m (mean over {1e3 * self.deformable_object.strain_radius:g} mm) exceeds its bound "
+                f"{self.deformable_object.strain_limit:g}: linear elasticity does not hold there"
+            )
+        return reasons
+
+    def _verify_ball(self, data, ball, law, bound, force, tolerances, measures) -> list:
+        """One ball: on its print, sunk by the law (solved afresh), within bounds and cone."""
+        rotation = ball.print_placement.rotation
+        offset = rotation.T @ (data.oMf[ball.frame_id].translation - ball.print_placement.translation)
+        sinking = ball.radius - float(offset[2])
+        local = rotation.T @ np.asarray(force, dtype=float)
+        normal, tangential = float(local[2]), float(np.hypot(local[0], local[1]))
+        label, reasons = ball.label, []
+        side = float(np.abs(offset[:2]).max())
+        measures[f"placement error of {label}"] = side
+        if side > tolerances.placement:
+            reasons.append(f"{label} is off its print by {side:.3g} m along the surface")
+        measures[f"sinking of {label}"] = sinking
+        margin = min(normal, ball.friction * normal - tangential)
+        measures[f"cone margin of {label}"] = margin
+        if margin < -tolerances.cone:
+            reasons.append(f"the force of {label} leaves its friction cone by {-margin:.3g} N")
+        if sinking > bound + tolerances.placement:
+            reasons.append(f"{label} sinks {sinking:.3g} m, beyond its indentation bound {bound:.3g} m")
+            return reasons
+        if sinking <= 0.0:
+            if normal > tolerances.cone:
+                reasons.append(f"{label} carries {normal:.3g} N without touching its layer ({-sinking:.3g} m above it)")
+            return reasons
+        try:
+            expected, contact = fem.sphere_on_layer_force(sinking, ball.radius, law.thickness, law.young_modulus,
+                                                          law.poisson_ratio)
+        except fem.FemError as error:
+            return reasons + [f"{label}: the layer's law does not hold at its sinking ({error})"]
+        measures[f"layer force of {label}"] = expected
+        # The sinking's tolerance, as a force: the placement's times the law's stiffness there.
+        stiffness = 1.0 / law.sinking(max(expected, self.slope_floor))[1]
+        allowed = tolerances.cone + stiffness * tolerances.placement
+        measures[f"layer law error of {label}"] = normal - expected
+        if abs(normal - expected) > allowed:
+            reasons.append(f"{label} carries {normal:.6g} N where its layer's law gives {expected:.6g} N at its "
+                           f"sinking of {sinking:.4g} m")
+        if contact > VALID_CONTACT_SHARE * law.thickness:
+            reasons.append(f"{label}'s contact radius {contact:.3g} m is past the law's validity "
+                           f"({VALID_CONTACT_SHARE:g} of the layer's thickness)")
+        return reasons
+
+    @staticmethod
+    def _stored_energy(law, force: float) -> float:
+        """Joules the ball's sinking stores in the layer: ``int_0^d F dd = F d - int_0^F d(F') dF'``,
+        the integral taken in ``F' = F x^3`` (smooth there) by Gauss-Legendre."""
+        if force <= 0.0:
+            return 0.0
+        x, w = np.polynomial.legendre.leggauss(_ENERGY_POINTS)
+        x, w = 0.5 * (x + 1.0), 0.5 * w
+        work = sum(wi * law.sinking(force * xi**3)[0] * 3.0 * force * xi**2 for xi, wi in zip(x, w))
+        return float(force * law.sinking(force)[0] - work)
