@@ -60,6 +60,10 @@ def stance_report(result, robot, stance):
                     f"; a continuous layer carries {estimate:.1f} N at its depth, the mesh "
                     f"{100 * measures[f'ball force error under {label}']:+.0f} %")
                 lines.append(f"    {label}: {count} mesh node(s) pressed{coarse}{against}")
+            elif key.startswith("layer force of "):
+                label = key[len("layer force of "):]
+                lines.append(f"    {label}: sinks {1e3 * measures[f'sinking of {label}']:.2f} mm, "
+                             f"{measures[key]:.1f} N by its layer's law")
     lines.append("  margins:")
     limits = result.limits or {}
     if "torque_usage" in limits:

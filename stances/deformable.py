@@ -1370,7 +1370,8 @@ class DeformableContact:
                     "where the ball stands against the nodes (1-5 nodes: -46 %% to +31 %% of a converged mesh's; where "
                     "the body is a layer, the verification's 'ball force error under <print>' compares it with a "
                     "continuous layer's); refine the mesh where balls land (a soft_box's refine_lines, or a finer "
-                    "resolution)", label, count, self.deformable_object.name)
+                    "resolution), or, on a layer pressed by balls only, leave ball_contact at 'layer' (its law needs "
+                    "no node)", label, count, self.deformable_object.name)
 
     def _estimate_ball_forces(self, points, normal, measures) -> None:
         """``ball force estimate under <print>`` (newtons) and ``ball force error under

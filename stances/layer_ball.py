@@ -85,7 +85,7 @@ def layer_thickness(deformable_object, transform_print_to_world) -> float | None
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in range(3) if k != axis)
-    if on_face and np.array_equal(base, body.fixed_mask) and inside >= thickness:
+    if on_face and np.array_equal(base, body.fixed_mask) and inside >= (1.0 - 1e-9) * thickness:
         return thickness
     return None
 
@@ -289,6 +289,8 @@ class LayerBalls:
         reasons = []
         for ball, law, bound, force in zip(self.balls, self.laws, self.max_indentation, forces):
             reasons.extend(self._verify_ball(data, ball, law, bound, force, tolerances, measures))
+        # The body's indentation is its deepest ball's sinking (the mesh under a ball sinks less).
+        measures[f"indentation of {name}"] = max(max(measures[f"sinking of {b.label}"] for b in self.balls), 0.0)
         for i, _, loads in self.ball_loads(forces):
             # Every node's load on the robot in its ball's cone: read back from the loads
             # themselves (non-negative shares keep the resultant's ratio).

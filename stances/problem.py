@@ -129,14 +129,14 @@ class PostureOptions:
         ``"bonded"`` the paper's model: bonded nodes push, only each print's
         resultant is kept in the cone. ``"coulomb"`` needs the consistent
         reaction model.
-    ball_contact : {"nodes", "layer"}
-        Deformable supports, how a ball foot (a point foot) presses one: ``"nodes"``
-        (default) the mesh's nodes touch the ball's profile where it reaches them (its
-        force moves with where the ball stands against the nodes when the contact is
-        smaller than the cells); ``"layer"`` where the body is a layer under every ball on
-        it and only balls press it (a box held on its base, each print a thickness inside
-        its sides), each ball sinks by the continuum's law of a sphere on a layer
-        (:mod:`stances.layer_ball`); elsewhere the nodes.
+    ball_contact : {"layer", "nodes"}
+        Deformable supports, how a ball foot (a point foot) presses one: ``"layer"``
+        (default) where the body is a layer under every ball on it and only balls press
+        it (a box held on its base, each print a thickness inside its sides), each ball
+        sinks by the continuum's law of a sphere on a layer (:mod:`stances.layer_ball`),
+        and elsewhere as ``"nodes"``: the mesh's nodes touch the ball's profile where it
+        reaches them (its force moves with where the ball stands against the nodes when
+        the contact is smaller than the cells: -46 % to +31 % on 10 mm cells).
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a
@@ -229,7 +229,7 @@ class PostureOptions:
     indentation_limit: float = 0.25
     max_indentation: float | None = None
     contact_law: str = "coulomb"
-    ball_contact: str = "nodes"
+    ball_contact: str = "layer"
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
@@ -317,7 +317,7 @@ class PostureOptions:
 #: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
 #: tolerances, penalties, metres), checked by :class:`PostureOptions`.
 #: How a ball foot presses a soft body (PostureOptions.ball_contact).
-BALL_CONTACTS = ("nodes", "layer")
+BALL_CONTACTS = ("layer", "nodes")
 
 _NON_NEGATIVE = (
     "posture_weight", "base_orientation_weight", "force_weight", "torque_weight", "deformation_weight",

@@ -164,10 +164,14 @@ def foam():
     return environments.load("quadruped-foam")
 
 
+# The balls press the foam's nodes here (the default on a layer is its law: test_layer_balls).
+NODES = {"ball_contact": "nodes"}
+
+
 @pytest.fixture(scope="module")
 def on_foam(anymal, foam):
     stance = foam.stance("front-feet-on-foam")
-    return build_problem(anymal, foam.scene, stance), stances.solve(anymal, foam.scene, stance)
+    return build_problem(anymal, foam.scene, stance, PostureOptions(**NODES)), stances.solve(anymal, foam.scene, stance, **NODES)
 
 
 # A posture quadruped-foam's planner (seed 1) started a stance from, on the mesh of
@@ -194,11 +198,11 @@ def test_held_contact_modes_start_from_the_rigid_answers_forces_where_the_free_s
         ("right_front_foot", "foam_top", -0.1, -0.09999999999999998),
         ("right_hind_foot", "floor", -0.09999999999999964, -0.39999999999999947),
     )))
-    result = stances.solve(anymal, foam.scene, stance, q_init=np.array(PLANNER_WARM_START))
+    result = stances.solve(anymal, foam.scene, stance, q_init=np.array(PLANNER_WARM_START), **NODES)
     assert result.feasible, result.reason
     weight = anymal.mass * 9.81
     assert result.limits["least_load"] >= 0.1 * (1 - 1e-6)
-    assert stances.verify(anymal, foam.scene, stance, result).ok
+    assert stances.verify(anymal, foam.scene, stance, result, **NODES).ok
     assert sum(p.force[2] for p in result.point_forces) == pytest.approx(weight, rel=1e-6)
 
 
@@ -264,7 +268,7 @@ def test_a_point_foot_refuses_the_traction_reaction_model(anymal, foam):
     )):
         build_problem(
             anymal, foam.scene, foam.stance("front-feet-on-foam"),
-            PostureOptions(reaction_model="traction", contact_law="bonded"),
+            PostureOptions(reaction_model="traction", contact_law="bonded", **NODES),
         )
 
 
@@ -275,7 +279,7 @@ def test_a_point_foot_on_a_soft_body_refuses_the_bonded_laws(anymal, foam, law):
         f"the nodes its profile reaches as it sinks, which the {law!r} law (every print node held to the link) "
         "cannot say"
     )):
-        build_problem(anymal, foam.scene, foam.stance("front-feet-on-foam"), PostureOptions(contact_law=law))
+        build_problem(anymal, foam.scene, foam.stance("front-feet-on-foam"), PostureOptions(contact_law=law, **NODES))
 
 
 def test_a_ball_starts_pressed_as_deep_as_its_rigid_load_needs(anymal, foam, on_foam):

@@ -14,7 +14,7 @@ from environments.errors import ScenarioError
 from stances import Robot, RobotDescriptionError, RobotNotFound, StanceError
 from stances.collision import _robot_geometry
 from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
-from stances.problem import build_problem
+from stances.problem import PostureOptions, build_problem
 
 from cbm.cli import EXIT_BAD_INPUT, main
 from cbm.plan import Plan
@@ -527,11 +527,14 @@ def test_a_quadruped_from_example_robot_data_plans_onto_foam_with_default_planne
     stance = environments.Stance.from_dict({
         **default.stance("start").to_dict(), "left_front_foot": {"surface": "foam_top", "x": -0.1, "y": 0.169},
     })
+    # Pressing the nodes, a ball needs three under it; the layer's law (the default here,
+    # the foam a layer under the ball) reads no node.
     with pytest.raises(StanceError, match=re.escape(
         "the print of left_front_foot on foam_top holds 2 mesh node(s); at least 3 are needed: refine the mesh of "
         "'foam' where prints land (a scenario's soft_box takes resolution and refine)"
     )):
-        build_problem(solo, default.scene, stance)
+        build_problem(solo, default.scene, stance, PostureOptions(ball_contact="nodes"))
+    assert "layer" in [c.kind for c in build_problem(solo, default.scene, stance).contacts]
 
 
 def test_pairs_whose_hulls_touch_at_the_reference_are_not_checked_and_named(tmp_path, caplog):

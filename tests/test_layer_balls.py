@@ -1,0 +1,198 @@
+"""Ball feet on a soft layer sinking by the continuum's law (``ball_contact="layer"``,
+:mod:`stances.layer_ball`): its rows' derivatives, the force each ball carries against the
+law solved afresh, the rigid limit, the field's balance, where the law applies, and verify
+fed what the law forbids."""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import replace
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import fem
+from environments import Contact, ContactPrint, Stance
+from stances import StanceError
+from stances.deformable import PrintSpec
+from stances.layer_ball import LayerBalls, layer_thickness
+from stances.problem import PostureOptions, build_problem
+from stances.sqp import solve
+from stances.results import PointForce
+from stances.verify import verify
+
+LAYER = {"ball_contact": "layer"}
+FRONT = ("left_front_foot_contact", "right_front_foot_contact")
+
+
+@functools.lru_cache(maxsize=None)
+def foam(resolution: float = 0.025, young_modulus: float = 3.0e6, strain_limit: float | None = None):
+    """quadruped-foam with its foam meshed at ``resolution`` (the law does not read the
+    mesh; its field does), Young's modulus and strain bound replaced."""
+    text = environments.builtin_scenario_path("quadruped-foam").read_text()
+    text = text.replace("resolution: 0.01", f"resolution: {resolution}").replace("E: 3.0e+6", f"E: {young_modulus:.6e}")
+    if strain_limit is not None:
+        text = text.replace("    resolution:", f"    strain_limit: {strain_limit}\n    resolution:", 1)
+    return environments.load_string(text, name="quadruped-foam")
+
+
+@pytest.fixture(scope="module")
+def front_feet(anymal):
+    """The front-feet-on-foam stance solved with the layer's law: (scenario, stance, result)."""
+    scenario = foam()
+    stance = scenario.stance("front-feet-on-foam")
+    result = solve(anymal, scenario.scene, stance, **LAYER)
+    assert result.feasible, result.reason
+    return scenario, stance, result
+
+
+def _normal_forces(result, frames=FRONT):
+    return [sum(p.force[2] for p in result.point_forces if p.frame == frame) for frame in frames]
+
+
+def test_each_ball_carries_the_laws_force_at_its_sinking(anymal, front_feet):
+    scenario, stance, result = front_feet
+    problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
+    layer = [c for c in problem.contacts if c.kind == "layer"]
+    assert len(layer) == 1 and len(layer[0].balls) == 2
+    data = anymal.model.createData()
+    pin.framesForwardKinematics(anymal.model, data, result.q)
+    material = scenario.scene.deformable_objects[0].body.material
+    for ball, force in zip(layer[0].balls, _normal_forces(result)):
+        centre = data.oMf[ball.frame_id].translation
+        sinking = ball.radius - (centre[2] - 0.05)  # the foam's top at rest is z = 0.05 m
+        assert 1e-3 < sinking < 3e-3
+        expected, _ = fem.sphere_on_layer_force(sinking, ball.radius, 0.05, material.young_modulus,
+                                                material.poisson_ratio)
+        # The solver's table against the law solved afresh: 1e-7 m of sinking is 5e-3 N here.
+        assert force == pytest.approx(expected, abs=5e-3)
+    # The robot's weight is carried: the four feet's vertical forces add up to it.
+    assert sum(p.force[2] for p in result.point_forces) == pytest.approx(anymal.weight, rel=1e-6)
+    check = verify(anymal, scenario.scene, stance, result, **LAYER)
+    assert check.ok, check.reasons
+    assert abs(check.measures["layer law error of left_front_foot on foam_top"]) < 5e-3
+
+
+def test_the_layer_rows_match_finite_differences(anymal, front_feet):
+    scenario, stance, result = front_feet
+    problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
+    rng = np.random.default_rng(3)
+    q = pin.integrate(anymal.model, result.q, 1e-3 * rng.normal(size=anymal.nv))
+    lam = np.asarray(result.statistics["lambda"]) + rng.uniform(0.5, 5.0, size=problem.n_variables)
+    contact, mine = next((c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "layer")
+    offset = anymal.nv + mine.start
+
+    def rows(q, lam, derivatives):
+        model, data = anymal.model, problem.data
+        pin.computeJointJacobians(model, data, q)
+        pin.framesForwardKinematics(model, data, q)
+        blocks = contact.blocks(model, data, lam[mine], problem.n_step, offset, derivatives=derivatives)
+        return np.concatenate([b.value for b in blocks]), (np.vstack([b.jacobian for b in blocks]) if derivatives else None)
+
+    value, jacobian = rows(q, lam, True)
+    eps = 1e-7
+    numeric = np.zeros_like(jacobian)
+    for i in range(anymal.nv):
+        step = np.zeros(anymal.nv)
+        step[i] = eps
+        numeric[:, i] = (rows(pin.integrate(anymal.model, q, step), lam, False)[0]
+                         - rows(pin.integrate(anymal.model, q, -step), lam, False)[0]) / (2 * eps)
+    for j in range(problem.n_variables):
+        step = np.zeros(problem.n_variables)
+        step[j] = eps
+        numeric[:, anymal.nv + j] = (rows(q, lam + step, False)[0] - rows(q, lam - step, False)[0]) / (2 * eps)
+    for r in range(len(value)):
+        size = max(np.abs(jacobian[r]).max(), 1e-8)
+        assert np.abs(numeric[r] - jacobian[r]).max() <= 1e-6 * size + 1e-9, r
+    # The sinking's columns are the law's slope times each pyramid edge's normal part.
+    assert np.abs(jacobian[2, offset: offset + 4]).min() > 0.0
+
+
+def test_a_stiff_layer_gives_the_rigid_point_contacts_answer(anymal):
+    scenario = foam(young_modulus=1e11)
+    stance = scenario.stance("front-feet-on-foam")
+    stiff = solve(anymal, scenario.scene, stance, **LAYER)
+    rigid = solve(anymal, scenario.scene, stance, deformable_as_rigid=True)
+    assert stiff.feasible and rigid.feasible
+    forces = np.array(_normal_forces(stiff, FRONT + ("left_hind_foot_contact", "right_hind_foot_contact")))
+    held = np.array(_normal_forces(rigid, FRONT + ("left_hind_foot_contact", "right_hind_foot_contact")))
+    np.testing.assert_allclose(forces, held, rtol=1e-3)
+    # Micrometres of sinking: the posture is the rigid one's.
+    assert np.abs(pin.difference(anymal.model, stiff.q, rigid.q)).max() < 1e-4
+
+
+def test_the_fields_base_reactions_balance_the_balls(anymal, front_feet):
+    scenario, stance, result = front_feet
+    body = scenario.scene.deformable_objects[0].body
+    field = result.deformations["foam"]
+    on_robot = sum(np.array(p.force) for p in result.point_forces if p.frame in FRONT)
+    # The body frame is the world's turned by none here: the base holds what the balls push.
+    np.testing.assert_allclose(body.fixed_reactions(field).sum(axis=0), on_robot, rtol=1e-9, atol=1e-9)
+    # Under each ball the top sinks, less than the ball (the mesh is stiffer than the
+    # continuum at the contact's scale), more than a tenth of it.
+    assert field[:, 2].min() < -1e-4
+
+
+def test_verify_refuses_a_force_off_the_law_a_sinking_past_its_bound_and_a_force_out_of_its_cone(anymal, front_feet):
+    scenario, stance, result = front_feet
+
+    def changed(frame, force):
+        forces = tuple(PointForce(p.frame, p.point, force(np.array(p.force)) if p.frame == frame else p.force)
+                       for p in result.point_forces)
+        return replace(result, point_forces=forces)
+
+    heavier = verify(anymal, scenario.scene, stance, changed(FRONT[0], lambda f: 1.01 * f), **LAYER)
+    assert any(r.startswith("left_front_foot on foam_top carries ") and "where its layer's law gives" in r
+               for r in heavier.reasons), heavier.reasons
+    sideways = verify(anymal, scenario.scene, stance, changed(FRONT[1], lambda f: f + np.array([f[2], 0.0, 0.0])), **LAYER)
+    assert any(r.startswith("the force of right_front_foot on foam_top leaves its friction cone by ") for r in sideways.reasons)
+    assert any(r.startswith("a node under right_front_foot on foam_top leaves its friction cone by ") for r in sideways.reasons)
+    shallow = verify(anymal, scenario.scene, stance, result, max_indentation=1e-3, **LAYER)
+    assert any("sinks" in r and "beyond its indentation bound 0.001 m" in r for r in shallow.reasons), shallow.reasons
+
+
+def test_a_strain_over_the_bound_is_refused_with_where(anymal):
+    scenario = foam(strain_limit=0.005)
+    result = solve(anymal, scenario.scene, scenario.stance("front-feet-on-foam"), **LAYER)
+    assert not result.feasible
+    assert "of foam (its own weight's included)" in result.reason and "exceeds its bound 0.005" in result.reason
+
+
+def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robot):
+    scenario = foam()
+    body = scenario.scene.deformable_objects[0]
+    top = scenario.scene.surface("foam_top")
+    # The foam is 5 cm thick: a print 4 cm from its side is outside the law, 5 cm inside it.
+    assert layer_thickness(body, top.transform_print_to_world(-0.16, 0.2, 0.0)) is None
+    assert layer_thickness(body, top.transform_print_to_world(-0.15, 0.2, 0.0)) == pytest.approx(0.05)
+    assert layer_thickness(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0)) is None
+    inside = build_problem(anymal, scenario.scene, scenario.stance("front-feet-on-foam"), PostureOptions(**LAYER))
+    assert [c.kind for c in inside.contacts].count("layer") == 1
+    # A sole is no ball: refused by the model itself (the builder keeps the nodes for it).
+    sole = PrintSpec("left_sole", top, top.transform_print_to_world(0.0, 0.2, 0.0), "left_sole on foam_top")
+    with pytest.raises(StanceError, match="left_sole on foam_top: only ball feet sink by a layer's law"):
+        LayerBalls(robot, body, [sole], PostureOptions(**LAYER))
+    beside = PrintSpec("left_front_foot", top, top.transform_print_to_world(-0.16, 0.2, 0.0), "near the side")
+    with pytest.raises(StanceError, match="near the side: foam is not a layer under this print"):
+        LayerBalls(anymal, body, [beside], PostureOptions(**LAYER))
+
+
+def test_an_unknown_ball_contact_is_refused_with_the_choices():
+    with pytest.raises(StanceError, match=r"ball_contact must be one of \('layer', 'nodes'\), got 'hertz'"):
+        PostureOptions(ball_contact="hertz")
+
+
+def test_the_report_gives_each_balls_sinking_and_force_and_the_bodys_depth(anymal, front_feet):
+    from cbm.report import stance_report
+
+    scenario, stance, result = front_feet
+    check = verify(anymal, scenario.scene, stance, result, **LAYER)
+    lines = stance_report(replace(result, verification=check), anymal, stance)
+    sinking = check.measures["sinking of left_front_foot on foam_top"]
+    force = check.measures["layer force of left_front_foot on foam_top"]
+    assert f"    left_front_foot on foam_top: sinks {1e3 * sinking:.2f} mm, {force:.1f} N by its layer's law" in lines
+    deepest = max(check.measures[f"sinking of {foot} on foam_top"] for foot in ("left_front_foot", "right_front_foot"))
+    assert check.measures["indentation of foam"] == deepest
+    assert any(line.startswith(f"    foam: indented {1e3 * deepest:.2f} mm, largest strain ") for line in lines)
