@@ -6,6 +6,7 @@ from dataclasses import InitVar, dataclass
 from functools import cached_property
 
 import numpy as np
+import scipy.spatial
 
 from .errors import MeshError
 
@@ -289,6 +290,15 @@ class TetMesh:
     def surface_areas(self) -> np.ndarray:
         """(T,) float areas of the surface triangles, square metres."""
         return self._surface_geometry[1]
+
+    @cached_property
+    def surface_search(self) -> tuple[scipy.spatial.cKDTree, float]:
+        """A k-d tree of the surface triangles' centroids and the longest surface edge,
+        metres: every triangle with a point within r of x has its centroid within
+        r + that edge of x (a search near a point without a pass over the surface)."""
+        x = self.nodes[self.surface_triangles]
+        longest = float(np.linalg.norm(x - x[:, [1, 2, 0]], axis=2).max()) if len(x) else 0.0
+        return scipy.spatial.cKDTree(x.mean(axis=1)), longest
 
     @cached_property
     def surface_nodes(self) -> np.ndarray:

@@ -28,6 +28,8 @@ out: under a 5 cm mat another ball 0.4 m away moves a ball by about 1 % of its s
 
 from __future__ import annotations
 
+import functools
+
 import numpy as np
 import pinocchio as pin
 import scipy.linalg
@@ -48,6 +50,20 @@ _SLOPE_FLOOR = 1e-3
 
 # Gauss-Legendre points of the stored energy's integral (deformation_energy).
 _ENERGY_POINTS = 8
+
+
+@functools.lru_cache(maxsize=64)
+def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: float) -> BallOnLayer:
+    """The layer's law, tabulated once per ball and layer (6 ms; a planner asks for it at every solve)."""
+    return BallOnLayer(radius, thickness, young_modulus, poisson_ratio)
+
+
+@functools.lru_cache(maxsize=64)
+def _force_limit(law: BallOnLayer, depth: float) -> float:
+    """Newtons: the largest force the law is read for with the sinking bounded by ``depth``."""
+    if law.depth_limit <= depth:
+        return law.force_limit
+    return fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
 
 
 def layer_thickness(deformable_object, transform_print_to_world) -> float | None:
@@ -130,19 +146,16 @@ class LayerBalls:
                                 spec.label, surface=spec.surface)
             balls.append(ball)
             thicknesses.append(thickness)
-            laws.append(BallOnLayer(ball.radius, thickness, material.young_modulus, material.poisson_ratio))
+            laws.append(_law(ball.radius, thickness, float(material.young_modulus), float(material.poisson_ratio)))
         self.balls, self.laws, self.thicknesses = tuple(balls), tuple(laws), tuple(thicknesses)
         self.frame_ids = tuple(b.frame_id for b in balls)
+        self._last_loads = None  # (forces' bytes, ball_loads of them)
         # The law's force bound: its table's end or the indentation bound, whichever comes first.
         self.max_indentation = tuple(
             float(options.max_indentation) if options.max_indentation is not None
             else float(options.indentation_limit * t) for t in thicknesses
         )
-        self.force_limits = np.array([
-            law.force_limit if law.depth_limit <= depth
-            else fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
-            for law, depth in zip(laws, self.max_indentation)
-        ])
+        self.force_limits = np.array([_force_limit(law, depth) for law, depth in zip(laws, self.max_indentation)])
         self.slope_floor = _SLOPE_FLOOR * robot.weight
         self.loads = PointLoads(np.concatenate([b.loads.joints for b in balls]),
                                 np.concatenate([b.loads.points_in_joint for b in balls]))
@@ -244,10 +257,15 @@ class LayerBalls:
         list of (ball index, node_ids (k,) int, loads (k, 3) float)
             Forces on the body, newtons, body frame; the balls that press only.
         """
+        forces = np.asarray(forces, dtype=float).reshape(-1, 3)
+        # verify asks for the field's loads and then its own check's: the last is kept.
+        key = forces.tobytes()
+        if self._last_loads is not None and self._last_loads[0] == key:
+            return self._last_loads[1]
         body = self.deformable_object.body
         origin = np.asarray(self.deformable_object.transform_body_to_world, dtype=float)[:3, 3]
         out = []
-        for i, (ball, law, force) in enumerate(zip(self.balls, self.laws, np.asarray(forces, dtype=float).reshape(-1, 3))):
+        for i, (ball, law, force) in enumerate(zip(self.balls, self.laws, forces)):
             normal = float(ball.print_placement.rotation[:, 2] @ force)
             if normal <= 0.0:
                 continue
@@ -255,6 +273,7 @@ class LayerBalls:
             node_ids, shares = fem.hertz_load_shares(
                 body.mesh, centre, self.rotation_body.T @ ball.print_placement.rotation[:, 2], law.contact_radius(normal))
             out.append((i, node_ids, shares[:, None] * (-(force @ self.rotation_body))[None]))
+        self._last_loads = (key, out)
         return out
 
     def displacement_field(self, model, data, forces) -> np.ndarray:
