@@ -240,3 +240,19 @@ def test_two_tets_touching_at_a_node_have_all_eight_faces_on_the_surface():
     faces = {tuple(sorted(t)) for t in mesh.surface_triangles.tolist()}
     expected = {(0, 2, 4), (0, 2, 6), (0, 4, 6), (2, 4, 6), (1, 2, 3), (1, 2, 5), (1, 3, 5), (2, 3, 5)}
     assert faces == expected and len(mesh.surface_triangles) == 8
+
+
+def test_surface_search_finds_every_triangle_a_ball_of_radius_r_reaches():
+    # Brute force: a triangle within r of x (its nearest corner, for these small triangles a
+    # bound from above on the distance) has its centroid within r + the longest edge.
+    mesh = box_mesh((0.3, 0.2, 0.1), (6, 5, 3), grading=1.3)
+    tree, longest = mesh.surface_search
+    corners = mesh.nodes[mesh.surface_triangles]
+    edges = np.linalg.norm(corners - corners[:, [1, 2, 0]], axis=2)
+    assert longest == pytest.approx(edges.max(), rel=1e-15)
+    rng = np.random.default_rng(4)
+    for x in rng.uniform([-0.05, -0.05, -0.05], [0.35, 0.25, 0.15], size=(20, 3)):
+        r = rng.uniform(0.005, 0.05)
+        reached = np.flatnonzero(np.linalg.norm(corners - x, axis=2).min(axis=1) <= r)
+        found = set(tree.query_ball_point(x, r + longest))
+        assert set(reached.tolist()) <= found
