@@ -167,7 +167,7 @@ class LayerBalls:
         self.print_surfaces = tuple(b.robot_surface for b in balls)
         self.load_prints = np.arange(len(balls))
         self.load_normals = np.array([b.print_placement.rotation[:, 2] for b in balls])
-        # Each ball's normal force is normals_rows[i] @ its pyramid coefficients.
+        # Each ball's normal force is _normal_rows[i] @ its pyramid coefficients (_pyramid[i] of lambda).
         self._pyramid = [slice(sum(b.n_variables for b in balls[:i]), sum(b.n_variables for b in balls[: i + 1]))
                          for i in range(len(balls))]
         self._normal_rows = [self.load_normals[i] @ b.generators for i, b in enumerate(balls)]
