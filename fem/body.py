@@ -699,10 +699,14 @@ class DeformableBody:
             raise FemError("displacement field contains NaN or inf")
         return u
 
-    def strain(self, u: np.ndarray) -> np.ndarray:
-        """Voigt strain per tet (eq. 24), (M, 6), engineering shears, for u (N, 3) metres."""
+    def strain(self, u: np.ndarray, tets=None) -> np.ndarray:
+        """Voigt strain per tet (eq. 24), (M, 6), engineering shears, for u (N, 3) metres;
+        of the given tets only (k,) int, (k, 6), when ``tets`` is given."""
         u = self._check_field(u)
         corners, gradients = self._strain_operands
+        if tets is not None:
+            tets = np.asarray(tets, dtype=np.int64)
+            corners, gradients = corners[:, tets], gradients[:, :, tets]
         # (3, 4, M): u_k,i of each tet's corner k; np.take on rows laid out contiguously (fancy
         # indexing of u.T gathered the same numbers in five times the time: 1.2 ms on 34,086 tets).
         nodal = np.take(np.ascontiguousarray(u.T), corners, axis=1)

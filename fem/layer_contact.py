@@ -326,7 +326,15 @@ class BallOnLayer:
     def contact_radius(self, force: float) -> float:
         """Metres: the contact's radius under ``force`` newtons (0 at 0; the table's last
         beyond :attr:`force_limit`)."""
+        return self.contact_radius_and_slope(force)[0]
+
+    def contact_radius_and_slope(self, force: float) -> tuple[float, float]:
+        """The contact's radius under ``force`` (metres) and its derivative in the force
+        (m/N; 0 beyond :attr:`force_limit`, infinite at 0: Hertz's a ~ F^(1/3))."""
         if force <= 0.0:
-            return 0.0
-        v = np.cbrt(min(force, self._table[2]))
-        return float(self._table[1](v)) * v
+            return 0.0, np.inf
+        v = float(np.cbrt(min(force, self._table[2])))
+        spline = self._table[1]
+        radius, slope = float(spline(v)), float(spline(v, 1))
+        # a = r(v) v, dv/dF = 1 / (3 v^2)
+        return radius * v, (0.0 if force > self._table[2] else (slope * v + radius) / (3.0 * v * v))

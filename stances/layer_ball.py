@@ -28,6 +28,7 @@ out: under a 5 cm mat another ball 0.4 m away moves a ball by about 1 % of its s
 
 from __future__ import annotations
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -50,6 +51,15 @@ _SLOPE_FLOOR = 1e-3
 
 # Gauss-Legendre points of the stored energy's integral (deformation_energy).
 _ENERGY_POINTS = 8
+
+# The strain rows: each ball's field per newton is tabulated at the contact radii of these
+# shares of the robot's weight (and the law's largest force), and interpolated in the radius
+# (the 20 mm means under a ball fall by 10 % as its contact widens from 4 to 16 mm on
+# quadruped-foam's foam). The tets whose means are bounded: centroids within this many strain
+# radii of a print.
+_STRAIN_SHARES = (0.01, 0.03, 0.1, 0.2, 0.35, 0.6, 1.0)
+_STRAIN_REACH = 2.0
+_STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's error, a tenth of it)
 
 
 @functools.lru_cache(maxsize=64)
@@ -150,13 +160,17 @@ class LayerBalls:
         self.balls, self.laws, self.thicknesses = tuple(balls), tuple(laws), tuple(thicknesses)
         self.frame_ids = tuple(b.frame_id for b in balls)
         self._last_loads = None  # (forces' bytes, ball_loads of them)
+        self._strain_outlier = None  # the tet of the last verify's strain failure outside the rows
+        self.extra_strain_tets = ()  # such tets, rows of their nearest ball since (take_strain_outlier)
         # The law's force bound: its table's end or the indentation bound, whichever comes first.
         self.max_indentation = tuple(
             float(options.max_indentation) if options.max_indentation is not None
             else float(options.indentation_limit * t) for t in thicknesses
         )
         self.force_limits = np.array([_force_limit(law, depth) for law, depth in zip(laws, self.max_indentation)])
-        self.slope_floor = _SLOPE_FLOOR * robot.weight
+        self.max_strain_rows = max(int(options.max_strain_rows), 1)  # rows a ball (verify checks every tet)
+        self.robot_weight = float(robot.weight)
+        self.slope_floor = _SLOPE_FLOOR * self.robot_weight
         self.loads = PointLoads(np.concatenate([b.loads.joints for b in balls]),
                                 np.concatenate([b.loads.points_in_joint for b in balls]))
         self.load_frames = tuple(frame for b in balls for frame in b.load_frames)
@@ -225,7 +239,68 @@ class LayerBalls:
             "layer law bound", normal, force_rows, -np.inf, self.force_limits, 10.0,
             tuple(f"force of {b.label} within its layer's law" for b in self.balls),
         )
-        return [placement, bound]
+        return [placement, bound, self._strain_block(lam, normal, columns, offset, derivatives)]
+
+    def _strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:
+        """Each ball's largest principal strain (mean over the object's strain radius, its
+        own weight's included) over the tets near it, at most the object's bound: the field
+        is the balls' unit fields times their forces (:attr:`_unit_strains`)."""
+        table = self._unit_strains
+        limit = float(self.deformable_object.strain_limit)
+        radii, slopes = zip(*(law.contact_radius_and_slope(float(max(f, self.slope_floor)))
+                              for law, f in zip(self.laws, normal)))
+        # Each ball's force on the robot in the body frame, and its derivative in its pyramid.
+        forces = [self.rotation_body.T @ (ball.generators @ lam[s]) for ball, s in zip(self.balls, self._pyramid)]
+        d_forces = [self.rotation_body.T @ ball.generators for ball in self.balls]
+        values, rows, labels = [], [], []
+        for i, ball in enumerate(self.balls):
+            strain = table.weight[i].copy()  # (n, 6) the body's own weight's means at ball i's rows' tets
+            terms = []
+            for j in range(len(self.balls)):
+                unit, d_unit = table.at(i, j, radii[j])  # (3, n, 6) per newton along each body axis
+                strain += np.einsum("c,cnk->nk", forces[j], unit)
+                terms.append((unit, np.einsum("c,cnk->nk", forces[j], d_unit) * slopes[j]))
+            # Each tet's largest principal strain magnitude, stretch or compression; one row
+            # for each of the most strained (a max over them would be a kink the line search
+            # stalls on; where the most strained lie moves with the ball's sideways force).
+            eigenvalues, eigenvectors = np.linalg.eigh(fem.voigt_to_tensor_strain(strain))
+            magnitude = np.maximum(eigenvalues[:, 2], -eigenvalues[:, 0])
+            for t in np.sort(np.argsort(-magnitude, kind="stable")[:self.max_strain_rows]).tolist():
+                which, sign = (2, 1.0) if eigenvalues[t, 2] >= -eigenvalues[t, 0] else (0, -1.0)
+                values.append(sign * eigenvalues[t, which])
+                labels.append(f"strain under {ball.label} (tet {table.tets[i][t]})")
+                if not derivatives:
+                    continue
+                v = eigenvectors[t, :, which]
+
+                def along(voigt):  # d lambda = v^T dE v (a simple eigenvalue), E's shears halved
+                    return sign * float(v @ fem.voigt_to_tensor_strain(voigt) @ v)
+
+                row = np.zeros(columns)
+                for j, (unit, radius_term) in enumerate(terms):
+                    row[offset + self._pyramid[j].start: offset + self._pyramid[j].stop] += (
+                        np.array([along(unit[c, t]) for c in range(3)]) @ d_forces[j]
+                        + along(radius_term[t]) * self._normal_rows[j])
+                rows.append(row)
+        # The rows keep a hair under the bound: their unit strains are interpolated in the
+        # contact radius, which verify's field is not (0.05002 against 0.05 at 1e6 Pa with 7 radii).
+        return ConstraintBlock("strain", np.array(values), np.array(rows).reshape(len(values), columns) if derivatives
+                               else None, -np.inf, (1.0 - _STRAIN_MARGIN) * limit, limit, tuple(labels))
+
+    @functools.cached_property
+    def _unit_strains(self) -> "_UnitStrains":
+        """The balls' strain means per newton near each ball (built on the first linearisation)."""
+        return _UnitStrains.of(self)
+
+    def take_strain_outlier(self) -> bool:
+        """Make the tet of the last verify's strain failure a strain row of its nearest
+        ball, if it lay outside the rows; True if it did (the SQP then goes on)."""
+        tet, self._strain_outlier = self._strain_outlier, None
+        if tet is None:
+            return False
+        self.extra_strain_tets = self.extra_strain_tets + (int(tet),)
+        self.__dict__.pop("_unit_strains", None)
+        return True
 
     def _weighted_placement(self, model, data, weights) -> np.ndarray:
         """(nv,) ``weights @ jacobian`` of the placement rows in the configuration columns (the
@@ -327,7 +402,10 @@ class LayerBalls:
         strain, tet = body.largest_principal_strain(field + self.deformable_object.self_weight_field,
                                                     self.deformable_object.strain_radius)
         measures[f"largest strain of {name}"] = strain
+        self._strain_outlier = None
         if strain > self.deformable_object.strain_limit + 1e-6:
+            if not any(tet in tets for tets in self._unit_strains.tets):
+                self._strain_outlier = tet
             centre = self.deformable_object.points_in_world(body.mesh.nodes[body.mesh.tets[tet]].mean(axis=0)[None])[0]
             reasons.append(
                 f"strain {strain:.3g} of {name} (its own weight's included) at ({centre[0]:.3f}, {centre[1]:.3f}, "
@@ -388,3 +466,74 @@ class LayerBalls:
         x, w = 0.5 * (x + 1.0), 0.5 * w
         work = sum(wi * law.sinking(force * xi**3)[0] * 3.0 * force * xi**2 for xi, wi in zip(x, w))
         return float(force * law.sinking(force)[0] - work)
+
+
+@dataclasses.dataclass(frozen=True)
+class _UnitStrains:
+    """Strain means (Voigt, object's strain radius) near each ball of a :class:`LayerBalls`,
+    per newton of each ball's force, tabulated in its contact radius.
+
+    ``weight[i]``: (n_i, 6) the body's own weight's means at the tets near ball i;
+    ``unit[i][j]``: (g, 3, n_i, 6) ball j's field there per newton of its force on the robot
+    along each body axis (its pressure and a traction in proportion), at contact radii
+    ``radii[j]`` (g,).
+    """
+
+    weight: tuple
+    unit: tuple
+    radii: tuple
+    tets: tuple
+
+    def at(self, i: int, j: int, radius: float):
+        """Ball j's means per newton near ball i at a contact radius, and their derivative
+        in it (linear between the table's radii, held beyond)."""
+        radii, table = self.radii[j], self.unit[i][j]
+        if len(radii) == 1:
+            return table[0], np.zeros_like(table[0])
+        k = int(np.clip(np.searchsorted(radii, radius) - 1, 0, len(radii) - 2))
+        step = (table[k + 1] - table[k]) / (radii[k + 1] - radii[k])
+        if radius <= radii[0]:
+            return table[0], np.zeros_like(step)
+        if radius >= radii[-1]:
+            return table[-1], np.zeros_like(step)
+        return table[k] + (radius - radii[k]) * step, step
+
+    @staticmethod
+    def of(contact: LayerBalls) -> "_UnitStrains":
+        """Tabulate a contact's balls: one field per ball and radius, each a superposition
+        of the body's compliance columns (:meth:`fem.DeformableBody.displacement_under_loads`)."""
+        obj = contact.deformable_object
+        body, strain_radius = obj.body, float(obj.strain_radius)
+        averages = body.strain_averages
+        origin = np.asarray(obj.transform_body_to_world, dtype=float)[:3, 3]
+        centres = [contact.rotation_body.T @ (b.print_placement.translation - origin) for b in contact.balls]
+        normals = [contact.rotation_body.T @ b.print_placement.rotation[:, 2] for b in contact.balls]
+        extras = np.array(contact.extra_strain_tets, dtype=np.int64)
+        nearest = (np.argmin([np.linalg.norm(averages.centroids[extras] - c, axis=1) for c in centres], axis=0)
+                   if extras.size else extras)
+        weights, centre_tets = [], []
+        for i, centre in enumerate(centres):
+            near = np.flatnonzero(np.linalg.norm(averages.centroids - centre, axis=1) <= _STRAIN_REACH * strain_radius)
+            near = np.union1d(near, extras[nearest == i])
+            centre_tets.append(near)
+            weights.append(averages.weights(near, strain_radius))
+        weight = tuple(matrix @ body.strain(obj.self_weight_field, members) for members, matrix in weights)
+        every = np.unique(np.concatenate([members for members, _ in weights]))
+        radii, fields = [], []
+        for law, limit, centre, normal in zip(contact.laws, contact.force_limits, centres, normals):
+            forces = [share * contact.robot_weight for share in _STRAIN_SHARES] + [float(limit)]
+            ball_radii = np.unique([law.contact_radius(min(f, float(limit))) for f in forces])
+            radii.append(ball_radii)
+            strains = []  # per radius: (3, len(every), 6), a newton on the robot along each body axis
+            for a in ball_radii:
+                ids, shares = fem.hertz_load_shares(body.mesh, centre, normal, float(a))
+                strains.append(np.stack([body.strain(body.displacement_under_loads(ids, -shares[:, None] * axis[None]),
+                                                     every) for axis in np.eye(3)]))
+            fields.append(strains)
+        rows = [np.searchsorted(every, members) for members, _ in weights]
+        unit = [[np.stack([np.einsum("nm,cmk->cnk", matrix.toarray(), strain[:, row]) for strain in fields[j]])
+                 for j in range(len(fields))]
+                for (members, matrix), row in zip(weights, rows)]
+        unit = tuple(tuple(per_ball) for per_ball in unit)
+        tets = tuple(centre_tets)
+        return _UnitStrains(weight, unit, tuple(radii), tets)

@@ -236,7 +236,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     outcome = run_sqp(problem, q, lam, limit, deadline, creep)
     result = _result(problem, outcome, time.perf_counter() - start, check)
     iterations = outcome.iterations
-    soft = [contact for contact in problem.contacts if contact.kind == "deformable"]
+    soft = [contact for contact in problem.contacts if contact.kind in ("deformable", "layer")]
     for _ in range(_STRAIN_ROUNDS):
         # verify found a strain over its bound where the strain rows do not look (far
         # from the prints): they look there from now on, and the SQP goes on.

@@ -209,3 +209,11 @@ def test_a_contact_past_the_faces_edge_or_of_no_size_is_refused():
         fem.hertz_load_shares(mesh, (0.199, 0.1, 0.05), (0.0, 0.0, 1.0), 0.007)
     with pytest.raises(fem.FemError, match="contact_radius must be finite and > 0"):
         fem.hertz_load_shares(mesh, (0.1, 0.1, 0.05), (0.0, 0.0, 1.0), 0.0)
+
+
+@pytest.mark.parametrize("force", [0.05, 5.0, 41.76, 500.0])
+def test_the_contact_radius_slope_is_its_finite_difference(law, force):
+    step = 1e-6 * force
+    difference = (law.contact_radius(force + step) - law.contact_radius(force - step)) / (2 * step)
+    assert law.contact_radius_and_slope(force)[1] == pytest.approx(difference, rel=1e-6)
+    assert law.contact_radius_and_slope(2 * law.force_limit) == (law.contact_radius(law.force_limit), 0.0)
