@@ -30,6 +30,7 @@ from __future__ import annotations
 
 import dataclasses
 import functools
+import weakref
 
 import numpy as np
 import pinocchio as pin
@@ -74,6 +75,10 @@ def _force_limit(law: BallOnLayer, depth: float) -> float:
     if law.depth_limit <= depth:
         return law.force_limit
     return fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
+
+
+# Each body's _UnitStrains by its balls' prints, laws and bounds (LayerBalls._unit_strains).
+_UNIT_STRAINS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
 def layer_thickness(deformable_object, transform_print_to_world) -> float | None:
@@ -289,8 +294,15 @@ class LayerBalls:
 
     @functools.cached_property
     def _unit_strains(self) -> "_UnitStrains":
-        """The balls' strain means per newton near each ball (built on the first linearisation)."""
-        return _UnitStrains.of(self)
+        """The balls' strain means per newton near each ball (built on the first linearisation,
+        kept with the body for the same balls: a planner solves many stances on the same prints)."""
+        kept = _UNIT_STRAINS.setdefault(self.deformable_object.body, {})
+        key = (tuple(np.concatenate([b.print_placement.homogeneous.ravel() for b in self.balls]).tolist()),
+               self.laws, tuple(self.force_limits.tolist()), self.robot_weight, self.extra_strain_tets,
+               float(self.deformable_object.strain_radius))
+        if key not in kept:
+            kept[key] = _UnitStrains.of(self)
+        return kept[key]
 
     def take_strain_outlier(self) -> bool:
         """Make the tet of the last verify's strain failure a strain row of its nearest
@@ -531,7 +543,7 @@ class _UnitStrains:
                                                      every) for axis in np.eye(3)]))
             fields.append(strains)
         rows = [np.searchsorted(every, members) for members, _ in weights]
-        unit = [[np.stack([np.einsum("nm,cmk->cnk", matrix.toarray(), strain[:, row]) for strain in fields[j]])
+        unit = [[np.stack([np.stack([matrix @ strain[c, row] for c in range(3)]) for strain in fields[j]])
                  for j in range(len(fields))]
                 for (members, matrix), row in zip(weights, rows)]
         unit = tuple(tuple(per_ball) for per_ball in unit)
