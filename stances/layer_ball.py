@@ -173,7 +173,7 @@ class LayerBalls:
             else float(options.indentation_limit * t) for t in thicknesses
         )
         self.force_limits = np.array([_force_limit(law, depth) for law, depth in zip(laws, self.max_indentation)])
-        self.max_strain_rows = max(int(options.max_strain_rows), 1)  # rows a ball (verify checks every tet)
+        self.max_strain_rows = int(options.max_strain_rows)  # rows a ball, 0 none (verify checks every tet)
         self.robot_weight = float(robot.weight)
         self.slope_floor = _SLOPE_FLOOR * self.robot_weight
         self.loads = PointLoads(np.concatenate([b.loads.joints for b in balls]),
@@ -244,6 +244,8 @@ class LayerBalls:
             "layer law bound", normal, force_rows, -np.inf, self.force_limits, 10.0,
             tuple(f"force of {b.label} within its layer's law" for b in self.balls),
         )
+        if not self.max_strain_rows:
+            return [placement, bound]
         return [placement, bound, self._strain_block(lam, normal, columns, offset, derivatives)]
 
     def _strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:

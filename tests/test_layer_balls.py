@@ -206,3 +206,21 @@ def test_the_report_gives_each_balls_sinking_and_force_and_the_bodys_depth(anyma
     deepest = max(check.measures[f"sinking of {foot} on foam_top"] for foot in ("left_front_foot", "right_front_foot"))
     assert check.measures["indentation of foam"] == deepest
     assert any(line.startswith(f"    foam: indented {1e3 * deepest:.2f} mm, largest strain ") for line in lines)
+
+
+def test_strain_rows_are_the_most_strained_tets_near_each_ball_or_none(anymal, front_feet):
+    scenario, stance, result = front_feet
+    lam = np.asarray(result.statistics["lambda"])
+    for rows in (12, 3, 0):
+        problem = build_problem(anymal, scenario.scene, stance, PostureOptions(max_strain_rows=rows, **LAYER))
+        strain = [b for b in problem.evaluate(result.q, lam).blocks if b.name == "strain"]
+        assert len(strain) == (1 if rows else 0)
+        if rows:
+            assert len(strain[0].value) == 2 * rows
+            assert all(label.startswith(("strain under left_front_foot on foam_top (tet ",
+                                         "strain under right_front_foot on foam_top (tet ")) for label in strain[0].labels)
+    # The largest row is verify's largest strain (its tet near a ball; the table's radius interpolation aside).
+    problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
+    (strain,) = [b for b in problem.evaluate(result.q, lam).blocks if b.name == "strain"]
+    check = verify(anymal, scenario.scene, stance, result, **LAYER)
+    assert strain.value.max() == pytest.approx(check.measures["largest strain of foam"], rel=2e-3)
