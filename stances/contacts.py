@@ -18,6 +18,7 @@ Every contact model (this one and :mod:`stances.deformable`) offers the same
 small interface to the problem builder:
 
 - ``loads``: a :class:`~stances.statics.PointLoads` (where forces act);
+- ``deformable_object``: the soft body it presses (its field, strain and checks), or None;
 - ``load_frames``: the robot frame each load acts on;
 - ``n_variables`` and ``variable_lower``: its force variables and their lower bounds;
 - ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
@@ -115,6 +116,7 @@ class RigidContact:
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
+    deformable_object = None  # the soft body it presses: none (stances.deformable, stances.layer_ball have one)
 
     def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None):
         self.support_surface = surface

@@ -28,12 +28,12 @@ out: under a 5 cm mat another ball 0.4 m away moves a ball by about 1 % of its s
 
 from __future__ import annotations
 
+import collections
 import dataclasses
 import functools
 import weakref
 
 import numpy as np
-import pinocchio as pin
 import scipy.linalg
 
 import fem
@@ -77,7 +77,10 @@ def _force_limit(law: BallOnLayer, depth: float) -> float:
     return fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
 
 
-# Each body's _UnitStrains by its balls' prints, laws and bounds (LayerBalls._unit_strains).
+# Each body's _UnitStrains by its balls' prints, laws and bounds (LayerBalls._unit_strains),
+# the most recently used of them: a set of prints a plan meets, it meets again in its next
+# stances; thousands of plans in one process would otherwise keep gigabytes.
+_KEPT_STRAIN_TABLES = 16
 _UNIT_STRAINS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
@@ -298,12 +301,16 @@ class LayerBalls:
     def _unit_strains(self) -> "_UnitStrains":
         """The balls' strain means per newton near each ball (built on the first linearisation,
         kept with the body for the same balls: a planner solves many stances on the same prints)."""
-        kept = _UNIT_STRAINS.setdefault(self.deformable_object.body, {})
+        kept = _UNIT_STRAINS.setdefault(self.deformable_object.body, collections.OrderedDict())
         key = (tuple(np.concatenate([b.print_placement.homogeneous.ravel() for b in self.balls]).tolist()),
                self.laws, tuple(self.force_limits.tolist()), self.robot_weight, self.extra_strain_tets,
                float(self.deformable_object.strain_radius))
-        if key not in kept:
+        if key in kept:
+            kept.move_to_end(key)
+        else:
             kept[key] = _UnitStrains.of(self)
+            if len(kept) > _KEPT_STRAIN_TABLES:  # about 2 MB each for two balls on a 10 mm mesh
+                kept.popitem(last=False)
         return kept[key]
 
     def take_strain_outlier(self) -> bool:

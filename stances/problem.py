@@ -314,11 +314,11 @@ class PostureOptions:
         object.__setattr__(self, "touching", tuple(tuple(pair) for pair in pairs))
 
 
-#: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
-#: tolerances, penalties, metres), checked by :class:`PostureOptions`.
 #: How a ball foot presses a soft body (PostureOptions.ball_contact).
 BALL_CONTACTS = ("layer", "nodes")
 
+#: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
+#: tolerances, penalties, metres), checked by :class:`PostureOptions`.
 _NON_NEGATIVE = (
     "posture_weight", "base_orientation_weight", "force_weight", "torque_weight", "deformation_weight",
     "min_normal_force", "collision_distance", "collision_activation",

@@ -236,7 +236,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     outcome = run_sqp(problem, q, lam, limit, deadline, creep)
     result = _result(problem, outcome, time.perf_counter() - start, check)
     iterations = outcome.iterations
-    soft = [contact for contact in problem.contacts if contact.kind in ("deformable", "layer")]
+    soft = [contact for contact in problem.contacts if contact.deformable_object is not None]
     for _ in range(_STRAIN_ROUNDS):
         # verify found a strain over its bound where the strain rows do not look (far
         # from the prints): they look there from now on, and the SQP goes on.
@@ -845,7 +845,7 @@ def deformation_fields(problem, q, point_forces) -> LazyDeformations:
                 contact, model, q, [p.force for p in point_forces[loads]]
             )
             for contact, loads in zip(problem.contacts, problem.load_slices)
-            if contact.kind in ("deformable", "layer")
+            if contact.deformable_object is not None
         }
     )
 

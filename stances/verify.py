@@ -151,7 +151,7 @@ def verify_problem(
     for contact, loads in zip(problem.contacts, problem.load_slices):
         forces = np.array([p.force for p in result.point_forces[loads]])
         points = np.array([p.point for p in result.point_forces[loads]])
-        if contact.kind in ("deformable", "layer"):
+        if contact.deformable_object is not None:
             made[contact.deformable_object.name] = field = np.asarray(contact.displacement_field(model, data, forces))
             reasons.extend(contact.verify(model, data, points, forces, tolerances, measures, field=field))
         else:
@@ -233,7 +233,7 @@ def _deformed_surface_clearance(problem, fields, data, tolerances, measures) -> 
     excluded), and of the prints held rigid on them, point by point."""
     reasons = []
     for contact in problem.contacts:
-        if contact.kind not in ("deformable", "layer"):
+        if contact.deformable_object is None:
             continue
         obj = contact.deformable_object
         name = f"{obj.name} (deformed)"

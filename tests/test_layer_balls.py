@@ -224,3 +224,26 @@ def test_strain_rows_are_the_most_strained_tets_near_each_ball_or_none(anymal, f
     (strain,) = [b for b in problem.evaluate(result.q, lam).blocks if b.name == "strain"]
     check = verify(anymal, scenario.scene, stance, result, **LAYER)
     assert strain.value.max() == pytest.approx(check.measures["largest strain of foam"], rel=2e-3)
+
+
+def test_strain_tables_kept_with_the_body_are_the_most_recently_used(anymal, front_feet, monkeypatch):
+    from stances import layer_ball
+
+    scenario, stance, result = front_feet
+    monkeypatch.setattr(layer_ball, "_KEPT_STRAIN_TABLES", 2)
+    body = scenario.scene.deformable_objects[0].body
+    layer_ball._UNIT_STRAINS.pop(body, None)
+    lam = np.asarray(result.statistics["lambda"])
+    tables = []
+    for y in (0.2, 0.1, 0.0, 0.1):
+        moved = Stance(tuple(Contact(c.robot_surface, ContactPrint(c.contact_print.surface, c.contact_print.x,
+                                                                   y if c.robot_surface == "left_front_foot" else c.contact_print.y))
+                             for c in stance))
+        problem = build_problem(anymal, scenario.scene, moved, PostureOptions(**LAYER))
+        problem.evaluate(result.q, lam)
+        tables.append(next(c for c in problem.contacts if c.kind == "layer")._unit_strains)
+    kept = layer_ball._UNIT_STRAINS[body]
+    assert len(kept) == 2
+    # y = 0.1 was met again before the bound dropped it: the same table, not a new one.
+    assert tables[3] is tables[1]
+    assert [id(t) for t in kept.values()] == [id(tables[2]), id(tables[1])]
