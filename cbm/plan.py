@@ -393,9 +393,9 @@ class Plan:
                 problems.append(f"stance {index}: no solver result to verify")
                 continue
             # What the plan shows is what is checked.
+            # With the options the stance was solved with, which its result records.
             shown = replace(result, q=planned.q, point_forces=planned.point_forces, deformations=planned.deformations)
-            options = dict(getattr(result, "statistics", {}).get("options", {}))
-            verification = stances.verify(robot, scenario.scene, planned.stance, shown, **options)
+            verification = stances.verify(robot, scenario.scene, planned.stance, shown)
             if not verification.ok:
                 problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):

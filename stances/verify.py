@@ -187,7 +187,10 @@ def verify(robot, scene, stance, result, **options) -> Verification:
         contacts, on its contact's frame) and ``deformations`` are checked;
         nothing else is trusted.
     **options
-        Posture options (e.g. ``reaction_model``) the result was solved with.
+        Posture options to check with, over those the result records it was solved
+        with (``result.statistics.options``, the ones off their defaults: e.g. a
+        ``ball_contact`` or ``contact_law``, which decide the model its forces are
+        checked against); give one to check more strictly (``max_indentation=0.01``).
         Deformable supports are checked against their deformed surface.
 
     Returns
@@ -195,7 +198,10 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     Verification
         ``ok`` with the measured residuals, or the list of failed checks.
     """
-    problem = build_problem(robot, scene, stance, PostureOptions(**options))
+    # A result checked against another contact model than its own fails for that alone
+    # (a ball's node forces are not its layer law's): the recorded options come first.
+    recorded = (getattr(result, "statistics", None) or {}).get("options") or {}
+    problem = build_problem(robot, scene, stance, PostureOptions(**{**recorded, **options}))
     return verify_problem(problem, result, deformed_surfaces=True)
 
 

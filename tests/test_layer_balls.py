@@ -153,6 +153,22 @@ def test_verify_refuses_a_force_off_the_law_a_sinking_past_its_bound_and_a_force
     assert any("sinks" in r and "beyond its indentation bound 0.001 m" in r for r in shallow.reasons), shallow.reasons
 
 
+def test_verify_checks_a_result_with_the_contact_model_it_was_solved_with(anymal):
+    # Solved with node contact, checked without options: its own model (the result
+    # records it), not the default layer law, which its node forces do not follow.
+    # Node contact needs the scene's own 10 mm mesh under the balls.
+    scenario = foam(resolution=0.01)
+    stance = scenario.stance("front-feet-on-foam")
+    nodes = solve(anymal, scenario.scene, stance, ball_contact="nodes")
+    assert nodes.feasible, nodes.reason
+    assert nodes.statistics["options"]["ball_contact"] == "nodes"
+    assert verify(anymal, scenario.scene, stance, nodes).ok
+    against_the_law = verify(anymal, scenario.scene, stance, nodes, ball_contact="layer")
+    # The law's model has one point force a ball; the nodes' result has one a node.
+    assert against_the_law.reasons == (
+        "44 contact forces reported for the 4 application points of the stance's contacts",)
+
+
 def test_the_solver_keeps_the_strain_bound_and_says_where_it_cannot(anymal):
     # At 0.5 % the front balls' loads move to the hind feet until the strain near each is
     # on its bound (1.2 % without it); verify, over every tet, agrees.
