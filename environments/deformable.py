@@ -243,6 +243,13 @@ class DeformableObject:
                 )
         return field
 
+    @cached_property
+    def largest_strain_at_rest(self) -> float:
+        """The largest principal strain its own weight gives it (the ball means of
+        :attr:`strain_radius`; 0 for a density of 0)."""
+        field = self.self_weight_field
+        return float(self.body.largest_principal_strain(field, self.strain_radius)[0]) if field.any() else 0.0
+
     def strained_at_rest(self, threshold: float) -> np.ndarray:
         """(n,) sorted ids of the tets whose strain under the body's own weight, the ball
         mean of :attr:`strain_radius`, has a principal magnitude of ``threshold`` or more

@@ -15,6 +15,7 @@ from .deadline import SetupTimeout, check_deadline, deadline
 from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
 from .layer_contact import BallOnLayer, sphere_on_layer_force
+from .layer_strain import LayerBallStrain, axisymmetric_layer_field
 from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
@@ -53,6 +54,8 @@ __all__ = [
     "ContactPatch",
     "sphere_on_layer_force",
     "BallOnLayer",
+    "LayerBallStrain",
+    "axisymmetric_layer_field",
     "hertz_load_shares",
     "von_mises",
     "voigt_to_tensor_strain",

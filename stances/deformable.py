@@ -1379,7 +1379,7 @@ class DeformableContact:
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
-        face, at least a thickness from the sides) and the contact radius is at most
+        face, at least 1.2 thicknesses from the sides) and the contact radius is at most
         :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness (within 0.5 % of the
         continuum there). Never raises: a ball sunk past what the formula takes gets none."""
         material = self.deformable_object.body.material

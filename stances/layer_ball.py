@@ -3,8 +3,8 @@
 A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
 mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
 where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a layer
-(a box held on its base, the ball on the opposite face, at least a thickness from its
-sides) the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid sphere on an
+(a box held on its base, the ball on the opposite face, at least 1.2 thicknesses from its
+sides: :data:`SIDE_CLEARANCE`) the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid sphere on an
 elastic layer bonded to a rigid base, within 0.5 % of an exact solution while the
 contact's radius is at most 0.6 of the thickness. Each ball is then a point contact
 (:class:`stances.contacts.PointContact`) whose normal placement gives way by the layer's
@@ -20,11 +20,17 @@ the thickness (or 0.7 of the ball's radius) and the sinking at the indentation b
 The body's field (the pictures, the files, the strain bound) is the mesh's under the
 ball's Hertzian pressure, as consistent nodal loads (:func:`fem.hertz_load_shares`): each
 node carries a share of the ball's force, so each node's load is in its cone when the
-force is. The balls on one body are coupled only through the far field, which this leaves
+force is. A mesh as coarse as the contact strains too little under a ball (10 mm cells:
+2.19 % for a 20 mm mean where the converged field gives 2.60 %), so each ball's strain is
+also bounded on the layer's own field under it, converged
+(:class:`fem.LayerBallStrain`: an axisymmetric FEM of the layer, its largest mean, the
+body's own weight's largest added), one row a ball; the mesh's rows keep what that field
+leaves out (sideways forces, the other balls, where the weight strains most). The balls on one body are coupled only through the far field, which this leaves
 out: under quadruped-foam's 5 cm mat another ball 0.2 m away changes a ball's force by 0.02 %
 (an independent audit's finite-mat FEM; a half-space's Boussinesq bound, 1 % at 0.4 m, is far
 above what a layer on a rigid base passes on). `stances.verify` checks each ball's sinking against the law solved afresh
-(:func:`fem.sphere_on_layer_force`), its cone, its nodes' cones, and the body's strain.
+(:func:`fem.sphere_on_layer_force`), its cone, its nodes' cones, its converged strain and the
+body's strain on the mesh.
 """
 
 from __future__ import annotations
@@ -45,7 +51,7 @@ from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["LayerBalls", "layer_thickness"]
+__all__ = ["SIDE_CLEARANCE", "LayerBalls", "layer_thickness"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -62,12 +68,29 @@ _ENERGY_POINTS = 8
 _STRAIN_SHARES = (0.01, 0.03, 0.1, 0.2, 0.35, 0.6, 1.0)
 _STRAIN_REACH = 2.0
 _STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's error, a tenth of it)
+_SMALLEST_STRAIN_SHARE = 0.05  # the converged strain's table starts at this share of the widest contact
+
+#: Thicknesses a ball stands inside a layer's side faces for its law: a free side softens the
+#: layer near it (an independent FEM of quadruped-foam's mat, 2026-12-04, 2.5 mm deep: -0.66 % at
+#: one thickness, -0.13 % at 1.5, -5.4 % at 0.5; 1 mm deep: -0.37, -0.07, -3.2 %): 1.2 keeps the
+#: law within 0.5 % of the finite mat (``bench/results/audit-layer-sides-2026-12-04.md``).
+SIDE_CLEARANCE = 1.2
 
 
 @functools.lru_cache(maxsize=64)
 def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: float) -> BallOnLayer:
     """The layer's law, tabulated once per ball and layer (6 ms; a planner asks for it at every solve)."""
     return BallOnLayer(radius, thickness, young_modulus, poisson_ratio)
+
+
+@functools.lru_cache(maxsize=64)
+def _ball_strain(law: BallOnLayer, strain_radius: float) -> fem.LayerBallStrain:
+    """The converged strain per newton of a ball on the layer, tabulated once per ball, layer
+    and averaging radius (0.8 s: seven axisymmetric fields) over the contact radii the law
+    reads, from a twentieth of its widest (below it the mean is flat in the radius: 0.4 %
+    from 1.2 to 5 mm on quadruped-foam's foam)."""
+    widest = law.contact_radius(law.force_limit)
+    return fem.LayerBallStrain(law.thickness, law.poisson_ratio, strain_radius, _SMALLEST_STRAIN_SHARE * widest, widest)
 
 
 @functools.lru_cache(maxsize=64)
@@ -90,8 +113,8 @@ def layer_thickness(deformable_object, transform_print_to_world) -> float | None
 
     A layer: a box (its tets fill its bounding box), the print's normal along one of its
     axes and the print on that face, the nodes of the opposite face exactly the body's
-    fixed nodes (a held base), and the print at least a thickness inside the box's faces
-    along the other two axes (the continuum's layer is laterally infinite).
+    fixed nodes (a held base), and the print at least :data:`SIDE_CLEARANCE` thicknesses inside
+    the box's faces along the other two axes (the continuum's layer is laterally infinite).
 
     Parameters
     ----------
@@ -120,7 +143,7 @@ def layer_thickness(deformable_object, transform_print_to_world) -> float | None
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in range(3) if k != axis)
-    if on_face and np.array_equal(base, body.fixed_mask) and inside >= (1.0 - 1e-9) * thickness:
+    if on_face and np.array_equal(base, body.fixed_mask) and inside >= (SIDE_CLEARANCE - 1e-9) * thickness:
         return thickness
     return None
 
@@ -160,7 +183,7 @@ class LayerBalls:
             thickness = layer_thickness(deformable_object, spec.transform_print_to_world)
             if thickness is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  "(a box on its held base, the print a thickness inside its sides)")
+                                  f"(a box on its held base, the print {SIDE_CLEARANCE:g} thicknesses inside its sides)")
             ball = PointContact(robot, spec.robot_surface, spec.transform_print_to_world, spec.surface.friction,
                                 spec.label, surface=spec.surface)
             balls.append(ball)
@@ -250,7 +273,39 @@ class LayerBalls:
         )
         if not self.max_strain_rows:
             return [placement, bound]
-        return [placement, bound, self._strain_block(lam, normal, columns, offset, derivatives)]
+        return [placement, bound, self._ball_strain_block(normal, columns, offset, derivatives),
+                self._strain_block(lam, normal, columns, offset, derivatives)]
+
+    def ball_strain(self, i: int, normal_force: float) -> tuple[float, float]:
+        """Ball i's strain on its layer's converged field under it: the largest principal
+        magnitude of its means (the object's strain radius) under its normal force, plus the
+        largest its body's own weight gives; and its derivative in the force (per newton).
+
+        Parameters
+        ----------
+        i : int
+            The ball's index in :attr:`balls`.
+        normal_force : float
+            Newtons, >= 0.
+        """
+        law, obj = self.laws[i], self.deformable_object
+        # The contact's radius at no less than a small load (its slope is infinite at none).
+        floored = normal_force < self.slope_floor
+        radius, d_radius = law.contact_radius_and_slope(self.slope_floor if floored else float(normal_force))
+        per_force, d_per_force = _ball_strain(law, float(obj.strain_radius)).per_force(radius)
+        value = normal_force * per_force / law.young_modulus + obj.largest_strain_at_rest
+        return value, (per_force + (0.0 if floored else normal_force * d_per_force * d_radius)) / law.young_modulus
+
+    def _ball_strain_block(self, normal, columns, offset, derivatives) -> ConstraintBlock:
+        """Each ball's converged strain (:meth:`ball_strain`) within the object's bound."""
+        values, rows = np.zeros(len(self.balls)), np.zeros((len(self.balls), columns)) if derivatives else None
+        for i in range(len(self.balls)):
+            values[i], slope = self.ball_strain(i, float(normal[i]))
+            if derivatives:
+                rows[i, offset + self._pyramid[i].start: offset + self._pyramid[i].stop] = slope * self._normal_rows[i]
+        limit = float(self.deformable_object.strain_limit)
+        return ConstraintBlock("ball strain", values, rows, -np.inf, (1.0 - _STRAIN_MARGIN) * limit, limit,
+                               tuple(f"strain under {b.label} (its layer's converged field)" for b in self.balls))
 
     def _strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:
         """Each ball's largest principal strain (mean over the object's strain radius, its
@@ -476,6 +531,15 @@ class LayerBalls:
         if contact > VALID_CONTACT_SHARE * law.thickness:
             reasons.append(f"{label}'s contact radius {contact:.3g} m is past the law's validity "
                            f"({VALID_CONTACT_SHARE:g} of the layer's thickness)")
+        # Its strain on the layer's converged field (the mesh's under a ball is too low).
+        obj = self.deformable_object
+        strain = (max(normal, 0.0) * _ball_strain(law, float(obj.strain_radius)).per_force(contact)[0]
+                  / law.young_modulus + obj.largest_strain_at_rest)
+        measures[f"strain under {label}"] = strain
+        if strain > obj.strain_limit + 1e-6:
+            reasons.append(f"strain {strain:.3g} under {label} (its layer's converged field under the ball, its own "
+                           f"weight's included, mean over {1e3 * obj.strain_radius:g} mm) exceeds its bound "
+                           f"{obj.strain_limit:g}: linear elasticity does not hold there")
         return reasons
 
     @staticmethod

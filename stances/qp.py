@@ -311,7 +311,7 @@ def _qp_rows(linearization, hold=True):
     return jacobian / scale[:, None], lower_gap, upper_gap, scale, has_upper & ~held, has_lower & ~held, held
 
 
-def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plain=False) -> dict:
+def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plain=False, hold=True) -> dict:
     """The multiplier of each constraint row of a linearisation, from its QP's answer.
 
     Parameters
@@ -325,6 +325,8 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plai
         :func:`objective_scale` of it).
     plain : bool
         The QP was :func:`plain_qp`'s (``penalty`` is then not read).
+    hold : bool
+        As given to :func:`elastic_qp`.
 
     Returns
     -------
@@ -334,7 +336,7 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plai
         bounds' terms), so ``y_i > 0`` where an upper bound holds and ``< 0``
         where a lower one does; an equality's two QP rows add up.
     """
-    _, _, _, scale, upper, lower, held = _qp_rows(linearization)
+    _, _, _, scale, upper, lower, held = _qp_rows(linearization, hold)
     if plain:
         rows = np.array(multipliers[: len(scale)], dtype=float)  # one QP row a row, in order
     else:

@@ -162,19 +162,26 @@ def _conflict(linearization, penalty) -> str:
     # feasibility names the same rows, so it is capped where proxsuite is sure.
     # Every row relaxed (none held at its bound): a torque at its limit is part of the
     # conflict it takes part in.
-    x = QPWorkspace().solve(*elastic_qp(linearization, min(penalty, _CONFLICT_PENALTY), hold=False))
+    weight = min(penalty, _CONFLICT_PENALTY)
+    workspace = QPWorkspace()
+    x = workspace.solve(*elastic_qp(linearization, weight, hold=False))
     step, elastic = x[:-1], max(float(x[-1]), 0.0)
     if elastic <= _CONFLICT_FLOOR:
         return ""
+    multipliers = row_multipliers(linearization, workspace.multipliers, weight, hold=False)
     rows = []
     for block in linearization.blocks:
         if len(block):
             moved = block.value + block.jacobian @ step
             excess = (np.maximum(block.lower - moved, 0.0) + np.maximum(moved - block.upper, 0.0)) / block.scale
-            rows.extend((excess[i], block.labels[i]) for i in np.flatnonzero(excess >= 0.99 * elastic))
+            # Each row at the elastic bound with its multiplier on the scaled row: the rows that
+            # hold the elastic variable up share the penalty; a row the objective merely moved to
+            # the bound (the elastic QP spreads the violation over every row it may) weighs little.
+            rows.extend((abs(multipliers[block.labels[i]]) * block.scale[i], excess[i], block.labels[i])
+                        for i in np.flatnonzero(excess >= 0.99 * elastic))
     if not rows:
         return ""  # only the step bounds (trust region, joint limits) keep it short
-    labels = [label for _, label in sorted(rows, key=lambda row: -row[0])[:_CONFLICT_ROWS]]
+    labels = [label for *_, label in sorted(rows, key=lambda row: (-row[0], -row[1]))[:_CONFLICT_ROWS]]
     return f"; no step meets together: {', '.join(labels)}"
 
 
