@@ -50,6 +50,7 @@ import pinocchio as pin
 from scipy.optimize import linprog
 
 import fem
+from stances.layer_ball import largest_ball_load, layer_thickness
 from stances.problem import PostureOptions, min_normal_load
 
 __all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
@@ -156,6 +157,7 @@ class _PrintForces:
     margin: float = 0.0
     free_moment: bool = False
     min_load: float = 0.0  # least normal load, in weights
+    max_load: float = math.inf  # largest normal load, in weights (a ball on a layer: its strain bound's)
 
 
 class EquilibriumFilter:
@@ -197,9 +199,16 @@ class EquilibriumFilter:
             For a print on an unknown surface or an unknown robot surface (as
             ``stances.solve`` would).
         """
-        prints = [self._print_forces(contact) for contact in stance]
+        largest = self._ball_loads(stance)
+        prints = [self._print_forces(contact, largest.get(index, math.inf)) for index, contact in enumerate(stance)]
         if not prints:
             return ""
+        for p, contact in zip(prints, stance):
+            if p.max_load < p.min_load:
+                name = self.scene.surface(contact.contact_print.surface).object_name
+                return (f"{EQUILIBRIUM_IMPOSSIBLE}: {p.label} carries at most {p.max_load * self.weight:.3g} N within "
+                        f"{name}'s strain bound (its layer's law), less than its least load "
+                        f"{p.min_load * self.weight:.3g} N")
         if _feasible(prints, self.com_bounds, moments=True):
             return ""
         labels = ", ".join(p.label for p in prints)
@@ -213,7 +222,33 @@ class EquilibriumFilter:
             "balances the moments of forces inside their friction cones"
         )
 
-    def _print_forces(self, contact) -> _PrintForces:
+    def _ball_loads(self, stance) -> dict:
+        """Stance index -> the largest normal load (weights) of each ball the posture solver
+        sinks by a layer's law (every print on its body a ball 1.2 thicknesses inside a
+        layer, ``ball_contact="layer"``): :func:`stances.layer_ball.largest_ball_load`."""
+        if self.options.ball_contact != "layer" or self.options.deformable_as_rigid:
+            return {}
+        on_body = {}
+        for index, contact in enumerate(stance):
+            surface = self.scene.surface(contact.contact_print.surface)
+            if surface.deformable:
+                on_body.setdefault(surface.object_name, []).append((index, contact, surface))
+        out = {}
+        for entries in on_body.values():
+            body = self.scene.deformable_of_surface(entries[0][2].name)
+            layers = []
+            for index, contact, surface in entries:
+                robot_surface = self.robot.surface(contact.robot_surface)
+                where = surface.transform_print_to_world(contact.contact_print.x, contact.contact_print.y,
+                                                         contact.contact_print.theta)
+                thickness = layer_thickness(body, where) if robot_surface.is_point else None
+                layers.append((index, robot_surface, thickness))
+            if all(thickness is not None for *_, thickness in layers):
+                for index, robot_surface, thickness in layers:
+                    out[index] = largest_ball_load(robot_surface.radius, thickness, body, self.options) / self.weight
+        return out
+
+    def _print_forces(self, contact, max_load=math.inf) -> _PrintForces:
         contact_print = contact.contact_print
         surface = self.scene.surface(contact_print.surface)
         robot_surface = self.robot.surface(contact.robot_surface)
@@ -229,7 +264,7 @@ class EquilibriumFilter:
         min_load = min_normal_load(self.robot, contact.robot_surface, self.options) / self.weight
         if not surface.deformable or self.options.deformable_as_rigid:
             return _PrintForces(label, contact.robot_surface, points, rotation, origin, float(surface.friction),
-                                min_load=min_load)
+                                min_load=min_load, max_load=max_load)
         body = self.scene.deformable_of_surface(surface.name)
         reach = 0.0
         if not robot_surface.is_point and self.options.reaction_model == "consistent":
@@ -244,6 +279,7 @@ class EquilibriumFilter:
             soft_print_margin(body, rotation[:, 2], self.options) + reach,
             self.options.contact_law == "bonded",
             min_load,
+            max_load,
         )
 
 
@@ -298,6 +334,8 @@ def _feasible(prints, com_bounds, moments) -> bool:
                 inequalities.append((line, 0.0))
         if p.min_load > 0:
             inequalities.append((-normal_sum, -p.min_load))
+        if math.isfinite(p.max_load):
+            inequalities.append((normal_sum, p.max_load))
         moment_slack = slice(slack + 3 * index, slack + 3 * index + 3)
         equalities[3:, moment_slack] = np.eye(3)
         if not p.free_moment:

@@ -145,7 +145,10 @@ def finer_grid_hint(reasons, spacing: float) -> str:
 #: Share of a failed search's rejected stances whose reason names a soft object's strain
 #: bound (as the worst row or among the rows no step meets together) from which it is said.
 STRAINED_SHARE = 0.5
-_STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)")
+# A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
+# that cannot carry its least load within the strain bound.
+_STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)"
+                         r"|\(([\w.-]+)'s converged field\)|within ([\w.-]+)'s strain bound")
 
 
 def strain_bound_hint(reasons) -> str:
@@ -176,7 +179,7 @@ def strain_bound_hint(reasons) -> str:
     ''
     """
     reasons = [str(r) for r in reasons]
-    objects = [sorted(set(_STRAIN_ROW.findall(r))) for r in reasons]
+    objects = [sorted({name for groups in _STRAIN_ROW.findall(r) for name in groups if name}) for r in reasons]
     strained = sum(bool(names) for names in objects)
     if not reasons or strained < STRAINED_SHARE * len(reasons):
         return ""

@@ -10,10 +10,12 @@ over the means' reach, growing by 1.15 beyond it, twenty thicknesses wide, the b
 the top loaded by the ball's Hertzian pressure ``p = 3 F / (2 pi a^2) sqrt(1 - r^2 / a^2)``
 (the pressure :func:`fem.hertz_load_shares` spreads on a mesh). The means of that field over
 balls of radius rho clipped by the layer (what :class:`fem.strain_average.BallAverages`
-takes on a mesh) are exact ring integrals (:meth:`AxisymmetricField.ball_means`); their
-largest principal magnitude is largest with the ball centred on the axis at the surface
-(``tests/test_layer_strain.py``). Linear elasticity makes it the force times a function of
-the contact radius over Young's modulus: :class:`LayerBallStrain` tabulates that function.
+takes on a mesh) are exact ring integrals (:meth:`AxisymmetricField.ball_means`), and
+:func:`largest_ball_mean` searches their largest principal magnitude over the layer: on
+quadruped-foam's foam (5 cm, 20 mm means) it lies on the axis at the surface; on a layer
+thinner than the averaging ball, at the base, off the axis. Linear elasticity makes it the
+force times a function of the contact radius over Young's modulus: :class:`LayerBallStrain`
+tabulates that function (3-4 s on a loaded 2-core host the first time, then from the disk cache).
 
 Frictionless, one ball: a sideways force, another ball's far field and the body's own
 weight are not in it (a mesh's field carries those).
@@ -44,12 +46,16 @@ _GROWTH = 1.15
 _WIDTH = 20.0
 # Sub-cells per element side where the ball means' rings are sampled (the clipping
 # sphere cuts elements; 4 and 8 agree to 0.05 %).
-_SUB = 6
-# Depths below the surface, as shares of (contact radius + averaging radius), at which the
-# means on the axis are searched for the largest.
-_DEPTH_SHARES = np.linspace(0.0, 1.0, 11)
+_SUB = 4
+# The finest cells: this share of the contact radius (a mean over a ball much smaller than the
+# contact needs no finer: it is the pointwise strain there, which cells of a / 12 give).
+_FINEST_CELLS = 48.0
+# The largest mean's search (largest_ball_mean): a grid of centres over the layer's depth and
+# out to (contact radius + averaging radius) from the axis, then finer grids around the best.
+_SEARCH_GRID = (9, 13)
+_SEARCH_REFINEMENTS = 3
 # LayerBallStrain's table: contact radii between its ends.
-_TABLE_POINTS = 9
+_TABLE_POINTS = 7
 
 
 @dataclass(frozen=True)
@@ -87,7 +93,7 @@ class AxisymmetricField:
         """
         centres = np.asarray(centres, dtype=float).reshape(-1, 2)
         samples = self._samples()
-        # The rings the balls can reach (a tenth of the layer's width and depth at most).
+        # Only the rings some ball reaches (near the axis: the layer is twenty thicknesses wide).
         reach = (samples[0] <= centres[:, 0].max() + radius) & (samples[1] <= centres[:, 1].max() + radius)
         r, z, e_rr, e_zz, e_tt, g_rz, weight = (values[reach] for values in samples)
         out = []
@@ -153,15 +159,14 @@ def _shape(xi: float, eta: float):
     return shape, d_xi, d_eta
 
 
-def _graded(contact_radius: float, fine: float, averaging_radius: float, total: float) -> np.ndarray:
+def _graded(contact_radius: float, fine: float, cap: float, capped: float, total: float) -> np.ndarray:
     """Node coordinates from 0 to ``total``: ``fine`` apart under the contact (to 1.5 a), then
-    growing by _GROWTH, at most averaging_radius / _AVERAGING_CELLS apart up to 1.2 of it."""
-    cap = max(averaging_radius / _AVERAGING_CELLS, fine)
+    growing by _GROWTH, at most ``cap`` apart up to ``capped``."""
     nodes = list(np.arange(0.0, 1.5 * contact_radius + 1e-15 * total, fine))
     step = fine
     while nodes[-1] < total * (1.0 - 1e-12):
         step *= _GROWTH
-        if nodes[-1] < 1.2 * averaging_radius:
+        if nodes[-1] < capped:
             step = min(step, cap)
         nodes.append(min(nodes[-1] + step, total))
     return np.array(nodes)
@@ -197,9 +202,12 @@ def axisymmetric_layer_field(contact_radius: float, thickness: float, poisson_ra
     a = float(contact_radius)
     fine = a / _CONTACT_CELLS
     if averaging_radius > 0.0:
-        fine = min(fine, averaging_radius / _AVERAGING_CELLS)
-    radii = _graded(a, fine, averaging_radius, _WIDTH * thickness)
-    depths = _graded(a, fine, averaging_radius, thickness)
+        fine = min(fine, max(averaging_radius / _AVERAGING_CELLS, a / _FINEST_CELLS))
+    # Over the means' reach (largest_ball_mean's centres and their balls, which a thin layer's
+    # base holds), cells of at most a twenty-fifth of the averaging radius.
+    cap, reach = max(averaging_radius / _AVERAGING_CELLS, fine), 1.5 * a + 3.0 * averaging_radius
+    radii = _graded(a, fine, cap, reach, _WIDTH * thickness)
+    depths = _graded(a, fine, cap, reach, thickness)
     nr, nz = len(radii), len(depths)
     node = np.arange(nr * nz).reshape(nz, nr)
     # Elasticity in (e_rr, e_zz, e_tt, g_rz), E = 1: its shear part integrated at 2 x 2
@@ -255,13 +263,37 @@ def axisymmetric_layer_field(contact_radius: float, thickness: float, poisson_ra
 
 
 def largest_ball_mean(field: AxisymmetricField, radius: float, contact_radius: float) -> float:
-    """The largest principal strain magnitude of the field's ball means of ``radius``, centred on
-    the axis from the surface down to ``contact_radius + radius`` (per newton and pascal)."""
-    depths = _DEPTH_SHARES * (contact_radius + radius)
-    depths = depths[depths < field.depths[-1]]
-    means = field.ball_means(max(radius, 1e-12 * field.depths[-1]), np.column_stack([np.zeros_like(depths), depths]))
-    eigenvalues = np.linalg.eigvalsh(means)
-    return float(np.max(np.maximum(eigenvalues[:, -1], -eigenvalues[:, 0])))
+    """The largest principal strain magnitude of the field's ball means of ``radius``, per
+    newton and pascal, over centres anywhere in the layer out to ``contact_radius + radius``
+    from the axis.
+
+    A grid of centres over the layer's depth (its base included: on a layer thinner than the
+    ball, the strain gathers where the base holds it) is searched, then finer grids around the
+    best. A ball smaller than two of the finest cells takes the pointwise strains' largest
+    instead: no mean's magnitude exceeds it (the magnitude is a norm, and convex), and cells
+    that small are the field's own resolution.
+    """
+    cell = min(float(np.diff(field.radii)[0]), float(np.diff(field.depths)[0]))
+    if radius < 2.0 * cell:
+        _, _, e_rr, e_zz, e_tt, g_rz, _ = field._samples()
+        centre, half = 0.5 * (e_rr + e_zz), np.hypot(0.5 * (e_rr - e_zz), 0.5 * g_rz)
+        return float(np.max(np.maximum.reduce([np.abs(e_tt), np.abs(centre + half), np.abs(centre - half)])))
+    thickness = float(field.depths[-1])
+    reach = contact_radius + radius
+    xs, zs = np.linspace(0.0, reach, _SEARCH_GRID[0]), np.linspace(0.0, thickness, _SEARCH_GRID[1])
+    best, (x, z) = -1.0, (0.0, 0.0)
+    for _ in range(_SEARCH_REFINEMENTS + 1):
+        centres = np.array([(u, v) for u in xs for v in zs])
+        eigenvalues = np.linalg.eigvalsh(field.ball_means(radius, centres))
+        magnitudes = np.maximum(eigenvalues[:, -1], -eigenvalues[:, 0])
+        k = int(np.argmax(magnitudes))
+        if magnitudes[k] > best:
+            best, (x, z) = float(magnitudes[k]), centres[k]
+        # A grid half as wide around the best, within the layer and the reach.
+        dx, dz = xs[1] - xs[0] if len(xs) > 1 else 0.0, zs[1] - zs[0] if len(zs) > 1 else 0.0
+        xs = np.unique(np.clip(x + np.linspace(-dx, dx, 5), 0.0, reach))
+        zs = np.unique(np.clip(z + np.linspace(-dz, dz, 5), 0.0, thickness))
+    return best
 
 
 @dataclass(frozen=True)
@@ -327,7 +359,7 @@ class LayerBallStrain:
 
 def _largest_means(thickness: float, poisson_ratio: float, averaging_radius: float, radii: np.ndarray) -> np.ndarray:
     """:func:`largest_ball_mean` at each contact radius, from the disk cache when it has them
-    (:func:`fem.cache.default_cache`: a table takes 0.8 s, a process meets it once per layer)."""
+    (:func:`fem.cache.default_cache`: a table takes seconds, and a planner meets it at its first stance)."""
     cache = default_cache()
     if cache is not None:
         digest = cache_digest({"radii": radii}, {"kind": "layer ball strain", "thickness": float(thickness),

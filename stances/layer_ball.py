@@ -42,6 +42,7 @@ import weakref
 
 import numpy as np
 import scipy.linalg
+from scipy.optimize import brentq
 
 import fem
 from fem.layer_contact import VALID_CONTACT_SHARE, BallOnLayer
@@ -51,7 +52,7 @@ from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["SIDE_CLEARANCE", "LayerBalls", "layer_thickness"]
+__all__ = ["SIDE_CLEARANCE", "LayerBalls", "largest_ball_load", "layer_thickness"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -86,7 +87,7 @@ def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: f
 @functools.lru_cache(maxsize=64)
 def _ball_strain(law: BallOnLayer, strain_radius: float) -> fem.LayerBallStrain:
     """The converged strain per newton of a ball on the layer, tabulated once per ball, layer
-    and averaging radius (0.8 s: seven axisymmetric fields) over the contact radii the law
+    and averaging radius (seven axisymmetric fields, seconds, then from the disk cache) over the contact radii the law
     reads, from a twentieth of its widest (below it the mean is flat in the radius: 0.4 %
     from 1.2 to 5 mm on quadruped-foam's foam)."""
     widest = law.contact_radius(law.force_limit)
@@ -106,6 +107,36 @@ def _force_limit(law: BallOnLayer, depth: float) -> float:
 # stances; thousands of plans in one process would otherwise keep gigabytes.
 _KEPT_STRAIN_TABLES = 16
 _UNIT_STRAINS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def largest_ball_load(radius: float, thickness: float, deformable_object, options) -> float:
+    """Newtons: the largest normal force a ball carries on a layer by its law: within the
+    law's table and indentation bound (:attr:`LayerBalls.force_limits`) and with its strain on
+    the layer's converged field within the object's bound (:meth:`LayerBalls.ball_strain`,
+    less its rows' margin); 0 if the body's own weight leaves it no strain to spend.
+
+    Parameters
+    ----------
+    radius, thickness : float
+        The ball's and the layer's, metres.
+    deformable_object : environments.DeformableObject
+    options : stances.PostureOptions
+        ``max_indentation`` / ``indentation_limit``.
+    """
+    material = deformable_object.body.material
+    law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio))
+    depth = float(options.max_indentation) if options.max_indentation is not None else float(
+        options.indentation_limit * thickness)
+    top = _force_limit(law, depth)
+    table = _ball_strain(law, float(deformable_object.strain_radius))
+    room = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit) - deformable_object.largest_strain_at_rest
+    if room <= 0.0:
+        return 0.0
+
+    def excess(force):
+        return force * table.per_force(law.contact_radius(force))[0] / law.young_modulus - room
+
+    return top if excess(top) <= 0.0 else float(brentq(excess, 0.0, top, xtol=1e-9 * top))
 
 
 def layer_thickness(deformable_object, transform_print_to_world) -> float | None:
@@ -305,7 +336,8 @@ class LayerBalls:
                 rows[i, offset + self._pyramid[i].start: offset + self._pyramid[i].stop] = slope * self._normal_rows[i]
         limit = float(self.deformable_object.strain_limit)
         return ConstraintBlock("ball strain", values, rows, -np.inf, (1.0 - _STRAIN_MARGIN) * limit, limit,
-                               tuple(f"strain under {b.label} (its layer's converged field)" for b in self.balls))
+                               tuple(f"strain under {b.label} ({self.deformable_object.name}'s converged field)"
+                                     for b in self.balls))
 
     def _strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:
         """Each ball's largest principal strain (mean over the object's strain radius, its

@@ -336,6 +336,12 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plai
         bounds' terms), so ``y_i > 0`` where an upper bound holds and ``< 0``
         where a lower one does; an equality's two QP rows add up.
     """
+    labels = [label for block in linearization.blocks if len(block) for label in block.labels]
+    return dict(zip(labels, stacked_row_multipliers(linearization, multipliers, penalty, plain, hold)))
+
+
+def stacked_row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plain=False, hold=True) -> np.ndarray:
+    """:func:`row_multipliers` as an array over the stacked rows (labels need not be unique)."""
     _, _, _, scale, upper, lower, held = _qp_rows(linearization, hold)
     if plain:
         rows = np.array(multipliers[: len(scale)], dtype=float)  # one QP row a row, in order
@@ -350,9 +356,8 @@ def row_multipliers(linearization, multipliers, penalty=_PENALTY_REFERENCE, plai
     # weighs nothing should cost nothing downstream.
     rows[np.abs(rows) < _INACTIVE_MULTIPLIER] = 0.0
     # The QP's rows are c_i / s_i: their multiplier is y_i s_i.
-    rows /= scale
-    labels = [label for block in linearization.blocks if len(block) for label in block.labels]
-    return dict(zip(labels, rows))
+    return rows / scale
 
 
-__all__ = ["QPWorkspace", "elastic_qp", "elastic_start", "objective_scale", "plain_qp", "row_multipliers"]
+__all__ = ["QPWorkspace", "elastic_qp", "elastic_start", "objective_scale", "plain_qp", "row_multipliers",
+           "stacked_row_multipliers"]

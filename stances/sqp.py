@@ -37,7 +37,7 @@ from .errors import ConfigurationError, StanceError
 from .cold_start import initial_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
-from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers
+from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers, stacked_row_multipliers
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
@@ -115,6 +115,7 @@ _PLAIN_QP_ITERATIONS = 100
 _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows are compatible
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
+_CONFLICT_SHARE = 1e-3  # share of that penalty a row's multiplier takes to be named in the conflict
 # The constraints' curvature (PostureOptions.constraint_curvature), see _with_curvature:
 _CURVATURE_PHASE = 0.1  # scaled violation below which it may enter the QP (from the start: no fewer iterations)
 _SLOW_CONTRACTION = 0.4  # step length ratio of Gauss-Newton beyond which it is switched on
@@ -168,17 +169,22 @@ def _conflict(linearization, penalty) -> str:
     step, elastic = x[:-1], max(float(x[-1]), 0.0)
     if elastic <= _CONFLICT_FLOOR:
         return ""
-    multipliers = row_multipliers(linearization, workspace.multipliers, weight, hold=False)
-    rows = []
+    # Each row's multiplier on its scaled row: the rows that hold the elastic variable up share
+    # the penalty; a row the objective merely moved to the bound (the elastic QP spreads the
+    # violation over every row it may) weighs little. Without a solved QP, by excess alone.
+    multipliers = (stacked_row_multipliers(linearization, workspace.multipliers, weight, hold=False)
+                   if workspace.solved else None)
+    rows, first = [], 0
     for block in linearization.blocks:
         if len(block):
             moved = block.value + block.jacobian @ step
             excess = (np.maximum(block.lower - moved, 0.0) + np.maximum(moved - block.upper, 0.0)) / block.scale
-            # Each row at the elastic bound with its multiplier on the scaled row: the rows that
-            # hold the elastic variable up share the penalty; a row the objective merely moved to
-            # the bound (the elastic QP spreads the violation over every row it may) weighs little.
-            rows.extend((abs(multipliers[block.labels[i]]) * block.scale[i], excess[i], block.labels[i])
-                        for i in np.flatnonzero(excess >= 0.99 * elastic))
+            weights = (np.zeros(len(block)) if multipliers is None
+                       else np.abs(multipliers[first: first + len(block)]) * block.scale)
+            rows.extend((weights[i], excess[i], block.labels[i]) for i in np.flatnonzero(excess >= 0.99 * elastic))
+            first += len(block)
+    if multipliers is not None and any(w >= _CONFLICT_SHARE * weight for w, *_ in rows):
+        rows = [row for row in rows if row[0] >= _CONFLICT_SHARE * weight]  # the conflict, not bystanders
     if not rows:
         return ""  # only the step bounds (trust region, joint limits) keep it short
     labels = [label for *_, label in sorted(rows, key=lambda row: (-row[0], -row[1]))[:_CONFLICT_ROWS]]

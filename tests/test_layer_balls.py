@@ -6,6 +6,7 @@ fed what the law forbids."""
 from __future__ import annotations
 
 import functools
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -189,8 +190,8 @@ def test_the_solver_keeps_the_strain_bound_on_the_layers_converged_field_and_nam
     refused = solve(anymal, tight.scene, stance, **LAYER)
     assert not refused.feasible
     conflict = refused.reason.split("; no step meets together: ")[1].split(", ")
-    assert set(conflict) == {"strain under left_front_foot on foam_top (its layer's converged field)",
-                             "strain under right_front_foot on foam_top (its layer's converged field)",
+    assert set(conflict) == {"strain under left_front_foot on foam_top (foam's converged field)",
+                             "strain under right_front_foot on foam_top (foam's converged field)",
                              "normal load of left_front_foot on foam_top", "normal load of right_front_foot on foam_top"}
 
 
@@ -202,6 +203,31 @@ def test_verify_refuses_a_ball_that_strains_its_layer_past_the_bound(anymal, fro
     assert 0.012 < strain < 0.016
     assert any(r.startswith(f"strain {strain:.3g} under left_front_foot on foam_top (its layer's converged field")
                and r.endswith("exceeds its bound 0.012: linear elasticity does not hold there") for r in check.reasons)
+
+
+def test_the_equilibrium_filter_refuses_a_ball_its_layer_cannot_carry_within_the_strain_bound(anymal):
+    from cbm.equilibrium import EquilibriumFilter
+    from cbm.rejections import strain_bound_hint
+    from stances.layer_ball import largest_ball_load
+
+    # On a 3e5 Pa foam a ball's least load (a tenth of the weight) strains it past 5 %: the
+    # planner's filter says so before any solve (a plan on it took 133 s of solves to give up).
+    soft = foam(young_modulus=3e5)
+    stance = soft.stance("front-feet-on-foam")
+    reason = EquilibriumFilter(anymal, soft.scene)(stance)
+    assert re.fullmatch(r"static equilibrium impossible for the contact set: left_front_foot on foam_top carries at "
+                        r"most 25\.\d N within foam's strain bound \(its layer's law\), less than its least load "
+                        r"29\.\d N", reason), reason
+    assert "strain bound of foam" in strain_bound_hint([reason, reason, "torque limit of j"])
+    # The largest load strains the ball to its rows' bound, on the converged field.
+    body = soft.scene.deformable_objects[0]
+    problem = build_problem(anymal, soft.scene, stance, PostureOptions(**LAYER))
+    layer = next(c for c in problem.contacts if c.kind == "layer")
+    largest = largest_ball_load(layer.balls[0].radius, 0.05, body, PostureOptions())
+    assert layer.ball_strain(0, largest)[0] == pytest.approx((1.0 - 2e-3) * body.strain_limit, rel=1e-8)
+    # At 3e6 Pa the stance passes, each ball then bounded by its law's table or indentation bound.
+    firm = foam()
+    assert EquilibriumFilter(anymal, firm.scene)(firm.stance("front-feet-on-foam")) == ""
 
 
 def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robot):
