@@ -62,8 +62,10 @@ def stance_report(result, robot, stance):
                 lines.append(f"    {label}: {count} mesh node(s) pressed{coarse}{against}")
             elif key.startswith("layer force of "):
                 label = key[len("layer force of "):]
+                strain = measures.get(f"strain under {label}")
+                strained = "" if strain is None else f", strains it {100 * strain:.2f} % (its converged field)"
                 lines.append(f"    {label}: sinks {1e3 * measures[f'sinking of {label}']:.2f} mm, "
-                             f"{measures[key]:.1f} N by its layer's law")
+                             f"{measures[key]:.1f} N by its layer's law{strained}")
     lines.append("  margins:")
     limits = result.limits or {}
     if "torque_usage" in limits:

@@ -263,7 +263,9 @@ def test_the_report_gives_each_balls_sinking_and_force_and_the_bodys_depth(anyma
     lines = stance_report(replace(result, verification=check), anymal, stance)
     sinking = check.measures["sinking of left_front_foot on foam_top"]
     force = check.measures["layer force of left_front_foot on foam_top"]
-    assert f"    left_front_foot on foam_top: sinks {1e3 * sinking:.2f} mm, {force:.1f} N by its layer's law" in lines
+    strain = check.measures["strain under left_front_foot on foam_top"]
+    assert (f"    left_front_foot on foam_top: sinks {1e3 * sinking:.2f} mm, {force:.1f} N by its layer's law, "
+            f"strains it {100 * strain:.2f} % (its converged field)") in lines
     deepest = max(check.measures[f"sinking of {foot} on foam_top"] for foot in ("left_front_foot", "right_front_foot"))
     assert check.measures["indentation of foam"] == deepest
     assert any(line.startswith(f"    foam: indented {1e3 * deepest:.2f} mm, largest strain ") for line in lines)
