@@ -116,6 +116,7 @@ _CONFLICT_FLOOR = 1e-6  # elastic value (scaled) below which the linearised rows
 _CONFLICT_ROWS = 4  # rows named in an infeasible answer's conflict clause
 _CONFLICT_PENALTY = 1e4  # largest elastic penalty of the conflict QP
 _CONFLICT_SHARE = 1e-3  # share of that penalty a row's multiplier takes to be named in the conflict
+_TIED = 0.9  # rows violated within this share of the worst: the reason names the conflict's among them
 # The constraints' curvature (PostureOptions.constraint_curvature), see _with_curvature:
 _CURVATURE_PHASE = 0.1  # scaled violation below which it may enter the QP (from the start: no fewer iterations)
 _SLOW_CONTRACTION = 0.4  # step length ratio of Gauss-Newton beyond which it is switched on
@@ -137,18 +138,29 @@ def _unit(label: str) -> str:
     return "N"
 
 
-def _reason(linearization, iterations, why) -> str:
+def _reason(linearization, iterations, why, conflict=()) -> str:
+    """The row an infeasible answer names: its worst violated row, or, of the rows within
+    _TIED of it (the elastic QP leaves many rows violated alike), the first of ``conflict``
+    (:func:`_conflict`'s rows, strongest first), with its violation."""
     worst, label = linearization.max_violation()
     scale = 1.0
+    near = {}
     for block in linearization.blocks:
-        if label in block.labels:
-            scale = float(block.scale[block.labels.index(label)])
+        for i in np.flatnonzero(block.violation() >= _TIED * worst).tolist():
+            near.setdefault(block.labels[i], (float(block.violation()[i]), float(block.scale[i])))
+    chosen = next((row for row in conflict if row in near), None)
+    if chosen is not None:
+        label, (worst, scale) = chosen, near[chosen]
+    else:
+        for block in linearization.blocks:
+            if label in block.labels:
+                scale = float(block.scale[block.labels.index(label)])
     amount = worst * scale
     prefix = "print unreachable: " if label.startswith("placement") else ""
     return f"{prefix}{label} violated by {amount:.3g} {_unit(label)} ({why} after {iterations} iterations)"
 
 
-def _conflict(linearization, penalty) -> str:
+def _conflict(linearization, penalty) -> tuple:
     """The rows no step can meet together, as a clause for an infeasible answer's reason.
 
     The worst violated row at the last iterate depends on the path the SQP
@@ -168,7 +180,7 @@ def _conflict(linearization, penalty) -> str:
     x = workspace.solve(*elastic_qp(linearization, weight, hold=False))
     step, elastic = x[:-1], max(float(x[-1]), 0.0)
     if elastic <= _CONFLICT_FLOOR:
-        return ""
+        return ()
     # Each row's multiplier on its scaled row: the rows that hold the elastic variable up share
     # the penalty; a row the objective merely moved to the bound (the elastic QP spreads the
     # violation over every row it may) weighs little. Without a solved QP, by excess alone.
@@ -186,9 +198,13 @@ def _conflict(linearization, penalty) -> str:
     if multipliers is not None and any(w >= _CONFLICT_SHARE * weight for w, *_ in rows):
         rows = [row for row in rows if row[0] >= _CONFLICT_SHARE * weight]  # the conflict, not bystanders
     if not rows:
-        return ""  # only the step bounds (trust region, joint limits) keep it short
-    labels = [label for *_, label in sorted(rows, key=lambda row: (-row[0], -row[1]))[:_CONFLICT_ROWS]]
-    return f"; no step meets together: {', '.join(labels)}"
+        return ()  # only the step bounds (trust region, joint limits) keep it short
+    return tuple(label for *_, label in sorted(rows, key=lambda row: (-row[0], -row[1]))[:_CONFLICT_ROWS])
+
+
+def _conflict_clause(conflict) -> str:
+    """The reason's clause naming :func:`_conflict`'s rows ("" without)."""
+    return f"; no step meets together: {', '.join(conflict)}" if conflict else ""
 
 
 # Rounds of strain rows added where verify found the strain over its bound (_solve_problem).
@@ -545,7 +561,8 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
     feasible = linearization.met(tolerance)
     if feasible and status in ("stalled", LINGERING):
         status = "converged"  # feasible, and the merit cannot decrease further
-    reason = "" if feasible else _reason(linearization, iteration, status) + _conflict(linearization, penalty)
+    conflict = () if feasible else _conflict(linearization, penalty)
+    reason = "" if feasible else _reason(linearization, iteration, status, conflict) + _conflict_clause(conflict)
     return SqpOutcome(q, lam, linearization, iteration, status, penalty, qp_time, feasible, reason, curved_iterations,
                       corrections)
 
