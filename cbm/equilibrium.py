@@ -50,7 +50,8 @@ import pinocchio as pin
 from scipy.optimize import linprog
 
 import fem
-from stances.layer_ball import largest_ball_load, layer_thickness
+from stances.deformable import PrintSpec
+from stances.layer_ball import largest_ball_load, layer_thicknesses
 from stances.problem import PostureOptions, min_normal_load
 
 __all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
@@ -226,26 +227,23 @@ class EquilibriumFilter:
         """Stance index -> the largest normal load (weights) of each ball the posture solver
         sinks by a layer's law (every print on its body a ball 1.2 thicknesses inside a
         layer, ``ball_contact="layer"``): :func:`stances.layer_ball.largest_ball_load`."""
-        if self.options.ball_contact != "layer" or self.options.deformable_as_rigid:
+        if self.options.deformable_as_rigid:
             return {}
-        on_body = {}
+        on_body = {}  # object name -> [(stance index, its print)]
         for index, contact in enumerate(stance):
             surface = self.scene.surface(contact.contact_print.surface)
             if surface.deformable:
-                on_body.setdefault(surface.object_name, []).append((index, contact, surface))
-        out = {}
-        for entries in on_body.values():
-            body = self.scene.deformable_of_surface(entries[0][2].name)
-            layers = []
-            for index, contact, surface in entries:
-                robot_surface = self.robot.surface(contact.robot_surface)
                 where = surface.transform_print_to_world(contact.contact_print.x, contact.contact_print.y,
                                                          contact.contact_print.theta)
-                thickness = layer_thickness(body, where) if robot_surface.is_point else None
-                layers.append((index, robot_surface, thickness))
-            if all(thickness is not None for *_, thickness in layers):
-                for index, robot_surface, thickness in layers:
-                    out[index] = largest_ball_load(robot_surface.radius, thickness, body, self.options) / self.weight
+                spec = PrintSpec(contact.robot_surface, surface, where, f"{contact.robot_surface} on {surface.name}")
+                on_body.setdefault(surface.object_name, []).append((index, spec))
+        out = {}
+        for entries in on_body.values():
+            body = self.scene.deformable_of_surface(entries[0][1].surface.name)
+            thicknesses = layer_thicknesses(self.robot, body, [spec for _, spec in entries], self.options)
+            for (index, spec), thickness in zip(entries, thicknesses or ()):
+                radius = self.robot.surface(spec.robot_surface).radius
+                out[index] = largest_ball_load(radius, thickness, body, self.options) / self.weight
         return out
 
     def _print_forces(self, contact, max_load=math.inf) -> _PrintForces:

@@ -34,7 +34,8 @@ from scipy.optimize import brentq
 
 from .errors import FemError
 
-__all__ = ["VALID_CONTACT_SHARE", "BallOnLayer", "sphere_on_half_space", "layer_correction", "sphere_on_layer_force"]
+__all__ = ["VALID_CONTACT_SHARE", "BallOnLayer", "check_positive", "check_poisson_ratio", "sphere_on_half_space",
+           "layer_correction", "sphere_on_layer_force"]
 
 #: Contact radius over thickness up to which the first-order far field is within 0.5 % of the
 #: continuum (nu = 0.4; 1 % at nu = 0.49), always low (module docstring).
@@ -58,6 +59,19 @@ _NODES = 64
 # profile's approach grows without bound as a -> R; indentation bounds stop far before).
 _TABLE_POINTS = 65
 _TABLE_RADIUS_SHARE = 0.7
+
+
+def check_positive(**values) -> None:
+    """Raise :class:`FemError` naming the first of ``values`` (name=value) not finite and > 0."""
+    for name, value in values.items():
+        if not (np.isfinite(value) and value > 0.0):
+            raise FemError(f"{name} must be finite and > 0, got {value!r}")
+
+
+def check_poisson_ratio(poisson_ratio: float) -> None:
+    """Raise :class:`FemError` unless ``poisson_ratio`` lies in [0, 0.5)."""
+    if not 0.0 <= poisson_ratio < 0.5:
+        raise FemError(f"poisson_ratio must lie in [0, 0.5), got {poisson_ratio!r}")
 
 
 def sphere_on_half_space(a, radius: float, effective_modulus: float):
@@ -203,13 +217,10 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
         On a bad argument; a depth of the sphere's radius or the layer's thickness or more;
         a contact wider than three thicknesses, where the formula is 40 % low or worse.
     """
-    for name, value in (("radius", radius), ("thickness", thickness), ("young_modulus", young_modulus)):
-        if not (np.isfinite(value) and value > 0.0):
-            raise FemError(f"{name} must be finite and > 0, got {value!r}")
+    check_positive(radius=radius, thickness=thickness, young_modulus=young_modulus)
     if not (np.isfinite(depth) and depth >= 0.0):
         raise FemError(f"depth must be finite and >= 0 metres, got {depth!r}")
-    if not 0.0 <= poisson_ratio < 0.5:
-        raise FemError(f"poisson_ratio must lie in [0, 0.5), got {poisson_ratio!r}")
+    check_poisson_ratio(poisson_ratio)
     if depth >= min(radius, thickness):
         raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m into a layer {thickness:g} m "
                        "thick: that is its radius or the layer's thickness or more")
@@ -265,12 +276,8 @@ class BallOnLayer:
     _table: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
-        for name in ("radius", "thickness", "young_modulus"):
-            value = getattr(self, name)
-            if not (np.isfinite(value) and value > 0.0):
-                raise FemError(f"{name} must be finite and > 0, got {value!r}")
-        if not 0.0 <= self.poisson_ratio < 0.5:
-            raise FemError(f"poisson_ratio must lie in [0, 0.5), got {self.poisson_ratio!r}")
+        check_positive(radius=self.radius, thickness=self.thickness, young_modulus=self.young_modulus)
+        check_poisson_ratio(self.poisson_ratio)
         modulus = self.young_modulus / (1.0 - self.poisson_ratio**2)
         largest = min(VALID_CONTACT_SHARE * self.thickness, _TABLE_RADIUS_SHARE * self.radius)
         radii = largest * 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))[1:]

@@ -35,6 +35,7 @@ from scipy.interpolate import CubicSpline
 
 from .cache import cache_digest, default_cache
 from .errors import FemError
+from .layer_contact import check_poisson_ratio, check_positive
 
 __all__ = ["AxisymmetricField", "axisymmetric_layer_field", "largest_ball_mean", "LayerBallStrain"]
 
@@ -192,11 +193,8 @@ def axisymmetric_layer_field(contact_radius: float, thickness: float, poisson_ra
     AxisymmetricField
         Displacements per newton and pascal: a force F and a modulus E scale them by F / E.
     """
-    for name, value in (("contact_radius", contact_radius), ("thickness", thickness)):
-        if not (np.isfinite(value) and value > 0.0):
-            raise FemError(f"{name} must be finite and > 0, got {value!r}")
-    if not 0.0 <= poisson_ratio < 0.5:
-        raise FemError(f"poisson_ratio must lie in [0, 0.5), got {poisson_ratio!r}")
+    check_positive(contact_radius=contact_radius, thickness=thickness)
+    check_poisson_ratio(poisson_ratio)
     if not (np.isfinite(averaging_radius) and averaging_radius >= 0.0):
         raise FemError(f"averaging_radius must be finite and >= 0, got {averaging_radius!r}")
     a = float(contact_radius)

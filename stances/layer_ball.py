@@ -52,7 +52,7 @@ from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["SIDE_CLEARANCE", "LayerBalls", "largest_ball_load", "layer_thickness"]
+__all__ = ["SIDE_CLEARANCE", "LayerBalls", "largest_ball_load", "layer_thickness", "layer_thicknesses"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -109,6 +109,49 @@ _KEPT_STRAIN_TABLES = 16
 _UNIT_STRAINS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
+def _indentation_bound(options, thickness: float) -> float:
+    """Metres a ball may sink into a layer ``thickness`` thick: ``max_indentation``, else
+    ``indentation_limit`` of the thickness."""
+    if options.max_indentation is not None:
+        return float(options.max_indentation)
+    return float(options.indentation_limit * thickness)
+
+
+def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_radius: float,
+                     d_radius: float = 0.0) -> tuple[float, float]:
+    """A ball's strain on its layer's converged field, ``F g(a) / E`` plus the largest its body's
+    own weight gives, and its derivative in the force for a contact radius moving ``d_radius``
+    a newton (:class:`fem.LayerBallStrain`)."""
+    per_force, d_per_force = _ball_strain(law, float(deformable_object.strain_radius)).per_force(contact_radius)
+    value = force * per_force / law.young_modulus + deformable_object.largest_strain_at_rest
+    return value, (per_force + force * d_per_force * d_radius) / law.young_modulus
+
+
+def layer_thicknesses(robot, deformable_object, prints, options) -> tuple | None:
+    """Each print's layer thickness where a soft body's prints sink by the layer's law
+    (``ball_contact="layer"``: ball feet only, each on the body where it is a layer,
+    :func:`layer_thickness`), else None.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    deformable_object : environments.DeformableObject
+    prints : sequence of stances.deformable.PrintSpec
+        Every print on the body.
+    options : stances.PostureOptions
+    """
+    if options.ball_contact != "layer":
+        return None
+    thicknesses = []
+    for spec in prints:
+        thickness = (layer_thickness(deformable_object, spec.transform_print_to_world)
+                     if robot.surface(spec.robot_surface).is_point else None)
+        if thickness is None:
+            return None
+        thicknesses.append(thickness)
+    return tuple(thicknesses)
+
+
 def largest_ball_load(radius: float, thickness: float, deformable_object, options) -> float:
     """Newtons: the largest normal force a ball carries on a layer by its law: within the
     law's table and indentation bound (:attr:`LayerBalls.force_limits`) and with its strain on
@@ -125,17 +168,14 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
     """
     material = deformable_object.body.material
     law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio))
-    depth = float(options.max_indentation) if options.max_indentation is not None else float(
-        options.indentation_limit * thickness)
-    top = _force_limit(law, depth)
-    table = _ball_strain(law, float(deformable_object.strain_radius))
-    room = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit) - deformable_object.largest_strain_at_rest
-    if room <= 0.0:
-        return 0.0
+    top = _force_limit(law, _indentation_bound(options, thickness))
+    bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
     def excess(force):
-        return force * table.per_force(law.contact_radius(force))[0] / law.young_modulus - room
+        return _strain_on_layer(law, deformable_object, force, law.contact_radius(force))[0] - bound
 
+    if excess(0.0) >= 0.0:
+        return 0.0
     return top if excess(top) <= 0.0 else float(brentq(excess, 0.0, top, xtol=1e-9 * top))
 
 
@@ -226,10 +266,7 @@ class LayerBalls:
         self._strain_outlier = None  # the tet of the last verify's strain failure outside the rows
         self.extra_strain_tets = ()  # such tets, rows of their nearest ball since (take_strain_outlier)
         # The law's force bound: its table's end or the indentation bound, whichever comes first.
-        self.max_indentation = tuple(
-            float(options.max_indentation) if options.max_indentation is not None
-            else float(options.indentation_limit * t) for t in thicknesses
-        )
+        self.max_indentation = tuple(_indentation_bound(options, t) for t in thicknesses)
         self.force_limits = np.array([_force_limit(law, depth) for law, depth in zip(laws, self.max_indentation)])
         self.max_strain_rows = int(options.max_strain_rows)  # rows a ball, 0 none (verify checks every tet)
         self.robot_weight = float(robot.weight)
@@ -319,13 +356,11 @@ class LayerBalls:
         normal_force : float
             Newtons, >= 0.
         """
-        law, obj = self.laws[i], self.deformable_object
+        law = self.laws[i]
         # The contact's radius at no less than a small load (its slope is infinite at none).
         floored = normal_force < self.slope_floor
         radius, d_radius = law.contact_radius_and_slope(self.slope_floor if floored else float(normal_force))
-        per_force, d_per_force = _ball_strain(law, float(obj.strain_radius)).per_force(radius)
-        value = normal_force * per_force / law.young_modulus + obj.largest_strain_at_rest
-        return value, (per_force + (0.0 if floored else normal_force * d_per_force * d_radius)) / law.young_modulus
+        return _strain_on_layer(law, self.deformable_object, normal_force, radius, 0.0 if floored else d_radius)
 
     def _ball_strain_block(self, normal, columns, offset, derivatives) -> ConstraintBlock:
         """Each ball's converged strain (:meth:`ball_strain`) within the object's bound."""
@@ -565,8 +600,7 @@ class LayerBalls:
                            f"({VALID_CONTACT_SHARE:g} of the layer's thickness)")
         # Its strain on the layer's converged field (the mesh's under a ball is too low).
         obj = self.deformable_object
-        strain = (max(normal, 0.0) * _ball_strain(law, float(obj.strain_radius)).per_force(contact)[0]
-                  / law.young_modulus + obj.largest_strain_at_rest)
+        strain = _strain_on_layer(law, obj, max(normal, 0.0), contact)[0]
         measures[f"strain under {label}"] = strain
         if strain > obj.strain_limit + 1e-6:
             reasons.append(f"strain {strain:.3g} under {label} (its layer's converged field under the ball, its own "

@@ -30,7 +30,7 @@ from environments.errors import SceneError
 from .collision import KEPT_DISTANCE, CollisionChecker, contact_exclusions
 from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
-from .layer_ball import LayerBalls, layer_thickness
+from .layer_ball import LayerBalls, layer_thicknesses
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives, static_torques
 from .terms import (
@@ -886,7 +886,8 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
     if deformable_prints:
         contacts = [
             c if isinstance(c, RigidContact) else
-            LayerBalls(robot, c, deformable_prints[c.name], options) if _on_layer(robot, c, deformable_prints[c.name], options)
+            LayerBalls(robot, c, deformable_prints[c.name], options)
+            if layer_thicknesses(robot, c, deformable_prints[c.name], options) is not None
             else DeformableContact(robot, c, deformable_prints[c.name], options)
             for c in contacts
         ]
@@ -898,15 +899,6 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         options = replace(options, constraint_curvature=False)
     checker = stance_collision_checker(robot, scene, stance, options)
     return PostureProblem(robot, scene, stance, contacts, options, checker)
-
-
-def _on_layer(robot, deformable_object, prints, options: PostureOptions) -> bool:
-    """Whether a soft body's prints sink by the layer's law (``ball_contact="layer"``):
-    ball feet only, each on the body where it is a layer."""
-    return options.ball_contact == "layer" and all(
-        robot.surface(p.robot_surface).is_point and layer_thickness(deformable_object, p.transform_print_to_world)
-        is not None for p in prints
-    )
 
 
 def touching_pairs(robot, scene, options: PostureOptions) -> frozenset:
