@@ -10,7 +10,7 @@ Build a problem, solve it, check it::
     (True, True)
 """
 
-from .cold_start import initial_configuration
+from .cold_start import initial_configuration, reaching_configuration
 from .description import (
     RobotDescription,
     RobotDescriptionError,
@@ -49,6 +49,7 @@ __all__ = [
     "builtin_robot_names",
     "check_refined",
     "initial_configuration",
+    "reaching_configuration",
     "read_description",
     "read_description_text",
     "solve",

@@ -197,6 +197,12 @@ class PostureOptions:
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
+    reaching_start : bool
+        A solve given no posture starts from the reference posture over its prints
+        brought onto them by a few damped least-squares steps
+        (:func:`stances.reaching_configuration`), and, if it fails from there, solves
+        again from the reference posture over the prints (the first attempt's
+        iterations and reason in ``statistics["first_start"]``). False: from the reference posture over the prints only.
     constraint_curvature : bool
         Add the curvature of the rigid placement and collision rows, weighted
         by the previous QP's multipliers, to the QP's Hessian (kept convex;
@@ -241,6 +247,7 @@ class PostureOptions:
     rigid_prints: tuple = ()
     touching: tuple = ()
     rigid_warm_start: bool = True
+    reaching_start: bool = True
     constraint_curvature: bool = True
 
     def __post_init__(self) -> None:

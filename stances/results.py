@@ -102,6 +102,10 @@ class SolveStatistics(Mapping):
         A soft stance's Coulomb solve from its rigid answer's forces failed near
         feasible, and it was solved again from the bonded model's answer (the
         earlier pipeline).
+    first_start : dict
+        A solve given no posture that failed from the reaching start
+        (:func:`stances.reaching_configuration`) and was solved again from the reference
+        posture over the prints: the first attempt's ``iterations`` and ``reason``.
     """
 
     status: str | None = None
@@ -115,6 +119,7 @@ class SolveStatistics(Mapping):
     options: dict | None = None
     rigid_warm_start_iterations: int | None = None
     bonded_warm_start: bool | None = None
+    first_start: dict | None = None
 
     _KEYS = {"lambda": "lam"}  # mapping key -> field, where they differ
 
@@ -136,6 +141,7 @@ class SolveStatistics(Mapping):
         fields = {names.get(key, key): value for key, value in values.items()}
         casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
                  "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "options": dict,
+                 "first_start": dict,
                  "lam": lambda v: tuple(float(x) for x in v)}
         return cls(**{name: None if value is None else casts[name](value) for name, value in fields.items()})
 

@@ -34,7 +34,7 @@ from fem.deadline import SetupTimeout, deadline as setup_deadline
 from fem.dense import single_threaded_blas
 
 from .errors import ConfigurationError, StanceError
-from .cold_start import initial_configuration, starting_configuration
+from .cold_start import initial_configuration, reaching_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers, stacked_row_multipliers
@@ -984,7 +984,14 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
 
 def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
     """:func:`solve`'s work, from its arguments (``options`` the keyword ones), its start
-    time and deadline (``time.perf_counter()`` values)."""
+    time and deadline (``time.perf_counter()`` values).
+
+    Given no posture (nor contact variables), from the reference posture over the prints
+    brought onto them (:func:`stances.reaching_configuration`); if that answer is
+    infeasible (and time is left), from the reference posture over the prints, in a
+    problem built afresh, the first attempt's iterations and reason kept in the answer's
+    statistics (``first_start``; the answer's ``iterations`` are its own attempt's).
+    """
     options = posture_options(options)
     constraints = tuple(constraints)
 
@@ -998,7 +1005,25 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
                 raise ConfigurationError(f"reference: {error}") from None
         return built
 
-    problem = build(options)
+    problem = build(options)  # checks the input first
+    args = (build, time_budget, lam_init, options, start, deadline)
+    if q_init is not None or lam_init is not None or not options.reaching_start:
+        return _solve_from(problem, q_init, *args)
+    over_prints = initial_configuration(robot, scene, stance)
+    reached = reaching_configuration(robot, scene, stance, over_prints)
+    if np.array_equal(reached, over_prints):
+        return _solve_from(problem, over_prints, *args)
+    first = _solve_from(problem, reached, *args)
+    if first.feasible or first.statistics.get("status") == _OUT_OF_TIME:
+        return first
+    second = _solve_from(build(options), over_prints, *args)
+    statistics = dict(second.statistics, first_start={"iterations": first.iterations, "reason": first.reason})
+    return _with(second, statistics=statistics)
+
+
+def _solve_from(problem, q_init, build, time_budget, lam_init, options, start, deadline):
+    """:func:`_solve` from the posture ``q_init`` (None: :func:`stances.initial_configuration`),
+    ``problem`` built by ``build(options)``."""
     deformable = any(c.kind == "deformable" for c in problem.contacts)
     warm_iterations = 0
     rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
@@ -1025,7 +1050,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
             reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
             return _timed_out(_with(warm, reason=reason, statistics=statistics,
-                                    solve_time=time.perf_counter() - start, stance=stance), time_budget)
+                                    solve_time=time.perf_counter() - start, stance=problem.stance), time_budget)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: W read off it, A xi(q),
             # leaves every node at the point of lifting off, with no force gradient.

@@ -8,7 +8,8 @@ import pytest
 
 import environments
 import stances
-from stances import initial_configuration
+from stances import initial_configuration, reaching_configuration
+from stances.cold_start import placement_errors
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve_problem
 
@@ -130,3 +131,50 @@ def test_reference_positions_are_the_reference_postures_and_follow_it():
     np.testing.assert_array_equal([robot.reference_position(f) for f in frames], kinematics(moved))
     with pytest.raises(AssertionError):
         np.testing.assert_allclose(kinematics(moved), kinematics(reference), atol=1e-3)
+
+
+def _errors(robot, scene, stance, q):
+    data = robot.model.createData()
+    pin.computeJointJacobians(robot.model, data, q)
+    pin.updateFramePlacements(robot.model, data)
+    return placement_errors(robot, scene, stance, data)
+
+
+@pytest.mark.parametrize("name, stance_name", [("hand-on-table", "hand-on-table"), ("quadruped-walk", "front-feet-up")])
+def test_placement_errors_jacobian_matches_finite_differences(name, stance_name):
+    """Soles and palms (6 rows each) and ball feet (3 rows), at a posture away from the answer."""
+    scenario = environments.load(name)
+    robot = stances.Robot.load(scenario.robot)
+    stance = scenario.stance(stance_name)
+    rng = np.random.default_rng(3)
+    q = pin.integrate(robot.model, initial_configuration(robot, scenario.scene, stance), 0.1 * rng.standard_normal(robot.model.nv))
+    residual, rotational, jacobian = _errors(robot, scenario.scene, stance, q)
+    points = sum(robot.surface(c.robot_surface).is_point for c in stance)
+    assert residual.shape == rotational.shape == (6 * len(stance) - 3 * points,) and jacobian.shape == (len(residual), robot.model.nv)
+    assert rotational.sum() == 3 * (len(stance) - points)
+    h = 1e-7
+    numeric = np.column_stack([
+        (_errors(robot, scenario.scene, stance, pin.integrate(robot.model, q, h * e))[0]
+         - _errors(robot, scenario.scene, stance, pin.integrate(robot.model, q, -h * e))[0]) / (2 * h)
+        for e in np.eye(robot.model.nv)])
+    np.testing.assert_allclose(jacobian, numeric, atol=1e-6)
+
+
+def test_the_reaching_start_brings_far_contacts_onto_their_prints_within_the_joint_limits(robot):
+    """hand-on-table's palm starts 0.3-0.5 m from its print over the feet: five damped
+    least-squares steps take every placement error below 1 cm or 10 mrad (the scale of the
+    SQP's placement rows); joints stay within their limits; a stance already on its prints is left as
+    it is (the same array values)."""
+    scenario = environments.load("hand-on-table")
+    stance = scenario.stance("hand-on-table")
+    start = initial_configuration(robot, scenario.scene, stance)
+    before = _errors(robot, scenario.scene, stance, start)[0]
+    assert np.abs(before).max() > 0.3
+    q = reaching_configuration(robot, scenario.scene, stance, start)
+    after = _errors(robot, scenario.scene, stance, q)[0]
+    assert np.abs(after).max() < 1e-2
+    model = robot.model
+    assert np.all(q[7:] >= model.lowerPositionLimit[7:]) and np.all(q[7:] <= model.upperPositionLimit[7:])
+    stand = environments.load("stand")
+    over_feet = initial_configuration(robot, stand.scene, stand.stance("stand"))
+    np.testing.assert_array_equal(reaching_configuration(robot, stand.scene, stand.stance("stand"), over_feet), over_feet)

@@ -124,12 +124,13 @@ def test_a_stiff_soft_support_gives_the_rigid_supports_posture_and_forces(robot,
 
 def test_a_palm_on_a_stiff_soft_cube_carries_about_the_rigid_contacts_load(robot):
     """hand-on-cube's palm, its load mostly along one tangent axis, on the cube at 1e10 Pa:
-    within 3 % of the rigid support's palm force (measured 2.95 %: the rigid palm presses
-    on its edge, the soft one 25.5 mm across, where the force term on its W, its inner
-    nodes lifted off, prices a millimetre more as much as the rest of the objective gains
-    from it; see bench/bench_palm_limit.py), both on the
-    bound of the same friction pyramid (the soft one's mu less
-    its ``friction_margin``, 1 %). With the axis-aligned square the soft prints had (its
+    within 2 % of the rigid support's palm force (issue 8's stiff limit; 0.54 % measured
+    from the reaching start, 1.3 % from the reference posture over the prints: the rigid
+    palm presses on its edge, the soft one nearer its middle, where the force term on its
+    W, its inner nodes lifted off, prices a millimetre more as much as the rest of the
+    objective gains from it; see bench/bench_palm_limit.py). The rigid answer lies on its
+    friction pyramid's bound, the soft one inside its own (the soft one's mu less its
+    ``friction_margin``, 1 %). With the axis-aligned square the soft prints had (its
     corners on the cone) and its margin of 0.8, the palm pressed with 96 N against the
     rigid 71 N (31 % off)."""
     text = environments.builtin_scenario_path("hand-on-cube").read_text()
@@ -142,13 +143,13 @@ def test_a_palm_on_a_stiff_soft_cube_carries_about_the_rigid_contacts_load(robot
     assert rigid.feasible and result.feasible, result.reason
     frame = robot.surface("right_palm").frame
     expected, palm = (sum(np.array(p.force) for p in r.point_forces if p.frame == frame) for r in (rigid, result))
-    assert np.linalg.norm(palm - expected) < 0.03 * np.linalg.norm(expected)
+    assert np.linalg.norm(palm - expected) < 0.02 * np.linalg.norm(expected)
     # The rigid answer on its pyramid's bound, |f . x| + |f . y| = mu f . z (the cube's top is level).
     (on_cube,) = [c.contact_print.surface for c in stance.contacts if c.robot_surface == "right_palm"]
     mu = stiff.scene.surface(on_cube).friction
     assert abs(expected[0]) + abs(expected[1]) == pytest.approx(mu * expected[2], rel=1e-4)
     margin = PostureOptions().friction_margin
-    assert abs(palm[0]) + abs(palm[1]) == pytest.approx(margin * mu * palm[2], rel=1e-4)
+    assert abs(palm[0]) + abs(palm[1]) <= margin * mu * palm[2] * (1 + 1e-9)
 
 
 def test_the_papers_force_term_keeps_a_stiff_support_off_the_rigid_split(robot, step_on_cube):

@@ -1003,6 +1003,33 @@ def test_a_rigid_palm_turned_the_other_way_is_reached(robot, degrees):
     assert verify(robot, scenario.scene, stance, result).ok
 
 
+def test_a_cold_start_that_fails_from_the_reaching_start_is_solved_from_the_posture_over_the_prints(robot):
+    # hand-on-cube's palm turned -30 degrees: from the reaching start the arm bends where
+    # the SQP's steps converge too slowly (13 iterations); the solve then starts again from
+    # the reference posture over the prints, and gives what a solve from there alone
+    # gives, bit for bit, the first attempt recorded.
+    from environments.rigid_twin import rigid_twin
+
+    scenario = rigid_twin(environments.load("hand-on-cube"))
+    stance = scenario.stance("hand-on-cube")
+    p = stance.contact("right_palm").contact_print
+    stance = stance.with_contact(Contact("right_palm", ContactPrint(p.surface, p.x, p.y, p.theta - math.radians(30))))
+    result = solve(robot, scenario.scene, stance)
+    alone = solve(robot, scenario.scene, stance, reaching_start=False)
+    assert result.feasible and np.array_equal(result.q, alone.q) and result.iterations == alone.iterations
+    first = result.statistics["first_start"]
+    assert first["iterations"] == 13 and first["reason"].startswith("print unreachable: placement of right_palm")
+    assert "converging too slowly" in first["reason"] and "first_start" not in alone.statistics
+    # Turned +30 degrees the reaching start serves: fewer iterations, the same objective.
+    turned = stance.with_contact(Contact("right_palm", ContactPrint(p.surface, p.x, p.y, p.theta + math.radians(30))))
+    reached, over_prints = (solve(robot, scenario.scene, turned, reaching_start=flag) for flag in (True, False))
+    assert reached.feasible and over_prints.feasible and "first_start" not in reached.statistics
+    assert reached.iterations < over_prints.iterations
+    objective = [build_problem(robot, scenario.scene, turned, PostureOptions()).evaluate(
+        r.q, np.asarray(r.statistics["lambda"])).objective for r in (reached, over_prints)]
+    assert objective[0] == pytest.approx(objective[1], rel=1e-4)
+
+
 def test_a_warm_start_stops_once_feasible_and_flat_and_the_answer_stays(robot, monkeypatch):
     # The rigid warm start of a soft stance only gives a starting posture: it stops once
     # an iteration gains under 1 % of its objective (at 1e-5 it took one more iteration
@@ -1368,9 +1395,11 @@ def test_a_rigid_warm_start_ends_at_its_own_cap(anymal, monkeypatch, cap, option
     tolerance in 160 plans took at most 39), or at the options' cap where that is lower; one
     stopped short of its tolerance rejects the stance as one that cannot be held rigid."""
     scene = environments.load("quadruped-foam").scene
-    # The balls press the foam's nodes (on its layer's law no warm start runs).
-    options = {**options, "ball_contact": "nodes"}
-    assert solve(anymal, scene, _FRONT_FEET_ON_FOAM, ball_contact="nodes").statistics["rigid_warm_start_iterations"] == 3
+    # The balls press the foam's nodes (on its layer's law no warm start runs); from the
+    # reference posture over the prints (from the reaching start the warm start takes 2).
+    nodes = {"ball_contact": "nodes", "reaching_start": False}
+    options = {**options, **nodes}
+    assert solve(anymal, scene, _FRONT_FEET_ON_FOAM, **nodes).statistics["rigid_warm_start_iterations"] == 3
     if cap is not None:
         monkeypatch.setattr(sqp, "_WARM_START_ITERATIONS", cap)
     result = solve(anymal, scene, _FRONT_FEET_ON_FOAM, **options)
