@@ -198,8 +198,9 @@ class PostureOptions:
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
     reaching_start : bool
-        A solve given no posture starts from the reference posture over its prints
-        brought onto them by a few damped least-squares steps
+        A solve given no posture, none of whose prints lies on a soft body's mesh (those
+        start their rigid warm start from the posture over the prints), starts from the
+        reference posture over its prints brought onto them by a few damped least-squares steps
         (:func:`stances.reaching_configuration`), and, if it fails from there, solves
         again from the reference posture over the prints (the first attempt's
         iterations and reason in ``statistics["first_start"]``). False: from the reference posture over the prints only.
