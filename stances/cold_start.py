@@ -13,7 +13,7 @@ From there a few damped least-squares steps on the contacts' placements alone
 then starts where its placement rows hold, and the 60 random rigid stances of
 ``bench/bench_posture.py`` took 338 SQP iterations instead of 387. Such a start can
 bend a limb somewhere the SQP does not come back from (a palm turned 20-30 degrees on
-hand-on-cube's cube, reached from the reference posture); :func:`stances.solve` then
+hand-on-cube's cube, reached from the reference posture); the solve then
 solves again from the reference posture over the prints.
 """
 

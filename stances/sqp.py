@@ -215,10 +215,39 @@ def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dead
                   creep=False) -> PostureResult:
     """Run the SQP on a built :class:`~stances.problem.PostureProblem` (one BLAS thread).
 
-    See :func:`_solve_problem`.
+    See :func:`_solve_problem`. Given no posture nor contact variables, and no print on a
+    soft body's mesh (``options.reaching_start``), it starts from the reference posture
+    over the prints brought onto them (:func:`stances.reaching_configuration`); if that
+    answer is infeasible (and time is left), it solves again from the reference posture
+    over the prints (:func:`stances.initial_configuration`), the first attempt's iterations
+    and reason kept in the answer's statistics (``first_start``; the answer's
+    ``iterations`` are its own attempt's).
     """
     with single_threaded_blas():
-        return _solve_problem(problem, q_init, lam_init, max_iterations, deadline, check, creep)
+        if q_init is not None or lam_init is not None or not _reaches(problem):
+            return _solve_problem(problem, q_init, lam_init, max_iterations, deadline, check, creep)
+        over_prints = initial_configuration(problem.robot, problem.scene, problem.stance)
+        reached = reaching_configuration(problem.robot, problem.scene, problem.stance, over_prints)
+        if np.array_equal(reached, over_prints):
+            return _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
+        first = _solve_problem(problem, reached, None, max_iterations, deadline, check, creep)
+        if first.feasible or first.statistics.get("status") == _OUT_OF_TIME:
+            return first
+        second = _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
+        statistics = dict(second.statistics, first_start={"iterations": first.iterations, "reason": first.reason})
+        return _with(second, statistics=statistics)
+
+
+def _reaches(problem) -> bool:
+    """Whether a solve of ``problem`` given no posture starts from the reaching start.
+
+    Not where a print lies on a soft body's mesh: such a solve starts from its rigid
+    warm start's answer, and from the reaching start the palms' warm starts took longer
+    (hand-on-cube 8 -> 12 iterations, its solve 1.6 times the CPU; the 15 built-in soft
+    stances' median 1.06 times); :func:`solve` starts their warm starts from the posture
+    over the prints.
+    """
+    return problem.options.reaching_start and not any(c.kind == "deformable" for c in problem.contacts)
 
 
 def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, deadline=None, check=True,
@@ -984,14 +1013,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
 
 def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
     """:func:`solve`'s work, from its arguments (``options`` the keyword ones), its start
-    time and deadline (``time.perf_counter()`` values).
-
-    Given no posture (nor contact variables) and no print on a soft body's mesh, from the
-    reference posture over the prints brought onto them (:func:`stances.reaching_configuration`); if that answer is
-    infeasible (and time is left), from the reference posture over the prints, in a
-    problem built afresh, the first attempt's iterations and reason kept in the answer's
-    statistics (``first_start``; the answer's ``iterations`` are its own attempt's).
-    """
+    time and deadline (``time.perf_counter()`` values)."""
     options = posture_options(options)
     constraints = tuple(constraints)
 
@@ -1005,31 +1027,10 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
                 raise ConfigurationError(f"reference: {error}") from None
         return built
 
-    problem = build(options)  # checks the input first
-    args = (build, time_budget, lam_init, options, start, deadline)
-    # A soft print's solve starts from its rigid warm start's answer, and that warm start
-    # from the posture over the prints: from the reaching start the palms' warm starts
-    # took longer (hand-on-cube 8 -> 12 iterations, its solve 1.6 times the CPU; the 15
-    # built-in soft stances' median 1.06 times).
-    soft = any(c.kind == "deformable" for c in problem.contacts)
-    if q_init is not None or lam_init is not None or soft or not options.reaching_start:
-        return _solve_from(problem, q_init, *args)
-    over_prints = initial_configuration(robot, scene, stance)
-    reached = reaching_configuration(robot, scene, stance, over_prints)
-    if np.array_equal(reached, over_prints):
-        return _solve_from(problem, over_prints, *args)
-    first = _solve_from(problem, reached, *args)
-    if first.feasible or first.statistics.get("status") == _OUT_OF_TIME:
-        return first
-    second = _solve_from(build(options), over_prints, *args)
-    statistics = dict(second.statistics, first_start={"iterations": first.iterations, "reason": first.reason})
-    return _with(second, statistics=statistics)
-
-
-def _solve_from(problem, q_init, build, time_budget, lam_init, options, start, deadline):
-    """:func:`_solve` from the posture ``q_init`` (None: :func:`stances.initial_configuration`),
-    ``problem`` built by ``build(options)``."""
+    problem = build(options)
     deformable = any(c.kind == "deformable" for c in problem.contacts)
+    if deformable and q_init is None and lam_init is None:
+        q_init = initial_configuration(robot, scene, stance)  # not the reaching start (see _reaches)
     warm_iterations = 0
     rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
     loose = dict(_WARM_START_TOLERANCES, max_iterations=min(options.max_iterations, _WARM_START_ITERATIONS))
@@ -1055,7 +1056,7 @@ def _solve_from(problem, q_init, build, time_budget, lam_init, options, start, d
             statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
             reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
             return _timed_out(_with(warm, reason=reason, statistics=statistics,
-                                    solve_time=time.perf_counter() - start, stance=problem.stance), time_budget)
+                                    solve_time=time.perf_counter() - start, stance=stance), time_budget)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: W read off it, A xi(q),
             # leaves every node at the point of lifting off, with no force gradient.
