@@ -52,7 +52,7 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
 import qp_subproblems  # noqa: E402
 from benchmark_info import code_version, machine  # noqa: E402
-from posture_nlp import BaselineRun, PostureNlp, TimeLimit, final_check  # noqa: E402
+from posture_nlp import BaselineRun, PostureNlp, TimeLimit, final_check, first_start  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
@@ -128,7 +128,7 @@ def solve_slsqp(robot, scene, stance) -> BaselineRun:
     """SLSQP on the stance's posture problem."""
     problem = build_problem(robot, scene, stance, PostureOptions())
     start, cpu_start = time.perf_counter(), time.process_time()
-    q0 = problem.check_configuration(stances.initial_configuration(robot, scene, stance))  # where stances.solve starts
+    q0 = first_start(problem)  # where stances.solve starts
     lam0 = problem.initial_variables(q0)
     wrapped = PostureNlp(problem, q0, lam0, cpu_start + SLSQP_TIME_LIMIT)
     x0 = np.concatenate([np.zeros(robot.nv), lam0])
@@ -399,8 +399,11 @@ Times exclude building the problem (collision checker, contact models) and, for
 CPU times (`time.process_time`, one BLAS thread) are of the solver call: for `stances.solve`
 `solve_problem`, its final `verify` included; for the baselines the solve, their final
 `verify` excluded.
-Every method starts from the same posture, the one `stances.solve` starts from
-(`stances.initial_configuration`: the reference posture over the prints).
+Every method starts from the same posture, the one `stances.solve` starts from (since
+2026-12-05 the reference posture over the prints, `stances.initial_configuration`, brought onto
+them by `stances.reaching_configuration`; `stances.solve` would try again from the posture over
+the prints where that fails, which none of these stances needs; the runs before started every
+method from the posture over the prints).
 SLSQP: `scipy.optimize.minimize(method="SLSQP")` over x = (dq from that posture,
 lambda), objective and constraints of `PostureProblem.linearize` with analytic Jacobians
 (tangent columns times `pin.dIntegrate`), rows divided by their scale, bounds from joint limits

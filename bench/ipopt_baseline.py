@@ -23,9 +23,8 @@ import time
 import casadi
 import numpy as np
 
-from posture_nlp import BaselineRun, PostureNlp, final_check
+from posture_nlp import BaselineRun, PostureNlp, final_check, first_start
 
-import stances
 from stances.problem import PostureOptions, build_problem
 
 VERSION = f"casadi {casadi.__version__}"
@@ -146,7 +145,7 @@ def solve_ipopt(robot, scene, stance) -> BaselineRun:
     """IPOPT on the stance's posture problem; the time covers building casadi's solver too."""
     problem = build_problem(robot, scene, stance, PostureOptions())
     start, cpu_start = time.perf_counter(), time.process_time()
-    q0 = problem.check_configuration(stances.initial_configuration(robot, scene, stance))  # where stances.solve starts
+    q0 = first_start(problem)  # where stances.solve starts
     lam0 = problem.initial_variables(q0)
     wrapped = PostureNlp(problem, q0, lam0, deadline=math.inf)  # IPOPT keeps its own time limit
     n = robot.nv + len(lam0)

@@ -16,9 +16,19 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 
+from stances import initial_configuration, reaching_configuration
 from stances.results import PostureResult
 from stances.sqp import problem_point_forces
 from stances.verify import verify_problem
+
+
+def first_start(problem) -> np.ndarray:
+    """(nq,) the posture ``stances.solve_problem`` starts a rigid stance from when given
+    none: the reference posture over the prints brought onto them (its first attempt; it
+    falls back to the posture over the prints when that attempt fails)."""
+    robot, scene, stance = problem.robot, problem.scene, problem.stance
+    start = reaching_configuration(robot, scene, stance, initial_configuration(robot, scene, stance))
+    return problem.check_configuration(start)
 
 
 class TimeLimit(Exception):
