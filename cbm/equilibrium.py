@@ -243,7 +243,7 @@ class EquilibriumFilter:
             thicknesses = layer_thicknesses(self.robot, body, [spec for _, spec in entries], self.options)
             for (index, spec), thickness in zip(entries, thicknesses or ()):
                 radius = self.robot.surface(spec.robot_surface).radius
-                out[index] = largest_ball_load(radius, thickness, body, self.options) / self.weight
+                out[index] = largest_ball_load(radius, thickness, body, self.options, spec.surface.friction) / self.weight
         return out
 
     def _print_forces(self, contact, max_load=math.inf) -> _PrintForces:

@@ -65,6 +65,13 @@ class ConstraintBlock:
         frame placements and kinematic Hessians computed); :mod:`stances.curvature`
         adds the configuration space's own term and then skips the differences of
         ``second_order``, which such a block still gives.
+    variable_curvature : callable, optional
+        ``variable_curvature(weights) -> (n, n)``: the rows' weighted second derivative
+        ``sum_i weights_i d^2 c_i`` in the step's force-variable columns (zero elsewhere),
+        at this linearisation, positive semidefinite for ``weights >= 0`` (convex rows). The
+        SQP adds it, weighted by the last QP's multipliers, to every QP's Hessian once those
+        are known: a row whose gradient vanishes where it is curved (a ball's strain in its
+        sideways force, which enters squared) otherwise lets each QP swing that force across.
     """
 
     name: str
@@ -78,6 +85,7 @@ class ConstraintBlock:
     accuracy: float = 0.0
     second_order: object = None
     curvature: object = None
+    variable_curvature: object = None
 
     def __post_init__(self) -> None:
         rows = len(self.value)

@@ -85,13 +85,16 @@ def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: f
 
 
 @functools.lru_cache(maxsize=64)
-def _ball_strain(law: BallOnLayer, strain_radius: float) -> fem.LayerBallStrain:
-    """The converged strain per newton of a ball on the layer, tabulated once per ball, layer
-    and averaging radius (seven axisymmetric fields, seconds, then from the disk cache) over the contact radii the law
-    reads, from a twentieth of its widest (below it the mean is flat in the radius: 0.4 %
-    from 1.2 to 5 mm on quadruped-foam's foam)."""
+def _ball_strain(law: BallOnLayer, strain_radius: float, friction: float) -> fem.LayerBallStrain:
+    """The converged strain per newton of a ball on the layer, tabulated once per ball, layer,
+    averaging radius and friction coefficient (seven contact radii by five sideways ratios:
+    14 axisymmetric fields, 15 s on a loaded 2-core host, then from the disk cache) over the
+    contact radii the law reads, from a twentieth of its widest (below it the mean is flat in
+    the radius: 0.4 % from 1.2 to 5 mm on quadruped-foam's foam), and the sideways ratios its
+    friction pyramid allows."""
     widest = law.contact_radius(law.force_limit)
-    return fem.LayerBallStrain(law.thickness, law.poisson_ratio, strain_radius, _SMALLEST_STRAIN_SHARE * widest, widest)
+    return fem.LayerBallStrain(law.thickness, law.poisson_ratio, strain_radius, _SMALLEST_STRAIN_SHARE * widest, widest,
+                               largest_ratio=friction)
 
 
 @functools.lru_cache(maxsize=64)
@@ -117,14 +120,20 @@ def _indentation_bound(options, thickness: float) -> float:
     return float(options.indentation_limit * thickness)
 
 
-def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_radius: float,
-                     d_radius: float = 0.0) -> tuple[float, float]:
-    """A ball's strain on its layer's converged field, ``F g(a) / E`` plus the largest its body's
-    own weight gives, and its derivative in the force for a contact radius moving ``d_radius``
-    a newton (:class:`fem.LayerBallStrain`)."""
-    per_force, d_per_force = _ball_strain(law, float(deformable_object.strain_radius)).per_force(contact_radius)
+def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_radius: float, friction: float,
+                     d_radius: float = 0.0, sideways: float = 0.0, floor: float = 0.0) -> tuple[float, float, float]:
+    """A ball's strain on its layer's converged field, ``F g(a, Q / F) / E`` plus the largest its
+    body's own weight gives (:class:`fem.LayerBallStrain`), F its normal force, Q its sideways
+    force's magnitude; and its derivatives in F (Q held, the contact radius moving ``d_radius``
+    a newton) and in Q^2. The ratio is taken at no less than ``floor`` newtons of F (a
+    pyramid's force has ``Q <= mu F``: none at no load)."""
+    table = _ball_strain(law, float(deformable_object.strain_radius), float(friction))
+    base = max(float(force), float(floor), 1e-12)
+    square = (sideways / base) ** 2
+    per_force, d_radius_term, d_square = table.per_force(contact_radius, float(np.sqrt(square)))
     value = force * per_force / law.young_modulus + deformable_object.largest_strain_at_rest
-    return value, (per_force + force * d_per_force * d_radius) / law.young_modulus
+    d_force = per_force + force * d_radius_term * d_radius - (2.0 * square * d_square if force >= floor else 0.0)
+    return value, d_force / law.young_modulus, force * d_square / (base * base * law.young_modulus)
 
 
 def layer_thicknesses(robot, deformable_object, prints, options) -> tuple | None:
@@ -152,11 +161,12 @@ def layer_thicknesses(robot, deformable_object, prints, options) -> tuple | None
     return tuple(thicknesses)
 
 
-def largest_ball_load(radius: float, thickness: float, deformable_object, options) -> float:
+def largest_ball_load(radius: float, thickness: float, deformable_object, options, friction: float) -> float:
     """Newtons: the largest normal force a ball carries on a layer by its law: within the
     law's table and indentation bound (:attr:`LayerBalls.force_limits`) and with its strain on
     the layer's converged field within the object's bound (:meth:`LayerBalls.ball_strain`,
-    less its rows' margin); 0 if the body's own weight leaves it no strain to spend.
+    less its rows' margin, with no sideways force); 0 if the body's own weight leaves it no
+    strain to spend.
 
     Parameters
     ----------
@@ -165,14 +175,20 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
     deformable_object : environments.DeformableObject
     options : stances.PostureOptions
         ``max_indentation`` / ``indentation_limit``.
+    friction : float
+        The print surface's friction coefficient (the strain table the solver will read
+        spans the sideways ratios it allows).
     """
     material = deformable_object.body.material
     law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio))
     top = _force_limit(law, _indentation_bound(options, thickness))
     bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
+    # Normal force alone (a sideways force strains more): the largest load any stance may put there.
+    friction = float(friction)
+
     def excess(force):
-        return _strain_on_layer(law, deformable_object, force, law.contact_radius(force))[0] - bound
+        return _strain_on_layer(law, deformable_object, force, law.contact_radius(force), friction)[0] - bound
 
     if excess(0.0) >= 0.0:
         return 0.0
@@ -341,13 +357,14 @@ class LayerBalls:
         )
         if not self.max_strain_rows:
             return [placement, bound]
-        return [placement, bound, self._ball_strain_block(normal, columns, offset, derivatives),
+        return [placement, bound, self._ball_strain_block(lam, normal, columns, offset, derivatives),
                 self._strain_block(lam, normal, columns, offset, derivatives)]
 
-    def ball_strain(self, i: int, normal_force: float) -> tuple[float, float]:
+    def ball_strain(self, i: int, normal_force: float, sideways: float = 0.0) -> tuple[float, float, float]:
         """Ball i's strain on its layer's converged field under it: the largest principal
-        magnitude of its means (the object's strain radius) under its normal force, plus the
-        largest its body's own weight gives; and its derivative in the force (per newton).
+        magnitude of its means (the object's strain radius) under its normal and sideways
+        forces, plus the largest its body's own weight gives; and its derivatives in the normal
+        force (per newton, the sideways one held) and in the sideways force's square (per N^2).
 
         Parameters
         ----------
@@ -355,24 +372,51 @@ class LayerBalls:
             The ball's index in :attr:`balls`.
         normal_force : float
             Newtons, >= 0.
+        sideways : float
+            The sideways force's magnitude, newtons, >= 0 (at most the friction coefficient
+            times the normal force: the ball's pyramid).
         """
         law = self.laws[i]
         # The contact's radius at no less than a small load (its slope is infinite at none).
         floored = normal_force < self.slope_floor
         radius, d_radius = law.contact_radius_and_slope(self.slope_floor if floored else float(normal_force))
-        return _strain_on_layer(law, self.deformable_object, normal_force, radius, 0.0 if floored else d_radius)
+        return _strain_on_layer(law, self.deformable_object, normal_force, radius, self.balls[i].friction,
+                                0.0 if floored else d_radius, sideways, self.slope_floor)
 
-    def _ball_strain_block(self, normal, columns, offset, derivatives) -> ConstraintBlock:
-        """Each ball's converged strain (:meth:`ball_strain`) within the object's bound."""
+    def _ball_strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:
+        """Each ball's converged strain (:meth:`ball_strain`) within the object's bound.
+
+        Its sideways force Q enters as Q^2 (the strain is even in it): with no sideways
+        force the row's gradient has no part along the print, and a QP would swing the
+        force across (quadruped-foam at a 1 % bound: 91 SQP iterations, the objective
+        alternating). The block gives each row's curvature along the print,
+        ``2 (d strain / d Q^2) (I - n n^T)`` in the ball's force, to the SQP's Hessian
+        (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`; the terms in the normal
+        force left out).
+        """
         values, rows = np.zeros(len(self.balls)), np.zeros((len(self.balls), columns)) if derivatives else None
-        for i in range(len(self.balls)):
-            values[i], slope = self.ball_strain(i, float(normal[i]))
+        curvatures = []  # (the ball's columns, its row's curvature in its pyramid's variables)
+        for i, ball in enumerate(self.balls):
+            force = ball.generators @ lam[self._pyramid[i]]
+            sideways = force - self.load_normals[i] * normal[i]  # along the print, world frame
+            values[i], d_normal, d_square = self.ball_strain(i, float(normal[i]), float(np.linalg.norm(sideways)))
             if derivatives:
-                rows[i, offset + self._pyramid[i].start: offset + self._pyramid[i].stop] = slope * self._normal_rows[i]
+                where = slice(offset + self._pyramid[i].start, offset + self._pyramid[i].stop)
+                rows[i, where] = d_normal * self._normal_rows[i] + d_square * 2.0 * sideways @ ball.generators
+                along = ball.generators - np.outer(self.load_normals[i], self._normal_rows[i])  # (I - n n^T) G
+                curvatures.append((where, 2.0 * max(d_square, 0.0) * (along.T @ along)))
+
+        def variable_curvature(weights):
+            out = np.zeros((columns, columns))
+            for weight, (where, matrix) in zip(weights, curvatures):
+                out[where, where] += weight * matrix
+            return out
+
         limit = float(self.deformable_object.strain_limit)
         return ConstraintBlock("ball strain", values, rows, -np.inf, (1.0 - _STRAIN_MARGIN) * limit, limit,
                                tuple(f"strain under {b.label} ({self.deformable_object.name}'s converged field)"
-                                     for b in self.balls))
+                                     for b in self.balls),
+                               variable_curvature=variable_curvature if derivatives else None)
 
     def _strain_block(self, lam, normal, columns, offset, derivatives) -> ConstraintBlock:
         """Each ball's largest principal strain (mean over the object's strain radius, its
@@ -600,10 +644,12 @@ class LayerBalls:
                            f"({VALID_CONTACT_SHARE:g} of the layer's thickness)")
         # Its strain on the layer's converged field (the mesh's under a ball is too low).
         obj = self.deformable_object
-        strain = _strain_on_layer(law, obj, max(normal, 0.0), contact)[0]
+        strain = _strain_on_layer(law, obj, max(normal, 0.0), contact, ball.friction, sideways=tangential,
+                                  floor=self.slope_floor)[0]
         measures[f"strain under {label}"] = strain
         if strain > obj.strain_limit + 1e-6:
-            reasons.append(f"strain {strain:.3g} under {label} (its layer's converged field under the ball, its own "
+            reasons.append(f"strain {strain:.3g} under {label} (its layer's converged field under the ball's normal and "
+                           f"sideways forces, its own "
                            f"weight's included, mean over {1e3 * obj.strain_radius:g} mm) exceeds its bound "
                            f"{obj.strain_limit:g}: linear elasticity does not hold there")
         return reasons

@@ -439,10 +439,13 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
         curved = model = linearization
-        if slow and last_qp is not None and violation <= _CURVATURE_PHASE:
+        multipliers = row_multipliers(*last_qp) if last_qp is not None else None
+        if slow and multipliers is not None and violation <= _CURVATURE_PHASE:
             curvature = curvature or ConstraintCurvature(problem.robot.model)
-            curved, model = _with_curvature(curvature, q, linearization, row_multipliers(*last_qp))
+            curved, model = _with_curvature(curvature, q, linearization, multipliers)
             curved_iterations += 1
+        if multipliers is not None:
+            curved, model = _with_variable_curvature(curved, model, multipliers)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
@@ -681,6 +684,24 @@ def _with_curvature(curvature, q, linearization, multipliers):
     model = linearization.hessian.copy()
     model[:nv, :nv] += bounded_below(curvature.hessian(q, linearization.blocks, weights), reference, _FLOOR)
     return replace(linearization, hessian=model + augmentation), replace(linearization, hessian=model)
+
+
+def _with_variable_curvature(for_qp, model, multipliers):
+    """Both linearisations with their blocks' curvature in the force variables
+    (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`) added to their Hessians,
+    weighted by the last QP's multipliers of their rows (those of upper bounds held:
+    ``y >= 0``); unchanged where no block has it."""
+    extra = None
+    for block in for_qp.blocks:
+        if block.variable_curvature is None or not len(block):
+            continue
+        weights = np.maximum(np.array([multipliers.get(label, 0.0) for label in block.labels]), 0.0)
+        if weights.any():
+            term = block.variable_curvature(weights)
+            extra = term if extra is None else extra + term
+    if extra is None:
+        return for_qp, model
+    return replace(for_qp, hessian=for_qp.hessian + extra), replace(model, hessian=model.hessian + extra)
 
 
 def _predicted_decrease(linearization, step, elastic, penalty, violation) -> float:

@@ -1,7 +1,9 @@
 """The strain a ball leaves in a layer, from the axisymmetric field (``fem.layer_strain``):
 Hertz's field where the layer is deep, an independent audit's converged means, mesh
 convergence, where the largest mean lies (the foam's surface on the axis, a thin layer's
-base), pointwise strains, the table against fresh fields, the disk cache, bad input."""
+base), pointwise strains, the sideways traction's field (simple shear under a wide one, the
+audit's means with a sideways force, mirror symmetry), the table against fresh fields, the
+disk cache, bad input."""
 
 from __future__ import annotations
 
@@ -109,14 +111,14 @@ def test_the_table_agrees_with_fresh_fields_and_its_slope_with_differences():
     table = LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.05 * widest, widest)
     for a in (0.07 * widest, 0.3 * widest, 0.55 * widest, 0.93 * widest):
         fresh = largest_ball_mean(axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS), RADIUS, a)
-        value, slope = table.per_force(a)
+        value, slope, _ = table.per_force(a)
         assert value == pytest.approx(fresh, rel=1e-3)
         step = 1e-7
         assert slope == pytest.approx((table.per_force(a + step)[0] - table.per_force(a - step)[0]) / (2 * step),
                                       rel=1e-5)
     # Held beyond its ends, with no slope there.
-    assert table.per_force(0.0) == (table.per_force(0.05 * widest)[0], 0.0)
-    assert table.per_force(2 * widest) == (table.per_force(widest)[0], 0.0)
+    assert table.per_force(0.0) == (table.per_force(0.05 * widest)[0], 0.0, 0.0)
+    assert table.per_force(2 * widest) == (table.per_force(widest)[0], 0.0, 0.0)
     # A wider contact spreads the same force: less strain.
     assert table.per_force(widest)[0] < table.per_force(0.5 * widest)[0] < table.per_force(0.05 * widest)[0]
 
@@ -130,6 +132,64 @@ def test_bad_input_is_refused_with_what_is_wrong():
         axisymmetric_layer_field(0.005, THICKNESS, POISSON, float("nan"))
     with pytest.raises(FemError, match=r"the contact radii must satisfy 0 < smallest <= largest, got 0.01 and 0.005"):
         LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.01, 0.005)
+    with pytest.raises(FemError, match=r"largest_ratio must be finite and >= 0, got -0.1"):
+        LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.002, 0.02, largest_ratio=-0.1)
+
+
+@pytest.mark.parametrize("width, within", [(5.0, 0.08), (10.0, 0.02)])
+def test_a_wide_sideways_traction_shears_the_layer_simply(width, within):
+    # A traction of 1 N along x spread over a radius of 5 or 10 thicknesses: near the axis the
+    # layer is in simple shear, u_x = q0 (z + t) / G and e_xz = q0 / (2 G), e_xx = e_yy = e_zz =
+    # 0 (q0 the traction's peak); the gap falls with the square of the thickness over the width
+    # (the traction's curvature), 7.5 % at 5, 1.7 % at 10.
+    a = width * THICKNESS
+    field = axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS, sideways=True)
+    peak, shear = 3.0 / (2.0 * np.pi * a * a), 1.0 / (2.0 * (1.0 + POISSON))
+    top = field.displacement[0, 0]
+    assert top[0] == top[2] and top[1] == 0.0  # the axis: u_theta = u_r, u_z = 0
+    assert top[0] == pytest.approx(peak * THICKNESS / shear, rel=within)
+    means = field.ball_means(RADIUS, [[0.0, 0.025], [0.01, 0.025]])
+    assert np.allclose(means[:, 0, 2], peak / (2.0 * shear), rtol=within)
+    assert np.abs(means[:, [0, 1, 2], [0, 1, 2]]).max() < 0.02 * peak / (2.0 * shear)
+    assert np.all(means[:, [0, 1], [1, 2]] == 0.0)  # no xy, yz: symmetric about the x-z plane
+
+
+def test_a_sideways_force_raises_the_largest_mean_as_the_audit_found():
+    # An independent audit (2026-12-05, its own axisymmetric FEM, quadratic elements, the exact
+    # sphere) of quadruped-foam's balls at a 1 % bound: 48.643 N normal, 1.3731 mm deep, and
+    # 17.552, 18.049 or 18.759 N sideways: 1.1487, 1.1563 and 1.1676 % (0.9976 % without).
+    law = fem.BallOnLayer(BALL, THICKNESS, YOUNG, POISSON)
+    normal = 48.643
+    a = law.contact_radius(normal)
+    field = axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS)
+    sideways = axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS, sideways=True)
+    for force, audit in ((0.0, 0.009976), (17.552, 0.011487), (18.049, 0.011563), (18.759, 0.011676)):
+        strain = normal * largest_ball_mean(field, RADIUS, a, sideways, force / normal) / YOUNG
+        assert strain == pytest.approx(audit, rel=2e-3)
+    # Pulled the other way: the mirrored field, the same largest mean.
+    ratio = 18.049 / normal
+    assert largest_ball_mean(field, RADIUS, a, sideways, -ratio) == largest_ball_mean(field, RADIUS, a, sideways, ratio)
+
+
+def test_the_sideways_table_agrees_with_fresh_fields_and_its_slopes_with_differences():
+    law = fem.BallOnLayer(BALL, THICKNESS, YOUNG, POISSON)
+    widest = law.contact_radius(law.force_limit)
+    table = LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.05 * widest, widest, largest_ratio=0.7)
+    for a, ratio in ((0.3 * widest, 0.2), (0.55 * widest, 0.45), (0.8 * widest, 0.65)):
+        fresh = largest_ball_mean(axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS), RADIUS, a,
+                                  axisymmetric_layer_field(a, THICKNESS, POISSON, RADIUS, sideways=True), ratio)
+        value, d_radius, d_square = table.per_force(a, ratio)
+        assert value == pytest.approx(fresh, rel=1e-3)
+        step = 1e-7
+        assert d_radius == pytest.approx((table.per_force(a + step, ratio)[0] - table.per_force(a - step, ratio)[0])
+                                         / (2 * step), rel=1e-5)
+        square = ratio * ratio
+        assert d_square == pytest.approx((table.per_force(a, np.sqrt(square + 1e-6))[0]
+                                          - table.per_force(a, np.sqrt(square - 1e-6))[0]) / 2e-6, rel=1e-5)
+    # More sideways force, more strain; without it, the normal force's table.
+    assert table.per_force(0.5 * widest, 0.7)[0] > table.per_force(0.5 * widest, 0.3)[0] > table.per_force(0.5 * widest)[0]
+    normal_only = LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.05 * widest, widest)
+    assert table.per_force(0.5 * widest)[0] == pytest.approx(normal_only.per_force(0.5 * widest)[0], rel=1e-3)
 
 
 def test_a_table_read_back_from_the_disk_cache_is_the_computed_one(tmp_path, monkeypatch):
