@@ -23,9 +23,10 @@ node carries a share of the ball's force, so each node's load is in its cone whe
 force is. A mesh as coarse as the contact strains too little under a ball (10 mm cells:
 2.19 % for a 20 mm mean where the converged field gives 2.60 %), so each ball's strain is
 also bounded on the layer's own field under it, converged
-(:class:`fem.LayerBallStrain`: an axisymmetric FEM of the layer, its largest mean, the
-body's own weight's largest added), one row a ball; the mesh's rows keep what that field
-leaves out (sideways forces, the other balls, where the weight strains most). The balls on one body are coupled only through the far field, which this leaves
+(:class:`fem.LayerBallStrain`: an axisymmetric FEM of the layer under the ball's normal
+force and its first harmonic under the sideways one, its largest mean, the body's own
+weight's largest added), one row a ball; the mesh's rows keep what that field leaves out
+(the other balls, where the weight strains most). The balls on one body are coupled only through the far field, which this leaves
 out: under quadruped-foam's 5 cm mat another ball 0.2 m away changes a ball's force by 0.02 %
 (an independent audit's finite-mat FEM; a half-space's Boussinesq bound, 1 % at 0.4 m, is far
 above what a layer on a rigid base passes on). `stances.verify` checks each ball's sinking against the law solved afresh
