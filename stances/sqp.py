@@ -439,12 +439,14 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
         curved = model = linearization
-        multipliers = row_multipliers(*last_qp) if last_qp is not None else None
-        if slow and multipliers is not None and violation <= _CURVATURE_PHASE:
+        multipliers = None
+        if slow and last_qp is not None and violation <= _CURVATURE_PHASE:
             curvature = curvature or ConstraintCurvature(problem.robot.model)
+            multipliers = row_multipliers(*last_qp)
             curved, model = _with_curvature(curvature, q, linearization, multipliers)
             curved_iterations += 1
-        if multipliers is not None:
+        if last_qp is not None and any(block.variable_curvature is not None for block in linearization.blocks):
+            multipliers = multipliers or row_multipliers(*last_qp)
             curved, model = _with_variable_curvature(curved, model, multipliers)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
