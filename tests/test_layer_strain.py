@@ -201,3 +201,51 @@ def test_a_table_read_back_from_the_disk_cache_is_the_computed_one(tmp_path, mon
     fresh = LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.002, 0.02)
     for a in (0.002, 0.0071, 0.02):
         assert made.per_force(a) == read.per_force(a) == fresh.per_force(a)
+
+
+def _quadrature_mean(normal, sideways, ratio, radius, distance, azimuth, depth, points=24):
+    """The mean strain over a ball centred ``distance`` from the axis at ``azimuth`` from the
+    sideways force, by Gauss-Legendre along each ring's arc of the rotated cylindrical tensor
+    (independent of the library's closed-form arc integrals, which need the plane of the forces)."""
+    s0, s1 = normal._samples(), sideways._samples()
+    r, z = s0[0], s0[1]
+    theta = normal._arcs(radius, distance, depth, r, z)
+    keep = theta > 0.0
+    e_rr, e_zz, e_tt, g_rz, weight = (x[keep] for x in s0[2:7])
+    a_rr, a_zz, a_tt, a_rz, a_rt, a_tz = (x[keep] for x in s1[2:8])
+    theta = theta[keep]
+    total, volume = np.zeros((3, 3)), 0.0
+    for x, w in zip(*np.polynomial.legendre.leggauss(points)):
+        angle, jacobian = azimuth + x * theta, w * theta
+        c, s = np.cos(angle), np.sin(angle)
+        rr, tt, zz = e_rr + ratio * a_rr * c, e_tt + ratio * a_tt * c, e_zz + ratio * a_zz * c
+        rz, rt, tz = 0.5 * (g_rz + ratio * a_rz * c), -0.5 * ratio * a_rt * s, -0.5 * ratio * a_tz * s
+        cartesian = {(0, 0): rr * c * c + tt * s * s - 2 * rt * s * c, (1, 1): rr * s * s + tt * c * c + 2 * rt * s * c,
+                     (2, 2): zz, (0, 1): (rr - tt) * s * c + rt * (c * c - s * s), (0, 2): rz * c - tz * s,
+                     (1, 2): rz * s + tz * c}
+        for (i, j), value in cartesian.items():
+            total[i, j] += np.sum(weight * value * jacobian)
+        volume += np.sum(weight * jacobian)
+    total = np.triu(total) + np.triu(total, 1).T
+    return total / volume
+
+
+def test_the_sideways_means_equal_a_quadrature_and_none_off_the_plane_of_the_forces_is_larger():
+    # A layer thinner than the averaging ball (its largest mean at the base), half the load
+    # sideways: the closed-form arc integrals equal a quadrature of the rotated tensor, and a
+    # grid of centres at every azimuth finds nothing above the search in the plane of the forces.
+    thickness, a, ratio = 0.01, 0.004, 0.5
+    normal = axisymmetric_layer_field(a, thickness, POISSON, RADIUS)
+    sideways = axisymmetric_layer_field(a, thickness, POISSON, RADIUS, sideways=True)
+    for distance, depth in ((0.0, 0.005), (0.005, 0.0), (0.012, 0.01)):
+        closed = normal.ball_means(RADIUS, [[distance, depth]])[0] + ratio * sideways.ball_means(RADIUS, [[distance, depth]])[0]
+        np.testing.assert_allclose(_quadrature_mean(normal, sideways, ratio, RADIUS, distance, 0.0, depth), closed,
+                                   atol=1e-12 * np.abs(closed).max())
+    searched = largest_ball_mean(normal, RADIUS, a, sideways, ratio)
+    largest = 0.0
+    for distance in np.linspace(0.0, a + RADIUS, 5):
+        for azimuth in np.linspace(0.0, np.pi, 5):
+            for depth in np.linspace(0.0, thickness, 3):
+                eigenvalues = np.linalg.eigvalsh(_quadrature_mean(normal, sideways, ratio, RADIUS, distance, azimuth, depth))
+                largest = max(largest, eigenvalues[-1], -eigenvalues[0])
+    assert largest <= searched * (1.0 + 1e-9)
