@@ -61,7 +61,7 @@ _SEARCH_GRID = (9, 13)
 _SEARCH_REFINEMENTS = 3
 # LayerBallStrain's table: contact radii between its ends, squared sideways ratios from 0.
 _TABLE_POINTS = 7
-_RATIO_POINTS = 5
+_RATIO_POINTS = 7
 
 
 @dataclass(frozen=True)
@@ -268,7 +268,6 @@ def axisymmetric_layer_field(contact_radius: float, thickness: float, poisson_ra
         In [0, 0.5).
     averaging_radius : float
         Metres, >= 0: the mesh is fine enough over it for the ball means of that radius.
-
     sideways : bool
         The sideways traction's field instead of the pressure's.
 
@@ -466,7 +465,7 @@ class LayerBallStrain:
 
     The table holds :func:`largest_ball_mean` of :func:`axisymmetric_layer_field` (and, with
     ``largest_ratio``, of its sideways field) at contact radii cosine-spaced from ``smallest``
-    to ``largest`` and at squared ratios evenly spaced to ``largest_ratio**2``; a cubic spline
+    to ``largest`` and at ratios evenly spaced to ``largest_ratio`` (7 of each); a cubic spline
     interpolates it (within 0.3 % of a fresh field between its points, the tests), held at
     its ends beyond them. In the squared ratio: the strain is even in the sideways force
     (a ball pulled the other way leaves the mirrored field), so smooth in its square, and its
@@ -505,7 +504,10 @@ class LayerBallStrain:
         # Cosine-spaced: the means fall fastest as the contact nears the table's widest.
         shares = 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))
         radii = np.unique(self.smallest + shares * (self.largest - self.smallest))
-        squares = np.linspace(0.0, self.largest_ratio**2, _RATIO_POINTS) if self.largest_ratio > 0.0 else np.zeros(1)
+        # Evenly spaced in the ratio (in its square the first steps are short: the strain turns
+        # there, and on a thin layer its largest mean moves between the surface and the base).
+        squares = ((self.largest_ratio * np.linspace(0.0, 1.0, _RATIO_POINTS)) ** 2 if self.largest_ratio > 0.0
+                   else np.zeros(1))
         values = _largest_means(self.thickness, self.poisson_ratio, self.averaging_radius, radii, np.sqrt(squares))
         if len(radii) == 1:
             spline = CubicSpline(squares, values[0]) if len(squares) > 1 else float(values[0, 0])
@@ -531,13 +533,22 @@ class LayerBallStrain:
 
         Returns
         -------
-        (float, float, float)
+        value : float
+            The largest mean principal strain magnitude per newton, times Young's modulus.
+        d_radius : float
+            Its derivative in the contact radius, per metre; 0 beyond the table's radii.
+        d_square : float
+            Its derivative in the squared ratio; 0 beyond ``largest_ratio`` (at it, the
+            slope from inside: a pyramid's edge has that ratio, to rounding).
         """
+        if not (np.isfinite(contact_radius) and np.isfinite(ratio)):
+            raise FemError(f"contact_radius and ratio must be finite, got {contact_radius!r} and {ratio!r}")
         a = float(np.clip(contact_radius, self.smallest, self.largest))
         top = self.largest_ratio**2
         square = float(np.clip(ratio * ratio, 0.0, top))
-        inside_a = self.smallest < contact_radius < self.largest
-        inside_s = ratio * ratio < top
+        # The table's ends count as inside (to rounding): the slope there is the one from inside.
+        inside_a = self.smallest * (1.0 - 1e-12) <= contact_radius <= self.largest * (1.0 + 1e-12)
+        inside_s = ratio * ratio <= top * (1.0 + 1e-9)
         spline, (n_radii, n_squares) = self._spline, self._sizes
         if n_radii == 1 and n_squares == 1:
             return spline, 0.0, 0.0

@@ -88,7 +88,7 @@ def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: f
 @functools.lru_cache(maxsize=64)
 def _ball_strain(law: BallOnLayer, strain_radius: float, friction: float) -> fem.LayerBallStrain:
     """The converged strain per newton of a ball on the layer, tabulated once per ball, layer,
-    averaging radius and friction coefficient (seven contact radii by five sideways ratios:
+    averaging radius and friction coefficient (seven contact radii by seven sideways ratios:
     14 axisymmetric fields, 15 s on a loaded 2-core host, then from the disk cache) over the
     contact radii the law reads, from a twentieth of its widest (below it the mean is flat in
     the radius: 0.4 % from 1.2 to 5 mm on quadruped-foam's foam), and the sideways ratios its
@@ -185,9 +185,9 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
     top = _force_limit(law, _indentation_bound(options, thickness))
     bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
-    # Normal force alone (a sideways force strains more): the largest load any stance may put there.
     friction = float(friction)
 
+    # Normal force alone (a sideways force strains more): the largest load any stance may put there.
     def excess(force):
         return _strain_on_layer(law, deformable_object, force, law.contact_radius(force), friction)[0] - bound
 
@@ -376,6 +376,15 @@ class LayerBalls:
         sideways : float
             The sideways force's magnitude, newtons, >= 0 (at most the friction coefficient
             times the normal force: the ball's pyramid).
+
+        Returns
+        -------
+        strain : float
+            The largest principal magnitude, its body's own weight's included.
+        d_normal : float
+            Per newton of normal force, the sideways force held.
+        d_square : float
+            Per N^2 of the sideways force's square.
         """
         law = self.laws[i]
         # The contact's radius at no less than a small load (its slope is infinite at none).

@@ -213,7 +213,9 @@ class PostureOptions:
         stances: 7.0 iterations on average instead of 8.5, hand-on-table 9.5
         instead of 14). False: the objective's Gauss-Newton Hessian only.
         Problems with soft prints leave it out (their rows have no second
-        derivatives); their rigid warm start uses it.
+        derivatives); their rigid warm start uses it. A ball's strain row on a
+        layer gives its curvature in its force variables to every QP whatever
+        this says (:attr:`stances.blocks.ConstraintBlock.variable_curvature`).
     """
 
     posture_weight: float = 1.0

@@ -231,11 +231,12 @@ def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dead
         if np.array_equal(reached, over_prints):
             return _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
         first = _solve_problem(problem, reached, None, max_iterations, deadline, check, creep)
-        if first.feasible or first.statistics.get("status") == _OUT_OF_TIME:
+        out_of_time = deadline is not None and time.perf_counter() >= deadline
+        if first.feasible or first.statistics.get("status") == _OUT_OF_TIME or out_of_time:
             return first
         second = _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
         statistics = dict(second.statistics, first_start={"iterations": first.iterations, "reason": first.reason})
-        return _with(second, statistics=statistics)
+        return _with(second, statistics=statistics, solve_time=first.solve_time + second.solve_time)
 
 
 def _reaches(problem) -> bool:

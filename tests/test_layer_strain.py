@@ -186,6 +186,15 @@ def test_the_sideways_table_agrees_with_fresh_fields_and_its_slopes_with_differe
         square = ratio * ratio
         assert d_square == pytest.approx((table.per_force(a, np.sqrt(square + 1e-6))[0]
                                           - table.per_force(a, np.sqrt(square - 1e-6))[0]) / 2e-6, rel=1e-5)
+    # At the table's largest ratio (a pyramid edge's, to rounding) the slope is the one from
+    # inside, not 0; beyond it the value is held and the slope 0.
+    edge = table.per_force(0.5 * widest, 0.7)[2]
+    assert edge > 0.0 and table.per_force(0.5 * widest, 0.7 * (1 + 1e-15))[2] == edge
+    assert edge == pytest.approx(table.per_force(0.5 * widest, 0.7 * (1 - 1e-9))[2], rel=1e-6)
+    assert table.per_force(0.5 * widest, 0.8)[2] == 0.0
+    assert table.per_force(0.5 * widest, 0.8)[0] == table.per_force(0.5 * widest, 0.7)[0]
+    with pytest.raises(FemError, match=r"contact_radius and ratio must be finite, got 0.005 and nan"):
+        table.per_force(0.005, float("nan"))
     # More sideways force, more strain; without it, the normal force's table.
     assert table.per_force(0.5 * widest, 0.7)[0] > table.per_force(0.5 * widest, 0.3)[0] > table.per_force(0.5 * widest)[0]
     normal_only = LayerBallStrain(THICKNESS, POISSON, RADIUS, 0.05 * widest, widest)
