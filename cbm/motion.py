@@ -205,8 +205,7 @@ class FramePlacementConstraint:
             residual, tangent = point_placement_residual(model, data, frame_id, target, 0.0)
             axes = ("x", "y", "z")
         else:
-            residual, jlog = placement_residual(data, frame_id, target)
-            tangent = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
+            residual, tangent = placement_residual(model, data, frame_id, target)
             axes = ("x", "y", "z", "roll", "pitch", "yaw")
         jacobian = np.zeros((len(axes), problem.n_step))
         jacobian[:, : model.nv] = tangent

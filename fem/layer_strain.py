@@ -110,54 +110,18 @@ class AxisymmetricField:
         samples = self._samples()
         # Only the rings some ball reaches (near the axis: the layer is twenty thicknesses wide).
         reach = (samples[0] <= centres[:, 0].max() + radius) & (samples[1] <= centres[:, 1].max() + radius)
-        if self.sideways:
-            return self._sideways_means(radius, centres, [values[reach] for values in samples])
         samples = [values[reach] for values in samples]
+        arc_sums = _sideways_arc_sums if self.sideways else _pressure_arc_sums
         out = []
         for distance, depth in centres:
-            r, z, e_rr, e_zz, e_tt, g_rz, weight = _near(samples, radius, distance, depth)
+            r, z, *strains, weight = _near(samples, radius, distance, depth)
             # Each sample is a ring; the ball holds the arc |theta| <= theta_0 of it.
             theta = self._arcs(radius, distance, depth, r, z)
-            sc = np.sin(theta) * np.cos(theta)
-            cos2, sin2, cos1 = theta + sc, theta - sc, 2.0 * np.sin(theta)
             # Sums, not BLAS dot products: a thread pool busy elsewhere made each of those 15 ms.
             volume = float(np.sum(weight * 2.0 * theta))
             if volume <= 0.0:
                 raise FemError(f"a ball of radius {radius:g} m centred {depth:g} m deep holds no part of the layer")
-            mean = np.zeros((3, 3))
-            mean[0, 0] = np.sum(weight * (e_rr * cos2 + e_tt * sin2))
-            mean[1, 1] = np.sum(weight * (e_rr * sin2 + e_tt * cos2))
-            mean[2, 2] = np.sum(weight * e_zz * 2.0 * theta)
-            mean[0, 2] = mean[2, 0] = np.sum(weight * 0.5 * g_rz * cos1)
-            out.append(mean / volume)
-        return np.array(out)
-
-    def _sideways_means(self, radius, centres, samples) -> np.ndarray:
-        """:meth:`ball_means` of a sideways field, from its samples near the centres.
-
-        With ``c = cos(theta)``, ``s = sin(theta)`` a sample's Cartesian strain is
-        ``xx = A c^3 + (B + 2 E') c s^2``, ``yy = (A - 2 E') c s^2 + B c^3``, ``zz = C c``,
-        ``xz = D c^2 + F s^2`` (xy and yz odd in theta: no part in a mean over an arc symmetric
-        about x), A..F its amplitudes (:meth:`_samples`); the arc ``|theta| <= theta_0``
-        integrates those powers exactly.
-        """
-        out = []
-        for distance, depth in centres:
-            r, z, e_rr, e_zz, e_tt, g_rz, g_rt, g_tz, weight = _near(samples, radius, distance, depth)
-            theta = self._arcs(radius, distance, depth, r, z)
-            sine, cosine = np.sin(theta), np.cos(theta)
-            cos3 = 2.0 * (sine - sine**3 / 3.0)
-            cos_sin2 = 2.0 * sine**3 / 3.0
-            cos2, sin2 = theta + sine * cosine, theta - sine * cosine
-            volume = float(np.sum(weight * 2.0 * theta))
-            if volume <= 0.0:
-                raise FemError(f"a ball of radius {radius:g} m centred {depth:g} m deep holds no part of the layer")
-            mean = np.zeros((3, 3))
-            mean[0, 0] = np.sum(weight * (e_rr * cos3 + (e_tt + g_rt) * cos_sin2))
-            mean[1, 1] = np.sum(weight * ((e_rr - g_rt) * cos_sin2 + e_tt * cos3))
-            mean[2, 2] = np.sum(weight * e_zz * 2.0 * sine)
-            mean[0, 2] = mean[2, 0] = np.sum(weight * 0.5 * (g_rz * cos2 + g_tz * sin2))
-            out.append(mean / volume)
+            out.append(arc_sums(strains, weight, theta) / volume)
         return np.array(out)
 
     @staticmethod
@@ -212,6 +176,43 @@ class AxisymmetricField:
         sampled = tuple(np.concatenate([s[k].ravel() for s in samples]) for k in range(len(samples[0])))
         object.__setattr__(self, "_sampled", sampled)
         return sampled
+
+
+def _pressure_arc_sums(strains, weight, theta) -> np.ndarray:
+    """(3, 3) the pressure's field's Cartesian strain summed over each sample ring's arc
+    ``|theta| <= theta_0`` (times its weight): ``e_rr``, ``e_tt`` turned by the arc's angle,
+    ``e_zz`` and ``g_rz`` (:meth:`AxisymmetricField._samples`)."""
+    e_rr, e_zz, e_tt, g_rz = strains
+    sc = np.sin(theta) * np.cos(theta)
+    cos2, sin2, cos1 = theta + sc, theta - sc, 2.0 * np.sin(theta)
+    sums = np.zeros((3, 3))
+    sums[0, 0] = np.sum(weight * (e_rr * cos2 + e_tt * sin2))
+    sums[1, 1] = np.sum(weight * (e_rr * sin2 + e_tt * cos2))
+    sums[2, 2] = np.sum(weight * e_zz * 2.0 * theta)
+    sums[0, 2] = sums[2, 0] = np.sum(weight * 0.5 * g_rz * cos1)
+    return sums
+
+
+def _sideways_arc_sums(strains, weight, theta) -> np.ndarray:
+    """:func:`_pressure_arc_sums` of a sideways field.
+
+    With ``c = cos(theta)``, ``s = sin(theta)`` a sample's Cartesian strain is
+    ``xx = A c^3 + (B + 2 E') c s^2``, ``yy = (A - 2 E') c s^2 + B c^3``, ``zz = C c``,
+    ``xz = D c^2 + F s^2`` (xy and yz odd in theta: no part in a mean over an arc symmetric
+    about x), A..F its amplitudes (:meth:`AxisymmetricField._samples`); the arc
+    ``|theta| <= theta_0`` integrates those powers exactly.
+    """
+    e_rr, e_zz, e_tt, g_rz, g_rt, g_tz = strains
+    sine, cosine = np.sin(theta), np.cos(theta)
+    cos3 = 2.0 * (sine - sine**3 / 3.0)
+    cos_sin2 = 2.0 * sine**3 / 3.0
+    cos2, sin2 = theta + sine * cosine, theta - sine * cosine
+    sums = np.zeros((3, 3))
+    sums[0, 0] = np.sum(weight * (e_rr * cos3 + (e_tt + g_rt) * cos_sin2))
+    sums[1, 1] = np.sum(weight * ((e_rr - g_rt) * cos_sin2 + e_tt * cos3))
+    sums[2, 2] = np.sum(weight * e_zz * 2.0 * sine)
+    sums[0, 2] = sums[2, 0] = np.sum(weight * 0.5 * (g_rz * cos2 + g_tz * sin2))
+    return sums
 
 
 def _near(samples, radius, distance, depth):

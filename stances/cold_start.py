@@ -113,8 +113,7 @@ def placement_errors(robot, scene, stance, data):
             residual, jacobian = point_placement_residual(model, data, frame_id, placement, surface.radius)
             rotational.extend([False] * 3)
         else:
-            residual, jlog = placement_residual(data, frame_id, placement)
-            jacobian = jlog @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
+            residual, jacobian = placement_residual(model, data, frame_id, placement)
             rotational.extend([False] * 3 + [True] * 3)
         residuals.append(residual)
         jacobians.append(jacobian)

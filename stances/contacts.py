@@ -77,8 +77,16 @@ def _cone_generators(friction: float, n_edges: int) -> np.ndarray:
     return edges / np.linalg.norm(edges, axis=1, keepdims=True)
 
 
-def placement_residual(data, frame_id: int, transform_print_to_world: pin.SE3):
+def placement_residual(model, data, frame_id: int, transform_print_to_world: pin.SE3):
     """Placement error of a contact frame relative to its print.
+
+    Parameters
+    ----------
+    model, data : pinocchio Model and Data
+        Frame placements and joint Jacobians computed at the iterate.
+    frame_id : int
+    transform_print_to_world : pin.SE3
+        The target frame.
 
     Returns
     -------
@@ -86,11 +94,11 @@ def placement_residual(data, frame_id: int, transform_print_to_world: pin.SE3):
         ``log6(print^-1 * frame)``: (translation in metres, rotation in
         radians), print frame. Zero when the frames coincide.
     jacobian : (6, nv) float
-        Its derivative for a tangent step (requires frame Jacobians computed).
+        Its derivative for a tangent step: ``Jlog6`` times the frame's local Jacobian.
     """
     error = transform_print_to_world.actInv(data.oMf[frame_id])
     residual = pin.log6(error).vector
-    return residual, pin.Jlog6(error)
+    return residual, pin.Jlog6(error) @ pin.getFrameJacobian(model, data, frame_id, pin.LOCAL)
 
 
 class RigidContact:
@@ -190,8 +198,7 @@ class RigidContact:
 
     def _placement(self, model, data):
         """Placement residual (6,) and its Jacobian (6, nv) at the kinematics in ``data``."""
-        residual, jlog = placement_residual(data, self.frame_id, self.print_placement)
-        return residual, jlog @ pin.getFrameJacobian(model, data, self.frame_id, pin.LOCAL)
+        return placement_residual(model, data, self.frame_id, self.print_placement)
 
     def _placement_residual(self, data) -> np.ndarray:
         """Placement residual (6,) alone, at the frame placements in ``data``."""

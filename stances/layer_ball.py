@@ -185,11 +185,9 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
     top = _force_limit(law, _indentation_bound(options, thickness))
     bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
-    friction = float(friction)
-
     # Normal force alone (a sideways force strains more): the largest load any stance may put there.
     def excess(force):
-        return _strain_on_layer(law, deformable_object, force, law.contact_radius(force), friction)[0] - bound
+        return _strain_on_layer(law, deformable_object, force, law.contact_radius(force), float(friction))[0] - bound
 
     if excess(0.0) >= 0.0:
         return 0.0

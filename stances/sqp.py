@@ -447,7 +447,8 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             curved, model = _with_curvature(curvature, q, linearization, multipliers)
             curved_iterations += 1
         if last_qp is not None and any(block.variable_curvature is not None for block in linearization.blocks):
-            multipliers = multipliers or row_multipliers(*last_qp)
+            if multipliers is None:
+                multipliers = row_multipliers(*last_qp)
             curved, model = _with_variable_curvature(curved, model, multipliers)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
