@@ -62,6 +62,7 @@ SCENES = (
     "climb-with-soft-support",
     "long-walk",
     "quadruped-foam",
+    "quadruped-soft-block",
 )
 
 #: Issue 11's targets on a quiet 2-core machine.

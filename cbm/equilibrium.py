@@ -51,7 +51,7 @@ from scipy.optimize import linprog
 
 import fem
 from stances.deformable import PrintSpec
-from stances.layer_ball import largest_ball_load, layer_thicknesses
+from stances.layer_ball import largest_ball_load, layer_sites
 from stances.problem import PostureOptions, min_normal_load
 
 __all__ = ["EquilibriumFilter", "com_distance_bounds", "soft_print_margin", "EQUILIBRIUM_IMPOSSIBLE"]
@@ -225,8 +225,8 @@ class EquilibriumFilter:
 
     def _ball_loads(self, stance) -> dict:
         """Stance index -> the largest normal load (weights) of each ball the posture solver
-        sinks by a layer's law (every print on its body a ball 1.2 thicknesses inside a
-        layer, ``ball_contact="layer"``): :func:`stances.layer_ball.largest_ball_load`."""
+        sinks by a layer's law (every print on its body a ball where the body is a layer,
+        ``ball_contact="layer"``): :func:`stances.layer_ball.largest_ball_load`."""
         if self.options.deformable_as_rigid:
             return {}
         on_body = {}  # object name -> [(stance index, its print)]
@@ -240,10 +240,10 @@ class EquilibriumFilter:
         out = {}
         for entries in on_body.values():
             body = self.scene.deformable_of_surface(entries[0][1].surface.name)
-            thicknesses = layer_thicknesses(self.robot, body, [spec for _, spec in entries], self.options)
-            for (index, spec), thickness in zip(entries, thicknesses or ()):
+            sites = layer_sites(self.robot, body, [spec for _, spec in entries], self.options)
+            for (index, spec), site in zip(entries, sites or ()):
                 radius = self.robot.surface(spec.robot_surface).radius
-                out[index] = largest_ball_load(radius, thickness, body, self.options, spec.surface.friction) / self.weight
+                out[index] = largest_ball_load(radius, site, body, self.options, spec.surface.friction) / self.weight
         return out
 
     def _print_forces(self, contact, max_load=math.inf) -> _PrintForces:

@@ -19,8 +19,18 @@ The first-order far field holds while the contact is small beside the thickness,
 low beyond: against an exact continuum solution of the same layer (a review's own ring
 solver, 2026-12-04), -0.2 % at a = 0.5 t, -0.5 % at 0.6 t (-1.0 % for nu = 0.49), -3 % at 0.9 t,
 -8 % at 1.2 t, -21 % at 1.8 t. :data:`VALID_CONTACT_SHARE` is the bound verify reads it within.
-The layer is laterally infinite: a print near a body's side face or over a non-uniform
-support is outside the formula.
+The formula's layer is laterally infinite. A free side face at distance L from the ball
+softens a box: an independent FEM (``bench/results/audit-thick-boxes-2026-12-05.md``: its own
+hexahedra refined everywhere, exact-sphere Signorini contact, within 0.02 % of this law on a
+5 cm mat; boxes 0.05, 0.15 and 0.3 m thick) found each face lowering the force by about
+``SIDE_DROP a t / L^2`` (a = sqrt(R d)), and the law times :func:`side_factor`, the product of
+those drops' complements over the four side faces, within 0.6 % of all its 20 one-face and
+centre cases (the 0.3 m cube's centre -1.0 % at 2.5 mm, a corner +1.4 %) from L = 5.7 a and
+L = t / 6. Past half a thickness the true drop decays faster than the formula's, which then
+takes up to 0.7 point too much (a force low, a sinking deep): 1.32 against 0.66 % one
+thickness from a 5 cm mat's side at 2.5 mm. Tested for t <= 0.3 m (t / a <= 54) only: the
+formula cannot hold as t grows without bound (the quarter-space limit). A support that is
+not a box on a held base is outside it.
 """
 
 from __future__ import annotations
@@ -34,12 +44,26 @@ from scipy.optimize import brentq
 
 from .errors import FemError
 
-__all__ = ["VALID_CONTACT_SHARE", "BallOnLayer", "check_positive", "check_poisson_ratio", "sphere_on_half_space",
-           "layer_correction", "sphere_on_layer_force"]
+__all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAREST_SIDE_SHARE", "BallOnLayer", "check_positive",
+           "check_poisson_ratio", "sphere_on_half_space", "layer_correction", "side_factor", "sphere_on_layer_force"]
 
 #: Contact radius over thickness up to which the first-order far field is within 0.5 % of the
 #: continuum (nu = 0.4; 1 % at nu = 0.49), always low (module docstring).
 VALID_CONTACT_SHARE = 0.6
+
+#: A free side face at distance L lowers a ball's force by about ``SIDE_DROP sqrt(R d) t / L^2``
+#: (module docstring): 2.2 / 3.5 % by the formula against 2.2 / 3.4 % by the audit's FEM 0.075 m
+#: from the side of a 0.3 m cube, 1 / 2.5 mm deep.
+SIDE_DROP = 0.075
+
+#: Contact radii a side face stands away at least for :func:`side_factor` (the audit tested
+#: 5.7 and more; on the 5 cm mat the formula held within 0.2 point at 2.8 contact radii and
+#: 1.4 point at 1.4): a ball's table ends at the contact radius of its nearest side over this.
+SIDE_REACH = 5.0
+
+#: Share of the thickness a side face stands away at least for :func:`side_factor`: the
+#: audit's nearest, t / L = 6 (nearer, a box's side is no longer a small change of a layer).
+NEAREST_SIDE_SHARE = 1.0 / 6.0
 
 # Contact radii the force's search spans, in thicknesses: past 3 the formula is 40 % low and
 # more, and a search over a thin layer's whole sphere radius built quadratures of thousands of
@@ -189,7 +213,45 @@ def layer_correction(a, thickness: float, effective_modulus: float, poisson_rati
     return np.reshape(values, np.shape(a)) if np.ndim(a) else values[0]
 
 
-def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_modulus: float, poisson_ratio: float):
+def check_side_distances(side_distances, thickness: float) -> tuple:
+    """``side_distances`` as a tuple of floats; :class:`FemError` naming a distance that is not
+    finite or is under :data:`NEAREST_SIDE_SHARE` of ``thickness``."""
+    distances = tuple(float(d) for d in np.ravel(np.asarray(side_distances, dtype=float)))
+    for distance in distances:
+        if not (np.isfinite(distance) and distance >= NEAREST_SIDE_SHARE * thickness):
+            raise FemError(f"a side face {distance!r} m from the ball is nearer than a sixth of the layer's thickness "
+                           f"({NEAREST_SIDE_SHARE * thickness:g} m), where the side correction was not tested: "
+                           "contact there needs the mesh (node contact)")
+    return distances
+
+
+def side_factor(depth, radius: float, thickness: float, side_distances=()):
+    """How much a box's free side faces lower a ball's force on its layer at a depth:
+    ``prod_i (1 - SIDE_DROP sqrt(R d) t / L_i^2)`` (module docstring).
+
+    Parameters
+    ----------
+    depth : float or array
+        The ball's sinking, metres, >= 0.
+    radius, thickness : float
+        The ball's radius R and the layer's thickness t, metres.
+    side_distances : sequence of float
+        Metres from the print's centre to each free side face (none: a laterally infinite layer).
+
+    Returns
+    -------
+    float or array
+        In (0, 1]; 1 at no depth or with no side.
+    """
+    contact = np.sqrt(radius * np.asarray(depth, dtype=float))
+    factor = np.ones_like(contact)
+    for distance in side_distances:
+        factor = factor * (1.0 - SIDE_DROP * contact * thickness / (distance * distance))
+    return factor if np.ndim(factor) else float(factor)
+
+
+def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_modulus: float, poisson_ratio: float,
+                          side_distances=()):
     """The force a rigid sphere pressed ``depth`` into an elastic layer needs, and its
     contact radius (the continuum's, frictionless; module docstring).
 
@@ -203,13 +265,19 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
         Pascals, > 0.
     poisson_ratio : float
         In [0, 0.5).
+    side_distances : sequence of float, optional
+        Metres from the print's centre to each free side face of a box, each at least
+        :data:`NEAREST_SIDE_SHARE` of the thickness: the force is the layer's times
+        :func:`side_factor` (none: a laterally infinite layer).
 
     Returns
     -------
     force, contact_radius : float
         Newtons and metres (0 and 0 at depth 0). Within 0.5 % of the continuum while the
         contact radius is at most :data:`VALID_CONTACT_SHARE` of the thickness, low and
-        falling further below it past that (module docstring): read it there only.
+        falling further below it past that (module docstring): read it there only; with
+        sides, within 0.6 % of the audit's FEM while the nearest is :data:`SIDE_REACH`
+        contact radii away or more. The contact radius is the layer's.
 
     Raises
     ------
@@ -221,6 +289,7 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
     if not (np.isfinite(depth) and depth >= 0.0):
         raise FemError(f"depth must be finite and >= 0 metres, got {depth!r}")
     check_poisson_ratio(poisson_ratio)
+    side_distances = check_side_distances(side_distances, thickness)
     if depth >= min(radius, thickness):
         raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m into a layer {thickness:g} m "
                        "thick: that is its radius or the layer's thickness or more")
@@ -236,7 +305,8 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
         raise FemError(f"a sphere of radius {radius:g} m pressed {depth:g} m into a layer {thickness:g} m thick "
                        f"touches it over more than {_SEARCHED_SHARE:g} thicknesses, beyond the formula")
     a = brentq(residual, low, high, xtol=1e-15, rtol=1e-13)
-    return float(sphere_on_half_space(a, radius, modulus)[1]), float(a)
+    force = float(sphere_on_half_space(a, radius, modulus)[1])
+    return force * side_factor(depth, radius, thickness, side_distances), float(a)
 
 
 @dataclass(frozen=True)
@@ -248,10 +318,12 @@ class BallOnLayer:
     The law is parametric in the contact radius a (``depth(a)``, ``F(a)``, module
     docstring): on a grid of a it is exact, and between the grid's points a cubic spline
     interpolates ``H(v) = depth / F^(2/3)`` in ``v = F^(1/3)``, smooth and finite at 0 where
-    Hertz's ``depth = (3 F / (4 E* sqrt(R)))^(2/3)`` holds. The table ends at the contact
-    radius :data:`VALID_CONTACT_SHARE` of the thickness, or 0.7 of the ball's radius if
-    smaller: :attr:`force_limit`; past it the sinking goes on along the last slope, a smooth
-    extension for a solver's trial steps, not the law (bound the force there).
+    Hertz's ``depth = (3 F / (4 E* sqrt(R)))^(2/3)`` holds (the sides' factor, 1 - O(v) there,
+    keeps it so). The table ends at the contact radius :data:`VALID_CONTACT_SHARE` of the
+    thickness, 0.7 of the ball's radius or the nearest side's distance over
+    :data:`SIDE_REACH`, whichever is smallest: :attr:`force_limit`; past it the sinking goes
+    on along the last slope, a smooth extension for a solver's trial steps, not the law
+    (bound the force there).
 
     Parameters
     ----------
@@ -261,6 +333,10 @@ class BallOnLayer:
         Pascals, > 0.
     poisson_ratio : float
         In [0, 0.5).
+    side_distances : tuple of float, optional
+        Metres from the print's centre to each free side face of a box, each at least
+        :data:`NEAREST_SIDE_SHARE` of the thickness (:func:`side_factor`); none: a laterally
+        infinite layer.
 
     Examples
     --------
@@ -273,16 +349,21 @@ class BallOnLayer:
     thickness: float
     young_modulus: float
     poisson_ratio: float
+    side_distances: tuple = ()
     _table: tuple = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         check_positive(radius=self.radius, thickness=self.thickness, young_modulus=self.young_modulus)
         check_poisson_ratio(self.poisson_ratio)
+        sides = check_side_distances(self.side_distances, self.thickness)
+        object.__setattr__(self, "side_distances", sides)
         modulus = self.young_modulus / (1.0 - self.poisson_ratio**2)
-        largest = min(VALID_CONTACT_SHARE * self.thickness, _TABLE_RADIUS_SHARE * self.radius)
+        largest = min(VALID_CONTACT_SHARE * self.thickness, _TABLE_RADIUS_SHARE * self.radius,
+                      min(sides, default=np.inf) / SIDE_REACH)
         radii = largest * 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))[1:]
         law = np.array([_approach(a, self.radius, self.thickness, modulus, self.poisson_ratio) for a in radii])
-        depths, forces = law[:, 0], law[:, 1]
+        depths = law[:, 0]
+        forces = law[:, 1] * side_factor(depths, self.radius, self.thickness, sides)
         if not (np.all(np.diff(depths) > 0.0) and np.all(np.diff(forces) > 0.0)):
             raise FemError(f"a ball of radius {self.radius:g} m on a layer {self.thickness:g} m thick: its law is "
                            "not monotone on the table's contact radii; the formula does not hold there")
@@ -291,7 +372,8 @@ class BallOnLayer:
         h = np.concatenate([[hertz], depths / forces ** (2.0 / 3.0)])
         # The contact radius for a field's pressure: a / F^(1/3), Hertz's (3 R / (4 E*))^(1/3) at 0.
         r = np.concatenate([[(3.0 * self.radius / (4.0 * modulus)) ** (1.0 / 3.0)], radii / v[1:]])
-        object.__setattr__(self, "_table", (CubicSpline(v, h), CubicSpline(v, r), float(forces[-1]), float(depths[-1])))
+        object.__setattr__(self, "_table", (CubicSpline(v, h), CubicSpline(v, r), float(forces[-1]), float(depths[-1]),
+                                            float(largest)))
 
     @property
     def force_limit(self) -> float:
@@ -302,6 +384,11 @@ class BallOnLayer:
     def depth_limit(self) -> float:
         """Metres: the sinking at :attr:`force_limit`."""
         return self._table[3]
+
+    @property
+    def largest_contact_radius(self) -> float:
+        """Metres: the contact radius at :attr:`force_limit`, the widest the law is read for."""
+        return self._table[4]
 
     def sinking(self, force: float) -> tuple[float, float]:
         """The ball's sinking under a normal force, and its derivative.
@@ -319,7 +406,7 @@ class BallOnLayer:
             d depth / d force, m/N; infinite at 0 (Hertz: depth ~ F^(2/3)), so a caller's
             Jacobian should hold the force above 0.
         """
-        spline, _, limit, depth_at_limit = self._table
+        spline, _, limit, depth_at_limit, _ = self._table
         if force <= 0.0:
             return 0.0, np.inf
         if force > limit:

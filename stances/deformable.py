@@ -107,12 +107,12 @@ import scipy.spatial
 
 import fem
 from fem.dense import block_diagonal_product
-from fem.layer_contact import VALID_CONTACT_SHARE
+from fem.layer_contact import SIDE_REACH, VALID_CONTACT_SHARE
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
 from .errors import StanceError
-from .layer_ball import layer_thickness
+from .layer_ball import layer_site
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
@@ -1379,34 +1379,38 @@ class DeformableContact:
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
-        face, at least 1.2 thicknesses from the sides) and the contact radius is at most
-        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness (within 0.5 % of the
-        continuum there). Never raises: a ball sunk past what the formula takes gets none."""
+        face, a sixth of the thickness from the sides or more, whose softening the estimate
+        counts) and the contact radius is at most
+        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and a fifth of the
+        nearest side's distance (within 0.6 % of an independent FEM there). Never raises: a
+        ball sunk past what the formula takes gets none."""
         material = self.deformable_object.body.material
         for index in self.point_prints.tolist():
-            thickness = self._layer_under(index)
-            if thickness is None:
+            site = self._layer_under(index)
+            if site is None:
                 continue
+            thickness, sides = site
+            widest = min(VALID_CONTACT_SHARE * thickness, min(sides) / SIDE_REACH)
             rows = self.print_of_node == index
             placement = self.print_placements[index]
             sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ placement.rotation[:, 2])
             radius = self.ball_radii[index]
             # Hertz's contact radius sqrt(R d) is under the layer's: past the share, no estimate.
-            if not 0.0 < sinking < radius or np.sqrt(radius * sinking) > VALID_CONTACT_SHARE * thickness:
+            if not 0.0 < sinking < radius or np.sqrt(radius * sinking) > widest:
                 continue
             estimate, contact = fem.sphere_on_layer_force(sinking, radius, thickness, material.young_modulus,
-                                                          material.poisson_ratio)
-            if contact > VALID_CONTACT_SHARE * thickness:
+                                                          material.poisson_ratio, sides)
+            if contact > widest:
                 continue
             label = self.prints[index].label
             measures[f"ball force estimate under {label}"] = estimate
             measures[f"ball force error under {label}"] = float(normal[rows].sum()) / estimate - 1.0
 
     def _layer_under(self, index: int):
-        """The body's thickness under point print ``index`` if the body is a layer there,
-        else None (:func:`stances.layer_ball.layer_thickness`; kept)."""
+        """The body's thickness and side distances under point print ``index`` if the body is
+        a layer there, else None (:func:`stances.layer_ball.layer_site`; kept)."""
         if index not in self._layers:
-            self._layers[index] = layer_thickness(self.deformable_object, self.print_placements[index].homogeneous)
+            self._layers[index] = layer_site(self.deformable_object, self.print_placements[index].homogeneous)
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

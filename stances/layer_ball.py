@@ -2,11 +2,13 @@
 
 A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
 mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
-where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a layer
-(a box held on its base, the ball on the opposite face, at least 1.2 thicknesses from its
-sides: :data:`SIDE_CLEARANCE`) the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid sphere on an
-elastic layer bonded to a rigid base, within 0.5 % of an exact solution while the
-contact's radius is at most 0.6 of the thickness. Each ball is then a point contact
+where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a box held
+on its base, the ball on the opposite face at least a sixth of the thickness from its sides
+(:func:`layer_site`), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
+sphere on an elastic layer bonded to a rigid base (within 0.5 % of an exact solution while
+the contact's radius is at most 0.6 of the thickness), times the softening of the box's free
+side faces (:func:`fem.layer_contact.side_factor`: within 0.6 % of an independent FEM of mats,
+a wide 0.15 m box and a 0.3 m cube, the cube's centre -1.0 %). Each ball is then a point contact
 (:class:`stances.contacts.PointContact`) whose normal placement gives way by the layer's
 sinking under its normal force, the compliance form of contact:
 
@@ -15,7 +17,8 @@ sinking under its normal force, the compliance form of contact:
 (as E grows, delta -> 0: the rigid point contact). Its force is a friction pyramid's, as on
 a rigid support; the pyramid lies inside the Coulomb cone, and so does every node's load
 (below). The force is bounded where the law stops holding: the contact's radius at 0.6 of
-the thickness (or 0.7 of the ball's radius) and the sinking at the indentation bound.
+the thickness (0.7 of the ball's radius, a fifth of the nearest side's distance) and the
+sinking at the indentation bound.
 
 The body's field (the pictures, the files, the strain bound) is the mesh's under the
 ball's Hertzian pressure, as consistent nodal loads (:func:`fem.hertz_load_shares`): each
@@ -46,14 +49,14 @@ import scipy.linalg
 from scipy.optimize import brentq
 
 import fem
-from fem.layer_contact import VALID_CONTACT_SHARE, BallOnLayer
+from fem.layer_contact import NEAREST_SIDE_SHARE, BallOnLayer
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["SIDE_CLEARANCE", "LayerBalls", "largest_ball_load", "layer_thickness", "layer_thicknesses"]
+__all__ = ["LayerBalls", "largest_ball_load", "layer_site", "layer_sites"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -72,17 +75,18 @@ _STRAIN_REACH = 2.0
 _STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's error, a tenth of it)
 _SMALLEST_STRAIN_SHARE = 0.05  # the converged strain's table starts at this share of the widest contact
 
-#: Thicknesses a ball stands inside a layer's side faces for its law: a free side softens the
-#: layer near it (an independent FEM of quadruped-foam's mat, 2026-12-04, 2.5 mm deep: -0.66 % at
-#: one thickness, -0.13 % at 1.5, -5.4 % at 0.5; 1 mm deep: -0.37, -0.07, -3.2 %): 1.2 keeps the
-#: law within 0.5 % of the finite mat (``bench/results/audit-layer-sides-2026-12-04.md``).
-SIDE_CLEARANCE = 1.2
+@functools.lru_cache(maxsize=256)
+def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: float,
+         side_distances: tuple = ()) -> BallOnLayer:
+    """The layer's law, tabulated once per ball, layer and place on it (6 ms; a planner asks
+    for it at every solve, at the few places its print grid has on a body)."""
+    return BallOnLayer(radius, thickness, young_modulus, poisson_ratio, side_distances)
 
 
-@functools.lru_cache(maxsize=64)
-def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: float) -> BallOnLayer:
-    """The layer's law, tabulated once per ball and layer (6 ms; a planner asks for it at every solve)."""
-    return BallOnLayer(radius, thickness, young_modulus, poisson_ratio)
+def _without_sides(law: BallOnLayer) -> BallOnLayer:
+    """The same ball and layer, laterally infinite: what the strain table is read for (the
+    field under a ball is the layer's; one table a ball and layer, not one a place)."""
+    return _law(law.radius, law.thickness, law.young_modulus, law.poisson_ratio)
 
 
 @functools.lru_cache(maxsize=64)
@@ -92,7 +96,8 @@ def _ball_strain(law: BallOnLayer, strain_radius: float, friction: float) -> fem
     14 axisymmetric fields, 15 s on a loaded 2-core host, then from the disk cache) over the
     contact radii the law reads, from a twentieth of its widest (below it the mean is flat in
     the radius: 0.4 % from 1.2 to 5 mm on quadruped-foam's foam), and the sideways ratios its
-    friction pyramid allows."""
+    friction pyramid allows. ``law`` without sides (:func:`_without_sides`): its widest contact
+    is the widest any place on the layer reads."""
     widest = law.contact_radius(law.force_limit)
     return fem.LayerBallStrain(law.thickness, law.poisson_ratio, strain_radius, _SMALLEST_STRAIN_SHARE * widest, widest,
                                largest_ratio=friction)
@@ -128,7 +133,7 @@ def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_
     force's magnitude; and its derivatives in F (Q held, the contact radius moving ``d_radius``
     a newton) and in Q^2. The ratio is taken at no less than ``floor`` newtons of F (a
     pyramid's force has ``Q <= mu F``: none at no load)."""
-    table = _ball_strain(law, float(deformable_object.strain_radius), float(friction))
+    table = _ball_strain(_without_sides(law), float(deformable_object.strain_radius), float(friction))
     base = max(float(force), float(floor), 1e-12)
     square = (sideways / base) ** 2
     per_force, d_radius_term, d_square = table.per_force(contact_radius, float(np.sqrt(square)))
@@ -137,10 +142,9 @@ def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_
     return value, d_force / law.young_modulus, force * d_square / (base * base * law.young_modulus)
 
 
-def layer_thicknesses(robot, deformable_object, prints, options) -> tuple | None:
-    """Each print's layer thickness where a soft body's prints sink by the layer's law
-    (``ball_contact="layer"``: ball feet only, each on the body where it is a layer,
-    :func:`layer_thickness`), else None.
+def layer_sites(robot, deformable_object, prints, options) -> tuple | None:
+    """Each print's :func:`layer_site` where a soft body's prints sink by the layer's law
+    (``ball_contact="layer"``: ball feet only, each where the body is a layer), else None.
 
     Parameters
     ----------
@@ -152,17 +156,17 @@ def layer_thicknesses(robot, deformable_object, prints, options) -> tuple | None
     """
     if options.ball_contact != "layer":
         return None
-    thicknesses = []
+    sites = []
     for spec in prints:
-        thickness = (layer_thickness(deformable_object, spec.transform_print_to_world)
-                     if robot.surface(spec.robot_surface).is_point else None)
-        if thickness is None:
+        site = (layer_site(deformable_object, spec.transform_print_to_world)
+                if robot.surface(spec.robot_surface).is_point else None)
+        if site is None:
             return None
-        thicknesses.append(thickness)
-    return tuple(thicknesses)
+        sites.append(site)
+    return tuple(sites)
 
 
-def largest_ball_load(radius: float, thickness: float, deformable_object, options, friction: float) -> float:
+def largest_ball_load(radius: float, site: tuple, deformable_object, options, friction: float) -> float:
     """Newtons: the largest normal force a ball carries on a layer by its law: within the
     law's table and indentation bound (:attr:`LayerBalls.force_limits`) and with its strain on
     the layer's converged field within the object's bound (:meth:`LayerBalls.ball_strain`,
@@ -171,8 +175,11 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
 
     Parameters
     ----------
-    radius, thickness : float
-        The ball's and the layer's, metres.
+    radius : float
+        The ball's, metres.
+    site : (float, tuple of float)
+        The layer's thickness and its side faces' distances under the print, metres
+        (:func:`layer_site`).
     deformable_object : environments.DeformableObject
     options : stances.PostureOptions
         ``max_indentation`` / ``indentation_limit``.
@@ -181,7 +188,8 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
         spans the sideways ratios it allows).
     """
     material = deformable_object.body.material
-    law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio))
+    thickness, sides = site
+    law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio), sides)
     top = _force_limit(law, _indentation_bound(options, thickness))
     bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
@@ -194,13 +202,15 @@ def largest_ball_load(radius: float, thickness: float, deformable_object, option
     return top if excess(top) <= 0.0 else float(brentq(excess, 0.0, top, xtol=1e-9 * top))
 
 
-def layer_thickness(deformable_object, transform_print_to_world) -> float | None:
-    """The body's thickness under a print if the body is a layer there, else None.
+def layer_site(deformable_object, transform_print_to_world) -> tuple | None:
+    """The body's thickness under a print and the distances of its side faces, if the body
+    is a layer there (a box on a held base), else None.
 
     A layer: a box (its tets fill its bounding box), the print's normal along one of its
     axes and the print on that face, the nodes of the opposite face exactly the body's
-    fixed nodes (a held base), and the print at least :data:`SIDE_CLEARANCE` thicknesses inside
-    the box's faces along the other two axes (the continuum's layer is laterally infinite).
+    fixed nodes (a held base), and the print at least
+    :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness inside the box's faces
+    along the other two axes (nearer, the side correction of the layer's law was not tested).
 
     Parameters
     ----------
@@ -210,8 +220,8 @@ def layer_thickness(deformable_object, transform_print_to_world) -> float | None
 
     Returns
     -------
-    float or None
-        Metres.
+    (float, tuple of 4 float) or None
+        The thickness and the four side faces' distances from the print's origin, metres.
     """
     body = deformable_object.body
     to_world = np.asarray(deformable_object.transform_body_to_world, dtype=float)
@@ -228,9 +238,9 @@ def layer_thickness(deformable_object, transform_print_to_world) -> float | None
     thickness = float(extent[axis])
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
-    inside = min(min(origin[k] - low[k], high[k] - origin[k]) for k in range(3) if k != axis)
-    if on_face and np.array_equal(base, body.fixed_mask) and inside >= (SIDE_CLEARANCE - 1e-9) * thickness:
-        return thickness
+    sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
+    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= NEAREST_SIDE_SHARE * thickness:
+        return thickness, sides
     return None
 
 
@@ -241,7 +251,7 @@ class LayerBalls:
     ----------
     robot : stances.Robot
     deformable_object : environments.DeformableObject
-        The layer: :func:`layer_thickness` must hold under every print.
+        The layer: :func:`layer_site` must hold under every print.
     prints : sequence of stances.deformable.PrintSpec
         Point feet only, in stance order.
     options : stances.PostureOptions
@@ -266,15 +276,16 @@ class LayerBalls:
         for spec in self.prints:
             if not robot.surface(spec.robot_surface).is_point:
                 raise StanceError(f"{spec.label}: only ball feet sink by a layer's law; a polygon presses the mesh")
-            thickness = layer_thickness(deformable_object, spec.transform_print_to_world)
-            if thickness is None:
+            site = layer_site(deformable_object, spec.transform_print_to_world)
+            if site is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  f"(a box on its held base, the print {SIDE_CLEARANCE:g} thicknesses inside its sides)")
+                                  f"(a box on its held base, the print a sixth of its thickness inside its sides)")
+            thickness, sides = site
             ball = PointContact(robot, spec.robot_surface, spec.transform_print_to_world, spec.surface.friction,
                                 spec.label, surface=spec.surface)
             balls.append(ball)
             thicknesses.append(thickness)
-            laws.append(_law(ball.radius, thickness, float(material.young_modulus), float(material.poisson_ratio)))
+            laws.append(_law(ball.radius, thickness, float(material.young_modulus), float(material.poisson_ratio), sides))
         self.balls, self.laws, self.thicknesses = tuple(balls), tuple(laws), tuple(thicknesses)
         self.frame_ids = tuple(b.frame_id for b in balls)
         self._last_loads = None  # (forces' bytes, ball_loads of them)
@@ -636,7 +647,7 @@ class LayerBalls:
             return reasons
         try:
             expected, contact = fem.sphere_on_layer_force(sinking, ball.radius, law.thickness, law.young_modulus,
-                                                          law.poisson_ratio)
+                                                          law.poisson_ratio, law.side_distances)
         except fem.FemError as error:
             return reasons + [f"{label}: the layer's law does not hold at its sinking ({error})"]
         measures[f"layer force of {label}"] = expected
@@ -647,9 +658,10 @@ class LayerBalls:
         if abs(normal - expected) > allowed:
             reasons.append(f"{label} carries {normal:.6g} N where its layer's law gives {expected:.6g} N at its "
                            f"sinking of {sinking:.4g} m")
-        if contact > VALID_CONTACT_SHARE * law.thickness:
+        if contact > (1.0 + 1e-6) * law.largest_contact_radius:
             reasons.append(f"{label}'s contact radius {contact:.3g} m is past the law's validity "
-                           f"({VALID_CONTACT_SHARE:g} of the layer's thickness)")
+                           f"({law.largest_contact_radius:.3g} m: 0.6 of the layer's thickness, 0.7 of the ball's "
+                           f"radius or a fifth of its nearest side's distance, whichever is least)")
         # Its strain on the layer's converged field (the mesh's under a ball is too low).
         obj = self.deformable_object
         strain = _strain_on_layer(law, obj, max(normal, 0.0), contact, ball.friction, sideways=tangential,

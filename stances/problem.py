@@ -30,7 +30,7 @@ from environments.errors import SceneError
 from .collision import KEPT_DISTANCE, CollisionChecker, contact_exclusions
 from .contacts import PointContact, RigidContact
 from .deformable import LAWS, DeformableContact, PrintSpec
-from .layer_ball import LayerBalls, layer_thicknesses
+from .layer_ball import LayerBalls, layer_sites
 from .errors import ConfigurationError, StanceError
 from .statics import PointLoads, static_torque_derivatives, static_torques
 from .terms import (
@@ -132,7 +132,7 @@ class PostureOptions:
     ball_contact : {"layer", "nodes"}
         Deformable supports, how a ball foot (a point foot) presses one: ``"layer"``
         (default) where the body is a layer under every ball on it and only balls press
-        it (a box held on its base, each print 1.2 thicknesses inside its sides), each ball
+        it (a box held on its base, each print a sixth of its thickness inside its sides), each ball
         sinks by the continuum's law of a sphere on a layer (:mod:`stances.layer_ball`),
         and elsewhere as ``"nodes"``: the mesh's nodes touch the ball's profile where it
         reaches them (its force moves with where the ball stands against the nodes when
@@ -897,7 +897,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         contacts = [
             c if isinstance(c, RigidContact) else
             LayerBalls(robot, c, deformable_prints[c.name], options)
-            if layer_thicknesses(robot, c, deformable_prints[c.name], options) is not None
+            if layer_sites(robot, c, deformable_prints[c.name], options) is not None
             else DeformableContact(robot, c, deformable_prints[c.name], options)
             for c in contacts
         ]

@@ -19,7 +19,7 @@ from environments import Contact, ContactPrint, Stance
 from stances import StanceError
 from stances.deformable import PrintSpec
 from fem.layer_strain import largest_ball_mean
-from stances.layer_ball import LayerBalls, layer_thickness
+from stances.layer_ball import LayerBalls, layer_site
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve
 from stances.results import PointForce
@@ -62,12 +62,14 @@ def test_each_ball_carries_the_laws_force_at_its_sinking(anymal, front_feet):
     data = anymal.model.createData()
     pin.framesForwardKinematics(anymal.model, data, result.q)
     material = scenario.scene.deformable_objects[0].body.material
-    for ball, force in zip(layer[0].balls, _normal_forces(result)):
+    for ball, law, force in zip(layer[0].balls, layer[0].laws, _normal_forces(result)):
         centre = data.oMf[ball.frame_id].translation
         sinking = ball.radius - (centre[2] - 0.05)  # the foam's top at rest is z = 0.05 m
         assert 1e-3 < sinking < 3e-3
+        # The front feet 0.1 m from the foam's front side, 0.3 m from its others.
+        np.testing.assert_allclose(sorted(law.side_distances), [0.1, 0.3, 0.3, 0.7], atol=1e-9)
         expected, _ = fem.sphere_on_layer_force(sinking, ball.radius, 0.05, material.young_modulus,
-                                                material.poisson_ratio)
+                                                material.poisson_ratio, law.side_distances)
         # The solver's table against the law solved afresh: 1e-7 m of sinking is 5e-3 N here.
         assert force == pytest.approx(expected, abs=5e-3)
     # The robot's weight is carried: the four feet's vertical forces add up to it.
@@ -245,7 +247,8 @@ def test_the_equilibrium_filter_refuses_a_ball_its_layer_cannot_carry_within_the
     body = soft.scene.deformable_objects[0]
     problem = build_problem(anymal, soft.scene, stance, PostureOptions(**LAYER))
     layer = next(c for c in problem.contacts if c.kind == "layer")
-    largest = largest_ball_load(layer.balls[0].radius, 0.05, body, PostureOptions(), layer.balls[0].friction)
+    site = (layer.thicknesses[0], layer.laws[0].side_distances)
+    largest = largest_ball_load(layer.balls[0].radius, site, body, PostureOptions(), layer.balls[0].friction)
     assert layer.ball_strain(0, largest)[0] == pytest.approx((1.0 - 2e-3) * body.strain_limit, rel=1e-8)
     # At 3e6 Pa the stance passes, each ball then bounded by its law's table or indentation bound.
     firm = foam()
@@ -256,20 +259,77 @@ def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robo
     scenario = foam()
     body = scenario.scene.deformable_objects[0]
     top = scenario.scene.surface("foam_top")
-    # The foam is 5 cm thick: a print 5 cm from its side is outside the law (a free side
-    # softens it: -0.66 % there, 2.5 mm deep), 6 cm inside it.
-    assert layer_thickness(body, top.transform_print_to_world(-0.15, 0.2, 0.0)) is None
-    assert layer_thickness(body, top.transform_print_to_world(-0.14, 0.2, 0.0)) == pytest.approx(0.05)
-    assert layer_thickness(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0)) is None
+    # The foam (0.4 x 1.0 x 0.05 m, its top centred) is a layer a sixth of its thickness
+    # (8.3 mm) inside its sides and more, each side's distance given for the law's softening.
+    thickness, sides = layer_site(body, top.transform_print_to_world(-0.19, 0.2, 0.0))
+    assert thickness == pytest.approx(0.05)
+    np.testing.assert_allclose(sides, [0.01, 0.39, 0.7, 0.3], atol=1e-12)
+    assert layer_site(body, top.transform_print_to_world(-0.195, 0.2, 0.0)) is None
+    assert layer_site(body, top.transform_print_to_world(0.0, 0.495, 0.0)) is None
+    assert layer_site(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0)) is None
     inside = build_problem(anymal, scenario.scene, scenario.stance("front-feet-on-foam"), PostureOptions(**LAYER))
     assert [c.kind for c in inside.contacts].count("layer") == 1
     # A sole is no ball: refused by the model itself (the builder keeps the nodes for it).
     sole = PrintSpec("left_sole", top, top.transform_print_to_world(0.0, 0.2, 0.0), "left_sole on foam_top")
     with pytest.raises(StanceError, match="left_sole on foam_top: only ball feet sink by a layer's law"):
         LayerBalls(robot, body, [sole], PostureOptions(**LAYER))
-    beside = PrintSpec("left_front_foot", top, top.transform_print_to_world(-0.16, 0.2, 0.0), "near the side")
+    beside = PrintSpec("left_front_foot", top, top.transform_print_to_world(-0.195, 0.2, 0.0), "near the side")
     with pytest.raises(StanceError, match="near the side: foam is not a layer under this print"):
         LayerBalls(anymal, body, [beside], PostureOptions(**LAYER))
+
+
+def test_near_a_side_a_ball_sinks_by_the_law_softened_by_it(anymal):
+    """Front feet 3 cm (0.6 thickness) inside the foam's front side: the law with that side's
+    softening (1.2 % at 2.5 mm there; the mesh's nodes before 2026-12-05), which verify
+    solves afresh; the side-free law would have each ball carry more at the same sinking."""
+    scenario = foam()
+    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.17, 0.2, 0.0)),
+                     Contact("right_front_foot", ContactPrint("foam_top", -0.17, -0.2, 0.0)),
+                     Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
+                     Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
+    problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
+    (layer,) = [c for c in problem.contacts if c.kind == "layer"]
+    assert [min(law.side_distances) for law in layer.laws] == [pytest.approx(0.03)] * 2
+    # Its table ends at a contact radius of a fifth of that distance, 6 mm.
+    assert [law.largest_contact_radius for law in layer.laws] == [pytest.approx(0.006)] * 2
+    result = solve(anymal, scenario.scene, stance, **LAYER)
+    assert result.feasible, result.reason
+    check = verify(anymal, scenario.scene, stance, result, **LAYER)
+    assert check.ok, check.reasons
+    material = scenario.scene.deformable_objects[0].body.material
+    for ball, law, force in zip(layer.balls, layer.laws, _normal_forces(result)):
+        sinking = check.measures[f"sinking of {ball.label}"]
+        softened, _ = fem.sphere_on_layer_force(sinking, ball.radius, 0.05, material.young_modulus,
+                                                material.poisson_ratio, law.side_distances)
+        free, _ = fem.sphere_on_layer_force(sinking, ball.radius, 0.05, material.young_modulus, material.poisson_ratio)
+        assert force == pytest.approx(softened, abs=5e-3)
+        assert softened / free == pytest.approx(fem.layer_contact.side_factor(sinking, ball.radius, 0.05,
+                                                                              law.side_distances), rel=1e-12)
+        assert softened < 0.99 * free
+
+
+def test_a_thick_block_and_a_cube_are_layers_under_balls_inside_a_sixth_of_their_thickness(anymal):
+    """The law reaches any box held on its base (before 2026-12-05: 1.2 thicknesses inside its
+    sides, none of a 0.3 m cube): a 12 cm block 3 cm from its side, a 0.3 m cube at its centre
+    and 6 cm from a side; 4 cm from the cube's side (under 5 cm) is the mesh's."""
+    for size, x, thickness in (([0.4, 1.0, 0.12], -0.17, 0.12), ([0.3, 0.3, 0.3], 0.0, 0.3),
+                               ([0.3, 0.3, 0.3], -0.09, 0.3), ([0.3, 0.3, 0.3], -0.11, None)):
+        text = environments.builtin_scenario_path("quadruped-foam").read_text()
+        text = re.sub(r"  front-feet-on-foam:.*?(?=^start:)", "", text, flags=re.S | re.M)  # prints off a cube's top
+        text = text.replace("size: [0.4, 1.0, 0.05]", f"size: {size}").replace(
+            "center: [0.75, 0.0, 0.025]", f"center: [0.75, 0.0, {size[2] / 2}]").replace("resolution: 0.01", "resolution: 0.05")
+        scenario = environments.load_string(text, name="block")
+        body = scenario.scene.deformable_objects[0]
+        site = layer_site(body, scenario.scene.surface("foam_top").transform_print_to_world(x, 0.0, 0.0))
+        if thickness is None:
+            assert site is None
+            continue
+        assert site[0] == pytest.approx(thickness) and min(site[1]) == pytest.approx(0.5 * size[0] + x)
+        stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", x, 0.0, 0.0)),
+                         Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
+                         Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
+        kinds = [c.kind for c in build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER)).contacts]
+        assert kinds.count("layer") == 1 and "deformable" not in kinds
 
 
 def test_an_unknown_ball_contact_is_refused_with_the_choices():

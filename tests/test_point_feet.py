@@ -420,17 +420,19 @@ def test_verify_sets_each_balls_force_beside_a_continuous_layers_at_its_depth(an
     for i, spec in enumerate(soft.prints):
         centre = data.oMf[anymal.frame_id(anymal.surface(spec.robot_surface).frame)].translation
         sinking = spec.transform_print_to_world[2, 3] + FOOT_RADIUS - centre[2]
-        estimate, contact = fem.sphere_on_layer_force(sinking, FOOT_RADIUS, 0.05, material.young_modulus, material.poisson_ratio)
+        thickness, sides = soft._layer_under(i)  # the foam's thickness, the print's distances to its sides
+        estimate, contact = fem.sphere_on_layer_force(sinking, FOOT_RADIUS, thickness, material.young_modulus,
+                                                      material.poisson_ratio, sides)
         assert verification.measures[f"ball force estimate under {spec.label}"] == pytest.approx(estimate, rel=1e-9)
         carried = forces[soft.print_of_node == i, 2].sum()
         assert verification.measures[f"ball force error under {spec.label}"] == pytest.approx(carried / estimate - 1, abs=1e-9)
         assert -0.3 < carried / estimate - 1 < -0.05 and contact < 0.6 * 0.05
-    # A print nearer the foam's side than its thickness is outside the layer's formula.
+    # A print nearer the foam's side than a sixth of its thickness is outside the layer's formula.
     placement = soft.print_placements[0]
     try:
         soft._layers.clear()
-        soft.print_placements[0] = pin.SE3(placement.rotation, placement.translation + np.array([0.0, 0.26, 0.0]))  # 4 cm from y = 0.5
-        assert soft._layer_under(0) is None and soft._layer_under(1) == pytest.approx(0.05)
+        soft.print_placements[0] = pin.SE3(placement.rotation, placement.translation + np.array([0.0, 0.295, 0.0]))  # 5 mm from y = 0.5
+        assert soft._layer_under(0) is None and soft._layer_under(1)[0] == pytest.approx(0.05)
     finally:
         soft.print_placements[0] = placement
         soft._layers.clear()
