@@ -326,6 +326,8 @@ class PrintContactSystem:
         self._kept = kept
         self._factors = OrderedDict()
         self._inverse = None  # C^-1 in node frames, (3p, 3p), computed on the first low-rank factorisation
+        self._layout = None  # the _ModeLayout of the modes last linearised
+        self._infinite_friction = bool(np.isinf(mu).any())
 
     def solve(self, displacements, initial_modes=None, initial_directions=None) -> PrintContact:
         """The contact state under indenter motions U, modes found (see :func:`solve_print_contact`)."""
@@ -375,20 +377,22 @@ class PrintContactSystem:
 
     def _system(self, modes, directions, gains):
         """LU factor and right-hand-side blocks of the linearised law (kept when no node slips)."""
-        slipping = bool(np.any(modes == SLIP))
-        key = modes.tobytes()
+        if self._layout is None or self._layout.key != modes.tobytes():
+            self._layout = _mode_layout(modes)
+        layout = self._layout
+        slipping, key = bool(layout.nodes.size), layout.key
         if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
-        law, rhs_blocks = _mode_rows(modes, directions, gains, self.mu, self.scale)
-        entry = (self._factor(modes, law), rhs_blocks)
+        law, rhs_blocks = _mode_rows(modes, directions, gains, self.mu, self.scale, layout)
+        entry = (self._factor(law), rhs_blocks)
         if not slipping:
             self._factors[key] = entry
             if len(self._factors) > self._kept:
                 self._factors.popitem(last=False)
         return entry
 
-    def _factor(self, modes, law):
+    def _factor(self, law):
         """A factorisation of a linearised law's matrix (C with the rows of ``law``, a
         :class:`_LawRows`, replaced): low rank where few rows differ from C.
 
@@ -399,7 +403,7 @@ class PrintContactSystem:
         the same bits.
         """
         n = self.c_local.shape[0]
-        if not np.any(modes == SLIP) or law.rows.size > _LOW_RANK_ROWS * n:
+        if not law.normal.size or law.rows.size > _LOW_RANK_ROWS * n:  # no slip, or too many rows
             return _DenseFactor(_replace_rows(self.c_local, law))
         if self._inverse is None:
             self._inverse = spd_inverse(self.c_local, "the print's compliance")
@@ -429,14 +433,15 @@ class PrintContactSystem:
         """
         gains = np.zeros(self.n_nodes)
         for iteration in range(1, _MAX_ITERATIONS + 1):
-            if np.isinf(self.mu[modes == SLIP]).any():
+            if self._infinite_friction and np.isinf(self.mu[modes == SLIP]).any():
                 # Slipping needs |t| = mu n: with mu = inf no such state (the law's
                 # rows would hold inf); the caller says so.
                 return None
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
             new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
-            if np.array_equal(new_modes, modes) and _slip_settled(phi, r, self.scale, new_modes, self.mu):
+            if np.array_equal(new_modes, modes) and _slip_settled(phi, r, self.scale, new_modes, self.mu,
+                                                                  new_directions):
                 # Linearised at the answer itself: L below is the exact Jacobian.
                 system = self._system(new_modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, new_modes, new_directions, system, phi, r)
@@ -685,7 +690,65 @@ class _LawRows:
         return out
 
 
-def _mode_rows(modes, directions, gains, mu, scale):
+@dataclass(frozen=True, eq=False)
+class _ModeLayout:
+    """What a linearised law takes from the modes alone: the integer parts of its
+    :class:`_LawRows`, the slipping nodes, and the right-hand side's blocks but the
+    slipping nodes' own.
+
+    A contact solve meets the same modes again and again (the Newton steps while only
+    the slip directions move, the polishing step, the next linearisation's solve: 611
+    of the 734 laws of the built-in soft stances' solves had the modes of the one
+    before), so :class:`PrintContactSystem` keeps the last layout.
+
+    Attributes
+    ----------
+    key : bytes
+        The modes' bytes.
+    nodes : (k,) int
+        The slipping nodes.
+    rows, lifted_dofs, lifted, tangential, normal, at
+        As :class:`_LawRows`.
+    blocks : (p, 3, 3) float, read-only
+        The identity at every node that does not lift off, 0 at those that do.
+    """
+
+    key: bytes
+    nodes: np.ndarray
+    rows: np.ndarray
+    lifted_dofs: np.ndarray
+    lifted: np.ndarray
+    tangential: np.ndarray
+    normal: np.ndarray
+    at: np.ndarray
+    blocks: np.ndarray
+
+
+def _mode_layout(modes) -> _ModeLayout:
+    """The :class:`_ModeLayout` of (p,) int modes."""
+    p = modes.shape[0]
+    lifted, slipping = modes == LIFT, modes == SLIP
+    rows = np.flatnonzero(~_compliance_rows(modes))
+    blocks = np.zeros((p, 3, 3))
+    blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
+    blocks.setflags(write=False)
+    nodes = np.flatnonzero(slipping)
+    lifted_dofs = np.flatnonzero(np.repeat(lifted, 3))
+    tangential = 3 * nodes[:, None] + np.arange(2)  # (k, 2)
+    return _ModeLayout(
+        key=modes.tobytes(),
+        nodes=nodes,
+        rows=rows,
+        lifted_dofs=lifted_dofs,
+        lifted=np.searchsorted(rows, lifted_dofs),
+        tangential=tangential,
+        normal=3 * nodes + 2,
+        at=np.searchsorted(rows, tangential.ravel()).reshape(len(nodes), 2),
+        blocks=blocks,
+    )
+
+
+def _mode_rows(modes, directions, gains, mu, scale, layout=None):
     """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames),
     the matrix being C with a few rows replaced (:func:`_replace_rows` forms it).
 
@@ -693,7 +756,7 @@ def _mode_rows(modes, directions, gains, mu, scale):
     ``r_n = 0`` and ``phi_t = mu phi_n d(tau)``, ``tau = phi_t - s r_t``, linearised
     about the iterate's direction ``d`` with gain ``k = mu phi_n / |tau|``: the exact
     (semismooth) Newton step, which is linear in (phi, U) because the law is
-    positively homogeneous.
+    positively homogeneous. ``layout``: the modes' :class:`_ModeLayout`, if known.
 
     Returns
     -------
@@ -703,27 +766,22 @@ def _mode_rows(modes, directions, gains, mu, scale):
     blocks : (p, 3, 3) float
         The right-hand side's blocks.
     """
-    p = modes.shape[0]
-    lifted, slipping = modes == LIFT, modes == SLIP
-    rows = np.flatnonzero(~_compliance_rows(modes))
-    blocks = np.zeros((p, 3, 3))
-    blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
-    nodes = np.flatnonzero(slipping)
+    layout = _mode_layout(modes) if layout is None else layout
+    nodes = layout.nodes
+    blocks = layout.blocks.copy()
     d = directions[nodes]  # (k, 2)
     outer = np.einsum("ki,kj->kij", d, d)
     weight = gains[nodes] * 0.5 * (scale[nodes, 0] + scale[nodes, 1])  # k s per node
     projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
     own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
     blocks[nodes, :2, :2] = projected
-    lifted_dofs = np.flatnonzero(np.repeat(lifted, 3))
-    tangential = 3 * nodes[:, None] + np.arange(2)  # (k, 2)
     law = _LawRows(
-        rows=rows,
-        lifted_dofs=lifted_dofs,
-        lifted=np.searchsorted(rows, lifted_dofs),
-        tangential=tangential,
-        normal=3 * nodes + 2,
-        at=np.searchsorted(rows, tangential.ravel()).reshape(len(nodes), 2),
+        rows=layout.rows,
+        lifted_dofs=layout.lifted_dofs,
+        lifted=layout.lifted,
+        tangential=layout.tangential,
+        normal=layout.normal,
+        at=layout.at,
         projected=projected,
         own=own,
         friction=mu[nodes][:, None] * d,
@@ -782,17 +840,23 @@ def _update_modes(phi, r, scale, mu):
     return modes, directions, gains
 
 
-def _slip_settled(phi, r, scale, modes, mu) -> bool:
+def _slip_settled(phi, r, scale, modes, mu, directions=None) -> bool:
     """Whether every slipping node's friction is ``mu phi_n`` along its trial direction (to 1e-10 of the largest force).
 
     With the modes from that same trial (``|tau| > mu phi_n``) this is Coulomb's
     slip: on the bound, against the relative motion ``r_t = -(|tau| - mu phi_n) / s * tau / |tau|``.
+    ``directions``: the (p, 2) trial directions :func:`_update_modes` read off these
+    ``phi`` and ``r`` with these modes (the same numbers: a node slips there only where
+    ``|tau| > 0``), else computed here.
     """
     slipping = modes == SLIP
     if not slipping.any():
         return True
-    tau = _trial(phi, r, scale)[slipping]
-    size = np.hypot(tau[:, 0], tau[:, 1])
-    direction = tau / np.where(size > 0.0, size, 1.0)[:, None]
+    if directions is None:
+        tau = _trial(phi, r, scale)[slipping]
+        size = np.hypot(tau[:, 0], tau[:, 1])
+        direction = tau / np.where(size > 0.0, size, 1.0)[:, None]
+    else:
+        direction = directions[slipping]
     residual = phi[slipping, :2] - (mu[slipping] * phi[slipping, 2])[:, None] * direction
     return bool(np.abs(residual).max() <= 1e-10 * max(float(np.abs(phi).max()), 1e-300))

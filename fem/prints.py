@@ -68,6 +68,13 @@ def nodes_in_polygon(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) ->
     on_plane = np.abs(rel @ normal) <= tolerance
     candidates, rel = candidates[on_plane], rel[on_plane]
     p = rel @ basis  # (n, 2)
+    # Only nodes within the polygon's bounding box, widened by twice the tolerance, can
+    # be inside or near its boundary: the tests below, of every node against every edge,
+    # then run on a print's nodes rather than on the whole face's (15 of 1,968 surface
+    # nodes for a palm on hand-on-cube's cube: 0.66 ms a print before). Each node's
+    # numbers are its own, so the answer is the same.
+    near = np.all((p >= v.min(axis=0) - 2.0 * tolerance) & (p <= v.max(axis=0) + 2.0 * tolerance), axis=1)
+    candidates, p = candidates[near], p[near]
     a, b = v, np.roll(v, -1, axis=0)
     # Crossing-number test against every edge at once: (n, k) arrays.
     px, py = p[:, :1], p[:, 1:]

@@ -108,7 +108,8 @@ def _force_limit(law: BallOnLayer, depth: float) -> float:
     """Newtons: the largest force the law is read for with the sinking bounded by ``depth``."""
     if law.depth_limit <= depth:
         return law.force_limit
-    return fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio)[0]
+    return fem.sphere_on_layer_force(depth, law.radius, law.thickness, law.young_modulus, law.poisson_ratio,
+                                     law.side_distances)[0]
 
 
 # Each body's _UnitStrains by its balls' prints, laws and bounds (LayerBalls._unit_strains),

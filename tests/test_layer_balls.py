@@ -290,8 +290,12 @@ def test_near_a_side_a_ball_sinks_by_the_law_softened_by_it(anymal):
     problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
     (layer,) = [c for c in problem.contacts if c.kind == "layer"]
     assert [min(law.side_distances) for law in layer.laws] == [pytest.approx(0.03)] * 2
-    # Its table ends at a contact radius of a fifth of that distance, 6 mm.
+    # Its table ends at a contact radius of a fifth of that distance, 6 mm; an indentation
+    # bound shallower than that ends the force where the softened law sinks the ball to it.
     assert [law.largest_contact_radius for law in layer.laws] == [pytest.approx(0.006)] * 2
+    shallow = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER, max_indentation=5e-4))
+    (bounded,) = [c for c in shallow.contacts if c.kind == "layer"]
+    assert [law.sinking(limit)[0] for law, limit in zip(bounded.laws, bounded.force_limits)] == [pytest.approx(5e-4)] * 2
     result = solve(anymal, scenario.scene, stance, **LAYER)
     assert result.feasible, result.reason
     check = verify(anymal, scenario.scene, stance, result, **LAYER)
