@@ -19,7 +19,7 @@ from environments import Contact, ContactPrint, Stance
 from stances import StanceError
 from stances.deformable import PrintSpec
 from fem.layer_strain import largest_ball_mean
-from stances.layer_ball import LayerBalls, layer_site
+from stances.layer_ball import LayerBalls, _strain_on_layer, _without_sides, layer_site
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve
 from stances.results import PointForce
@@ -310,6 +310,40 @@ def test_near_a_side_a_ball_sinks_by_the_law_softened_by_it(anymal):
         assert softened / free == pytest.approx(fem.layer_contact.side_factor(sinking, ball.radius, 0.05,
                                                                               law.side_distances), rel=1e-12)
         assert softened < 0.99 * free
+
+
+def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with_its_derivatives(anymal):
+    """3 cm from the foam's side, a ball's strain is the layer's field over the sides'
+    softening at its contact radius (a free side strains the body more under the same force;
+    an audit's FEM of a 12 cm block: 1.9-5.0 % more where the force's softening is 2.7-7.4 %),
+    and its derivatives in the normal force and the sideways force's square are their finite
+    differences."""
+    scenario = foam()
+    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.17, 0.2, 0.0)),
+                     Contact("right_front_foot", ContactPrint("foam_top", -0.1, -0.2, 0.0)),
+                     Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
+                     Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
+    (layer,) = [c for c in build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER)).contacts
+                if c.kind == "layer"]
+    body = scenario.scene.deformable_objects[0]
+    law = layer.laws[0]
+    force, sideways = 30.0, 6.0
+    near = layer.ball_strain(0, force, sideways)[0] - body.largest_strain_at_rest
+    # The same ball's field, read at the same contact radius on the laterally infinite layer.
+    contact = law.contact_radius(force)
+    unsoftened = _strain_on_layer(_without_sides(law), body, force, contact, layer.balls[0].friction,
+                                  sideways=sideways, floor=layer.slope_floor)[0] - body.largest_strain_at_rest
+    softening = fem.layer_contact.side_softening(contact, 0.05, law.side_distances)[0]
+    assert near == pytest.approx(unsoftened / softening, rel=1e-12) and softening < 0.98
+    for f in (0.2, 30.0, 90.0):
+        value, d_normal, d_square = layer.ball_strain(0, f, 0.2 * f)
+        step = 1e-6 * f
+        numeric = (layer.ball_strain(0, f + step, 0.2 * f)[0] - layer.ball_strain(0, f - step, 0.2 * f)[0]) / (2 * step)
+        assert d_normal == pytest.approx(numeric, rel=1e-5)
+        q2 = (0.2 * f) ** 2
+        numeric = (layer.ball_strain(0, f, np.sqrt(q2 * (1 + 1e-6)))[0]
+                   - layer.ball_strain(0, f, np.sqrt(q2 * (1 - 1e-6)))[0]) / (2e-6 * q2)
+        assert d_square == pytest.approx(numeric, rel=1e-5)
 
 
 def test_a_thick_block_and_a_cube_are_layers_under_balls_inside_a_sixth_of_their_thickness(anymal):

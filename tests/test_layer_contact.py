@@ -232,6 +232,17 @@ def test_near_a_boxs_sides_the_law_gives_an_independent_fems_force(width, length
         assert abs(free / converged - 1) > abs(force / converged - 1)
 
 
+@pytest.mark.parametrize("contact", [1e-4, 5e-3, 2e-2])
+def test_the_sides_softening_slope_is_its_finite_difference(contact):
+    factor, slope = fem.layer_contact.side_softening(contact, 0.12, SIDES)
+    assert factor == fem.layer_contact.side_factor(contact**2 / 0.031, 0.031, 0.12, SIDES)
+    step = 1e-6  # metres: the factor is a polynomial in the radius, of the sides' degree
+    numeric = (fem.layer_contact.side_softening(contact + step, 0.12, SIDES)[0]
+               - fem.layer_contact.side_softening(contact - step, 0.12, SIDES)[0]) / (2 * step)
+    assert slope == pytest.approx(numeric, rel=1e-7) and slope < 0.0
+    assert fem.layer_contact.side_softening(contact, 0.12) == (1.0, 0.0)
+
+
 def test_the_sides_softening_fades_as_they_recede_and_sums_at_a_corner():
     depth, t = 0.0025, 0.05
     layer = sphere_on_layer_force(depth, 0.031, t, E, NU)[0]
