@@ -44,7 +44,8 @@ from scipy.optimize import brentq
 
 from .errors import FemError
 
-__all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAREST_SIDE_SHARE", "BallOnLayer", "check_positive",
+__all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAREST_SIDE_SHARE", "BallOnLayer", "widest_contact",
+           "check_positive",
            "check_poisson_ratio", "sphere_on_half_space", "layer_correction", "side_factor", "side_softening",
            "sphere_on_layer_force"]
 
@@ -57,10 +58,12 @@ VALID_CONTACT_SHARE = 0.6
 #: from the side of a 0.3 m cube, 1 / 2.5 mm deep.
 SIDE_DROP = 0.075
 
-#: Contact radii a side face stands away at least for :func:`side_factor` (the audit tested
-#: 5.7 and more; on the 5 cm mat the formula held within 0.2 point at 2.8 contact radii and
-#: 1.4 point at 1.4): a ball's table ends at the contact radius of its nearest side over this.
-SIDE_REACH = 5.0
+#: Contact radii a side face stands away at least for :func:`side_factor` (the thick-box audit
+#: tested 5.7 and more, a 12 cm block's audit 5.0 (-0.27 %); on the 5 cm mat the formula held
+#: within 0.2 point at 2.8 contact radii and 1.4 point at 1.4): a ball's table ends at the
+#: contact radius of its nearest side over this, and :func:`sphere_on_layer_force` refuses a
+#: deeper ball.
+SIDE_REACH = 2.8
 
 #: Share of the thickness a side face stands away at least for :func:`side_factor`: the
 #: audit's nearest, t / L = 6 (nearer, a box's side is no longer a small change of a layer).
@@ -214,12 +217,19 @@ def layer_correction(a, thickness: float, effective_modulus: float, poisson_rati
     return np.reshape(values, np.shape(a)) if np.ndim(a) else values[0]
 
 
+def widest_contact(radius: float, thickness: float) -> float:
+    """Metres: the widest contact radius a ball's law is read for on a laterally infinite
+    layer, :data:`VALID_CONTACT_SHARE` of the thickness or 0.7 of the ball's radius (the exact
+    profile's approach grows without bound as the contact nears the ball's radius)."""
+    return min(VALID_CONTACT_SHARE * thickness, _TABLE_RADIUS_SHARE * radius)
+
+
 def check_side_distances(side_distances, thickness: float) -> tuple:
     """``side_distances`` as a tuple of floats; :class:`FemError` naming a distance that is not
     finite or is under :data:`NEAREST_SIDE_SHARE` of ``thickness``."""
     distances = tuple(float(d) for d in np.ravel(np.asarray(side_distances, dtype=float)))
     for distance in distances:
-        if not (np.isfinite(distance) and distance >= NEAREST_SIDE_SHARE * thickness):
+        if not (np.isfinite(distance) and distance >= (NEAREST_SIDE_SHARE - 1e-9) * thickness):
             raise FemError(f"a side face {distance!r} m from the ball is nearer than a sixth of the layer's thickness "
                            f"({NEAREST_SIDE_SHARE * thickness:g} m), where the side correction was not tested: "
                            "contact there needs the mesh (node contact)")
@@ -242,7 +252,10 @@ def side_factor(depth, radius: float, thickness: float, side_distances=()):
     Returns
     -------
     float or array
-        In (0, 1]; 1 at no depth or with no side.
+        1 at no depth or with no side, less as the ball sinks; above 0.7 while the contact
+        is :data:`SIDE_REACH` times narrower than the nearest side's distance and that is at
+        least :data:`NEAREST_SIDE_SHARE` of the thickness (the formula's range: past it the
+        factor falls on, to 0 and below).
     """
     return side_softening(np.sqrt(radius * np.asarray(depth, dtype=float)), thickness, side_distances)[0]
 
@@ -310,13 +323,19 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
     ------
     FemError
         On a bad argument; a depth of the sphere's radius or the layer's thickness or more;
-        a contact wider than three thicknesses, where the formula is 40 % low or worse.
+        a contact wider than three thicknesses, where the formula is 40 % low or worse; with
+        sides, a contact (``sqrt(R d)``) wider than the nearest side's distance over
+        :data:`SIDE_REACH`.
     """
     check_positive(radius=radius, thickness=thickness, young_modulus=young_modulus)
     if not (np.isfinite(depth) and depth >= 0.0):
         raise FemError(f"depth must be finite and >= 0 metres, got {depth!r}")
     check_poisson_ratio(poisson_ratio)
     side_distances = check_side_distances(side_distances, thickness)
+    if side_distances and np.sqrt(radius * depth) > min(side_distances) / SIDE_REACH:
+        raise FemError(f"a ball {depth:g} m deep (contact radius about {np.sqrt(radius * depth):.3g} m) is within "
+                       f"{SIDE_REACH:g} contact radii of a side face {min(side_distances):g} m away: the side "
+                       "correction does not hold there")
     if depth >= min(radius, thickness):
         raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m into a layer {thickness:g} m "
                        "thick: that is its radius or the layer's thickness or more")
@@ -385,8 +404,7 @@ class BallOnLayer:
         sides = check_side_distances(self.side_distances, self.thickness)
         object.__setattr__(self, "side_distances", sides)
         modulus = self.young_modulus / (1.0 - self.poisson_ratio**2)
-        largest = min(VALID_CONTACT_SHARE * self.thickness, _TABLE_RADIUS_SHARE * self.radius,
-                      min(sides, default=np.inf) / SIDE_REACH)
+        largest = min(widest_contact(self.radius, self.thickness), min(sides, default=np.inf) / SIDE_REACH)
         radii = largest * 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))[1:]
         law = np.array([_approach(a, self.radius, self.thickness, modulus, self.poisson_ratio) for a in radii])
         depths = law[:, 0]

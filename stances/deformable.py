@@ -329,7 +329,7 @@ class DeformableContact:
         node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.ball_radii = {}  # print index -> its ball's radius, metres, for point feet
-        self._layers = {}  # print index -> the layer's thickness under it or None (_layer_under)
+        self._layers = {}  # print index -> (the layer's thickness, its sides' distances) under it or None (_layer_under)
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
@@ -1379,7 +1379,7 @@ class DeformableContact:
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
-        face, a sixth of the thickness from the sides or more, whose softening the estimate
+        face, far enough from the sides for the law (:func:`stances.layer_ball.layer_site`), whose softening the estimate
         counts) and the contact radius is at most
         :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and a fifth of the
         nearest side's distance (within 0.6 % of an independent FEM there). Never raises: a
@@ -1410,7 +1410,8 @@ class DeformableContact:
         """The body's thickness and side distances under point print ``index`` if the body is
         a layer there, else None (:func:`stances.layer_ball.layer_site`; kept)."""
         if index not in self._layers:
-            self._layers[index] = layer_site(self.deformable_object, self.print_placements[index].homogeneous)
+            self._layers[index] = layer_site(self.deformable_object, self.print_placements[index].homogeneous,
+                                             self.ball_radii[index])
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

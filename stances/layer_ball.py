@@ -3,8 +3,8 @@
 A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
 mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
 where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a box held
-on its base, the ball on the opposite face at least a sixth of the thickness from its sides
-(:func:`layer_site`), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
+on its base, the ball on the opposite face inside its sides by a sixth of the thickness and 2.8
+times its widest contact (:func:`layer_site`), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
 sphere on an elastic layer bonded to a rigid base (within 0.5 % of an exact solution while
 the contact's radius is at most 0.6 of the thickness), times the softening of the box's free
 side faces (:func:`fem.layer_contact.side_factor`: within 0.6 % of an independent FEM of mats,
@@ -17,7 +17,7 @@ sinking under its normal force, the compliance form of contact:
 (as E grows, delta -> 0: the rigid point contact). Its force is a friction pyramid's, as on
 a rigid support; the pyramid lies inside the Coulomb cone, and so does every node's load
 (below). The force is bounded where the law stops holding: the contact's radius at 0.6 of
-the thickness (0.7 of the ball's radius, a fifth of the nearest side's distance) and the
+the thickness (0.7 of the ball's radius, the nearest side's distance over 2.8) and the
 sinking at the indentation bound.
 
 The body's field (the pictures, the files, the strain bound) is the mesh's under the
@@ -50,7 +50,7 @@ import scipy.linalg
 from scipy.optimize import brentq
 
 import fem
-from fem.layer_contact import NEAREST_SIDE_SHARE, BallOnLayer, side_softening
+from fem.layer_contact import NEAREST_SIDE_SHARE, SIDE_REACH, BallOnLayer, side_softening, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PointContact
@@ -170,8 +170,8 @@ def layer_sites(robot, deformable_object, prints, options) -> tuple | None:
         return None
     sites = []
     for spec in prints:
-        site = (layer_site(deformable_object, spec.transform_print_to_world)
-                if robot.surface(spec.robot_surface).is_point else None)
+        surface = robot.surface(spec.robot_surface)
+        site = layer_site(deformable_object, spec.transform_print_to_world, surface.radius) if surface.is_point else None
         if site is None:
             return None
         sites.append(site)
@@ -214,21 +214,28 @@ def largest_ball_load(radius: float, site: tuple, deformable_object, options, fr
     return top if excess(top) <= 0.0 else float(brentq(excess, 0.0, top, xtol=1e-9 * top))
 
 
-def layer_site(deformable_object, transform_print_to_world) -> tuple | None:
-    """The body's thickness under a print and the distances of its side faces, if the body
-    is a layer there (a box on a held base), else None.
+def layer_site(deformable_object, transform_print_to_world, radius: float) -> tuple | None:
+    """The body's thickness under a ball's print and the distances of its side faces, if the
+    body is a layer there for the ball (a box on a held base), else None.
 
     A layer: a box (its tets fill its bounding box), the print's normal along one of its
     axes and the print on that face, the nodes of the opposite face exactly the body's
-    fixed nodes (a held base), and the print at least
-    :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness inside the box's faces
-    along the other two axes (nearer, the side correction of the layer's law was not tested).
+    fixed nodes (a held base), and the print inside the box's faces along the other two axes
+    by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (nearer, the
+    sides' softening was not tested) and :data:`fem.layer_contact.SIDE_REACH` times the
+    widest contact the law is read for (:func:`fem.layer_contact.widest_contact`: 61 mm for
+    ANYmal's 31 mm ball on any layer 36 mm thick or more), so that no side cuts the law's
+    table short: nearer, the law would bound the ball's force below what the mesh's nodes
+    carry (a review, 2026-12-05: with the table cut at the nearest side over 5, 19 N 2.5 cm
+    from a 5 cm mat's side, where ANYmal's front feet carry 63 N; over 2.8, 22 N at 1.5 cm).
 
     Parameters
     ----------
     deformable_object : environments.DeformableObject
     transform_print_to_world : (4, 4) float
         The print frame (z: the surface's outward normal), world.
+    radius : float
+        The ball's, metres.
 
     Returns
     -------
@@ -251,7 +258,8 @@ def layer_site(deformable_object, transform_print_to_world) -> tuple | None:
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= NEAREST_SIDE_SHARE * thickness:
+    nearest = max(NEAREST_SIDE_SHARE * thickness, SIDE_REACH * widest_contact(radius, thickness))
+    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * nearest:
         return thickness, sides
     return None
 
@@ -288,13 +296,14 @@ class LayerBalls:
         for spec in self.prints:
             if not robot.surface(spec.robot_surface).is_point:
                 raise StanceError(f"{spec.label}: only ball feet sink by a layer's law; a polygon presses the mesh")
-            site = layer_site(deformable_object, spec.transform_print_to_world)
-            if site is None:
-                raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  f"(a box on its held base, the print a sixth of its thickness inside its sides)")
-            thickness, sides = site
             ball = PointContact(robot, spec.robot_surface, spec.transform_print_to_world, spec.surface.friction,
                                 spec.label, surface=spec.surface)
+            site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius)
+            if site is None:
+                raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
+                                  f"(a box on its held base, the print inside its sides by a sixth of its thickness "
+                                  f"and {SIDE_REACH:g} times the ball's widest contact)")
+            thickness, sides = site
             balls.append(ball)
             thicknesses.append(thickness)
             laws.append(_law(ball.radius, thickness, float(material.young_modulus), float(material.poisson_ratio), sides))

@@ -132,7 +132,7 @@ class PostureOptions:
     ball_contact : {"layer", "nodes"}
         Deformable supports, how a ball foot (a point foot) presses one: ``"layer"``
         (default) where the body is a layer under every ball on it and only balls press
-        it (a box held on its base, each print a sixth of its thickness inside its sides), each ball
+        it (a box held on its base, each print far enough inside its sides: :func:`stances.layer_ball.layer_site`), each ball
         sinks by the continuum's law of a sphere on a layer (:mod:`stances.layer_ball`),
         and elsewhere as ``"nodes"``: the mesh's nodes touch the ball's profile where it
         reaches them (its force moves with where the ball stands against the nodes when

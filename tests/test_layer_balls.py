@@ -259,14 +259,25 @@ def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robo
     scenario = foam()
     body = scenario.scene.deformable_objects[0]
     top = scenario.scene.surface("foam_top")
-    # The foam (0.4 x 1.0 x 0.05 m, its top centred) is a layer a sixth of its thickness
-    # (8.3 mm) inside its sides and more, each side's distance given for the law's softening.
-    thickness, sides = layer_site(body, top.transform_print_to_world(-0.19, 0.2, 0.0))
+    # The foam (0.4 x 1.0 x 0.05 m, its top centred) is a layer for ANYmal's 31 mm ball 2.8
+    # times its widest contact (0.7 R: 60.8 mm) inside its sides and more, each side's
+    # distance given for the law's softening; nearer, the sides would cut the law short.
+    radius = anymal.surface("left_front_foot").radius
+    thickness, sides = layer_site(body, top.transform_print_to_world(-0.139, 0.2, 0.0), radius)
     assert thickness == pytest.approx(0.05)
-    np.testing.assert_allclose(sides, [0.01, 0.39, 0.7, 0.3], atol=1e-12)
-    assert layer_site(body, top.transform_print_to_world(-0.195, 0.2, 0.0)) is None
-    assert layer_site(body, top.transform_print_to_world(0.0, 0.495, 0.0)) is None
-    assert layer_site(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0)) is None
+    np.testing.assert_allclose(sides, [0.061, 0.339, 0.7, 0.3], atol=1e-12)
+    assert layer_site(body, top.transform_print_to_world(-0.14, 0.2, 0.0), radius) is None
+    assert layer_site(body, top.transform_print_to_world(0.0, 0.44, 0.0), radius) is None
+    # A ball of 5 mm is a layer's much nearer its sides: a sixth of the thickness then binds.
+    assert layer_site(body, top.transform_print_to_world(-0.19, 0.2, 0.0), 0.005)[1][0] == pytest.approx(0.01)
+    assert layer_site(body, top.transform_print_to_world(-0.193, 0.2, 0.0), 0.005) is None
+    assert layer_site(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0), radius) is None
+    # 1.5 cm from the side the law, cut short by it, would bound the ball to 22 N, under the 63 N
+    # ANYmal's front feet carry there on the nodes (a review, 2026-12-05): the nodes press it.
+    cut = fem.BallOnLayer(radius, 0.05, body.body.material.young_modulus, body.body.material.poisson_ratio,
+                          (0.015, 0.385, 0.7, 0.3))
+    assert cut.force_limit < 25.0
+    assert layer_site(body, top.transform_print_to_world(-0.185, 0.2, 0.0), radius) is None
     inside = build_problem(anymal, scenario.scene, scenario.stance("front-feet-on-foam"), PostureOptions(**LAYER))
     assert [c.kind for c in inside.contacts].count("layer") == 1
     # A sole is no ball: refused by the model itself (the builder keeps the nodes for it).
@@ -279,20 +290,20 @@ def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robo
 
 
 def test_near_a_side_a_ball_sinks_by_the_law_softened_by_it(anymal):
-    """Front feet 3 cm (0.6 thickness) inside the foam's front side: the law with that side's
-    softening (1.2 % at 2.5 mm there; the mesh's nodes before 2026-12-05), which verify
-    solves afresh; the side-free law would have each ball carry more at the same sinking."""
+    """Front feet 6.5 cm (1.3 thicknesses) inside the foam's front side: the law with the
+    sides' softening (0.6 % at 1.4 mm there), which verify solves afresh; the side-free law
+    would have each ball carry more at the same sinking."""
     scenario = foam()
-    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.17, 0.2, 0.0)),
-                     Contact("right_front_foot", ContactPrint("foam_top", -0.17, -0.2, 0.0)),
+    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.135, 0.2, 0.0)),
+                     Contact("right_front_foot", ContactPrint("foam_top", -0.135, -0.2, 0.0)),
                      Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
                      Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
     problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
     (layer,) = [c for c in problem.contacts if c.kind == "layer"]
-    assert [min(law.side_distances) for law in layer.laws] == [pytest.approx(0.03)] * 2
-    # Its table ends at a contact radius of a fifth of that distance, 6 mm; an indentation
-    # bound shallower than that ends the force where the softened law sinks the ball to it.
-    assert [law.largest_contact_radius for law in layer.laws] == [pytest.approx(0.006)] * 2
+    assert [min(law.side_distances) for law in layer.laws] == [pytest.approx(0.065)] * 2
+    # No side cuts its table short (it ends at 0.7 of the ball's radius, as on a wide mat); an
+    # indentation bound shallower ends the force where the softened law sinks the ball to it.
+    assert [law.largest_contact_radius for law in layer.laws] == [pytest.approx(0.7 * layer.balls[0].radius)] * 2
     shallow = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER, max_indentation=5e-4))
     (bounded,) = [c for c in shallow.contacts if c.kind == "layer"]
     assert [law.sinking(limit)[0] for law, limit in zip(bounded.laws, bounded.force_limits)] == [pytest.approx(5e-4)] * 2
@@ -309,17 +320,17 @@ def test_near_a_side_a_ball_sinks_by_the_law_softened_by_it(anymal):
         assert force == pytest.approx(softened, abs=5e-3)
         assert softened / free == pytest.approx(fem.layer_contact.side_factor(sinking, ball.radius, 0.05,
                                                                               law.side_distances), rel=1e-12)
-        assert softened < 0.99 * free
+        assert softened < 0.995 * free
 
 
 def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with_its_derivatives(anymal):
-    """3 cm from the foam's side, a ball's strain is the layer's field over the sides'
+    """6.5 cm from the foam's side, a ball's strain is the layer's field over the sides'
     softening at its contact radius (a free side strains the body more under the same force;
-    an audit's FEM of a 12 cm block: 1.9-5.0 % more where the force's softening is 2.7-7.4 %),
-    and its derivatives in the normal force and the sideways force's square are their finite
-    differences."""
+    an audit's FEM of a 12 cm block: 1.1-5.1 % more 3-5 cm from its sides, where the force's
+    softening is 2.7-7.4 %), and its derivatives in the normal force and the sideways force's
+    square are their finite differences."""
     scenario = foam()
-    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.17, 0.2, 0.0)),
+    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.135, 0.2, 0.0)),
                      Contact("right_front_foot", ContactPrint("foam_top", -0.1, -0.2, 0.0)),
                      Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
                      Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
@@ -334,7 +345,7 @@ def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with
     unsoftened = _strain_on_layer(_without_sides(law), body, force, contact, layer.balls[0].friction,
                                   sideways=sideways, floor=layer.slope_floor)[0] - body.largest_strain_at_rest
     softening = fem.layer_contact.side_softening(contact, 0.05, law.side_distances)[0]
-    assert near == pytest.approx(unsoftened / softening, rel=1e-12) and softening < 0.98
+    assert near == pytest.approx(unsoftened / softening, rel=1e-12) and softening < 0.995
     for f in (0.2, 30.0, 90.0):
         value, d_normal, d_square = layer.ball_strain(0, f, 0.2 * f)
         step = 1e-6 * f
@@ -348,17 +359,19 @@ def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with
 
 def test_a_thick_block_and_a_cube_are_layers_under_balls_inside_a_sixth_of_their_thickness(anymal):
     """The law reaches any box held on its base (before 2026-12-05: 1.2 thicknesses inside its
-    sides, none of a 0.3 m cube): a 12 cm block 3 cm from its side, a 0.3 m cube at its centre
-    and 6 cm from a side; 4 cm from the cube's side (under 5 cm) is the mesh's."""
-    for size, x, thickness in (([0.4, 1.0, 0.12], -0.17, 0.12), ([0.3, 0.3, 0.3], 0.0, 0.3),
-                               ([0.3, 0.3, 0.3], -0.09, 0.3), ([0.3, 0.3, 0.3], -0.11, None)):
+    sides, none of a 0.3 m cube): for ANYmal's ball, 61 mm inside the sides of a 12 cm block
+    (0.5 thickness) and a 0.3 m cube, whose centre is 0.15 m from them; 5.5 cm from the cube's
+    side is the mesh's."""
+    for size, x, thickness in (([0.4, 1.0, 0.12], -0.139, 0.12), ([0.3, 0.3, 0.3], 0.0, 0.3),
+                               ([0.3, 0.3, 0.3], -0.089, 0.3), ([0.3, 0.3, 0.3], -0.095, None)):
         text = environments.builtin_scenario_path("quadruped-foam").read_text()
         text = re.sub(r"  front-feet-on-foam:.*?(?=^start:)", "", text, flags=re.S | re.M)  # prints off a cube's top
         text = text.replace("size: [0.4, 1.0, 0.05]", f"size: {size}").replace(
             "center: [0.75, 0.0, 0.025]", f"center: [0.75, 0.0, {size[2] / 2}]").replace("resolution: 0.01", "resolution: 0.05")
         scenario = environments.load_string(text, name="block")
         body = scenario.scene.deformable_objects[0]
-        site = layer_site(body, scenario.scene.surface("foam_top").transform_print_to_world(x, 0.0, 0.0))
+        site = layer_site(body, scenario.scene.surface("foam_top").transform_print_to_world(x, 0.0, 0.0),
+                          anymal.surface("left_front_foot").radius)
         if thickness is None:
             assert site is None
             continue
