@@ -141,7 +141,9 @@ def _strain_on_layer(law: BallOnLayer, deformable_object, force: float, contact_
     Near a free side the body strains more under the same force than the layer's field says:
     an independent FEM of a 12 cm block (2026-12-05) found the largest 20 mm mean 1.9 % above
     it 5 cm from a side, 4.8-5.0 % 3-5 cm from one side and 4 cm from another, where the
-    force's softening is 2.7 and 6.3-7.4 %: dividing by it stays above."""
+    force's softening is 2.7 and 6.3-7.4 %: dividing by it stays above. (The softening is read
+    at the layer's contact radius, 1-6 % wider than the force's ``sqrt(R d)`` on such layers: a
+    little more of it, on the safe side.)"""
     table = _ball_strain(_without_sides(law), float(deformable_object.strain_radius), float(friction))
     base = max(float(force), float(floor), 1e-12)
     square = (sideways / base) ** 2
