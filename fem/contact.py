@@ -225,7 +225,7 @@ class _LowRankFactor:
         self._compliance = compliance  # C: A is never formed
         self._inverse = inverse
         self._law = law
-        rows = law.rows
+        rows = law.layout.rows
         # S is exactly symmetric (spd_inverse): its rows at R are its columns, read contiguously.
         self._columns = np.ascontiguousarray(inverse[rows].T)  # S E, (n, r)
         if rows.size:
@@ -242,7 +242,7 @@ class _LowRankFactor:
     def product(self, x):
         """``A x``, x a vector: C's rows, and the replaced ones."""
         y = self._compliance @ x
-        y[self._law.rows] = self._law.values(x, y)
+        y[self._law.layout.rows] = self._law.values(x, y)
         return y
 
     def solve(self, rhs):
@@ -262,7 +262,7 @@ class _LowRankFactor:
         if self._lu is None:
             return y  # every node sticks: A = C
         law = self._law
-        return y - self._columns @ _lu_solve(self._lu, law.values(y, rhs) - rhs[law.rows])
+        return y - self._columns @ _lu_solve(self._lu, law.values(y, rhs) - rhs[law.layout.rows])
 
 
 class PrintContactSystem:
@@ -403,7 +403,7 @@ class PrintContactSystem:
         the same bits.
         """
         n = self.c_local.shape[0]
-        if not law.normal.size or law.rows.size > _LOW_RANK_ROWS * n:  # no slip, or too many rows
+        if not law.layout.normal.size or law.layout.rows.size > _LOW_RANK_ROWS * n:  # no slip, or too many rows
             return _DenseFactor(_replace_rows(self.c_local, law))
         if self._inverse is None:
             self._inverse = spd_inverse(self.c_local, "the print's compliance")
@@ -624,77 +624,24 @@ def _replace_rows(c_local, law):
     identity, its few nonzero entries placed rather than multiplied out (a product with
     the whole identity was most of this: 45 us of a 60-row print's factorisation)."""
     matrix = c_local.copy()
-    rows = np.zeros((law.rows.size, c_local.shape[0]))
-    rows[law.lifted, law.lifted_dofs] = 1.0
-    if law.normal.size:
-        turned = np.einsum("kij,kj...->ki...", law.projected, c_local[law.tangential])  # (k, 2, 3p)
-        nodes = np.arange(law.normal.size)
+    layout = law.layout
+    rows = np.zeros((layout.rows.size, c_local.shape[0]))
+    rows[layout.lifted, layout.lifted_dofs] = 1.0
+    if layout.normal.size:
+        turned = np.einsum("kij,kj...->ki...", law.projected, c_local[layout.tangential])  # (k, 2, 3p)
+        nodes = np.arange(layout.normal.size)
         for j in range(2):
-            turned[nodes, :, law.tangential[:, j]] += law.own[:, :, j]
-        turned[nodes, :, law.normal] -= law.friction
-        rows[law.at] = turned
-    matrix[law.rows] = rows
+            turned[nodes, :, layout.tangential[:, j]] += law.own[:, :, j]
+        turned[nodes, :, layout.normal] -= law.friction
+        rows[layout.at] = turned
+    matrix[layout.rows] = rows
     return matrix
 
 
 @dataclass(frozen=True, eq=False)
-class _LawRows:
-    """The rows of a linearised law that are not rows of C, kept by their structure.
-
-    A lifted node's three rows read ``phi = 0``; a slipping node's two tangential
-    rows read ``P C[t] phi + O phi_t - mu d phi_n`` (P, O 2 x 2 blocks, d its slip
-    direction): each row is C's row turned by a node's block plus at most three
-    entries, so that products with them cost what the nodes do, not what C does.
-
-    Attributes
-    ----------
-    rows : (r,) int
-        The replaced rows, ascending.
-    lifted_dofs : (a,) int
-        The lifted nodes' dofs.
-    lifted : (a,) int
-        Their positions in ``rows``.
-    tangential : (k, 2) int
-        The slipping nodes' tangential dofs.
-    normal : (k,) int
-        Their normal dofs.
-    at : (k, 2) int
-        Positions in ``rows`` of the tangential dofs.
-    projected : (k, 2, 2) float
-        P, on C's tangential rows.
-    own : (k, 2, 2) float
-        O, on the node's tangential forces.
-    friction : (k, 2) float
-        ``mu d``, against the node's normal force.
-    """
-
-    rows: np.ndarray
-    lifted_dofs: np.ndarray
-    lifted: np.ndarray
-    tangential: np.ndarray
-    normal: np.ndarray
-    at: np.ndarray
-    projected: np.ndarray
-    own: np.ndarray
-    friction: np.ndarray
-
-    def values(self, x, cx):
-        """``A[R] x`` from ``x`` and ``C x``, (r,) or (r, m) for x (3p,) or (3p, m)."""
-        out = np.empty((self.rows.size,) + x.shape[1:])
-        out[self.lifted] = x[self.lifted_dofs]
-        if self.normal.size:
-            turned = np.einsum("kij,kj...->ki...", self.projected, cx[self.tangential])
-            turned += np.einsum("kij,kj...->ki...", self.own, x[self.tangential])
-            turned -= self.friction.reshape(self.friction.shape + (1,) * (x.ndim - 1)) * x[self.normal][:, None]
-            out[self.at] = turned
-        return out
-
-
-@dataclass(frozen=True, eq=False)
 class _ModeLayout:
-    """What a linearised law takes from the modes alone: the integer parts of its
-    :class:`_LawRows`, the slipping nodes, and the right-hand side's blocks but the
-    slipping nodes' own.
+    """What a linearised law takes from the modes alone: the rows it replaces, the lifted
+    and slipping nodes' dofs, and the right-hand side's blocks but the slipping nodes' own.
 
     A contact solve meets the same modes again and again (the Newton steps while only
     the slip directions move, the polishing step, the next linearisation's solve: 611
@@ -707,8 +654,18 @@ class _ModeLayout:
         The modes' bytes.
     nodes : (k,) int
         The slipping nodes.
-    rows, lifted_dofs, lifted, tangential, normal, at
-        As :class:`_LawRows`.
+    rows : (r,) int
+        The replaced rows, ascending.
+    lifted_dofs : (a,) int
+        The lifted nodes' dofs.
+    lifted : (a,) int
+        Their positions in ``rows``.
+    tangential : (k, 2) int
+        The slipping nodes' tangential dofs.
+    normal : (k,) int
+        Their normal dofs.
+    at : (k, 2) int
+        Positions in ``rows`` of the tangential dofs.
     blocks : (p, 3, 3) float, read-only
         The identity at every node that does not lift off, 0 at those that do.
     """
@@ -748,6 +705,45 @@ def _mode_layout(modes) -> _ModeLayout:
     )
 
 
+@dataclass(frozen=True, eq=False)
+class _LawRows:
+    """The rows of a linearised law that are not rows of C, kept by their structure.
+
+    A lifted node's three rows read ``phi = 0``; a slipping node's two tangential
+    rows read ``P C[t] phi + O phi_t - mu d phi_n`` (P, O 2 x 2 blocks, d its slip
+    direction): each row is C's row turned by a node's block plus at most three
+    entries, so that products with them cost what the nodes do, not what C does.
+
+    Attributes
+    ----------
+    layout : _ModeLayout
+        What the modes alone fix: the replaced rows, the lifted and slipping nodes' dofs.
+    projected : (k, 2, 2) float
+        P, on C's tangential rows.
+    own : (k, 2, 2) float
+        O, on the node's tangential forces.
+    friction : (k, 2) float
+        ``mu d``, against the node's normal force.
+    """
+
+    layout: _ModeLayout
+    projected: np.ndarray
+    own: np.ndarray
+    friction: np.ndarray
+
+    def values(self, x, cx):
+        """``A[R] x`` from ``x`` and ``C x``, (r,) or (r, m) for x (3p,) or (3p, m)."""
+        layout = self.layout
+        out = np.empty((layout.rows.size,) + x.shape[1:])
+        out[layout.lifted] = x[layout.lifted_dofs]
+        if layout.normal.size:
+            turned = np.einsum("kij,kj...->ki...", self.projected, cx[layout.tangential])
+            turned += np.einsum("kij,kj...->ki...", self.own, x[layout.tangential])
+            turned -= self.friction.reshape(self.friction.shape + (1,) * (x.ndim - 1)) * x[layout.normal][:, None]
+            out[layout.at] = turned
+        return out
+
+
 def _mode_rows(modes, directions, gains, mu, scale, layout=None):
     """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames),
     the matrix being C with a few rows replaced (:func:`_replace_rows` forms it).
@@ -775,17 +771,7 @@ def _mode_rows(modes, directions, gains, mu, scale, layout=None):
     projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
     own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
     blocks[nodes, :2, :2] = projected
-    law = _LawRows(
-        rows=layout.rows,
-        lifted_dofs=layout.lifted_dofs,
-        lifted=layout.lifted,
-        tangential=layout.tangential,
-        normal=layout.normal,
-        at=layout.at,
-        projected=projected,
-        own=own,
-        friction=mu[nodes][:, None] * d,
-    )
+    law = _LawRows(layout=layout, projected=projected, own=own, friction=mu[nodes][:, None] * d)
     return law, blocks
 
 

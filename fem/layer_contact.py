@@ -276,7 +276,8 @@ def side_softening(contact_radius, thickness: float, side_distances=()):
     Returns
     -------
     factor, slope : float or array
-        The factor, in (0, 1], and its derivative in the contact radius, per metre.
+        The factor (1 with no side, less as the contact widens; in its range, above 0.7:
+        :func:`side_factor`) and its derivative in the contact radius, per metre.
     """
     a = np.asarray(contact_radius, dtype=float)
     factor, slope = np.ones_like(a), np.zeros_like(a)

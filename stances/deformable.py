@@ -1381,8 +1381,9 @@ class DeformableContact:
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
         face, far enough from the sides for the law (:func:`stances.layer_ball.layer_site`), whose softening the estimate
         counts) and the contact radius is at most
-        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and a fifth of the
-        nearest side's distance (within 0.6 % of an independent FEM there). Never raises: a
+        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and the nearest side's
+        distance over :data:`fem.layer_contact.SIDE_REACH` (within 0.6 % of an independent FEM
+        there). Never raises: a
         ball sunk past what the formula takes gets none."""
         material = self.deformable_object.body.material
         for index in self.point_prints.tolist():

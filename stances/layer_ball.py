@@ -684,7 +684,7 @@ class LayerBalls:
         if contact > (1.0 + 1e-6) * law.largest_contact_radius:
             reasons.append(f"{label}'s contact radius {contact:.3g} m is past the law's validity "
                            f"({law.largest_contact_radius:.3g} m: 0.6 of the layer's thickness, 0.7 of the ball's "
-                           f"radius or a fifth of its nearest side's distance, whichever is least)")
+                           f"radius or its nearest side's distance over {SIDE_REACH:g}, whichever is least)")
         # Its strain on the layer's converged field (the mesh's under a ball is too low).
         obj = self.deformable_object
         strain = _strain_on_layer(law, obj, max(normal, 0.0), contact, ball.friction, sideways=tangential,

@@ -312,7 +312,7 @@ def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_l
     law, _ = _mode_rows(modes, directions, gains, system.mu, system.scale)
     matrix = _replace_rows(system.c_local, law)
     rows = np.flatnonzero(~_compliance_rows(modes))
-    assert np.array_equal(law.rows, rows) and rows.size == 2 * n_slip + 3 * n_lift
+    assert np.array_equal(law.layout.rows, rows) and rows.size == 2 * n_slip + 3 * n_lift
     # The replaced rows, written out from the law (fem.contact's docstring): a lifted
     # node's phi = 0; a slipping node's phi_t - mu phi_n d - P (U + C phi)_t = 0 with
     # P = k s (I - d d^T), as matrix rows (O = (1 - k) I + k d d^T on phi_t).
@@ -331,7 +331,7 @@ def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_l
             expected[3 * node : 3 * node + 2] = tangential
     np.testing.assert_allclose(matrix, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
     # The dense path places the rows; the low-rank path applies the law: the same numbers.
-    assert np.array_equal(matrix[law.rows], law.values(np.eye(3 * p), system.c_local))
+    assert np.array_equal(matrix[law.layout.rows], law.values(np.eye(3 * p), system.c_local))
     factor = _LowRankFactor(system.c_local, spd_inverse(system.c_local, "C"), law)
     vector, block = rng.normal(size=3 * p), rng.normal(size=(3 * p, 5))
     exact_vector, exact_block = np.linalg.solve(matrix, vector), np.linalg.solve(matrix, block)
@@ -375,7 +375,7 @@ def test_an_ill_conditioned_capacitance_falls_back_to_the_dense_factorisation(pa
     # gecon's estimate is within a factor 10 of the exact 1-norm condition number of the
     # capacitance A[R] S[:, R] (formed here from the dense law matrix).
     matrix = contact._replace_rows(factor._compliance, factor._law)
-    capacitance = matrix[factor._law.rows] @ factor._inverse[:, factor._law.rows]
+    capacitance = matrix[factor._law.layout.rows] @ factor._inverse[:, factor._law.layout.rows]
     exact = 1.0 / np.linalg.cond(capacitance, 1)
     assert exact / 10.0 <= factor.reciprocal_condition <= 10.0 * exact
     assert contact._LOW_RANK_RCOND < factor.reciprocal_condition <= 1.0
