@@ -72,8 +72,9 @@ def stance_row(scenario, robot, model):
         carried = sum(p.force[2] for p in result.point_forces if p.frame == surface.frame)
         # The law with the foam's sides' softening where the print stands (0.34 % at these prints).
         contact = next(c for c in stance if c.robot_surface == foot).contact_print
-        where = scenario.scene.surface(contact.surface).transform_print_to_world(contact.x, contact.y, contact.theta)
-        thickness, sides = layer_site(foam, where, surface.radius)
+        print_surface = scenario.scene.surface(contact.surface)
+        where = print_surface.transform_print_to_world(contact.x, contact.y, contact.theta)
+        thickness, sides = layer_site(foam, where, surface.radius, print_surface.friction)
         continuum = fem.sphere_on_layer_force(sinking, surface.radius, thickness, material.young_modulus,
                                               material.poisson_ratio, sides)[0]
         balls.append((sinking, carried, continuum))

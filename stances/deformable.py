@@ -1412,7 +1412,7 @@ class DeformableContact:
         a layer there, else None (:func:`stances.layer_ball.layer_site`; kept)."""
         if index not in self._layers:
             self._layers[index] = layer_site(self.deformable_object, self.print_placements[index].homogeneous,
-                                             self.ball_radii[index])
+                                             self.ball_radii[index], self.friction[index])
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

@@ -3,8 +3,9 @@
 A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
 mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
 where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a box held
-on its base, the ball on the opposite face inside its sides by a sixth of the thickness and 2.8
-times its widest contact (:func:`layer_site`), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
+on its base, the ball on the opposite face inside its sides by a sixth of the thickness and so
+far that no side cuts the law short of the load the body's strain bound allows (:func:`layer_site`:
+32 mm on quadruped-foam's mat for ANYmal's ball), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
 sphere on an elastic layer bonded to a rigid base (within 0.5 % of an exact solution while
 the contact's radius is at most 0.6 of the thickness), times the softening of the box's free
 side faces (:func:`fem.layer_contact.side_factor`: within 0.6 % of an independent FEM of mats,
@@ -173,7 +174,8 @@ def layer_sites(robot, deformable_object, prints, options) -> tuple | None:
     sites = []
     for spec in prints:
         surface = robot.surface(spec.robot_surface)
-        site = layer_site(deformable_object, spec.transform_print_to_world, surface.radius) if surface.is_point else None
+        site = (layer_site(deformable_object, spec.transform_print_to_world, surface.radius, spec.surface.friction)
+                if surface.is_point else None)
         if site is None:
             return None
         sites.append(site)
@@ -204,7 +206,13 @@ def largest_ball_load(radius: float, site: tuple, deformable_object, options, fr
     material = deformable_object.body.material
     thickness, sides = site
     law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio), sides)
-    top = _force_limit(law, _indentation_bound(options, thickness))
+    return _strain_bound_load(law, deformable_object, friction, _force_limit(law, _indentation_bound(options, thickness)))
+
+
+def _strain_bound_load(law: BallOnLayer, deformable_object, friction: float, top: float) -> float:
+    """Newtons: the largest normal force up to ``top`` whose strain on the layer's converged
+    field (no sideways force) is within the object's bound less the rows' margin; 0 if the
+    body's own weight leaves no strain to spend."""
     bound = (1.0 - _STRAIN_MARGIN) * float(deformable_object.strain_limit)
 
     # Normal force alone (a sideways force strains more): the largest load any stance may put there.
@@ -216,7 +224,7 @@ def largest_ball_load(radius: float, site: tuple, deformable_object, options, fr
     return top if excess(top) <= 0.0 else float(brentq(excess, 0.0, top, xtol=1e-9 * top))
 
 
-def layer_site(deformable_object, transform_print_to_world, radius: float) -> tuple | None:
+def layer_site(deformable_object, transform_print_to_world, radius: float, friction: float) -> tuple | None:
     """The body's thickness under a ball's print and the distances of its side faces, if the
     body is a layer there for the ball (a box on a held base), else None.
 
@@ -224,12 +232,11 @@ def layer_site(deformable_object, transform_print_to_world, radius: float) -> tu
     axes and the print on that face, the nodes of the opposite face exactly the body's
     fixed nodes (a held base), and the print inside the box's faces along the other two axes
     by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (nearer, the
-    sides' softening was not tested) and :data:`fem.layer_contact.SIDE_REACH` times the
-    widest contact the law is read for (:func:`fem.layer_contact.widest_contact`: 61 mm for
-    ANYmal's 31 mm ball on any layer 36 mm thick or more), so that no side cuts the law's
-    table short: nearer, the law would bound the ball's force below what the mesh's nodes
-    carry (a review, 2026-12-05: with the table cut at the nearest side over 5, 19 N 2.5 cm
-    from a 5 cm mat's side, where ANYmal's front feet carry 63 N; over 2.8, 22 N at 1.5 cm).
+    sides' softening was not tested) and so far that no side cuts the law's table short of
+    the load the object's strain bound allows there (:func:`_covers_strain_bound`): nearer,
+    the law would bound the ball's force below what the mesh's nodes carry (a review,
+    2026-12-05: with the table cut at the nearest side over 5, 19 N 2.5 cm from a 5 cm mat's
+    side, where ANYmal's front feet carry 63 N).
 
     Parameters
     ----------
@@ -238,6 +245,8 @@ def layer_site(deformable_object, transform_print_to_world, radius: float) -> tu
         The print frame (z: the surface's outward normal), world.
     radius : float
         The ball's, metres.
+    friction : float
+        The print surface's friction coefficient (the strain table's sideways ratios).
 
     Returns
     -------
@@ -260,10 +269,23 @@ def layer_site(deformable_object, transform_print_to_world, radius: float) -> tu
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    nearest = max(NEAREST_SIDE_SHARE * thickness, SIDE_REACH * widest_contact(radius, thickness))
-    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * nearest:
-        return thickness, sides
-    return None
+    if not (on_face and np.array_equal(base, body.fixed_mask)
+            and min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness):
+        return None
+    material = body.material
+    law = _law(float(radius), thickness, float(material.young_modulus), float(material.poisson_ratio), sides)
+    return (thickness, sides) if _covers_strain_bound(law, deformable_object, float(friction)) else None
+
+
+def _covers_strain_bound(law: BallOnLayer, deformable_object, friction: float) -> bool:
+    """Whether the law's table reaches the load the object's strain bound allows: its end is
+    the widest contact a laterally infinite layer reads (:func:`fem.layer_contact.widest_contact`),
+    or its strain there is at the bound or past it. (A side at :data:`SIDE_REACH` times the
+    widest contact, 61 mm for ANYmal's ball, cuts nothing; quadruped-foam's 5 % bound takes a
+    ball to about 250 N, an 11 mm contact, so the law holds to 31 mm from the mat's side.)"""
+    if law.largest_contact_radius >= (1.0 - 1e-9) * widest_contact(law.radius, law.thickness):
+        return True
+    return _strain_bound_load(law, deformable_object, friction, law.force_limit) < law.force_limit
 
 
 class LayerBalls:
@@ -300,11 +322,11 @@ class LayerBalls:
                 raise StanceError(f"{spec.label}: only ball feet sink by a layer's law; a polygon presses the mesh")
             ball = PointContact(robot, spec.robot_surface, spec.transform_print_to_world, spec.surface.friction,
                                 spec.label, surface=spec.surface)
-            site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius)
+            site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius, ball.friction)
             if site is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
                                   f"(a box on its held base, the print inside its sides by a sixth of its thickness "
-                                  f"and {SIDE_REACH:g} times the ball's widest contact)")
+                                  f"and by {SIDE_REACH:g} times the contact at the load its strain bound allows)")
             thickness, sides = site
             balls.append(ball)
             thicknesses.append(thickness)

@@ -19,7 +19,8 @@ from environments import Contact, ContactPrint, Stance
 from stances import StanceError
 from stances.deformable import PrintSpec
 from fem.layer_strain import largest_ball_mean
-from stances.layer_ball import LayerBalls, _strain_on_layer, _without_sides, layer_site
+from fem.layer_contact import SIDE_REACH
+from stances.layer_ball import LayerBalls, _strain_on_layer, _without_sides, largest_ball_load, layer_site
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve
 from stances.results import PointForce
@@ -232,7 +233,6 @@ def test_verify_refuses_a_ball_that_strains_its_layer_past_the_bound(anymal, fro
 def test_the_equilibrium_filter_refuses_a_ball_its_layer_cannot_carry_within_the_strain_bound(anymal):
     from cbm.equilibrium import EquilibriumFilter
     from cbm.rejections import strain_bound_hint
-    from stances.layer_ball import largest_ball_load
 
     # On a 3e5 Pa foam a ball's least load (a tenth of the weight) strains it past 5 %: the
     # planner's filter says so before any solve (a plan on it took 133 s of solves to give up).
@@ -262,22 +262,44 @@ def test_the_law_applies_where_the_body_is_a_layer_under_balls_only(anymal, robo
     # The foam (0.4 x 1.0 x 0.05 m, its top centred) is a layer for ANYmal's 31 mm ball 2.8
     # times its widest contact (0.7 R: 60.8 mm) inside its sides and more, each side's
     # distance given for the law's softening; nearer, the sides would cut the law short.
-    radius = anymal.surface("left_front_foot").radius
-    thickness, sides = layer_site(body, top.transform_print_to_world(-0.139, 0.2, 0.0), radius)
+    radius, friction = anymal.surface("left_front_foot").radius, top.friction
+
+    def site(x, y=0.2, ball=radius):
+        return layer_site(body, top.transform_print_to_world(x, y, 0.0), ball, friction)
+
+    # The foam (0.4 x 1.0 x 0.05 m, its top centred; its front side at x = -0.2) is a layer for
+    # ANYmal's 31 mm ball where no side cuts the law's table short of the load the foam's 5 %
+    # strain bound allows (about 250 N, a contact of 11.6 mm): SIDE_REACH such contacts inside
+    # its sides (32 mm), each side's distance given for the law's softening.
+    free = _without_sides(LayerBalls(anymal, body, [PrintSpec("left_front_foot", top, top.transform_print_to_world(
+        0.0, 0.2, 0.0), "mid-mat")], PostureOptions(**LAYER)).laws[0])
+    allowed = largest_ball_load(radius, (0.05, ()), body, PostureOptions(), friction)
+    assert 240.0 < allowed < 260.0
+    nearest = SIDE_REACH * free.contact_radius(allowed)
+    thickness, sides = site(-0.2 + 1.002 * nearest)
     assert thickness == pytest.approx(0.05)
-    np.testing.assert_allclose(sides, [0.061, 0.339, 0.7, 0.3], atol=1e-12)
-    assert layer_site(body, top.transform_print_to_world(-0.14, 0.2, 0.0), radius) is None
-    assert layer_site(body, top.transform_print_to_world(0.0, 0.44, 0.0), radius) is None
+    np.testing.assert_allclose(sides, [1.002 * nearest, 0.4 - 1.002 * nearest, 0.7, 0.3], atol=1e-12)
+    assert site(-0.2 + 0.998 * nearest) is None
+    assert site(0.0, 0.5 - 0.998 * nearest) is None and site(0.0, 0.5 - 1.002 * nearest) is not None
     # A ball of 5 mm is a layer's much nearer its sides: a sixth of the thickness then binds.
-    assert layer_site(body, top.transform_print_to_world(-0.19, 0.2, 0.0), 0.005)[1][0] == pytest.approx(0.01)
-    assert layer_site(body, top.transform_print_to_world(-0.193, 0.2, 0.0), 0.005) is None
-    assert layer_site(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0), radius) is None
+    assert site(-0.19, ball=0.005)[1][0] == pytest.approx(0.01)
+    assert site(-0.193, ball=0.005) is None
+    assert layer_site(body, scenario.scene.surface("floor").transform_print_to_world(0.75, 0.2, 0.0), radius,
+                      friction) is None
     # 1.5 cm from the side the law, cut short by it, would bound the ball to 22 N, under the 63 N
     # ANYmal's front feet carry there on the nodes (a review, 2026-12-05): the nodes press it.
     cut = fem.BallOnLayer(radius, 0.05, body.body.material.young_modulus, body.body.material.poisson_ratio,
                           (0.015, 0.385, 0.7, 0.3))
     assert cut.force_limit < 25.0
-    assert layer_site(body, top.transform_print_to_world(-0.185, 0.2, 0.0), radius) is None
+    assert site(-0.185) is None
+    # Under a loose strain bound nothing stops the load short of the table's end: the law needs
+    # the sides SIDE_REACH times its widest contact away (61 mm).
+    unbounded = replace(body, strain_limit=0.5)
+    widest = fem.layer_contact.widest_contact(radius, 0.05)
+    assert layer_site(unbounded, top.transform_print_to_world(-0.2 + 1.002 * SIDE_REACH * widest, 0.2, 0.0), radius,
+                      friction) is not None
+    assert layer_site(unbounded, top.transform_print_to_world(-0.2 + 0.998 * SIDE_REACH * widest, 0.2, 0.0), radius,
+                      friction) is None
     inside = build_problem(anymal, scenario.scene, scenario.stance("front-feet-on-foam"), PostureOptions(**LAYER))
     assert [c.kind for c in inside.contacts].count("layer") == 1
     # A sole is no ball: refused by the model itself (the builder keeps the nodes for it).
@@ -359,19 +381,21 @@ def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with
 
 def test_a_thick_block_and_a_cube_are_layers_under_balls_inside_a_sixth_of_their_thickness(anymal):
     """The law reaches any box held on its base (before 2026-12-05: 1.2 thicknesses inside its
-    sides, none of a 0.3 m cube): for ANYmal's ball, 61 mm inside the sides of a 12 cm block
-    (0.5 thickness) and a 0.3 m cube, whose centre is 0.15 m from them; 5.5 cm from the cube's
-    side is the mesh's."""
-    for size, x, thickness in (([0.4, 1.0, 0.12], -0.139, 0.12), ([0.3, 0.3, 0.3], 0.0, 0.3),
-                               ([0.3, 0.3, 0.3], -0.089, 0.3), ([0.3, 0.3, 0.3], -0.095, None)):
+    sides, none of a 0.3 m cube): for ANYmal's ball, 34 mm inside the sides of a 12 cm block
+    (where no side cuts its table short of the 5 % strain bound's load; 32 mm is the mesh's)
+    and a sixth of a 0.3 m cube's thickness inside its sides (50 mm; 49 mm is the mesh's)."""
+    for size, x, thickness in (([0.4, 1.0, 0.12], -0.166, 0.12), ([0.4, 1.0, 0.12], -0.168, None),
+                               ([0.3, 0.3, 0.3], 0.0, 0.3), ([0.3, 0.3, 0.3], -0.0995, 0.3),
+                               ([0.3, 0.3, 0.3], -0.101, None)):
         text = environments.builtin_scenario_path("quadruped-foam").read_text()
         text = re.sub(r"  front-feet-on-foam:.*?(?=^start:)", "", text, flags=re.S | re.M)  # prints off a cube's top
         text = text.replace("size: [0.4, 1.0, 0.05]", f"size: {size}").replace(
             "center: [0.75, 0.0, 0.025]", f"center: [0.75, 0.0, {size[2] / 2}]").replace("resolution: 0.01", "resolution: 0.05")
         scenario = environments.load_string(text, name="block")
         body = scenario.scene.deformable_objects[0]
-        site = layer_site(body, scenario.scene.surface("foam_top").transform_print_to_world(x, 0.0, 0.0),
-                          anymal.surface("left_front_foot").radius)
+        top = scenario.scene.surface("foam_top")
+        site = layer_site(body, top.transform_print_to_world(x, 0.0, 0.0), anymal.surface("left_front_foot").radius,
+                          top.friction)
         if thickness is None:
             assert site is None
             continue
