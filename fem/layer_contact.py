@@ -26,7 +26,13 @@ hexahedra refined everywhere, exact-sphere Signorini contact, within 0.02 % of t
 ``SIDE_DROP a t / L^2`` (a = sqrt(R d)), and the law times :func:`side_factor`, the product of
 those drops' complements over the four side faces, within 0.6 % of all its 20 one-face and
 centre cases (the 0.3 m cube's centre -1.0 % at 2.5 mm, a corner +1.4 %) from L = 5.7 a and
-L = t / 6. Past half a thickness the true drop decays faster than the formula's, which then
+L = t / 6. A second (``bench/results/audit-near-sides-2026-12-05.md``, one side and corners
+at L = 0.17-0.6 t of a 5 cm mat and a 12 cm block, 1-4 mm deep) put it within 0.8 % from a
+quarter of the thickness and 2.8 contact radii (a corner's -0.8 %), off by up to 1.5 % (2.2 %
+in a corner) at 1.8 radii, and low by 2.4-9.9 % nearer than a quarter of the thickness at
+1.1-3.6 radii (the true drop levels off there while ``a t / L^2`` grows):
+:func:`side_contact_limit` keeps a ball within those ranges. Past half a thickness the true
+drop decays faster than the formula's, which then
 takes up to 0.7 point too much (a force low, a sinking deep): 1.32 against 0.66 % one
 thickness from a 5 cm mat's side at 2.5 mm. Tested for t <= 0.3 m (t / a <= 54) only: the
 formula cannot hold as t grows without bound (the quarter-space limit). A support that is
@@ -44,7 +50,8 @@ from scipy.optimize import brentq
 
 from .errors import FemError
 
-__all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAREST_SIDE_SHARE", "BallOnLayer", "widest_contact",
+__all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAR_SIDE_REACH", "NEAR_SIDE_SHARE", "NEAREST_SIDE_SHARE",
+           "BallOnLayer", "widest_contact", "side_contact_limit",
            "check_positive",
            "check_poisson_ratio", "sphere_on_half_space", "layer_correction", "side_factor", "side_softening",
            "sphere_on_layer_force"]
@@ -58,12 +65,22 @@ VALID_CONTACT_SHARE = 0.6
 #: from the side of a 0.3 m cube, 1 / 2.5 mm deep.
 SIDE_DROP = 0.075
 
-#: Contact radii a side face stands away at least for :func:`side_factor` (the thick-box audit
-#: tested 5.7 and more, a 12 cm block's audit 5.0 (-0.27 %); on the 5 cm mat the formula held
-#: within 0.2 point at 2.8 contact radii and 1.4 point at 1.4): a ball's table ends at the
-#: contact radius of its nearest side over this, and :func:`sphere_on_layer_force` refuses a
-#: deeper ball.
+#: Contact radii a side face stands away at least for :func:`side_factor` once it is
+#: :data:`NEAR_SIDE_SHARE` of the thickness away or more (an audit of 2026-12-05, its own FEM
+#: of one side and corners at L = 0.17-0.6 t on a 5 cm mat and a 12 cm block,
+#: ``bench/results/audit-near-sides-2026-12-05.md``: within 0.8 % of its converged forces there,
+#: 1.5 % at 1.8 contact radii, -3.8 % at 1.1): a ball's table ends at the contact radius its
+#: sides allow (:func:`side_contact_limit`), and :func:`sphere_on_layer_force` refuses a deeper ball.
 SIDE_REACH = 2.8
+
+#: Contact radii a side face nearer than :data:`NEAR_SIDE_SHARE` of the thickness stands away
+#: at least: the thick-box audit's nearest at L = t / 6 (within 0.6 %); the near-side audit
+#: found -2.4 % at 3.6 contact radii t / 6 from a 12 cm block's side, -3.5 % at 1.8 t / 5 from a
+#: 5 cm mat's.
+NEAR_SIDE_REACH = 5.6
+
+#: Share of the thickness from which a side face needs only :data:`SIDE_REACH` contact radii.
+NEAR_SIDE_SHARE = 0.25
 
 #: Share of the thickness a side face stands away at least for :func:`side_factor`: the
 #: audit's nearest, t / L = 6 (nearer, a box's side is no longer a small change of a layer).
@@ -224,6 +241,14 @@ def widest_contact(radius: float, thickness: float) -> float:
     return min(VALID_CONTACT_SHARE * thickness, _TABLE_RADIUS_SHARE * radius)
 
 
+def side_contact_limit(thickness: float, side_distances=()) -> float:
+    """Metres: the widest contact radius :func:`side_factor` holds for beside these sides:
+    each side's distance over :data:`SIDE_REACH`, or over :data:`NEAR_SIDE_REACH` where it is
+    nearer than :data:`NEAR_SIDE_SHARE` of the thickness (infinite with no side)."""
+    return min((d / (SIDE_REACH if d >= NEAR_SIDE_SHARE * thickness else NEAR_SIDE_REACH) for d in side_distances),
+               default=np.inf)
+
+
 def check_side_distances(side_distances, thickness: float) -> tuple:
     """``side_distances`` as a tuple of floats; :class:`FemError` naming a distance that is not
     finite or is under :data:`NEAREST_SIDE_SHARE` of ``thickness``."""
@@ -253,8 +278,8 @@ def side_factor(depth, radius: float, thickness: float, side_distances=()):
     -------
     float or array
         1 at no depth or with no side, less as the ball sinks; above 0.7 while the contact
-        is :data:`SIDE_REACH` times narrower than the nearest side's distance and that is at
-        least :data:`NEAREST_SIDE_SHARE` of the thickness (the formula's range: past it the
+        is within :func:`side_contact_limit` and every side at least
+        :data:`NEAREST_SIDE_SHARE` of the thickness away (the formula's range: past it the
         factor falls on, to 0 and below).
     """
     return side_softening(np.sqrt(radius * np.asarray(depth, dtype=float)), thickness, side_distances)[0]
@@ -317,26 +342,27 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
         Newtons and metres (0 and 0 at depth 0). Within 0.5 % of the continuum while the
         contact radius is at most :data:`VALID_CONTACT_SHARE` of the thickness, low and
         falling further below it past that (module docstring): read it there only; with
-        sides, within 0.6 % of the audit's FEM while the nearest is :data:`SIDE_REACH`
-        contact radii away or more. The contact radius is the layer's.
+        sides, within 0.8 % of two audits' FEM while the contact is within
+        :func:`side_contact_limit`. The contact radius is the layer's.
 
     Raises
     ------
     FemError
         On a bad argument; a depth of the sphere's radius or the layer's thickness or more;
         a contact wider than three thicknesses, where the formula is 40 % low or worse; with
-        sides, a contact (``sqrt(R d)``) wider than the nearest side's distance over
-        :data:`SIDE_REACH`.
+        sides, a contact (``sqrt(R d)``) wider than :func:`side_contact_limit`.
     """
     check_positive(radius=radius, thickness=thickness, young_modulus=young_modulus)
     if not (np.isfinite(depth) and depth >= 0.0):
         raise FemError(f"depth must be finite and >= 0 metres, got {depth!r}")
     check_poisson_ratio(poisson_ratio)
     side_distances = check_side_distances(side_distances, thickness)
-    if side_distances and np.sqrt(radius * depth) > min(side_distances) / SIDE_REACH:
+    if np.sqrt(radius * depth) > side_contact_limit(thickness, side_distances):
+        nearest = min(side_distances)
+        reach = SIDE_REACH if nearest >= NEAR_SIDE_SHARE * thickness else NEAR_SIDE_REACH
         raise FemError(f"a ball {depth:g} m deep (contact radius about {np.sqrt(radius * depth):.3g} m) is within "
-                       f"{SIDE_REACH:g} contact radii of a side face {min(side_distances):g} m away: the side "
-                       "correction does not hold there")
+                       f"{reach:g} contact radii of a side face {nearest:g} m away: the side correction does "
+                       "not hold there")
     if depth >= min(radius, thickness):
         raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m into a layer {thickness:g} m "
                        "thick: that is its radius or the layer's thickness or more")
@@ -367,8 +393,8 @@ class BallOnLayer:
     interpolates ``H(v) = depth / F^(2/3)`` in ``v = F^(1/3)``, smooth and finite at 0 where
     Hertz's ``depth = (3 F / (4 E* sqrt(R)))^(2/3)`` holds (the sides' factor, 1 - O(v) there,
     keeps it so). The table ends at the contact radius :data:`VALID_CONTACT_SHARE` of the
-    thickness, 0.7 of the ball's radius or the nearest side's distance over
-    :data:`SIDE_REACH`, whichever is smallest: :attr:`force_limit`; past it the sinking goes
+    thickness, 0.7 of the ball's radius or the sides' :func:`side_contact_limit`, whichever is
+    smallest: :attr:`force_limit`; past it the sinking goes
     on along the last slope, a smooth extension for a solver's trial steps, not the law
     (bound the force there).
 
@@ -405,7 +431,7 @@ class BallOnLayer:
         sides = check_side_distances(self.side_distances, self.thickness)
         object.__setattr__(self, "side_distances", sides)
         modulus = self.young_modulus / (1.0 - self.poisson_ratio**2)
-        largest = min(widest_contact(self.radius, self.thickness), min(sides, default=np.inf) / SIDE_REACH)
+        largest = min(widest_contact(self.radius, self.thickness), side_contact_limit(self.thickness, sides))
         radii = largest * 0.5 * (1.0 - np.cos(np.linspace(0.0, np.pi, _TABLE_POINTS)))[1:]
         law = np.array([_approach(a, self.radius, self.thickness, modulus, self.poisson_ratio) for a in radii])
         depths = law[:, 0]

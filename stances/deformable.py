@@ -107,7 +107,7 @@ import scipy.spatial
 
 import fem
 from fem.dense import block_diagonal_product
-from fem.layer_contact import SIDE_REACH, VALID_CONTACT_SHARE
+from fem.layer_contact import VALID_CONTACT_SHARE, side_contact_limit
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
@@ -1381,8 +1381,8 @@ class DeformableContact:
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
         face, far enough from the sides for the law (:func:`stances.layer_ball.layer_site`), whose softening the estimate
         counts) and the contact radius is at most
-        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and the nearest side's
-        distance over :data:`fem.layer_contact.SIDE_REACH` (within 0.6 % of an independent FEM
+        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and within the sides'
+        :func:`fem.layer_contact.side_contact_limit` (within 0.8 % of two independent FEMs
         there). Never raises: a
         ball sunk past what the formula takes gets none."""
         material = self.deformable_object.body.material
@@ -1391,7 +1391,7 @@ class DeformableContact:
             if site is None:
                 continue
             thickness, sides = site
-            widest = min(VALID_CONTACT_SHARE * thickness, min(sides) / SIDE_REACH)
+            widest = min(VALID_CONTACT_SHARE * thickness, side_contact_limit(thickness, sides))
             rows = self.print_of_node == index
             placement = self.print_placements[index]
             sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ placement.rotation[:, 2])

@@ -18,7 +18,7 @@ sinking under its normal force, the compliance form of contact:
 (as E grows, delta -> 0: the rigid point contact). Its force is a friction pyramid's, as on
 a rigid support; the pyramid lies inside the Coulomb cone, and so does every node's load
 (below). The force is bounded where the law stops holding: the contact's radius at 0.6 of
-the thickness (0.7 of the ball's radius, the nearest side's distance over 2.8) and the
+the thickness (0.7 of the ball's radius, what its sides allow: :func:`fem.layer_contact.side_contact_limit`) and the
 sinking at the indentation bound.
 
 The body's field (the pictures, the files, the strain bound) is the mesh's under the
@@ -51,7 +51,7 @@ import scipy.linalg
 from scipy.optimize import brentq
 
 import fem
-from fem.layer_contact import NEAREST_SIDE_SHARE, SIDE_REACH, BallOnLayer, side_softening, widest_contact
+from fem.layer_contact import NEAREST_SIDE_SHARE, BallOnLayer, side_softening, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PointContact
@@ -75,6 +75,13 @@ _ENERGY_POINTS = 8
 _STRAIN_SHARES = (0.01, 0.03, 0.1, 0.2, 0.35, 0.6, 1.0)
 _STRAIN_REACH = 2.0
 _STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's error, a tenth of it)
+# A ball's strain is read on the layer's field (divided by its sides' softening) this many
+# strain radii inside a box's sides and more: nearer, a mat's free side bulges and its 20 mm
+# means at the side's top edge pass the field's (an independent FEM, 2026-12-05,
+# bench/results/audit-near-sides-2026-12-05.md: 0.86-0.97 of its strain 20 mm = 1 strain radius
+# from a 5 cm mat's side, 0.59-0.84 at 10-15 mm; 0.99-1.02 at 30 mm, a corner's included; 1.03-1.11
+# on a 12 cm block from 20 mm).
+_STRAIN_SIDE_REACH = 1.5
 _SMALLEST_STRAIN_SHARE = 0.05  # the converged strain's table starts at this share of the widest contact
 
 @functools.lru_cache(maxsize=256)
@@ -232,11 +239,14 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     axes and the print on that face, the nodes of the opposite face exactly the body's
     fixed nodes (a held base), and the print inside the box's faces along the other two axes
     by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (nearer, the
-    sides' softening was not tested) and so far that no side cuts the law's table short of
-    the load the object's strain bound allows there (:func:`_covers_strain_bound`): nearer,
-    the law would bound the ball's force below what the mesh's nodes carry (a review,
-    2026-12-05: with the table cut at the nearest side over 5, 19 N 2.5 cm from a 5 cm mat's
-    side, where ANYmal's front feet carry 63 N).
+    sides' softening was not tested), 1.5 strain radii (nearer, a mat's side strains more
+    than the layer's field says: ``_STRAIN_SIDE_REACH``) and so far that no side cuts the
+    law's table (:func:`fem.layer_contact.side_contact_limit`) short of the load the object's
+    strain bound allows there (:func:`_covers_strain_bound`): nearer, the law would bound the
+    ball's force below what the mesh's nodes carry (a review, 2026-12-05: with the table cut at
+    the nearest side over 5, 19 N 2.5 cm from a 5 cm mat's side, where ANYmal's front feet
+    carry 63 N). For ANYmal's ball under a 5 % bound: 32 mm inside quadruped-foam's mat, 34 mm
+    inside a 12 cm block, 67 mm inside a 0.3 m cube.
 
     Parameters
     ----------
@@ -269,8 +279,8 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    if not (on_face and np.array_equal(base, body.fixed_mask)
-            and min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness):
+    nearest = max(NEAREST_SIDE_SHARE * thickness, _STRAIN_SIDE_REACH * float(deformable_object.strain_radius))
+    if not (on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * nearest):
         return None
     material = body.material
     law = _law(float(radius), thickness, float(material.young_modulus), float(material.poisson_ratio), sides)
@@ -280,9 +290,10 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
 def _covers_strain_bound(law: BallOnLayer, deformable_object, friction: float) -> bool:
     """Whether the law's table reaches the load the object's strain bound allows: its end is
     the widest contact a laterally infinite layer reads (:func:`fem.layer_contact.widest_contact`),
-    or its strain there is at the bound or past it. (A side at :data:`SIDE_REACH` times the
-    widest contact, 61 mm for ANYmal's ball, cuts nothing; quadruped-foam's 5 % bound takes a
-    ball to about 250 N, an 11 mm contact, so the law holds to 31 mm from the mat's side.)"""
+    or its strain there is at the bound or past it. (A side :data:`fem.layer_contact.SIDE_REACH`
+    times the widest contact away, 61 mm for ANYmal's ball, cuts nothing; quadruped-foam's 5 %
+    bound takes a ball to about 250 N, a 11.6 mm contact, so the law holds to 32 mm from the
+    mat's side.)"""
     if law.largest_contact_radius >= (1.0 - 1e-9) * widest_contact(law.radius, law.thickness):
         return True
     return _strain_bound_load(law, deformable_object, friction, law.force_limit) < law.force_limit
@@ -325,8 +336,8 @@ class LayerBalls:
             site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius, ball.friction)
             if site is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  f"(a box on its held base, the print inside its sides by a sixth of its thickness "
-                                  f"and by {SIDE_REACH:g} times the contact at the load its strain bound allows)")
+                                  "(a box on its held base, the print inside its sides by a sixth of its thickness, "
+                                  "1.5 strain radii and where they leave the law the load its strain bound allows)")
             thickness, sides = site
             balls.append(ball)
             thicknesses.append(thickness)
@@ -706,7 +717,7 @@ class LayerBalls:
         if contact > (1.0 + 1e-6) * law.largest_contact_radius:
             reasons.append(f"{label}'s contact radius {contact:.3g} m is past the law's validity "
                            f"({law.largest_contact_radius:.3g} m: 0.6 of the layer's thickness, 0.7 of the ball's "
-                           f"radius or its nearest side's distance over {SIDE_REACH:g}, whichever is least)")
+                           "radius or what its sides allow, whichever is least)")
         # Its strain on the layer's converged field (the mesh's under a ball is too low).
         obj = self.deformable_object
         strain = _strain_on_layer(law, obj, max(normal, 0.0), contact, ball.friction, sideways=tangential,
