@@ -380,6 +380,30 @@ def test_near_a_side_the_ball_strain_is_the_layers_over_the_sides_softening_with
         assert d_square == pytest.approx(numeric, rel=1e-5)
 
 
+def test_34_mm_from_the_mats_side_a_ball_takes_the_law_cut_short_of_its_strain_bound_only(anymal):
+    """Front feet 34 mm inside the foam's front side (nodes under the 61 mm rule of before): the
+    side ends the law's table at 34 / 2.8 mm of contact, past the load the 5 % strain bound
+    allows; the stance solves and verifies, each ball's strain under the bound."""
+    scenario = foam()
+    stance = Stance((Contact("left_front_foot", ContactPrint("foam_top", -0.166, 0.2, 0.0)),
+                     Contact("right_front_foot", ContactPrint("foam_top", -0.166, -0.2, 0.0)),
+                     Contact("left_hind_foot", ContactPrint("floor", -0.3, 0.2, 0.0)),
+                     Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
+    problem = build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER))
+    (layer,) = [c for c in problem.contacts if c.kind == "layer"]
+    body = scenario.scene.deformable_objects[0]
+    for ball, law in zip(layer.balls, layer.laws):
+        assert law.largest_contact_radius == pytest.approx(0.034 / SIDE_REACH, rel=1e-9)
+        site = (0.05, law.side_distances)
+        assert largest_ball_load(ball.radius, site, body, PostureOptions(), ball.friction) < law.force_limit
+    result = solve(anymal, scenario.scene, stance, **LAYER)
+    assert result.feasible, result.reason
+    check = verify(anymal, scenario.scene, stance, result, **LAYER)
+    assert check.ok, check.reasons
+    for ball in layer.balls:
+        assert 0.0 < check.measures[f"strain under {ball.label}"] < body.strain_limit
+
+
 def test_a_thick_block_and_a_cube_are_layers_under_balls_where_their_sides_leave_the_law(anymal):
     """The law reaches any box held on its base (before 2026-12-05: 1.2 thicknesses inside its
     sides, none of a 0.3 m cube): for ANYmal's ball, where no side cuts its table short of the
