@@ -236,10 +236,11 @@ class TetMesh:
         """(M,) float, cubic metres, all > 0."""
         return _readonly(tet_signed_volumes(self.nodes, self.tets))
 
-    @property
+    @cached_property
     def bounding_box(self) -> np.ndarray:
-        """(2, 3) float, metres: minimum corner then maximum corner."""
-        return np.stack([self.nodes.min(axis=0), self.nodes.max(axis=0)])
+        """(2, 3) float, metres: minimum corner then maximum corner (read-only; kept, as a
+        layer's sites ask for it at every print of every solve)."""
+        return _readonly(np.stack([self.nodes.min(axis=0), self.nodes.max(axis=0)]))
 
     # ---------------------------------------------------------------- surface
     @cached_property
