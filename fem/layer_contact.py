@@ -26,15 +26,14 @@ hexahedra refined everywhere, exact-sphere Signorini contact, within 0.02 % of t
 ``SIDE_DROP a t / L^2`` (a = sqrt(R d)), and the law times :func:`side_factor`, the product of
 those drops' complements over the four side faces, within 0.6 % of all its 20 one-face and
 centre cases (the 0.3 m cube's centre -1.0 % at 2.5 mm, a corner +1.4 %) from L = 5.7 a and
-L = t / 6. A second (``bench/results/audit-near-sides-2026-12-05.md``, one side and corners
+L = t / 6. Another (``bench/results/audit-near-sides-2026-12-05.md``, one side and corners
 at L = 0.17-0.6 t of a 5 cm mat and a 12 cm block, 1-4 mm deep) put it within 0.8 % from a
 quarter of the thickness and 2.8 contact radii (a corner's -0.8 %), off by up to 1.5 % (2.2 %
 in a corner) at 1.8 radii, and low by 2.4-9.9 % nearer than a quarter of the thickness at
 1.1-3.6 radii (the true drop levels off there while ``a t / L^2`` grows):
 :func:`side_contact_limit` keeps a ball within those ranges. Past half a thickness the true
-drop decays faster than the formula's, which then
-takes up to 0.7 point too much (a force low, a sinking deep): 1.32 against 0.66 % one
-thickness from a 5 cm mat's side at 2.5 mm. Tested for t <= 0.3 m (t / a <= 54) only: the
+drop decays faster than the formula's, which then takes up to 0.7 point too much (a force
+low, a sinking deep): 1.32 against 0.66 % one thickness from a 5 cm mat's side at 2.5 mm. Tested for t <= 0.3 m (t / a <= 54) only: the
 formula cannot hold as t grows without bound (the quarter-space limit). A support that is
 not a box on a held base is outside it.
 """
@@ -51,7 +50,7 @@ from scipy.optimize import brentq
 from .errors import FemError
 
 __all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAR_SIDE_REACH", "NEAR_SIDE_SHARE", "NEAREST_SIDE_SHARE",
-           "BallOnLayer", "widest_contact", "side_contact_limit",
+           "BallOnLayer", "widest_contact", "side_reach", "side_contact_limit",
            "check_positive",
            "check_poisson_ratio", "sphere_on_half_space", "layer_correction", "side_factor", "side_softening",
            "sphere_on_layer_force"]
@@ -241,12 +240,31 @@ def widest_contact(radius: float, thickness: float) -> float:
     return min(VALID_CONTACT_SHARE * thickness, _TABLE_RADIUS_SHARE * radius)
 
 
+def side_reach(distance: float, thickness: float) -> float:
+    """Contact radii a side face ``distance`` metres away must stand from a ball's contact for
+    :func:`side_factor`: :data:`SIDE_REACH`, or :data:`NEAR_SIDE_REACH` nearer than
+    :data:`NEAR_SIDE_SHARE` of the layer's ``thickness``."""
+    return SIDE_REACH if distance >= NEAR_SIDE_SHARE * thickness else NEAR_SIDE_REACH
+
+
 def side_contact_limit(thickness: float, side_distances=()) -> float:
-    """Metres: the widest contact radius :func:`side_factor` holds for beside these sides:
-    each side's distance over :data:`SIDE_REACH`, or over :data:`NEAR_SIDE_REACH` where it is
-    nearer than :data:`NEAR_SIDE_SHARE` of the thickness (infinite with no side)."""
-    return min((d / (SIDE_REACH if d >= NEAR_SIDE_SHARE * thickness else NEAR_SIDE_REACH) for d in side_distances),
-               default=np.inf)
+    """The widest contact radius :func:`side_factor` holds for beside these sides.
+
+    Parameters
+    ----------
+    thickness : float
+        The layer's, metres.
+    side_distances : sequence of float
+        Metres from the print's centre to each free side face.
+
+    Returns
+    -------
+    float
+        Metres: the least of each side's distance over its :func:`side_reach` (the nearest
+        side's; infinite with no side). Measured for one side; a corner within it was +1.0 to
+        +1.4 % off in the thick-box audit (module docstring).
+    """
+    return min((d / side_reach(d, thickness) for d in side_distances), default=np.inf)
 
 
 def check_side_distances(side_distances, thickness: float) -> tuple:
@@ -342,8 +360,8 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
         Newtons and metres (0 and 0 at depth 0). Within 0.5 % of the continuum while the
         contact radius is at most :data:`VALID_CONTACT_SHARE` of the thickness, low and
         falling further below it past that (module docstring): read it there only; with
-        sides, within 0.8 % of two audits' FEM while the contact is within
-        :func:`side_contact_limit`. The contact radius is the layer's.
+        sides, within 0.8 % of two audits' FEM beside one side while the contact is within
+        :func:`side_contact_limit` (a corner +1.0 to +1.4 %). The contact radius is the layer's.
 
     Raises
     ------
@@ -359,10 +377,9 @@ def sphere_on_layer_force(depth: float, radius: float, thickness: float, young_m
     side_distances = check_side_distances(side_distances, thickness)
     if np.sqrt(radius * depth) > side_contact_limit(thickness, side_distances):
         nearest = min(side_distances)
-        reach = SIDE_REACH if nearest >= NEAR_SIDE_SHARE * thickness else NEAR_SIDE_REACH
         raise FemError(f"a ball {depth:g} m deep (contact radius about {np.sqrt(radius * depth):.3g} m) is within "
-                       f"{reach:g} contact radii of a side face {nearest:g} m away: the side correction does "
-                       "not hold there")
+                       f"{side_reach(nearest, thickness):g} contact radii of a side face {nearest:g} m away: the "
+                       "side correction does not hold there")
     if depth >= min(radius, thickness):
         raise FemError(f"a sphere of radius {radius:g} m cannot be pressed {depth:g} m into a layer {thickness:g} m "
                        "thick: that is its radius or the layer's thickness or more")

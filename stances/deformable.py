@@ -107,12 +107,12 @@ import scipy.spatial
 
 import fem
 from fem.dense import block_diagonal_product
-from fem.layer_contact import VALID_CONTACT_SHARE, side_contact_limit
+from fem.layer_contact import side_contact_limit, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
 from .errors import StanceError
-from .layer_ball import layer_site
+from .layer_ball import box_site
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
@@ -1379,19 +1379,18 @@ class DeformableContact:
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
         formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
-        face, far enough from the sides for the law (:func:`stances.layer_ball.layer_site`), whose softening the estimate
-        counts) and the contact radius is at most
-        :data:`fem.layer_contact.VALID_CONTACT_SHARE` of the thickness and within the sides'
-        :func:`fem.layer_contact.side_contact_limit` (within 0.8 % of two independent FEMs
-        there). Never raises: a
-        ball sunk past what the formula takes gets none."""
+        face a sixth of the thickness inside its sides, whose softening the estimate counts)
+        and the contact is within :func:`fem.layer_contact.widest_contact` and the sides'
+        :func:`fem.layer_contact.side_contact_limit` (within 0.8 % of independent FEMs there
+        beside one side, 1.4 % in a corner). Never raises: a ball sunk past what the formula
+        takes gets none."""
         material = self.deformable_object.body.material
         for index in self.point_prints.tolist():
             site = self._layer_under(index)
             if site is None:
                 continue
             thickness, sides = site
-            widest = min(VALID_CONTACT_SHARE * thickness, side_contact_limit(thickness, sides))
+            widest = min(widest_contact(self.ball_radii[index], thickness), side_contact_limit(thickness, sides))
             rows = self.print_of_node == index
             placement = self.print_placements[index]
             sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ placement.rotation[:, 2])
@@ -1409,10 +1408,9 @@ class DeformableContact:
 
     def _layer_under(self, index: int):
         """The body's thickness and side distances under point print ``index`` if the body is
-        a layer there, else None (:func:`stances.layer_ball.layer_site`; kept)."""
+        a box held on its base there, else None (:func:`stances.layer_ball.box_site`; kept)."""
         if index not in self._layers:
-            self._layers[index] = layer_site(self.deformable_object, self.print_placements[index].homogeneous,
-                                             self.ball_radii[index], self.friction[index])
+            self._layers[index] = box_site(self.deformable_object, self.print_placements[index].homogeneous)
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

@@ -3,13 +3,15 @@
 A ball foot (radius R, a few millimetres deep) presses a contact smaller than a soft
 mat's cells: the mesh's nodes under it give a force that moves by tens of percent with
 where the ball stands against them (``docs/ball-subgrid.md``). Where the body is a box held
-on its base, the ball on the opposite face inside its sides by a sixth of the thickness and so
-far that no side cuts the law short of the load the body's strain bound allows (:func:`layer_site`:
-32 mm on quadruped-foam's mat for ANYmal's ball), the continuum gives the force instead: :class:`fem.BallOnLayer`, a rigid
-sphere on an elastic layer bonded to a rigid base (within 0.5 % of an exact solution while
-the contact's radius is at most 0.6 of the thickness), times the softening of the box's free
-side faces (:func:`fem.layer_contact.side_factor`: within 0.6 % of an independent FEM of mats,
-a wide 0.15 m box and a 0.3 m cube, the cube's centre -1.0 %). Each ball is then a point contact
+on its base, the ball on the opposite face inside its sides by a sixth of the thickness, 1.5
+strain radii and so far that no side cuts the law short of the load the body's strain bound
+allows (:func:`layer_site`: 32 mm on quadruped-foam's mat for ANYmal's ball), the continuum
+gives the force instead: :class:`fem.BallOnLayer`, a rigid sphere on an elastic layer bonded
+to a rigid base (within 0.5 % of an exact solution while the contact's radius is at most 0.6
+of the thickness), times the softening of the box's free side faces
+(:func:`fem.layer_contact.side_factor`: within 0.8 % of three independent FEMs of mats, a
+block, a wide 0.15 m box and a 0.3 m cube beside one side, the cube's centre -1.0 %, a corner
++1.4 %). Each ball is then a point contact
 (:class:`stances.contacts.PointContact`) whose normal placement gives way by the layer's
 sinking under its normal force, the compliance form of contact:
 
@@ -58,7 +60,7 @@ from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["LayerBalls", "largest_ball_load", "layer_site", "layer_sites"]
+__all__ = ["LayerBalls", "box_site", "largest_ball_load", "layer_site", "layer_sites"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -82,6 +84,7 @@ _STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's e
 # from a 5 cm mat's side, 0.59-0.84 at 10-15 mm; 0.99-1.02 at 30 mm, a corner's included; 1.03-1.11
 # on a 12 cm block from 20 mm).
 _STRAIN_SIDE_REACH = 1.5
+_AUDITED_STRAIN_RADIUS = 0.02  # m: the audit's means; a smaller radius keeps the 30 mm it measured
 _SMALLEST_STRAIN_SHARE = 0.05  # the converged strain's table starts at this share of the widest contact
 
 @functools.lru_cache(maxsize=256)
@@ -233,20 +236,18 @@ def _strain_bound_load(law: BallOnLayer, deformable_object, friction: float, top
 
 def layer_site(deformable_object, transform_print_to_world, radius: float, friction: float) -> tuple | None:
     """The body's thickness under a ball's print and the distances of its side faces, if the
-    body is a layer there for the ball (a box on a held base), else None.
+    body is a layer there for the ball's law, else None.
 
-    A layer: a box (its tets fill its bounding box), the print's normal along one of its
-    axes and the print on that face, the nodes of the opposite face exactly the body's
-    fixed nodes (a held base), and the print inside the box's faces along the other two axes
-    by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (nearer, the
-    sides' softening was not tested), 1.5 strain radii (nearer, a mat's side strains more
-    than the layer's field says: ``_STRAIN_SIDE_REACH``) and so far that no side cuts the
-    law's table (:func:`fem.layer_contact.side_contact_limit`) short of the load the object's
-    strain bound allows there (:func:`_covers_strain_bound`): nearer, the law would bound the
-    ball's force below what the mesh's nodes carry (a review, 2026-12-05: with the table cut at
-    the nearest side over 5, 19 N 2.5 cm from a 5 cm mat's side, where ANYmal's front feet
-    carry 63 N). For ANYmal's ball under a 5 % bound: 32 mm inside quadruped-foam's mat, 34 mm
-    inside a 12 cm block, 67 mm inside a 0.3 m cube.
+    A layer: a box held on its base under the print (:func:`box_site`), the print inside its
+    side faces by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness
+    (nearer, the sides' softening was not tested) and 1.5 strain radii, 20 mm at least (nearer,
+    a mat's side strains more than the layer's field says: ``_STRAIN_SIDE_REACH``), and so far
+    that no side cuts the law's table (:func:`fem.layer_contact.side_contact_limit`) short of
+    the load the object's strain bound allows there (:func:`_covers_strain_bound`): nearer, the
+    law would bound the ball's force below what the mesh's nodes carry (a review, 2026-12-05:
+    with the table cut at the nearest side over 5, 19 N 2.5 cm from a 5 cm mat's side, where
+    ANYmal's front feet carry 63 N). For ANYmal's ball under a 5 % bound: 32 mm inside
+    quadruped-foam's mat, 34 mm inside a 12 cm block, 67 mm inside a 0.3 m cube.
 
     Parameters
     ----------
@@ -257,6 +258,38 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
         The ball's, metres.
     friction : float
         The print surface's friction coefficient (the strain table's sideways ratios).
+
+    Returns
+    -------
+    (float, tuple of 4 float) or None
+        The thickness and the four side faces' distances from the print's origin, metres.
+    """
+    site = box_site(deformable_object, transform_print_to_world)
+    if site is None:
+        return None
+    thickness, sides = site
+    strain_reach = _STRAIN_SIDE_REACH * max(float(deformable_object.strain_radius), _AUDITED_STRAIN_RADIUS)
+    if min(sides) < (1.0 - 1e-9) * strain_reach:
+        return None
+    material = deformable_object.body.material
+    law = _law(float(radius), thickness, float(material.young_modulus), float(material.poisson_ratio), sides)
+    return site if _covers_strain_bound(law, deformable_object, float(friction)) else None
+
+
+def box_site(deformable_object, transform_print_to_world) -> tuple | None:
+    """The body's thickness under a print and the distances of its side faces, if the body is
+    a box held on its base there, else None: a box (its tets fill its bounding box), the
+    print's normal along one of its axes and the print on that face, the nodes of the opposite
+    face exactly the body's fixed nodes, and the print inside the other faces by at least
+    :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (the sides' softening's
+    range). Where the layer's force formula holds, whatever the strain (:func:`layer_site`
+    asks more of a ball that sinks by it).
+
+    Parameters
+    ----------
+    deformable_object : environments.DeformableObject
+    transform_print_to_world : (4, 4) float
+        The print frame (z: the surface's outward normal), world.
 
     Returns
     -------
@@ -279,12 +312,9 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    nearest = max(NEAREST_SIDE_SHARE * thickness, _STRAIN_SIDE_REACH * float(deformable_object.strain_radius))
-    if not (on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * nearest):
-        return None
-    material = body.material
-    law = _law(float(radius), thickness, float(material.young_modulus), float(material.poisson_ratio), sides)
-    return (thickness, sides) if _covers_strain_bound(law, deformable_object, float(friction)) else None
+    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness:
+        return thickness, sides
+    return None
 
 
 @functools.lru_cache(maxsize=1024)
@@ -294,8 +324,10 @@ def _covers_strain_bound(law: BallOnLayer, deformable_object, friction: float) -
     or its strain there is at the bound or past it. (A side :data:`fem.layer_contact.SIDE_REACH`
     times the widest contact away, 61 mm for ANYmal's ball, cuts nothing; quadruped-foam's 5 %
     bound takes a ball to about 250 N, a 11.6 mm contact, so the law holds to 32 mm from the
-    mat's side.) Kept by law, object and friction: a planner asks at the same few prints at
-    every solve (0.3 ms a brentq)."""
+    mat's side.) Conservative where the indentation bound ends the force before the table
+    (the table's end is asked for), and true where the body's own weight leaves no strain to
+    spend (no load is allowed: the stance fails on its strain). Kept by law, object and
+    friction: a planner asks at the same few prints at every solve (0.3 ms a brentq)."""
     if law.largest_contact_radius >= (1.0 - 1e-9) * widest_contact(law.radius, law.thickness):
         return True
     return _strain_bound_load(law, deformable_object, friction, law.force_limit) < law.force_limit
@@ -338,8 +370,9 @@ class LayerBalls:
             site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius, ball.friction)
             if site is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  "(a box on its held base, the print inside its sides by a sixth of its thickness, "
-                                  "1.5 strain radii and where they leave the law the load its strain bound allows)")
+                                  f"(a box on its held base, the print inside its sides by a sixth of its thickness, "
+                                  f"{_STRAIN_SIDE_REACH:g} strain radii and far enough that no side cuts the law short "
+                                  f"of the load its strain bound allows)")
             thickness, sides = site
             balls.append(ball)
             thicknesses.append(thickness)

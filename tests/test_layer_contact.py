@@ -271,6 +271,14 @@ def test_nearer_the_law_is_refused_where_an_independent_fem_found_it_off(thickne
     assert law.depth_limit < 1e-3 * depth
 
 
+@pytest.mark.parametrize("depth, converged", [(1.0, 25.34), (2.5, 97.43)])
+def test_in_a_cubes_corner_the_law_is_within_one_and_a_half_percent_of_an_independent_fem(depth, converged):
+    """The thick-box audit's corner, 75 mm from two sides of the 0.3 m cube (its coarser level's
+    drop times its converged centre): the product of the two sides' drops, +1.0 / +1.4 %."""
+    force, _ = sphere_on_layer_force(1e-3 * depth, 0.031, 0.3, 3e6, NU, (0.075, 0.225, 0.075, 0.225))
+    assert 0.0 < force / converged - 1 < 0.015
+
+
 def test_the_sides_contact_limit_needs_more_contact_radii_nearer_than_a_quarter_thickness():
     limit = fem.layer_contact.side_contact_limit
     assert limit(0.05, ()) == np.inf
