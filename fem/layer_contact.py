@@ -33,9 +33,9 @@ in a corner) at 1.8 radii, and low by 2.4-9.9 % nearer than a quarter of the thi
 1.1-3.6 radii (the true drop levels off there while ``a t / L^2`` grows):
 :func:`side_contact_limit` keeps a ball within those ranges. Past half a thickness the true
 drop decays faster than the formula's, which then takes up to 0.7 point too much (a force
-low, a sinking deep): 1.32 against 0.66 % one thickness from a 5 cm mat's side at 2.5 mm. Tested for t <= 0.3 m (t / a <= 54) only: the
-formula cannot hold as t grows without bound (the quarter-space limit). A support that is
-not a box on a held base is outside it.
+low, a sinking deep): 1.32 against 0.66 % one thickness from a 5 cm mat's side at 2.5 mm.
+Tested for t <= 0.3 m (t / a <= 54) only: the formula cannot hold as t grows without bound
+(the quarter-space limit). A support that is not a box on a held base is outside it.
 """
 
 from __future__ import annotations
@@ -50,10 +50,8 @@ from scipy.optimize import brentq
 from .errors import FemError
 
 __all__ = ["VALID_CONTACT_SHARE", "SIDE_DROP", "SIDE_REACH", "NEAR_SIDE_REACH", "NEAR_SIDE_SHARE", "NEAREST_SIDE_SHARE",
-           "BallOnLayer", "widest_contact", "side_reach", "side_contact_limit",
-           "check_positive",
-           "check_poisson_ratio", "sphere_on_half_space", "layer_correction", "side_factor", "side_softening",
-           "sphere_on_layer_force"]
+           "BallOnLayer", "widest_contact", "side_reach", "side_contact_limit", "check_positive", "check_poisson_ratio",
+           "sphere_on_half_space", "layer_correction", "side_factor", "side_softening", "sphere_on_layer_force"]
 
 #: Contact radius over thickness up to which the first-order far field is within 0.5 % of the
 #: continuum (nu = 0.4; 1 % at nu = 0.49), always low (module docstring).
@@ -69,7 +67,8 @@ SIDE_DROP = 0.075
 #: of one side and corners at L = 0.17-0.6 t on a 5 cm mat and a 12 cm block,
 #: ``bench/results/audit-near-sides-2026-12-05.md``: within 0.8 % of its converged forces there,
 #: 1.5 % at 1.8 contact radii, -3.8 % at 1.1): a ball's table ends at the contact radius its
-#: sides allow (:func:`side_contact_limit`), and :func:`sphere_on_layer_force` refuses a deeper ball.
+#: sides allow (:func:`side_contact_limit`), and :func:`sphere_on_layer_force` refuses a deeper
+#: ball.
 SIDE_REACH = 2.8
 
 #: Contact radii a side face nearer than :data:`NEAR_SIDE_SHARE` of the thickness stands away

@@ -329,7 +329,7 @@ class DeformableContact:
         node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.ball_radii = {}  # print index -> its ball's radius, metres, for point feet
-        self._layers = {}  # print index -> (the layer's thickness, its sides' distances) under it or None (_layer_under)
+        self._layers = {}  # print index -> (thickness, side distances) of the box under it, or None (_layer_under)
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:

@@ -11,17 +11,17 @@ to a rigid base (within 0.5 % of an exact solution while the contact's radius is
 of the thickness), times the softening of the box's free side faces
 (:func:`fem.layer_contact.side_factor`: within 0.8 % of three independent FEMs of mats, a
 block, a wide 0.15 m box and a 0.3 m cube beside one side, the cube's centre -1.0 %, a corner
-+1.4 %). Each ball is then a point contact
-(:class:`stances.contacts.PointContact`) whose normal placement gives way by the layer's
-sinking under its normal force, the compliance form of contact:
++1.4 %). Each ball is then a point contact (:class:`stances.contacts.PointContact`) whose
+normal placement gives way by the layer's sinking under its normal force, the compliance form
+of contact:
 
     R_p^T (c - o_p) - (0, 0, r) + (0, 0, delta(f_n)) = 0,    f_n = n . f
 
 (as E grows, delta -> 0: the rigid point contact). Its force is a friction pyramid's, as on
 a rigid support; the pyramid lies inside the Coulomb cone, and so does every node's load
 (below). The force is bounded where the law stops holding: the contact's radius at 0.6 of
-the thickness (0.7 of the ball's radius, what its sides allow: :func:`fem.layer_contact.side_contact_limit`) and the
-sinking at the indentation bound.
+the thickness (0.7 of the ball's radius, what its sides allow:
+:func:`fem.layer_contact.side_contact_limit`) and the sinking at the indentation bound.
 
 The body's field (the pictures, the files, the strain bound) is the mesh's under the
 ball's Hertzian pressure, as consistent nodal loads (:func:`fem.hertz_load_shares`): each
@@ -31,14 +31,15 @@ force is. A mesh as coarse as the contact strains too little under a ball (10 mm
 also bounded on the layer's own field under it, converged
 (:class:`fem.LayerBallStrain`: an axisymmetric FEM of the layer under the ball's normal
 force and its first harmonic under the sideways one, its largest mean, divided by the sides'
-softening near a box's side, the body's own weight's largest added), one row a ball; the mesh's rows keep what that field leaves out
-(the other balls, where the weight strains most). The balls on one body are coupled only through the far field, which this leaves
-out: under quadruped-foam's 5 cm mat another ball 0.2 m away changes a ball's force by 0.02 %
-(an independent audit's finite-mat FEM; a half-space's Boussinesq bound, 1 % at 0.4 m, is far
+softening near a box's side, the body's own weight's largest added), one row a ball; the
+mesh's rows keep what that field leaves out (the other balls, where the weight strains most).
+The balls on one body are coupled only through the far field, which this leaves out: under
+quadruped-foam's 5 cm mat another ball 0.2 m away changes a ball's force by 0.02 % (an
+independent audit's finite-mat FEM; a half-space's Boussinesq bound, 1 % at 0.4 m, is far
 above what a layer on a rigid base passes on), on a 12 cm block by 0.1-0.2 % (another audit's
-superposition estimate, 2026-12-05), 0.03 % at 0.4 m. `stances.verify` checks each ball's sinking against the law solved afresh
-(:func:`fem.sphere_on_layer_force`), its cone, its nodes' cones, its converged strain and the
-body's strain on the mesh.
+superposition estimate, 2026-12-05), 0.03 % at 0.4 m. `stances.verify` checks each ball's
+sinking against the law solved afresh (:func:`fem.sphere_on_layer_force`), its cone, its
+nodes' cones, its converged strain and the body's strain on the mesh.
 """
 
 from __future__ import annotations
@@ -93,6 +94,14 @@ def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: f
     """The layer's law, tabulated once per ball, layer and place on it (6 ms; a planner asks
     for it at every solve, at the few places its print grid has on a body)."""
     return BallOnLayer(radius, thickness, young_modulus, poisson_ratio, side_distances)
+
+
+def _site_law(radius: float, site: tuple, deformable_object) -> BallOnLayer:
+    """The law of a ball of ``radius`` metres at ``site`` (the thickness and side distances of
+    :func:`box_site`) on the object's material."""
+    material = deformable_object.body.material
+    thickness, sides = site
+    return _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio), sides)
 
 
 def _without_sides(law: BallOnLayer) -> BallOnLayer:
@@ -213,10 +222,8 @@ def largest_ball_load(radius: float, site: tuple, deformable_object, options, fr
         The print surface's friction coefficient (the strain table the solver will read
         spans the sideways ratios it allows).
     """
-    material = deformable_object.body.material
-    thickness, sides = site
-    law = _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio), sides)
-    return _strain_bound_load(law, deformable_object, friction, _force_limit(law, _indentation_bound(options, thickness)))
+    law = _site_law(radius, site, deformable_object)
+    return _strain_bound_load(law, deformable_object, friction, _force_limit(law, _indentation_bound(options, site[0])))
 
 
 def _strain_bound_load(law: BallOnLayer, deformable_object, friction: float, top: float) -> float:
@@ -267,12 +274,10 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     site = box_site(deformable_object, transform_print_to_world)
     if site is None:
         return None
-    thickness, sides = site
     strain_reach = _STRAIN_SIDE_REACH * max(float(deformable_object.strain_radius), _AUDITED_STRAIN_RADIUS)
-    if min(sides) < (1.0 - 1e-9) * strain_reach:
+    if min(site[1]) < (1.0 - 1e-9) * strain_reach:
         return None
-    material = deformable_object.body.material
-    law = _law(float(radius), thickness, float(material.young_modulus), float(material.poisson_ratio), sides)
+    law = _site_law(radius, site, deformable_object)
     return site if _covers_strain_bound(law, deformable_object, float(friction)) else None
 
 
@@ -312,7 +317,8 @@ def box_site(deformable_object, transform_print_to_world) -> tuple | None:
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
     sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    if on_face and np.array_equal(base, body.fixed_mask) and min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness:
+    inside = min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness
+    if on_face and np.array_equal(base, body.fixed_mask) and inside:
         return thickness, sides
     return None
 
@@ -359,7 +365,6 @@ class LayerBalls:
         self.deformable_object = deformable_object
         self.prints = list(prints)
         self.label = " and ".join(p.label for p in self.prints)
-        material = deformable_object.body.material
         self.rotation_body = np.asarray(deformable_object.transform_body_to_world, dtype=float)[:3, :3]
         balls, laws, thicknesses = [], [], []
         for spec in self.prints:
@@ -370,13 +375,12 @@ class LayerBalls:
             site = layer_site(deformable_object, spec.transform_print_to_world, ball.radius, ball.friction)
             if site is None:
                 raise StanceError(f"{spec.label}: {deformable_object.name} is not a layer under this print "
-                                  f"(a box on its held base, the print inside its sides by a sixth of its thickness, "
+                                  "(a box on its held base, the print inside its sides by a sixth of its thickness, "
                                   f"{_STRAIN_SIDE_REACH:g} strain radii and far enough that no side cuts the law short "
-                                  f"of the load its strain bound allows)")
-            thickness, sides = site
+                                  "of the load its strain bound allows)")
             balls.append(ball)
-            thicknesses.append(thickness)
-            laws.append(_law(ball.radius, thickness, float(material.young_modulus), float(material.poisson_ratio), sides))
+            thicknesses.append(site[0])
+            laws.append(_site_law(ball.radius, site, deformable_object))
         self.balls, self.laws, self.thicknesses = tuple(balls), tuple(laws), tuple(thicknesses)
         self.frame_ids = tuple(b.frame_id for b in balls)
         self._last_loads = None  # (forces' bytes, ball_loads of them)
