@@ -112,7 +112,7 @@ from fem.layer_contact import side_contact_limit, widest_contact
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import friction_cone_generators
 from .errors import StanceError
-from .layer_ball import box_site
+from .layer_ball import layer_under
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
@@ -313,6 +313,7 @@ class DeformableContact:
         self.strain_radius = float(deformable_object.strain_radius)
         self.max_slip = float(options.max_slip)
         self.max_mesh_overlap = float(options.max_mesh_overlap)
+        self.ball_force_error = float(options.ball_force_error)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
         self.rotation_body = body_placement.rotation
@@ -1326,8 +1327,7 @@ class DeformableContact:
                         f"{mismatch:.3g} m off its link (the nodes are bonded)"
                     )
         reasons.extend(self._check_cones(forces, tolerances, measures))
-        self._count_pressed_nodes(phi[:, 2], measures)
-        self._estimate_ball_forces(points, phi[:, 2], measures)
+        reasons.extend(self._check_balls(points, phi[:, 2], measures))
         depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
         # Elastic energy stored in the body, joules: by Clapeyron's theorem 1/2 F.U over
@@ -1351,27 +1351,48 @@ class DeformableContact:
             )
         return reasons
 
-    def _count_pressed_nodes(self, normal, measures) -> None:
-        """``pressed nodes under <print>`` of each ball foot: its nodes carrying more than a
-        thousandth of its largest node force, from (p,) node normal forces, newtons. Fewer
-        than :data:`RESOLVED_BALL_NODES` is logged once a body and process: the answer is
-        not wrong by the model's own check, but an independent converged mesh would give the
-        ball another force."""
+    def _check_balls(self, points, normal, measures) -> list:
+        """Whether each ball foot's force is one a converged mesh would give, within
+        ``ball_force_error`` (:class:`~stances.problem.PostureOptions`): against the
+        continuum's estimate where there is one (:meth:`_estimate_ball_forces`), else by
+        the count of nodes it presses (at least :data:`RESOLVED_BALL_NODES`). Measures
+        both; a ball accepted with fewer nodes is logged once a body and process."""
+        self._count_pressed_nodes(normal, measures)
+        self._estimate_ball_forces(points, normal, measures)
+        reasons, name = [], self.deformable_object.name
+        refine = ("refine the mesh where balls land (a soft_box's refine_lines or a finer resolution), keep the "
+                  "balls where the layer's law holds (a box pressed by balls only, far enough inside its sides), "
+                  "or accept it with ball_force_error=inf")
         for index in self.point_prints.tolist():
-            pushed = normal[self.print_of_node == index]
-            count = int(np.count_nonzero(pushed > 1e-3 * pushed.max())) if pushed.max() > 0.0 else 0
             label = self.prints[index].label
-            measures[f"pressed nodes under {label}"] = count
-            body = id(self.deformable_object.body)
-            if 0 < count < RESOLVED_BALL_NODES and body not in _COARSE_BALLS_LOGGED:
-                _COARSE_BALLS_LOGGED.add(body)
+            count = measures[f"pressed nodes under {label}"]
+            error = measures.get(f"ball force error under {label}")
+            if error is not None and abs(error) > self.ball_force_error:
+                reasons.append(
+                    f"the force under {label} is {error:+.1%} off a continuous layer's at its sinking "
+                    f"({measures[f'ball force estimate under {label}']:.4g} N; ball_force_error "
+                    f"{self.ball_force_error:g}): its contact on {name} is smaller than the mesh resolves; {refine}")
+            elif error is None and 0 < count < RESOLVED_BALL_NODES and np.isfinite(self.ball_force_error):
+                reasons.append(
+                    f"{label} presses {count} mesh node(s) of {name} (at least {RESOLVED_BALL_NODES} resolve a "
+                    f"ball's contact): its force depends on where it stands against the nodes (1-5 nodes on 10 "
+                    f"mm cells: -46 % to +31 % of a converged mesh's); {refine}")
+            elif 0 < count < RESOLVED_BALL_NODES and id(self.deformable_object.body) not in _COARSE_BALLS_LOGGED:
+                _COARSE_BALLS_LOGGED.add(id(self.deformable_object.body))
                 logger.warning(
                     "%s presses %d mesh node(s) of %r: a ball contact smaller than the cells, whose force depends on "
                     "where the ball stands against the nodes (1-5 nodes: -46 %% to +31 %% of a converged mesh's; where "
                     "the body is a layer, the verification's 'ball force error under <print>' compares it with a "
-                    "continuous layer's); refine the mesh where balls land (a soft_box's refine_lines, or a finer "
-                    "resolution), or, on a layer pressed by balls only, leave ball_contact at 'layer' (its law needs "
-                    "no node)", label, count, self.deformable_object.name)
+                    "continuous layer's), accepted (ball_force_error %g)", label, count, name, self.ball_force_error)
+        return reasons
+
+    def _count_pressed_nodes(self, normal, measures) -> None:
+        """``pressed nodes under <print>`` of each ball foot: its nodes carrying more than a
+        thousandth of its largest node force, from (p,) node normal forces, newtons."""
+        for index in self.point_prints.tolist():
+            pushed = normal[self.print_of_node == index]
+            count = int(np.count_nonzero(pushed > 1e-3 * pushed.max())) if pushed.max() > 0.0 else 0
+            measures[f"pressed nodes under {self.prints[index].label}"] = count
 
     def _estimate_ball_forces(self, points, normal, measures) -> None:
         """``ball force estimate under <print>`` (newtons) and ``ball force error under
@@ -1408,9 +1429,10 @@ class DeformableContact:
 
     def _layer_under(self, index: int):
         """The body's thickness and side distances under point print ``index`` if the body is
-        a box held on its base there, else None (:func:`stances.layer_ball.box_site`; kept)."""
+        a layer held on its base there, else None (:func:`stances.layer_ball.layer_under`; kept)."""
         if index not in self._layers:
-            self._layers[index] = box_site(self.deformable_object, self.print_placements[index].homogeneous)
+            self._layers[index] = layer_under(self.deformable_object, self.print_placements[index].homogeneous,
+                                              self.ball_radii[index])
         return self._layers[index]
 
     def _check_coulomb(self, phi, relative, tolerances, measures) -> list:

@@ -51,17 +51,18 @@ import weakref
 
 import numpy as np
 import scipy.linalg
+import scipy.spatial
 from scipy.optimize import brentq
 
 import fem
-from fem.layer_contact import NEAREST_SIDE_SHARE, BallOnLayer, side_softening, widest_contact
+from fem.layer_contact import NEAREST_SIDE_SHARE, SIDE_DROP, BallOnLayer, side_softening, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PointContact
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
 
-__all__ = ["LayerBalls", "box_site", "largest_ball_load", "layer_site", "layer_sites"]
+__all__ = ["LayerBalls", "largest_ball_load", "layer_site", "layer_sites", "layer_under"]
 
 # The sinking's slope in the force is infinite at no force (Hertz: depth ~ F^(2/3)): a
 # linearisation takes it at no less than this share of the robot's weight.
@@ -98,7 +99,7 @@ def _law(radius: float, thickness: float, young_modulus: float, poisson_ratio: f
 
 def _site_law(radius: float, site: tuple, deformable_object) -> BallOnLayer:
     """The law of a ball of ``radius`` metres at ``site`` (the thickness and side distances of
-    :func:`box_site`) on the object's material."""
+    :func:`layer_under`) on the object's material."""
     material = deformable_object.body.material
     thickness, sides = site
     return _law(float(radius), float(thickness), float(material.young_modulus), float(material.poisson_ratio), sides)
@@ -245,9 +246,10 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     """The body's thickness under a ball's print and the distances of its side faces, if the
     body is a layer there for the ball's law, else None.
 
-    A layer: a box held on its base under the print (:func:`box_site`), the print inside its
-    side faces by at least :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness
-    (nearer, the sides' softening was not tested) and 1.5 strain radii, 20 mm at least (nearer,
+    A layer: held on its base under the print (:func:`layer_under`: a box, or a convex top face
+    over nothing but the base), the print inside its side faces by at least
+    :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (nearer, the sides'
+    softening was not tested) and 1.5 strain radii, 20 mm at least (nearer,
     a mat's side strains more than the layer's field says: ``_STRAIN_SIDE_REACH``), and so far
     that no side cuts the law's table (:func:`fem.layer_contact.side_contact_limit`) short of
     the load the object's strain bound allows there (:func:`_covers_strain_bound`): nearer, the
@@ -268,10 +270,10 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
 
     Returns
     -------
-    (float, tuple of 4 float) or None
-        The thickness and the four side faces' distances from the print's origin, metres.
+    (float, tuple of float) or None
+        The thickness and the side faces' distances from the print's origin, metres.
     """
-    site = box_site(deformable_object, transform_print_to_world)
+    site = layer_under(deformable_object, transform_print_to_world, radius)
     if site is None:
         return None
     strain_reach = _STRAIN_SIDE_REACH * max(float(deformable_object.strain_radius), _AUDITED_STRAIN_RADIUS)
@@ -281,46 +283,123 @@ def layer_site(deformable_object, transform_print_to_world, radius: float, frict
     return site if _covers_strain_bound(law, deformable_object, float(friction)) else None
 
 
-def box_site(deformable_object, transform_print_to_world) -> tuple | None:
-    """The body's thickness under a print and the distances of its side faces, if the body is
-    a box held on its base there, else None: a box (its tets fill its bounding box), the
-    print's normal along one of its axes and the print on that face, the nodes of the opposite
-    face exactly the body's fixed nodes, and the print inside the other faces by at least
-    :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (the sides' softening's
-    range). Where the layer's force formula holds, whatever the strain (:func:`layer_site`
-    asks more of a ball that sinks by it).
+def layer_under(deformable_object, transform_print_to_world, radius: float) -> tuple | None:
+    """The body's thickness under a ball's print and the distances of its side faces, if the
+    body is a layer held on its base there, else None. Where the layer's force formula holds,
+    whatever the strain (:func:`layer_site` asks more of a ball that sinks by it).
+
+    A layer: the print's normal along one of the body's axes and the print on the body's
+    extreme face that way, the nodes of the opposite face exactly the body's fixed nodes, and
+    either
+
+    - a box (its tets fill its bounding box), the print inside its other faces by at least
+      :data:`fem.layer_contact.NEAREST_SIDE_SHARE` of the thickness (the sides' softening's
+      range, measured on boxes); or
+    - a body whose top face there is a convex polygon with nothing but the base under it (no
+      boundary of the body inside the polygon's prism but that face and the base: a pad with
+      bevelled edges, the top of a block of a step). Its sides are taken as the polygon's
+      edges, though what lies beyond them (a bevel, attached blocks) is no free vertical face:
+      so the print must lie where free faces there would lower the ball's force by under
+      :data:`_UNCHECKED_SIDES_DROP` in all at its widest contact (and by more than the sides'
+      share above), whatever they are.
 
     Parameters
     ----------
     deformable_object : environments.DeformableObject
     transform_print_to_world : (4, 4) float
         The print frame (z: the surface's outward normal), world.
+    radius : float
+        The ball's, metres.
 
     Returns
     -------
-    (float, tuple of 4 float) or None
-        The thickness and the four side faces' distances from the print's origin, metres.
+    (float, tuple of float) or None
+        The thickness and the side faces' distances from the print's origin, metres (a box's
+        four; a polygon's edges, one each).
     """
     body = deformable_object.body
     to_world = np.asarray(deformable_object.transform_body_to_world, dtype=float)
     placement = np.asarray(transform_print_to_world, dtype=float)
     normal = to_world[:3, :3].T @ placement[:3, 2]  # body frame
     axis = int(np.argmax(np.abs(normal)))
+    if not abs(normal[axis]) > 1.0 - 1e-9:
+        return None
     low, high = body.mesh.bounding_box
     extent = high - low
-    box = abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9
-    if not (box and abs(normal[axis]) > 1.0 - 1e-9):
-        return None
     origin = to_world[:3, :3].T @ (placement[:3, 3] - to_world[:3, 3])
     face, base_face = (high, low) if normal[axis] > 0.0 else (low, high)
     thickness = float(extent[axis])
     on_face = abs(origin[axis] - face[axis]) <= 1e-6 * thickness
     base = np.abs(body.mesh.nodes[:, axis] - base_face[axis]) <= 1e-9 * thickness
-    sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
-    inside = min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness
-    if on_face and np.array_equal(base, body.fixed_mask) and inside:
-        return thickness, sides
-    return None
+    if not (on_face and np.array_equal(base, body.fixed_mask)):
+        return None
+    if abs(float(np.sum(body.mesh.volumes)) / float(np.prod(extent)) - 1.0) < 1e-9:  # a box
+        sides = tuple(float(d) for k in range(3) if k != axis for d in (origin[k] - low[k], high[k] - origin[k]))
+        return (thickness, sides) if min(sides) >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness else None
+    edges = _top_face_edges(body.mesh, axis, 1 if normal[axis] > 0.0 else -1)
+    if edges is None:
+        return None
+    in_plane = [k for k in range(3) if k != axis]
+    distances = edges[:, 2] - edges[:, :2] @ origin[in_plane]  # inside the polygon: all > 0
+    if not distances.min() >= (1.0 - 1e-9) * NEAREST_SIDE_SHARE * thickness:
+        return None
+    contact = widest_contact(float(radius), thickness)
+    if SIDE_DROP * contact * thickness * float(np.sum(1.0 / distances**2)) > _UNCHECKED_SIDES_DROP:
+        return None
+    return thickness, tuple(float(d) for d in distances)
+
+
+# A layer whose sides are no free vertical faces (layer_under): where free faces would lower a
+# ball's force by at most this in all, whatever lies there moves it by no more.
+_UNCHECKED_SIDES_DROP = 0.02
+
+# Each mesh's top faces (layer_under), by (axis, sign): its convex polygon's edges, or None.
+_TOP_FACES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _top_face_edges(mesh, axis: int, sign: int):
+    """The body's face at its extreme along ``axis`` (``sign``: which end) as a convex polygon
+    over nothing but the base, or None: (k, 3) rows ``(n_1, n_2, c)`` of its edges' lines,
+    ``n . x <= c`` inside (n a unit vector in the two other axes' plane, body frame).
+
+    None where the face's triangles do not fill their convex hull, or where any other face of
+    the body's boundary (but the base's, at the opposite end) has a triangle whose centroid
+    lies inside the hull: a step, a hole or a cavity under the face.
+    """
+    cached = _TOP_FACES.setdefault(mesh, {})
+    if (axis, sign) in cached:
+        return cached[(axis, sign)]
+    nodes, triangles = mesh.nodes, mesh.surface_triangles
+    low, high = mesh.bounding_box
+    thickness = float(high[axis] - low[axis])
+    top, bottom = (high[axis], low[axis]) if sign > 0 else (low[axis], high[axis])
+    in_plane = [k for k in range(3) if k != axis]
+    heights = nodes[triangles][:, :, axis]  # (T, 3)
+    on_top = np.all(np.abs(heights - top) <= 1e-9 * thickness, axis=1)
+    on_base = np.all(np.abs(heights - bottom) <= 1e-9 * thickness, axis=1)
+    result = None
+    if on_top.any():
+        corners = nodes[np.unique(triangles[on_top])][:, in_plane]
+        hull = scipy.spatial.ConvexHull(corners)
+        area = float(np.sum(mesh.surface_areas[on_top]))
+        if abs(area / hull.volume - 1.0) < 1e-6:  # (a 2-D hull's volume is its area)
+            lines = np.column_stack([hull.equations[:, :2], -hull.equations[:, 2]])  # n . x <= c
+            centroids = nodes[triangles[~(on_top | on_base)]].mean(axis=1)[:, in_plane]
+            # Strictly inside the hull (by a millionth of the thickness): a side face through an edge is not.
+            inside = np.all(centroids @ lines[:, :2].T - lines[:, 2] < -1e-6 * thickness, axis=1)
+            result = None if inside.any() else _merged_lines(lines)
+    cached[(axis, sign)] = result
+    return result
+
+
+def _merged_lines(lines: np.ndarray) -> np.ndarray:
+    """A convex hull's facets, (k, 3) ``(n_1, n_2, c)``, with those on one line kept once
+    (qhull splits an edge at its collinear points)."""
+    kept = []
+    for line in lines:
+        if not any(np.allclose(line, other, rtol=0.0, atol=1e-9) for other in kept):
+            kept.append(line)
+    return np.array(kept)
 
 
 @functools.lru_cache(maxsize=1024)

@@ -137,6 +137,17 @@ class PostureOptions:
         and elsewhere as ``"nodes"``: the mesh's nodes touch the ball's profile where it
         reaches them (its force moves with where the ball stands against the nodes when
         the contact is smaller than the cells: -46 % to +31 % on 10 mm cells).
+    ball_force_error : float
+        Deformable supports, a ball foot pressing mesh nodes (``ball_contact="nodes"``,
+        or where the layer's law does not hold): how far its force may be from a
+        converged mesh's for the stance to be accepted (0.05). Where the body is a box
+        held on its base, its force is held against the continuum's at the ball's
+        sinking (:func:`fem.sphere_on_layer_force`, within 0.8 % of converged FEMs);
+        elsewhere, with no such estimate, the ball must press at least
+        :data:`stances.deformable.RESOLVED_BALL_NODES` (9) nodes, which kept 5 mm cells
+        within 2.3 % of cells four times finer (1-5 nodes on 10 mm cells: -46 % to
+        +31 %). ``inf`` accepts every ball (before 2026-12-05, when a coarse ball was
+        logged, not refused).
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a
@@ -239,6 +250,7 @@ class PostureOptions:
     max_indentation: float | None = None
     contact_law: str = "coulomb"
     ball_contact: str = "layer"
+    ball_force_error: float = 0.05
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
@@ -266,7 +278,7 @@ class PostureOptions:
             object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
         # Every weight, distance and tolerance is a finite number: a NaN weight made
         # every QP fail and the stance "unreachable", a NaN distance was ignored.
-        for name in _NON_NEGATIVE + _POSITIVE + ("max_indentation",) * (self.max_indentation is not None):
+        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error",) + ("max_indentation",) * (self.max_indentation is not None):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise StanceError(f"{name} must be a number, got {value!r}")
@@ -277,6 +289,9 @@ class PostureOptions:
             raise StanceError(f"contact_law must be one of {LAWS}, got {self.contact_law!r}")
         if self.ball_contact not in BALL_CONTACTS:
             raise StanceError(f"ball_contact must be one of {BALL_CONTACTS}, got {self.ball_contact!r}")
+        if not self.ball_force_error > 0.0:
+            raise StanceError(f"ball_force_error must be > 0 (a fraction; inf accepts every ball), "
+                              f"got {self.ball_force_error}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
             raise StanceError(
                 "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "

@@ -1091,8 +1091,10 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
     if options.contact_law == "coulomb" and deformable:
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
+        # (The bonded model cannot press a ball's nodes: a body a ball presses keeps Coulomb's.)
+        balls = any(len(getattr(c, "point_prints", ())) for c in problem.contacts if c.kind == "deformable")
         if (not result.feasible and result.statistics["status"] != _OUT_OF_TIME
-                and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None):
+                and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None and not balls):
             # Not from there, though near feasible (far from it, the stance cannot be
             # held, wherever it starts: both soles on foam at 3e4 Pa, which the strain
             # bound rules out, took 3.0 s, and 6.6 s with this fallback, which ended the

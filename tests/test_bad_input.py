@@ -408,6 +408,10 @@ def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
         ("max_iterations", float("nan"), "max_iterations must be a whole number >= 0, got nan"),
         ("max_iterations", 2.5, "max_iterations must be a whole number >= 0, got 2.5"),
         ("max_collision_rows", -1, "max_collision_rows must be a whole number >= 0, got -1"),
+        ("ball_force_error", 0.0, "ball_force_error must be > 0 (a fraction; inf accepts every ball), got 0.0"),
+        ("ball_force_error", -0.05, "ball_force_error must be > 0 (a fraction; inf accepts every ball), got -0.05"),
+        ("ball_force_error", float("nan"), "ball_force_error must be > 0 (a fraction; inf accepts every ball), got nan"),
+        ("ball_force_error", "5 %", "ball_force_error must be a number, got '5 %'"),
     ],
     ids=lambda v: str(v) if isinstance(v, str) and len(v) < 30 else None,
 )

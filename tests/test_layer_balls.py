@@ -8,6 +8,7 @@ from __future__ import annotations
 import functools
 import re
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pinocchio as pin
@@ -19,8 +20,9 @@ from environments import Contact, ContactPrint, Stance
 from stances import StanceError
 from stances.deformable import PrintSpec
 from fem.layer_strain import largest_ball_mean
-from fem.layer_contact import SIDE_REACH
-from stances.layer_ball import LayerBalls, _strain_on_layer, _without_sides, largest_ball_load, layer_site
+from fem.layer_contact import SIDE_DROP, SIDE_REACH, widest_contact
+from stances.layer_ball import (LayerBalls, _strain_on_layer, _without_sides, largest_ball_load, layer_site,
+                                layer_under)
 from stances.problem import PostureOptions, build_problem
 from stances.sqp import solve
 from stances.results import PointForce
@@ -164,7 +166,8 @@ def test_verify_checks_a_result_with_the_contact_model_it_was_solved_with(anymal
     # Node contact needs the scene's own 10 mm mesh under the balls.
     scenario = foam(resolution=0.01)
     stance = scenario.stance("front-feet-on-foam")
-    nodes = solve(anymal, scenario.scene, stance, ball_contact="nodes")
+    # (accepted as coarse as the balls' contacts are: 1-5 nodes, test_ball_resolution refuses them)
+    nodes = solve(anymal, scenario.scene, stance, ball_contact="nodes", ball_force_error=np.inf)
     assert nodes.feasible, nodes.reason
     assert nodes.statistics["options"]["ball_contact"] == "nodes"
     assert verify(anymal, scenario.scene, stance, nodes).ok
@@ -437,6 +440,67 @@ def test_a_thick_block_and_a_cube_are_layers_under_balls_where_their_sides_leave
                          Contact("right_hind_foot", ContactPrint("floor", -0.3, -0.2, 0.0))))
         kinds = [c.kind for c in build_problem(anymal, scenario.scene, stance, PostureOptions(**LAYER)).contacts]
         assert kinds.count("layer") == 1 and "deformable" not in kinds
+
+
+PAD_SCENE = Path(__file__).resolve().parents[1] / "bench" / "scenes" / "mesh-files" / "hyq-mesh-scene.yaml"
+HYQ_BALL = 0.02175  # m, its description's (bench/scenes/mesh-files/robots/hyq.yaml)
+
+
+def test_a_bevelled_pad_is_a_layer_where_free_sides_would_move_a_balls_force_little():
+    """A soft_mesh pad (a closed STL, 4 cm thick, its edges bevelled 2 cm in, held on the
+    floor) is no box, but its top face is a convex rectangle over nothing but its held base:
+    a layer, its sides read as free faces at the top's edges. A bevel is stiffer than a free
+    face, so a print takes the law only where free faces there would lower a ball's force by
+    under 2 % in all at its widest contact: HyQ's front foot at (-0.1, 0.32) on it (0.08 m
+    and 0.11 m from the two nearest edges); not 3 cm from an edge, nor within a sixth of the
+    thickness of one."""
+    scenario = environments.load(PAD_SCENE)
+    pad = scenario.scene.deformable_of_surface("pad_top_0")
+    top = scenario.scene.surface("pad_top_0")
+    thickness, sides = layer_under(pad, top.transform_print_to_world(-0.1, 0.32, 0.0), HYQ_BALL)
+    assert thickness == pytest.approx(0.04, rel=1e-6)
+    assert sorted(sides) == pytest.approx([0.08, 0.11, 0.28, 0.75], abs=1e-6)
+    drop = SIDE_DROP * widest_contact(HYQ_BALL, thickness) * thickness * sum(1.0 / d**2 for d in sides)
+    assert 0.01 < drop < 0.02
+    near = top.transform_print_to_world(-0.15, 0.0, 0.0)  # 3 cm from the x = -0.18 edge
+    assert SIDE_DROP * widest_contact(HYQ_BALL, thickness) * thickness / 0.03**2 > 0.02
+    assert layer_under(pad, near, HYQ_BALL) is None
+    assert layer_under(pad, top.transform_print_to_world(-0.175, 0.0, 0.0), HYQ_BALL) is None
+
+
+def test_a_top_face_over_a_gap_or_not_convex_is_no_layer():
+    """A bridge's deck (its underside a boundary inside the top face's outline) and an
+    L-shaped slab (its top no convex polygon) are no layers; the ledge of a soft step, 0.3 m
+    of material down to the held floor, is one."""
+    head = ("robot: anymal\nobjects:\n  - {name: floor, type: floor}\n  - name: body\n    type: soft_blocks\n"
+            "    material: {E: 3.0e+6, nu: 0.4, rho: 0.0}\n    resolution: 0.05\n    blocks:\n")
+    stance = ("stances:\n  s:\n    left_hind_foot: {surface: floor, x: -0.8, y: 0.2}\n"
+              "    right_hind_foot: {surface: floor, x: -0.8, y: -0.2}\n    left_front_foot: {surface: floor, x: -0.5, y: 0.2}\n"
+              "    right_front_foot: {surface: floor, x: -0.5, y: -0.2}\nstart: s\n")
+    # The bridge: a 1.0 x 0.8 x 0.4 m grid with the cells under the deck's middle left out.
+    xs, ys, zs = np.linspace(-0.5, 0.5, 11), np.linspace(-0.4, 0.4, 5), np.linspace(0.0, 0.4, 5)
+    cells = np.ones((10, 4, 4), dtype=bool)
+    cells[2:8, :, :3] = False
+    mesh = fem.tensor_mesh(xs, ys, zs, cells)
+    bridge = environments.DeformableObject(
+        "bridge", fem.DeformableBody(mesh, fem.LinearElasticMaterial(3.0e6, 0.4), mesh.nodes[:, 2] == 0.0), np.eye(4))
+    on_deck = np.eye(4)
+    on_deck[2, 3] = 0.4
+    assert layer_under(bridge, on_deck, 0.031) is None
+    cases = (
+        ("      - {name: long, size: [1.0, 0.4, 0.1], center: [0.0, 0.0, 0.05]}\n"
+         "      - {name: arm, size: [0.4, 0.6, 0.1], center: [-0.3, 0.5, 0.05]}\n", "body_long", None),
+        ("      - {name: tread, size: [0.8, 1.0, 0.05], center: [0.8, 0.0, 0.025]}\n"
+         "      - {name: ledge, size: [0.8, 1.0, 0.3], center: [1.6, 0.0, 0.15]}\n", "body_ledge", 0.3),
+    )
+    for blocks, surface, thickness in cases:
+        scenario = environments.load_string(head + blocks + stance)
+        body = scenario.scene.deformable_of_surface(surface)
+        site = layer_under(body, scenario.scene.surface(surface).transform_print_to_world(0.0, 0.0, 0.0), 0.031)
+        if thickness is None:
+            assert site is None, surface
+        else:
+            assert site[0] == pytest.approx(thickness) and sorted(site[1]) == pytest.approx([0.4, 0.4, 0.5, 0.5])
 
 
 def test_an_unknown_ball_contact_is_refused_with_the_choices():
