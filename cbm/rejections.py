@@ -11,7 +11,10 @@ from __future__ import annotations
 import re
 from collections import Counter
 
-__all__ = ["CAUSES", "INPUT_CAUSES", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise"]
+__all__ = ["CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise"]
+
+#: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
+UNRESOLVED_BALL = "ball contact finer than the soft mesh"
 
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
@@ -29,6 +32,9 @@ CAUSES = (
 # Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
 INPUT_CAUSES = (
     ("soft mesh too coarse for the print", (" mesh node(s); at least",)),
+    # A ball foot's contact the mesh does not resolve (stances.deformable, ball_force_error):
+    # the mesh, not the start, decides it.
+    (UNRESOLVED_BALL, ("resolve a ball's contact", "smaller than the mesh resolves")),
     ("prints overlap", ("prints of ",)),
     ("print off its surface", ("lies off surface",)),
 )

@@ -35,7 +35,9 @@ in a corner) at 1.8 radii, and low by 2.4-9.9 % nearer than a quarter of the thi
 drop decays faster than the formula's, which then takes up to 0.7 point too much (a force
 low, a sinking deep): 1.32 against 0.66 % one thickness from a 5 cm mat's side at 2.5 mm.
 Tested for t <= 0.3 m (t / a <= 54) only: the formula cannot hold as t grows without bound
-(the quarter-space limit). A support that is not a box on a held base is outside it.
+(the quarter-space limit). A support that is not a box on a held base is outside it
+(the posture solver reads a convex top face's edges over a held base as free sides only
+where their drop is small, a bound on what a bevel or an attached block could move).
 """
 
 from __future__ import annotations

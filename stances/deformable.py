@@ -123,8 +123,9 @@ MINIMUM_PRINT_NODES = 3
 # cells: its force depends on where it stands against the nodes (quadruped-foam's 10 mm
 # foam at 1-2.5 mm deep, 1-5 nodes: -46 % to +31 % of a converged mesh's force; a 5 mm
 # block, 9-13 nodes: within 2.3 % of h/4's; bench/results/ball_foot.md). Verify counts them
-# and says so. More nodes is no guarantee (5 mm bands 15 mm wide on quadruped-foam's foam, 9
-# nodes: +12 % of a continuous layer's force): the estimate beside it says how far.
+# and, where no continuum estimate exists, refuses fewer (DeformableContact._check_balls).
+# More nodes is no guarantee (5 mm bands 15 mm wide on quadruped-foam's foam, 9 nodes: +12 %
+# of a continuous layer's force): where the estimate exists, it decides.
 RESOLVED_BALL_NODES = 9
 
 logger = logging.getLogger(__name__)
@@ -330,7 +331,7 @@ class DeformableContact:
         node_sets, coverages, insides, joints, points_in_joint, frames = [], [], [], [], [], []
         point_rests = []  # (print index, rest position of its ball's centre, world) for point feet
         self.ball_radii = {}  # print index -> its ball's radius, metres, for point feet
-        self._layers = {}  # print index -> (thickness, side distances) of the box under it, or None (_layer_under)
+        self._layers = {}  # print index -> (thickness, side distances) of the layer under it, or None (_layer_under)
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
@@ -1327,7 +1328,7 @@ class DeformableContact:
                         f"{mismatch:.3g} m off its link (the nodes are bonded)"
                     )
         reasons.extend(self._check_cones(forces, tolerances, measures))
-        reasons.extend(self._check_balls(points, phi[:, 2], measures))
+        reasons.extend(self._check_balls(points, phi[:, 2], measures, tolerances))
         depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
         # Elastic energy stored in the body, joules: by Clapeyron's theorem 1/2 F.U over
@@ -1351,40 +1352,58 @@ class DeformableContact:
             )
         return reasons
 
-    def _check_balls(self, points, normal, measures) -> list:
-        """Whether each ball foot's force is one a converged mesh would give, within
-        ``ball_force_error`` (:class:`~stances.problem.PostureOptions`): against the
-        continuum's estimate where there is one (:meth:`_estimate_ball_forces`), else by
-        the count of nodes it presses (at least :data:`RESOLVED_BALL_NODES`). Measures
-        both; a ball accepted with fewer nodes is logged once a body and process."""
+    def _check_balls(self, points, normal, measures, tolerances) -> list:
+        """Whether each ball foot's force is one a converged mesh would give
+        (``ball_force_error``, :class:`~stances.problem.PostureOptions`): within that of the
+        continuum's estimate where there is one (:meth:`_estimate_ball_forces`); where there
+        is none, a separate rule, whatever the tolerance: a ball sunk into the body presses
+        at least :data:`RESOLVED_BALL_NODES` nodes. Measures both; ``inf`` accepts every ball,
+        a coarse one logged once a body and process. ``points`` (p, 3): the link points,
+        world; ``normal`` (p,): the nodes' normal forces, newtons; ``tolerances``: a ball sunk
+        less than their ``deformable_placement`` rests on the body (no contact to resolve)."""
         self._count_pressed_nodes(normal, measures)
         self._estimate_ball_forces(points, normal, measures)
+        if not np.isfinite(self.ball_force_error):
+            self._log_coarse_balls(measures)
+            return []
         reasons, name = [], self.deformable_object.name
         refine = ("refine the mesh where balls land (a soft_box's refine_lines or a finer resolution), keep the "
-                  "balls where the layer's law holds (a box pressed by balls only, far enough inside its sides), "
-                  "or accept it with ball_force_error=inf")
+                  "balls where the layer's law holds (a layer held on its base, pressed by balls only, far enough "
+                  "inside its edges), or accept it with the solver option ball_force_error=inf")
         for index in self.point_prints.tolist():
             label = self.prints[index].label
             count = measures[f"pressed nodes under {label}"]
             error = measures.get(f"ball force error under {label}")
-            if error is not None and abs(error) > self.ball_force_error:
+            if error is not None:
+                if abs(error) > self.ball_force_error:
+                    reasons.append(
+                        f"the force under {label} is {error:+.1%} off a continuous layer's at its sinking "
+                        f"({measures[f'ball force estimate under {label}']:.4g} N; ball_force_error "
+                        f"{self.ball_force_error:g}): its contact on {name} is smaller than the mesh resolves; {refine}")
+                continue
+            rows = self.print_of_node == index
+            sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ self.print_placements[index].rotation[:, 2])
+            if count < RESOLVED_BALL_NODES and sinking > tolerances.deformable_placement:
                 reasons.append(
-                    f"the force under {label} is {error:+.1%} off a continuous layer's at its sinking "
-                    f"({measures[f'ball force estimate under {label}']:.4g} N; ball_force_error "
-                    f"{self.ball_force_error:g}): its contact on {name} is smaller than the mesh resolves; {refine}")
-            elif error is None and 0 < count < RESOLVED_BALL_NODES and np.isfinite(self.ball_force_error):
-                reasons.append(
-                    f"{label} presses {count} mesh node(s) of {name} (at least {RESOLVED_BALL_NODES} resolve a "
-                    f"ball's contact): its force depends on where it stands against the nodes (1-5 nodes on 10 "
-                    f"mm cells: -46 % to +31 % of a converged mesh's); {refine}")
-            elif 0 < count < RESOLVED_BALL_NODES and id(self.deformable_object.body) not in _COARSE_BALLS_LOGGED:
+                    f"{label} presses {count} mesh node(s) of {name}, sunk {sinking:.3g} m (at least "
+                    f"{RESOLVED_BALL_NODES} resolve a ball's contact): its force depends on where it stands against "
+                    f"the nodes (1-5 nodes on 10 mm cells: -46 % to +31 % of a converged mesh's); {refine}")
+        return reasons
+
+    def _log_coarse_balls(self, measures) -> None:
+        """Log, once a body and process, a ball accepted (``ball_force_error=inf``) pressing fewer
+        than :data:`RESOLVED_BALL_NODES` nodes."""
+        for index in self.point_prints.tolist():
+            label = self.prints[index].label
+            count = measures[f"pressed nodes under {label}"]
+            if 0 < count < RESOLVED_BALL_NODES and id(self.deformable_object.body) not in _COARSE_BALLS_LOGGED:
                 _COARSE_BALLS_LOGGED.add(id(self.deformable_object.body))
                 logger.warning(
                     "%s presses %d mesh node(s) of %r: a ball contact smaller than the cells, whose force depends on "
                     "where the ball stands against the nodes (1-5 nodes: -46 %% to +31 %% of a converged mesh's; where "
                     "the body is a layer, the verification's 'ball force error under <print>' compares it with a "
-                    "continuous layer's), accepted (ball_force_error %g)", label, count, name, self.ball_force_error)
-        return reasons
+                    "continuous layer's), accepted (ball_force_error inf)", label, count,
+                    self.deformable_object.name)
 
     def _count_pressed_nodes(self, normal, measures) -> None:
         """``pressed nodes under <print>`` of each ball foot: its nodes carrying more than a

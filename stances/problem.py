@@ -132,22 +132,24 @@ class PostureOptions:
     ball_contact : {"layer", "nodes"}
         Deformable supports, how a ball foot (a point foot) presses one: ``"layer"``
         (default) where the body is a layer under every ball on it and only balls press
-        it (a box held on its base, each print far enough inside its sides: :func:`stances.layer_ball.layer_site`), each ball
+        it (a box, or a convex top face over nothing but the held base, each print far
+        enough inside its edges: :func:`stances.layer_ball.layer_site`), each ball
         sinks by the continuum's law of a sphere on a layer (:mod:`stances.layer_ball`),
         and elsewhere as ``"nodes"``: the mesh's nodes touch the ball's profile where it
         reaches them (its force moves with where the ball stands against the nodes when
         the contact is smaller than the cells: -46 % to +31 % on 10 mm cells).
     ball_force_error : float
         Deformable supports, a ball foot pressing mesh nodes (``ball_contact="nodes"``,
-        or where the layer's law does not hold): how far its force may be from a
-        converged mesh's for the stance to be accepted (0.05). Where the body is a box
-        held on its base, its force is held against the continuum's at the ball's
-        sinking (:func:`fem.sphere_on_layer_force`, within 0.8 % of converged FEMs);
-        elsewhere, with no such estimate, the ball must press at least
-        :data:`stances.deformable.RESOLVED_BALL_NODES` (9) nodes, which kept 5 mm cells
-        within 2.3 % of cells four times finer (1-5 nodes on 10 mm cells: -46 % to
-        +31 %). ``inf`` accepts every ball (before 2026-12-05, when a coarse ball was
-        logged, not refused).
+        or where the layer's law does not hold): how far its force may be from the
+        continuum's at its sinking for the stance to be accepted (0.05), where the body is
+        a layer under the ball (:func:`stances.layer_ball.layer_under`; the estimate,
+        :func:`fem.sphere_on_layer_force`, within 0.8 % of converged FEMs beside a box's
+        sides, 1.1 % of a bevelled pad's). Where there is no estimate, a separate rule,
+        whatever this number: a ball sunk into the body must press at least
+        :data:`stances.deformable.RESOLVED_BALL_NODES` (9) nodes (1-5 nodes on 10 mm cells:
+        -46 % to +31 % of a converged mesh's force; 9-13 on 5 mm cells within 2.3 %, but
+        9 on 5 mm bands +12 %). ``inf`` accepts every ball (before 2026-12-05, when a
+        coarse ball was logged, not refused).
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a

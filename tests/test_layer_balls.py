@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 import pytest
+import scipy.spatial
 
 import environments
 import fem
@@ -606,3 +607,25 @@ def _padded(direction, where, size):
     out = np.zeros(size)
     out[where] = direction
     return out
+
+
+def test_a_top_faces_edges_split_at_points_a_mesher_left_off_them_are_one_side_each():
+    """qhull splits a hull's edge at its collinear points, and at points a few nanometres off
+    it (gmsh, an STL's float32 vertices) into facets whose lines differ by about that: each
+    edge must count once as a free side, or a pad's every print would read several."""
+    from stances.layer_ball import _merged_lines
+
+    rng = np.random.default_rng(5)
+    along = np.linspace(-0.2, 0.2, 11)[:-1]  # each edge from its first corner, every node once
+    corners = np.vstack([np.column_stack([along, np.full(10, -0.2)]), np.column_stack([np.full(10, 0.2), along]),
+                         np.column_stack([-along, np.full(10, 0.2)]), np.column_stack([np.full(10, -0.2), -along])])
+    corners[1:] += rng.uniform(-3e-8, 3e-8, corners[1:].shape)  # a mesher's nanometres
+    hull = scipy.spatial.ConvexHull(corners)
+    lines = np.column_stack([hull.equations[:, :2], -hull.equations[:, 2]])
+    assert len(lines) > 4  # split
+    merged = _merged_lines(lines, 0.04)
+    assert len(merged) == 4
+    np.testing.assert_allclose(np.sort(np.abs(merged[:, 2])), 0.2, atol=1e-7)
+    # Two edges at a rounded corner's 1 mrad are two sides.
+    turned = np.array([[1.0, 0.0, 0.2], [np.cos(1e-3), np.sin(1e-3), 0.2]])
+    assert len(_merged_lines(turned, 0.04)) == 2

@@ -19,7 +19,7 @@ from stances import StanceError
 from stances.contacts import PointContact, point_placement_residual
 from stances.description import point_print
 from stances.problem import PostureOptions, build_problem
-from stances.verify import verify_problem
+from stances.verify import VerificationTolerances, verify_problem
 
 EPS = 1e-6
 FOOT_RADIUS = 0.031  # ANYmal's foot spheres, from its URDF
@@ -526,8 +526,8 @@ def test_a_ball_the_mesh_does_not_resolve_is_refused_against_the_continuums_forc
         f"the force under {spec.label} is {error:+.1%} off a continuous layer's at its sinking "
         f"({accepted.measures[f'ball force estimate under {spec.label}']:.4g} N; ball_force_error 0.05): its contact "
         "on foam is smaller than the mesh resolves; refine the mesh where balls land (a soft_box's refine_lines or a "
-        "finer resolution), keep the balls where the layer's law holds (a box pressed by balls only, far enough "
-        "inside its sides), or accept it with ball_force_error=inf"
+        "finer resolution), keep the balls where the layer's law holds (a layer held on its base, pressed by balls "
+        "only, far enough inside its edges), or accept it with the solver option ball_force_error=inf"
         for spec, error in zip(soft.prints, errors)
     ]
     assert list(reasons(None)) == expected
@@ -557,20 +557,27 @@ def test_a_ball_on_a_body_that_is_no_layer_must_press_enough_nodes(anymal, caplo
         normal[second[:deformable.RESOLVED_BALL_NODES]] = 10.0  # enough
         monkeypatch.setattr(deformable, "_COARSE_BALLS_LOGGED", set())
         measures = {}
+        sunk = soft.link_points_at_rest - np.array([0.0, 0.0, 1e-3])  # each ball 1 mm into the tread
         with caplog.at_level("WARNING", logger="stances.deformable"):
             caplog.clear()
-            reasons = soft._check_balls(soft.link_points_at_rest, normal, measures)
+            reasons = soft._check_balls(sunk, normal, measures, VerificationTolerances())
         assert f"ball force estimate under {soft.prints[0].label}" not in measures
         assert measures[f"pressed nodes under {soft.prints[0].label}"] == 1
         logged = [r.getMessage() for r in caplog.records if "mesh node(s) of 'step'" in r.getMessage()]
         if expect_reasons:
             assert reasons == [
-                f"{soft.prints[0].label} presses 1 mesh node(s) of step (at least {deformable.RESOLVED_BALL_NODES} "
-                "resolve a ball's contact): its force depends on where it stands against the nodes (1-5 nodes on 10 "
-                "mm cells: -46 % to +31 % of a converged mesh's); refine the mesh where balls land (a soft_box's "
-                "refine_lines or a finer resolution), keep the balls where the layer's law holds (a box pressed by "
-                "balls only, far enough inside its sides), or accept it with ball_force_error=inf"]
+                f"{soft.prints[0].label} presses 1 mesh node(s) of step, sunk 0.001 m (at least "
+                f"{deformable.RESOLVED_BALL_NODES} resolve a ball's contact): its force depends on where it stands "
+                "against the nodes (1-5 nodes on 10 mm cells: -46 % to +31 % of a converged mesh's); refine the mesh "
+                "where balls land (a soft_box's refine_lines or a finer resolution), keep the balls where the layer's "
+                "law holds (a layer held on its base, pressed by balls only, far enough inside its edges), or accept "
+                "it with the solver option ball_force_error=inf"]
             assert not logged
+            # A ball sunk into the tread pressing no node carries nothing it should: refused too;
+            # one resting on it (sunk under the placement tolerance) is no contact to resolve.
+            normal[first] = 0.0
+            assert len(soft._check_balls(sunk, normal, {}, VerificationTolerances())) == 1
+            assert soft._check_balls(soft.link_points_at_rest, normal, {}, VerificationTolerances()) == []
         else:
             assert reasons == [] and len(logged) == 1
             assert logged[0].endswith("accepted (ball_force_error inf)")
