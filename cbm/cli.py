@@ -113,6 +113,40 @@ def _positive_float(text):
     return value
 
 
+def _solver_option(text):
+    """``KEY=VALUE`` of ``--solver-option``: the value a number where it reads as one
+    (``inf`` included), else ``true``/``false``, else the text."""
+    key, equals, value = str(text).partition("=")
+    if not equals or not key.strip():
+        raise argparse.ArgumentTypeError(f"expected KEY=VALUE (a posture option, e.g. ball_force_error=inf), got {text!r}")
+    value = value.strip()
+    try:
+        parsed = int(value)
+    except ValueError:
+        try:
+            parsed = float(value)
+        except ValueError:
+            parsed = {"true": True, "false": False}.get(value.lower(), value)
+    return key.strip(), parsed
+
+
+def _add_solver_option(parser):
+    parser.add_argument(
+        "--solver-option", type=_solver_option, action="append", default=[], metavar="KEY=VALUE",
+        help="a posture solver option (stances.PostureOptions), repeatable: e.g. ball_force_error=inf accepts "
+        "ball feet whose contact the soft mesh does not resolve, max_iterations=200",
+    )
+
+
+def _solver_options(args) -> dict:
+    """The ``--solver-option`` pairs, checked as posture options (bad input names the valid ones)."""
+    from stances.sqp import posture_options
+
+    options = dict(args.solver_option)
+    posture_options(options)
+    return options
+
+
 def _non_negative_int(text):
     try:
         value = int(text)
@@ -196,6 +230,7 @@ def build_parser():
         "(default: the scenario's terrain_weight option, else 0)",
     )
     plan.add_argument("--no-pictures", action="store_true", help="skip the PNG pictures")
+    _add_solver_option(plan)
     plan.add_argument(
         "--motion",
         action="store_true",
@@ -263,6 +298,7 @@ def build_parser():
         help="solve the stance (or each soft stance of a plan) again on its soft meshes FACTOR times finer "
         "(2: every cell halved, about 8x the nodes) and say how far the answer moves",
     )
+    _add_solver_option(check)
     _add_robot_option(check)
     return parser
 
@@ -431,6 +467,7 @@ def _plan(args):
         workers=args.workers,
         prefilter=not args.no_prefilter,
         terrain_weight=args.terrain_weight,
+        solver_options=_solver_options(args),
     )
     motions, moving = None, None
     try:
@@ -522,6 +559,10 @@ def _check(args):
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
+        if args.solver_option:
+            print("cbm check: error: --solver-option applies to a stance's solve; a plan is verified with the options "
+                  "each of its stances was solved with", file=sys.stderr)
+            return EXIT_BAD_INPUT
         return _check_plan(args.scenario, args.refine, args.view)
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
@@ -548,7 +589,7 @@ def _check(args):
         fine = _refined_scenario(scenario, args.refine)
         if fine is None:
             return EXIT_BAD_INPUT
-    check = PostureOracle(robot, scenario.scene)(stance)
+    check = PostureOracle(robot, scenario.scene, solver_options=_solver_options(args))(stance)
     result = check.result
     if check.bad_input:
         # A stance the user wrote that the solver refuses (two prints on the same nodes): bad input.

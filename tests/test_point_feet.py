@@ -581,3 +581,26 @@ def test_a_ball_on_a_body_that_is_no_layer_must_press_enough_nodes(anymal, caplo
         else:
             assert reasons == [] and len(logged) == 1
             assert logged[0].endswith("accepted (ball_force_error inf)")
+
+
+def test_cbm_check_takes_solver_options_and_names_a_bad_one(capsys, tmp_path):
+    """``--solver-option KEY=VALUE`` reaches the posture solver from the command line: the
+    front feet pressing the 10 mm foam's nodes are refused by default and accepted with
+    ``ball_force_error=inf``; a misspelt option is bad input naming the valid ones, a pair
+    without ``=`` a usage error, and a plan is verified with its own options."""
+    from cbm.cli import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, main
+
+    check = ["check", "quadruped-foam", "--stance", "front-feet-on-foam", "--solver-option", "ball_contact=nodes"]
+    assert main(check) == EXIT_FAILED
+    out = capsys.readouterr().out
+    assert "infeasible: verification failed: the force under left_front_foot on foam_top is " in out
+    assert main(check + ["--solver-option", "ball_force_error=inf"]) == EXIT_OK
+    assert "quadruped-foam / front-feet-on-foam: feasible" in capsys.readouterr().out
+    assert main(check + ["--solver-option", "ball_force_eror=inf"]) == EXIT_BAD_INPUT
+    assert "unknown posture option(s) ['ball_force_eror']" in capsys.readouterr().err
+    assert main(check + ["--solver-option", "ball_force_error"]) == EXIT_BAD_INPUT
+    assert "expected KEY=VALUE" in capsys.readouterr().err
+    saved = tmp_path / "plan.json"
+    saved.write_text("{}")
+    assert main(["check", str(saved), "--solver-option", "ball_force_error=inf"]) == EXIT_BAD_INPUT
+    assert "a plan is verified with the options each of its stances was solved with" in capsys.readouterr().err
