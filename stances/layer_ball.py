@@ -412,7 +412,11 @@ def _merged_lines(lines: np.ndarray, thickness: float) -> np.ndarray:
     return np.array(kept)
 
 
-@functools.lru_cache(maxsize=1024)
+# _covers_strain_bound's answers, by object (weakly: a kept object would keep its mesh and its
+# factorisation alive, hundreds of megabytes on a fine mesh, in a process planning many scenes).
+_COVERED: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def _covers_strain_bound(law: BallOnLayer, deformable_object, friction: float) -> bool:
     """Whether the law's table reaches the load the object's strain bound allows: its end is
     the widest contact a laterally infinite layer reads (:func:`fem.layer_contact.widest_contact`),
@@ -423,9 +427,13 @@ def _covers_strain_bound(law: BallOnLayer, deformable_object, friction: float) -
     (the table's end is asked for), and true where the body's own weight leaves no strain to
     spend (no load is allowed: the stance fails on its strain). Kept by law, object and
     friction: a planner asks at the same few prints at every solve (0.3 ms a brentq)."""
-    if law.largest_contact_radius >= (1.0 - 1e-9) * widest_contact(law.radius, law.thickness):
-        return True
-    return _strain_bound_load(law, deformable_object, friction, law.force_limit) < law.force_limit
+    kept = _COVERED.setdefault(deformable_object, {})
+    key = (law, float(friction))
+    if key not in kept:
+        kept[key] = bool(
+            law.largest_contact_radius >= (1.0 - 1e-9) * widest_contact(law.radius, law.thickness)
+            or _strain_bound_load(law, deformable_object, friction, law.force_limit) < law.force_limit)
+    return kept[key]
 
 
 class LayerBalls:

@@ -629,3 +629,23 @@ def test_a_top_faces_edges_split_at_points_a_mesher_left_off_them_are_one_side_e
     # Two edges at a rounded corner's 1 mrad are two sides.
     turned = np.array([[1.0, 0.0, 0.2], [np.cos(1e-3), np.sin(1e-3), 0.2]])
     assert len(_merged_lines(turned, 0.04)) == 2
+
+
+def test_the_strain_bound_test_keeps_no_soft_body_alive():
+    """A planner asks whether a ball's law reaches its strain bound at every solve, so the
+    answer is kept; but by the object weakly: a process planning many scenes must not keep
+    every soft body it met, its mesh and factorisation with it."""
+    import gc
+    import weakref
+
+    from stances import layer_ball
+
+    scenario = environments.load_string(environments.builtin_scenario_path("quadruped-foam").read_text())
+    body = scenario.scene.deformable_objects[0]
+    top = scenario.scene.surface("foam_top")
+    assert layer_site(body, top.transform_print_to_world(0.0, 0.0, 0.0), 0.031, top.friction) is not None
+    assert body in layer_ball._COVERED
+    gone = weakref.ref(body)
+    del scenario, body, top
+    gc.collect()
+    assert gone() is None
