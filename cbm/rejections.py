@@ -11,7 +11,10 @@ from __future__ import annotations
 import re
 from collections import Counter
 
-__all__ = ["CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise"]
+__all__ = [
+    "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise",
+    "unresolved_ball_hint",
+]
 
 #: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
 UNRESOLVED_BALL = "ball contact finer than the soft mesh"
@@ -151,6 +154,8 @@ def finer_grid_hint(reasons, spacing: float) -> str:
 #: Share of a failed search's rejected stances whose reason names a soft object's strain
 #: bound (as the worst row or among the rows no step meets together) from which it is said.
 STRAINED_SHARE = 0.5
+#: The same share for stances refused for a ball foot the soft mesh does not resolve.
+UNRESOLVED_SHARE = 0.5
 # A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
 # that cannot carry its least load within the strain bound.
 _STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)"
@@ -194,4 +199,38 @@ def strain_bound_hint(reasons) -> str:
         f"; {strained} of the {len(reasons)} stances rejected meet the strain bound of {named} (the worst row or "
         "among those no step meets together): it may be too soft or too thin to stand on; a stiffer material, a "
         "larger strain_limit or a thicker body would carry more"
+    )
+
+
+def unresolved_ball_hint(reasons) -> str:
+    """What to add to a failed search's reason when most rejected stances put a ball foot where
+    the soft mesh does not resolve its contact (:data:`UNRESOLVED_BALL`): on a soft body that is
+    no layer for the ball's law (a step's tread, near an edge), the mesh under the balls decides.
+
+    Parameters
+    ----------
+    reasons : iterable of str
+        The rejected stances' reasons.
+
+    Returns
+    -------
+    str
+        ``""``, or a clause starting with ``"; "`` that gives the share and what to do.
+
+    Examples
+    --------
+    >>> unresolved_ball_hint(["verification failed: lf presses 2 mesh node(s) of step, sunk 0.001 m (at least 9 "
+    ...                       "resolve a ball's contact): ...", "torque limit of j"])
+    "; 1 of the 2 stances rejected put a ball foot where the soft mesh does not resolve its contact: refine the mesh under the balls (a soft_box's refine_lines or a finer resolution), or plan with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
+    >>> unresolved_ball_hint(["torque limit of j"])
+    ''
+    """
+    reasons = [str(r) for r in reasons]
+    unresolved = sum(cause_of(r) == UNRESOLVED_BALL for r in reasons)
+    if not reasons or unresolved < UNRESOLVED_SHARE * len(reasons):
+        return ""
+    return (
+        f"; {unresolved} of the {len(reasons)} stances rejected put a ball foot where the soft mesh does not resolve "
+        "its contact: refine the mesh under the balls (a soft_box's refine_lines or a finer resolution), or plan "
+        "with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
     )
