@@ -1381,8 +1381,7 @@ class DeformableContact:
                         f"({measures[f'ball force estimate under {label}']:.4g} N; ball_force_error "
                         f"{self.ball_force_error:g}): its contact on {name} is smaller than the mesh resolves; {refine}")
                 continue
-            rows = self.print_of_node == index
-            sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ self.print_placements[index].rotation[:, 2])
+            sinking = self._ball_sinking(points, index)
             if count < RESOLVED_BALL_NODES and sinking > tolerances.deformable_placement:
                 reasons.append(
                     f"{label} presses {count} mesh node(s) of {name}, sunk {sinking:.3g} m (at least "
@@ -1418,7 +1417,7 @@ class DeformableContact:
         <print>`` (the mesh's over it, less 1) of each ball foot pressed into a layer: the
         continuum's frictionless force at the ball's depth (:func:`fem.sphere_on_layer_force`),
         an independent estimate of what a mesh fine enough would give. Only where its
-        formula holds (:meth:`_layer_under`: a box on its held base, the print on the far
+        formula holds (:meth:`_layer_under`: a layer held on its base, the print on the far
         face a sixth of the thickness inside its sides, whose softening the estimate counts)
         and the contact is within :func:`fem.layer_contact.widest_contact` and the sides'
         :func:`fem.layer_contact.side_contact_limit` (within 0.8 % of independent FEMs there
@@ -1432,8 +1431,7 @@ class DeformableContact:
             thickness, sides = site
             widest = min(widest_contact(self.ball_radii[index], thickness), side_contact_limit(thickness, sides))
             rows = self.print_of_node == index
-            placement = self.print_placements[index]
-            sinking = float((self.link_points_at_rest[rows][0] - points[rows][0]) @ placement.rotation[:, 2])
+            sinking = self._ball_sinking(points, index)
             radius = self.ball_radii[index]
             # Hertz's contact radius sqrt(R d) is under the layer's: past the share, no estimate.
             if not 0.0 < sinking < radius or np.sqrt(radius * sinking) > widest:
@@ -1445,6 +1443,12 @@ class DeformableContact:
             label = self.prints[index].label
             measures[f"ball force estimate under {label}"] = estimate
             measures[f"ball force error under {label}"] = float(normal[rows].sum()) / estimate - 1.0
+
+    def _ball_sinking(self, points, index: int) -> float:
+        """How far point print ``index``'s ball has sunk below where it rests on the body, metres,
+        along its print's normal, from the (p, 3) link points (world; a ball's all its centre)."""
+        rows = self.print_of_node == index
+        return float((self.link_points_at_rest[rows][0] - points[rows][0]) @ self.print_placements[index].rotation[:, 2])
 
     def _layer_under(self, index: int):
         """The body's thickness and side distances under point print ``index`` if the body is

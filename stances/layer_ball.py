@@ -88,6 +88,9 @@ _STRAIN_MARGIN = 2e-3  # of the bound, kept by the rows (their interpolation's e
 # on a 12 cm block from 20 mm).
 _STRAIN_SIDE_REACH = 1.5
 _AUDITED_STRAIN_RADIUS = 0.02  # m: the audit's means; a smaller radius keeps the 30 mm it measured
+# A layer whose sides are no free vertical faces (layer_under): where free faces would lower a
+# ball's force by at most this in all, whatever lies there moves it by no more.
+_UNCHECKED_SIDES_DROP = 0.02
 _SMALLEST_STRAIN_SHARE = 0.05  # the converged strain's table starts at this share of the widest contact
 
 @functools.lru_cache(maxsize=256)
@@ -354,10 +357,6 @@ def layer_under(deformable_object, transform_print_to_world, radius: float) -> t
     return thickness, tuple(float(d) for d in distances)
 
 
-# A layer whose sides are no free vertical faces (layer_under): where free faces would lower a
-# ball's force by at most this in all, whatever lies there moves it by no more.
-_UNCHECKED_SIDES_DROP = 0.02
-
 # Each mesh's top faces (layer_under), by (axis, sign): its convex polygon's edges, or None.
 _TOP_FACES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
@@ -390,9 +389,9 @@ def _top_face_edges(mesh, axis: int, sign: int):
         area = float(np.sum(mesh.surface_areas[on_top]))
         if abs(area / hull.volume - 1.0) < 1e-6:  # (a 2-D hull's volume is its area)
             lines = np.column_stack([hull.equations[:, :2], -hull.equations[:, 2]])  # n . x <= c
-            corners = nodes[np.unique(triangles[~(on_top | on_base)])][:, in_plane]
+            others = nodes[np.unique(triangles[~(on_top | on_base)])][:, in_plane]  # the other faces' corners
             # Strictly inside the hull (by a millionth of the thickness): a side face's corner on an edge is not.
-            inside = np.all(corners @ lines[:, :2].T - lines[:, 2] < -1e-6 * thickness, axis=1)
+            inside = np.all(others @ lines[:, :2].T - lines[:, 2] < -1e-6 * thickness, axis=1)
             result = None if inside.any() else _merged_lines(lines, thickness)
     cached[(axis, sign)] = result
     return result

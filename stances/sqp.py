@@ -1092,7 +1092,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
     if options.contact_law == "coulomb" and deformable:
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
         # (The bonded model cannot press a ball's nodes: a body a ball presses keeps Coulomb's.)
-        balls = any(len(getattr(c, "point_prints", ())) for c in problem.contacts if c.kind == "deformable")
+        balls = any(len(c.point_prints) for c in problem.contacts if c.kind == "deformable")
         if (not result.feasible and result.statistics["status"] != _OUT_OF_TIME
                 and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None and not balls):
             # Not from there, though near feasible (far from it, the stance cannot be
