@@ -50,6 +50,9 @@ __all__ = [
 
 STICK, SLIP, LIFT = 0, 1, 2
 _MAX_ITERATIONS = 60
+# Newton steps of a solve for a carried wrench (solve_loaded): the built-in soft stances'
+# 270 solves took 5 (median) to 12; a wrench out of reach makes the modes cycle.
+_LOADED_ITERATIONS = 20
 # Low-rank (Woodbury) factorisations where at most this fraction of the rows differ
 # from the compliance's: its cost grows as r^2 n against n^3 / 3 for LU. Measured
 # (factorisation, then one refined solve): n = 300, 128 rows 0.18 + 0.09 ms against
@@ -368,6 +371,104 @@ class PrintContactSystem:
         new_modes, new_directions, _ = _update_modes(phi, r, self.scale, self.mu)
         settled = bool(np.array_equal(new_modes, modes))
         return self._state(phi, r, modes, directions, system, 0, settled)
+
+    def solve_loaded(self, basis, wrench, motion, start, initial_modes=None, initial_directions=None, held=False):
+        """The contact state whose forces carry a given wrench, and the indenters' motion.
+
+        The indenters move with m parameters ``xi`` (a link's rigid motion), their points
+        by ``U(xi)``; the forces must carry ``basis^T phi = wrench``. Solved by the same
+        semismooth Newton as :meth:`solve`, the modes read at each step, with ``xi``
+        among the unknowns: for fixed modes the law is linear in U, and U is linearised
+        in ``xi`` at the iterate, so each step is a solve of the law for the m columns of
+        dU/dxi and an (m, m) system ``K step = wrench - basis^T phi``.
+
+        Parameters
+        ----------
+        basis : (3p, m) float
+            The carried wrench's rows: ``basis^T phi`` (phi: the forces on the
+            indenters, body frame, stacked).
+        wrench : (m,) float
+            The wrench to carry.
+        motion : callable
+            ``xi -> (U (p, 3), dU/dxi (3p, m))``, metres, body frame.
+        start : (m,) float
+            ``xi`` to start from (the last answer: warm start).
+        initial_modes, initial_directions
+            As :meth:`solve`.
+        held : bool
+            Hold ``initial_modes`` (only slip directions move), as :meth:`with_modes`.
+
+        Returns
+        -------
+        state : PrintContact
+            At ``U(xi)``; its ``admissible`` says whether held modes still hold.
+        xi : (m,) float
+        dxi : (m, m) float
+            ``d xi / d wrench`` with the modes fixed: ``K^-1``, ``K = basis^T L dU/dxi``.
+
+        Or None when the Newton steps do not settle: no motion carries the wrench (out
+        of the nodes' reach: a centre of pressure beyond them, a sideways force at which
+        the contact would slide off), or none was found from ``start``.
+        """
+        basis = np.asarray(basis, dtype=float)
+        wrench = np.asarray(wrench, dtype=float)
+        return self._loaded_newton(basis, wrench, motion, start, initial_modes, initial_directions, held)
+
+    def _loaded_newton(self, basis, wrench, motion, start, initial_modes, initial_directions, held):
+        """:meth:`solve_loaded`'s semismooth Newton with xi among the unknowns; None if it fails."""
+        basis_local = _to_nodes(self._frames, basis)
+        p = self.n_nodes
+        modes = np.full(p, STICK) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p)
+        directions = (
+            np.zeros((p, 2)) if initial_directions is None else np.array(initial_directions, dtype=float).reshape(p, 2)
+        )
+        gains = np.zeros(p)
+        xi = np.array(start, dtype=float)
+        size = max(float(np.abs(wrench).max()), 1e-300)
+        for iteration in range(1, _LOADED_ITERATIONS + 1):
+            if self._infinite_friction and np.isinf(self.mu[modes == SLIP]).any():
+                return None
+            u, du = motion(xi)
+            u_local = self._local_motion(u).ravel()
+            du_local = _to_nodes(self._frames, np.asarray(du, dtype=float))
+            factor, blocks = system = self._system(modes, directions, gains)
+            phi = -factor.solve(block_diagonal_product(blocks, u_local))
+            d_phi = -factor.solve(block_diagonal_product(blocks, du_local))  # L dU/dxi, node frames
+            stiffness = basis_local.T @ d_phi
+            residual = wrench - basis_local.T @ phi
+            settled = np.abs(residual).max() <= 1e-11 * size
+            if settled and iteration > 1:
+                step = np.zeros_like(xi)
+            else:
+                # Modes whose K is singular (every touching node slipping, a line of
+                # nodes left) are passed through on the least-squares step.
+                step = np.linalg.lstsq(stiffness, residual, rcond=1e-13)[0]
+                phi = phi + d_phi @ step
+                u_local = u_local + du_local @ step
+                xi = xi + step
+            phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
+            if held:
+                new_modes = modes
+                new_directions, new_gains = _slip_directions(phi, r, self.scale, self.mu, modes, directions)
+                slip_ok = _slip_settled(phi, r, self.scale, modes, self.mu)
+            else:
+                new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
+                slip_ok = _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions)
+            if settled and np.array_equal(new_modes, modes) and slip_ok:
+                if np.any(modes == SLIP):
+                    # Linearised at the answer itself, so that L (and K) are the exact Jacobians.
+                    factor, blocks = system = self._system(modes, new_directions, new_gains)
+                    phi = -factor.solve(block_diagonal_product(blocks, u_local))
+                    d_phi = -factor.solve(block_diagonal_product(blocks, du_local))
+                    stiffness = basis_local.T @ d_phi
+                    phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
+                if not np.linalg.cond(stiffness) < 1e13:
+                    return None  # at the point of sliding off: no derivative
+                admissible = bool(np.array_equal(_update_modes(phi, r, self.scale, self.mu)[0], modes))
+                state = self._state(phi, r, modes, new_directions, system, iteration, admissible)
+                return state, xi, np.linalg.inv(stiffness)
+            modes, directions, gains = new_modes, new_directions, new_gains
+        return None
 
     def _local_motion(self, displacements) -> np.ndarray:
         u = np.asarray(displacements, dtype=float)

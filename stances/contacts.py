@@ -42,7 +42,7 @@ import pinocchio as pin
 from environments.geometry import signed_edge_distances
 from fem.prints import clip_polygon
 
-from .blocks import PLACEMENT_ACCURACY, equality
+from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .curvature import frame_curvature
 from .errors import StanceError
 from .statics import PointLoads, points_in_world
@@ -120,13 +120,20 @@ class RigidContact:
         vertices of the part of the robot's polygon that lies on its polygon: a
         sole or palm hanging over an edge is held by the part over the support
         only. Verify checks, in the surface's own frame, that every force acts on it.
+    reach : (m, 2) float, optional
+        A convex polygon, counter-clockwise, print frame, that the forces' centre of
+        pressure must lie in (rows ``reach``): where a soft print's nodes can carry them,
+        the print held rigid in its stiff limit
+        (:meth:`stances.deformable.DeformableContact.held_prints`). The forces still act
+        at the polygon's vertices, so that the force term weighs them as on a rigid
+        support.
     """
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
     deformable_object = None  # the soft body it presses: none (stances.deformable, stances.layer_ball have one)
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None, reach=None):
         self.support_surface = surface
         surface = robot.surface(robot_surface)
         self.robot_surface = robot_surface
@@ -157,6 +164,20 @@ class RigidContact:
         self.print_surfaces = (robot_surface,)  # the robot surface of each print
         self.load_prints = np.zeros(n_vertices, dtype=int)
         self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
+        self.reach_rows = None if reach is None else self._reach_rows(vertices, np.asarray(reach, dtype=float))
+
+    def _reach_rows(self, vertices, reach) -> np.ndarray:
+        """(e, n) ``R`` with ``R lambda >= 0`` iff the centre of pressure lies in ``reach``.
+
+        Each edge ``n . x <= o`` of the reach (``n`` its outward normal) holds the centre
+        of pressure ``sum f_z,i v_i / sum f_z,i`` iff ``sum_i f_z,i (o - n . v_i) >= 0``,
+        ``v_i`` the vertices and ``f_z,i`` their normal forces, print frame: linear in lambda.
+        """
+        edges = np.roll(reach, -1, axis=0) - reach
+        normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+        levers = np.einsum("ej,ej->e", normals, reach)[:, None] - normals @ vertices[:, :2].T  # (e, k): o - n . v_i
+        normal_forces = (self.print_placement.rotation[:, 2] @ self.generators.reshape(len(vertices), 3, -1))  # (k, n)
+        return levers @ normal_forces
 
     @staticmethod
     def _points_in_frame(surface) -> np.ndarray:
@@ -191,8 +212,19 @@ class RigidContact:
             residual, jacobian = self._placement_residual(data), None
         labels = [f"placement of {self.label} ({axis})" for axis in self._placement_axes]
         # 1 cm / 10 mrad: the size of a placement error that matters.
-        return [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement,
-                         self._placement_curvature)]
+        blocks = [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement,
+                           self._placement_curvature)]
+        if self.reach_rows is not None:
+            rows = len(self.reach_rows)
+            reach_jacobian = None
+            if derivatives:
+                reach_jacobian = np.zeros((rows, columns))
+                reach_jacobian[:, offset : offset + self.n_variables] = self.reach_rows
+            # 1e-2 N m: a centre of pressure 1 mm out under 10 N.
+            blocks.append(ConstraintBlock("reach", self.reach_rows @ lam, reach_jacobian, 0.0, np.inf, 1e-2,
+                                          tuple(f"centre of pressure of {self.label} in its nodes' reach ({k})"
+                                                for k in range(rows))))
+        return blocks
 
     _placement_axes = ("x", "y", "z", "roll", "pitch", "yaw")
 

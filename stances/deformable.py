@@ -115,7 +115,7 @@ from .errors import StanceError
 from .layer_ball import layer_under
 from .statics import PointLoads, point_jacobians, points_in_world
 
-__all__ = ["DeformableContact", "PrintSpec", "MINIMUM_PRINT_NODES"]
+__all__ = ["DeformableContact", "HeldPrint", "PrintSpec", "MINIMUM_PRINT_NODES"]
 
 MINIMUM_PRINT_NODES = 3
 
@@ -150,6 +150,10 @@ _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
 # A ball's start depth (DeformableContact.variables_from_forces): up to 2^12 times the flat
 # print's, then the scale's bracket halved (in log) to 2^(1/2^5) = 1.022.
 _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
+# A print held rigid in its stiff limit (DeformableContact.held_prints) has its forces this
+# fraction of its nodes' spacing inside their hull: on the hull's edge one line of nodes
+# carries the load and the link's turn about that line is not fixed by it.
+_REACH_MARGIN = 0.05
 # A friction pyramid's faces, as (t1, t2) components of their tangential part (see
 # DeformableContact._pyramid_faces), and their labels.
 _DIAGONALS = np.array([[1.0, 1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2.0)
@@ -223,6 +227,26 @@ def rigid_force_metric(surface, friction: float) -> np.ndarray:
 
 
 @dataclass(frozen=True)
+class HeldPrint:
+    """A soft print held rigid in its body's stiff limit (:meth:`DeformableContact.held_prints`).
+
+    Parameters
+    ----------
+    reach : (m, 2) float
+        Counter-clockwise convex polygon, print frame, metres, that its forces' centre of
+        pressure must lie in: where its nodes can carry them.
+    friction : float
+        Its resultant's friction coefficient (``friction_margin`` included).
+    transform_print_to_world : (4, 4) float
+        Where its link is held: the print frame moved by the body's give.
+    """
+
+    reach: np.ndarray
+    friction: float
+    transform_print_to_world: np.ndarray
+
+
+@dataclass(frozen=True)
 class _PrintValues:
     """A deformable contact's state at one iterate, without derivatives.
 
@@ -278,6 +302,30 @@ def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
 def _skew_rows(points: np.ndarray) -> np.ndarray:
     """(p, 3) -> (p, 3, 3) cross-product matrices."""
     return np.array([pin.skew(p) for p in points]) if len(points) else np.zeros((0, 3, 3))
+
+
+def inset_hull(points, margin: float) -> np.ndarray:
+    """The convex hull of 2-D points with its edges moved in by ``margin``.
+
+    Parameters
+    ----------
+    points : (k, 2) float
+        At least three, not on one line; metres.
+    margin : float
+        Metres, >= 0, less than the hull's inradius.
+
+    Returns
+    -------
+    (m, 2) float
+        Counter-clockwise corners: where consecutive moved edges meet.
+    """
+    corners = np.asarray(points, dtype=float)[scipy.spatial.ConvexHull(points).vertices]  # counter-clockwise
+    edges = np.roll(corners, -1, axis=0) - corners
+    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]  # outward
+    offsets = np.einsum("ij,ij->i", normals, corners) - margin  # each edge's line n . x = offset
+    previous = np.roll(np.arange(len(corners)), 1)
+    return np.array([np.linalg.solve(np.array([normals[j], normals[i]]), [offsets[j], offsets[i]])
+                     for i, j in enumerate(previous)])
 
 
 class DeformableContact:
@@ -674,16 +722,19 @@ class DeformableContact:
         (3p,), metres, body frame; warm started from the last solve's modes, or held to
         :meth:`freeze_modes`'s. A node is pressed once its link point has closed its gap."""
         corrected = imposed.reshape(-1, 3) + self.gaps
-        if self._contact_system is None:
-            # It keeps the factorisation of each contact set it meets: the
-            # SQP holds a set or comes back to it at most linearisations.
-            self._contact_system = fem.PrintContactSystem(self.patch.link_compliance, self.node_frames, self.node_mu)
         if self._frozen is not None:
-            return self._contact_system.with_modes(corrected, *self._frozen)
+            return self._system().with_modes(corrected, *self._frozen)
         warm = (None, None) if self._modes is None else self._modes
-        solved = self._contact_system.solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
+        solved = self._system().solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
         self._modes = (solved.modes, solved.directions)
         return solved
+
+    def _system(self) -> fem.PrintContactSystem:
+        """The nodes' contact system, made on first use: it keeps the factorisation of each
+        contact set it meets (the SQP holds a set or comes back to it at most linearisations)."""
+        if self._contact_system is None:
+            self._contact_system = fem.PrintContactSystem(self.patch.link_compliance, self.node_frames, self.node_mu)
+        return self._contact_system
 
     def _state(self, model, data, w):
         """U, dU/dq, forces (world) and their derivatives in q and W, the body's print
@@ -809,6 +860,83 @@ class DeformableContact:
             middle = np.sqrt(low * high)
             low, high = (middle, high) if carried(middle) < target else (low, middle)
         return high
+
+    # -- the stiff limit (stances.sqp._solve_stiff_limit) ----------------------
+    def stiff_give(self, w) -> float:
+        """How far, metres, the print nodes bonded to their links move under W (6L,):
+        ``max |G A^-1 W|``, the body's give under those loads."""
+        return float(np.abs(self.rigid_motion @ np.asarray(w, dtype=float)).max())
+
+    def held_prints(self, xi) -> dict:
+        """Each print held rigid in the body's stiff limit, its link moved by ``xi``.
+
+        As E grows a print's links move by nanometres and its nodes' Coulomb forces can
+        carry what a rigid contact carries where they are: a centre of pressure inside
+        the convex hull of its link points (not the link's whole polygon, on a mesh
+        coarse under it), here moved in by ``_REACH_MARGIN`` of the nodes' spacing, with
+        the friction of the print's resultant (``friction_margin``). For
+        :func:`stances.build_problem`'s ``held_prints``.
+
+        Parameters
+        ----------
+        xi : (6L,) float
+            Each print's link motion (translation, rotation vector; body frame, about the
+            print's origin), as :meth:`carrying_variables` gives it.
+
+        Returns
+        -------
+        dict of str to HeldPrint
+            By robot surface; empty where a point foot presses the body.
+        """
+        if len(self.point_prints):
+            return {}
+        out = {}
+        xi = np.asarray(xi, dtype=float).reshape(-1, 6)
+        for i, (spec, placement) in enumerate(zip(self.prints, self.print_placements)):
+            points = ((self.link_points_at_rest[self.print_of_node == i] - placement.translation)
+                      @ placement.rotation)[:, :2]
+            spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
+            moved = pin.SE3(pin.exp3(self.rotation_body @ xi[i, 3:]) @ placement.rotation,
+                            placement.translation + self.rotation_body @ xi[i, :3])
+            out[spec.robot_surface] = HeldPrint(inset_hull(points, _REACH_MARGIN * spacing),
+                                                self.friction_margin * self.friction[i], moved.homogeneous)
+        return out
+
+    def carrying_variables(self, wrench):
+        """W whose Coulomb forces carry given wrenches, and the links' motion it asks.
+
+        The inverse of the contact law at fixed posture: the links' motion xi whose
+        contact solve gives forces with each print's ``wrench``
+        (:meth:`fem.PrintContactSystem.solve_loaded`), and ``W = A xi``, the variables
+        whose placement rows ask that motion.
+
+        Parameters
+        ----------
+        wrench : (6L,) float
+            Each print's force (N) and moment about its origin (N m), body frame, as W.
+
+        Returns
+        -------
+        (w, xi) : ((6L,) float, (6L,) float)
+            Or None where no motion of the links makes the nodes carry the wrenches (a
+            centre of pressure beyond them, a sideways load at which the print would
+            slide off).
+        """
+        answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion,
+                                             np.zeros(self.n_variables))
+        return None if answer is None else (self.a @ answer[1], answer[1])
+
+    def link_give(self, xi) -> float:
+        """How far, metres, the link points move under the links' motion ``xi`` (6L,)."""
+        return float(np.abs(self._link_motion(xi)[0] - self.gaps).max())
+
+    def _link_motion(self, xi):
+        """The link points' motion, the nodes' gaps added, under links moved by ``xi``
+        (6L,), and its derivative: ``G xi + r(xi) + gap`` (p, 3), ``G + dr/dxi`` (3p, 6L);
+        body frame, metres (r: :meth:`_rotation_residue`, read at ``W = A xi``)."""
+        w = self.a @ xi
+        moved = self.basis @ xi + self._rotation_residue(w)
+        return moved.reshape(-1, 3) + self.gaps, self.basis + self._rotation_residue_derivative(w) @ self.a
 
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""

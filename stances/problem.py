@@ -210,6 +210,14 @@ class PostureOptions:
         With deformable contacts, first solve with them held rigid, then
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
+    stiff_limit : bool
+        With Coulomb contact and a rigid warm start, a soft body with flat prints only
+        that gives less than the placement tolerance (1 um) under the stance's loads is
+        solved in its stiff limit: its prints held rigid, their forces where the nodes
+        are, then the links' motion whose Coulomb forces carry that answer found and the
+        answer verified as any (as E grows the posture and forces tend to the rigid
+        support's; :func:`stances.sqp._solve_stiff_limit`). Where a step of it fails, the
+        solve goes on as on a softer body. False: always as on a softer body.
     reaching_start : bool
         A solve given no posture, none of whose prints lies on a soft body's mesh (those
         start their rigid warm start from the posture over the prints), starts from the
@@ -264,6 +272,7 @@ class PostureOptions:
     rigid_prints: tuple = ()
     touching: tuple = ()
     rigid_warm_start: bool = True
+    stiff_limit: bool = True
     reaching_start: bool = True
     constraint_curvature: bool = True
 
@@ -848,7 +857,7 @@ def check_posture_arguments(robot, scene, stance) -> None:
                         "reads one ({robot surface: {surface, x, y, theta}})")
 
 
-def build_problem(robot, scene, stance, options: PostureOptions | None = None) -> PostureProblem:
+def build_problem(robot, scene, stance, options: PostureOptions | None = None, held_prints=None) -> PostureProblem:
     """Turn a stance into a posture problem.
 
     Parameters
@@ -859,6 +868,11 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
         Contacts to hold. Each robot surface must exist on ``robot`` and each
         print's surface in ``scene``.
     options : PostureOptions, optional
+    held_prints : dict, optional
+        Robot surface -> :class:`~stances.deformable.HeldPrint`: a soft print held rigid
+        in its body's stiff limit (with ``options.deformable_as_rigid``), at its placement,
+        its centre of pressure in its reach, with its friction
+        (:meth:`stances.deformable.DeformableContact.held_prints`).
 
     Returns
     -------
@@ -908,8 +922,14 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None) -
                 contacts.append(deformable_object)  # placeholder, replaced below
             deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
         else:
-            model = PointContact if robot.surface(contact.robot_surface).is_point else RigidContact
-            contacts.append(model(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
+            held = (held_prints or {}).get(contact.robot_surface)
+            if robot.surface(contact.robot_surface).is_point:
+                contacts.append(PointContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
+            elif held is not None:
+                contacts.append(RigidContact(robot, contact.robot_surface, held.transform_print_to_world, held.friction,
+                                             label, surface=surface, reach=held.reach))
+            else:
+                contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
     if deformable_prints:
         contacts = [
             c if isinstance(c, RigidContact) else

@@ -102,6 +102,10 @@ class SolveStatistics(Mapping):
         A soft stance's Coulomb solve from its rigid answer's forces failed near
         feasible, and it was solved again from the bonded model's answer (the
         earlier pipeline).
+    stiff_limit : bool
+        A soft stance solved in its bodies' stiff limit (``PostureOptions.stiff_limit``):
+        its soft prints held rigid where their nodes are, then the links' motion found
+        whose Coulomb forces carry that answer.
     first_start : dict
         A solve given no posture that failed from the reaching start
         (:func:`stances.reaching_configuration`) and was solved again from the reference
@@ -119,6 +123,7 @@ class SolveStatistics(Mapping):
     options: dict | None = None
     rigid_warm_start_iterations: int | None = None
     bonded_warm_start: bool | None = None
+    stiff_limit: bool | None = None
     first_start: dict | None = None
 
     _KEYS = {"lambda": "lam"}  # mapping key -> field, where they differ
@@ -140,7 +145,8 @@ class SolveStatistics(Mapping):
             raise ValueError(f"unknown solve statistics {unknown}; known: {sorted(set(names) - {'lam'})}")
         fields = {names.get(key, key): value for key, value in values.items()}
         casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
-                 "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "options": dict,
+                 "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "stiff_limit": bool,
+                 "options": dict,
                  "first_start": dict,
                  "lam": lambda v: tuple(float(x) for x in v)}
         return cls(**{name: None if value is None else casts[name](value) for name, value in fields.items()})

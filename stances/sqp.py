@@ -97,6 +97,14 @@ _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance":
 # start (after a Coulomb solve that failed near feasibility) has the same cap: none ran in
 # those plans, so it is not measured.
 _WARM_START_ITERATIONS = 60
+# A soft body that gives less than this under a stance's loads (metres) is solved in its
+# stiff limit (_solve_stiff_limit): held rigid, in at most _GIVE_ROUNDS rounds until the
+# give moves the held prints by under _GIVE_SETTLED, then at most _LIFT_STEPS restoration
+# steps onto every row.
+_STIFF_GIVE = 1e-5
+_GIVE_ROUNDS = 4
+_GIVE_SETTLED = 1e-9
+_LIFT_STEPS = 4
 # A step cut below CRAWL_ALPHA from a feasible iterate says the QP's model holds over a
 # small part of it only (rows curved at that scale): the next steps are bounded by this
 # fraction of its length (rad or m, at least _SMALLEST_REGION), the bound doubling back
@@ -1042,8 +1050,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
     options = posture_options(options)
     constraints = tuple(constraints)
 
-    def build(options):
-        built = build_problem(robot, scene, stance, options)
+    def build(options, held_prints=None):
+        built = build_problem(robot, scene, stance, options, held_prints)
         built.constraints.extend(constraints)
         if reference is not None:
             try:
@@ -1089,7 +1097,12 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # load does: the Coulomb solve starts there (14 built-in soft stances, every
             # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
-    if options.contact_law == "coulomb" and deformable:
+    stiff = None
+    if options.contact_law == "coulomb" and rigid is not None and options.stiff_limit and options.deformation_cost == "energy":
+        stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, deadline)
+    if stiff is not None:
+        result = stiff
+    elif options.contact_law == "coulomb" and deformable:
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
         # (The bonded model cannot press a ball's nodes: a body a ball presses keeps Coulomb's.)
         balls = any(len(c.point_prints) for c in problem.contacts if c.kind == "deformable")
@@ -1114,8 +1127,133 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         statistics["rigid_warm_start_iterations"] = warm_iterations
     if bonded_warm_start:
         statistics["bonded_warm_start"] = True
+    if stiff is not None:
+        statistics["stiff_limit"] = True
     # solve_time covers everything this call did: building, warm start, SQP, verification.
     return _timed_out(_with(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
+
+
+def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
+    """The stance on soft bodies too stiff to give, in their stiff limit; None where it is not.
+
+    As E grows a soft print's links move by nanometres: its nodes' Coulomb forces carry
+    what a rigid contact would where the nodes are, and the posture is the rigid one. The
+    soft prints' own variables W do not lead there: the force term weighs W, the wrench
+    the nodes would carry bonded, which moves far from what they carry once some lift off
+    (``bench/bench_palm_limit.py``), and the palm of hand-on-cube at E = 1e10 Pa stopped
+    1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
+
+    1. every soft contact is a :class:`~stances.deformable.DeformableContact` of flat
+       prints, and the warm start's loads ``lam`` move its bonded nodes less than
+       ``_STIFF_GIVE`` (:meth:`~stances.deformable.DeformableContact.stiff_give`);
+    2. the stance held rigid, each soft print's centre of pressure where its nodes are,
+       with its resultant's friction (:meth:`~stances.deformable.DeformableContact.held_prints`),
+       solved to ``options``' tolerances from ``q`` (the warm start's posture);
+    3. each soft body's W whose Coulomb forces carry that answer's wrenches, and the links'
+       motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
+       less than ``_STIFF_GIVE``; steps 2 and 3 again with the prints held where that
+       motion puts them, until it moves them by under ``_GIVE_SETTLED``
+       (``_GIVE_ROUNDS`` at most: the give is a fixed point of the loads it carries);
+    4. restoration steps from there, the soft prints' W held (their forces are the
+       carried ones), onto every row, then :func:`stances.verify` on the full FEM model.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+        The soft problem.
+    build : callable
+        ``build(options, held_prints) -> PostureProblem`` for the same stance.
+    options : PostureOptions
+    q : (nq,) float
+        The rigid warm start's posture.
+    lam : (m,) float
+        ``problem``'s variables carrying the warm start's loads.
+    deadline : float, optional
+
+    Returns
+    -------
+    PostureResult or None
+        Verified; its iterations the rigid solves' and the restoration steps.
+    """
+    soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
+    if any(c.kind != "deformable" or len(c.point_prints) for c, _ in soft):
+        return None
+    give = max(c.stiff_give(lam[s]) for c, s in soft)
+    if give > _STIFF_GIVE:
+        return None
+    start = time.perf_counter()
+    motions = [np.zeros(c.n_variables) for c, _ in soft]
+    iterations = 0
+    for _ in range(_GIVE_ROUNDS):
+        held_prints = {}
+        for (contact, _), xi in zip(soft, motions):
+            held_prints.update(contact.held_prints(xi))
+        held = build(replace(options, deformable_as_rigid=True), held_prints)
+        answer = solve_problem(held, q, deadline=deadline, check=False)
+        iterations += answer.iterations
+        if not answer.feasible:
+            logger.debug("stiff limit not taken: held rigid, %s", answer.reason)
+            return None
+        q = np.asarray(answer.q, dtype=float)
+        lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+        moved = 0.0
+        for k, (contact, s) in enumerate(soft):
+            carried = contact.carrying_variables(lam[s])
+            if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
+                logger.debug("stiff limit not taken: the nodes of %s %s", contact.label,
+                             "cannot carry the held answer" if carried is None else
+                             f"give {contact.link_give(carried[1]):.3g} m under it")
+                return None
+            lam[s] = carried[0]
+            moved = max(moved, contact.link_give(carried[1] - motions[k]))
+            motions[k] = carried[1]
+        if moved <= _GIVE_SETTLED:
+            break
+    lifted = _lift(problem, q, lam, [s for _, s in soft])
+    if lifted is None:
+        logger.debug("stiff limit not taken: the rows not met from the held answer (give moved %.3g m)", moved)
+        return None
+    q, lam, linearization, steps = lifted
+    outcome = SqpOutcome(q, lam, linearization, iterations + steps, "converged", 0.0, 0.0, True, "")
+    result = _result(problem, outcome, time.perf_counter() - start)
+    if not result.feasible:
+        logger.debug("stiff limit not taken: %s", result.reason)
+        return None
+    return result
+
+
+def _lift(problem, q, lam, held):
+    """Restoration steps onto the rows of ``problem`` with the variables in the slices
+    ``held`` fixed, at most ``_LIFT_STEPS``: ``(q, lam, Linearization, steps)`` where the rows
+    are met (its feasibility tolerance), else None.
+
+    The soft prints' ``touch`` rows are left out (of the steps and of the Linearization
+    returned): they ask the mean height of a print's nodes not above the rest surface, a
+    smooth stand-in for pressing that a palm leaning on its edge fails while that edge
+    presses; here each print carries the held answer's load, which says it presses.
+    """
+    nv, workspace = problem.robot.model.nv, QPWorkspace()
+
+    def rows(q, lam):
+        linearization = problem.linearize(q, lam)
+        return replace(linearization, blocks=[b for b in linearization.blocks if b.name != "touch"])
+
+    linearization = rows(q, lam)
+    for steps in range(_LIFT_STEPS + 1):
+        if linearization.met(problem.options.feasibility_tolerance):
+            return q, lam, linearization, steps
+        if steps == _LIFT_STEPS:
+            return None
+        lower, upper = linearization.step_lower.copy(), linearization.step_upper.copy()
+        for s in held:
+            lower[nv + s.start : nv + s.stop] = upper[nv + s.start : nv + s.stop] = 0.0
+        restored = _restoration_step(problem, replace(linearization, step_lower=lower, step_upper=upper), q, lam,
+                                     workspace)
+        if restored is None:
+            return None
+        q, lam = restored
+        linearization = rows(q, lam)
+    return None
 
 
 def _timed_out(result, time_budget) -> PostureResult:

@@ -420,3 +420,52 @@ def test_modes_read_off_a_gauss_seidel_solution_are_the_contact_state(pad):
     slipping = modes == fem.SLIP
     np.testing.assert_allclose(directions[slipping], state.directions[slipping], atol=1e-6)
     assert (directions[~slipping] == 0.0).all()
+
+
+def _print_basis(patch):
+    """G (3p, 6): the print points' motion under a rigid motion (translation, small turn)
+    about the print's centre; its transpose sums forces into a wrench about that centre."""
+    levers = patch.points - patch.points.mean(axis=0)
+    basis = np.zeros((patch.n_nodes, 3, 6))
+    basis[:, :, :3] = np.eye(3)
+    basis[:, :, 3:] = -np.array([[[0, -x[2], x[1]], [x[2], 0, -x[0]], [-x[1], x[0], 0]] for x in levers])
+    return basis.reshape(-1, 6)
+
+
+def test_a_loaded_solve_finds_the_motion_whose_forces_carry_a_wrench(pad):
+    """solve_loaded inverts the law: from the wrench the forces of a pressed, sheared and
+    tilted print carry, it finds that print's motion again (some nodes lifted, some
+    slipping), its state obeys Signorini and Coulomb in the full system, and its d xi / d
+    wrench is the finite difference of two loaded solves."""
+    body, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    basis = _print_basis(patch)
+    system = fem.PrintContactSystem(patch.compliance, frames, mu)
+
+    def motion(xi):
+        return (basis @ xi).reshape(-1, 3), basis
+
+    xi = np.array([0.0006, 0.0, -0.002, 0.0, 0.03, 0.0])
+    forward = system.solve(motion(xi)[0])
+    assert (forward.modes == fem.LIFT).any() and (forward.modes == fem.SLIP).any()
+    wrench = basis.T @ forward.forces.reshape(-1)
+    state, found, slope = system.solve_loaded(basis, wrench, motion, np.zeros(6))
+    assert np.allclose(found, xi, rtol=0.0, atol=1e-12)
+    assert np.allclose(basis.T @ state.forces.reshape(-1), wrench, rtol=0.0, atol=1e-9 * np.abs(wrench).max())
+    _check_signorini_coulomb(body, patch, motion(found)[0], state, MU)
+    step = 1e-6 * np.abs(wrench).max() * np.eye(6)
+    for k in range(6):
+        plus, minus = (system.solve_loaded(basis, wrench + sign * step[k], motion, found)[1] for sign in (1.0, -1.0))
+        assert np.allclose((plus - minus) / (2 * step[k, k]), slope[:, k], rtol=1e-5, atol=1e-9 * np.abs(slope).max())
+
+
+def test_a_loaded_solve_of_a_wrench_beyond_the_print_is_none(pad):
+    """A centre of pressure outside the print's nodes: no motion carries it."""
+    _, patch, frames = pad
+    basis = _print_basis(patch)
+    system = fem.PrintContactSystem(patch.compliance, frames, np.full(patch.n_nodes, MU))
+    half_width = np.ptp(patch.points[:, 0]) / 2
+    pushed = np.array([0.0, 0.0, 100.0, 0.0, -100.0 * 1.2 * half_width, 0.0])  # centre of pressure at 1.2 half-widths
+    assert system.solve_loaded(basis, pushed, lambda xi: ((basis @ xi).reshape(-1, 3), basis), np.zeros(6)) is None
+    inside = pushed * [1, 1, 1, 1, 0.5, 1]
+    assert system.solve_loaded(basis, inside, lambda xi: ((basis @ xi).reshape(-1, 3), basis), np.zeros(6)) is not None

@@ -1,0 +1,173 @@
+"""The stiff limit of a soft support (issue 8, item 5): held rigid where its nodes are.
+
+A soft body that gives less than the placement tolerance under a stance's loads is
+solved as a rigid contact whose forces act inside its print nodes' hull, then the links'
+motion is found whose Coulomb forces carry that answer (the inverse of the contact law)
+and the answer is verified on the full FEM model as any other. The checks: the pieces
+against their definitions, the palm of hand-on-cube on a steel-stiff cube against the
+rigid support, and the fallback where a step of it fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pinocchio as pin
+import pytest
+
+import environments
+import stances.deformable
+from stances import solve
+from stances.contacts import RigidContact
+from stances.deformable import inset_hull
+from stances.problem import PostureOptions, build_problem
+
+PALM = "right_palm"
+
+
+def _hand_on_cube(young_modulus):
+    """hand-on-cube with its cube weightless at ``young_modulus`` (default mesh), and its stance."""
+    text = environments.builtin_scenario_path("hand-on-cube").read_text()
+    scenario = environments.load_string(
+        text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0"), name="hand-on-cube")
+    return scenario.scene, scenario.stance("hand-on-cube")
+
+
+@pytest.fixture(scope="module")
+def steel_cube():
+    return _hand_on_cube(1e10)
+
+
+@pytest.fixture(scope="module")
+def rigid_answer(robot, steel_cube):
+    scene, stance = steel_cube
+    answer = solve(robot, scene, stance, deformable_as_rigid=True)
+    assert answer.feasible, answer.reason
+    return answer
+
+
+def _palm_wrench(robot, result):
+    """(6,) the palm's force (N) and moment about its contact frame (N m), that frame's axes."""
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(result.q))
+    frame = robot.surface(PALM).frame
+    placement = data.oMf[robot.model.getFrameId(frame)]
+    on_palm = [p for p in result.point_forces if p.frame == frame]
+    levers = np.array([p.point for p in on_palm]) - placement.translation
+    forces = np.array([p.force for p in on_palm])
+    return np.r_[forces.sum(axis=0), np.cross(levers, forces).sum(axis=0)] @ np.kron(np.eye(2), placement.rotation)
+
+
+def _soft_contact(problem):
+    (contact,) = [c for c in problem.contacts if c.kind == "deformable"]
+    return contact
+
+
+def test_an_inset_hull_moves_each_edge_in_by_the_margin():
+    square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.7]])
+    inset = inset_hull(square, 0.1)
+    assert np.allclose(inset, [[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]]) or np.allclose(
+        np.roll(inset, 1, axis=0), [[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]])
+    # Counter-clockwise: positive signed area.
+    x, y = inset[:, 0], inset[:, 1]
+    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) == pytest.approx(0.64)
+
+
+def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_nodes_are(robot, steel_cube):
+    scene, stance = steel_cube
+    soft = _soft_contact(build_problem(robot, scene, stance))
+    motion = np.array([1e-6, -2e-6, -3e-6, 1e-5, 2e-5, -3e-5])  # m, rad; body frame
+    (held_print,) = soft.held_prints(motion).values()
+    reach, friction = held_print.reach, held_print.friction
+    assert friction == pytest.approx(PostureOptions().friction_margin * soft.friction[0])
+    placement = soft.print_placements[0]
+    nodes = ((soft.link_points_at_rest - placement.translation) @ placement.rotation)[:, :2]
+    assert reach[:, 0].max() < nodes[:, 0].max() and reach[:, 1].max() < nodes[:, 1].max()
+    # Held where the motion puts the link: its points move by G xi (+ second order).
+    moved = held_print.transform_print_to_world
+    corner = np.array([0.05, 0.03, 0.0])
+    levers = placement.rotation @ corner
+    expected = levers + soft.rotation_body @ (motion[:3] + np.cross(motion[3:], soft.rotation_body.T @ levers))
+    assert np.allclose(moved[:3, :3] @ corner + moved[:3, 3] - placement.translation, expected, rtol=0.0, atol=1e-10)
+    plain = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True))
+    held = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True), {PALM: held_print})
+    (palm,) = [c for c in held.contacts if c.robot_surface == PALM]
+    (rigid_palm,) = [c for c in plain.contacts if c.robot_surface == PALM]
+    assert palm.friction == friction and rigid_palm.reach_rows is None
+    assert np.array_equal(palm.print_placement.homogeneous, moved)
+    # Its forces act at the palm's corners, as on a rigid support (the force term weighs them so).
+    assert np.array_equal(palm.loads.points_in_joint, rigid_palm.loads.points_in_joint)
+    # Pressing one corner alone puts the centre of pressure there: inside the reach iff the corner is.
+    corners = np.array([robot.model.frames[palm.frame_id].placement.actInv(p) for p in palm.loads.points_in_joint])
+    edges = np.roll(reach, -1, axis=0) - reach
+    for k, corner in enumerate(corners[:, :2]):
+        lam = np.zeros(palm.n_variables)
+        lam[4 * k : 4 * k + 4] = 1.0  # the corner's four cone edges: a normal load
+        inside = (edges[:, 0] * (corner[1] - reach[:, 1]) - edges[:, 1] * (corner[0] - reach[:, 0])).min() >= 0.0
+        assert (palm.reach_rows @ lam).min() >= 0.0 if inside else (palm.reach_rows @ lam).min() < 0.0
+    assert (palm.reach_rows @ np.ones(palm.n_variables)).min() > 0.0  # every corner alike: the palm's centre
+    data = robot.model.createData()
+    (block,) = [b for b in palm.blocks(robot.model, data, lam, robot.model.nv + palm.n_variables, robot.model.nv)
+                if b.name == "reach"]
+    assert np.array_equal(block.jacobian[:, robot.model.nv :], palm.reach_rows) and not block.jacobian[:, : robot.model.nv].any()
+
+
+def test_carrying_variables_give_forces_that_carry_the_wrench(robot, steel_cube, rigid_answer):
+    scene, stance = steel_cube
+    problem = build_problem(robot, scene, stance)
+    rigid = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True))
+    variables = problem.variables_from_rigid(rigid, rigid_answer.statistics["lambda"], rigid_answer.point_forces)
+    soft = _soft_contact(problem)
+    s = problem.variable_slices[problem.contacts.index(soft)]
+    # The rigid palm's wrench: its centre of pressure on the palm's edge, beyond the nodes.
+    assert soft.carrying_variables(variables[s]) is None
+    inward = variables[s].copy()
+    inward[3:] *= 0.5  # the same force, its centre of pressure halfway in
+    w, motion = soft.carrying_variables(inward)
+    assert np.allclose(soft.a_inverse @ w, motion, rtol=0.0, atol=1e-12 * np.abs(motion).max())
+    give = soft.link_give(motion)
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(rigid_answer.q))
+    forces = soft.forces(robot.model, data, w) @ soft.rotation_body  # body frame
+    levers = soft.levers
+    carried = np.r_[forces.sum(axis=0), np.cross(levers, forces).sum(axis=0)]
+    assert np.allclose(carried, inward, rtol=0.0, atol=1e-8 * np.abs(inward).max())
+    assert 0.0 < give < 1e-6  # metres: a steel-stiff cube
+    assert soft.stiff_give(inward) == pytest.approx(float(np.abs(soft.rigid_motion @ inward).max()))
+
+
+def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_cube, rigid_answer):
+    """The palm's centre of pressure goes as far out as the nodes reach (31.5 mm, the rigid
+    palm's on its edge at 35 mm): its force within 1.1 % of the rigid support's on the
+    default mesh (1.29 % through the soft variables), verified on the full model."""
+    scene, stance = steel_cube
+    result = solve(robot, scene, stance)
+    assert result.feasible and result.verification.ok, result.reason
+    assert result.statistics["stiff_limit"] is True
+    palm, expected = _palm_wrench(robot, result), _palm_wrench(robot, rigid_answer)
+    assert np.linalg.norm(palm[:3] - expected[:3]) < 0.011 * np.linalg.norm(expected[:3])
+    soft = _soft_contact(build_problem(robot, scene, stance))
+    (held_print,) = soft.held_prints(np.zeros(6)).values()
+    reach = held_print.reach
+    centre_of_pressure = np.array([-palm[4], palm[3]]) / palm[2]
+    assert centre_of_pressure[1] == pytest.approx(reach[:, 1].max(), abs=1e-4)
+    off = solve(robot, scene, stance, stiff_limit=False)
+    assert off.feasible and "stiff_limit" not in off.statistics
+    assert np.linalg.norm(_palm_wrench(robot, off)[:3] - expected[:3]) > np.linalg.norm(palm[:3] - expected[:3])
+
+
+def test_a_cube_that_gives_is_not_held_rigid(robot):
+    scene, stance = _hand_on_cube(1e8)
+    result = solve(robot, scene, stance)
+    assert result.feasible, result.reason
+    assert "stiff_limit" not in result.statistics
+
+
+def test_where_the_nodes_cannot_carry_the_held_answer_the_solve_goes_on_as_on_a_softer_body(
+        robot, steel_cube, monkeypatch):
+    # A reach beyond the nodes' hull: the held palm's centre of pressure lies where no
+    # node is, the inverse finds no motion, and the soft variables solve it.
+    monkeypatch.setattr(stances.deformable, "_REACH_MARGIN", -0.5)
+    scene, stance = steel_cube
+    result = solve(robot, scene, stance)
+    assert result.feasible, result.reason
+    assert "stiff_limit" not in result.statistics
