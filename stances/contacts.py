@@ -122,18 +122,24 @@ class RigidContact:
         only. Verify checks, in the surface's own frame, that every force acts on it.
     reach : (m, 2) float, optional
         A convex polygon, counter-clockwise, print frame, that the forces' centre of
-        pressure must lie in (rows ``reach``): where a soft print's nodes can carry them,
-        the print held rigid in its stiff limit
+        pressure must lie in: where a soft print's nodes can carry them, the print held
+        rigid in its body's stiff limit
         (:meth:`stances.deformable.DeformableContact.held_prints`). The forces still act
         at the polygon's vertices, so that the force term weighs them as on a rigid
         support.
+    resultant_friction : float, optional
+        A friction coefficient the forces' resultant must keep to (the pyramid
+        ``|f . t1| + |f . t2| <= mu f . n``): a soft print's, its ``friction_margin``
+        included. The vertices' own cones keep ``friction`` (their unit edges, and so the
+        force term's weights, as on a rigid support).
     """
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
     deformable_object = None  # the soft body it presses: none (stances.deformable, stances.layer_ball have one)
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None, reach=None):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None, reach=None,
+                 resultant_friction=None):
         self.support_surface = surface
         surface = robot.surface(robot_surface)
         self.robot_surface = robot_surface
@@ -164,10 +170,21 @@ class RigidContact:
         self.print_surfaces = (robot_surface,)  # the robot surface of each print
         self.load_prints = np.zeros(n_vertices, dtype=int)
         self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
-        self.reach_rows = None if reach is None else self._reach_rows(vertices, np.asarray(reach, dtype=float))
+        # Rows R lambda >= 0 of a soft print held rigid (reach, resultant_friction), and their labels.
+        held = []
+        if reach is not None:
+            held += self._reach_rows(vertices, np.asarray(reach, dtype=float))
+        if resultant_friction is not None:
+            held += self._resultant_rows(float(resultant_friction))
+        self.held_rows = np.array([row for row, _ in held]) if held else None
+        self._held_labels = tuple(label for _, label in held)
 
-    def _reach_rows(self, vertices, reach) -> np.ndarray:
-        """(e, n) ``R`` with ``R lambda >= 0`` iff the centre of pressure lies in ``reach``.
+    def _print_forces(self) -> np.ndarray:
+        """(k, 3, n): each vertex's force in the print frame per variable."""
+        return np.einsum("ji,kjn->kin", self.print_placement.rotation, self.generators.reshape(-1, 3, self.n_variables))
+
+    def _reach_rows(self, vertices, reach) -> list:
+        """``(row, label)`` pairs, ``row @ lambda >= 0`` iff the centre of pressure lies in ``reach``.
 
         Each edge ``n . x <= o`` of the reach (``n`` its outward normal) holds the centre
         of pressure ``sum f_z,i v_i / sum f_z,i`` iff ``sum_i f_z,i (o - n . v_i) >= 0``,
@@ -176,8 +193,15 @@ class RigidContact:
         edges = np.roll(reach, -1, axis=0) - reach
         normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
         levers = np.einsum("ej,ej->e", normals, reach)[:, None] - normals @ vertices[:, :2].T  # (e, k): o - n . v_i
-        normal_forces = (self.print_placement.rotation[:, 2] @ self.generators.reshape(len(vertices), 3, -1))  # (k, n)
-        return levers @ normal_forces
+        rows = levers @ self._print_forces()[:, 2, :]
+        return [(row, f"centre of pressure of {self.label} in its nodes' reach ({k})") for k, row in enumerate(rows)]
+
+    def _resultant_rows(self, friction) -> list:
+        """``(row, label)`` pairs, ``row @ lambda >= 0`` iff the resultant keeps ``|f . t1| + |f . t2| <= friction f . n``."""
+        resultant = self._print_forces().sum(axis=0)  # (3, n)
+        return [(friction * resultant[2] + s1 * resultant[0] + s2 * resultant[1],
+                 f"friction pyramid of the resultant of {self.label} ({'+' if s1 > 0 else '-'}x{'+' if s2 > 0 else '-'}y)")
+                for s1 in (1.0, -1.0) for s2 in (1.0, -1.0)]
 
     @staticmethod
     def _points_in_frame(surface) -> np.ndarray:
@@ -214,16 +238,14 @@ class RigidContact:
         # 1 cm / 10 mrad: the size of a placement error that matters.
         blocks = [equality("placement", residual, jacobian, 1e-2, labels, PLACEMENT_ACCURACY, self._weighted_placement,
                            self._placement_curvature)]
-        if self.reach_rows is not None:
-            rows = len(self.reach_rows)
-            reach_jacobian = None
+        if self.held_rows is not None:
+            held_jacobian = None
             if derivatives:
-                reach_jacobian = np.zeros((rows, columns))
-                reach_jacobian[:, offset : offset + self.n_variables] = self.reach_rows
-            # 1e-2 N m: a centre of pressure 1 mm out under 10 N.
-            blocks.append(ConstraintBlock("reach", self.reach_rows @ lam, reach_jacobian, 0.0, np.inf, 1e-2,
-                                          tuple(f"centre of pressure of {self.label} in its nodes' reach ({k})"
-                                                for k in range(rows))))
+                held_jacobian = np.zeros((len(self.held_rows), columns))
+                held_jacobian[:, offset : offset + self.n_variables] = self.held_rows
+            # 1e-2 (N m, N): a centre of pressure 1 mm out under 10 N, a resultant 10 mN out of its pyramid.
+            blocks.append(ConstraintBlock("held print", self.held_rows @ lam, held_jacobian, 0.0, np.inf, 1e-2,
+                                          self._held_labels))
         return blocks
 
     _placement_axes = ("x", "y", "z", "roll", "pitch", "yaw")

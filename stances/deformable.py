@@ -235,14 +235,14 @@ class HeldPrint:
     reach : (m, 2) float
         Counter-clockwise convex polygon, print frame, metres, that its forces' centre of
         pressure must lie in: where its nodes can carry them.
-    friction : float
+    resultant_friction : float
         Its resultant's friction coefficient (``friction_margin`` included).
     transform_print_to_world : (4, 4) float
         Where its link is held: the print frame moved by the body's give.
     """
 
     reach: np.ndarray
-    friction: float
+    resultant_friction: float
     transform_print_to_world: np.ndarray
 
 

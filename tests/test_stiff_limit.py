@@ -77,7 +77,7 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
     soft = _soft_contact(build_problem(robot, scene, stance))
     motion = np.array([1e-6, -2e-6, -3e-6, 1e-5, 2e-5, -3e-5])  # m, rad; body frame
     (held_print,) = soft.held_prints(motion).values()
-    reach, friction = held_print.reach, held_print.friction
+    reach, friction = held_print.reach, held_print.resultant_friction
     assert friction == pytest.approx(PostureOptions().friction_margin * soft.friction[0])
     placement = soft.print_placements[0]
     nodes = ((soft.link_points_at_rest - placement.translation) @ placement.rotation)[:, :2]
@@ -92,10 +92,21 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
     held = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True), {PALM: held_print})
     (palm,) = [c for c in held.contacts if c.robot_surface == PALM]
     (rigid_palm,) = [c for c in plain.contacts if c.robot_surface == PALM]
-    assert palm.friction == friction and rigid_palm.reach_rows is None
+    assert rigid_palm.held_rows is None
     assert np.array_equal(palm.print_placement.homogeneous, moved)
-    # Its forces act at the palm's corners, as on a rigid support (the force term weighs them so).
+    # Its forces act at the palm's corners, in the same cones, as on a rigid support (the
+    # force term weighs them so); its resultant keeps to the soft print's pyramid.
     assert np.array_equal(palm.loads.points_in_joint, rigid_palm.loads.points_in_joint)
+    assert palm.friction == rigid_palm.friction == soft.friction[0]
+    assert np.allclose(palm._print_forces(), rigid_palm._print_forces(), rtol=0.0, atol=1e-15)  # print frame
+    reach_rows = palm.held_rows[: len(reach)]
+    resultant_rows = palm.held_rows[len(reach) :]
+    assert len(resultant_rows) == 4
+    lam = np.zeros(palm.n_variables)
+    lam[0] = 1.0  # one edge of the first corner's cone: on the full pyramid, outside the margin's
+    mu = soft.friction[0]
+    assert (resultant_rows @ lam).min() == pytest.approx((friction - mu) / np.hypot(1.0, mu), rel=1e-12)
+    assert (resultant_rows @ np.ones(palm.n_variables)).min() > 0.0  # every edge alike: a normal load
     # Pressing one corner alone puts the centre of pressure there: inside the reach iff the corner is.
     corners = np.array([robot.model.frames[palm.frame_id].placement.actInv(p) for p in palm.loads.points_in_joint])
     edges = np.roll(reach, -1, axis=0) - reach
@@ -103,12 +114,12 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
         lam = np.zeros(palm.n_variables)
         lam[4 * k : 4 * k + 4] = 1.0  # the corner's four cone edges: a normal load
         inside = (edges[:, 0] * (corner[1] - reach[:, 1]) - edges[:, 1] * (corner[0] - reach[:, 0])).min() >= 0.0
-        assert (palm.reach_rows @ lam).min() >= 0.0 if inside else (palm.reach_rows @ lam).min() < 0.0
-    assert (palm.reach_rows @ np.ones(palm.n_variables)).min() > 0.0  # every corner alike: the palm's centre
+        assert (reach_rows @ lam).min() >= 0.0 if inside else (reach_rows @ lam).min() < 0.0
+    assert (reach_rows @ np.ones(palm.n_variables)).min() > 0.0  # every corner alike: the palm's centre
     data = robot.model.createData()
     (block,) = [b for b in palm.blocks(robot.model, data, lam, robot.model.nv + palm.n_variables, robot.model.nv)
-                if b.name == "reach"]
-    assert np.array_equal(block.jacobian[:, robot.model.nv :], palm.reach_rows) and not block.jacobian[:, : robot.model.nv].any()
+                if b.name == "held print"]
+    assert np.array_equal(block.jacobian[:, robot.model.nv :], palm.held_rows) and not block.jacobian[:, : robot.model.nv].any()
 
 
 def test_carrying_variables_give_forces_that_carry_the_wrench(robot, steel_cube, rigid_answer):
