@@ -124,11 +124,12 @@ def test_a_stiff_soft_support_gives_the_rigid_supports_posture_and_forces(robot,
 
 def test_a_palm_on_a_stiff_soft_cube_carries_about_the_rigid_contacts_load(robot):
     """hand-on-cube's palm, its load mostly along one tangent axis, on the cube at 1e10 Pa:
-    within 2 % of the rigid support's palm force (issue 8's stiff limit; 1.3 % measured
-    on 2026-12-05, 2.95 % on 2026-12-03: the rigid palm presses on its edge, the soft one
-    nearer its middle, where the force term on its
-    W, its inner nodes lifted off, prices a millimetre more as much as the rest of the
-    objective gains from it; see bench/bench_palm_limit.py). The rigid answer lies on its
+    within 2 % of the rigid support's palm force (issue 8's stiff limit; since 2026-12-05
+    solved in it, 1.08 %, its centre of pressure as far out as its nodes reach: see
+    tests/test_stiff_limit.py; through W 1.3 %, 2.95 % on 2026-12-03: the rigid palm presses
+    on its edge, the soft one nearer its middle, where the force term on its W, its inner
+    nodes lifted off, prices a millimetre more as much as the rest of the objective gains
+    from it; see bench/bench_palm_limit.py). The rigid answer lies on its
     friction pyramid's bound, the soft one on or inside its own (the soft one's mu less its
     ``friction_margin``, 1 %). With the axis-aligned square the soft prints had (its
     corners on the cone) and its margin of 0.8, the palm pressed with 96 N against the
