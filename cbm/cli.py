@@ -559,11 +559,9 @@ def _check(args):
     from .planner import PostureOracle, load_scenario
 
     if args.scenario.endswith(".json") and os.path.isfile(args.scenario):
-        if args.solver_option:
-            print("cbm check: error: --solver-option applies to a stance's solve; a plan is verified with the options "
-                  "each of its stances was solved with", file=sys.stderr)
-            return EXIT_BAD_INPUT
-        return _check_plan(args.scenario, args.refine, args.view)
+        # A plan is verified with the options each stance was solved with; --solver-option
+        # puts its own over them (a plan saved before an option existed recorded none).
+        return _check_plan(args.scenario, args.refine, args.view, _solver_options(args))
     scenario = load_scenario(args.scenario)
     if args.stance not in scenario.stances:
         names = ", ".join(sorted(scenario.stances)) or "(none)"
@@ -667,14 +665,15 @@ def _refined_scenario(scenario, factor):
         return None
 
 
-def _check_plan(path, refine=None, view=False):
+def _check_plan(path, refine=None, view=False, options=None):
     from .plan import Plan
     from .trajectory import read_trajectory
 
     plan = Plan.load(path)
-    report = plan.check()
+    report = plan.check(options=options)
     verdict = "every stance verifies" if report.ok else f"{len(report.problems)} problems"
-    print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}")
+    over = f" (with {', '.join(f'{k}={v}' for k, v in options.items())} over the recorded options)" if options else ""
+    print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}{over}")
     for problem in report.problems:
         print(f"  {problem}")
     code = EXIT_OK if report.ok else EXIT_FAILED

@@ -25,6 +25,7 @@ import stances
 from environments.scenario import SCENARIO_DIRECTORY
 from environments.stance import Stance
 from stances.results import PointForce, PostureResult
+from stances.sqp import posture_options
 
 from .errors import PlanFileError
 from .search import SearchStatistics
@@ -358,7 +359,7 @@ class Plan:
             raise PlanFileError(f"cannot read plan {path}: {error}") from None
         return cls.from_dict(data)
 
-    def check(self, scenario=None, robot=None):
+    def check(self, scenario=None, robot=None, options=None):
         """Re-verify every stance, every transition and the outcome.
 
         Each stance is checked by ``stances.verify`` (independent of the
@@ -377,11 +378,24 @@ class Plan:
             path), else the built-in scenario ``scenario_name``.
         robot : stances Robot, optional
             Default: the robot the plan names, else the scenario's.
+        options : dict, optional
+            Posture options (:class:`stances.PostureOptions`) over those each stance
+            recorded: a plan saved before an option existed recorded none, and is
+            checked with its default (``{"ball_force_error": float("inf")}`` checks a
+            plan made before 2026-12-05 as it was solved, its ball feet on nodes the
+            mesh does not resolve accepted).
+
+        Raises
+        ------
+        stances.StanceError
+            For an option that is no posture option, or a bad value.
 
         Returns
         -------
         PlanCheck
         """
+        options = dict(options or {})
+        posture_options(options)  # a typo or a bad value is an error, not an option ignored
         if scenario is None:
             scenario = self.scenario()
         if robot is None:
@@ -395,7 +409,7 @@ class Plan:
             # What the plan shows is what is checked.
             # With the options the stance was solved with, which its result records.
             shown = replace(result, q=planned.q, point_forces=planned.point_forces, deformations=planned.deformations)
-            verification = stances.verify(robot, scenario.scene, planned.stance, shown)
+            verification = stances.verify(robot, scenario.scene, planned.stance, shown, **options)
             if not verification.ok:
                 problems.append(f"stance {index}: " + "; ".join(map(str, verification.reasons)))
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):

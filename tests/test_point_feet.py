@@ -587,7 +587,10 @@ def test_cbm_check_takes_solver_options_and_names_a_bad_one(capsys, tmp_path):
     """``--solver-option KEY=VALUE`` reaches the posture solver from the command line: the
     front feet pressing the 10 mm foam's nodes are refused by default and accepted with
     ``ball_force_error=inf``; a misspelt option is bad input naming the valid ones, a pair
-    without ``=`` a usage error, and a plan is verified with its own options."""
+    without ``=`` a usage error. A plan is verified with its own options, and
+    ``--solver-option`` puts its own over them: a plan saved before ``ball_force_error``
+    existed (its stances recorded none) with such feet fails its check, and passes with
+    ``ball_force_error=inf``, as it was solved."""
     from cbm.cli import EXIT_BAD_INPUT, EXIT_FAILED, EXIT_OK, main
 
     check = ["check", "quadruped-foam", "--stance", "front-feet-on-foam", "--solver-option", "ball_contact=nodes"]
@@ -600,7 +603,23 @@ def test_cbm_check_takes_solver_options_and_names_a_bad_one(capsys, tmp_path):
     assert "unknown posture option(s) ['ball_force_eror']" in capsys.readouterr().err
     assert main(check + ["--solver-option", "ball_force_error"]) == EXIT_BAD_INPUT
     assert "expected KEY=VALUE" in capsys.readouterr().err
+    from dataclasses import replace
+
+    from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+
+    scenario, robot = environments.load("quadruped-foam"), stances.Robot.load("anymal")
+    stance = scenario.stance("front-feet-on-foam")
+    result = stances.solve(robot, scenario.scene, stance, ball_contact="nodes", ball_force_error=float("inf"))
+    assert result.feasible, result.reason
+    # As saved before the option existed: the stance recorded its ball contact only.
+    old = replace(result, statistics=dict(result.statistics, options={"ball_contact": "nodes"}))
+    plan = Plan(False, "search stopped", [PlannedStance(stance, old.q, old.point_forces, {}, old, move="")],
+                PlanStatistics(), scenario.name, robot=robot_description(robot), scenario_source=scenario_source(scenario))
     saved = tmp_path / "plan.json"
-    saved.write_text("{}")
-    assert main(["check", str(saved), "--solver-option", "ball_force_error=inf"]) == EXIT_BAD_INPUT
-    assert "a plan is verified with the options each of its stances was solved with" in capsys.readouterr().err
+    plan.save(saved)
+    assert main(["check", str(saved)]) == EXIT_FAILED
+    assert "the force under left_front_foot on foam_top is " in capsys.readouterr().out
+    assert main(["check", str(saved), "--solver-option", "ball_force_error=inf"]) == EXIT_OK
+    assert "every stance verifies (with ball_force_error=inf over the recorded options)" in capsys.readouterr().out
+    assert main(["check", str(saved), "--solver-option", "ball_force_eror=inf"]) == EXIT_BAD_INPUT
+    assert "unknown posture option(s) ['ball_force_eror']" in capsys.readouterr().err
