@@ -678,7 +678,7 @@ def _check_plan(path, refine=None, view=False, options=None):
         print(f"  {problem}")
     code = EXIT_OK if report.ok else EXIT_FAILED
     if report.ok and refine is not None:
-        code = _check_plan_refined(plan, refine)
+        code = _check_plan_refined(plan, refine, options)
     if view:
         # The motions a cbm plan --motion wrote beside the plan, replayed between its stances.
         saved = Path(path).parent / "trajectory.npz"
@@ -686,8 +686,9 @@ def _check_plan(path, refine=None, view=False, options=None):
     return code
 
 
-def _check_plan_refined(plan, factor):
-    """Each stance of a plan with a soft print solved again on its soft meshes ``factor`` times finer."""
+def _check_plan_refined(plan, factor, options=None):
+    """Each stance of a plan with a soft print solved again on its soft meshes ``factor`` times
+    finer, with posture ``options`` over those it recorded."""
     from dataclasses import replace
 
     from stances import check_refined
@@ -708,7 +709,7 @@ def _check_plan_refined(plan, factor):
         planned = plan.stances[index]
         # What the plan shows is what is checked (as Plan.check does).
         shown = replace(planned.result, q=planned.q, point_forces=planned.point_forces)
-        check = check_refined(robot, scenario, shown, factor, refined=fine)
+        check = check_refined(robot, scenario, shown, factor, refined=fine, **(options or {}))
         if not check.ok:
             failed.append(index)
         print(f"stance {index}:")

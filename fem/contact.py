@@ -376,15 +376,16 @@ class PrintContactSystem:
         settled = bool(np.array_equal(new_modes, modes))
         return self._state(phi, r, modes, directions, system, 0, settled)
 
-    def solve_loaded(self, basis, wrench, motion, start, initial_modes=None, initial_directions=None, held=False):
+    def solve_loaded(self, basis, wrench, motion, start, initial_modes=None, initial_directions=None):
         """The contact state whose forces carry a given wrench, and the indenters' motion.
 
-        The indenters move with m parameters ``xi`` (a link's rigid motion), their points
-        by ``U(xi)``; the forces must carry ``basis^T phi = wrench``. Solved by the same
-        semismooth Newton as :meth:`solve`, the modes read at each step, with ``xi``
-        among the unknowns: for fixed modes the law is linear in U, and U is linearised
-        in ``xi`` at the iterate, so each step is a solve of the law for the m columns of
-        dU/dxi and an (m, m) system ``K step = wrench - basis^T phi``.
+        The inverse of :meth:`solve` at fixed contact geometry: the indenters move with m
+        parameters ``xi`` (a link's rigid motion), their points by ``U(xi)``, and the
+        forces must carry ``basis^T phi = wrench``. Solved by the same semismooth Newton
+        as :meth:`solve`, the modes read at each step, with ``xi`` among the unknowns: for
+        fixed modes the law is linear in U, and U is linearised in ``xi`` at the iterate,
+        so each step solves the law for the m columns of dU/dxi and an (m, m) system
+        ``K step = wrench - basis^T phi``, ``K = basis^T L dU/dxi``.
 
         Parameters
         ----------
@@ -396,31 +397,21 @@ class PrintContactSystem:
         motion : callable
             ``xi -> (U (p, 3), dU/dxi (3p, m))``, metres, body frame.
         start : (m,) float
-            ``xi`` to start from (the last answer: warm start).
+            ``xi`` to start from.
         initial_modes, initial_directions
-            As :meth:`solve`.
-        held : bool
-            Hold ``initial_modes`` (only slip directions move), as :meth:`with_modes`.
+            As :meth:`solve` (an earlier answer's, for a nearby wrench).
 
         Returns
         -------
-        state : PrintContact
-            At ``U(xi)``; its ``admissible`` says whether held modes still hold.
-        xi : (m,) float
-        dxi : (m, m) float
-            ``d xi / d wrench`` with the modes fixed: ``K^-1``, ``K = basis^T L dU/dxi``.
-
-        Or None when the Newton steps do not settle: no motion carries the wrench (out
-        of the nodes' reach: a centre of pressure beyond them, a sideways force at which
-        the contact would slide off), or none was found from ``start``.
+        (state, xi) : (PrintContact, (m,) float)
+            At ``U(xi)``. Or None when the Newton steps do not settle within
+            ``_LOADED_ITERATIONS``, or settle where K is singular (every node touching
+            on one line, at the point of sliding off): no motion carries the wrench (a
+            centre of pressure beyond the nodes, a sideways force at which the contact
+            would slide off), or none was found from ``start``.
         """
-        basis = np.asarray(basis, dtype=float)
+        basis_local = _to_nodes(self._frames, np.asarray(basis, dtype=float))
         wrench = np.asarray(wrench, dtype=float)
-        return self._loaded_newton(basis, wrench, motion, start, initial_modes, initial_directions, held)
-
-    def _loaded_newton(self, basis, wrench, motion, start, initial_modes, initial_directions, held):
-        """:meth:`solve_loaded`'s semismooth Newton with xi among the unknowns; None if it fails."""
-        basis_local = _to_nodes(self._frames, basis)
         p = self.n_nodes
         modes = np.full(p, STICK) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p)
         directions = (
@@ -441,9 +432,7 @@ class PrintContactSystem:
             stiffness = basis_local.T @ d_phi
             residual = wrench - basis_local.T @ phi
             settled = np.abs(residual).max() <= _LOADED_TOLERANCE * size
-            if settled and iteration > 1:
-                step = np.zeros_like(xi)
-            else:
+            if not (settled and iteration > 1):
                 # Modes whose K is singular (every touching node slipping, a line of
                 # nodes left) are passed through on the least-squares step.
                 step = np.linalg.lstsq(stiffness, residual, rcond=1e-13)[0]
@@ -451,26 +440,12 @@ class PrintContactSystem:
                 u_local = u_local + du_local @ step
                 xi = xi + step
             phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
-            if held:
-                new_modes = modes
-                new_directions, new_gains = _slip_directions(phi, r, self.scale, self.mu, modes, directions)
-                slip_ok = _slip_settled(phi, r, self.scale, modes, self.mu)
-            else:
-                new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
-                slip_ok = _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions)
+            new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
+            slip_ok = _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions)
             if settled and np.array_equal(new_modes, modes) and slip_ok:
-                if np.any(modes == SLIP):
-                    # Linearised at the answer itself, so that L (and K) are the exact Jacobians.
-                    factor, blocks = system = self._system(modes, new_directions, new_gains)
-                    phi = -factor.solve(block_diagonal_product(blocks, u_local))
-                    d_phi = -factor.solve(block_diagonal_product(blocks, du_local))
-                    stiffness = basis_local.T @ d_phi
-                    phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
                 if not np.linalg.cond(stiffness) < 1e13:
-                    return None  # at the point of sliding off: no derivative
-                admissible = bool(np.array_equal(_update_modes(phi, r, self.scale, self.mu)[0], modes))
-                state = self._state(phi, r, modes, new_directions, system, iteration, admissible)
-                return state, xi, np.linalg.inv(stiffness)
+                    return None  # at the point of sliding off: the motion is not fixed by the wrench
+                return self._state(phi, r, modes, new_directions, system, iteration, True), xi
             modes, directions, gains = new_modes, new_directions, new_gains
         return None
 

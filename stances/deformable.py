@@ -110,7 +110,7 @@ from fem.dense import block_diagonal_product
 from fem.layer_contact import side_contact_limit, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
-from .contacts import friction_cone_generators
+from .contacts import PYRAMID_SIDES, edge_lines, friction_cone_generators, pyramid_faces
 from .errors import StanceError
 from .layer_ball import layer_under
 from .statics import PointLoads, point_jacobians, points_in_world
@@ -154,10 +154,6 @@ _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
 # fraction of its nodes' spacing inside their hull: on the hull's edge one line of nodes
 # carries the load and the link's turn about that line is not fixed by it.
 _REACH_MARGIN = 0.05
-# A friction pyramid's faces, as (t1, t2) components of their tangential part (see
-# DeformableContact._pyramid_faces), and their labels.
-_DIAGONALS = np.array([[1.0, 1.0], [-1.0, -1.0], [-1.0, 1.0], [1.0, -1.0]]) / np.sqrt(2.0)
-_SIDES = ("+x+y", "-x-y", "-x+y", "+x-y")
 LAWS = ("coulomb", "sticking", "bonded")
 
 
@@ -245,6 +241,19 @@ class HeldPrint:
     resultant_friction: float
     transform_print_to_world: np.ndarray
 
+    def __post_init__(self) -> None:
+        reach = np.array(self.reach, dtype=float)
+        edge_lines(reach, what="a held print's reach")  # convex, counter-clockwise
+        transform = np.array(self.transform_print_to_world, dtype=float)
+        if transform.shape != (4, 4):
+            raise StanceError(f"a held print's transform must be (4, 4), got shape {transform.shape}")
+        if not self.resultant_friction >= 0.0:
+            raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
+        for array in (reach, transform):
+            array.setflags(write=False)
+        object.__setattr__(self, "reach", reach)
+        object.__setattr__(self, "transform_print_to_world", transform)
+
 
 @dataclass(frozen=True)
 class _PrintValues:
@@ -318,14 +327,23 @@ def inset_hull(points, margin: float) -> np.ndarray:
     -------
     (m, 2) float
         Counter-clockwise corners: where consecutive moved edges meet.
+
+    Raises
+    ------
+    StanceError
+        If the margin leaves no polygon (the moved edges cross).
     """
     corners = np.asarray(points, dtype=float)[scipy.spatial.ConvexHull(points).vertices]  # counter-clockwise
-    edges = np.roll(corners, -1, axis=0) - corners
-    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]  # outward
-    offsets = np.einsum("ij,ij->i", normals, corners) - margin  # each edge's line n . x = offset
+    normals, offsets = edge_lines(corners)
+    offsets = offsets - margin  # each edge's line n . x = offset, moved in
     previous = np.roll(np.arange(len(corners)), 1)
-    return np.array([np.linalg.solve(np.array([normals[j], normals[i]]), [offsets[j], offsets[i]])
-                     for i, j in enumerate(previous)])
+    moved = np.array([np.linalg.solve(np.array([normals[j], normals[i]]), [offsets[j], offsets[i]])
+                      for i, j in enumerate(previous)])
+    what = f"the nodes' hull moved in by {margin:g} m"
+    kept, _ = edge_lines(moved, what)
+    if np.any(np.einsum("ij,ij->i", kept, normals) <= 0.0):  # an edge turned over: the margin is past the inradius
+        raise StanceError(f"{what} leaves no polygon: its edges cross")
+    return moved
 
 
 class DeformableContact:
@@ -862,9 +880,19 @@ class DeformableContact:
         return high
 
     # -- the stiff limit (stances.sqp._solve_stiff_limit) ----------------------
+    def solver_state(self) -> tuple:
+        """What a solve leaves behind that the next one starts from (the last contact
+        solve's modes, the strain rows' centres verify added): for :meth:`restore_solver_state`."""
+        return self._modes, self._frozen, self._found_centres, self._strain_outlier
+
+    def restore_solver_state(self, state) -> None:
+        """Back to a :meth:`solver_state`: a solve abandoned leaves no trace in the next."""
+        self._modes, self._frozen, self._found_centres, self._strain_outlier = state
+        self._cache_key, self._cache, self._derivatives = None, None, None
+
     def stiff_give(self, w) -> float:
-        """How far, metres, the print nodes bonded to their links move under W (6L,):
-        ``max |G A^-1 W|``, the body's give under those loads."""
+        """The body's give under W (6L,), metres: the largest component of the bonded
+        print nodes' motion ``G A^-1 W``."""
         return float(np.abs(self.rigid_motion @ np.asarray(w, dtype=float)).max())
 
     def held_prints(self, xi) -> dict:
@@ -902,7 +930,7 @@ class DeformableContact:
                                                 self.friction_margin * self.friction[i], moved.homogeneous)
         return out
 
-    def carrying_variables(self, wrench):
+    def carrying_variables(self, wrench, warm=None):
         """W whose Coulomb forces carry given wrenches, and the links' motion it asks.
 
         The inverse of the contact law at fixed posture: the links' motion xi whose
@@ -914,20 +942,28 @@ class DeformableContact:
         ----------
         wrench : (6L,) float
             Each print's force (N) and moment about its origin (N m), body frame, as W.
+        warm : tuple, optional
+            The ``warm`` of an earlier answer, for a nearby wrench: its motion and
+            contact modes to start from (else from rest, every node sticking).
 
         Returns
         -------
-        (w, xi) : ((6L,) float, (6L,) float)
+        (w, xi, warm) : ((6L,) float, (6L,) float, tuple)
             Or None where no motion of the links makes the nodes carry the wrenches (a
             centre of pressure beyond them, a sideways load at which the print would
             slide off).
         """
-        answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion,
-                                             np.zeros(self.n_variables))
-        return None if answer is None else (self.a @ answer[1], answer[1])
+        start, modes, directions = warm if warm is not None else (np.zeros(self.n_variables), None, None)
+        answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion, start,
+                                             modes, directions)
+        if answer is None:
+            return None
+        state, xi = answer
+        return self.a @ xi, xi, (xi, state.modes, state.directions)
 
     def link_give(self, xi) -> float:
-        """How far, metres, the link points move under the links' motion ``xi`` (6L,)."""
+        """The links' give, metres: the largest component of the link points' motion under
+        the links' motion ``xi`` (6L,)."""
         return float(np.abs(self._link_motion(xi)[0] - self.gaps).max())
 
     def _link_motion(self, xi):
@@ -1027,7 +1063,7 @@ class DeformableContact:
             values = [np.einsum("pj,pj->p", self.normals, forces)]
             jacobians = [np.einsum("pj,pjc->pc", self.normals, d_forces)] if derivatives else None
             if self.law == "sticking":
-                faces = self._pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
+                faces = pyramid_faces(self.normals, self.tangents, self.node_mu)  # (p, 4, 3)
                 values.append(np.einsum("pkj,pj->pk", faces, forces).reshape(-1))
                 if derivatives:
                     jacobians.append(np.einsum("pkj,pjc->pkc", faces, d_forces).reshape(4 * p, columns))
@@ -1146,12 +1182,12 @@ class DeformableContact:
     def _labels(self) -> dict:
         """Row labels that do not change between linearisations, by block (made once)."""
         name = self.deformable_object.name
-        resultant = tuple(f"friction cone of the resultant of {spec.label} ({s})" for spec in self.prints for s in _SIDES)
+        resultant = tuple(f"friction cone of the resultant of {spec.label} ({s})" for spec in self.prints for s in PYRAMID_SIDES)
         if self.law == "coulomb":
             node_contact = resultant
         else:
             node_contact = tuple(f"no adhesion at node {n} of {name}" for n in self.node_ids) + (
-                tuple(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in _SIDES)
+                tuple(f"friction cone at node {n} of {name} ({s})" for n in self.node_ids for s in PYRAMID_SIDES)
                 if self.law == "sticking" else resultant
             )
         return {
@@ -1176,29 +1212,11 @@ class DeformableContact:
             rows = self.print_of_node == i
             rotation = self.print_placements[i].rotation
             mu = self.friction_margin * self.friction[i]
-            face = self._pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [mu])[0]  # (4, 3)
+            face = pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [mu])[0]  # (4, 3)
             values.append(face @ forces[rows].sum(axis=0))
             if d_forces is not None:
                 jacobians.append(face @ d_forces[rows].sum(axis=0))
         return np.concatenate(values), np.vstack(jacobians) if d_forces is not None else None
-
-    @staticmethod
-    def _pyramid_faces(normals, tangents, friction):
-        """(k, 4, 3) faces of friction pyramids: f inside iff every face . f >= 0.
-
-        The rigid contacts' pyramid (:func:`~stances.contacts.friction_cone_generators`:
-        edges ``n +- mu t1``, ``n +- mu t2``, on the Coulomb cone), so that a print on a
-        stiff body carries the loads a rigid contact does. (The axis-aligned square
-        ``|f . t_i| <= mu / sqrt(2) f . n`` before, its corners on the cone, carries 71 %
-        of that along an axis: with the margin of 0.8 it had, hand-on-cube's palm on the
-        cube at E = 1e10 pressed with 96 N where the rigid contact needs 71 N.) Faces
-        ``(mu n + s1 t1 + s2 t2) / sqrt(2)``, one per sign pair (``_DIAGONALS``):
-        ``|f . t1| + |f . t2| <= mu f . n``.
-
-        ``normals`` (k, 3), ``tangents`` (k, 2, 3), ``friction`` (k,).
-        """
-        mu = (np.asarray(friction) / np.sqrt(2.0))[:, None, None]
-        return mu * normals[:, None, :] + np.einsum("sa,kai->ksi", _DIAGONALS, tangents)
 
     @cached_property
     def _rest_centres(self):

@@ -211,13 +211,15 @@ class PostureOptions:
         switch the FEM forces on from that posture: the FEM forces are only
         meaningful near the print, so this homotopy makes solves reliable.
     stiff_limit : bool
-        With Coulomb contact and a rigid warm start, a soft body with flat prints only
-        that gives less than the placement tolerance (1 um) under the stance's loads is
-        solved in its stiff limit: its prints held rigid, their forces where the nodes
-        are, then the links' motion whose Coulomb forces carry that answer found and the
-        answer verified as any (as E grows the posture and forces tend to the rigid
-        support's; :func:`stances.sqp._solve_stiff_limit`). Where a step of it fails, the
-        solve goes on as on a softer body. False: always as on a softer body.
+        With Coulomb contact and the energy term (``deformation_cost="energy"``): where
+        every soft body of the stance has flat prints only and gives less than 10 um under
+        the stance's loads (those of the rigid warm start, or ``lam_init``'s), the stance
+        is solved in its bodies' stiff limit: the soft prints held rigid with their centre
+        of pressure where their nodes are, the links' motion whose Coulomb forces carry that
+        answer then found, and the answer verified as any (as E grows the posture and
+        forces tend to the rigid support's; :func:`stances.sqp._solve_stiff_limit`). It may
+        take half the time left; where it does not hold, the solve goes on as on a softer
+        body. False: always as on a softer body.
     reaching_start : bool
         A solve given no posture, none of whose prints lies on a soft body's mesh (those
         start their rigid warm start from the posture over the prints), starts from the
@@ -896,6 +898,10 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
     for surface, support in options.touching:
         robot.surface(surface)  # raise with the known names
         scene.surface(support)
+    unheld = sorted(set(held_prints or {}) - {c.robot_surface for c in stance})
+    if unheld:
+        raise StanceError(f"held_prints names {unheld}, not in the stance; its robot surfaces: "
+                          f"{sorted(c.robot_surface for c in stance)}")
     contacts = []
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.

@@ -102,6 +102,7 @@ _WARM_START_ITERATIONS = 60
 # give moves the held prints by under _GIVE_SETTLED, then at most _LIFT_STEPS restoration
 # steps onto every row.
 _STIFF_GIVE = 1e-5
+_STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 _GIVE_ROUNDS = 4
 _GIVE_SETTLED = 1e-9
 _LIFT_STEPS = 4
@@ -1098,8 +1099,11 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
     stiff = None
-    if options.contact_law == "coulomb" and rigid is not None and options.stiff_limit and options.deformation_cost == "energy":
-        stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, deadline)
+    if (options.contact_law == "coulomb" and deformable and lam_init is not None and options.stiff_limit
+            and options.deformation_cost == "energy"):
+        # At most half the time left: where it does not hold, the solve goes on through W.
+        share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * (deadline - time.perf_counter())
+        stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, share)
     if stiff is not None:
         result = stiff
     elif options.contact_law == "coulomb" and deformable:
@@ -1144,18 +1148,26 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
     1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
 
     1. every soft contact is a :class:`~stances.deformable.DeformableContact` of flat
-       prints, and the warm start's loads ``lam`` move its bonded nodes less than
-       ``_STIFF_GIVE`` (:meth:`~stances.deformable.DeformableContact.stiff_give`);
+       prints, and the loads ``lam`` move each body's bonded nodes less than
+       ``_STIFF_GIVE`` (:meth:`~stances.deformable.DeformableContact.stiff_give`): all
+       bodies or none (a stance on a soft mat and a stiff one goes through W);
     2. the stance held rigid, each soft print's centre of pressure where its nodes are,
-       with its resultant's friction (:meth:`~stances.deformable.DeformableContact.held_prints`),
-       solved to ``options``' tolerances from ``q`` (the warm start's posture);
+       its resultant in the friction margin's pyramid
+       (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
+       ``options``' tolerances from ``q``;
     3. each soft body's W whose Coulomb forces carry that answer's wrenches, and the links'
        motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
        less than ``_STIFF_GIVE``; steps 2 and 3 again with the prints held where that
        motion puts them, until it moves them by under ``_GIVE_SETTLED``
-       (``_GIVE_ROUNDS`` at most: the give is a fixed point of the loads it carries);
+       (``_GIVE_ROUNDS`` at most: the give is a fixed point of the loads it carries),
+       each round started from the last;
     4. restoration steps from there, the soft prints' W held (their forces are the
-       carried ones), onto every row, then :func:`stances.verify` on the full FEM model.
+       carried ones), onto every row (:func:`_lift`), then :func:`stances.verify` on the
+       full FEM model.
+
+    Where it does not hold, the soft contacts are left as they were (the solve that goes
+    on through W starts as it would have without this), and so where ``deadline`` passes
+    before its end.
 
     Parameters
     ----------
@@ -1165,60 +1177,72 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
         ``build(options, held_prints) -> PostureProblem`` for the same stance.
     options : PostureOptions
     q : (nq,) float
-        The rigid warm start's posture.
+        The posture to start from (the rigid warm start's).
     lam : (m,) float
-        ``problem``'s variables carrying the warm start's loads.
+        ``problem``'s variables carrying the loads to start from (the warm start's).
     deadline : float, optional
+        ``time.perf_counter()`` value.
 
     Returns
     -------
     PostureResult or None
-        Verified; its iterations the rigid solves' and the restoration steps.
+        Verified; its iterations the held solves' and the restoration steps, its
+        ``qp_time`` theirs.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
     if any(c.kind != "deformable" or len(c.point_prints) for c, _ in soft):
         return None
-    give = max(c.stiff_give(lam[s]) for c, s in soft)
-    if give > _STIFF_GIVE:
+    if max(c.stiff_give(lam[s]) for c, s in soft) > _STIFF_GIVE:
         return None
+    states = [contact.solver_state() for contact, _ in soft]
     start = time.perf_counter()
+
+    def abandon(why, *args):
+        for (contact, _), state in zip(soft, states):
+            contact.restore_solver_state(state)
+        logger.debug("stiff limit not taken: " + why, *args)
+        return None
+
+    def out_of_time():
+        return deadline is not None and time.perf_counter() >= deadline
+
     motions = [np.zeros(c.n_variables) for c, _ in soft]
-    iterations = 0
+    warm = [None] * len(soft)
+    iterations, qp_time, held_lam = 0, 0.0, None
     for _ in range(_GIVE_ROUNDS):
         held_prints = {}
         for (contact, _), xi in zip(soft, motions):
             held_prints.update(contact.held_prints(xi))
         held = build(replace(options, deformable_as_rigid=True), held_prints)
-        answer = solve_problem(held, q, deadline=deadline, check=False)
-        iterations += answer.iterations
+        answer = solve_problem(held, q, lam_init=held_lam, deadline=deadline, check=False)
+        iterations, qp_time = iterations + answer.iterations, qp_time + answer.statistics["qp_time"]
         if not answer.feasible:
-            logger.debug("stiff limit not taken: held rigid, %s", answer.reason)
-            return None
-        q = np.asarray(answer.q, dtype=float)
-        lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+            return abandon("held rigid, %s", answer.reason)
+        if out_of_time():
+            return abandon("out of time")
+        q, held_lam = np.asarray(answer.q, dtype=float), np.asarray(answer.statistics["lambda"])
+        lam = problem.variables_from_rigid(held, held_lam, answer.point_forces)
         moved = 0.0
         for k, (contact, s) in enumerate(soft):
-            carried = contact.carrying_variables(lam[s])
+            carried = contact.carrying_variables(lam[s], warm[k])
             if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
-                logger.debug("stiff limit not taken: the nodes of %s %s", contact.label,
-                             "cannot carry the held answer" if carried is None else
-                             f"give {contact.link_give(carried[1]):.3g} m under it")
-                return None
-            lam[s] = carried[0]
+                return abandon("the nodes of %s %s", contact.label, "cannot carry the held answer" if carried is None
+                               else f"give {contact.link_give(carried[1]):.3g} m under it")
+            lam[s], warm[k] = carried[0], carried[2]
             moved = max(moved, contact.link_give(carried[1] - motions[k]))
             motions[k] = carried[1]
-        if moved <= _GIVE_SETTLED:
+        if moved <= _GIVE_SETTLED or out_of_time():
             break
+    if out_of_time():
+        return abandon("out of time")
     lifted = _lift(problem, q, lam, [s for _, s in soft])
     if lifted is None:
-        logger.debug("stiff limit not taken: the rows not met from the held answer (give moved %.3g m)", moved)
-        return None
+        return abandon("the rows not met from the held answer (its give moved %.3g m in the last round)", moved)
     q, lam, linearization, steps = lifted
-    outcome = SqpOutcome(q, lam, linearization, iterations + steps, "converged", 0.0, 0.0, True, "")
+    outcome = SqpOutcome(q, lam, linearization, iterations + steps, "converged", 0.0, qp_time, True, "")
     result = _result(problem, outcome, time.perf_counter() - start)
     if not result.feasible:
-        logger.debug("stiff limit not taken: %s", result.reason)
-        return None
+        return abandon("%s", result.reason)
     return result
 
 

@@ -18,9 +18,11 @@ import pytest
 
 import environments
 import stances.deformable
+import stances.sqp
 from stances import solve
 from stances.contacts import RigidContact
-from stances.deformable import inset_hull
+from stances.deformable import HeldPrint, inset_hull
+from stances.errors import StanceError
 from stances.problem import PostureOptions, build_problem
 
 PALM = "right_palm"
@@ -67,11 +69,23 @@ def _soft_contact(problem):
 def test_an_inset_hull_moves_each_edge_in_by_the_margin():
     square = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0], [0.5, 0.5], [0.2, 0.7]])
     inset = inset_hull(square, 0.1)
-    assert np.allclose(inset, [[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]]) or np.allclose(
-        np.roll(inset, 1, axis=0), [[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]])
-    # Counter-clockwise: positive signed area.
-    x, y = inset[:, 0], inset[:, 1]
-    assert 0.5 * np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y) == pytest.approx(0.64)
+    expected = np.array([[0.1, 0.1], [0.9, 0.1], [0.9, 0.9], [0.1, 0.9]])  # counter-clockwise
+    first = int(np.argmin(np.abs(inset - expected[0]).sum(axis=1)))
+    assert np.allclose(np.roll(inset, -first, axis=0), expected, rtol=0.0, atol=1e-15)
+    # A margin past the inradius leaves no polygon: an error, not a turned-over one.
+    with pytest.raises(StanceError, match=r"the nodes' hull moved in by 0.6 m leaves no polygon: its edges cross"):
+        inset_hull(square, 0.6)
+
+
+def test_a_held_print_is_refused_with_a_clockwise_reach_or_a_surface_not_in_the_stance(robot, steel_cube):
+    scene, stance = steel_cube
+    square = np.array([[-0.01, -0.01], [0.01, -0.01], [0.01, 0.01], [-0.01, 0.01]])
+    with pytest.raises(StanceError, match=r"a held print's reach is not convex and counter-clockwise"):
+        HeldPrint(square[::-1], 0.5, np.eye(4))
+    held = HeldPrint(square, 0.5, np.eye(4))
+    assert not held.reach.flags.writeable
+    with pytest.raises(StanceError, match=r"held_prints names \['left_palm'\], not in the stance"):
+        build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True), {"left_palm": held})
 
 
 def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_nodes_are(robot, steel_cube):
@@ -107,7 +121,7 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
     lam = np.zeros(palm.n_variables)
     lam[0] = 1.0  # one edge of the first corner's cone: on the full pyramid, outside the margin's
     mu = soft.friction[0]
-    assert (resultant_rows @ lam).min() == pytest.approx((friction - mu) / np.hypot(1.0, mu), rel=1e-12)
+    assert (resultant_rows @ lam).min() == pytest.approx((friction - mu) / np.hypot(1.0, mu) / np.sqrt(2.0), rel=1e-12)
     assert (resultant_rows @ np.ones(palm.n_variables)).min() > 0.0  # every edge alike: a normal load
     # Pressing one corner alone puts the centre of pressure there: inside the reach iff the corner is.
     corners = np.array([robot.model.frames[palm.frame_id].placement.actInv(p) for p in palm.loads.points_in_joint])
@@ -135,7 +149,7 @@ def test_carrying_variables_give_forces_that_carry_the_wrench(robot, steel_cube,
     assert soft.carrying_variables(variables[s]) is None
     inward = variables[s].copy()
     inward[3:] *= 0.5  # the same force, its centre of pressure halfway in
-    w, motion = soft.carrying_variables(inward)
+    w, motion, _ = soft.carrying_variables(inward)
     assert np.allclose(soft.a_inverse @ w, motion, rtol=0.0, atol=1e-12 * np.abs(motion).max())
     give = soft.link_give(motion)
     data = robot.model.createData()
@@ -169,7 +183,15 @@ def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_
 
 
 def test_a_cube_that_gives_is_not_held_rigid(robot):
+    """At 1e8 Pa the rigid answer's loads would sink the palm's bonded nodes by 15 um, over
+    the 10 um the stiff limit takes: solved through W."""
     scene, stance = _hand_on_cube(1e8)
+    problem = build_problem(robot, scene, stance)
+    rigid = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True))
+    held = solve(robot, scene, stance, deformable_as_rigid=True)
+    variables = problem.variables_from_rigid(rigid, held.statistics["lambda"], held.point_forces)
+    soft = _soft_contact(problem)
+    assert soft.stiff_give(variables[problem.variable_slices[problem.contacts.index(soft)]]) > stances.sqp._STIFF_GIVE
     result = solve(robot, scene, stance)
     assert result.feasible, result.reason
     assert "stiff_limit" not in result.statistics
@@ -179,11 +201,50 @@ def test_where_the_nodes_cannot_carry_the_held_answer_the_solve_goes_on_as_on_a_
         robot, steel_cube, monkeypatch):
     # A reach beyond the nodes' hull: the held palm's centre of pressure lies where no
     # node is, the inverse finds no motion, and the soft variables solve it.
-    monkeypatch.setattr(stances.deformable, "_REACH_MARGIN", -0.5)
     scene, stance = steel_cube
+    plain = solve(robot, scene, stance, stiff_limit=False)
+    carried = []
+    original = stances.deformable.DeformableContact.carrying_variables
+
+    def recorded(contact, wrench, warm=None):
+        carried.append(original(contact, wrench, warm))
+        return carried[-1]
+
+    monkeypatch.setattr(stances.deformable, "_REACH_MARGIN", -0.5)
+    monkeypatch.setattr(stances.deformable.DeformableContact, "carrying_variables", recorded)
     result = solve(robot, scene, stance)
-    assert result.feasible, result.reason
-    assert "stiff_limit" not in result.statistics
+    assert carried == [None]
+    assert result.feasible and "stiff_limit" not in result.statistics, result.reason
+    assert np.array_equal(result.q, plain.q)
+
+
+def test_a_stiff_limit_abandoned_after_its_lift_leaves_the_solve_as_without_it(robot, steel_cube, monkeypatch):
+    """The lift linearises the soft problem (its contact solves warm-start the next): where
+    the stiff limit is then abandoned, the solve through W is the one without it, bit for bit."""
+    scene, stance = steel_cube
+    plain = solve(robot, scene, stance, stiff_limit=False)
+    lift = stances.sqp._lift
+    lifted = []
+
+    def failing(*args):
+        lifted.append(lift(*args) is not None)
+        return None
+
+    monkeypatch.setattr(stances.sqp, "_lift", failing)
+    result = solve(robot, scene, stance)
+    assert lifted == [True] and "stiff_limit" not in result.statistics
+    assert np.array_equal(result.q, plain.q) and result.statistics["lambda"] == plain.statistics["lambda"]
+
+
+def test_a_solve_given_its_variables_takes_the_stiff_limit_too(robot, steel_cube):
+    """A warm-started solve (a planner's, a refined check's: q_init and lam_init given, no
+    rigid warm start) reads the give off the given variables."""
+    scene, stance = steel_cube
+    first = solve(robot, scene, stance)
+    again = solve(robot, scene, stance, q_init=first.q, lam_init=first.statistics["lambda"])
+    assert again.feasible and again.statistics["stiff_limit"] is True, again.reason
+    # The same optimum, to the SQP's tolerances (the held solve runs again from that posture).
+    assert np.abs(_palm_wrench(robot, again)[:3] - _palm_wrench(robot, first)[:3]).max() < 1e-4 * 82.0
 
 
 @pytest.mark.parametrize("name, stance_name", [("cross-soft-block", "both-on-foam"), ("cross-two-mats", "one-on-each")])
