@@ -217,9 +217,10 @@ class PostureOptions:
         is solved in its bodies' stiff limit: the soft prints held rigid with their centre
         of pressure where their nodes are, the links' motion whose Coulomb forces carry that
         answer then found, and the answer verified as any (as E grows the posture and
-        forces tend to the rigid support's; :func:`stances.sqp._solve_stiff_limit`). It may
-        take half the time left; where it does not hold, the solve goes on as on a softer
-        body. False: always as on a softer body.
+        forces tend to the rigid support's; :func:`stances.sqp._solve_stiff_limit`). Under
+        a time budget, tried only with several warm starts' time left, and then for half
+        of it; where it does not hold, the solve goes on as on a softer body. False: always
+        as on a softer body.
     reaching_start : bool
         A solve given no posture, none of whose prints lies on a soft body's mesh (those
         start their rigid warm start from the posture over the prints), starts from the

@@ -103,6 +103,9 @@ _WARM_START_ITERATIONS = 60
 # steps onto every row.
 _STIFF_GIVE = 1e-5
 _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
+# Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
+# start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
+_STIFF_TIME = 8.0
 _GIVE_ROUNDS = 4
 _GIVE_SETTLED = 1e-9
 _LIFT_STEPS = 4
@@ -1065,7 +1068,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
     deformable = any(c.kind == "deformable" for c in problem.contacts)
     if deformable and q_init is None and lam_init is None:
         q_init = initial_configuration(robot, scene, stance)  # not the reaching start (see _reaches)
-    warm_iterations = 0
+    warm_iterations, warm_time = 0, 0.0
     rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
     loose = dict(_WARM_START_TOLERANCES, max_iterations=min(options.max_iterations, _WARM_START_ITERATIONS))
     if lam_init is not None:
@@ -1081,8 +1084,9 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             raise StanceError(f"lam_init has non-finite entries at indices {np.flatnonzero(~np.isfinite(lam_init)).tolist()}")
     elif options.rigid_warm_start and deformable:
         rigid = build(replace(options, deformable_as_rigid=True, **loose))
+        warm_time = time.perf_counter()
         warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
-        q_init, warm_iterations = warm.q, warm.iterations
+        q_init, warm_iterations, warm_time = warm.q, warm.iterations, time.perf_counter() - warm_time
         if warm.statistics["violation"] > loose["feasibility_tolerance"]:
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
@@ -1099,10 +1103,13 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
     stiff = None
+    left = None if deadline is None else deadline - time.perf_counter()
     if (options.contact_law == "coulomb" and deformable and lam_init is not None and options.stiff_limit
-            and options.deformation_cost == "energy"):
-        # At most half the time left: where it does not hold, the solve goes on through W.
-        share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * (deadline - time.perf_counter())
+            and options.deformation_cost == "energy" and (left is None or left >= _STIFF_TIME * warm_time)):
+        # At most half the time left: where it does not hold, the solve goes on through W
+        # with the rest. Not tried where less is left than a few warm starts' time (a
+        # tight time budget: the solve through W alone fits where both might not).
+        share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * left
         stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, share)
     if stiff is not None:
         result = stiff
