@@ -233,26 +233,18 @@ class HeldPrint:
         pressure must lie in: where its nodes can carry them.
     resultant_friction : float
         Its resultant's friction coefficient (``friction_margin`` included).
-    transform_print_to_world : (4, 4) float
-        Where its link is held: the print frame moved by the body's give.
     """
 
     reach: np.ndarray
     resultant_friction: float
-    transform_print_to_world: np.ndarray
 
     def __post_init__(self) -> None:
         reach = np.array(self.reach, dtype=float)
         edge_lines(reach, what="a held print's reach")  # convex, counter-clockwise
-        transform = np.array(self.transform_print_to_world, dtype=float)
-        if transform.shape != (4, 4):
-            raise StanceError(f"a held print's transform must be (4, 4), got shape {transform.shape}")
         if not self.resultant_friction >= 0.0:
             raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
-        for array in (reach, transform):
-            array.setflags(write=False)
+        reach.setflags(write=False)
         object.__setattr__(self, "reach", reach)
-        object.__setattr__(self, "transform_print_to_world", transform)
 
 
 @dataclass(frozen=True)
@@ -895,8 +887,8 @@ class DeformableContact:
         print nodes' motion ``G A^-1 W``."""
         return float(np.abs(self.rigid_motion @ np.asarray(w, dtype=float)).max())
 
-    def held_prints(self, xi) -> dict:
-        """Each print held rigid in the body's stiff limit, its link moved by ``xi``.
+    def held_prints(self) -> dict:
+        """Each print held rigid in the body's stiff limit.
 
         As E grows a print's links move by nanometres and its nodes' Coulomb forces can
         carry what a rigid contact carries where they are: a centre of pressure inside
@@ -904,12 +896,6 @@ class DeformableContact:
         coarse under it), here moved in by ``_REACH_MARGIN`` of the nodes' spacing, with
         the friction of the print's resultant (``friction_margin``). For
         :func:`stances.build_problem`'s ``held_prints``.
-
-        Parameters
-        ----------
-        xi : (6L,) float
-            Each print's link motion (translation, rotation vector; body frame, about the
-            print's origin), as :meth:`carrying_variables` gives it.
 
         Returns
         -------
@@ -919,47 +905,37 @@ class DeformableContact:
         if len(self.point_prints):
             return {}
         out = {}
-        xi = np.asarray(xi, dtype=float).reshape(-1, 6)
         for i, (spec, placement) in enumerate(zip(self.prints, self.print_placements)):
             points = ((self.link_points_at_rest[self.print_of_node == i] - placement.translation)
                       @ placement.rotation)[:, :2]
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
-            moved = pin.SE3(pin.exp3(self.rotation_body @ xi[i, 3:]) @ placement.rotation,
-                            placement.translation + self.rotation_body @ xi[i, :3])
             out[spec.robot_surface] = HeldPrint(inset_hull(points, _REACH_MARGIN * spacing),
-                                                self.friction_margin * self.friction[i], moved.homogeneous)
+                                                self.friction_margin * self.friction[i])
         return out
 
-    def carrying_variables(self, wrench, warm=None):
+    def carrying_variables(self, wrench):
         """W whose Coulomb forces carry given wrenches, and the links' motion it asks.
 
         The inverse of the contact law at fixed posture: the links' motion xi whose
         contact solve gives forces with each print's ``wrench``
-        (:meth:`fem.PrintContactSystem.solve_loaded`), and ``W = A xi``, the variables
-        whose placement rows ask that motion.
+        (:meth:`fem.PrintContactSystem.solve_loaded`, from rest), and ``W = A xi``, the
+        variables whose placement rows ask that motion.
 
         Parameters
         ----------
         wrench : (6L,) float
             Each print's force (N) and moment about its origin (N m), body frame, as W.
-        warm : tuple, optional
-            The ``warm`` of an earlier answer, for a nearby wrench: its motion and
-            contact modes to start from (else from rest, every node sticking).
 
         Returns
         -------
-        (w, xi, warm) : ((6L,) float, (6L,) float, tuple)
+        (w, xi) : ((6L,) float, (6L,) float)
             Or None where no motion of the links makes the nodes carry the wrenches (a
             centre of pressure beyond them, a sideways load at which the print would
             slide off).
         """
-        start, modes, directions = warm if warm is not None else (np.zeros(self.n_variables), None, None)
-        answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion, start,
-                                             modes, directions)
-        if answer is None:
-            return None
-        state, xi = answer
-        return self.a @ xi, xi, (xi, state.modes, state.directions)
+        answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion,
+                                             np.zeros(self.n_variables))
+        return None if answer is None else (self.a @ answer[1], answer[1])
 
     def link_give(self, xi) -> float:
         """The links' give, metres: the largest component of the link points' motion under

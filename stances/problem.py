@@ -873,8 +873,8 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
     options : PostureOptions, optional
     held_prints : dict, optional
         Robot surface -> :class:`~stances.deformable.HeldPrint`: a soft print held rigid
-        in its body's stiff limit (with ``options.deformable_as_rigid``), at its placement,
-        its centre of pressure in its reach, its resultant in its friction pyramid
+        in its body's stiff limit (with ``options.deformable_as_rigid``), its centre of
+        pressure in its reach, its resultant in its friction pyramid
         (:meth:`stances.deformable.DeformableContact.held_prints`).
 
     Returns
@@ -933,8 +933,8 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
             if robot.surface(contact.robot_surface).is_point:
                 contacts.append(PointContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
             elif held is not None:
-                contacts.append(RigidContact(robot, contact.robot_surface, held.transform_print_to_world, surface.friction,
-                                             label, surface=surface, reach=held.reach,
+                contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label,
+                                             surface=surface, reach=held.reach,
                                              resultant_friction=held.resultant_friction))
             else:
                 contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))

@@ -98,16 +98,13 @@ _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance":
 # those plans, so it is not measured.
 _WARM_START_ITERATIONS = 60
 # A soft body that gives less than this under a stance's loads (metres) is solved in its
-# stiff limit (_solve_stiff_limit): held rigid, in at most _GIVE_ROUNDS rounds until the
-# give moves the held prints by under _GIVE_SETTLED, then at most _LIFT_STEPS restoration
-# steps onto every row.
+# stiff limit (_solve_stiff_limit): held rigid, then at most _LIFT_STEPS restoration steps
+# onto every row (hand-on-cube's palm at 1e10 Pa: 1 on meshes of 22.5, 15 and 10 mm).
 _STIFF_GIVE = 1e-5
 _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 # Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
-_GIVE_ROUNDS = 4
-_GIVE_SETTLED = 1e-9
 _LIFT_STEPS = 4
 # A step cut below CRAWL_ALPHA from a feasible iterate says the QP's model holds over a
 # small part of it only (rows curved at that scale): the next steps are bounded by this
@@ -1164,13 +1161,11 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
        ``options``' tolerances from ``q``;
     3. each soft body's W whose Coulomb forces carry that answer's wrenches, and the links'
        motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
-       less than ``_STIFF_GIVE``; steps 2 and 3 again with the prints held where that
-       motion puts them, until it moves them by under ``_GIVE_SETTLED``
-       (``_GIVE_ROUNDS`` at most: the give is a fixed point of the loads it carries),
-       each round started from the last;
+       less than ``_STIFF_GIVE``;
     4. restoration steps from there, the soft prints' W held (their forces are the
-       carried ones), onto every row (:func:`_lift`), then :func:`stances.verify` on the
-       full FEM model.
+       carried ones), onto every row (:func:`_lift`: the links moved by that give, the
+       rigid contacts' forces balancing the posture so moved), then
+       :func:`stances.verify` on the full FEM model.
 
     Where it does not hold, the soft contacts are left as they were (the solve that goes
     on through W starts as it would have without this), and so where ``deadline`` passes
@@ -1193,8 +1188,8 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
     Returns
     -------
     PostureResult or None
-        Verified; its iterations the held solves' and the restoration steps, its
-        ``qp_time`` theirs.
+        Verified; its iterations the held solve's and the restoration steps, its
+        ``qp_time`` the held solve's.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
     if any(c.kind != "deformable" or len(c.point_prints) for c, _ in soft):
@@ -1213,40 +1208,31 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
     def out_of_time():
         return deadline is not None and time.perf_counter() >= deadline
 
-    motions = [np.zeros(c.n_variables) for c, _ in soft]
-    warm = [None] * len(soft)
-    iterations, qp_time, held_lam = 0, 0.0, None
-    for _ in range(_GIVE_ROUNDS):
-        held_prints = {}
-        for (contact, _), xi in zip(soft, motions):
-            held_prints.update(contact.held_prints(xi))
-        held = build(replace(options, deformable_as_rigid=True), held_prints)
-        answer = solve_problem(held, q, lam_init=held_lam, deadline=deadline, check=False)
-        iterations, qp_time = iterations + answer.iterations, qp_time + answer.statistics["qp_time"]
-        if not answer.feasible:
-            return abandon("held rigid, %s", answer.reason)
+    held_prints = {}
+    for contact, _ in soft:
+        held_prints.update(contact.held_prints())
+    held = build(replace(options, deformable_as_rigid=True), held_prints)
+    answer = solve_problem(held, q, deadline=deadline, check=False)
+    if not answer.feasible:
+        return abandon("held rigid, %s", answer.reason)
+    q = np.asarray(answer.q, dtype=float)
+    lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+    for contact, s in soft:
         if out_of_time():
             return abandon("out of time")
-        q, held_lam = np.asarray(answer.q, dtype=float), np.asarray(answer.statistics["lambda"])
-        lam = problem.variables_from_rigid(held, held_lam, answer.point_forces)
-        moved = 0.0
-        for k, (contact, s) in enumerate(soft):
-            carried = contact.carrying_variables(lam[s], warm[k])
-            if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
-                return abandon("the nodes of %s %s", contact.label, "cannot carry the held answer" if carried is None
-                               else f"give {contact.link_give(carried[1]):.3g} m under it")
-            lam[s], warm[k] = carried[0], carried[2]
-            moved = max(moved, contact.link_give(carried[1] - motions[k]))
-            motions[k] = carried[1]
-        if moved <= _GIVE_SETTLED or out_of_time():
-            break
+        carried = contact.carrying_variables(lam[s])
+        if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
+            return abandon("the nodes of %s %s", contact.label, "cannot carry the held answer" if carried is None
+                           else f"give {contact.link_give(carried[1]):.3g} m under it")
+        lam[s] = carried[0]
     if out_of_time():
         return abandon("out of time")
     lifted = _lift(problem, q, lam, [s for _, s in soft])
     if lifted is None:
-        return abandon("the rows not met from the held answer (its give moved %.3g m in the last round)", moved)
+        return abandon("the rows not met from the held answer")
     q, lam, linearization, steps = lifted
-    outcome = SqpOutcome(q, lam, linearization, iterations + steps, "converged", 0.0, qp_time, True, "")
+    outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
+                         answer.statistics["qp_time"], True, "")
     result = _result(problem, outcome, time.perf_counter() - start)
     if not result.feasible:
         return abandon("%s", result.reason)
