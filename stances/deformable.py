@@ -67,6 +67,12 @@ than a steel-stiff body gives, and Coulomb solves on stiff bodies failed or
 depended on last bits.) The traction model (eq. 44, turned normals) keeps its
 posture-dependent reaction: ``f = R(q) U(q) + D (W - A xi(q))``.
 
+The stiff limit. A body that gives by micrometres under the stance's loads has W weighed
+where its nodes, some lifted off, carry something else; there the stance is solved held
+rigid and the links' motion whose Coulomb forces carry that answer is found by inverting
+the contact law (:meth:`DeformableContact.held_prints`, :meth:`~DeformableContact.carrying_variables`,
+``stances.sqp._solve_stiff_limit``).
+
 How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
 
 - ``"coulomb"`` (default): R is the mode-fixed Jacobian L of
