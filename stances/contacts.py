@@ -39,7 +39,8 @@ import functools
 import numpy as np
 import pinocchio as pin
 
-from environments.geometry import signed_edge_distances
+from environments.errors import SceneError
+from environments.geometry import signed_edge_distances, validate_convex_polygon
 from fem.prints import clip_polygon
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
@@ -79,37 +80,19 @@ def pyramid_faces(normals, tangents, friction) -> np.ndarray:
     return mu * np.asarray(normals)[:, None, :] + np.einsum("sa,kai->ksi", _DIAGONALS, tangents)
 
 
-def edge_lines(polygon, what: str = "a polygon"):
-    """The lines ``n . x = o`` of a convex counter-clockwise polygon's edges, ``n`` outward.
-
-    Parameters
-    ----------
-    polygon : (k, 2) float
-        Corners, metres.
-    what : str
-        For the message.
-
-    Returns
-    -------
-    normals : (k, 2) float
-        Unit outward normals, edge i from corner i to corner i + 1.
-    offsets : (k,) float
+def convex_polygon(polygon, name: str) -> np.ndarray:
+    """``polygon`` (k, 2) as a read-only array, checked convex and counter-clockwise by
+    :func:`environments.geometry.validate_convex_polygon`.
 
     Raises
     ------
     StanceError
-        If the polygon has fewer than three corners or is not convex and
-        counter-clockwise.
+        Naming ``name`` and what is wrong, where that check refuses it.
     """
-    corners = np.asarray(polygon, dtype=float)
-    if corners.ndim != 2 or corners.shape[1] != 2 or len(corners) < 3:
-        raise StanceError(f"{what} must be (k >= 3, 2) corners, got shape {corners.shape}")
-    edges = np.roll(corners, -1, axis=0) - corners
-    turns = edges[:, 0] * np.roll(edges, -1, axis=0)[:, 1] - edges[:, 1] * np.roll(edges, -1, axis=0)[:, 0]
-    if not np.all(turns > 0.0):
-        raise StanceError(f"{what} is not convex and counter-clockwise: corners {np.round(corners, 6).tolist()}")
-    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
-    return normals, np.einsum("ij,ij->i", normals, corners)
+    try:
+        return validate_convex_polygon(polygon, name)
+    except SceneError as error:
+        raise StanceError(f"{name} is not convex and counter-clockwise: {error}") from None
 
 
 def friction_cone_generators(friction: float, n_edges: int = 4) -> np.ndarray:
@@ -252,8 +235,8 @@ class RigidContact:
         of pressure ``sum f_z,i v_i / sum f_z,i`` iff ``sum_i f_z,i (o - n . v_i) >= 0``,
         ``v_i`` the vertices and ``f_z,i`` their normal forces, print frame: linear in lambda.
         """
-        normals, offsets = edge_lines(reach, what=f"the reach of {self.label}")
-        levers = offsets[:, None] - normals @ vertices[:, :2].T  # (e, k): o - n . v_i
+        reach = convex_polygon(reach, f"the reach of {self.label}")
+        levers = signed_edge_distances(reach, vertices[:, :2]).T  # (e, k): o - n . v_i
         rows = levers @ self._print_forces()[:, 2, :]
         return [(row, f"centre of pressure of {self.label} in its nodes' reach ({k})") for k, row in enumerate(rows)]
 

@@ -116,7 +116,7 @@ from fem.dense import block_diagonal_product
 from fem.layer_contact import side_contact_limit, widest_contact
 
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
-from .contacts import PYRAMID_SIDES, edge_lines, friction_cone_generators, pyramid_faces
+from .contacts import PYRAMID_SIDES, convex_polygon, friction_cone_generators, pyramid_faces
 from .errors import StanceError
 from .layer_ball import layer_under
 from .statics import PointLoads, point_jacobians, points_in_world
@@ -245,12 +245,9 @@ class HeldPrint:
     resultant_friction: float
 
     def __post_init__(self) -> None:
-        reach = np.array(self.reach, dtype=float)
-        edge_lines(reach, what="a held print's reach")  # convex, counter-clockwise
         if not self.resultant_friction >= 0.0:
             raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
-        reach.setflags(write=False)
-        object.__setattr__(self, "reach", reach)
+        object.__setattr__(self, "reach", convex_polygon(self.reach, "a held print's reach"))
 
 
 @dataclass(frozen=True)
@@ -332,14 +329,16 @@ def inset_hull(points, margin: float) -> np.ndarray:
         If the margin leaves no polygon (the moved edges cross).
     """
     corners = np.asarray(points, dtype=float)[scipy.spatial.ConvexHull(points).vertices]  # counter-clockwise
-    normals, offsets = edge_lines(corners)
-    offsets = offsets - margin  # each edge's line n . x = offset, moved in
+    edges = np.roll(corners, -1, axis=0) - corners  # edge i from corner i to i + 1
+    normals = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]  # outward
+    offsets = np.einsum("ij,ij->i", normals, corners) - margin  # each edge's line n . x = offset, moved in
     previous = np.roll(np.arange(len(corners)), 1)
     moved = np.array([np.linalg.solve(np.array([normals[j], normals[i]]), [offsets[j], offsets[i]])
                       for i, j in enumerate(previous)])
     what = f"the nodes' hull moved in by {margin:g} m"
-    kept, _ = edge_lines(moved, what)
-    if np.any(np.einsum("ij,ij->i", kept, normals) <= 0.0):  # an edge turned over: the margin is past the inradius
+    moved = convex_polygon(moved, what)
+    # An edge turned over (the margin past the inradius) can leave a convex polygon, turned.
+    if np.any(np.einsum("ij,ij->i", np.roll(moved, -1, axis=0) - moved, edges) <= 0.0):
         raise StanceError(f"{what} leaves no polygon: its edges cross")
     return moved
 
