@@ -879,12 +879,15 @@ class DeformableContact:
     # -- the stiff limit (stances.sqp._solve_stiff_limit) ----------------------
     def solver_state(self) -> tuple:
         """What a solve leaves behind that the next one starts from (the last contact
-        solve's modes, the strain rows' centres verify added): for :meth:`restore_solver_state`."""
-        return self._modes, self._frozen, self._found_centres, self._strain_outlier
+        solve's modes, the strain rows' centres verify added, the contact system with the
+        factorisations it keeps): for :meth:`restore_solver_state`."""
+        return self._modes, self._frozen, self._found_centres, self._strain_outlier, self._contact_system
 
     def restore_solver_state(self, state) -> None:
-        """Back to a :meth:`solver_state`: a solve abandoned leaves no trace in the next."""
-        self._modes, self._frozen, self._found_centres, self._strain_outlier = state
+        """Back to a :meth:`solver_state`: a solve abandoned leaves no trace in the next
+        (the contact system made anew where it had not been made: the factorisations a
+        solve leaves there move the next solve's last bits)."""
+        self._modes, self._frozen, self._found_centres, self._strain_outlier, self._contact_system = state
         self._cache_key, self._cache, self._derivatives = None, None, None
 
     def stiff_give(self, w) -> float:

@@ -19,6 +19,7 @@ from __future__ import annotations
 
 import numbers
 import os
+from collections import defaultdict
 from collections.abc import Mapping
 from dataclasses import dataclass, field, replace
 
@@ -585,7 +586,8 @@ class PostureProblem:
         Parameters
         ----------
         rigid : PostureProblem
-            The same stance with ``deformable_as_rigid``.
+            The same stance with ``deformable_as_rigid``, or with some soft bodies'
+            prints held (``held_prints``), the others soft.
         lam : (m_rigid,) float
             Its force variables at its answer.
         point_forces : sequence of PointForce
@@ -594,13 +596,21 @@ class PostureProblem:
         Returns
         -------
         (m,) float
-            Rigid contacts' cone coefficients as ``rigid``'s; each soft print's W its
-            resultant wrench there (:meth:`DeformableContact.variables_from_forces`).
+            Rigid contacts' cone coefficients as ``rigid``'s; a body soft in both its
+            variables in ``rigid``; each other soft print's W its resultant wrench there
+            (:meth:`DeformableContact.variables_from_forces`).
         """
         out = np.zeros(self.n_variables)
-        slices = {c.robot_surface: s for c, s in zip(rigid.contacts, rigid.variable_slices)}
+        slices, soft = {}, {}
+        for c, s in zip(rigid.contacts, rigid.variable_slices):
+            if c.deformable_object is None:
+                slices[c.robot_surface] = s
+            else:
+                soft[c.deformable_object.name] = s
         for contact, s in zip(self.contacts, self.variable_slices):
-            if contact.kind == "deformable":
+            if contact.deformable_object is not None and contact.deformable_object.name in soft:
+                out[s] = np.asarray(lam)[soft[contact.deformable_object.name]]
+            elif contact.kind == "deformable":
                 out[s] = contact.variables_from_forces(self.robot.model, point_forces)
             elif contact.kind == "layer":
                 out[s] = np.concatenate([np.asarray(lam)[slices[ball.robot_surface]] for ball in contact.balls])
@@ -873,9 +883,10 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
     options : PostureOptions, optional
     held_prints : dict, optional
         Robot surface -> :class:`~stances.deformable.HeldPrint`: a soft print held rigid
-        in its body's stiff limit (with ``options.deformable_as_rigid``), its centre of
-        pressure in its reach, its resultant in its friction pyramid
-        (:meth:`stances.deformable.DeformableContact.held_prints`).
+        in its body's stiff limit, its centre of pressure in its reach, its resultant in
+        its friction pyramid (:meth:`stances.deformable.DeformableContact.held_prints`);
+        the other soft prints stay soft unless ``options.deformable_as_rigid``. Every
+        print of a body or none: a body is one contact system.
 
     Returns
     -------
@@ -907,6 +918,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.
     deformable_prints: dict[str, list] = {}
+    held_bodies: dict[str, list] = defaultdict(list)  # the robot surfaces held_prints holds on each body
     for contact in stance:
         robot.surface(contact.robot_surface)  # raises FrameNotFound with the known names
         contact_print = contact.contact_print
@@ -922,22 +934,29 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
             )
         transform = surface.transform_print_to_world(contact_print.x, contact_print.y, contact_print.theta)
         label = f"{contact.robot_surface} on {surface.name}"
-        if surface.deformable and not options.deformable_as_rigid and contact.robot_surface not in options.rigid_prints:
+        held = (held_prints or {}).get(contact.robot_surface)
+        if (surface.deformable and not options.deformable_as_rigid and held is None
+                and contact.robot_surface not in options.rigid_prints):
             deformable_object = scene.deformable_of_surface(surface.name)
             if deformable_object.name not in deformable_prints:
                 deformable_prints[deformable_object.name] = []
                 contacts.append(deformable_object)  # placeholder, replaced below
             deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
+        elif robot.surface(contact.robot_surface).is_point:
+            contacts.append(PointContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
+        elif held is not None:
+            if surface.deformable:
+                held_bodies[scene.deformable_of_surface(surface.name).name].append(contact.robot_surface)
+            contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label,
+                                         surface=surface, reach=held.reach, resultant_friction=held.resultant_friction))
         else:
-            held = (held_prints or {}).get(contact.robot_surface)
-            if robot.surface(contact.robot_surface).is_point:
-                contacts.append(PointContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
-            elif held is not None:
-                contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label,
-                                             surface=surface, reach=held.reach,
-                                             resultant_friction=held.resultant_friction))
-            else:
-                contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
+            contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
+    split = sorted(set(held_bodies) & set(deformable_prints))
+    if split:
+        name = split[0]
+        raise StanceError(
+            f"held_prints holds {held_bodies[name]} on {name} but not {[p.robot_surface for p in deformable_prints[name]]}: "
+            f"a body's prints are one contact system, hold all of them or none")
     if deformable_prints:
         contacts = [
             c if isinstance(c, RigidContact) else

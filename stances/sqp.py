@@ -1153,20 +1153,22 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
     (``bench/bench_palm_limit.py``), and the palm of hand-on-cube at E = 1e10 Pa stopped
     1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
 
-    1. every soft contact is a :class:`~stances.deformable.DeformableContact` of flat
-       prints, and the loads ``lam`` move each body's bonded nodes less than
-       ``_STIFF_GIVE`` (:meth:`~stances.deformable.DeformableContact.stiff_give`): all
-       bodies or none (a stance on a soft mat and a stiff one goes through W);
-    2. the stance held rigid, each soft print's centre of pressure where its nodes are,
-       its resultant in the friction margin's pyramid
+    1. the stiff bodies: those whose contact is a
+       :class:`~stances.deformable.DeformableContact` of flat prints and whose bonded
+       nodes the loads ``lam`` move less than ``_STIFF_GIVE``
+       (:meth:`~stances.deformable.DeformableContact.stiff_give`); at least one;
+    2. the stance with the stiff bodies held rigid, each of their prints' centre of
+       pressure where its nodes are, its resultant in the friction margin's pyramid
        (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
-       ``options``' tolerances from ``q``;
-    3. each soft body's W whose Coulomb forces carry that answer's wrenches, and the links'
-       motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
+       ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
+       beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
+       from ``lam``);
+    3. each stiff body's W whose Coulomb forces carry that answer's wrenches, and the
+       links' motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
        less than ``_STIFF_GIVE``;
-    4. restoration steps from there, the soft prints' W held (their forces are the
+    4. restoration steps from there, the stiff bodies' W held (their forces are the
        carried ones), onto every row (:func:`_lift`: the links moved by that give, the
-       rigid contacts' forces balancing the posture so moved), then
+       other contacts' forces balancing the posture so moved), then
        :func:`stances.verify` on the full FEM model.
 
     Where it does not hold, the soft contacts are left as they were (the solve that goes
@@ -1194,10 +1196,11 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
         ``qp_time`` the held solve's.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
-    if any(c.kind != "deformable" or len(c.point_prints) for c, _ in soft):
+    stiff = [(c, s) for c, s in soft
+             if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE]
+    if not stiff:
         return None
-    if max(c.stiff_give(lam[s]) for c, s in soft) > _STIFF_GIVE:
-        return None
+    mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
     states = [contact.solver_state() for contact, _ in soft]
     start = time.perf_counter()
 
@@ -1211,15 +1214,19 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
         return deadline is not None and time.perf_counter() >= deadline
 
     held_prints = {}
-    for contact, _ in soft:
+    for contact, _ in stiff:
         held_prints.update(contact.held_prints())
-    held = build(replace(options, deformable_as_rigid=True), held_prints)
-    answer = solve_problem(held, q, deadline=deadline, check=False)
+    if mixed:
+        held = build(options, held_prints)
+        answer = _solve_coulomb(held, q, deadline, lam_init=_held_start(held, problem, q, lam))
+    else:
+        held = build(replace(options, deformable_as_rigid=True), held_prints)
+        answer = solve_problem(held, q, deadline=deadline, check=False)
     if not answer.feasible:
         return abandon("held rigid, %s", answer.reason)
     q = np.asarray(answer.q, dtype=float)
     lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
-    for contact, s in soft:
+    for contact, s in stiff:
         if out_of_time():
             return abandon("out of time")
         carried = contact.carrying_variables(lam[s])
@@ -1229,7 +1236,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
         lam[s] = carried[0]
     if out_of_time():
         return abandon("out of time")
-    lifted = _lift(problem, q, lam, [s for _, s in soft])
+    lifted = _lift(problem, q, lam, [s for _, s in stiff])
     if lifted is None:
         return abandon("the rows not met from the held answer")
     q, lam, linearization, steps = lifted
@@ -1239,6 +1246,28 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None):
     if not result.feasible:
         return abandon("%s", result.reason)
     return result
+
+
+def _held_start(held, problem, q, lam):
+    """``held``'s variables to start from: ``problem``'s ``lam`` where a contact is the
+    same in both (a rigid print's cone coefficients, a body soft in both its W), the
+    weight shared evenly on the prints ``held`` holds (:meth:`PostureProblem.initial_variables`
+    at ``q``)."""
+    out = held.initial_variables(q)
+    given = {_contact_key(c): s for c, s in zip(problem.contacts, problem.variable_slices)}
+    for contact, s in zip(held.contacts, held.variable_slices):
+        mine = given.get(_contact_key(contact))
+        if mine is not None:
+            out[s] = lam[mine]
+    return out
+
+
+def _contact_key(contact) -> tuple:
+    """What a contact is across two problems of one stance: its soft body, or the robot
+    surface and kind of a print on no soft body."""
+    if contact.deformable_object is not None:
+        return ("body", contact.deformable_object.name)
+    return (contact.kind, contact.robot_surface)
 
 
 def _lift(problem, q, lam, held):

@@ -257,3 +257,92 @@ def test_prints_coupled_on_one_stiff_body_and_two_stiff_bodies_tend_to_the_rigid
         frame = robot.surface(sole).frame
         soft, held = (sum(np.array(p.force) for p in r.point_forces if p.frame == frame) for r in (result, rigid))
         assert np.linalg.norm(soft - held) < 2e-3 * np.linalg.norm(held)
+
+
+def _hand_on_cube_beside_a_mat(young_modulus):
+    """hand-on-cube at ``young_modulus`` with its soles on a 5 cm foam mat (E = 1e6 Pa)
+    instead of the floor: one stiff body and one soft in a stance, and that stance."""
+    text = environments.builtin_scenario_path("hand-on-cube").read_text()
+    text = text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0")
+    mat = ("  - {name: mat, type: soft_box, size: [0.6, 0.6, 0.05], center: [0.0, 0.0, 0.025],\n"
+           "     material: {E: 1.0e+6, nu: 0.4, rho: 100.0}, resolution: default}\nstances:")
+    text = text.replace("stances:", mat, 1)
+    soles = "    left_sole: {surface: floor, x: 0.0, y: 0.085}\n    right_sole: {surface: floor, x: 0.0, y: -0.085}\n"
+    on_mat = soles.replace("surface: floor", "surface: mat_top")
+    head, tail = text.split("  hand-on-cube:\n")
+    scenario = environments.load_string(head + "  hand-on-cube:\n" + tail.replace(soles, on_mat, 1), name="hand-on-cube")
+    return scenario.scene, scenario.stance("hand-on-cube")
+
+
+@pytest.fixture(scope="module")
+def steel_cube_beside_a_mat():
+    return _hand_on_cube_beside_a_mat(1e10)
+
+
+def _force(robot, result, surface):
+    frame = robot.surface(surface).frame
+    return sum(np.array(p.force) for p in result.point_forces if p.frame == frame)
+
+
+def test_held_prints_hold_their_body_and_leave_the_others_soft(robot, steel_cube_beside_a_mat):
+    scene, stance = steel_cube_beside_a_mat
+    problem = build_problem(robot, scene, stance)
+    cube = [c for c in problem.contacts if c.kind == "deformable" and c.deformable_object.name == "cube"][0]
+    held = build_problem(robot, scene, stance, held_prints=cube.held_prints())
+    assert sorted((c.kind, c.deformable_object.name if c.deformable_object else c.robot_surface)
+                  for c in held.contacts) == [("deformable", "mat"), ("rigid", PALM)]
+    (palm,) = [c for c in held.contacts if c.kind == "rigid"]
+    assert palm.held_rows is not None
+    # The mat's variables carry over by body, the held palm's come from the rigid answer's forces.
+    lam = np.arange(held.n_variables, dtype=float)
+    mine = problem.variables_from_rigid(held, lam, [])
+    mat, = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object.name == "mat"]
+    held_mat, = [s for c, s in zip(held.contacts, held.variable_slices) if c.kind == "deformable"]
+    assert np.array_equal(mine[mat[1]], lam[held_mat])
+
+
+def test_held_prints_cannot_split_a_body(robot):
+    scenario = environments.load("cross-soft-block")
+    stance = scenario.stance("both-on-foam")
+    problem = build_problem(robot, scenario.scene, stance)
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    one = {"left_sole": soft.held_prints()["left_sole"]}
+    with pytest.raises(StanceError, match=re.escape(
+            "held_prints holds ['left_sole'] on foam but not ['right_sole']: a body's prints are one contact "
+            "system, hold all of them or none")):
+        build_problem(robot, scenario.scene, stance, held_prints=one)
+
+
+def test_a_steel_stiff_cube_beside_a_foam_mat_is_held_alone(robot, steel_cube_beside_a_mat):
+    """The palm on a 1e10 Pa cube, the soles on a 1e6 Pa mat: the cube held in its stiff
+    limit, the mat solved soft with it (the stiff limit took all bodies or none before, and
+    through W the palm was 3.96 % off the rigid support's on the default mesh): the palm
+    within 2 % of a rigid support's, the mat soft (its soles sink), verified."""
+    scene, stance = steel_cube_beside_a_mat
+    result = solve(robot, scene, stance)
+    assert result.feasible and result.verification.ok, result.reason
+    assert result.statistics["stiff_limit"] is True
+    rigid = solve(robot, scene, stance, rigid_prints=(PALM,))
+    assert rigid.feasible, rigid.reason
+    palm, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)
+    assert np.linalg.norm(palm - expected) < 0.02 * np.linalg.norm(expected)
+    through_w = solve(robot, scene, stance, stiff_limit=False)
+    assert np.linalg.norm(_force(robot, through_w, PALM) - expected) > np.linalg.norm(palm - expected)
+    sinking = {name: np.abs(np.asarray(field)).max() for name, field in result.deformations.items()}
+    assert sinking["mat"] > 1e-4 > 1e-6 > sinking["cube"]  # metres
+
+
+def test_a_mixed_stiff_limit_abandoned_leaves_the_solve_as_without_it(robot, steel_cube_beside_a_mat, monkeypatch):
+    scene, stance = steel_cube_beside_a_mat
+    plain = solve(robot, scene, stance, stiff_limit=False)
+    lift = stances.sqp._lift
+    lifted = []
+
+    def failing(*args):
+        lifted.append(lift(*args) is not None)
+        return None
+
+    monkeypatch.setattr(stances.sqp, "_lift", failing)
+    result = solve(robot, scene, stance)
+    assert lifted == [True] and "stiff_limit" not in result.statistics
+    assert np.array_equal(result.q, plain.q) and result.statistics["lambda"] == plain.statistics["lambda"]
