@@ -18,10 +18,11 @@ Each answer is verified
 (``result.feasible`` includes :func:`stances.verify`, which loads the full FEM model with
 the reported forces and checks Signorini and Coulomb at every node).
 
-Tables 2 and 3, the stiffness sweeps: ``step-on-cube`` and ``hand-on-cube`` with the
+Tables 2 to 4, the stiffness sweeps: ``step-on-cube`` and ``hand-on-cube`` with the
 cube's Young modulus from 1e4 to 1e11 Pa, against the rigid support: the force of the link
-on the soft cube and the posture's distance to the rigid answer. ``--sweeps`` runs these
-alone and writes ``bench/results/stiffness.md``.
+on the soft cube and the posture's distance to the rigid answer; the last with the soles on
+a foam mat (a stiff body and a soft one in one stance), against the palm held rigid on the
+same soft mat. ``--sweeps`` runs these alone and writes ``bench/results/stiffness.md``.
 """
 
 from __future__ import annotations
@@ -101,9 +102,11 @@ def setup_seconds(name, stance_name):
     return seconds[0], seconds[1], size / 1e6
 
 
-def soft_forces(robot, result, scene):
-    """Total force on the robot from the links touching a soft body, world frame, newtons."""
-    soft = {name for name, surface in scene.surfaces.items() if surface.deformable}
+def soft_forces(robot, result, scene, body=None):
+    """Total force on the robot from the links touching a soft body (``body``, or any),
+    world frame, newtons."""
+    soft = {name for name, surface in scene.surfaces.items()
+            if surface.deformable and body in (None, surface.object_name)}
     frames = {robot.surface(c.robot_surface).frame for c in result.stance if c.contact_print.surface in soft}
     return sum((np.array(p.force) for p in result.point_forces if p.frame in frames), np.zeros(3))
 
@@ -164,15 +167,34 @@ def _mode_counts(robot, scenario, stance, result):
     return " / ".join(str(c) for c in counts)
 
 
-#: Stiffness sweeps: (scenario, stance, what touches the soft cube), its E = 1e6 Pa set to each of STIFFNESS.
-SWEEPS = (("step-on-cube", "step-on-cube", "sole"), ("hand-on-cube", "hand-on-cube", "palm"))
+#: Stiffness sweeps: (scenario, stance, what touches the soft cube, its robot surface,
+#: soles on a foam mat), the cube's E = 1e6 Pa set to each of STIFFNESS.
+SWEEPS = (("step-on-cube", "step-on-cube", "sole", "right_sole", False),
+          ("hand-on-cube", "hand-on-cube", "palm", "right_palm", False),
+          ("hand-on-cube", "hand-on-cube", "palm", "right_palm", True))
+
+#: The foam mat under the soles of the third sweep (E = 1e6 Pa, 5 cm thick).
+MAT = ("  - {name: mat, type: soft_box, size: [0.6, 0.6, 0.05], center: [0.0, 0.0, 0.025],\n"
+       "     material: {E: 1000000.0, nu: 0.4, rho: 100.0}, resolution: default}\n")  # not the cube's "E: 1.0e+6"
 
 
-def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft_link="sole"):
+def sweep_text(name, on_mat=False) -> str:
+    """The scenario's YAML; ``on_mat``: with MAT under the soles of its stances."""
     text = environments.builtin_scenario_path(name).read_text()
+    if not on_mat:
+        return text
+    objects, stances_text = text.split("stances:\n")
+    return objects + MAT + "stances:\n" + stances_text.replace("{surface: floor,", "{surface: mat_top,")
+
+
+def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft_link="sole", surface="right_sole",
+                    on_mat=False):
+    text = sweep_text(name, on_mat)
     base = environments.load_string(text, name=name)
     stance = base.stance(stance_name)
-    _, rigid = timed_solve(robot, base.scene, stance, deformable_as_rigid=True)
+    # The rigid support: the cube's prints held rigid, the mat (where there is one) soft.
+    reference = {"rigid_prints": (surface,)} if on_mat else {"deformable_as_rigid": True}
+    _, rigid = timed_solve(robot, base.scene, stance, **reference)
     runs = []
     for young_modulus in STIFFNESS:
         # Weightless: at 1e4 Pa a 1,000 kg/m^3 cube cannot hold its own weight within
@@ -181,10 +203,10 @@ def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft
             text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0"), name=name)
         timed_solve(robot, scenario.scene, stance)  # setup
         seconds, result = timed_solve(robot, scenario.scene, stance)
-        runs.append((young_modulus, seconds, result, soft_forces(robot, result, scenario.scene)))
+        runs.append((young_modulus, seconds, result, soft_forces(robot, result, scenario.scene, "cube")))
         print(f"{name} E = {young_modulus:.0e}: {result.feasible}, {seconds:.2f} s", flush=True)
     stiffest = runs[-1][3]
-    held = soft_forces(robot, rigid, base.scene)
+    held = soft_forces(robot, rigid, base.scene, "cube")
     rows = [f"| E (Pa) | feasible | stiff limit | CPU s | iterations (+ warm starts) | soft {soft_link} force (N) | "
             "difference to the rigid support | change to E = 1e11 | posture vs rigid support (max abs q) | largest strain |",
             "|---|---|---|---|---|---|---|---|---|---|"]
@@ -217,10 +239,12 @@ def main():
     sweeps_only = "--sweeps" in sys.argv[1:]
     rows = [] if sweeps_only else stance_table(robot)
     sweeps = []
-    for name, stance_name, soft_link in SWEEPS:
-        sweep_header = ["", f"## Stiffness sweep ({name}: the {soft_link} on the soft cube, weightless: rho = 0)", ""]
+    for name, stance_name, soft_link, surface, on_mat in SWEEPS:
+        mat = ", the soles on a 5 cm foam mat at 1e6 Pa (the rigid support: the palm held rigid, the mat soft)"
+        sweep_header = ["", f"## Stiffness sweep ({name}: the {soft_link} on the soft cube, weightless: rho = 0"
+                        f"{mat if on_mat else ''})", ""]
         print("\n".join(sweep_header), flush=True)
-        sweeps += sweep_header + stiffness_table(robot, name, stance_name, soft_link)
+        sweeps += sweep_header + stiffness_table(robot, name, stance_name, soft_link, surface, on_mat)
     text = "\n".join(header + rows + sweeps) + "\n"
     path = os.path.join(os.path.dirname(__file__), "results", "stiffness.md" if sweeps_only else "deformable.md")
     with open(path, "w") as handle:

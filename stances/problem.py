@@ -213,12 +213,13 @@ class PostureOptions:
         meaningful near the print, so this homotopy makes solves reliable.
     stiff_limit : bool
         With Coulomb contact and the energy term (``deformation_cost="energy"``): where
-        every soft body of the stance has flat prints only and gives less than 10 um under
+        soft bodies of the stance have flat prints only and give less than 10 um under
         the stance's loads (those of the rigid warm start, or ``lam_init``'s), the stance
-        is solved in its bodies' stiff limit: the soft prints held rigid with their centre
-        of pressure where their nodes are, the links' motion whose Coulomb forces carry that
-        answer then found, and the answer verified as any (as E grows the posture and
-        forces tend to the rigid support's; :func:`stances.sqp._solve_stiff_limit`). Under
+        is solved in those bodies' stiff limit: their prints held rigid with their centre
+        of pressure where their nodes are (the other soft bodies solved soft with them),
+        the links' motion whose Coulomb forces carry that answer then found, and the
+        answer verified as any (as E grows the posture and forces tend to the rigid
+        support's; :func:`stances.sqp._solve_stiff_limit`). Under
         a time budget, tried only with several warm starts' time left, and then for half
         of it; where it does not hold, the solve goes on as on a softer body. False: always
         as on a softer body.

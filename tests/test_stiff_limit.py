@@ -316,18 +316,21 @@ def test_held_prints_cannot_split_a_body(robot):
 def test_a_steel_stiff_cube_beside_a_foam_mat_is_held_alone(robot, steel_cube_beside_a_mat):
     """The palm on a 1e10 Pa cube, the soles on a 1e6 Pa mat: the cube held in its stiff
     limit, the mat solved soft with it (the stiff limit took all bodies or none before, and
-    through W the palm was 3.96 % off the rigid support's on the default mesh): the palm
-    within 2 % of a rigid support's, the mat soft (its soles sink), verified."""
+    through W the palm was 3.96 % off the rigid support's on the default mesh, the right
+    sole 2.70 %): each force within 1.2 % of the rigid support's (0.93, 0.44 and 0.10 %
+    measured), the mat soft (its soles sink), verified."""
     scene, stance = steel_cube_beside_a_mat
     result = solve(robot, scene, stance)
     assert result.feasible and result.verification.ok, result.reason
     assert result.statistics["stiff_limit"] is True
     rigid = solve(robot, scene, stance, rigid_prints=(PALM,))
     assert rigid.feasible, rigid.reason
+    for surface in (PALM, "right_sole", "left_sole"):
+        force, expected = _force(robot, result, surface), _force(robot, rigid, surface)
+        assert np.linalg.norm(force - expected) < 0.012 * np.linalg.norm(expected), surface
     palm, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)
-    assert np.linalg.norm(palm - expected) < 0.02 * np.linalg.norm(expected)
     through_w = solve(robot, scene, stance, stiff_limit=False)
-    assert np.linalg.norm(_force(robot, through_w, PALM) - expected) > np.linalg.norm(palm - expected)
+    assert np.linalg.norm(_force(robot, through_w, PALM) - expected) > 2.0 * np.linalg.norm(palm - expected)
     sinking = {name: np.abs(np.asarray(field)).max() for name, field in result.deformations.items()}
     assert sinking["mat"] > 1e-4 > 1e-6 > sinking["cube"]  # metres
 
