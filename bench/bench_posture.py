@@ -57,7 +57,7 @@ from posture_nlp import BaselineRun, PostureNlp, TimeLimit, final_check, first_s
 import environments  # noqa: E402
 import stances  # noqa: E402
 from stances.problem import PostureOptions, build_problem  # noqa: E402
-from stances.sqp import solve, solve_problem  # noqa: E402
+from stances import solve, solve_problem  # noqa: E402
 
 try:
     from ipopt_baseline import OPTIONS as IPOPT_OPTIONS  # noqa: E402

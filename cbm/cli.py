@@ -140,7 +140,7 @@ def _add_solver_option(parser):
 
 def _solver_options(args) -> dict:
     """The ``--solver-option`` pairs, checked as posture options (bad input names the valid ones)."""
-    from stances.sqp import posture_options
+    from stances.stages import posture_options
 
     options = dict(args.solver_option)
     posture_options(options)

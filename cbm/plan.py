@@ -25,7 +25,7 @@ import stances
 from environments.scenario import SCENARIO_DIRECTORY
 from environments.stance import Stance
 from stances.results import PointForce, PostureResult
-from stances.sqp import posture_options
+from stances.stages import posture_options
 
 from .errors import PlanFileError
 from .search import SearchStatistics

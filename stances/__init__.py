@@ -24,7 +24,8 @@ from .problem import PostureOptions, PostureProblem, build_problem
 from .results import PointForce, PostureResult, SolveStatistics, Verification
 from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
-from .sqp import solve, solve_problem
+from .sqp import solve_problem
+from .stages import solve
 from .verify import verify, verify_problem
 
 __all__ = [

@@ -27,7 +27,6 @@ import logging
 import math
 
 import coal
-import numpy as np
 
 logger = logging.getLogger(__name__)
 

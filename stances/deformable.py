@@ -71,7 +71,7 @@ The stiff limit. A body that gives by micrometres under the stance's loads has W
 where its nodes, some lifted off, carry something else; there the stance is solved held
 rigid and the links' motion whose Coulomb forces carry that answer is found by inverting
 the contact law (:meth:`DeformableContact.held_prints`, :meth:`~DeformableContact.carrying_variables`,
-``stances.sqp._solve_stiff_limit``).
+``stances.stages._solve_stiff_limit``).
 
 How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
 
@@ -876,7 +876,7 @@ class DeformableContact:
             low, high = (middle, high) if carried(middle) < target else (low, middle)
         return high
 
-    # -- the stiff limit (stances.sqp._solve_stiff_limit) ----------------------
+    # -- the stiff limit (stances.stages._solve_stiff_limit) ----------------------
     def solver_state(self) -> tuple:
         """What a solve leaves behind that the next one starts from (the last contact
         solve's modes, the strain rows' centres verify added, the contact system with the

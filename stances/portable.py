@@ -14,7 +14,8 @@ from functools import cache
 
 from .problem import build_problem
 from .results import LazyDeformations, PostureResult
-from .sqp import deformation_fields, posture_options
+from .sqp import deformation_fields
+from .stages import posture_options
 
 __all__ = ["portable", "restore_deformations"]
 

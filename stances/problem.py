@@ -89,7 +89,7 @@ class PostureOptions:
         How deformable supports react (see :mod:`fem`).
     max_iterations : int
         SQP iteration limit (a soft stance's rigid or bonded warm start stops at 60, or
-        at this where lower: :data:`stances.sqp._WARM_START_ITERATIONS`).
+        at this where lower: :data:`stances.stages._WARM_START_ITERATIONS`).
     trust_region : float
         Bound on each component of a step, rad or m.
     feasibility_tolerance : float
@@ -219,7 +219,7 @@ class PostureOptions:
         of pressure where their nodes are (the other soft bodies solved soft with them),
         the links' motion whose Coulomb forces carry that answer then found, and the
         answer verified as any (as E grows the posture and forces tend to the rigid
-        support's; :func:`stances.sqp._solve_stiff_limit`). Under
+        support's; :func:`stances.stages._solve_stiff_limit`). Under
         a time budget, tried only with several warm starts' time left, and then for half
         of it; where it does not hold, the solve goes on as on a softer body. False: always
         as on a softer body.

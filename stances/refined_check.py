@@ -22,7 +22,7 @@ import environments
 from .errors import StanceError
 from .problem import build_problem
 from .results import PostureResult
-from .sqp import posture_options, solve
+from .stages import posture_options, solve
 
 __all__ = ["RefinedCheck", "check_refined", "soft_robot_surfaces"]
 

@@ -25,7 +25,7 @@ from fem.layer_contact import SIDE_DROP, SIDE_REACH, widest_contact
 from stances.layer_ball import (LayerBalls, _strain_on_layer, _without_sides, largest_ball_load, layer_site,
                                 layer_under)
 from stances.problem import PostureOptions, build_problem
-from stances.sqp import solve
+from stances import solve
 from stances.results import PointForce
 from stances.verify import verify
 

@@ -18,7 +18,7 @@ from stances.plates import PlateDeclaration, geometry_reach
 from stances.problem import PostureOptions
 from stances.description import read_description
 from stances.robot import example_robot_data_share
-from stances.sqp import solve
+from stances import solve
 
 try:
     import coal

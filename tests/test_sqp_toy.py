@@ -21,7 +21,7 @@ import pytest
 from stances.blocks import ConstraintBlock, equality
 from stances.problem import Linearization, PostureOptions
 from stances.qp import QPWorkspace, elastic_qp, row_multipliers
-from stances import sqp, stopping
+from stances import sqp, stages, stopping
 from stances.sqp import run_sqp
 
 
@@ -867,7 +867,7 @@ def _held_modes_problem():
 
 
 def _scripted_stages(monkeypatch, attempt_status):
-    """Replace sqp.solve_problem by stages that stall near feasibility (a held-mode attempt
+    """Replace stages.solve_problem by stages that stall near feasibility (a held-mode attempt
     ending with ``attempt_status``), each moving q by 0.01; returns the list of the stages'
     iteration caps it fills."""
     from stances.results import PostureResult
@@ -876,15 +876,15 @@ def _scripted_stages(monkeypatch, attempt_status):
 
     def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True, creep=False):
         # Only the first stage, which the held-mode attempts can replace, may end creeping.
-        assert creep == (max_iterations == sqp._FREE_ITERATIONS)
+        assert creep == (max_iterations == stages._FREE_ITERATIONS)
         calls.append(max_iterations)
-        status = attempt_status if max_iterations == sqp._FROZEN_ITERATIONS else "stalled"
+        status = attempt_status if max_iterations == stages._FROZEN_ITERATIONS else "stalled"
         return PostureResult(
             feasible=False, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0), iterations=5,
             solve_time=0.0, stance=None, statistics={"status": status, "violation": 2.8e-7}, reason=status,
         )
 
-    monkeypatch.setattr(sqp, "solve_problem", stage)
+    monkeypatch.setattr(stages, "solve_problem", stage)
     return calls
 
 
@@ -897,8 +897,8 @@ def test_held_mode_attempts_stop_when_the_modes_to_hold_are_those_just_held(monk
     problem = _held_modes_problem()
     contact = problem.contacts[0]
     calls = _scripted_stages(monkeypatch, "stalled")
-    result = sqp._solve_coulomb(problem, np.zeros(3))
-    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS]
+    result = stages._solve_coulomb(problem, np.zeros(3))
+    assert calls == [stages._FREE_ITERATIONS, stages._FROZEN_ITERATIONS]
     assert contact.frozen == 2  # the second freeze finds the same modes: no second attempt
     assert contact.released == 2  # every freeze released, the early return's too
     # The attempt's answer: from the first stage's q (0.01), one stage further.
@@ -917,7 +917,7 @@ def test_a_first_stage_creeping_far_from_feasible_gives_way_to_held_modes_from_t
 
     def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True, creep=False):
         starts.append((max_iterations, creep, float(np.asarray(q)[0])))
-        first = max_iterations == sqp._FREE_ITERATIONS
+        first = max_iterations == stages._FREE_ITERATIONS
         return PostureResult(
             feasible=not first, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0),
             iterations=7, solve_time=0.0, stance=None,
@@ -925,9 +925,9 @@ def test_a_first_stage_creeping_far_from_feasible_gives_way_to_held_modes_from_t
             reason=stopping.CREEPING if first else "",
         )
 
-    monkeypatch.setattr(sqp, "solve_problem", stage)
-    result = sqp._solve_coulomb(problem, np.zeros(3))
-    assert starts == [(sqp._FREE_ITERATIONS, True, 0.0), (sqp._FROZEN_ITERATIONS, False, 0.0)]
+    monkeypatch.setattr(stages, "solve_problem", stage)
+    result = stages._solve_coulomb(problem, np.zeros(3))
+    assert starts == [(stages._FREE_ITERATIONS, True, 0.0), (stages._FROZEN_ITERATIONS, False, 0.0)]
     assert result.feasible and result.iterations == 14
     np.testing.assert_allclose(result.q, 0.01)
 
@@ -937,7 +937,7 @@ def test_a_held_mode_attempt_its_cap_ended_goes_on_free(monkeypatch):
     stall, so the uncapped free stage runs from where the attempts began."""
     problem = _held_modes_problem()
     calls = _scripted_stages(monkeypatch, "iteration limit")
-    result = sqp._solve_coulomb(problem, np.zeros(3))
-    assert calls == [sqp._FREE_ITERATIONS, sqp._FROZEN_ITERATIONS, None]
+    result = stages._solve_coulomb(problem, np.zeros(3))
+    assert calls == [stages._FREE_ITERATIONS, stages._FROZEN_ITERATIONS, None]
     np.testing.assert_allclose(result.q, 0.02)  # the free stage from the first stage's q
     assert result.iterations == 15 and result.reason == "stalled"

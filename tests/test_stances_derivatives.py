@@ -14,7 +14,7 @@ import pytest
 
 from conftest import coarse_scenario
 from stances.problem import PostureOptions, build_problem
-from stances.sqp import solve
+from stances import solve
 from stances.statics import PointLoads, point_jacobians, static_torque_derivatives, static_torques
 
 EPS = 1e-6

@@ -18,8 +18,8 @@ from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, Sta
 from stances.results import LazyDeformations
 from stances.contacts import friction_cone_generators
 from stances.problem import PostureOptions, build_problem
-from stances import sqp, stopping
-from stances.sqp import solve, solve_problem
+from stances import sqp, stages, stopping
+from stances import solve, solve_problem
 from stances.verify import verify
 
 RIGID = [("stand", "stand"), ("hand-on-table", "hand-on-table"), ("foot-on-block", "foot-on-block")]
@@ -1037,7 +1037,7 @@ def test_a_warm_start_stops_once_feasible_and_flat_and_the_answer_stays(robot, m
     scenario = environments.load("cross-two-mats")
     stance = scenario.stance("one-on-each")
     result = solve(robot, scenario.scene, stance)
-    monkeypatch.setattr(sqp, "_WARM_START_TOLERANCES", {"feasibility_tolerance": 1e-3, "optimality_tolerance": 1e-5})
+    monkeypatch.setattr(stages, "_WARM_START_TOLERANCES", {"feasibility_tolerance": 1e-3, "optimality_tolerance": 1e-5})
     longer = solve(robot, scenario.scene, stance)
     assert result.feasible and longer.feasible
     assert result.statistics["rigid_warm_start_iterations"] < longer.statistics["rigid_warm_start_iterations"]
@@ -1306,7 +1306,7 @@ def test_a_failed_coulomb_solve_from_the_rigid_answer_is_solved_again_from_the_b
     scenario = coarse_scenario("step-on-cube")
     stance = scenario.stance("step-on-cube")
     starts = []
-    original = sqp._solve_coulomb
+    original = stages._solve_coulomb
 
     def first_fails(problem, q_init, deadline=None, attempts=3, lam_init=None):
         result = original(problem, q_init, deadline, attempts, lam_init)
@@ -1315,12 +1315,12 @@ def test_a_failed_coulomb_solve_from_the_rigid_answer_is_solved_again_from_the_b
             return sqp._with(result, feasible=False, reason="made to fail")
         return result
 
-    monkeypatch.setattr(sqp, "_solve_coulomb", first_fails)
+    monkeypatch.setattr(stages, "_solve_coulomb", first_fails)
     result = solve(robot, scenario.scene, stance)
     assert result.feasible, result.reason
     assert len(starts) == 2 and result.statistics["bonded_warm_start"] is True
     assert not np.array_equal(starts[0], starts[1])  # the bonded answer's forces, not the rigid wrench
-    monkeypatch.setattr(sqp, "_solve_coulomb", original)
+    monkeypatch.setattr(stages, "_solve_coulomb", original)
     direct = solve(robot, scenario.scene, stance)
     assert direct.feasible and "bonded_warm_start" not in direct.statistics
     assert direct.statistics["rigid_warm_start_iterations"] < result.statistics["rigid_warm_start_iterations"]
@@ -1333,7 +1333,7 @@ def test_a_stance_the_strain_bound_rules_out_is_not_solved_again_from_the_bonded
     scenario = coarse_scenario("cross-soft-block", young_modulus=3e4)
     result = solve(robot, scenario.scene, scenario.stance("both-on-foam"))
     assert not result.feasible and "strain bound" in result.reason
-    assert result.statistics["violation"] > sqp._CONTACT_SET_VIOLATION
+    assert result.statistics["violation"] > stages._CONTACT_SET_VIOLATION
     assert "bonded_warm_start" not in result.statistics
 
 
@@ -1401,7 +1401,7 @@ def test_a_rigid_warm_start_ends_at_its_own_cap(anymal, monkeypatch, cap, option
     options = {**options, **nodes}
     assert solve(anymal, scene, _FRONT_FEET_ON_FOAM, **nodes).statistics["rigid_warm_start_iterations"] == 3
     if cap is not None:
-        monkeypatch.setattr(sqp, "_WARM_START_ITERATIONS", cap)
+        monkeypatch.setattr(stages, "_WARM_START_ITERATIONS", cap)
     result = solve(anymal, scene, _FRONT_FEET_ON_FOAM, **options)
     assert not result.feasible
     assert result.statistics["status"] == "iteration limit"

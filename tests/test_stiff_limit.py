@@ -18,9 +18,8 @@ import pytest
 
 import environments
 import stances.deformable
-import stances.sqp
+import stances.stages
 from stances import solve
-from stances.contacts import RigidContact
 from stances.deformable import HeldPrint, inset_hull
 from stances.errors import StanceError
 from stances.problem import PostureOptions, build_problem
@@ -185,7 +184,7 @@ def test_a_cube_that_gives_is_not_held_rigid(robot):
     held = solve(robot, scene, stance, deformable_as_rigid=True)
     variables = problem.variables_from_rigid(rigid, held.statistics["lambda"], held.point_forces)
     soft = _soft_contact(problem)
-    assert soft.stiff_give(variables[problem.variable_slices[problem.contacts.index(soft)]]) > stances.sqp._STIFF_GIVE
+    assert soft.stiff_give(variables[problem.variable_slices[problem.contacts.index(soft)]]) > stances.stages._STIFF_GIVE
     result = solve(robot, scene, stance)
     assert result.feasible, result.reason
     assert "stiff_limit" not in result.statistics
@@ -217,14 +216,14 @@ def test_a_stiff_limit_abandoned_after_its_lift_leaves_the_solve_as_without_it(r
     the stiff limit is then abandoned, the solve through W is the one without it, bit for bit."""
     scene, stance = steel_cube
     plain = solve(robot, scene, stance, stiff_limit=False)
-    lift = stances.sqp._lift
+    lift = stances.stages._lift
     lifted = []
 
     def failing(*args):
         lifted.append(lift(*args) is not None)
         return None
 
-    monkeypatch.setattr(stances.sqp, "_lift", failing)
+    monkeypatch.setattr(stances.stages, "_lift", failing)
     result = solve(robot, scene, stance)
     assert lifted == [True] and "stiff_limit" not in result.statistics
     assert np.array_equal(result.q, plain.q) and result.statistics["lambda"] == plain.statistics["lambda"]
@@ -338,14 +337,14 @@ def test_a_steel_stiff_cube_beside_a_foam_mat_is_held_alone(robot, steel_cube_be
 def test_a_mixed_stiff_limit_abandoned_leaves_the_solve_as_without_it(robot, steel_cube_beside_a_mat, monkeypatch):
     scene, stance = steel_cube_beside_a_mat
     plain = solve(robot, scene, stance, stiff_limit=False)
-    lift = stances.sqp._lift
+    lift = stances.stages._lift
     lifted = []
 
     def failing(*args):
         lifted.append(lift(*args) is not None)
         return None
 
-    monkeypatch.setattr(stances.sqp, "_lift", failing)
+    monkeypatch.setattr(stances.stages, "_lift", failing)
     result = solve(robot, scene, stance)
     assert lifted == [True] and "stiff_limit" not in result.statistics
     assert np.array_equal(result.q, plain.q) and result.statistics["lambda"] == plain.statistics["lambda"]

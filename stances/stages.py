@@ -1,0 +1,536 @@
+"""A posture solve's stages around the SQP (:mod:`stances.sqp`): :func:`solve`.
+
+A stance on rigid supports is one SQP. On soft supports the FEM forces are meaningful
+only near their prints, so a solve goes by stages:
+
+1. the rigid warm start: the stance held rigid, to loose tolerances (and the cheap
+   rejection of a stance that cannot be held even so);
+2. the stiff limit (:func:`_solve_stiff_limit`): the bodies that give under 10 um held
+   rigid where their nodes are, then the links' motion whose Coulomb forces carry that
+   answer, verified; where it does not hold, nothing of it is kept;
+3. the Coulomb stages (:func:`_solve_coulomb`): the nodes' modes read at every
+   linearisation, then held while the SQP converges, then read again; a bonded warm
+   start where that stalls near feasibility.
+
+A time budget bounds them all; the answer says which stage it came from.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import fields, replace
+
+import numpy as np
+import pinocchio as pin
+
+from fem.deadline import SetupTimeout, deadline as setup_deadline
+
+from .cold_start import initial_configuration, starting_configuration
+from .errors import ConfigurationError, StanceError
+from .problem import PostureOptions, build_problem
+from .qp import QPWorkspace
+from .results import PostureResult
+from .sqp import _OUT_OF_TIME, _QP_FAILED, SqpOutcome, _restoration_step, _result, _with, solve_problem
+from .stopping import NO_PROGRESS
+
+logger = logging.getLogger(__name__)
+
+_FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
+_FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
+_CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
+# Warm starts give starting postures only: feasible within 1e-2 (scaled: 0.1 mm and 0.1 mrad
+# of placement, 0.1 N of equilibrium, where a soft print then sinks millimetres), and done
+# once an iteration gains under 1 % of the objective. At 1e-5 the rigid warm start spent
+# its last 1-2 iterations confirming an objective the Coulomb stage then changes anyway
+# (plans on five soft suite scenes x 3 seeds, the same solver calls and stances, 5-6 % less
+# CPU at 1e-3); from 1e-3 to 1e-2 the 15 built-in soft stances took 14 warm-start
+# iterations fewer and 2 Coulomb iterations more (206 -> 194), all verified, -2.0 % of
+# their instructions. The early rejection of a stance that cannot be held rigid reads the
+# same tolerance: a rigid warm start stopping between 1e-3 and 1e-2 now goes on to the soft
+# solve (the suite's 200 plans as at b71a919 but one, whose path had moved by 85fe6b3).
+_WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance": 1e-2}
+# A warm start's iteration cap (the options' max_iterations where lower). Of 906 rigid warm
+# starts in the plans of 16 soft scenes x 10 seeds (2026-12-04), every one that reached its
+# loose tolerance did so within 39 iterations; the two that ran to the options' cap of 100
+# crept there at 1 % an iteration at the 0.3 trust region (quadruped-foam seeds 6 and 10,
+# 1.0 and 1.3 s), each then rejected as a stance that cannot be held rigid. The bonded warm
+# start (after a Coulomb solve that failed near feasibility) has the same cap: none ran in
+# those plans, so it is not measured.
+_WARM_START_ITERATIONS = 60
+# A soft body that gives less than this under a stance's loads (metres) is solved in its
+# stiff limit (_solve_stiff_limit): held rigid, then at most _LIFT_STEPS restoration steps
+# onto every row (hand-on-cube's palm at 1e10 Pa: 1 on meshes of 22.5, 15 and 10 mm). At
+# verify's placement tolerance, 1 um, the palm on the 10 mm mesh at 1e10 Pa was refused: on
+# its edge it gives 6 um. The posture moves by the give, which no other row resolves.
+_STIFF_GIVE = 1e-5
+_STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
+# Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
+# start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
+_STIFF_TIME = 8.0
+_LIFT_STEPS = 4
+
+
+def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
+          **options) -> PostureResult:
+    """Find a statically feasible posture holding a stance.
+
+    Parameters
+    ----------
+    robot : stances.Robot
+    scene : environments.Scene
+    stance : environments.Stance
+    q_init : (nq,) float, optional
+        Warm start (e.g. the parent stance's posture in a search); by default the
+        reference posture moved over the prints (:func:`stances.initial_configuration`).
+    lam_init : (m,) float, optional
+        Contact variables to start from with ``q_init``: ``statistics["lambda"]``
+        of an earlier answer for the same stance and options (a motion's
+        previous sample). With them a soft stance starts its solve at once,
+        without the rigid warm start, whose posture the prints barely touch
+        and whose forces are the rigid contacts', not the earlier answer's
+        sinking into the soft supports; the cheap early rejection of a stance that
+        cannot be held even rigid is skipped too, so a hopeless stance costs
+        a full soft solve.
+    reference : (nq,) float, optional
+        The posture the joint-distance cost pulls toward (``posture_weight``);
+        the robot's reference posture by default. A motion's samples use a
+        blend of the two stances they join.
+    time_budget : float, optional
+        Wall-clock seconds this call may take. No SQP iteration starts after
+        it is spent, nor a soft print's compliance column (the long part of a
+        new print's setup on a large body, :mod:`fem.deadline`); the stance is
+        then infeasible with a reason that says so (unless the iterate reached
+        is already feasible and verified). A body's factorisation and the final
+        verification's other steps are not interrupted.
+    constraints : sequence, optional
+        Extra constraints, each an object with ``blocks(problem, iterate)``
+        returning :class:`~stances.blocks.ConstraintBlock` rows (as the pieces
+        of :mod:`stances.terms`; with ``iterate.derivatives`` False only the
+        rows' values are read), added to every problem this call solves
+        (e.g. a free link held on a path while the robot moves between
+        stances). :func:`stances.verify` knows nothing of them: check them
+        yourself.
+    **options
+        Fields of :class:`~stances.problem.PostureOptions`.
+
+    Returns
+    -------
+    PostureResult
+        ``feasible`` is True only when the SQP converged and the independent
+        :func:`stances.verify` passed; otherwise ``reason`` says why.
+
+    Raises
+    ------
+    StanceError
+        For bad input (unknown surfaces, a print off its surface, a malformed
+        q); an infeasible stance is an answer, not an exception.
+    """
+    start = time.perf_counter()
+    deadline = None if time_budget is None else start + _time_budget(time_budget)
+    try:
+        with setup_deadline(deadline):
+            return _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
+                          start, deadline)
+    except SetupTimeout as stop:
+        # Out of time while a soft print was set up: an answer, as a spent budget
+        # is anywhere else, from the posture the solve would have started at.
+        q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
+        return PostureResult(
+            feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
+            solve_time=time.perf_counter() - start, stance=stance, statistics={"status": _OUT_OF_TIME},
+            reason=_budget_spent(time_budget, str(stop)),
+        )
+
+
+def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
+    """:func:`solve`'s work, from its arguments (``options`` the keyword ones), its start
+    time and deadline (``time.perf_counter()`` values)."""
+    options = posture_options(options)
+    constraints = tuple(constraints)
+
+    def build(options, held_prints=None):
+        built = build_problem(robot, scene, stance, options, held_prints)
+        built.constraints.extend(constraints)
+        if reference is not None:
+            try:
+                built.reference = built.check_configuration(reference)
+            except ConfigurationError as error:
+                raise ConfigurationError(f"reference: {error}") from None
+        return built
+
+    problem = build(options)
+    deformable = any(c.kind == "deformable" for c in problem.contacts)
+    if deformable and q_init is None and lam_init is None:
+        q_init = initial_configuration(robot, scene, stance)  # not the reaching start (see _reaches)
+    warm_iterations, warm_time = 0, 0.0
+    rigid, bonded_warm_start = None, False  # the rigid warm start's problem, and whether the bonded one ran
+    loose = dict(_WARM_START_TOLERANCES, max_iterations=min(options.max_iterations, _WARM_START_ITERATIONS))
+    if lam_init is not None:
+        lam_init = np.asarray(lam_init, dtype=float)
+        if q_init is None:
+            raise StanceError("lam_init needs q_init: the posture those contact variables were solved with")
+        if lam_init.shape != (problem.n_variables,):
+            raise StanceError(
+                f"lam_init must be {problem.n_variables} contact variables (statistics['lambda'] of an "
+                f"answer for the same stance and options), got shape {lam_init.shape}"
+            )
+        if not np.all(np.isfinite(lam_init)):
+            raise StanceError(f"lam_init has non-finite entries at indices {np.flatnonzero(~np.isfinite(lam_init)).tolist()}")
+    elif options.rigid_warm_start and deformable:
+        rigid = build(replace(options, deformable_as_rigid=True, **loose))
+        warm_time = time.perf_counter()
+        warm = solve_problem(rigid, q_init, deadline=deadline, check=False)
+        q_init, warm_iterations, warm_time = warm.q, warm.iterations, time.perf_counter() - warm_time
+        if warm.statistics["violation"] > loose["feasibility_tolerance"]:
+            # Even held rigid the stance cannot be held: a support that gives a few
+            # millimetres will not save it. Cheap rejection, with its reason (the
+            # soft solve of such a stance was measured at 10-40 s).
+            statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
+            reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
+            return _timed_out(_with(warm, reason=reason, statistics=statistics,
+                                    solve_time=time.perf_counter() - start, stance=stance), time_budget)
+        if options.contact_law == "coulomb":
+            # From the rigid posture the prints barely touch: W read off it, A xi(q),
+            # leaves every node at the point of lifting off, with no force gradient.
+            # W carrying the rigid answer's forces presses the prints as deep as that
+            # load does: the Coulomb solve starts there (14 built-in soft stances, every
+            # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
+            lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
+    stiff = None
+    left = None if deadline is None else deadline - time.perf_counter()
+    if (options.contact_law == "coulomb" and deformable and lam_init is not None and options.stiff_limit
+            and options.deformation_cost == "energy" and (left is None or left >= _STIFF_TIME * warm_time)):
+        # At most half the time left: where it does not hold, the solve goes on through W
+        # with the rest. Not tried where less is left than a few warm starts' time (a
+        # tight time budget: the solve through W alone fits where both might not).
+        share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * left
+        warm_lam = None if rigid is None else (rigid, np.asarray(warm.statistics["lambda"]))
+        stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, share, warm_lam)
+    if stiff is not None:
+        result = stiff
+    elif options.contact_law == "coulomb" and deformable:
+        result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
+        # (The bonded model cannot press a ball's nodes: a body a ball presses keeps Coulomb's.)
+        balls = any(len(c.point_prints) for c in problem.contacts if c.kind == "deformable")
+        if (not result.feasible and result.statistics["status"] != _OUT_OF_TIME
+                and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None and not balls):
+            # Not from there, though near feasible (far from it, the stance cannot be
+            # held, wherever it starts: both soles on foam at 3e4 Pa, which the strain
+            # bound rules out, took 3.0 s, and 6.6 s with this fallback, which ended the
+            # same): from the bonded model's answer (it presses every node),
+            # its forces too (the same variables: W read off the posture instead
+            # multiplies the warm start's micrometres of placement error by the body's
+            # stiffness, thousands of newtons on a steel-stiff cube).
+            bonded = build(replace(options, contact_law="bonded", **loose))
+            warm = solve_problem(bonded, q_init, deadline=deadline, check=False)  # q_init: the rigid answer
+            warm_iterations += result.iterations + warm.iterations
+            result = _solve_coulomb(problem, warm.q, deadline, lam_init=np.asarray(warm.statistics["lambda"]))
+            bonded_warm_start = True
+    else:
+        result = solve_problem(problem, q_init, lam_init=lam_init, deadline=deadline)
+    statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
+    if warm_iterations:
+        statistics["rigid_warm_start_iterations"] = warm_iterations
+    if bonded_warm_start:
+        statistics["bonded_warm_start"] = True
+    if stiff is not None:
+        statistics["stiff_limit"] = True
+    # solve_time covers everything this call did: building, warm start, SQP, verification.
+    return _timed_out(_with(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
+
+
+def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None):
+    """The stance on soft bodies too stiff to give, in their stiff limit; None where it is not.
+
+    As E grows a soft print's links move by nanometres: its nodes' Coulomb forces carry
+    what a rigid contact would where the nodes are, and the posture is the rigid one. The
+    soft prints' own variables W do not lead there: the force term weighs W, the wrench
+    the nodes would carry bonded, which moves far from what they carry once some lift off
+    (``bench/bench_palm_limit.py``), and the palm of hand-on-cube at E = 1e10 Pa stopped
+    1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
+
+    1. the stiff bodies: those whose contact is a
+       :class:`~stances.deformable.DeformableContact` of flat prints and whose bonded
+       nodes the loads ``lam`` move less than ``_STIFF_GIVE``
+       (:meth:`~stances.deformable.DeformableContact.stiff_give`); at least one;
+    2. the stance with the stiff bodies held rigid, each of their prints' centre of
+       pressure where its nodes are, its resultant in the friction margin's pyramid
+       (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
+       ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
+       beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
+       from ``lam``);
+    3. each stiff body's W whose Coulomb forces carry that answer's wrenches, and the
+       links' motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
+       less than ``_STIFF_GIVE``;
+    4. restoration steps from there, the stiff bodies' W held (their forces are the
+       carried ones), onto every row (:func:`_lift`: the links moved by that give, the
+       other contacts' forces balancing the posture so moved), then
+       :func:`stances.verify` on the full FEM model.
+
+    Where it does not hold, the soft contacts are left as they were (the solve that goes
+    on through W starts as it would have without this), and so where ``deadline`` passes
+    before its end.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+        The soft problem.
+    build : callable
+        ``build(options, held_prints) -> PostureProblem`` for the same stance.
+    options : PostureOptions
+    q : (nq,) float
+        The posture to start from (the rigid warm start's).
+    lam : (m,) float
+        ``problem``'s variables carrying the loads to start from (the warm start's).
+    deadline : float, optional
+        ``time.perf_counter()`` value.
+    warm : (PostureProblem, (m_rigid,) float), optional
+        The rigid warm start's problem and answer: the held prints' forces start from
+        its (the held solve of hand-on-cube at 1e10 Pa: 12 -> 6 iterations; beside a
+        soft mat, the weight shared evenly had ended at another optimum, its palm 1.5 %
+        off the rigid support's instead of 0.9 %).
+
+    Returns
+    -------
+    PostureResult or None
+        Verified; its iterations the held solve's and the restoration steps, its
+        ``qp_time`` the held solve's.
+    """
+    soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
+    stiff = [(c, s) for c, s in soft
+             if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE]
+    if not stiff:
+        return None
+    mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
+    states = [contact.solver_state() for contact, _ in soft]
+    start = time.perf_counter()
+
+    def abandon(why, *args):
+        for (contact, _), state in zip(soft, states):
+            contact.restore_solver_state(state)
+        logger.debug("stiff limit not taken: " + why, *args)
+        return None
+
+    def out_of_time():
+        return deadline is not None and time.perf_counter() >= deadline
+
+    held_prints = {}
+    for contact, _ in stiff:
+        held_prints.update(contact.held_prints())
+    if mixed:
+        held = build(options, held_prints)
+        answer = _solve_coulomb(held, q, deadline, lam_init=_held_start(held, problem, q, lam, warm))
+    else:
+        held = build(replace(options, deformable_as_rigid=True), held_prints)
+        answer = solve_problem(held, q, lam_init=_held_start(held, problem, q, lam, warm), deadline=deadline, check=False)
+    if not answer.feasible:
+        return abandon("held rigid, %s", answer.reason)
+    q = np.asarray(answer.q, dtype=float)
+    lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+    for contact, s in stiff:
+        if out_of_time():
+            return abandon("out of time")
+        carried = contact.carrying_variables(lam[s])
+        if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
+            return abandon("the nodes of %s %s", contact.label, "cannot carry the held answer" if carried is None
+                           else f"give {contact.link_give(carried[1]):.3g} m under it")
+        lam[s] = carried[0]
+    if out_of_time():
+        return abandon("out of time")
+    lifted = _lift(problem, q, lam, [s for _, s in stiff])
+    if lifted is None:
+        return abandon("the rows not met from the held answer")
+    q, lam, linearization, steps = lifted
+    outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
+                         answer.statistics["qp_time"], True, "")
+    result = _result(problem, outcome, time.perf_counter() - start)
+    if not result.feasible:
+        return abandon("%s", result.reason)
+    return result
+
+
+def _held_start(held, problem, q, lam, warm=None):
+    """``held``'s variables to start from: ``problem``'s ``lam`` where a contact is the
+    same in both (a rigid print's cone coefficients, a body soft in both its W); on the
+    prints ``held`` holds, those of the rigid warm start ``warm`` (its problem and
+    variables) where given, else the weight shared evenly
+    (:meth:`PostureProblem.initial_variables` at ``q``)."""
+    out = held.initial_variables(q)
+    sources = [(problem, lam)] + ([] if warm is None else [warm])
+    for source, values in sources[::-1]:  # problem's last: it wins where both have a contact
+        given = {_contact_key(c): s for c, s in zip(source.contacts, source.variable_slices)}
+        for contact, s in zip(held.contacts, held.variable_slices):
+            mine = given.get(_contact_key(contact))
+            if mine is not None:
+                out[s] = values[mine]
+    return out
+
+
+def _contact_key(contact) -> tuple:
+    """What a contact is across two problems of one stance: its soft body, or the robot
+    surface and kind of a print on no soft body."""
+    if contact.deformable_object is not None:
+        return ("body", contact.deformable_object.name)
+    return (contact.kind, contact.robot_surface)
+
+
+def _lift(problem, q, lam, held):
+    """Restoration steps onto the rows of ``problem`` with the variables in the slices
+    ``held`` fixed, at most ``_LIFT_STEPS``: ``(q, lam, Linearization, steps)`` where the rows
+    are met (its feasibility tolerance), else None.
+
+    The soft prints' ``touch`` rows are left out (of the steps and of the Linearization
+    returned): they ask the mean height of a print's nodes not above the rest surface, a
+    smooth stand-in for pressing that a palm leaning on its edge fails while that edge
+    presses; here each print carries the held answer's load, which says it presses.
+    """
+    nv, workspace = problem.robot.model.nv, QPWorkspace()
+
+    def rows(q, lam):
+        linearization = problem.linearize(q, lam)
+        return replace(linearization, blocks=[b for b in linearization.blocks if b.name != "touch"])
+
+    linearization = rows(q, lam)
+    for steps in range(_LIFT_STEPS + 1):
+        if linearization.met(problem.options.feasibility_tolerance):
+            return q, lam, linearization, steps
+        if steps == _LIFT_STEPS:
+            return None
+        lower, upper = linearization.step_lower.copy(), linearization.step_upper.copy()
+        for s in held:
+            lower[nv + s.start : nv + s.stop] = upper[nv + s.start : nv + s.stop] = 0.0
+        restored = _restoration_step(problem, replace(linearization, step_lower=lower, step_upper=upper), q, lam,
+                                     workspace)
+        if restored is None:
+            return None
+        q, lam = restored
+        linearization = rows(q, lam)
+    return None
+
+
+def _timed_out(result, time_budget) -> PostureResult:
+    """Say first in an infeasible answer's reason that the time budget stopped it, then
+    what the last iterate still violated (a state when the time ran out, not a verdict)."""
+    if result.feasible or result.statistics.get("status") != _OUT_OF_TIME:
+        return result
+    return _with(result, reason=_budget_spent(time_budget, f"at the last iterate: {result.reason}"))
+
+
+def _budget_spent(time_budget, state) -> str:
+    """The reason of a solve its time budget stopped, then the state it stopped in."""
+    return f"time budget of {float(time_budget):g} s spent before convergence; {state}"
+
+
+def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) -> PostureResult:
+    """Coulomb prints: modes read at every linearisation, then, if that stalls, held.
+
+    First the SQP runs for at most ``_FREE_ITERATIONS`` (ending early if it creeps far
+    from feasible, :meth:`~stances.stopping.StoppingTest.creeping`) with each node's mode
+    (stick, slip, lift off) read again at every linearisation: on the built-in
+    soft stances this converges in 3-36 iterations, where holding the modes of
+    the bonded posture (what follows) needed up to three attempts of 16-30
+    iterations each before the modes settled (hand-on-cube: 63 iterations, 1.7 s,
+    against 15 and 0.9 s). But a contact set can flip under steps far smaller than
+    an SQP takes (on stiff bodies slips are nanometres), and a line search then
+    stalls: from where the first stage stopped, the modes are held, which makes the
+    forces linear in the displacements so the SQP converges fast; the answer is
+    kept only if :func:`stances.verify` (Signorini and Coulomb at every node, on
+    the full FEM model) accepts it, otherwise the modes are read again at the new
+    posture; if they are those just held, the contact set has settled and that
+    attempt is the answer (unless its iteration cap ended it). If the modes do not
+    settle, the SQP runs again with modes updated at every linearisation, without a
+    cap, from where the held-mode attempts began.
+
+    An infeasible answer is the stage that ended it (the first stage's where it
+    came closer than held modes from the start): its ``reason`` and statistics are
+    that stage's, ``iterations`` counts every stage. With ``q_init`` None the solve
+    starts from :func:`stances.initial_configuration`.
+    """
+    model = problem.robot.model
+    deformable = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
+    q = starting_configuration(problem, q_init)
+    free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline, creep=True)
+    iterations = free.iterations
+    status, violation = free.statistics["status"], free.statistics["violation"]
+    hopeless = status in ("stagnated", NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+    if free.feasible or status == _OUT_OF_TIME or hopeless:
+        return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
+    # Cut short or stalled near a solution: go on from there; far from it: from the start.
+    from_start = violation > _CONTACT_SET_VIOLATION
+    q = start = q if from_start else free.q
+    # From the start, the modes held are those of the start's own contact variables (the
+    # rigid answer's loads pressing the prints in): W read off that posture leaves every
+    # node lifting off, with no force gradient, and the attempt began each ball's share of
+    # the weight short (quadruped-foam: 153 -> 133 solver calls and 2,621 -> 2,293 SQP
+    # iterations over 10 seeds; no other suite scene took this path). Later attempts
+    # start from W read off their posture, where the last attempt's rows held.
+    given = lam_init if from_start else None
+    held = None  # the modes the last attempt held
+    for _ in range(attempts):
+        variables = problem.initial_variables(q)  # runs the kinematics at q
+        if given is not None:
+            variables = given
+        pin.computeJointJacobians(model, problem.data, q)  # the print points' Jacobians
+        try:
+            modes = [contact.freeze_modes(model, problem.data, variables[s]) for contact, s in deformable]
+            if held is not None and all(np.array_equal(a, b) for a, b in zip(modes, held)):
+                # Where the last attempt stalled the nodes are in the modes it held: the
+                # contact set is settled and it is not what fails. Holding the modes again
+                # repeats the stall (a palm stance of rail-over-gap: three attempts of 27
+                # iterations each, 0.9 s, ending at the same 2.8e-7), and so did the free
+                # stage from the start, its 27 iterations the attempt's (the only two
+                # final free stages of the suite's 701 Coulomb solves, 10 seeds: neither
+                # feasible). The attempt is the answer, unless its iteration cap, not a
+                # stall, ended it: the uncapped free stage below goes on.
+                if attempt.statistics["status"] != "iteration limit":
+                    return _with(attempt, iterations=iterations)
+                break
+            held = modes
+            attempt = solve_problem(problem, q, lam_init=given, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
+        finally:
+            for contact, _ in deformable:
+                contact.release_modes()
+        iterations += attempt.iterations
+        if attempt.feasible or attempt.statistics["status"] == _OUT_OF_TIME:
+            return _with(attempt, iterations=iterations)
+        if attempt.statistics["violation"] > _CONTACT_SET_VIOLATION:
+            # Far from feasible: not a matter of the contact set, a stance that cannot be held.
+            if from_start and free.statistics["violation"] < attempt.statistics["violation"]:
+                # The attempts began from the start, the first stage having ended far
+                # too: its answer came closer, and its posture and reason say more
+                # (both soles on 3e4 Pa foam: the first stage stops at the strain
+                # bound, 4.9 scaled; held modes read at the rigid answer, where the
+                # prints barely touch, stop at a 511 N imbalance).
+                return _with(free, iterations=iterations)
+            return _with(attempt, iterations=iterations)
+        q, given = attempt.q, None
+    free = solve_problem(problem, start, deadline=deadline)
+    return _with(free, iterations=iterations + free.iterations)
+
+
+def _changed(options) -> dict:
+    """The options that differ from their defaults: what a result records, so that
+    a later check (``Plan.check``) verifies with what the stance was solved with."""
+    defaults = type(options)()  # resolved defaults (a weight may follow another option)
+    return {f.name: getattr(options, f.name) for f in fields(options) if getattr(options, f.name) != getattr(defaults, f.name)}
+
+
+def _time_budget(value) -> float:
+    """A validated time budget, seconds."""
+    try:
+        seconds = float(value)
+    except (TypeError, ValueError):
+        raise StanceError(f"time_budget must be a number of seconds or None, got {value!r}") from None
+    if not seconds > 0 or not np.isfinite(seconds):
+        raise StanceError(f"time_budget must be positive and finite seconds (or None), got {value!r}")
+    return seconds
+
+
+def posture_options(options: dict) -> PostureOptions:
+    """PostureOptions from keyword arguments, naming the valid ones on a typo."""
+    valid = set(PostureOptions.__dataclass_fields__)
+    unknown = sorted(set(options) - valid)
+    if unknown:
+        raise StanceError(f"unknown posture option(s) {unknown}; valid options: {sorted(valid)}")
+    return PostureOptions(**options)
