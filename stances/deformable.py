@@ -68,7 +68,8 @@ depended on last bits.) The traction model (eq. 44, turned normals) keeps its
 posture-dependent reaction: ``f = R(q) U(q) + D (W - A xi(q))``.
 
 The stiff limit. A body that gives by micrometres under the stance's loads has W weighed
-where its nodes, some lifted off, carry something else; there the stance is solved held
+where its nodes, some lifted off, carry something else (not where all stick:
+:meth:`DeformableContact.sticks`); there the stance is solved held
 rigid and the links' motion whose Coulomb forces carry that answer is found by inverting
 the contact law (:meth:`DeformableContact.held_prints`, :meth:`~DeformableContact.carrying_variables`,
 ``stances.stages._solve_stiff_limit``).
@@ -894,6 +895,21 @@ class DeformableContact:
         """The body's give under W (6L,), metres: the largest component of the bonded
         print nodes' motion ``G A^-1 W``."""
         return float(np.abs(self.rigid_motion @ np.asarray(w, dtype=float)).max())
+
+    def sticks(self, w) -> bool:
+        """Whether under W (6L,) every node would stick: the bonded forces ``R G A^-1 W``
+        (W's own, which W's force term weighs) each push and lie in their node's cone.
+
+        Then they are the Coulomb forces too, and the solve through W weighs what the
+        nodes carry (soles flat on a steel-stiff block, at the rigid answer's loads);
+        where some node would pull or slip (a palm on its edge) the nodes carry another
+        wrench than W: the stiff limit's reason. One solve with the print's kept Cholesky
+        factor; the contact solve's state is untouched.
+        """
+        forces = -self.patch.link_solve(self.rigid_motion @ np.asarray(w, dtype=float)).reshape(-1, 3)
+        local = np.einsum("pij,pj->pi", self.node_frames, forces)  # (tangential x, y, normal)
+        return bool(np.all(self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
+                    and np.all(local[:, 2] >= 0.0))
 
     def held_prints(self) -> dict:
         """Each print held rigid in the body's stiff limit.

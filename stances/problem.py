@@ -213,8 +213,9 @@ class PostureOptions:
         meaningful near the print, so this homotopy makes solves reliable.
     stiff_limit : bool
         With Coulomb contact and the energy term (``deformation_cost="energy"``): where
-        soft bodies of the stance have flat prints only and give less than 10 um under
-        the stance's loads (those of the rigid warm start, or ``lam_init``'s), the stance
+        soft bodies of the stance have flat prints only, give less than 10 um under the
+        stance's loads (those of the rigid warm start, or ``lam_init``'s) and have nodes
+        those loads would lift off or slide (a palm on its edge; not soles flat), the stance
         is solved in those bodies' stiff limit: their prints held rigid with their centre
         of pressure where their nodes are (the other soft bodies solved soft with them),
         the links' motion whose Coulomb forces carry that answer then found, and the

@@ -251,9 +251,12 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
 
     1. the stiff bodies: those whose contact is a
-       :class:`~stances.deformable.DeformableContact` of flat prints and whose bonded
+       :class:`~stances.deformable.DeformableContact` of flat prints, whose bonded
        nodes the loads ``lam`` move less than ``_STIFF_GIVE``
-       (:meth:`~stances.deformable.DeformableContact.stiff_give`); at least one;
+       (:meth:`~stances.deformable.DeformableContact.stiff_give`), and some of whose
+       nodes would pull or slip under them (not
+       :meth:`~stances.deformable.DeformableContact.sticks`: where all stick, W carries
+       what they carry and the solve through W tends to the rigid support's); at least one;
     2. the stance with the stiff bodies held rigid, each of their prints' centre of
        pressure where its nodes are, its resultant in the friction margin's pyramid
        (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
@@ -299,7 +302,8 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
     stiff = [(c, s) for c, s in soft
-             if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE]
+             if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE
+             and not c.sticks(lam[s])]
     if not stiff:
         return None
     mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
