@@ -906,10 +906,11 @@ class DeformableContact:
         wrench than W: the stiff limit's reason. One solve with the print's kept Cholesky
         factor; the contact solve's state is untouched.
         """
-        forces = -self.patch.link_solve(self.rigid_motion @ np.asarray(w, dtype=float)).reshape(-1, 3)
+        w = np.asarray(w, dtype=float)
+        forces = -self.patch.link_solve(self.rigid_motion @ w + self._rotation_residue(w)).reshape(-1, 3)
         local = np.einsum("pij,pj->pi", self.node_frames, forces)  # (tangential x, y, normal)
-        return bool(np.all(self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
-                    and np.all(local[:, 2] >= 0.0))
+        inside = np.isinf(self.node_mu) | (self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
+        return bool(np.all(inside) and np.all(local[:, 2] >= 0.0))
 
     def held_prints(self) -> dict:
         """Each print held rigid in the body's stiff limit.

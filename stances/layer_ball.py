@@ -691,6 +691,15 @@ class LayerBalls:
                 kept.popitem(last=False)
         return kept[key]
 
+    def solver_state(self) -> tuple:
+        """What a solve leaves behind that the next one starts from (the strain rows verify
+        added): for :meth:`restore_solver_state`."""
+        return self._strain_outlier, self.extra_strain_tets
+
+    def restore_solver_state(self, state) -> None:
+        """Back to a :meth:`solver_state`: a solve abandoned leaves no trace in the next."""
+        self._strain_outlier, self.extra_strain_tets = state
+
     def take_strain_outlier(self) -> bool:
         """Make the tet of the last verify's strain failure a strain row of its nearest
         ball, if it lay outside the rows; True if it did (the SQP then goes on)."""

@@ -945,6 +945,9 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
                 contacts.append(deformable_object)  # placeholder, replaced below
             deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
         elif robot.surface(contact.robot_surface).is_point:
+            if held is not None:
+                raise StanceError(f"held_prints names {contact.robot_surface}, a point foot: only prints with a "
+                                  f"polygon are held in a body's stiff limit")
             contacts.append(PointContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
         elif held is not None:
             if surface.deformable:

@@ -220,7 +220,7 @@ def _reaches(problem) -> bool:
     Not where a print lies on a soft body's mesh: such a solve starts from its rigid
     warm start's answer, and from the reaching start the palms' warm starts took longer
     (hand-on-cube 8 -> 12 iterations, its solve 1.6 times the CPU; the 15 built-in soft
-    stances' median 1.06 times); :func:`solve` starts their warm starts from the posture
+    stances' median 1.06 times); :func:`stances.stages.solve` starts their warm starts from the posture
     over the prints.
     """
     return problem.options.reaching_start and not any(c.kind == "deformable" for c in problem.contacts)

@@ -301,6 +301,12 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         ``qp_time`` the held solve's.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
+    if any(c.kind == "deformable" and len(c.point_prints) for c, _ in soft):
+        # Balls pressing a body's nodes (ball_contact="nodes", a body that is no layer):
+        # their contact system exists before the attempt (the rigid answer's loads are
+        # shared among the balls through it) and would keep what the attempt's solves
+        # leave in it. Such a stance goes through W.
+        return None
     stiff = [(c, s) for c, s in soft
              if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE
              and not c.sticks(lam[s])]
@@ -324,7 +330,11 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         held_prints.update(contact.held_prints())
     if mixed:
         held = build(options, held_prints)
-        answer = _solve_coulomb(held, q, deadline, lam_init=_held_start(held, problem, q, lam, warm))
+        forces = _held_start(held, problem, q, lam, warm)
+        if any(c.kind == "deformable" for c in held.contacts):
+            answer = _solve_coulomb(held, q, deadline, lam_init=forces)
+        else:  # the other soft bodies are balls on layers: no contact sets to settle
+            answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
     else:
         held = build(replace(options, deformable_as_rigid=True), held_prints)
         answer = solve_problem(held, q, lam_init=_held_start(held, problem, q, lam, warm), deadline=deadline, check=False)
