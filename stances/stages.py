@@ -308,8 +308,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         # leave in it. Such a stance goes through W.
         return None
     stiff = [(c, s) for c, s in soft
-             if c.kind == "deformable" and not len(c.point_prints) and c.stiff_give(lam[s]) <= _STIFF_GIVE
-             and not c.sticks(lam[s])]
+             if c.kind == "deformable" and c.stiff_give(lam[s]) <= _STIFF_GIVE and not c.sticks(lam[s])]
     if not stiff:
         return None
     mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
@@ -328,16 +327,12 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     held_prints = {}
     for contact, _ in stiff:
         held_prints.update(contact.held_prints())
-    if mixed:
-        held = build(options, held_prints)
-        forces = _held_start(held, problem, q, lam, warm)
-        if any(c.kind == "deformable" for c in held.contacts):
-            answer = _solve_coulomb(held, q, deadline, lam_init=forces)
-        else:  # the other soft bodies are balls on layers: no contact sets to settle
-            answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
-    else:
-        held = build(replace(options, deformable_as_rigid=True), held_prints)
-        answer = solve_problem(held, q, lam_init=_held_start(held, problem, q, lam, warm), deadline=deadline, check=False)
+    held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
+    forces = _held_start(held, problem, q, lam, warm)
+    if any(c.kind == "deformable" for c in held.contacts):
+        answer = _solve_coulomb(held, q, deadline, lam_init=forces)
+    else:  # every body held, or the others balls on layers: no contact sets to settle
+        answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
     if not answer.feasible:
         return abandon("held rigid, %s", answer.reason)
     q = np.asarray(answer.q, dtype=float)
