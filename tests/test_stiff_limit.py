@@ -16,6 +16,7 @@ import numpy as np
 import pinocchio as pin
 import pytest
 
+import cbm.planner
 import environments
 import stances.deformable
 import stances.stages
@@ -48,18 +49,20 @@ def rigid_answer(robot, steel_cube):
     return answer
 
 
-def _hand_on_cube_beside_a_mat(young_modulus):
-    """hand-on-cube at ``young_modulus`` with its soles on a 5 cm foam mat (E = 1e6 Pa)
-    instead of the floor: one stiff body and one soft in a stance, and that stance."""
+def _beside_a_mat(young_modulus):
+    """hand-on-cube's scenario at ``young_modulus``, its soles on a 5 cm foam mat (E = 1e6 Pa)
+    instead of the floor in both its stances: one stiff body and one soft in a stance."""
     text = environments.builtin_scenario_path("hand-on-cube").read_text()
     text = text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0")
     mat = ("  - {name: mat, type: soft_box, size: [0.6, 0.6, 0.05], center: [0.0, 0.0, 0.025],\n"
            "     material: {E: 1.0e+6, nu: 0.4, rho: 100.0}, resolution: default}\nstances:")
-    text = text.replace("stances:", mat, 1)
-    soles = "    left_sole: {surface: floor, x: 0.0, y: 0.085}\n    right_sole: {surface: floor, x: 0.0, y: -0.085}\n"
-    on_mat = soles.replace("surface: floor", "surface: mat_top")
-    head, tail = text.split("  hand-on-cube:\n")
-    scenario = environments.load_string(head + "  hand-on-cube:\n" + tail.replace(soles, on_mat, 1), name="hand-on-cube")
+    text = text.replace("stances:", mat, 1).replace("{surface: floor,", "{surface: mat_top,")
+    return environments.load_string(text, name="hand-on-cube")
+
+
+def _hand_on_cube_beside_a_mat(young_modulus):
+    """The scene of :func:`_beside_a_mat` and its hand-on-cube stance."""
+    scenario = _beside_a_mat(young_modulus)
     return scenario.scene, scenario.stance("hand-on-cube")
 
 
@@ -433,3 +436,15 @@ def test_balls_on_a_layer_put_their_solver_state_back(anymal):
     layer._strain_outlier, layer.extra_strain_tets = 7, (3,)  # as a verify and a strain round leave them
     layer.restore_solver_state(state)
     assert layer.solver_state() == state == (None, ())
+
+
+def test_a_plan_from_a_foam_mat_to_a_steel_stiff_cube_ends_in_the_stiff_limit_and_checks(robot):
+    """The planner's path through the mixed stiff limit: from standing on the mat to the palm
+    on the 1e10 Pa cube (2 solver calls, 2.1 s measured), its last stance held in the limit,
+    and the plan re-verified by Plan.check on what it shows."""
+    plan = cbm.planner.plan(_beside_a_mat(1e10), seed=0, progress=False)
+    assert plan.success, plan.reason
+    assert plan.stances[-1].result.statistics["stiff_limit"] is True
+    check = plan.check()
+    assert check.ok, check.problems
+
