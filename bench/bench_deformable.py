@@ -167,34 +167,30 @@ def _mode_counts(robot, scenario, stance, result):
     return " / ".join(str(c) for c in counts)
 
 
-#: Stiffness sweeps: (scenario, stance, what touches the soft cube, its robot surface,
-#: soles on a foam mat), the cube's E = 1e6 Pa set to each of STIFFNESS.
-SWEEPS = (("step-on-cube", "step-on-cube", "sole", "right_sole", False),
-          ("hand-on-cube", "hand-on-cube", "palm", "right_palm", False),
-          ("hand-on-cube", "hand-on-cube", "palm", "right_palm", True))
-
-#: The foam mat under the soles of the third sweep (E = 1e6 Pa, 5 cm thick).
-MAT = ("  - {name: mat, type: soft_box, size: [0.6, 0.6, 0.05], center: [0.0, 0.0, 0.025],\n"
-       "     material: {E: 1000000.0, nu: 0.4, rho: 100.0}, resolution: default}\n")  # not the cube's "E: 1.0e+6"
-
-
-def sweep_text(name, on_mat=False) -> str:
-    """The scenario's YAML; ``on_mat``: with MAT under the soles of its stances."""
-    text = environments.builtin_scenario_path(name).read_text()
-    if not on_mat:
-        return text
-    objects, stances_text = text.split("stances:\n")
-    return objects + MAT + "stances:\n" + stances_text.replace("{surface: floor,", "{surface: mat_top,")
+#: Stiffness sweeps: (scenario, stance, what touches the soft cube, the rigid support's
+#: options), the cube's E = 1e6 Pa set to each of STIFFNESS. The last has its soles on a foam
+#: mat (a stiff body and a soft one in one stance): its rigid support holds the palm rigid and
+#: leaves the mat soft.
+RIGID = {"deformable_as_rigid": True}
+SWEEPS = (("step-on-cube", "step-on-cube", "sole", RIGID),
+          ("hand-on-cube", "hand-on-cube", "palm", RIGID),
+          (os.path.join(os.path.dirname(__file__), "scenes", "stiffness", "hand-on-cube-from-a-mat.yaml"),
+           "hand-on-cube", "palm", {"rigid_prints": ("right_palm",)}))
 
 
-def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft_link="sole", surface="right_sole",
-                    on_mat=False):
-    text = sweep_text(name, on_mat)
+def scenario_text(name) -> str:
+    """A built-in scenario's YAML, or a file's."""
+    path = name if os.path.isfile(name) else environments.builtin_scenario_path(name)
+    with open(path) as handle:
+        return handle.read()
+
+
+def stiffness_table(robot, name="step-on-cube", stance_name="step-on-cube", soft_link="sole", reference=None):
+    text = scenario_text(name)
+    name = os.path.splitext(os.path.basename(name))[0]
     base = environments.load_string(text, name=name)
     stance = base.stance(stance_name)
-    # The rigid support: the cube's prints held rigid, the mat (where there is one) soft.
-    reference = {"rigid_prints": (surface,)} if on_mat else {"deformable_as_rigid": True}
-    _, rigid = timed_solve(robot, base.scene, stance, **reference)
+    _, rigid = timed_solve(robot, base.scene, stance, **(reference or RIGID))
     runs = []
     for young_modulus in STIFFNESS:
         # Weightless: at 1e4 Pa a 1,000 kg/m^3 cube cannot hold its own weight within
@@ -239,12 +235,12 @@ def main():
     sweeps_only = "--sweeps" in sys.argv[1:]
     rows = [] if sweeps_only else stance_table(robot)
     sweeps = []
-    for name, stance_name, soft_link, surface, on_mat in SWEEPS:
+    for name, stance_name, soft_link, reference in SWEEPS:
         mat = ", the soles on a 5 cm foam mat at 1e6 Pa (the rigid support: the palm held rigid, the mat soft)"
-        sweep_header = ["", f"## Stiffness sweep ({name}: the {soft_link} on the soft cube, weightless: rho = 0"
-                        f"{mat if on_mat else ''})", ""]
+        sweep_header = ["", f"## Stiffness sweep ({os.path.splitext(os.path.basename(name))[0]}: the {soft_link} on "
+                        f"the soft cube, weightless: rho = 0{'' if reference is RIGID else mat})", ""]
         print("\n".join(sweep_header), flush=True)
-        sweeps += sweep_header + stiffness_table(robot, name, stance_name, soft_link, surface, on_mat)
+        sweeps += sweep_header + stiffness_table(robot, name, stance_name, soft_link, reference)
     text = "\n".join(header + rows + sweeps) + "\n"
     path = os.path.join(os.path.dirname(__file__), "results", "stiffness.md" if sweeps_only else "deformable.md")
     with open(path, "w") as handle:

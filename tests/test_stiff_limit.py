@@ -17,6 +17,7 @@ import pinocchio as pin
 import pytest
 
 import cbm.planner
+from conftest import BENCH
 import environments
 import stances.deformable
 import stances.stages
@@ -26,6 +27,7 @@ from stances.errors import StanceError
 from stances.problem import PostureOptions, build_problem
 
 PALM = "right_palm"
+MAT_SCENE = BENCH / "scenes" / "stiffness" / "hand-on-cube-from-a-mat.yaml"
 
 
 def _hand_on_cube(young_modulus):
@@ -50,13 +52,10 @@ def rigid_answer(robot, steel_cube):
 
 
 def _beside_a_mat(young_modulus):
-    """hand-on-cube's scenario at ``young_modulus``, its soles on a 5 cm foam mat (E = 1e6 Pa)
-    instead of the floor in both its stances: one stiff body and one soft in a stance."""
-    text = environments.builtin_scenario_path("hand-on-cube").read_text()
-    text = text.replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0")
-    mat = ("  - {name: mat, type: soft_box, size: [0.6, 0.6, 0.05], center: [0.0, 0.0, 0.025],\n"
-           "     material: {E: 1.0e+6, nu: 0.4, rho: 100.0}, resolution: default}\nstances:")
-    text = text.replace("stances:", mat, 1).replace("{surface: floor,", "{surface: mat_top,")
+    """hand-on-cube's scenario with its soles on a 5 cm foam mat (E = 1e6 Pa,
+    ``bench/scenes/stiffness/hand-on-cube-from-a-mat.yaml``), the cube weightless at
+    ``young_modulus``: one stiff body and one soft in a stance."""
+    text = MAT_SCENE.read_text().replace("E: 1.0e+6", f"E: {young_modulus:.1e}").replace("rho: 1.0e+3", "rho: 0.0")
     return environments.load_string(text, name="hand-on-cube")
 
 
