@@ -70,6 +70,11 @@ def steel_cube_beside_a_mat():
     return _hand_on_cube_beside_a_mat(1e10)
 
 
+def _force(robot, result, surface):
+    """(3,) the total force on ``surface``'s frame, world, newtons."""
+    frame = robot.surface(surface).frame
+    return sum(np.array(p.force) for p in result.point_forces if p.frame == frame)
+
 def _palm_wrench(robot, result):
     """(6,) the palm's force (N) and moment about its contact frame (N m), that frame's axes."""
     data = robot.model.createData()
@@ -286,8 +291,7 @@ def test_prints_coupled_on_one_stiff_body_and_two_stiff_bodies_tend_to_the_rigid
     assert held.feasible and held.statistics["stiff_limit"] is True, held.reason
     for result in (through_w, held):
         for sole in ("left_sole", "right_sole"):
-            frame = robot.surface(sole).frame
-            soft, expected = (sum(np.array(p.force) for p in r.point_forces if p.frame == frame) for r in (result, rigid))
+            soft, expected = _force(robot, result, sole), _force(robot, rigid, sole)
             assert np.linalg.norm(soft - expected) < 2e-3 * np.linalg.norm(expected)
 
 
@@ -311,10 +315,6 @@ def test_a_print_sticks_where_its_bonded_forces_push_inside_their_cones(robot, s
     within = down + np.r_[rotation @ np.array([0.2 * mu * 80.0, 0.0, 0.0]), np.zeros(3)]
     assert soft.sticks(within)
 
-
-def _force(robot, result, surface):
-    frame = robot.surface(surface).frame
-    return sum(np.array(p.force) for p in result.point_forces if p.frame == frame)
 
 
 def test_held_prints_hold_their_body_and_leave_the_others_soft(robot, steel_cube_beside_a_mat):
