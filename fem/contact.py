@@ -890,7 +890,6 @@ def _slip_directions(phi, r, scale, mu, modes, directions):
 
 def _update_modes(phi, r, scale, mu):
     """Modes, slip directions and Newton gains from the complementarity functions of Signorini and Coulomb."""
-    p = phi.shape[0]
     # Contact where the normal force minus the scaled gap is not negative (a
     # node exactly at the surface touches: its bonded Jacobian tells a solver
     # that pressing makes force).

@@ -81,8 +81,8 @@ _ELASTIC_PROGRESS = 0.9
 # point on a sphere 17 % above its optimum (see the toy tests).
 _CRAWL_REGION = 0.1
 _SMALLEST_REGION = 0.01
-_OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
-_QP_FAILED = "the QP solver returned no finite step"
+OUT_OF_TIME = "time budget spent"  # the SQP status when a deadline stops it
+QP_FAILED = "the QP solver returned no finite step"
 # proxsuite's iteration limit for a QP without the elastic variable: a compatible one
 # took at most 35 on the 60 random rigid stances (341 QPs); one whose rows are not compatible
 # gives up here and is solved as the elastic QP.
@@ -207,11 +207,11 @@ def solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dead
             return _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
         first = _solve_problem(problem, reached, None, max_iterations, deadline, check, creep)
         out_of_time = deadline is not None and time.perf_counter() >= deadline
-        if first.feasible or first.statistics.get("status") == _OUT_OF_TIME or out_of_time:
+        if first.feasible or first.statistics.get("status") == OUT_OF_TIME or out_of_time:
             return first
         second = _solve_problem(problem, over_prints, None, max_iterations, deadline, check, creep)
         statistics = dict(second.statistics, first_start={"iterations": first.iterations, "reason": first.reason})
-        return _with(second, statistics=statistics, solve_time=first.solve_time + second.solve_time)
+        return replace(second, statistics=statistics, solve_time=first.solve_time + second.solve_time)
 
 
 def _reaches(problem) -> bool:
@@ -268,7 +268,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
     )
     limit = options.max_iterations if max_iterations is None else min(max_iterations, options.max_iterations)
     outcome = run_sqp(problem, q, lam, limit, deadline, creep)
-    result = _result(problem, outcome, time.perf_counter() - start, check)
+    result = posture_result(problem, outcome, time.perf_counter() - start, check)
     iterations = outcome.iterations
     soft = [contact for contact in problem.contacts if contact.deformable_object is not None]
     for _ in range(_STRAIN_ROUNDS):
@@ -278,7 +278,7 @@ def _solve_problem(problem, q_init=None, lam_init=None, max_iterations=None, dea
             break
         outcome = run_sqp(problem, outcome.q, outcome.lam, limit, deadline, creep)
         iterations += outcome.iterations
-        result = _with(_result(problem, outcome, time.perf_counter() - start, check), iterations=iterations)
+        result = replace(posture_result(problem, outcome, time.perf_counter() - start, check), iterations=iterations)
     return result
 
 
@@ -397,7 +397,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
     last_elastic = None  # the elastic value of the last step taken (see _ELASTIC_PROGRESS)
     for iteration in range(1, limit + 1):
         if deadline is not None and time.perf_counter() > deadline:
-            status, iteration = _OUT_OF_TIME, iteration - 1
+            status, iteration = OUT_OF_TIME, iteration - 1
             break
         violation, _ = linearization.max_violation()
         if torque_weight != options.torque_weight and violation <= _USAGE_PHASE:
@@ -440,7 +440,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             # proxsuite can diverge at the largest penalties (measured: NaN at a
             # penalty of 1e8 on an infeasible quadruped stance, which then raised
             # in the next linearisation): no step to take, the iterate is the answer.
-            status = _QP_FAILED
+            status = QP_FAILED
             break
         step, elastic = x[:-1], max(x[-1], 0.0)
         compatible = elastic <= tolerance
@@ -771,7 +771,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
                      or (violation <= _USAGE_PHASE and trial_violation >= _CORRECTION_GROWTH * violation))):
             if alpha != 1.0:
                 trial = problem.linearize(q_try, lam_try, torque_weight)
-            corrected = _restoration_step(problem, trial, q_try, lam_try, correction)
+            corrected = restoration_step(problem, trial, q_try, lam_try, correction)
             if corrected is not None:
                 values = problem.evaluate(*corrected, torque_weight)
                 if sufficient(values.objective, values.max_violation()[0], alpha):
@@ -780,7 +780,7 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     return None, alpha, False
 
 
-def _result(problem, outcome, elapsed, check=True) -> PostureResult:
+def posture_result(problem, outcome, elapsed, check=True) -> PostureResult:
     """The answer at the SQP's last iterate, checked by :func:`stances.verify` when
     feasible (and ``check``; an unchecked answer keeps the SQP's own verdict)."""
     q, lam, linearization, feasible = outcome.q, outcome.lam, outcome.linearization, outcome.feasible
@@ -816,9 +816,9 @@ def _result(problem, outcome, elapsed, check=True) -> PostureResult:
         verification = verify_problem(problem, result, fields=fields)
         deformations.provide(fields)
         if verification.ok:
-            result = _with(result, verification=verification, feasible=True, reason="")
+            result = replace(result, verification=verification, feasible=True, reason="")
         elif feasible:
-            result = _with(result, verification=verification, feasible=False,
+            result = replace(result, verification=verification, feasible=False,
                            reason="verification failed: " + "; ".join(verification.reasons))
     return result
 
@@ -830,7 +830,7 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     -------
     (q, lam, Linearization) at the restored point.
     """
-    restored = _restoration_step(problem, linearization, q, lam, workspace)
+    restored = restoration_step(problem, linearization, q, lam, workspace)
     return None if restored is None else (*restored, problem.linearize(*restored, torque_weight))
 
 
@@ -860,7 +860,7 @@ def _optimality_gain(linearization, step) -> float:
     return 0.5 * float(step @ linearization.hessian @ step)
 
 
-def _restoration_step(problem, linearization, q, lam, workspace):
+def restoration_step(problem, linearization, q, lam, workspace):
     """The point :func:`_restoration` goes to, ``(q, lam)``, or None."""
     n = len(linearization.gradient)
     metric = np.ones(n)
@@ -919,12 +919,6 @@ def _field_producer(contact, model, q, forces):
         return contact.displacement_field(model, data, forces)
 
     return produce
-
-
-def _with(result, **changes) -> PostureResult:
-    values = {name: getattr(result, name) for name in result.__dataclass_fields__}
-    values.update(changes)
-    return PostureResult(**values)
 
 
 def problem_point_forces(problem, linearization, q) -> tuple:

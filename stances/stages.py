@@ -31,7 +31,7 @@ from .errors import ConfigurationError, StanceError
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PostureResult
-from .sqp import _OUT_OF_TIME, _QP_FAILED, SqpOutcome, _restoration_step, _result, _with, solve_problem
+from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
 from .stopping import NO_PROGRESS
 
 logger = logging.getLogger(__name__)
@@ -138,7 +138,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
         return PostureResult(
             feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
-            solve_time=time.perf_counter() - start, stance=stance, statistics={"status": _OUT_OF_TIME},
+            solve_time=time.perf_counter() - start, stance=stance, statistics={"status": OUT_OF_TIME},
             reason=_budget_spent(time_budget, str(stop)),
         )
 
@@ -187,8 +187,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # millimetres will not save it. Cheap rejection, with its reason (the
             # soft solve of such a stance was measured at 10-40 s).
             statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
-            reason = warm.reason if warm.statistics["status"] == _OUT_OF_TIME else f"held rigid, {warm.reason}"
-            return _timed_out(_with(warm, reason=reason, statistics=statistics,
+            reason = warm.reason if warm.statistics["status"] == OUT_OF_TIME else f"held rigid, {warm.reason}"
+            return _timed_out(replace(warm, reason=reason, statistics=statistics,
                                     solve_time=time.perf_counter() - start, stance=stance), time_budget)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: W read off it, A xi(q),
@@ -213,7 +213,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         result = _solve_coulomb(problem, q_init, deadline, lam_init=lam_init)
         # (The bonded model cannot press a ball's nodes: a body a ball presses keeps Coulomb's.)
         balls = any(len(c.point_prints) for c in problem.contacts if c.kind == "deformable")
-        if (not result.feasible and result.statistics["status"] != _OUT_OF_TIME
+        if (not result.feasible and result.statistics["status"] != OUT_OF_TIME
                 and result.statistics["violation"] <= _CONTACT_SET_VIOLATION and rigid is not None and not balls):
             # Not from there, though near feasible (far from it, the stance cannot be
             # held, wherever it starts: both soles on foam at 3e4 Pa, which the strain
@@ -237,7 +237,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
     if stiff is not None:
         statistics["stiff_limit"] = True
     # solve_time covers everything this call did: building, warm start, SQP, verification.
-    return _timed_out(_with(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
+    return _timed_out(replace(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
 
 
 def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None):
@@ -353,7 +353,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     q, lam, linearization, steps = lifted
     outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
                          answer.statistics["qp_time"], True, "")
-    result = _result(problem, outcome, time.perf_counter() - start)
+    result = posture_result(problem, outcome, time.perf_counter() - start)
     if not result.feasible:
         return abandon("%s", result.reason)
     return result
@@ -409,7 +409,7 @@ def _lift(problem, q, lam, held):
         lower, upper = linearization.step_lower.copy(), linearization.step_upper.copy()
         for s in held:
             lower[nv + s.start : nv + s.stop] = upper[nv + s.start : nv + s.stop] = 0.0
-        restored = _restoration_step(problem, replace(linearization, step_lower=lower, step_upper=upper), q, lam,
+        restored = restoration_step(problem, replace(linearization, step_lower=lower, step_upper=upper), q, lam,
                                      workspace)
         if restored is None:
             return None
@@ -421,9 +421,9 @@ def _lift(problem, q, lam, held):
 def _timed_out(result, time_budget) -> PostureResult:
     """Say first in an infeasible answer's reason that the time budget stopped it, then
     what the last iterate still violated (a state when the time ran out, not a verdict)."""
-    if result.feasible or result.statistics.get("status") != _OUT_OF_TIME:
+    if result.feasible or result.statistics.get("status") != OUT_OF_TIME:
         return result
-    return _with(result, reason=_budget_spent(time_budget, f"at the last iterate: {result.reason}"))
+    return replace(result, reason=_budget_spent(time_budget, f"at the last iterate: {result.reason}"))
 
 
 def _budget_spent(time_budget, state) -> str:
@@ -462,8 +462,8 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline, creep=True)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
-    hopeless = status in ("stagnated", NO_PROGRESS, _QP_FAILED) and violation > _CONTACT_SET_VIOLATION
-    if free.feasible or status == _OUT_OF_TIME or hopeless:
+    hopeless = status in ("stagnated", NO_PROGRESS, QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+    if free.feasible or status == OUT_OF_TIME or hopeless:
         return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
     # Cut short or stalled near a solution: go on from there; far from it: from the start.
     from_start = violation > _CONTACT_SET_VIOLATION
@@ -493,7 +493,7 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
                 # feasible). The attempt is the answer, unless its iteration cap, not a
                 # stall, ended it: the uncapped free stage below goes on.
                 if attempt.statistics["status"] != "iteration limit":
-                    return _with(attempt, iterations=iterations)
+                    return replace(attempt, iterations=iterations)
                 break
             held = modes
             attempt = solve_problem(problem, q, lam_init=given, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
@@ -501,8 +501,8 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
             for contact, _ in deformable:
                 contact.release_modes()
         iterations += attempt.iterations
-        if attempt.feasible or attempt.statistics["status"] == _OUT_OF_TIME:
-            return _with(attempt, iterations=iterations)
+        if attempt.feasible or attempt.statistics["status"] == OUT_OF_TIME:
+            return replace(attempt, iterations=iterations)
         if attempt.statistics["violation"] > _CONTACT_SET_VIOLATION:
             # Far from feasible: not a matter of the contact set, a stance that cannot be held.
             if from_start and free.statistics["violation"] < attempt.statistics["violation"]:
@@ -511,11 +511,11 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
                 # (both soles on 3e4 Pa foam: the first stage stops at the strain
                 # bound, 4.9 scaled; held modes read at the rigid answer, where the
                 # prints barely touch, stop at a 511 N imbalance).
-                return _with(free, iterations=iterations)
-            return _with(attempt, iterations=iterations)
+                return replace(free, iterations=iterations)
+            return replace(attempt, iterations=iterations)
         q, given = attempt.q, None
     free = solve_problem(problem, start, deadline=deadline)
-    return _with(free, iterations=iterations + free.iterations)
+    return replace(free, iterations=iterations + free.iterations)
 
 
 def _changed(options) -> dict:

@@ -473,7 +473,7 @@ def test_a_qp_without_a_finite_answer_ends_the_solve_as_infeasible(monkeypatch):
     monkeypatch.setattr(QPWorkspace, "solve", diverging)
     start = np.zeros(3)
     outcome = run_sqp(problem, start, np.zeros(0), limit=100)
-    assert not outcome.feasible and outcome.status == sqp._QP_FAILED
+    assert not outcome.feasible and outcome.status == sqp.QP_FAILED
     assert np.all(np.isfinite(outcome.q))
     assert "(the QP solver returned no finite step after 3 iterations)" in outcome.reason
 
@@ -819,7 +819,7 @@ def _run_scripted(monkeypatch, script):
 
 
 def test_a_restoration_step_is_the_shortest_step_onto_compatible_rows_and_relaxes_contradicting_ones():
-    """sqp._restoration_step from (0.4, 0, 0): onto q_x + q_y = 0.5, the shortest step
+    """sqp.restoration_step from (0.4, 0, 0): onto q_x + q_y = 0.5, the shortest step
     (solved without the elastic variable: the rows are compatible within the trust
     region), to (0.45, 0.05, 0); onto q_x = 0 and q_x = 1, which no step meets, the
     elastic QP's least violation, q_x = 1/2."""
@@ -831,7 +831,7 @@ def test_a_restoration_step_is_the_shortest_step_onto_compatible_rows_and_relaxe
     for rows, expected in ((one_row, [0.45, 0.05, 0.0]), (contradicting_rows, [0.5, 0.0, 0.0])):
         problem = ToyProblem(squared_distance_to(INFEASIBLE_TARGET), rows)
         workspace = QPWorkspace()
-        q, _ = sqp._restoration_step(problem, problem.linearize(start, np.zeros(0)), start, np.zeros(0), workspace)
+        q, _ = sqp.restoration_step(problem, problem.linearize(start, np.zeros(0)), start, np.zeros(0), workspace)
         np.testing.assert_allclose(q, expected, atol=1e-6)
         assert workspace.solved
 

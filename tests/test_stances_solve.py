@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import warnings
@@ -448,7 +449,6 @@ def test_solver_never_raises_on_an_impossible_stance(robot):
 
 def test_verify_catches_links_inside_the_deformed_support(robot, deformable_results):
     """Moved 0.5 m forward, the robot's body enters the cube: verify says which link."""
-    import dataclasses
 
     scenario = coarse_scenario("hand-on-cube")
     stance = scenario.stance("hand-on-cube")
@@ -473,7 +473,6 @@ def test_verify_catches_links_inside_the_deformed_support(robot, deformable_resu
     ids=["harder", "softer", "sideways", "nan"],
 )
 def test_verify_rejects_deformable_forces_the_contact_law_forbids(robot, deformable_results, tamper, message):
-    import dataclasses
 
     from stances.results import PointForce
 
@@ -774,7 +773,6 @@ def test_min_normal_force_makes_every_print_carry_it(robot):
 
 
 def test_verify_rejects_rigid_contact_forces_that_are_not_finite(robot):
-    import dataclasses
 
     from stances.results import PointForce
 
@@ -875,7 +873,6 @@ def test_verify_flags_a_collision_exactly_when_a_pair_is_deeper_than_the_toleran
 
 
 def test_verify_rejects_rigid_contact_forces_outside_their_friction_cone(robot):
-    import dataclasses
 
     from stances.results import PointForce
 
@@ -1312,7 +1309,7 @@ def test_a_failed_coulomb_solve_from_the_rigid_answer_is_solved_again_from_the_b
         result = original(problem, q_init, deadline, attempts, lam_init)
         starts.append(np.array(lam_init))
         if len(starts) == 1:
-            return sqp._with(result, feasible=False, reason="made to fail")
+            return dataclasses.replace(result, feasible=False, reason="made to fail")
         return result
 
     monkeypatch.setattr(stages, "_solve_coulomb", first_fails)
