@@ -205,7 +205,7 @@ def strain_bound_hint(reasons) -> str:
 def unresolved_ball_hint(reasons) -> str:
     """What to add to a failed search's reason when most rejected stances put a ball foot where
     the soft mesh does not resolve its contact (:data:`UNRESOLVED_BALL`): on a soft body that is
-    no layer for the ball's law (a step's tread, near an edge), the mesh under the balls decides.
+    no layer for the ball's law (a step's tread, near an edge) no mesh gives a converged force.
 
     Parameters
     ----------
@@ -219,9 +219,10 @@ def unresolved_ball_hint(reasons) -> str:
 
     Examples
     --------
-    >>> unresolved_ball_hint(["verification failed: lf presses 2 mesh node(s) of step, sunk 0.001 m (at least 9 "
-    ...                       "resolve a ball's contact): ...", "torque limit of j"])
-    "; 1 of the 2 stances rejected put a ball foot where the soft mesh does not resolve its contact: refine the mesh under the balls (a soft_box's refine_lines or a finer resolution), or plan with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
+    >>> unresolved_ball_hint(["verification failed: lf presses 2 mesh node(s) of step, sunk 0.001 m, where no "
+    ...                       "continuum estimate ...: the mesh's node contact does not resolve a ball's contact, "
+    ...                       "...", "torque limit of j"])
+    "; 1 of the 2 stances rejected put a ball foot where the soft mesh does not resolve its contact: keep the balls on soft bodies that are layers held on their base (a soft_box on the floor, away from its edges), where the layer's law gives their force, or plan with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
     >>> unresolved_ball_hint(["torque limit of j"])
     ''
     """
@@ -231,6 +232,7 @@ def unresolved_ball_hint(reasons) -> str:
         return ""
     return (
         f"; {unresolved} of the {len(reasons)} stances rejected put a ball foot where the soft mesh does not resolve "
-        "its contact: refine the mesh under the balls (a soft_box's refine_lines or a finer resolution), or plan "
-        "with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
+        "its contact: keep the balls on soft bodies that are layers held on their base (a soft_box on the floor, "
+        "away from its edges), where the layer's law gives their force, or plan with --solver-option "
+        "ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
     )

@@ -145,12 +145,11 @@ class PostureOptions:
         continuum's at its sinking for the stance to be accepted (0.05), where the body is
         a layer under the ball (:func:`stances.layer_ball.layer_under`; the estimate,
         :func:`fem.sphere_on_layer_force`, within 0.8 % of converged FEMs beside a box's
-        sides, 1.1 % of a bevelled pad's). Where there is no estimate, a separate rule,
-        whatever this number: a ball sunk into the body must press at least
-        :data:`stances.deformable.RESOLVED_BALL_NODES` (9) nodes (1-5 nodes on 10 mm cells:
-        -46 % to +31 % of a converged mesh's force; 9-13 on 5 mm cells within 2.3 %, but
-        9 on 5 mm bands +12 %). ``inf`` accepts every ball (before 2026-12-05, when a
-        coarse ball was logged, not refused).
+        sides, 1.1 % of a bevelled pad's). Where there is no estimate a ball sunk into the
+        body is refused, however many nodes it presses: a node contact's force is no
+        converged one (9-74 pressed nodes: up to +10 % off the continuum, refine_lines bands
+        +6 to +10 %, ``bench/results/ball_node_contact.md``; until 2026-12-05, session l, 9
+        pressed nodes were accepted). ``inf`` accepts every ball (logged once a body).
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a

@@ -525,9 +525,10 @@ def test_a_ball_the_mesh_does_not_resolve_is_refused_against_the_continuums_forc
     expected = [
         f"the force under {spec.label} is {error:+.1%} off a continuous layer's at its sinking "
         f"({accepted.measures[f'ball force estimate under {spec.label}']:.4g} N; ball_force_error 0.05): its contact "
-        "on foam is smaller than the mesh resolves; refine the mesh where balls land (a soft_box's refine_lines or a "
-        "finer resolution), keep the balls where the layer's law holds (a layer held on its base, pressed by balls "
-        "only, far enough inside its edges), or accept it with the solver option ball_force_error=inf"
+        "on foam is smaller than the mesh resolves; refine the mesh where balls land (a finer soft_box resolution: "
+        "refine_lines bands stay up to +10 % stiff), keep the balls where the layer's law holds (a layer held on "
+        "its base, pressed by balls only, far enough inside its edges), or accept it with the solver option "
+        "ball_force_error=inf"
         for spec, error in zip(soft.prints, errors)
     ]
     assert list(reasons(None)) == expected
@@ -540,10 +541,12 @@ def test_a_ball_the_mesh_does_not_resolve_is_refused_against_the_continuums_forc
     assert solved.reason.startswith(f"verification failed: the force under {soft.prints[0].label} is ")
 
 
-def test_a_ball_on_a_body_that_is_no_layer_must_press_enough_nodes(anymal, caplog, monkeypatch):
-    """Where no continuum estimate exists (the soft step's tread is no layer), a ball must press
-    at least RESOLVED_BALL_NODES nodes; fewer is refused with the count, or with
-    ``ball_force_error=inf`` accepted and logged once for the body."""
+def test_a_ball_on_a_body_that_is_no_layer_is_refused_however_many_nodes_it_presses(anymal, caplog, monkeypatch):
+    """Where no continuum estimate exists (the soft step's tread is no layer), a ball sunk into
+    the body is refused, whether it presses 1 node or many: a node contact's force is no
+    converged one (9-74 pressed nodes up to +10 % off, bench/results/ball_node_contact.md).
+    One resting on it (sunk under the placement tolerance) is no contact to judge; with
+    ``ball_force_error=inf`` both are accepted and logged once for the body."""
     from stances import deformable
 
     scenario = environments.load_string(SOFT_STEP)
@@ -554,7 +557,7 @@ def test_a_ball_on_a_body_that_is_no_layer_must_press_enough_nodes(anymal, caplo
         normal = np.zeros(soft.print_of_node.size)
         first, second = (np.flatnonzero(soft.print_of_node == i) for i in range(2))
         normal[first[:1]] = 10.0  # one node pressed
-        normal[second[:deformable.RESOLVED_BALL_NODES]] = 10.0  # enough
+        normal[second] = 10.0  # every node it may touch
         monkeypatch.setattr(deformable, "_COARSE_BALLS_LOGGED", set())
         measures = {}
         sunk = soft.link_points_at_rest - np.array([0.0, 0.0, 1e-3])  # each ball 1 mm into the tread
@@ -563,24 +566,28 @@ def test_a_ball_on_a_body_that_is_no_layer_must_press_enough_nodes(anymal, caplo
             reasons = soft._check_balls(sunk, normal, measures, VerificationTolerances())
         assert f"ball force estimate under {soft.prints[0].label}" not in measures
         assert measures[f"pressed nodes under {soft.prints[0].label}"] == 1
+        assert measures[f"pressed nodes under {soft.prints[1].label}"] == second.size
         logged = [r.getMessage() for r in caplog.records if "mesh node(s) of 'step'" in r.getMessage()]
         if expect_reasons:
             assert reasons == [
-                f"{soft.prints[0].label} presses 1 mesh node(s) of step, sunk 0.001 m (at least "
-                f"{deformable.RESOLVED_BALL_NODES} resolve a ball's contact): its force depends on where it stands "
-                "against the nodes (1-5 nodes on 10 mm cells: -46 % to +31 % of a converged mesh's); refine the mesh "
-                "where balls land (a soft_box's refine_lines or a finer resolution), keep the balls where the layer's "
-                "law holds (a layer held on its base, pressed by balls only, far enough inside its edges), or accept "
-                "it with the solver option ball_force_error=inf"]
+                f"{spec.label} presses {count} mesh node(s) of step, sunk 0.001 m, where no continuum estimate of a "
+                "ball's force exists (step is no layer held on its base under it, or the ball is too near its sides or "
+                "too deep for the layer's law): the mesh's node contact does not resolve a ball's contact, whatever "
+                "the nodes it presses (9-74: up to +10 % off a converged force); keep the balls where the layer's law "
+                "holds (a layer held on its base, pressed by balls only, far enough inside its edges), or accept it "
+                "with the solver option ball_force_error=inf"
+                for spec, count in zip(soft.prints, (1, second.size))]
             assert not logged
             # A ball sunk into the tread pressing no node carries nothing it should: refused too;
-            # one resting on it (sunk under the placement tolerance) is no contact to resolve.
+            # one resting on it (sunk under the placement tolerance) is no contact to judge.
             normal[first] = 0.0
-            assert len(soft._check_balls(sunk, normal, {}, VerificationTolerances())) == 1
+            assert len(soft._check_balls(sunk, normal, {}, VerificationTolerances())) == 2
             assert soft._check_balls(soft.link_points_at_rest, normal, {}, VerificationTolerances()) == []
         else:
             assert reasons == [] and len(logged) == 1
-            assert logged[0].endswith("accepted (ball_force_error inf)")
+            assert logged[0] == (f"{soft.prints[0].label} presses 1 mesh node(s) of 'step' with no continuum estimate "
+                                 "of its force: a node contact, up to +10 % off a converged force whatever the nodes "
+                                 "it presses (fewer than 9: -46 % to +31 %), accepted (ball_force_error inf)")
 
 
 def test_cbm_check_takes_solver_options_and_names_a_bad_one(capsys, tmp_path):
