@@ -938,6 +938,13 @@ class _UnitStrains:
             weights.append(averages.weights(near, strain_radius))
         weight = tuple(matrix @ body.strain(obj.self_weight_field, members) for members, matrix in weights)
         every = np.unique(np.concatenate([members for members, _ in weights]))
+        corners = np.unique(body.mesh.tets[every])  # the nodes those strains read
+        field = np.zeros((body.mesh.n_nodes, 3))
+
+        def strain(ids, loads):  # the strain of ``every`` under point loads, from its corners' field
+            field[corners] = body.displacement_at(corners, ids, loads)
+            return body.strain(field, every)
+
         radii, fields = [], []
         for law, limit, centre, normal in zip(contact.laws, contact.force_limits, centres, normals):
             forces = [share * contact.robot_weight for share in _STRAIN_SHARES] + [float(limit)]
@@ -946,8 +953,7 @@ class _UnitStrains:
             strains = []  # per radius: (3, len(every), 6), a newton on the robot along each body axis
             for a in ball_radii:
                 ids, shares = fem.hertz_load_shares(body.mesh, centre, normal, float(a))
-                strains.append(np.stack([body.strain(body.displacement_under_loads(ids, -shares[:, None] * axis[None]),
-                                                     every) for axis in np.eye(3)]))
+                strains.append(np.stack([strain(ids, -shares[:, None] * axis[None]) for axis in np.eye(3)]))
             fields.append(strains)
         rows = [np.searchsorted(every, members) for members, _ in weights]
         unit = [[np.stack([np.stack([matrix @ strain[c, row] for c in range(3)]) for strain in fields[j]])

@@ -116,6 +116,22 @@ def test_displacement_field_matches_print_and_base(cube, patch, displacements):
     assert np.all(u[cube.fixed_nodes] == 0.0)
 
 
+def test_the_displacement_at_some_nodes_is_the_full_fields_rows_bit_for_bit():
+    """``displacement_at`` superposes only the rows it is asked for, from the columns or, past
+    256 loaded nodes, one solve: the same bits as those rows of the full field; bad nodes
+    are refused with their range."""
+    body = make_body(box_mesh((1.0, 1.0, 1.0), (8, 8, 6)))
+    rng = np.random.default_rng(RNG_SEED)
+    free = np.flatnonzero(~np.isin(np.arange(body.mesh.n_nodes), body.fixed_nodes))
+    at = np.sort(rng.choice(body.mesh.n_nodes, 17, replace=False))
+    for loaded in (free[:12], free[:300]):
+        forces = rng.normal(size=(loaded.size, 3))
+        full = body.displacement_under_loads(loaded, forces)
+        assert np.array_equal(body.displacement_at(at, loaded, forces), full[at])
+    with pytest.raises(FemError, match=f"nodes must be a 1-D array of node ids in 0..{body.mesh.n_nodes - 1}"):
+        body.displacement_at([body.mesh.n_nodes], free[:2], np.zeros((2, 3)))
+
+
 def test_global_equilibrium_of_print_and_base_forces(cube, patch, displacements):
     u = cube.displacement_field(patch, displacements)
     on_body_from_print = -patch.reaction_forces(displacements)
