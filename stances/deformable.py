@@ -1551,6 +1551,47 @@ class DeformableContact:
                     "accepted (ball_force_error inf)", label, count)
         return reasons
 
+    def balls_refused_anyway(self, least_loads, placement: float) -> list:
+        """Why verification would refuse balls of this body whatever the posture (``[]``: none):
+        a ball where no continuum estimate of its force exists (:meth:`_layer_under` is None
+        under it) and that carries at least its least load sinks past ``placement``, which
+        :meth:`_check_balls` refuses (``ball_force_error`` finite).
+
+        A lower bound of its sinking: the ball's frictionless contact admits the field of a
+        punch bonding every node it may touch to its approach, so its energy at any approach
+        ``d`` is at most the punch's, ``k d^2 / 2`` (``k`` the punch's stiffness along the
+        print's normal, bonded in every direction: stiffer than a sticking contact too), and
+        as its force grows with the approach it carries at most ``2 k d`` at ``d``. A ball is
+        refused where that bound puts its sinking past ten times ``placement``: other prints'
+        normal loads only lower the surface under it (more sinking), their sideways loads
+        raise it by a small share of their own sinking. The bound is loose (ANYmal's 30 N on a
+        soft step's 3e6 Pa tread: 36 um, where it sank 4.6 mm) but costs one small solve.
+
+        Parameters
+        ----------
+        least_loads : sequence of float
+            Each print's least normal load, newtons (:func:`stances.problem.min_normal_load`).
+        placement : float
+            Metres a ball may sink and still rest on the body (verify's ``deformable_placement``).
+        """
+        reasons, name = [], self.deformable_object.name
+        for index in self.point_prints.tolist():
+            if least_loads[index] <= 0.0 or self._layer_under(index) is not None:
+                continue
+            rows = np.flatnonzero(self.print_of_node == index)
+            dofs = (3 * rows[:, None] + np.arange(3)).ravel()
+            normals = self.normals_in_body[rows].reshape(-1)
+            stiffness = float(normals @ np.linalg.solve(self.patch.link_compliance[np.ix_(dofs, dofs)], normals))
+            sinking = least_loads[index] / (2.0 * stiffness)
+            if sinking > 10.0 * placement:
+                reasons.append(
+                    f"{self.prints[index].label} carries at least {least_loads[index]:.3g} N on {name}, where no "
+                    f"continuum estimate of a ball's force exists ({name} is no layer held on its base under it): "
+                    f"it sinks at least {sinking:.3g} m, and the mesh's node contact does not resolve a ball's "
+                    "contact, whatever the nodes it presses; keep the balls where the layer's law holds, or accept "
+                    "it with the solver option ball_force_error=inf")
+        return reasons
+
     def _log_unjudged_ball(self, message: str, label: str, count: int) -> None:
         """Log ``message`` (a format of the ball's ``label`` and ``count`` of pressed nodes,
         then the body's name) once a body and process: a ball ``ball_force_error=inf``

@@ -28,11 +28,12 @@ from fem.deadline import SetupTimeout, deadline as setup_deadline
 
 from .cold_start import initial_configuration, starting_configuration
 from .errors import ConfigurationError, StanceError
-from .problem import PostureOptions, build_problem
+from .problem import PostureOptions, build_problem, min_normal_load
 from .qp import QPWorkspace
 from .results import PostureResult
 from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
 from .stopping import NO_PROGRESS
+from .verify import VerificationTolerances
 
 logger = logging.getLogger(__name__)
 
@@ -69,6 +70,8 @@ _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
 _LIFT_STEPS = 4
+# The status of a solve refused before its SQP (_balls_refused_anyway).
+BALLS_REFUSED = "ball refused before solving"
 
 
 def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
@@ -135,12 +138,17 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     except SetupTimeout as stop:
         # Out of time while a soft print was set up: an answer, as a spent budget
         # is anywhere else, from the posture the solve would have started at.
-        q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
-        return PostureResult(
-            feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
-            solve_time=time.perf_counter() - start, stance=stance, statistics={"status": OUT_OF_TIME},
-            reason=_budget_spent(time_budget, str(stop)),
-        )
+        return _unsolved(robot, scene, stance, q_init, start, OUT_OF_TIME, _budget_spent(time_budget, str(stop)))
+
+
+def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:
+    """An infeasible answer given before any SQP iteration, at the posture the solve would
+    have started from, its ``statistics`` the ``status`` alone."""
+    q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
+    return PostureResult(
+        feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
+        solve_time=time.perf_counter() - start, stance=stance, statistics={"status": status}, reason=reason,
+    )
 
 
 def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
@@ -160,6 +168,12 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         return built
 
     problem = build(options)
+    refused = _balls_refused_anyway(problem, options)
+    if refused:
+        # No posture passes verification: a ball where no continuum estimate of its force
+        # exists sinks under its least load (ANYmal on a soft step's tread: 2.2 s of SQP
+        # before verification refused it).
+        return _unsolved(robot, scene, stance, q_init, start, BALLS_REFUSED, "; ".join(refused))
     deformable = any(c.kind == "deformable" for c in problem.contacts)
     if deformable and q_init is None and lam_init is None:
         q_init = initial_configuration(robot, scene, stance)  # not the reaching start (see _reaches)
@@ -357,6 +371,21 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     if not result.feasible:
         return abandon("%s", result.reason)
     return result
+
+
+def _balls_refused_anyway(problem, options) -> list:
+    """Why verification would refuse a ball of ``problem`` whatever the posture
+    (:meth:`~stances.deformable.DeformableContact.balls_refused_anyway`), ``[]`` where
+    ``ball_force_error`` is ``inf`` or no ball presses mesh nodes."""
+    if not np.isfinite(options.ball_force_error):
+        return []
+    placement = VerificationTolerances().deformable_placement
+    reasons = []
+    for contact in problem.contacts:
+        if contact.kind == "deformable" and len(contact.point_prints):
+            least = [min_normal_load(problem.robot, spec.robot_surface, options) for spec in contact.prints]
+            reasons += contact.balls_refused_anyway(least, placement)
+    return reasons
 
 
 def _held_start(held, problem, q, lam, warm=None):

@@ -590,6 +590,36 @@ def test_a_ball_on_a_body_that_is_no_layer_is_refused_however_many_nodes_it_pres
                                  "it presses (fewer than 9: -46 % to +31 %), accepted (ball_force_error inf)")
 
 
+def test_a_loaded_ball_with_no_estimate_is_refused_before_solving_and_its_bound_holds(anymal):
+    """ANYmal's feet carry a tenth of its weight each (its support rule): on the soft step's
+    tread, where no continuum estimate exists, such a ball sinks past what verification lets
+    rest, so the solve answers at once (no SQP iteration) with each ball's least load and
+    sinking bound. The bound holds: accepted with ``ball_force_error=inf``, each ball sinks
+    more than it (the punch bonding every node it may touch is far stiffer than the ball)."""
+    from stances import stages
+    from stances.problem import min_normal_load
+
+    scenario = environments.load_string(SOFT_STEP)
+    stance = scenario.stance("on-tread")
+    refused = stances.solve(anymal, scenario.scene, stance)
+    assert not refused.feasible and refused.iterations == 0
+    assert refused.statistics["status"] == stages.BALLS_REFUSED
+    problem = build_problem(anymal, scenario.scene, stance)
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    least = [min_normal_load(anymal, spec.robot_surface, problem.options) for spec in soft.prints]
+    assert least[0] == pytest.approx(0.1 * anymal.weight)
+    bounds = [float(m) for m in re.findall(r"it sinks at least ([0-9.e+-]+) m", refused.reason)]
+    assert len(bounds) == 2 and refused.reason.startswith(
+        f"{soft.prints[0].label} carries at least {least[0]:.3g} N on step, where no continuum estimate of a ball's "
+        "force exists (step is no layer held on its base under it): it sinks at least ")
+    assert "; ".join(soft.balls_refused_anyway(least, VerificationTolerances().deformable_placement)) == refused.reason
+    accepted = stances.solve(anymal, scenario.scene, stance, ball_force_error=math.inf)
+    assert accepted.feasible
+    points = np.array([p.point for p in accepted.point_forces[problem.load_slices[problem.contacts.index(soft)]]])
+    for index, bound in enumerate(bounds):
+        assert soft._ball_sinking(points, index) > 10 * bound
+
+
 def test_cbm_check_takes_solver_options_and_names_a_bad_one(capsys, tmp_path):
     """``--solver-option KEY=VALUE`` reaches the posture solver from the command line: the
     front feet pressing the 10 mm foam's nodes are refused by default and accepted with
