@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pinocchio as pin
 import pytest
@@ -35,6 +37,29 @@ def hull_of(robot, name):
 
 def random_rotation(rng):
     return pin.exp3(rng.standard_normal(3))
+
+
+def test_a_mesh_is_hulled_once_a_process_and_again_when_its_file_changes(robot, tmp_path, monkeypatch):
+    """A robot loaded again reads no collision mesh (the hull kept by file, time, size and
+    scale gives the same shape); a copy of the file, or the file changed, is read again."""
+    from stances import narrow_phase
+
+    geometry_object = robot.collision_model.geometryObjects[robot.collision_model.getGeometryId(MESHES[0])]
+    first = robot_shape(geometry_object)
+    monkeypatch.setattr(trimesh, "load", lambda *args, **kwargs: pytest.fail("a mesh file was read again"))
+    again = robot_shape(geometry_object)
+    assert again[0] is first[0] and np.array_equal(again[1], first[1]) and again[2] == first[2]
+    monkeypatch.undo()
+    copy = tmp_path / ("copy" + os.path.splitext(geometry_object.meshPath)[1])
+    copy.write_bytes(open(geometry_object.meshPath, "rb").read())
+    moved = geometry_object.copy()
+    moved.meshPath = str(copy)
+    shape, center, radius = robot_shape(moved)
+    assert shape is not first[0] and np.array_equal(center, first[1]) and radius == first[2]
+    count = len(narrow_phase._HULLS)
+    copy.write_bytes(open(geometry_object.meshPath, "rb").read() + b"\n")  # another size
+    robot_shape(moved)
+    assert len(narrow_phase._HULLS) == count + 1
 
 
 def test_separated_hulls_match_a_vertex_certificate(robot):
