@@ -485,7 +485,7 @@ class RefineLines:
     nodes against 14,790) put a ball's force 0.7-2.5 mm deep within 0 to +12 % of an
     independent converged FEM, where the 10 mm mesh is -11 % to +37 % off (README, Robots).
     Bands converge to themselves, not to the continuum (the layers under them grow by 1.5):
-    on a 5 cm block 2.5 mm bands stay +6 to +10 % over its force with 16-74 nodes pressed
+    on a 5 cm block 2.5 mm bands stay +4.9 to +8.6 % over its force with 16-74 nodes pressed
     (``bench/results/ball_node_contact.md``), so a ball they hold is judged against a
     continuum estimate, and refused where there is none (``stances.deformable``).
 

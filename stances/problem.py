@@ -148,7 +148,7 @@ class PostureOptions:
         sides, 1.1 % of a bevelled pad's). Where there is no estimate a ball sunk into the
         body is refused, however many nodes it presses: a node contact's force is no
         converged one (9-74 pressed nodes: up to +10 % off the continuum, refine_lines bands
-        +6 to +10 %, ``bench/results/ball_node_contact.md``; until 2026-12-05, session l, 9
+        +4.9 to +8.6 % at 2.5 mm, ``bench/results/ball_node_contact.md``; until 2026-12-05, session l, 9
         pressed nodes were accepted). ``inf`` accepts every ball (logged once a body).
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
