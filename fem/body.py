@@ -584,10 +584,7 @@ class DeformableBody:
         (m, 3) float, metres, body frame.
         """
         ids, loads = self._point_loads(node_ids, forces)
-        at = np.asarray(nodes, dtype=np.int64)
-        if at.ndim != 1 or (at.size and (at.min() < 0 or at.max() >= self._mesh.n_nodes)):
-            raise FemError(f"nodes must be a 1-D array of node ids in 0..{self._mesh.n_nodes - 1}")
-        return self._superposed(ids, loads, at)
+        return self._superposed(ids, loads, check_node_ids(nodes, self._mesh.n_nodes, "nodes", FemError, unique=False))
 
     def _point_loads(self, node_ids, forces) -> tuple[np.ndarray, np.ndarray]:
         """Checked ``(ids, loads)`` of :meth:`displacement_under_loads`'s arguments."""

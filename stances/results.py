@@ -78,7 +78,8 @@ class SolveStatistics(Mapping):
     Parameters
     ----------
     status : str
-        How the SQP stopped ("converged", "stagnated", ...).
+        How the SQP stopped ("converged", "stagnated", ...), or why none ran ("time budget
+        spent" during a print's setup, "ball refused before solving").
     violation : float
         Largest constraint violation at the answer, in row scales.
     penalty : float
