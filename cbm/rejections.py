@@ -17,7 +17,7 @@ __all__ = [
 ]
 
 #: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
-UNRESOLVED_BALL = "ball contact finer than the soft mesh"
+UNRESOLVED_BALL = "ball foot with no converged force on the soft mesh"
 
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
