@@ -35,12 +35,12 @@ sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), "..", "tests"))
 
 from benchmark_info import write_report  # noqa: E402
+from bench_ball_foot import BLOCK, continuum  # noqa: E402 (the study's block and its continuum force)
 from test_ball_contact import FOAM, RADIUS, ball_force, top_nodes_near  # noqa: E402
 
 import fem  # noqa: E402
 from environments.deformable import RefineLines, soft_box_coordinates  # noqa: E402
 
-BLOCK = (0.2, 0.2, 0.05)  # m
 DEPTHS = (0.001, 0.0015, 0.0025, 0.004)  # m
 OFFSETS = ((0.0, 0.0), (0.25, 0.1), (0.5, 0.5), (0.5, 0.0))  # pitches, along x and y
 # m: the top nodes a ball may touch (its gap at the deepest depth, 1.5 times over, plus a cell).
@@ -54,12 +54,6 @@ MESHES = (
     ("5 mm bands, 30 mm either side", dict(resolution=0.010, refine_lines=RefineLines((0.0,), (0.0,), 0.030, 0.005))),
     ("2.5 mm bands, 15 mm either side", dict(resolution=0.010, refine_lines=RefineLines((0.0,), (0.0,), 0.015, 0.0025))),
 )
-
-
-def continuum(depth: float) -> float:
-    """Newtons: the continuum's frictionless force at ``depth`` (m) on the block's foam, a
-    layer of its thickness on a rigid base (:func:`fem.sphere_on_layer_force`)."""
-    return fem.sphere_on_layer_force(depth, RADIUS, BLOCK[2], FOAM.young_modulus, FOAM.poisson_ratio)[0]
 
 
 def main() -> None:
