@@ -138,6 +138,9 @@ RESOLVED_BALL_NODES = 9
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
 _REFUSED_SINKING = 10.0
+# What to do about a ball verification refuses (or would refuse whatever the posture).
+_BALL_ADVICE = ("keep the balls where the layer's law holds (a layer held on its base, pressed by balls only, far "
+                "enough inside its edges), or accept it with the solver option ball_force_error=inf")
 
 logger = logging.getLogger(__name__)
 
@@ -648,6 +651,11 @@ class DeformableContact:
         turned = np.einsum("pij,pj->pi", turns[owner], x)
         return (turned - x - np.cross(theta[owner], x)).reshape(-1)
 
+    def _imposed_motion(self, w) -> np.ndarray:
+        """(3p,) U the link points move by where the placement rows hold under W:
+        ``G A^-1 W + r(A^-1 W)``, metres, body frame (:meth:`_rotation_residue`)."""
+        return self.rigid_motion @ w + self._rotation_residue(w)
+
     def _rotation_residue_derivative(self, w) -> np.ndarray:
         """(3p, 6L) d :meth:`_rotation_residue` / dW."""
         theta, turns, right = self._print_turns(w)
@@ -714,7 +722,7 @@ class DeformableContact:
         # alone, so the forces never see a posture that the rows have not yet met
         # (on a stiff body, r of a link still turned by 1e-3 rad would be tens of
         # nanometres of bending, far more than the nanometres the body gives).
-        imposed = self.rigid_motion @ w + self._rotation_residue(w)
+        imposed = self._imposed_motion(w)
         if self.law == "coulomb":
             # Contact solved at that motion: f = L (U~ + gap), continuous in W when nodes change modes.
             solved = self._contact(imposed)
@@ -866,7 +874,7 @@ class DeformableContact:
         def carried(scale):
             trial = np.array(w)
             trial[6 * i : 6 * i + 3] *= scale
-            forces = self._contact(self.rigid_motion @ trial + self._rotation_residue(trial)).forces
+            forces = self._contact(self._imposed_motion(trial)).forces
             return float(forces[rows].sum(axis=0) @ normal)
 
         if target <= 0.0 or carried(1.0) >= target:
@@ -911,7 +919,7 @@ class DeformableContact:
         factor; the contact solve's state is untouched.
         """
         w = np.asarray(w, dtype=float)
-        forces = -self.patch.link_solve(self.rigid_motion @ w + self._rotation_residue(w)).reshape(-1, 3)
+        forces = -self.patch.link_solve(self._imposed_motion(w)).reshape(-1, 3)
         local = np.einsum("pij,pj->pi", self.node_frames, forces)  # (tangential x, y, normal)
         inside = np.isinf(self.node_mu) | (self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
         return bool(np.all(inside) and np.all(local[:, 2] >= 0.0))
@@ -1518,8 +1526,6 @@ class DeformableContact:
         self._count_pressed_nodes(normal, measures)
         self._estimate_ball_forces(points, normal, measures)
         reasons, name = [], self.deformable_object.name
-        refine = ("keep the balls where the layer's law holds (a layer held on its base, pressed by balls only, "
-                  "far enough inside its edges), or accept it with the solver option ball_force_error=inf")
         for index in self.point_prints.tolist():
             label = self.prints[index].label
             count = measures[f"pressed nodes under {label}"]
@@ -1531,7 +1537,7 @@ class DeformableContact:
                         f"({measures[f'ball force estimate under {label}']:.4g} N; ball_force_error "
                         f"{self.ball_force_error:g}): its contact on {name} is smaller than the mesh resolves; refine "
                         f"the mesh where balls land (a finer soft_box resolution: refine_lines bands stay up to +10 % "
-                        f"stiff), {refine}")
+                        f"stiff), {_BALL_ADVICE}")
                 elif not np.isfinite(self.ball_force_error) and 0 < count < RESOLVED_BALL_NODES:
                     self._log_unjudged_ball(
                         "%s presses %d mesh node(s) of %r: a ball contact smaller than the cells, whose force depends on "
@@ -1548,7 +1554,7 @@ class DeformableContact:
                     f"estimate of a ball's force exists ({name} is no layer held on its base under it, or the ball "
                     "is too near its sides or too deep for the layer's law): the mesh's node contact does not resolve "
                     "a ball's contact, whatever the nodes it presses (9-74: up to +10 % off a converged force); "
-                    f"{refine}")
+                    f"{_BALL_ADVICE}")
             else:
                 self._log_unjudged_ball(
                     "%s presses %d mesh node(s) of %r with no continuum estimate of its force: a node contact, up to "
@@ -1597,8 +1603,7 @@ class DeformableContact:
                     f"{self.prints[index].label} carries at least {least_loads[index]:.3g} N on {name}, where no "
                     f"continuum estimate of a ball's force exists ({name} is no layer held on its base under it, or "
                     f"the ball is too near its sides): it sinks at least {sinking:.3g} m, and the mesh's node "
-                    "contact does not resolve a ball's contact, whatever the nodes it presses; keep the balls where "
-                    "the layer's law holds, or accept it with the solver option ball_force_error=inf")
+                    f"contact does not resolve a ball's contact, whatever the nodes it presses; {_BALL_ADVICE}")
         return reasons
 
     def _log_unjudged_ball(self, message: str, label: str, count: int) -> None:
