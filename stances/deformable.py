@@ -386,6 +386,7 @@ class DeformableContact:
         self.max_slip = float(options.max_slip)
         self.max_mesh_overlap = float(options.max_mesh_overlap)
         self.ball_force_error = float(options.ball_force_error)
+        self.max_corner_lift = float(options.max_corner_lift)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
         self.rotation_body = body_placement.rotation
@@ -404,6 +405,7 @@ class DeformableContact:
         self.ball_radii = {}  # print index -> its ball's radius, metres, for point feet
         self._layers = {}  # print index -> (thickness, side distances) of the layer under it, or None (_layer_under)
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
+        corners = []  # per print, (k, 2) its polygon's corners in its frame, or None for a point foot
         self.frame_ids, self.print_placements, self.friction = [], [], []
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
@@ -478,9 +480,11 @@ class DeformableContact:
                 point_rests.append((len(node_sets) - 1, placement.translation + surface_model.radius * placement.rotation[:, 2]))
                 self.ball_radii[len(node_sets) - 1] = float(surface_model.radius)
                 gaps.append(ball_gaps(nodes_in_print, surface_model.radius))
+                corners.append(None)
             else:
                 points_in_joint.append(nodes_in_print @ frame.placement.rotation.T + frame.placement.translation)
                 gaps.append(np.zeros(len(ids)))
+                corners.append(surface_model.vertices_in_frame[:, :2])
             frames.append(surface_model.frame)
             self.frame_ids.append(frame_id)
             self.print_placements.append(placement)
@@ -493,6 +497,7 @@ class DeformableContact:
                     f"a neighbouring print go to that print; at least {MINIMUM_PRINT_NODES} are needed: move "
                     f"the prints apart or refine the mesh of {deformable_object.name!r}"
                 )
+        self._corner_weights = self._corner_weights_of(corners, node_sets, body, body_placement)
         self.node_ids = np.concatenate(node_sets)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
@@ -593,6 +598,28 @@ class DeformableContact:
         self._cache_key = None
         self._cache = None
         self._derivatives = None
+
+    def _corner_weights_of(self, corners, node_sets, body, body_placement) -> list:
+        """Per print, the (k, n) weights that give its polygon's k corners' heights from
+        its n nodes' link-point heights (None for a point foot, whose print has no corner).
+
+        A rigid motion moves points by ``(R - I) x + t``, affine in the rest position, and
+        the print's nodes and corners lie in its plane: any affine combination of the nodes
+        that reproduces a corner's rest position (``sum c = 1``, ``sum c x = corner``; the
+        least-norm one here) gives that corner's height, and its derivative, exactly.
+        """
+        weights, start = [], 0
+        for ids, polygon, placement in zip(node_sets, corners, self.print_placements):
+            count = len(ids)
+            if polygon is None:
+                weights.append(None)
+            else:
+                rest = self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
+                affine = np.vstack([rest.T, np.ones(count)])  # (3, n)
+                targets = np.vstack([polygon.T, np.ones(len(polygon))])  # (3, k)
+                weights.append((slice(start, start + count), (np.linalg.pinv(affine) @ targets).T))
+            start += count
+        return weights
 
     @staticmethod
     def _in_print(nodes, body_placement, placement) -> np.ndarray:
@@ -1047,7 +1074,7 @@ class DeformableContact:
             # press its print (on average not above the rest surface; a ball down to
             # its nearest node at least), or it is not in contact.
             heights = np.einsum("pj,pj->p", displacements + self.gaps, self.normals_in_body)
-            value, jacobian = np.zeros(len(self.prints)), None
+            value, jacobian, d_heights = np.zeros(len(self.prints)), None, None
             for i in range(len(self.prints)):
                 rows = self.print_of_node == i
                 value[i] = heights[rows].min() if i in self.point_prints else heights[rows].mean()
@@ -1058,6 +1085,15 @@ class DeformableContact:
                     jacobian[i, :nv] = d_heights[self.print_of_node == i].mean(axis=0)
             # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
             blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels["touch"], slack=1e-8))
+            if np.isfinite(self.max_corner_lift):
+                # ... and presses with its whole face: no corner lifted (max_corner_lift).
+                value, d_value = self._corner_heights(heights, d_heights)
+                jacobian = None
+                if derivatives:
+                    jacobian = np.zeros((len(value), columns))
+                    jacobian[:, :nv] = d_value
+                blocks.append(ConstraintBlock(
+                    "whole print", value, jacobian, -np.inf, self.max_corner_lift, 1e-2, labels["corners"]))
             # A link point slides over its node's coupling end: the node plus its coupling's stretch.
             ends, d_ends = nodes, d_nodes_full
             if self._coupling is not None:
@@ -1111,6 +1147,17 @@ class DeformableContact:
         if strain is not None:
             blocks.append(strain)
         return blocks
+
+    def _corner_heights(self, heights, d_heights=None):
+        """(k,) heights of the polygon prints' corners above their rest surface, metres,
+        from the (p,) heights of the link points over the print nodes, and their (k, nv)
+        derivative from the nodes' (p, nv) (None when ``d_heights`` is)."""
+        value = [weights @ heights[rows] for rows, weights in filter(None, self._corner_weights)]
+        value = np.concatenate(value) if value else np.zeros(0)
+        if d_heights is None:
+            return value, None
+        d_value = [weights @ d_heights[rows] for rows, weights in filter(None, self._corner_weights)]
+        return value, np.vstack(d_value) if d_value else np.zeros((0, d_heights.shape[1]))
 
     def _overlap_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
         """How far the body's print nodes reach past their link points along the print normal,
@@ -1210,6 +1257,11 @@ class DeformableContact:
                 for axis in ("x", "y", "z", "roll", "pitch", "yaw")
             ),
             "touch": tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints),
+            "corners": tuple(
+                f"contact of {spec.label} (corner {j} lifted: pivoting on an edge)"
+                for spec, weights in zip(self.prints, self._corner_weights) if weights is not None
+                for j in range(len(weights[1]))
+            ),
             "resultant": resultant,
             "node contact": node_contact,
             "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
@@ -1471,6 +1523,8 @@ class DeformableContact:
                 f"node {node} of {name} reaches {overlap.max():.3g} m into its link, beyond the mesh overlap "
                 f"bound {self.max_mesh_overlap:g} m (max_mesh_overlap)"
             )
+        if self.law == "coulomb":
+            reasons.extend(self._check_corners(reached, tolerances, measures))
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])
@@ -1510,6 +1564,26 @@ class DeformableContact:
                 "elasticity does not hold there"
             )
         return reasons
+
+    def _check_corners(self, reached, tolerances, measures) -> list:
+        """Whether each polygon print presses with its whole face: none of its corners
+        lifted more than ``max_corner_lift`` above its rest surface (``reached``: (p, 3)
+        body frame, where each link point over a node has moved). Measures the highest."""
+        corners, _ = self._corner_heights(np.einsum("pj,pj->p", reached, self.normals_in_body))
+        if corners.size == 0:
+            return []
+        name = self.deformable_object.name
+        highest = int(np.argmax(corners))
+        measures[f"highest print corner on {name}"] = float(corners[highest])
+        if corners[highest] <= self.max_corner_lift + tolerances.deformable_placement:
+            return []
+        owners = [spec.label for spec, weights in zip(self.prints, self._corner_weights)
+                  if weights is not None for _ in range(len(weights[1]))]
+        return [
+            f"a corner of {owners[highest]} is lifted {corners[highest]:.3g} m off {name}, beyond max_corner_lift "
+            f"{self.max_corner_lift:g} m: the print pivots on its edge, pressing a strip narrower than the mesh "
+            "resolves (no converged force: palms on their edge came 7-16 % below a converged mesh's)"
+        ]
 
     def _check_balls(self, points, normal, measures, tolerances) -> list:
         """Whether each ball foot's force is one a converged mesh would give

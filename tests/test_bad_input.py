@@ -412,6 +412,9 @@ def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
         ("ball_force_error", -0.05, "ball_force_error must be > 0 (a fraction; inf accepts every ball), got -0.05"),
         ("ball_force_error", float("nan"), "ball_force_error must be > 0 (a fraction; inf accepts every ball), got nan"),
         ("ball_force_error", "5 %", "ball_force_error must be a number, got '5 %'"),
+        ("max_corner_lift", 0.0, "max_corner_lift must be > 0 metres (inf lets prints pivot on an edge), got 0.0"),
+        ("max_corner_lift", float("nan"), "max_corner_lift must be > 0 metres (inf lets prints pivot on an edge), got nan"),
+        ("max_corner_lift", "1 mm", "max_corner_lift must be a number, got '1 mm'"),
     ],
     ids=lambda v: str(v) if isinstance(v, str) and len(v) < 30 else None,
 )

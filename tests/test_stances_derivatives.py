@@ -187,7 +187,7 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             # worst case, and 1e-10 absolute.
             tolerance = 2e-5 * size + 1e-10 + 4.0 * noise[key] / EPS
             assert error <= tolerance, f"{label}: {key} off by {error:.3g} (row size {size:.3g}, noise {noise[key]:.2g})"
-    assert {"placement", "touch", "node contact", "indentation", "mesh overlap", "strain", "equilibrium", "torque limit",
+    assert {"placement", "touch", "whole print", "node contact", "indentation", "mesh overlap", "strain", "equilibrium", "torque limit",
             "normal load"} <= names
 
 
