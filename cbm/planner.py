@@ -34,7 +34,8 @@ from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
 from .rejections import (
-    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, strain_bound_hint, summarise, unresolved_ball_hint,
+    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, strain_bound_hint, summarise,
+    unresolved_ball_hint,
 )
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
@@ -589,6 +590,7 @@ def plan(
             reason += finer_grid_hint(rejected, sampling.spacing)
         reason += strain_bound_hint(rejected)
         reason += unresolved_ball_hint(rejected)
+        reason += pivoting_print_hint(rejected)
     return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing)
 
 

@@ -12,8 +12,8 @@ import re
 from collections import Counter
 
 __all__ = [
-    "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "strain_bound_hint", "summarise",
-    "unresolved_ball_hint",
+    "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
+    "strain_bound_hint", "summarise", "unresolved_ball_hint",
 ]
 
 #: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
@@ -156,6 +156,10 @@ def finer_grid_hint(reasons, spacing: float) -> str:
 STRAINED_SHARE = 0.5
 #: The same share for stances refused for a ball foot the soft mesh does not resolve.
 UNRESOLVED_SHARE = 0.5
+#: The same share for stances whose sole or palm on a soft body could not keep its whole face down.
+PIVOTING_SHARE = 0.5
+# The solver's whole-print row (stances.deformable, max_corner_lift) and verify's refusal.
+_PIVOTING = ("lifted: pivoting on an edge)", "pivots on its edge")
 # A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
 # that cannot carry its least load within the strain bound.
 _STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)"
@@ -235,4 +239,38 @@ def unresolved_ball_hint(reasons) -> str:
         "its contact: keep the balls on soft bodies that are layers held on their base (a soft_box on the floor, "
         "away from its edges), where the layer's law gives their force, or plan with --solver-option "
         "ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
+    )
+
+
+def pivoting_print_hint(reasons) -> str:
+    """What to add to a failed search's reason when most rejected stances could not keep a
+    sole or palm on a soft body flat on it (``max_corner_lift``): a print pivoting on its
+    edge presses a strip narrower than the mesh resolves, whose force is no converged one.
+
+    Parameters
+    ----------
+    reasons : iterable of str
+        The rejected stances' reasons.
+
+    Returns
+    -------
+    str
+        ``""``, or a clause starting with ``"; "`` that gives the share and what to do.
+
+    Examples
+    --------
+    >>> pivoting_print_hint(["contact of right_palm on cube_top (corner 1 lifted: pivoting on an edge) violated by 0.1",
+    ...                      "torque limit of j"])
+    "; 1 of the 2 stances rejected could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot"
+    >>> pivoting_print_hint(["torque limit of j"])
+    ''
+    """
+    reasons = [str(r) for r in reasons]
+    pivoting = sum(any(fragment in r for fragment in _PIVOTING) for r in reasons)
+    if not reasons or pivoting < PIVOTING_SHARE * len(reasons):
+        return ""
+    return (
+        f"; {pivoting} of the {len(reasons)} stances rejected could not press a sole or palm on a soft body with its "
+        "whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan "
+        "with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot"
     )
