@@ -83,11 +83,11 @@ How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
   with L their exact Jacobian for fixed modes). It is evaluated at
   ``U~ = G A^-1 W + r(A^-1 W)``, the motion the link points have where the rows
   hold, so the forces stay continuous in W when nodes change mode. Each print must press (its
-  mean height not above the rest surface), a sole or palm with its whole face (no corner
-  more than ``max_corner_lift`` above it: a print pivoting on its edge presses a strip
-  narrower than the mesh resolves, and an independent audit found such palms 6.7-16.4 %
-  below a converged mesh's force), and keep its resultant inside ``friction_margin`` of
-  its pyramid.
+  mean height not above the rest surface), a sole or palm with its whole face (each corner
+  sunk at least ``corner_sinking`` of the corners' mean sinking, less ``max_corner_lift``: a
+  print pivoting toward its edge presses a strip narrower than the mesh resolves, and an
+  independent audit found such palms 6.7-16.4 % below a converged mesh's force), and keep
+  its resultant inside ``friction_margin`` of its pyramid.
 - ``"sticking"``: bonded nodes, each pushing and inside its own friction pyramid.
 - ``"bonded"``: the paper's model; bonded nodes push, each print's resultant is in
   its pyramid.
@@ -389,6 +389,7 @@ class DeformableContact:
         self.max_slip = float(options.max_slip)
         self.max_mesh_overlap = float(options.max_mesh_overlap)
         self.ball_force_error = float(options.ball_force_error)
+        self.corner_sinking = float(options.corner_sinking)
         self.max_corner_lift = float(options.max_corner_lift)
         body = deformable_object.body
         body_placement = pin.SE3(np.asarray(deformable_object.transform_body_to_world, dtype=float))
@@ -1089,8 +1090,9 @@ class DeformableContact:
             # Within 10 nm of the surface a print touches (a steel-stiff body sinks less).
             blocks.append(ConstraintBlock("touch", value, jacobian, -np.inf, 0.0, 1e-2, labels["touch"], slack=1e-8))
             if np.isfinite(self.max_corner_lift):
-                # ... and presses with its whole face: no corner lifted (max_corner_lift).
-                value, d_value = self._corner_heights(heights, d_heights)
+                # ... and presses with its whole face: each corner sunk its share of the
+                # print's mean sinking (corner_sinking, max_corner_lift).
+                value, d_value = self._corner_rows(heights, d_heights)
                 jacobian = None
                 if derivatives:
                     jacobian = np.zeros((len(value), columns))
@@ -1151,16 +1153,23 @@ class DeformableContact:
             blocks.append(strain)
         return blocks
 
-    def _corner_heights(self, heights, d_heights=None):
+    def _corner_heights(self, heights, d_heights=None, sinking=0.0):
         """(k,) heights of the polygon prints' corners above their rest surface, metres,
         from the (p,) heights of the link points over the print nodes, and their (k, nv)
-        derivative from the nodes' (p, nv) (None when ``d_heights`` is)."""
-        value = [weights @ heights[rows] for rows, weights in filter(None, self._corner_weights)]
-        value = np.concatenate(value) if value else np.zeros(0)
+        derivative from the nodes' (p, nv) (None when ``d_heights`` is); less ``sinking``
+        times the mean of each print's corners' heights."""
+        weights = [(rows, corner - sinking * corner.mean(axis=0)) for rows, corner in filter(None, self._corner_weights)]
+        value = np.concatenate([w @ heights[rows] for rows, w in weights]) if weights else np.zeros(0)
         if d_heights is None:
             return value, None
-        d_value = [weights @ d_heights[rows] for rows, weights in filter(None, self._corner_weights)]
+        d_value = [w @ d_heights[rows] for rows, w in weights]
         return value, np.vstack(d_value) if d_value else np.zeros((0, d_heights.shape[1]))
+
+    def _corner_rows(self, heights, d_heights=None):
+        """The whole-print rows' values (k,), metres, at most ``max_corner_lift``: each
+        corner's height less ``corner_sinking`` times its print's corners' mean, and their
+        (k, nv) derivative (:meth:`_corner_heights`)."""
+        return self._corner_heights(heights, d_heights, self.corner_sinking)
 
     def _overlap_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
         """How far the body's print nodes reach past their link points along the print normal,
@@ -1569,23 +1578,30 @@ class DeformableContact:
         return reasons
 
     def _check_corners(self, reached, tolerances, measures) -> list:
-        """Whether each polygon print presses with its whole face: none of its corners
-        lifted more than ``max_corner_lift`` above its rest surface (``reached``: (p, 3)
-        body frame, where each link point over a node has moved). Measures the highest."""
-        corners, _ = self._corner_heights(np.einsum("pj,pj->p", reached, self.normals_in_body))
+        """Whether each polygon print presses with its whole face: each corner sunk at
+        least ``corner_sinking`` of its print's corners' mean sinking, less
+        ``max_corner_lift`` (``reached``: (p, 3) body frame, where each link point over a
+        node has moved). Measures the highest corner and the largest shortfall."""
+        heights = np.einsum("pj,pj->p", reached, self.normals_in_body)
+        corners, _ = self._corner_heights(heights)
         if corners.size == 0:
             return []
         name = self.deformable_object.name
-        highest = int(np.argmax(corners))
-        measures[f"highest print corner on {name}"] = float(corners[highest])
-        if corners[highest] <= self.max_corner_lift + tolerances.deformable_placement:
+        rows, _ = self._corner_rows(heights)
+        worst = int(np.argmax(rows))
+        measures[f"highest print corner on {name}"] = float(corners.max())
+        measures[f"print corner shortfall on {name}"] = float(rows[worst])
+        if rows[worst] <= self.max_corner_lift + tolerances.deformable_placement:
             return []
         owners = [spec.label for spec, weights in zip(self.prints, self._corner_weights)
                   if weights is not None for _ in range(len(weights[1]))]
+        mean = corners[worst] - self._corner_heights(heights, sinking=1.0)[0][worst]  # its print's corners' mean
         return [
-            f"a corner of {owners[highest]} is lifted {corners[highest]:.3g} m off {name}, beyond max_corner_lift "
-            f"{self.max_corner_lift:g} m: the print pivots on its edge, pressing a strip narrower than the mesh "
-            "resolves (no converged force: palms on their edge came 7-16 % below a converged mesh's)"
+            f"a corner of {owners[worst]} sinks {-corners[worst]:.3g} m into {name}, less than "
+            f"{self.corner_sinking:g} of its print's mean sinking ({-mean:.3g} m) by {rows[worst]:.3g} m, beyond "
+            f"max_corner_lift {self.max_corner_lift:g} m: the print pivots toward its edge, pressing a strip narrower "
+            "than the mesh resolves (no converged force: palms on their edge came 7-16 % below a converged mesh's; "
+            "corner_sinking)"
         ]
 
     def _check_balls(self, points, normal, measures, tolerances) -> list:

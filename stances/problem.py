@@ -150,16 +150,22 @@ class PostureOptions:
         converged one (9-74 pressed nodes: up to +10 % off the continuum, refine_lines bands
         +4.9 to +8.6 % at 2.5 mm, ``bench/results/ball_node_contact.md``; until 2026-12-05, session l, 9
         pressed nodes were accepted). ``inf`` accepts every ball (logged once a body).
+    corner_sinking : float
+        Deformable supports with Coulomb contact: each corner of a polygon print (a sole, a
+        palm) sinks at least this share of the mean of its corners' sinking (0.5), less
+        ``max_corner_lift``: a print on a soft body presses with its whole face. A print
+        that pivots toward its edge presses a strip narrower than the mesh resolves, and its
+        force is no converged one: five palms on their edge in the built-in scenes' answers
+        were 6.7-16.4 % below a converged mesh's force for the same motion, where flat prints
+        came within 5 % (``bench/results/audit-done-when-2026-12-05.md``; accepted until
+        2026-12-05, session m). With every corner merely down (0) climb's palm on the cube
+        still lifted 12 of its 20 nodes and came 5.6-7.2 % low; at 0.5, the share a
+        frictionless rigid punch on a half-space needs for its whole face to touch (a disc:
+        its edge sunk half its mean), 6 nodes and 2.4-3.6 % low. In [0, 1).
     max_corner_lift : float
-        Deformable supports with Coulomb contact: how far any corner of a polygon print
-        (a sole, a palm) may lift above its print's rest surface, metres (1e-5): a print on
-        a soft body presses with its whole face, as a rigid contact's does. A print pivoting
-        on its edge presses a strip narrower than the mesh resolves, and its force is no
-        converged one: five palms on their edge in the built-in scenes' answers were 6.7-16.4 %
-        below a converged mesh's force for the same motion where flat prints came within 5 %
-        (``bench/results/audit-done-when-2026-12-05.md``; accepted until 2026-12-05, session m).
-        The 10 um allowed is a stiff body's give (``stiff_limit``), where a pivot's force
-        error is a motion error of a micrometre or two. ``inf`` lets prints pivot.
+        How far past ``corner_sinking`` a corner may lift, metres (1e-5): a stiff body's
+        give (``stiff_limit``), where a pivot's force error is a motion error of a
+        micrometre or two. ``inf`` lets prints pivot.
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a
@@ -276,6 +282,7 @@ class PostureOptions:
     contact_law: str = "coulomb"
     ball_contact: str = "layer"
     ball_force_error: float = 0.05
+    corner_sinking: float = 0.5
     max_corner_lift: float = 1e-5
     min_normal_force: float = 0.0
     support_load: float | None = None
@@ -305,7 +312,7 @@ class PostureOptions:
             object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
         # Every weight, distance and tolerance is a finite number: a NaN weight made
         # every QP fail and the stance "unreachable", a NaN distance was ignored.
-        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "max_corner_lift") + ("max_indentation",) * (self.max_indentation is not None):
+        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "corner_sinking", "max_corner_lift") + ("max_indentation",) * (self.max_indentation is not None):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise StanceError(f"{name} must be a number, got {value!r}")
@@ -319,6 +326,8 @@ class PostureOptions:
         if not self.ball_force_error > 0.0:
             raise StanceError(f"ball_force_error must be > 0 (a fraction; inf accepts every ball), "
                               f"got {self.ball_force_error}")
+        if not 0.0 <= self.corner_sinking < 1.0:
+            raise StanceError(f"corner_sinking must be a share in [0, 1) of a print's mean sinking, got {self.corner_sinking}")
         if not self.max_corner_lift > 0.0:
             raise StanceError(f"max_corner_lift must be > 0 metres (inf lets prints pivot on an edge), "
                               f"got {self.max_corner_lift}")

@@ -1413,7 +1413,7 @@ def test_a_stance_whose_rows_lie_beyond_the_trust_region_keeps_its_penalty(monke
     from the posture on the left sole alone: 9 Coulomb iterations (15 in the rigid warm
     start); raising the penalty at every cut step, 17 (and 18), to the same verified answer
     within the tolerances. The sole is let pivot (``max_corner_lift=inf``, its corner 0.14 mm
-    up): held flat it takes 14 iterations, the rule's own rows' work."""
+    up): held flat it takes 15 iterations, the rule's own rows' work."""
     scenario = environments.load(BENCH / "scenes" / "turn.yaml")
     robot = Robot.load(scenario.robot)
     on_left = Stance((Contact("left_sole", ContactPrint("mat_top", -0.2, 0.0, 0.0)),))
