@@ -230,32 +230,30 @@ def unresolved_ball_hint(reasons) -> str:
     >>> unresolved_ball_hint(["torque limit of j"])
     ''
     """
-    reasons = [str(r) for r in reasons]
-    unresolved = sum(cause_of(r) == UNRESOLVED_BALL for r in reasons)
-    if not reasons or unresolved < UNRESOLVED_SHARE * len(reasons):
-        return ""
-    return (
-        f"; {unresolved} of the {len(reasons)} stances rejected put a ball foot where the soft mesh does not resolve "
-        "its contact: keep the balls on soft bodies that are layers held on their base (a soft_box on the floor, "
-        "away from its edges), where the layer's law gives their force, or plan with --solver-option "
-        "ball_force_error=inf (solver_options={'ball_force_error': inf}) to accept such contacts"
+    return _share_hint(
+        reasons, lambda reason: cause_of(reason) == UNRESOLVED_BALL, UNRESOLVED_SHARE,
+        "put a ball foot where the soft mesh does not resolve its contact: keep the balls on soft bodies that are "
+        "layers held on their base (a soft_box on the floor, away from its edges), where the layer's law gives their "
+        "force, or plan with --solver-option ball_force_error=inf (solver_options={'ball_force_error': inf}) to "
+        "accept such contacts",
     )
+
+
+def _share_hint(reasons, counts, share: float, what: str) -> str:
+    """``"; N of the M stances rejected <what>"`` when the reasons ``counts(reason)`` holds for
+    are at least ``share`` of them, else ``""``."""
+    reasons = [str(r) for r in reasons]
+    count = sum(bool(counts(r)) for r in reasons)
+    if not reasons or count < share * len(reasons):
+        return ""
+    return f"; {count} of the {len(reasons)} stances rejected {what}"
 
 
 def pivoting_print_hint(reasons) -> str:
     """What to add to a failed search's reason when most rejected stances could not keep a
-    sole or palm on a soft body flat on it (``max_corner_lift``): a print pivoting on its
-    edge presses a strip narrower than the mesh resolves, whose force is no converged one.
-
-    Parameters
-    ----------
-    reasons : iterable of str
-        The rejected stances' reasons.
-
-    Returns
-    -------
-    str
-        ``""``, or a clause starting with ``"; "`` that gives the share and what to do.
+    sole or palm on a soft body flat on it (``corner_sinking``, ``max_corner_lift``): a print
+    pivoting on its edge presses a strip narrower than the mesh resolves, whose force is no
+    converged one. Parameters and return as :func:`unresolved_ball_hint`'s.
 
     Examples
     --------
@@ -265,12 +263,9 @@ def pivoting_print_hint(reasons) -> str:
     >>> pivoting_print_hint(["torque limit of j"])
     ''
     """
-    reasons = [str(r) for r in reasons]
-    pivoting = sum(any(fragment in r for fragment in _PIVOTING) for r in reasons)
-    if not reasons or pivoting < PIVOTING_SHARE * len(reasons):
-        return ""
-    return (
-        f"; {pivoting} of the {len(reasons)} stances rejected could not press a sole or palm on a soft body with its "
-        "whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan "
-        "with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot"
+    return _share_hint(
+        reasons, lambda reason: any(fragment in reason for fragment in _PIVOTING), PIVOTING_SHARE,
+        "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is "
+        "refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
+        "(solver_options={'max_corner_lift': inf}) to let prints pivot",
     )

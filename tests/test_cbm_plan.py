@@ -198,6 +198,29 @@ def test_a_search_failing_on_a_soft_objects_strain_bound_says_so(scenario, robot
                                       oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
 
 
+class PivotingOracle(SyntheticOracle):
+    """As SyntheticOracle, its forbidden band's stances refused for a sole pivoting on its edge."""
+
+    def __call__(self, stance, parent, parent_check):
+        check = super().__call__(stance, parent, parent_check)
+        if check.reason == "forbidden band":
+            return StanceCheck(False, "contact of right_sole on step_top (corner 2 lifted: pivoting on an edge) "
+                                      "violated by 0.0003", None)
+        return check
+
+
+def test_a_search_failing_on_pivoting_prints_says_how_to_let_them_pivot(scenario, robot):
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=PivotingOracle(forbidden_x=(0.0, 10.0)),
+                  max_expansions=15)
+    rejected = failed.rejections["soft support (indentation, strain, contact)"]["count"]
+    assert failed.reason.endswith(
+        f"; {rejected} of the {rejected} stances rejected could not press a sole or palm on a soft body with its "
+        "whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan "
+        "with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot")
+    assert "pivot" not in plan(scenario, robot=robot, reach=robot.reach,
+                               oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
+
+
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):
