@@ -501,7 +501,13 @@ class DeformableContact:
                     f"a neighbouring print go to that print; at least {MINIMUM_PRINT_NODES} are needed: move "
                     f"the prints apart or refine the mesh of {deformable_object.name!r}"
                 )
-        self._corner_weights = self._corner_weights_of(corners, node_sets, body, body_placement)
+        self._corners, self._corner_print = self._corner_weights(corners, node_sets, body, body_placement)
+        # (k, p): each corner's row gives its print's corners' mean height; the whole-print
+        # rows are the corners' heights less corner_sinking times that.
+        self._corner_means = np.zeros_like(self._corners)
+        for i in np.unique(self._corner_print):
+            self._corner_means[self._corner_print == i] = self._corners[self._corner_print == i].mean(axis=0)
+        self._corner_rows = self._corners - self.corner_sinking * self._corner_means
         self.node_ids = np.concatenate(node_sets)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
@@ -603,27 +609,29 @@ class DeformableContact:
         self._cache = None
         self._derivatives = None
 
-    def _corner_weights_of(self, corners, node_sets, body, body_placement) -> list:
-        """Per print, the (k, n) weights that give its polygon's k corners' heights from
-        its n nodes' link-point heights (None for a point foot, whose print has no corner).
+    def _corner_weights(self, corners, node_sets, body, body_placement):
+        """(k, p) weights that give the polygon prints' k corners' heights from the p print
+        nodes' link-point heights, and (k,) the print of each corner (point feet have none).
 
         A rigid motion moves points by ``(R - I) x + t``, affine in the rest position, and
         the print's nodes and corners lie in its plane: any affine combination of the nodes
         that reproduces a corner's rest position (``sum c = 1``, ``sum c x = corner``; the
         least-norm one here) gives that corner's height, and its derivative, exactly.
         """
-        weights, start = [], 0
-        for ids, polygon, placement in zip(node_sets, corners, self.print_placements):
+        blocks, owners, start = [], [], 0
+        total = sum(len(ids) for ids in node_sets)
+        for index, (ids, polygon, placement) in enumerate(zip(node_sets, corners, self.print_placements)):
             count = len(ids)
-            if polygon is None:
-                weights.append(None)
-            else:
+            if polygon is not None:
                 rest = self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
                 affine = np.vstack([rest.T, np.ones(count)])  # (3, n)
                 targets = np.vstack([polygon.T, np.ones(len(polygon))])  # (3, k)
-                weights.append((slice(start, start + count), (np.linalg.pinv(affine) @ targets).T))
+                block = np.zeros((len(polygon), total))
+                block[:, start : start + count] = (np.linalg.pinv(affine) @ targets).T
+                blocks.append(block)
+                owners.extend([index] * len(polygon))
             start += count
-        return weights
+        return (np.vstack(blocks) if blocks else np.zeros((0, total))), np.array(owners, dtype=np.int64)
 
     @staticmethod
     def _in_print(nodes, body_placement, placement) -> np.ndarray:
@@ -1092,11 +1100,10 @@ class DeformableContact:
             if np.isfinite(self.max_corner_lift):
                 # ... and presses with its whole face: each corner sunk its share of the
                 # print's mean sinking (corner_sinking, max_corner_lift).
-                value, d_value = self._corner_rows(heights, d_heights)
-                jacobian = None
+                value, jacobian = self._corner_rows @ heights, None
                 if derivatives:
                     jacobian = np.zeros((len(value), columns))
-                    jacobian[:, :nv] = d_value
+                    jacobian[:, :nv] = self._corner_rows @ d_heights
                 blocks.append(ConstraintBlock(
                     "whole print", value, jacobian, -np.inf, self.max_corner_lift, 1e-2, labels["corners"]))
             # A link point slides over its node's coupling end: the node plus its coupling's stretch.
@@ -1152,24 +1159,6 @@ class DeformableContact:
         if strain is not None:
             blocks.append(strain)
         return blocks
-
-    def _corner_heights(self, heights, d_heights=None, sinking=0.0):
-        """(k,) heights of the polygon prints' corners above their rest surface, metres,
-        from the (p,) heights of the link points over the print nodes, and their (k, nv)
-        derivative from the nodes' (p, nv) (None when ``d_heights`` is); less ``sinking``
-        times the mean of each print's corners' heights."""
-        weights = [(rows, corner - sinking * corner.mean(axis=0)) for rows, corner in filter(None, self._corner_weights)]
-        value = np.concatenate([w @ heights[rows] for rows, w in weights]) if weights else np.zeros(0)
-        if d_heights is None:
-            return value, None
-        d_value = [w @ d_heights[rows] for rows, w in weights]
-        return value, np.vstack(d_value) if d_value else np.zeros((0, d_heights.shape[1]))
-
-    def _corner_rows(self, heights, d_heights=None):
-        """The whole-print rows' values (k,), metres, at most ``max_corner_lift``: each
-        corner's height less ``corner_sinking`` times its print's corners' mean, and their
-        (k, nv) derivative (:meth:`_corner_heights`)."""
-        return self._corner_heights(heights, d_heights, self.corner_sinking)
 
     def _overlap_block(self, displacements, d_displacements, nodes, d_nodes, columns) -> ConstraintBlock:
         """How far the body's print nodes reach past their link points along the print normal,
@@ -1270,9 +1259,8 @@ class DeformableContact:
             ),
             "touch": tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints),
             "corners": tuple(
-                f"contact of {spec.label} (corner {j} lifted: pivoting on an edge)"
-                for spec, weights in zip(self.prints, self._corner_weights) if weights is not None
-                for j in range(len(weights[1]))
+                f"contact of {self.prints[i].label} (corner {j} lifted: pivoting on an edge)"
+                for i in np.unique(self._corner_print) for j in range(int(np.sum(self._corner_print == i)))
             ),
             "resultant": resultant,
             "node contact": node_contact,
@@ -1582,23 +1570,20 @@ class DeformableContact:
         least ``corner_sinking`` of its print's corners' mean sinking, less
         ``max_corner_lift`` (``reached``: (p, 3) body frame, where each link point over a
         node has moved). Measures the highest corner and the largest shortfall."""
-        heights = np.einsum("pj,pj->p", reached, self.normals_in_body)
-        corners, _ = self._corner_heights(heights)
-        if corners.size == 0:
+        if len(self._corner_print) == 0:
             return []
+        heights = np.einsum("pj,pj->p", reached, self.normals_in_body)
+        corners, means = self._corners @ heights, self._corner_means @ heights
+        rows = corners - self.corner_sinking * means
         name = self.deformable_object.name
-        rows, _ = self._corner_rows(heights)
         worst = int(np.argmax(rows))
         measures[f"highest print corner on {name}"] = float(corners.max())
         measures[f"print corner shortfall on {name}"] = float(rows[worst])
         if rows[worst] <= self.max_corner_lift + tolerances.deformable_placement:
             return []
-        owners = [spec.label for spec, weights in zip(self.prints, self._corner_weights)
-                  if weights is not None for _ in range(len(weights[1]))]
-        mean = corners[worst] - self._corner_heights(heights, sinking=1.0)[0][worst]  # its print's corners' mean
         return [
-            f"a corner of {owners[worst]} sinks {-corners[worst]:.3g} m into {name}, less than "
-            f"{self.corner_sinking:g} of its print's mean sinking ({-mean:.3g} m) by {rows[worst]:.3g} m, beyond "
+            f"a corner of {self.prints[self._corner_print[worst]].label} sinks {-corners[worst]:.3g} m into {name}, "
+            f"less than {self.corner_sinking:g} of its print's mean sinking ({-means[worst]:.3g} m) by {rows[worst]:.3g} m, beyond "
             f"max_corner_lift {self.max_corner_lift:g} m: the print pivots toward its edge, pressing a strip narrower "
             "than the mesh resolves (no converged force: palms on their edge came 7-16 % below a converged mesh's; "
             "corner_sinking)"

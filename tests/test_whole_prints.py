@@ -88,7 +88,7 @@ def test_the_corner_heights_are_those_of_the_link_itself(robot, scenario, pivoti
     pin.forwardKinematics(robot.model, data, np.asarray(pivoting.q))
     pin.updateFramePlacements(robot.model, data)
     heights = np.einsum("pj,pj->p", soft._displacements(data) + soft.gaps, soft.normals_in_body)
-    corners, _ = soft._corner_heights(heights)
+    corners = soft._corners @ heights
     surface = robot.surface("right_palm")
     frame = data.oMf[robot.model.getFrameId(surface.frame)]
     placement = soft.print_placements[0]
