@@ -151,18 +151,28 @@ def test_a_failed_plan_on_a_grid_coarser_than_the_robots_default_names_the_robot
     assert plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle()).reason == "goal reached"
 
 
-class CollidingOracle(SyntheticOracle):
-    """As SyntheticOracle, its forbidden band's stances rejected as collisions."""
+class RejectingOracle(SyntheticOracle):
+    """As SyntheticOracle, its forbidden band's stances rejected with ``reason``."""
+
+    def __init__(self, reason, forbidden_x=None):
+        super().__init__(forbidden_x)
+        self.reason = reason
 
     def __call__(self, stance, parent, parent_check):
         check = super().__call__(stance, parent, parent_check)
         if check.reason == "forbidden band":
-            return StanceCheck(False, "collision between leg_left_5_link_0 and step (depth 0.01 m)", None)
+            return StanceCheck(False, self.reason, None)
         return check
 
 
+COLLIDING = "collision between leg_left_5_link_0 and step (depth 0.01 m)"
+STRAINED = ("static equilibrium (fx) violated by 2.3 N; no step meets together: strain bound (compression) of tet "
+            "7509 of step, placement of right_sole (z)")
+PIVOTING = "contact of right_sole on step_top (corner 2 lifted: pivoting on an edge) violated by 0.0003"
+
+
 def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(scenario, robot):
-    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=CollidingOracle(forbidden_x=(0.0, 10.0)),
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=RejectingOracle(COLLIDING, (0.0, 10.0)),
                   max_expansions=15)
     assert failed.reason.startswith("budget exhausted: max_expansions; ")
     rejected = failed.rejections["collision"]["count"]
@@ -175,50 +185,24 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
     assert other.reason == "budget exhausted: max_expansions"
 
 
-class StrainedOracle(SyntheticOracle):
-    """As SyntheticOracle, its forbidden band's stances rejected with a strain bound among the rows."""
-
-    def __call__(self, stance, parent, parent_check):
-        check = super().__call__(stance, parent, parent_check)
-        if check.reason == "forbidden band":
-            return StanceCheck(False, "static equilibrium (fx) violated by 2.3 N; no step meets together: strain "
-                                      "bound (compression) of tet 7509 of step, placement of right_sole (z)", None)
-        return check
-
-
-def test_a_search_failing_on_a_soft_objects_strain_bound_says_so(scenario, robot):
-    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=StrainedOracle(forbidden_x=(0.0, 10.0)),
+@pytest.mark.parametrize("reason, cause, hint, absent", [
+    (STRAINED, "balance (static equilibrium)",
+     "meet the strain bound of step (the worst row or among those no step meets together): it may be too soft or too "
+     "thin to stand on; a stiffer material, a larger strain_limit or a thicker body would carry more", "strain bound"),
+    (PIVOTING, "soft support (indentation, strain, contact)",
+     "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused "
+     "(its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
+     "(solver_options={'max_corner_lift': inf}) to let prints pivot", "pivot"),
+], ids=["strain bound", "pivoting prints"])
+def test_a_search_failing_on_a_soft_support_says_what_to_do(scenario, robot, reason, cause, hint, absent):
+    """A search whose stances are rejected on a soft object's strain bound, or on a sole or
+    palm that cannot press with its whole face, says so and what to change."""
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=RejectingOracle(reason, (0.0, 10.0)),
                   max_expansions=15)
-    rejected = failed.rejections["balance (static equilibrium)"]["count"]
-    assert failed.reason.endswith(
-        f"; {rejected} of the {rejected} stances rejected meet the strain bound of step (the worst row or among those "
-        "no step meets together): it may be too soft or too thin to stand on; a stiffer material, a larger "
-        "strain_limit or a thicker body would carry more")
-    assert "strain bound" not in plan(scenario, robot=robot, reach=robot.reach,
-                                      oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
-
-
-class PivotingOracle(SyntheticOracle):
-    """As SyntheticOracle, its forbidden band's stances refused for a sole pivoting on its edge."""
-
-    def __call__(self, stance, parent, parent_check):
-        check = super().__call__(stance, parent, parent_check)
-        if check.reason == "forbidden band":
-            return StanceCheck(False, "contact of right_sole on step_top (corner 2 lifted: pivoting on an edge) "
-                                      "violated by 0.0003", None)
-        return check
-
-
-def test_a_search_failing_on_pivoting_prints_says_how_to_let_them_pivot(scenario, robot):
-    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=PivotingOracle(forbidden_x=(0.0, 10.0)),
-                  max_expansions=15)
-    rejected = failed.rejections["soft support (indentation, strain, contact)"]["count"]
-    assert failed.reason.endswith(
-        f"; {rejected} of the {rejected} stances rejected could not press a sole or palm on a soft body with its "
-        "whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan "
-        "with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot")
-    assert "pivot" not in plan(scenario, robot=robot, reach=robot.reach,
-                               oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
+    rejected = failed.rejections[cause]["count"]
+    assert failed.reason.endswith(f"; {rejected} of the {rejected} stances rejected {hint}")
+    assert absent not in plan(scenario, robot=robot, reach=robot.reach,
+                              oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
 
 
 def test_missing_goal_is_a_clear_error(scenario, robot):
