@@ -53,6 +53,10 @@ _MAX_ITERATIONS = 60
 # Newton steps of a solve for a carried wrench (solve_loaded): the built-in soft stances'
 # 270 solves took 5 (median) to 12; a wrench out of reach makes the modes cycle.
 _LOADED_ITERATIONS = 20
+# A semismooth Newton that comes into one set of modes this many times more is on a cycle
+# (climb's palm on its platform: two sets in turn from the third step to the sixtieth, 2-3
+# ms of a 20-node print's steps thrown away before the fallback).
+_SET_ENTRIES = 2
 # Its wrench's relative accuracy: on a body of E = 1e11 Pa the residual sits at 1e-11 to
 # 1e-10 of the wrench once the modes have settled (the forces are the compliance's solve
 # of nanometres), so 1e-11 never came (hand-on-cube's palm); 1e-9 of 80 N is 8e-8 N.
@@ -345,9 +349,15 @@ class PrintContactSystem:
             np.zeros((p, 2)) if initial_directions is None else np.array(initial_directions, dtype=float).reshape(p, 2)
         )
         result = self._newton(u_local, modes, directions)
+        if result is None and initial_modes is not None:
+            # A warm start can put the active set on a cycle that the cold start
+            # (every node sticking) does not meet: climb's palm on its platform,
+            # nodes at the brink of lifting, cycled between two sets from the
+            # previous linearisation's modes and settled in 6 steps from sticking.
+            result = self._newton(u_local, np.full(p, STICK), np.zeros((p, 2)))
         if result is None:
-            # The active set cycled (seen on prints where many nodes sit at the
-            # stick/slip boundary): projected Gauss-Seidel finds the contact state,
+            # The active set cycled from both starts (seen on prints where many nodes sit
+            # at the stick/slip boundary): projected Gauss-Seidel finds the contact state,
             # then the semismooth Newton restarts from its modes.
             modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
             result = self._newton(u_local, modes, directions)
@@ -512,6 +522,7 @@ class PrintContactSystem:
         force), then polishes the answer with one more step.
         """
         gains = np.zeros(self.n_nodes)
+        entries = {}  # how many times the iteration has come into each set of modes
         for iteration in range(1, _MAX_ITERATIONS + 1):
             if self._infinite_friction and np.isinf(self.mu[modes == SLIP]).any():
                 # Slipping needs |t| = mu n: with mu = inf no such state (the law's
@@ -520,12 +531,17 @@ class PrintContactSystem:
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
             new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
-            if np.array_equal(new_modes, modes) and _slip_settled(phi, r, self.scale, new_modes, self.mu,
-                                                                  new_directions):
+            same = np.array_equal(new_modes, modes)
+            if same and _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions):
                 # Linearised at the answer itself: L below is the exact Jacobian.
                 system = self._system(new_modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, new_modes, new_directions, system, phi, r)
                 return phi, r, new_modes, new_directions, system, iteration
+            if not same:
+                key = new_modes.tobytes()
+                entries[key] = entries.get(key, 0) + 1
+                if entries[key] > _SET_ENTRIES:
+                    return None  # the active set cycles: the caller starts elsewhere
             modes, directions, gains = new_modes, new_directions, new_gains
         return None
 
