@@ -220,6 +220,23 @@ def test_a_feasible_step_that_barely_moves_the_objective_is_final(stops):
     assert StoppingTest(TOLERANCE, 1e-6, 100).converged(2, _point(0.999), first[2], 0.0, 1.0, 1.0, 1.0) is None
 
 
+def test_a_restoration_in_place_of_a_failed_search_that_gains_nothing_is_not_final(stops):
+    """A restoration step ignores the objective: that it moved it by nothing says nothing
+    of optimality (searched = 0: the line search found no optimality step)."""
+    def steps(searched):
+        test = StoppingTest(TOLERANCE, 1e-6, limit=100)
+        test.converged(1, _point(1.0), _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)  # the best feasible iterate
+        near = _point(0.99, violation=1e-6)  # an optimality step 1 % down, just off the rows
+        assert test.converged(2, near, _Iterate(1.0), 0.0, 1.0, 1.0, 0.02) is None
+        restored = _point(0.99 - 1e-9)  # back onto them, the objective unmoved
+        return test.converged(3, restored, near[2], 1e-6, 1.0, searched, 0.01), restored
+
+    assert steps(searched=0.0)[0] is None
+    # The same gain from an optimality step taken whole is final.
+    answer, restored = steps(searched=1.0)
+    assert answer is restored
+
+
 def test_a_cycle_that_beats_the_best_by_less_than_no_gain_ends_at_the_best(stops):
     best = _point(1.0)
     stops.converged(1, best, _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)
