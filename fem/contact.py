@@ -53,7 +53,8 @@ _MAX_ITERATIONS = 60
 # Newton steps of a solve for a carried wrench (solve_loaded): the built-in soft stances'
 # 270 solves took 5 (median) to 12; a wrench out of reach makes the modes cycle.
 _LOADED_ITERATIONS = 20
-# A semismooth Newton that comes into one set of modes this many times more is on a cycle
+# A warm-started semismooth Newton that comes into one set of modes more than this many
+# times (the starting set not counted) is taken to cycle, and the cold start follows
 # (climb's palm on its platform: two sets in turn from the third step to the sixtieth, 2-3
 # ms of a 20-node print's steps thrown away before the fallback).
 _SET_ENTRIES = 2
@@ -348,17 +349,22 @@ class PrintContactSystem:
         directions = (
             np.zeros((p, 2)) if initial_directions is None else np.array(initial_directions, dtype=float).reshape(p, 2)
         )
-        result = self._newton(u_local, modes, directions)
-        if result is None and initial_modes is not None:
-            # A warm start can put the active set on a cycle that the cold start
-            # (every node sticking) does not meet: climb's palm on its platform,
-            # nodes at the brink of lifting, cycled between two sets from the
-            # previous linearisation's modes and settled in 6 steps from sticking.
+        # A warm start (modes other than every node sticking) can put the active set on a
+        # cycle that the cold start does not meet: climb's palm on its platform, nodes at the
+        # brink of lifting, cycled between two sets from the previous linearisation's modes
+        # and settled in 6 steps from sticking. Such a start gives up on a cycle at once
+        # (_SET_ENTRIES) and the cold start follows, with the whole budget: a run that comes
+        # back to a set while its slip directions converge is no cycle (a review's synthetic
+        # prints: 6 of 10,000 warm starts stopped so, and one of them settled from sticking
+        # in another admissible state: Coulomb's contact need not be unique).
+        warm = bool(np.any(modes != STICK))
+        result = self._newton(u_local, modes, directions, give_up_on_cycles=warm)
+        if result is None and warm:
             result = self._newton(u_local, np.full(p, STICK), np.zeros((p, 2)))
         if result is None:
-            # The active set cycled from both starts (seen on prints where many nodes sit
-            # at the stick/slip boundary): projected Gauss-Seidel finds the contact state,
-            # then the semismooth Newton restarts from its modes.
+            # The active set did not settle from sticking (seen on prints where many nodes
+            # sit at the stick/slip boundary): projected Gauss-Seidel finds the contact
+            # state, then the semismooth Newton restarts from its modes.
             modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
             result = self._newton(u_local, modes, directions)
             if result is None and np.isinf(self.mu).any():
@@ -513,8 +519,11 @@ class PrintContactSystem:
         r = u_local.ravel() + self.c_local @ phi
         return phi.reshape(-1, 3), r.reshape(-1, 3)
 
-    def _newton(self, u_local, modes, directions):
-        """Semismooth Newton (primal-dual active set) from given modes; None if it does not settle.
+    def _newton(self, u_local, modes, directions, give_up_on_cycles=False):
+        """Semismooth Newton (primal-dual active set) from given modes; None if it does not
+        settle within ``_MAX_ITERATIONS`` steps, or, with ``give_up_on_cycles``, once it
+        comes into one set of modes more than ``_SET_ENTRIES`` times (the starting set not
+        counted).
 
         Each step solves the law linearised at the current iterate, with the modes
         read from it; it stops when the modes repeat and every slipping node's
@@ -537,7 +546,7 @@ class PrintContactSystem:
                 system = self._system(new_modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, new_modes, new_directions, system, phi, r)
                 return phi, r, new_modes, new_directions, system, iteration
-            if not same:
+            if give_up_on_cycles and not same:
                 key = new_modes.tobytes()
                 entries[key] = entries.get(key, 0) + 1
                 if entries[key] > _SET_ENTRIES:

@@ -445,12 +445,13 @@ class StoppingTest:
         if feasible and (
             alpha * step_length < 1e-6
             # (An objective the step did not move says the optimality step found nothing
-            # only when it was that step: a restoration that replaced a failed line search
-            # ignores the objective, and its gain of nothing is no answer. The mixed stiffness
-            # sweep's baseline, its palm held rigid and its soles on a soft mat, stopped so at
-            # objective 2.180 with a 0.022 rad step still proposed; going on, 2.051 in five
-            # iterations, where a start from the stiff answer's posture reached 2.050.)
-            or (searched > 0.0 and abs(gained) < self.optimality_tolerance * (1.0 + abs(previous_objective)))
+            # only when it was that step, ``alpha == searched``: a restoration that replaced
+            # a failed or cut line search ignores the objective, and its gain of nothing is no
+            # answer. The mixed stiffness sweep's baseline, its palm held rigid and its soles
+            # on a soft mat, stopped so at objective 2.180 with a 0.022 rad step still
+            # proposed; going on, 2.051 in five iterations, where a start from the stiff
+            # answer's posture reached 2.050.)
+            or (alpha == searched and abs(gained) < self.optimality_tolerance * (1.0 + abs(previous_objective)))
             or self._crawling >= CRAWL_STEPS
             # A step cut below CRAWL_ALPHA near feasibility, after which the iterate is
             # feasible but next to no better than the best feasible one before it: the

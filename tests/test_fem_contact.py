@@ -475,7 +475,7 @@ def test_a_loaded_solve_of_a_wrench_beyond_the_print_is_none(pad):
 def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkeypatch):
     """Climb's palm on its platform: nodes at the brink of lifting put the semismooth
     Newton, warm started from the last linearisation's modes, on a cycle of two contact
-    sets. The cycle is seen on its second round (not after 60 steps) and the solve
+    sets. The cycle is seen on its third entry into a set (not after 60 steps) and the solve
     restarts from every node sticking, which settles; the projected Gauss-Seidel (20 ms a
     call on this 20-node print) is not needed. The stance the solver returns passes
     verify, whose per-node Signorini-Coulomb check does not use the Newton's modes."""
@@ -489,10 +489,10 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
     failed_steps = []
     newton, forces = contact.PrintContactSystem._newton, contact.PrintContactSystem._forces
 
-    def counted_newton(self, u_local, modes, directions):
+    def counted_newton(self, u_local, modes, directions, **options):
         steps = []
         monkeypatch.setattr(self, "_forces", lambda *args: steps.append(1) or forces(self, *args))
-        result = newton(self, u_local, modes, directions)
+        result = newton(self, u_local, modes, directions, **options)
         if result is None:
             failed_steps.append(len(steps))
         return result
@@ -504,3 +504,30 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
     assert result.feasible, result.reason
     assert failed_steps, "no warm start cycled: this case no longer exercises the restart"
     assert max(failed_steps) <= 2 * contact._SET_ENTRIES + 4
+
+
+def test_only_a_warm_start_gives_up_on_a_cycle(pad, monkeypatch):
+    """A start from modes other than every node sticking gives up on a cycle at once (the
+    cold start follows); the cold start, given or by default, keeps the whole budget: a run
+    that comes back to a set while its slip directions converge is no cycle."""
+    from fem import contact
+
+    _, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    tilted = _rigid_motion(patch.points, [0.002, -0.001, -0.004], [0.0, 0.02, 0.0], patch.points.mean(axis=0))
+    earlier = fem.solve_print_contact(patch.compliance, tilted, frames, mu)
+    assert np.any(earlier.modes != contact.STICK)  # slipping or lifting nodes: a warm start
+    flags, newton = [], contact.PrintContactSystem._newton
+
+    def recorded(self, u_local, modes, directions, give_up_on_cycles=False):
+        flags.append(give_up_on_cycles)
+        return newton(self, u_local, modes, directions, give_up_on_cycles)
+
+    monkeypatch.setattr(contact.PrintContactSystem, "_newton", recorded)
+    pressed = _rigid_motion(patch.points, [0.0005, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    cold = fem.solve_print_contact(patch.compliance, pressed, frames, mu)
+    sticking = fem.solve_print_contact(patch.compliance, pressed, frames, mu, initial_modes=np.full(patch.n_nodes, contact.STICK))
+    warm = fem.solve_print_contact(patch.compliance, pressed, frames, mu, earlier.modes, earlier.directions)
+    assert flags == [False, False, True]
+    assert np.array_equal(cold.forces, sticking.forces)
+    assert np.allclose(warm.forces, cold.forces, rtol=0.0, atol=1e-9 * np.abs(cold.forces).max())

@@ -222,7 +222,8 @@ def test_a_feasible_step_that_barely_moves_the_objective_is_final(stops):
 
 def test_a_restoration_in_place_of_a_failed_search_that_gains_nothing_is_not_final(stops):
     """A restoration step ignores the objective: that it moved it by nothing says nothing
-    of optimality (searched = 0: the line search found no optimality step)."""
+    of optimality, whether the line search found no optimality step (searched = 0) or cut
+    it and the restoration took its place (alpha = 1 > searched)."""
     def steps(searched):
         test = StoppingTest(TOLERANCE, 1e-6, limit=100)
         test.converged(1, _point(1.0), _Iterate(2.0), 0.0, 1.0, 1.0, 1.0)  # the best feasible iterate
@@ -232,6 +233,7 @@ def test_a_restoration_in_place_of_a_failed_search_that_gains_nothing_is_not_fin
         return test.converged(3, restored, near[2], 1e-6, 1.0, searched, 0.01), restored
 
     assert steps(searched=0.0)[0] is None
+    assert steps(searched=1.0 / 32.0)[0] is None
     # The same gain from an optimality step taken whole is final.
     answer, restored = steps(searched=1.0)
     assert answer is restored
