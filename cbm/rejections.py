@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 from collections import Counter
 
+from stances.deformable import PIVOTING_REFUSAL, PIVOTING_ROW
+
 __all__ = [
     "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
     "strain_bound_hint", "summarise", "unresolved_ball_hint",
@@ -159,7 +161,7 @@ UNRESOLVED_SHARE = 0.5
 #: The same share for stances whose sole or palm on a soft body could not keep its whole face down.
 PIVOTING_SHARE = 0.5
 # The solver's whole-print row (stances.deformable, max_corner_lift) and verify's refusal.
-_PIVOTING = ("lifted: pivoting on an edge)", "pivots on its edge")
+_PIVOTING = (PIVOTING_ROW, PIVOTING_REFUSAL)
 # A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
 # that cannot carry its least load within the strain bound.
 _STRAIN_ROW = re.compile(r"strain bound \((?:compression|tension)\) of tet \d+ of ([\w.-]+)"

@@ -125,7 +125,7 @@ from .errors import StanceError
 from .layer_ball import layer_under
 from .statics import PointLoads, point_jacobians, points_in_world
 
-__all__ = ["DeformableContact", "HeldPrint", "PrintSpec", "MINIMUM_PRINT_NODES"]
+__all__ = ["DeformableContact", "HeldPrint", "PrintSpec", "MINIMUM_PRINT_NODES", "PIVOTING_ROW", "PIVOTING_REFUSAL"]
 
 MINIMUM_PRINT_NODES = 3
 
@@ -141,6 +141,10 @@ RESOLVED_BALL_NODES = 9
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
 _REFUSED_SINKING = 10.0
+# What a whole-print row's label and verify's refusal of a pivoting print say: the planner
+# counts rejected stances by them (cbm.rejections.pivoting_print_hint).
+PIVOTING_ROW = "lifted: pivoting on an edge"
+PIVOTING_REFUSAL = "the print pivots toward its edge"
 # What to do about a ball verification refuses (or would refuse whatever the posture).
 _BALL_ADVICE = ("keep the balls where the layer's law holds (a layer held on its base, pressed by balls only, far "
                 "enough inside its edges), or accept it with the solver option ball_force_error=inf")
@@ -1259,7 +1263,7 @@ class DeformableContact:
             ),
             "touch": tuple(f"contact of {spec.label} (lifted off its print)" for spec in self.prints),
             "corners": tuple(
-                f"contact of {self.prints[i].label} (corner {j} lifted: pivoting on an edge)"
+                f"contact of {self.prints[i].label} (corner {j} {PIVOTING_ROW})"
                 for i in np.unique(self._corner_print) for j in range(int(np.sum(self._corner_print == i)))
             ),
             "resultant": resultant,
@@ -1584,7 +1588,7 @@ class DeformableContact:
         return [
             f"a corner of {self.prints[self._corner_print[worst]].label} sinks {-corners[worst]:.3g} m into {name}, "
             f"less than {self.corner_sinking:g} of its print's mean sinking ({-means[worst]:.3g} m) by {rows[worst]:.3g} m, beyond "
-            f"max_corner_lift {self.max_corner_lift:g} m: the print pivots toward its edge, pressing a strip narrower "
+            f"max_corner_lift {self.max_corner_lift:g} m: {PIVOTING_REFUSAL}, pressing a strip narrower "
             "than the mesh resolves (no converged force: palms on their edge came 7-16 % below a converged mesh's; "
             "corner_sinking)"
         ]

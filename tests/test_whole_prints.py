@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 import stances
-from cbm.rejections import cause_of
+from cbm.rejections import cause_of, pivoting_print_hint
 from conftest import coarse_scenario
 from stances.problem import build_problem
 
@@ -51,12 +51,15 @@ def test_a_palm_let_pivot_leans_on_its_edge_and_verify_refuses_it(robot, scenari
         r"strip narrower than the mesh resolves \(no converged force: palms on their edge came 7-16 % below a "
         r"converged mesh's; corner_sinking\)", reason), reason
     assert f"{-lifted:.3g} m into cube" in reason
+    # A planner whose rejections are mostly this refusal says so.
+    assert pivoting_print_hint([f"verification failed: {reason}"]).startswith("; 1 of the 1 stances rejected could not press")
     # A solve that cannot keep the rows names them so; the planner counts them as the soft support's.
     (soft,) = [c for c in build_problem(robot, scenario.scene, pivoting.stance).contacts if c.kind == "deformable"]
     assert soft._labels["corners"] == tuple(f"contact of right_palm on cube_top (corner {j} lifted: pivoting on an edge)"
                                             for j in range(4))
     label = soft._labels["corners"][1]
     assert cause_of(f"{label} violated by 0.001") == "soft support (indentation, strain, contact)"
+    assert pivoting_print_hint([f"{label} violated by 0.001", "torque limit of j"]) != ""
 
 
 def test_by_default_the_palm_presses_with_its_whole_face(robot, scenario, pivoting):
