@@ -32,6 +32,13 @@ logger = logging.getLogger(__name__)
 # back from the disk cache, or solved again, when asked for.
 _COLUMN_MEMORY_BYTES = 256 * 2**20
 
+# Contact patches kept for prints asked for again (contact_patch), least recently used
+# dropped: each holds its dense compliance, factors and strain sets (6-10 MB on a 2k-node
+# rubber mat), and a plan meets a new node set at almost every stance (a user's mat: 98
+# patches asked for in 100 expansions, 86 of them distinct, 878 MB held unbounded and
+# kept after the plan; 16 kept: 6 more built, each from compliance columns in memory).
+_PATCHES_KEPT = 16
+
 # Loads on at most this many nodes are applied through the nodes' compliance
 # columns (a product, after 3 solves per node that prints have usually paid and the
 # disk cache keeps); more nodes take one sparse solve with the factorisation.
@@ -189,7 +196,7 @@ class DeformableBody:
         self._cache_cols = np.full(mesh.n_nodes, -1, dtype=np.int64)
         self._cache_rows = np.full(mesh.n_nodes, -1, dtype=np.int64)
         self._cache: np.ndarray | None = None
-        self._patches: dict[bytes, ContactPatch] = {}
+        self._patches: OrderedDict[bytes, ContactPatch] = OrderedDict()  # least recently used first
         # Full compliance columns per node, least recently used first.
         self._columns: OrderedDict[int, np.ndarray] = OrderedDict()
         # The last displacement_under_loads: (its loaded nodes' and loads' bytes, field).
@@ -529,10 +536,13 @@ class DeformableBody:
         if key is not None and coverage is not None:
             key += b"coverage" + np.asarray(coverage, dtype=float).tobytes()
         if key is not None and key in self._patches:
+            self._patches.move_to_end(key)
             return self._patches[key]
         patch = ContactPatch(self, ids, coverage)
         if key is not None:
             self._patches[key] = patch
+            while len(self._patches) > _PATCHES_KEPT:
+                self._patches.popitem(last=False)
         return patch
 
     def displacement_under_loads(self, node_ids, forces) -> np.ndarray:

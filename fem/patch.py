@@ -270,11 +270,12 @@ class ContactPatch:
         s.setflags(write=False)
         return s
 
-    @cached_property
+    @property
     def coupling_compliance(self) -> np.ndarray:
         """D: each partly covered node's series compliance ``(1 - w) / w C_ii``, (3p, 3p)
         float, m/N, block diagonal (zero for a fully covered print); its blocks are
-        :attr:`coupling_blocks`."""
+        :attr:`coupling_blocks` (made on each call: a dense matrix of blocks the solver
+        never reads whole)."""
         p = self.n_nodes
         d = np.zeros((3 * p, 3 * p))
         nodes = np.arange(p)

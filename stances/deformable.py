@@ -1469,7 +1469,26 @@ class DeformableContact:
         body = self.deformable_object.body
         if self.method == "traction":
             return np.asarray(body.displacement_field(self.patch, self._displacements(data)))
-        return body.displacement_under_loads(self.node_ids, -(np.asarray(forces) @ self.rotation_body))
+        return body.displacement_under_loads(*self.field_loads(forces))
+
+    def field_loads(self, forces):
+        """``(node_ids, loads)``: the point loads on the body whose field is
+        :meth:`displacement_field`'s (what a result keeps to draw it later, not this
+        contact), or None for the traction model, whose field is its print's motion.
+
+        Parameters
+        ----------
+        forces : (p, 3) float
+            As :meth:`displacement_field`.
+
+        Returns
+        -------
+        ((p,) int, (p, 3) float) or None
+            Nodes and their loads, newtons, body frame.
+        """
+        if self.method == "traction":
+            return None
+        return self.node_ids, -(np.asarray(forces) @ self.rotation_body)
 
     # -- independent check ---------------------------------------------------
     def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:

@@ -763,13 +763,22 @@ class LayerBalls:
         """(N, 3) displacement of every node of the body under the balls' pressures, metres,
         body frame (one sparse solve; zero where no ball presses)."""
         body = self.deformable_object.body
+        node_ids, loads = self.field_loads(forces)
+        if not node_ids.size:
+            return np.zeros((body.mesh.n_nodes, 3))
+        return body.displacement_under_loads(node_ids, loads)
+
+    def field_loads(self, forces):
+        """``(node_ids, loads)``, (k,) int and (k, 3) float newtons, body frame: the balls'
+        pressures' nodal loads, whose field is :meth:`displacement_field`'s (none where no
+        ball presses)."""
         pressed = self.ball_loads(forces)
         if not pressed:
-            return np.zeros((body.mesh.n_nodes, 3))
+            return np.zeros(0, dtype=np.int64), np.zeros((0, 3))
         node_ids, where = np.unique(np.concatenate([ids for _, ids, _ in pressed]), return_inverse=True)
         loads = np.zeros((len(node_ids), 3))
         np.add.at(loads, where, np.concatenate([load for _, _, load in pressed]))
-        return body.displacement_under_loads(node_ids, loads)
+        return node_ids, loads
 
     # -- independent check -----------------------------------------------------
     def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:

@@ -910,13 +910,29 @@ def deformation_fields(problem, q, point_forces) -> LazyDeformations:
 
 
 def _field_producer(contact, model, q, forces):
-    """A closure computing a contact's body displacement field at ``q`` under its forces (eq. 36)."""
+    """A closure computing a contact's body displacement field at ``q`` under its forces (eq. 36).
+
+    It holds the body and the point loads on it (``contact.field_loads``), not the contact:
+    a search keeps every answer, and through them their contacts' patches, factorisations
+    and strain sets, 5-10 MB a soft solve (a user's 100-expansion plan held 1.5 GB). The
+    traction model's field is its print's motion, which needs the contact.
+    """
     q, forces = np.array(q), np.array(forces)
+    loads = contact.field_loads(forces)
+    if loads is None:
+        def produce():
+            data = pin.Data(model)
+            pin.framesForwardKinematics(model, data, q)
+            return contact.displacement_field(model, data, forces)
+
+        return produce
+    body = contact.deformable_object.body
+    node_ids, node_loads = np.array(loads[0]), np.array(loads[1])
 
     def produce():
-        data = pin.Data(model)
-        pin.framesForwardKinematics(model, data, q)
-        return contact.displacement_field(model, data, forces)
+        if not node_ids.size:
+            return np.zeros((body.mesh.n_nodes, 3))
+        return body.displacement_under_loads(node_ids, node_loads)
 
     return produce
 

@@ -176,6 +176,23 @@ def test_precomputed_surface_compliance_gives_same_print_matrices(cube_mesh, pat
         assert np.allclose(cached.reaction_matrix(method), patch.reaction_matrix(method), rtol=1e-9, atol=1e-6)
 
 
+def test_a_body_keeps_its_most_recent_patches_only(cube_mesh):
+    """Patches asked for again are the same objects, but a body holds at most _PATCHES_KEPT
+    of them (a plan asks for a new node set at almost every stance: held unbounded, a
+    user's 100-expansion plan kept 878 MB of them)."""
+    from fem.body import _PATCHES_KEPT
+
+    body = make_body(cube_mesh)
+    top = np.flatnonzero(cube_mesh.nodes[:, 2] == 1.0)
+    sets = [top[k : k + 3] for k in range(_PATCHES_KEPT + 4)]
+    patches = [body.contact_patch(ids) for ids in sets]
+    assert len(body._patches) == _PATCHES_KEPT
+    assert body.contact_patch(sets[-1]) is patches[-1]  # recent: kept
+    assert body.contact_patch(sets[0]) is not patches[0]  # the oldest was dropped, made again
+    assert np.array_equal(body.contact_patch(sets[0]).compliance, patches[0].compliance)
+    assert len(body._patches) == _PATCHES_KEPT
+
+
 # ---------------------------------------------------------------- derivatives
 @pytest.mark.parametrize("method", ["consistent", "traction"])
 def test_reaction_matrix_matches_finite_differences(patch, displacements, method):
