@@ -43,7 +43,7 @@ SCENARIO_KEYS = (
 #: Keys each object ``type`` takes (docs/scenarios.md describes every one).
 OBJECT_KEYS = {
     "floor": ("name", "type", "size", "friction"),
-    "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces"),
+    "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces", "floating"),
     "soft_box": (
         "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "refine_lines", "grid", "friction",
         "strain_limit", "strain_radius", "floating",
@@ -51,7 +51,7 @@ OBJECT_KEYS = {
     "soft_blocks": (
         "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius", "floating",
     ),
-    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces"),
+    "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces", "floating"),
     "soft_mesh": (
         "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
         "strain_limit", "strain_radius", "floating",
@@ -351,7 +351,7 @@ class _Reader:
             names.add(obj.name)
             (deformable if obj.deformable else rigid).append(obj)
             surfaces.extend(obj_surfaces)
-            if obj.deformable and self.boolean(item, "floating", key, False):
+            if "floating" in OBJECT_KEYS[kind] and self.boolean(item, "floating", key, False):
                 floating.add(obj.name)
             keys[obj.name] = key
         surfaces = self.surface_overrides(surfaces_data, surfaces)

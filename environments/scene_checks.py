@@ -53,20 +53,26 @@ _MAX_SAMPLES = 4000
 
 
 def check_supported(scene: Scene, floating: Collection[str] = ()) -> None:
-    """Check every deformable object's fixed nodes lie on a face of a rigid object.
+    """Check every deformable object's fixed nodes lie on a face of a rigid object, and no
+    rigid object rests on a soft one.
+
+    A rigid object is fixed in the world: one placed on a soft mat (a crate on foam) would
+    stand there with the mat carrying none of it, and a robot on it none either.
 
     Parameters
     ----------
     scene : Scene
     floating : collection of str
-        Deformable objects exempt from the check (held in place some other way).
+        Objects exempt from the check (held in place some other way).
 
     Raises
     ------
     SceneSenseError
         Naming the first object with a fixed node on no rigid face, and where
-        its lowest such node is.
+        its lowest such node is; or the first rigid object resting on a soft
+        surface, and the soft object.
     """
+    _check_rigid_on_soft(scene, floating)
     supports = [
         (obj.transform_object_to_world, piece)
         for obj in scene.rigid_objects
@@ -90,6 +96,39 @@ def check_supported(scene: Scene, floating: Collection[str] = ()) -> None:
                 "object, or write 'floating: true' on it if something else holds it",
                 (obj.name,),
             )
+
+
+def _check_rigid_on_soft(scene: Scene, floating: Collection[str]) -> None:
+    """Refuse a rigid object whose downward faces lie on a soft object's contact surface."""
+    soft = [surface for surface in scene.surfaces.values() if surface.deformable]
+    for obj in scene.rigid_objects:
+        if obj.name in floating or not soft:
+            continue
+        points = _downward_samples(obj)
+        for surface in soft:
+            frame = surface.transform_surface_to_world
+            local = (points - frame[:3, 3]) @ frame[:3, :3]
+            on = (np.abs(local[:, 2]) <= CONTACT_TOLERANCE) & _in_polygon(surface.polygon, local[:, :2], -CONTACT_TOLERANCE)
+            if on.any():
+                raise SceneSenseError(
+                    f"rigid object {obj.name!r} rests on soft object {surface.object_name!r} (on {surface.name!r}): "
+                    f"rigid objects are fixed in the world, so {surface.object_name!r} would carry none of its weight "
+                    "nor of what stands on it; make it soft, move it onto a rigid object, or write 'floating: true' "
+                    "on it if something else holds it",
+                    (surface.object_name, obj.name),
+                )
+
+
+def _downward_samples(obj) -> np.ndarray:
+    """(k, 3) points of a rigid object's faces that look down (its base), world frame:
+    each such triangle's corners, edge midpoints and centroid."""
+    triangles = _triangles_in_world(obj)
+    normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
+    lengths = np.linalg.norm(normals, axis=1)
+    down = triangles[(lengths > 0.0) & (normals[:, 2] < -0.9 * lengths)]
+    weights = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5], [1, 1, 1]]) / \
+        np.array([1, 1, 1, 1, 1, 1, 3])[:, None]
+    return np.einsum("sk,tkj->tsj", weights, down).reshape(-1, 3)
 
 
 def _in_polygon(polygon: np.ndarray, points: np.ndarray, margin: float) -> np.ndarray:

@@ -52,6 +52,30 @@ def test_a_soft_object_may_rest_on_a_rigid_box(tmp_path):
     assert "objects[2]: soft object 'cube' is fixed at" in message and "(the lowest at z = 0.3 m)" in message
 
 
+def test_a_rigid_box_resting_on_a_soft_one_is_refused_unless_declared(tmp_path):
+    """A rigid object is fixed in the world: a crate on a soft cube would leave the cube
+    carrying nothing (a new user's crate on a mat: Talos stood on it with 271 N, the mat
+    with none)."""
+    cube = CUBE.replace("CZ", "0.25") + "}"  # top at z = 0.5
+    crate = "{name: crate, type: box, size: [0.2, 0.2, 0.2], center: [1.0, 0.1, 0.6]"  # on the cube's top
+    path = scenario_file(tmp_path, ["{name: floor, type: floor}", cube, crate + "}"])
+    assert refusal(path) == (
+        f"{path}:4: objects[2]: rigid object 'crate' rests on soft object 'cube' (on 'cube_top'): rigid objects are "
+        "fixed in the world, so 'cube' would carry none of its weight nor of what stands on it; make it soft, move it "
+        "onto a rigid object, or write 'floating: true' on it if something else holds it"
+    )
+    environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", cube, crate + ", floating: true}"]))
+    # A board wider than the cube, its corners beyond the cube's top, still rests on it.
+    board = "{name: board, type: box, size: [0.8, 0.8, 0.02], center: [1.0, 0.0, 0.51]}"
+    assert "rigid object 'board' rests on soft object 'cube'" in refusal(
+        scenario_file(tmp_path, ["{name: floor, type: floor}", cube, board]))
+    # Beside the cube, on the floor, and a shelf two centimetres above it: no contact.
+    beside = "{name: crate, type: box, size: [0.2, 0.2, 0.2], center: [1.5, 0.0, 0.1]}"
+    above = "{name: shelf, type: box, size: [0.2, 0.2, 0.02], center: [1.0, 0.0, 0.53]}"
+    environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", cube, beside]))
+    environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", cube, above]))
+
+
 def test_a_rigid_slab_inside_a_soft_cube_is_refused_unless_allowed(tmp_path, caplog):
     # The issue's case: a slab filling 60 % of the cube.
     slab = "{name: slab, type: box, size: [0.5, 0.5, 0.3], center: [1.0, 0.0, 0.15]}"
