@@ -12,6 +12,7 @@ import re
 from collections import Counter
 
 from stances.deformable import PIVOTING_REFUSAL, PIVOTING_ROW
+from stances.stages import HELD_RIGID
 
 __all__ = [
     "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
@@ -22,7 +23,7 @@ __all__ = [
 UNRESOLVED_BALL = "ball foot with no converged force on the soft mesh"
 
 # Constraint families, matched in this order against the text a reason starts
-# with once its qualifiers ("held rigid, ", "print unreachable: ") are removed.
+# with once its qualifiers (HELD_RIGID, "print unreachable: ") are removed.
 CAUSES = (
     ("time", ("time budget", "time limit")),
     ("verification", ("verification failed",)),
@@ -43,7 +44,7 @@ INPUT_CAUSES = (
     ("prints overlap", ("prints of ",)),
     ("print off its surface", ("lies off surface",)),
 )
-_QUALIFIERS = ("held rigid, ", "print unreachable: ")
+_QUALIFIERS = (HELD_RIGID, "print unreachable: ")
 # The solver's list of constraints no step meets together (stances.sqp), after the reason.
 _CONFLICT = "; no step meets together: "
 
@@ -53,7 +54,8 @@ def cause_of(reason: str) -> str:
 
     Examples
     --------
-    >>> cause_of("held rigid, print unreachable: placement of left_sole on floor (x) violated by 0.5 m")
+    >>> cause_of("even with its soft supports held rigid: print unreachable: placement of left_sole on floor (x) "
+    ...          "violated by 0.5 m")
     'reach (placement)'
     >>> cause_of("torque limit of arm_right_2_joint less its 10 % margin violated by 3.1 N m")
     'torque limit'
@@ -65,7 +67,8 @@ def cause_of(reason: str) -> str:
     mats end to end gave 30 "reach (placement)" rejections, each a foot that could
     not land without its heel meeting the next mat.
 
-    >>> cause_of("held rigid, print unreachable: placement of left_sole on mat_b_top (z) violated by 0.001 m "
+    >>> cause_of("even with its soft supports held rigid: print unreachable: placement of left_sole on mat_b_top (z) "
+    ...          "violated by 0.001 m "
     ...          "or rad; no step meets together: collision between leg_left_6_link_0 and mat_a, placement of "
     ...          "left_sole on mat_b_top (x)")
     'collision'
@@ -191,7 +194,7 @@ def strain_bound_hint(reasons) -> str:
     >>> strain_bound_hint(["static equilibrium (fx) violated by 2 N; no step meets together: "
     ...                    "strain bound (compression) of tet 7 of block, placement of a (x)",
     ...                    "strain bound (tension) of tet 9 of block violated by 0.02", "torque limit of j"])
-    '; 2 of the 3 stances rejected meet the strain bound of block (the worst row or among those no step meets together): it may be too soft or too thin to stand on; a stiffer material, a larger strain_limit or a thicker body would carry more'
+    '; 2 of the 3 stances rejected meet the strain bound of block (the worst row or among those no step meets together): it may be too soft to stand on; a stiffer material or a larger strain_limit would carry more (the strain under a print follows its pressure over the stiffness: a thicker body lowers it little, if at all)'
     >>> strain_bound_hint(["torque limit of j"])
     ''
     """
@@ -203,8 +206,9 @@ def strain_bound_hint(reasons) -> str:
     named = ", ".join(sorted({name for names in objects for name in names}))
     return (
         f"; {strained} of the {len(reasons)} stances rejected meet the strain bound of {named} (the worst row or "
-        "among those no step meets together): it may be too soft or too thin to stand on; a stiffer material, a "
-        "larger strain_limit or a thicker body would carry more"
+        "among those no step meets together): it may be too soft to stand on; a stiffer material or a larger "
+        "strain_limit would carry more (the strain under a print follows its pressure over the stiffness: a thicker "
+        "body lowers it little, if at all)"
     )
 
 

@@ -72,6 +72,9 @@ _STIFF_TIME = 8.0
 _LIFT_STEPS = 4
 # The status of a solve refused before its SQP (_balls_refused_anyway).
 BALLS_REFUSED = "ball refused before solving"
+# What a stance's reason starts with when it cannot be held even with its soft supports
+# held rigid (the rigid warm start's cheap rejection; cbm.rejections reads past it).
+HELD_RIGID = "even with its soft supports held rigid: "
 
 
 def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
@@ -201,7 +204,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # millimetres will not save it. Cheap rejection, with its reason (the
             # soft solve of such a stance was measured at 10-40 s).
             statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
-            reason = warm.reason if warm.statistics["status"] == OUT_OF_TIME else f"held rigid, {warm.reason}"
+            reason = warm.reason if warm.statistics["status"] == OUT_OF_TIME else f"{HELD_RIGID}{warm.reason}"
             return _timed_out(replace(warm, reason=reason, statistics=statistics,
                                     solve_time=time.perf_counter() - start, stance=stance), time_budget)
         if options.contact_law == "coulomb":

@@ -187,8 +187,9 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
 
 @pytest.mark.parametrize("reason, cause, hint, absent", [
     (STRAINED, "balance (static equilibrium)",
-     "meet the strain bound of step (the worst row or among those no step meets together): it may be too soft or too "
-     "thin to stand on; a stiffer material, a larger strain_limit or a thicker body would carry more", "strain bound"),
+     "meet the strain bound of step (the worst row or among those no step meets together): it may be too soft to "
+     "stand on; a stiffer material or a larger strain_limit would carry more (the strain under a print follows its "
+     "pressure over the stiffness: a thicker body lowers it little, if at all)", "strain bound"),
     (PIVOTING, "soft support (indentation, strain, contact)",
      "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused "
      "(its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
@@ -305,7 +306,8 @@ def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
 @pytest.mark.parametrize(
     "reason, cause",
     [
-        ("held rigid, print unreachable: placement of left_sole on floor (x) violated by 0.5 m", "reach (placement)"),
+        ("even with its soft supports held rigid: print unreachable: placement of left_sole on floor (x) violated by "
+         "0.5 m", "reach (placement)"),
         ("static equilibrium (fz) violated by 3 N (stagnated after 9 iterations)", "balance (static equilibrium)"),
         ("torque limit of arm_right_2_joint less its 10 % margin violated by 3.1 N m", "torque limit"),
         ("collision between leg_left_6_link_0 and firm_mat violated by 0.002 m", "collision"),

@@ -662,7 +662,7 @@ def test_a_soft_stance_that_cannot_be_held_even_rigid_is_rejected_early(robot):
     )
     result = solve(robot, scenario.scene, stance)
     assert not result.feasible
-    assert result.reason.startswith("held rigid, ")
+    assert result.reason.startswith("even with its soft supports held rigid: ")
     assert "rigid_warm_start_iterations" in result.statistics
 
 
@@ -1098,7 +1098,8 @@ def test_an_infeasible_stance_whose_line_search_crawls_stops_early_with_its_reas
     assert not result.feasible
     assert result.statistics["status"] == stopping.NO_PROGRESS
     assert result.iterations <= 9
-    assert result.reason.startswith("held rigid, collision between leg_right_6_link_0 and foam violated by ")
+    assert result.reason.startswith(
+        "even with its soft supports held rigid: collision between leg_right_6_link_0 and foam violated by ")
     assert "m (no progress toward feasibility: the line search cut 3 steps in a row below 1/16 after " in result.reason
 
 
@@ -1403,7 +1404,7 @@ def test_a_rigid_warm_start_ends_at_its_own_cap(anymal, monkeypatch, cap, option
     assert not result.feasible
     assert result.statistics["status"] == "iteration limit"
     assert result.statistics["rigid_warm_start_iterations"] == stop
-    assert result.reason.startswith("held rigid, print unreachable: ")
+    assert result.reason.startswith("even with its soft supports held rigid: print unreachable: ")
     assert f"(iteration limit after {stop} iterations)" in result.reason
 
 
