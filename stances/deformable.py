@@ -1269,7 +1269,10 @@ class DeformableContact:
             "resultant": resultant,
             "node contact": node_contact,
             "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
-            "overlap": tuple(f"mesh overlap bound at node {n} of {name}" for n in self.node_ids),
+            # (The option named: a user's stance failed on this row among others, and only
+            # a larger max_mesh_overlap was seen to carry it.)
+            "overlap": tuple(f"mesh overlap bound ({self.max_mesh_overlap:g} m, max_mesh_overlap) at node {n} of {name}"
+                             for n in self.node_ids),
         }
 
     def _resultant_rows(self, forces, d_forces):

@@ -160,6 +160,9 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
         base = _rows(problem, q, lam)
         noise = _value_noise(problem, q, lam, base)
         names.update(name for name, _ in base)
+        # A row's label names the option that bounds it, where a user can act on it.
+        overlap = [row for name, row in base if name == "mesh overlap"]
+        assert all(row.startswith("mesh overlap bound (1e-09 m, max_mesh_overlap) at node ") for row in overlap)
         keys = list(base)
         numeric = np.zeros((len(keys), problem.n_step))
         directions = [("q", i) for i in range(model.nv)] + [("lam", j) for j in range(problem.n_variables)]
