@@ -179,6 +179,13 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
     assert failed.reason.endswith(
         f"; {rejected} of the {rejected} stances rejected collide: a finer print grid offers prints between the "
         "obstacles (print_spacing 0.05, cbm plan --print-spacing 0.05)")
+    # Out of stances rather than budget: the same hint.
+    exhausted = plan(scenario, robot=robot, reach=robot.reach, oracle=RejectingOracle(COLLIDING, (0.0, 10.0)),
+                     max_expansions=100_000)
+    rejected = exhausted.rejections["collision"]["count"]
+    assert exhausted.reason == (
+        f"no feasible neighbour; {rejected} of the {rejected} stances rejected collide: a finer print grid offers "
+        "prints between the obstacles (print_spacing 0.05, cbm plan --print-spacing 0.05)")
     # Other causes: no such hint.
     other = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)),
                  max_expansions=15)
