@@ -361,8 +361,9 @@ class _Reader:
         except SceneError as error:
             raise self.error("objects", str(error)) from None
         try:
-            check_supported(scene, floating)
+            # Overlaps first: a box sunk into the floor is named as that, not as resting on nothing.
             check_overlaps(scene, allowed)
+            check_supported(scene, floating)
         except SceneSenseError as error:
             raise self.error(keys[error.objects[-1]], str(error)) from None
         return scene

@@ -43,6 +43,16 @@ def test_a_soft_box_floating_above_the_floor_is_refused_unless_declared(tmp_path
     environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", CUBE.replace("CZ", "0.25") + "}"]))
 
 
+def test_a_soft_box_sunk_into_the_floor_is_named_as_overlapping_it(tmp_path):
+    """Not as resting on nothing (a new user's mat centred on the floor's plane was said to
+    rest on no rigid object, as if it floated)."""
+    sunk = CUBE.replace("CZ", "0.0") + "}"  # half of it below the floor's top
+    message = refusal(scenario_file(tmp_path, ["{name: floor, type: floor}", sunk]))
+    assert "objects[1]: objects 'floor' and 'cube' overlap (" in message
+    assert message.endswith("move one, or list the pair in allowed_overlaps if it is intended, e.g. "
+                            "allowed_overlaps: [[floor, cube]]")
+
+
 def test_a_soft_object_may_rest_on_a_rigid_box(tmp_path):
     table = "{name: table, type: box, size: [0.8, 0.8, 0.3], center: [1.0, 0.0, 0.15]}"
     on_table = CUBE.replace("CZ", "0.55") + "}"  # base at z = 0.3, the table's top
