@@ -28,7 +28,7 @@ CAUSES = (
     ("time", ("time budget", "time limit")),
     ("verification", ("verification failed",)),
     ("reach (placement)", ("placement",)),
-    ("balance (static equilibrium)", ("static equilibrium",)),
+    ("balance (static equilibrium)", ("static equilibrium", "centre of pressure")),
     ("torque limit", ("torque limit",)),
     ("collision", ("collision",)),
     ("friction", ("friction cone", "node contact")),

@@ -151,6 +151,12 @@ _BALL_ADVICE = ("keep the balls where the layer's law holds (a layer held on its
 
 logger = logging.getLogger(__name__)
 
+
+def _signed_area(polygon) -> float:
+    """The signed area of a 2D polygon (k, 2), square metres, positive counter-clockwise."""
+    x, y = polygon[:, 0], polygon[:, 1]
+    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
+
 # Soft bodies (their fem bodies' ids) whose coarse ball contact this process has logged (once each).
 _COARSE_BALLS_LOGGED: set = set()
 
@@ -512,6 +518,8 @@ class DeformableContact:
         for i in np.unique(self._corner_print):
             self._corner_means[self._corner_print == i] = self._corners[self._corner_print == i].mean(axis=0)
         self._corner_rows = self._corners - self.corner_sinking * self._corner_means
+        self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(
+            corners, node_sets, body, body_placement)
         self.node_ids = np.concatenate(node_sets)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
@@ -636,6 +644,37 @@ class DeformableContact:
                 owners.extend([index] * len(polygon))
             start += count
         return (np.vstack(blocks) if blocks else np.zeros((0, total))), np.array(owners, dtype=np.int64)
+
+    def _centre_of_pressure_rows(self, outlines, node_sets, body, body_placement):
+        """Rows whose values, times the forces (world frame, stacked), are each polygon print's
+        moment of its normal forces about each edge of its outline, positive inside
+        (N m): all of them >= 0 puts the print's centre of pressure inside its outline.
+
+        A partly covered node's link point is its rest position, up to a cell outside the
+        outline (its force acts there; fem.ContactPatch): on a new user's and the built-in
+        stances up to 25 % of a sole's or palm's load acted up to 13 mm past its edge.
+        A foot whose centre of pressure lies past its edge would need a pressure outside
+        it, which no converged contact gives. Returns ``((r, 3p) float, (r,) int print)``.
+        """
+        p = sum(len(ids) for ids in node_sets)
+        rows, owners, start = [], [], 0
+        for i, (outline, ids) in enumerate(zip(outlines, node_sets)):
+            if outline is not None:
+                placement = self.print_placements[i]
+                points = self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
+                polygon = np.asarray(outline, dtype=float)
+                if _signed_area(polygon) < 0.0:
+                    polygon = polygon[::-1]
+                normal = placement.rotation[:, 2]
+                for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
+                    edge = (b - a) / np.linalg.norm(b - a)
+                    inside = (points - a) @ np.array([-edge[1], edge[0]])  # (k,) metres inside the edge
+                    row = np.zeros((p, 3))
+                    row[start : start + len(ids)] = inside[:, None] * normal[None, :]
+                    rows.append(row.reshape(-1))
+                    owners.append(i)
+            start += len(ids)
+        return np.array(rows).reshape(len(rows), 3 * p), np.array(owners, dtype=int)
 
     @staticmethod
     def _in_print(nodes, body_placement, placement) -> np.ndarray:
@@ -1142,6 +1181,11 @@ class DeformableContact:
                 0.0, np.inf, 1.0, labels["node contact"],
             ))
 
+        if len(self._pressure_print):
+            # Each polygon print's centre of pressure inside its outline.
+            value = self._pressure_rows @ forces.reshape(-1)
+            jacobian = self._pressure_rows @ d_forces.reshape(3 * p, columns) if derivatives else None
+            blocks.append(ConstraintBlock("centre of pressure", value, jacobian, 0.0, np.inf, 1.0, labels["pressure"]))
         # Indentation of the body's print nodes along their normal, bounded
         # relative to the body's thickness.
         depth = -np.einsum("pj,pj->p", nodes.reshape(p, 3), self.normals_in_body)
@@ -1267,6 +1311,10 @@ class DeformableContact:
                 for i in np.unique(self._corner_print) for j in range(int(np.sum(self._corner_print == i)))
             ),
             "resultant": resultant,
+            "pressure": tuple(
+                f"centre of pressure of {self.prints[i].label} (past edge {k} of its outline)"
+                for i in np.unique(self._pressure_print) for k in range(int(np.sum(self._pressure_print == i)))
+            ),
             "node contact": node_contact,
             "indentation": tuple(f"indentation bound at node {n} of {name}" for n in self.node_ids),
             # (The option named: a user's stance failed on this row among others, and only
@@ -1551,6 +1599,7 @@ class DeformableContact:
             )
         if self.law == "coulomb":
             reasons.extend(self._check_corners(reached, tolerances, measures))
+        reasons.extend(self._check_centres_of_pressure(forces, tolerances, measures))
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])
@@ -1589,6 +1638,30 @@ class DeformableContact:
                 f"(mean over {1e3 * self.strain_radius:g} mm) exceeds its bound {self.strain_limit:g}: linear "
                 "elasticity does not hold there"
             )
+        return reasons
+
+    def _check_centres_of_pressure(self, forces, tolerances, measures) -> list:
+        """Each polygon print's centre of pressure inside its outline (measured: the least
+        margin, metres, over the body's prints; a print pressing nothing has none)."""
+        if not len(self._pressure_print):
+            return []
+        moments = self._pressure_rows @ np.asarray(forces, dtype=float).reshape(-1)
+        reasons, margins = [], []
+        for i in np.unique(self._pressure_print):
+            rows = self._pressure_print == i
+            normal = float(self.print_placements[i].rotation[:, 2] @ forces[self.print_of_node == i].sum(axis=0))
+            if normal <= 0.0:
+                continue
+            margin = float(moments[rows].min()) / normal  # metres inside the nearest edge
+            margins.append(margin)
+            if margin < -tolerances.deformable_placement:
+                reasons.append(
+                    f"the centre of pressure of {self.prints[i].label} lies {-margin:.3g} m past its outline's "
+                    "edge: its partly covered nodes' forces, past the edge, carry a moment no pressure under "
+                    f"{self.print_surfaces[i]} could"
+                )
+        if margins:
+            measures[f"centre of pressure margin on {self.deformable_object.name}"] = min(margins)
         return reasons
 
     def _check_corners(self, reached, tolerances, measures) -> list:

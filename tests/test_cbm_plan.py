@@ -317,6 +317,8 @@ def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
          "0.5 m", "reach (placement)"),
         ("static equilibrium (fz) violated by 3 N (stagnated after 9 iterations)", "balance (static equilibrium)"),
         ("torque limit of arm_right_2_joint less its 10 % margin violated by 3.1 N m", "torque limit"),
+        ("centre of pressure of right_sole on mat_top (past edge 1 of its outline) violated by 0.4 N m",
+         "balance (static equilibrium)"),
         ("collision between leg_left_6_link_0 and firm_mat violated by 0.002 m", "collision"),
         ("indentation bound at node 375 of cube violated by 0.01 m", "soft support (indentation, strain, contact)"),
         ("friction cone of the resultant of right_palm on cube_top (-x) violated by 0.9 N", "friction"),
