@@ -99,17 +99,30 @@ def check_supported(scene: Scene, floating: Collection[str] = ()) -> None:
 
 
 def _check_rigid_on_soft(scene: Scene, floating: Collection[str]) -> None:
-    """Refuse a rigid object whose downward faces lie on a soft object's contact surface."""
-    soft = [surface for surface in scene.surfaces.values() if surface.deformable]
+    """Refuse a rigid object one of whose downward faces lies on a soft object's upward contact
+    surface: a point of either (the face's corners, edge midpoints and centroid; the surface's
+    corners, pulled in by the tolerance, and a grid over it) inside the other, on its plane."""
+    soft = [surface for surface in scene.surfaces.values()
+            if surface.deformable and surface.transform_surface_to_world[2, 2] > 0.9]  # faces up
+    if not soft:
+        return
     for obj in scene.rigid_objects:
-        if obj.name in floating or not soft:
+        if obj.name in floating:
             continue
-        points = _downward_samples(obj)
+        down = _downward_triangles(obj)
+        if not len(down):
+            continue
+        points = np.einsum("sk,tkj->tsj", _TRIANGLE_SAMPLES, down).reshape(-1, 3)
+        low, high = down.min(axis=(0, 1)), down.max(axis=(0, 1))
         for surface in soft:
             frame = surface.transform_surface_to_world
+            corners = surface.polygon @ frame[:3, :2].T + frame[:3, 3]
+            if np.any(corners.min(axis=0) > high + CONTACT_TOLERANCE) or np.any(corners.max(axis=0) < low - CONTACT_TOLERANCE):
+                continue  # apart
             local = (points - frame[:3, 3]) @ frame[:3, :3]
             on = (np.abs(local[:, 2]) <= CONTACT_TOLERANCE) & _in_polygon(surface.polygon, local[:, :2], -CONTACT_TOLERANCE)
-            if on.any():
+            mine = _polygon_samples(surface.polygon) @ frame[:3, :2].T + frame[:3, 3]
+            if on.any() or _under_triangles(down, mine).any():
                 raise SceneSenseError(
                     f"rigid object {obj.name!r} rests on soft object {surface.object_name!r} (on {surface.name!r}): "
                     f"rigid objects are fixed in the world, so {surface.object_name!r} would carry none of its weight "
@@ -119,16 +132,43 @@ def _check_rigid_on_soft(scene: Scene, floating: Collection[str]) -> None:
                 )
 
 
-def _downward_samples(obj) -> np.ndarray:
-    """(k, 3) points of a rigid object's faces that look down (its base), world frame:
-    each such triangle's corners, edge midpoints and centroid."""
+# A triangle's corners, edge midpoints and centroid, as barycentric weights.
+_TRIANGLE_SAMPLES = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5],
+                              [1 / 3, 1 / 3, 1 / 3]])
+
+
+def _downward_triangles(obj) -> np.ndarray:
+    """(t, 3, 3) a rigid object's boundary triangles that look down (its base), world frame."""
     triangles = _triangles_in_world(obj)
     normals = np.cross(triangles[:, 1] - triangles[:, 0], triangles[:, 2] - triangles[:, 0])
     lengths = np.linalg.norm(normals, axis=1)
-    down = triangles[(lengths > 0.0) & (normals[:, 2] < -0.9 * lengths)]
-    weights = np.array([[1, 0, 0], [0, 1, 0], [0, 0, 1], [0.5, 0.5, 0], [0, 0.5, 0.5], [0.5, 0, 0.5], [1, 1, 1]]) / \
-        np.array([1, 1, 1, 1, 1, 1, 3])[:, None]
-    return np.einsum("sk,tkj->tsj", weights, down).reshape(-1, 3)
+    return triangles[(lengths > 0.0) & (normals[:, 2] < -0.9 * lengths)]
+
+
+def _polygon_samples(polygon: np.ndarray, per_side: int = 5) -> np.ndarray:
+    """(k, 2) points of a convex polygon: its corners pulled toward its centroid by the
+    contact tolerance, and a grid over its bounding box kept where inside."""
+    centroid = polygon.mean(axis=0)
+    towards = centroid - polygon
+    corners = polygon + CONTACT_TOLERANCE * towards / np.maximum(np.linalg.norm(towards, axis=1), 1e-300)[:, None]
+    low, high = polygon.min(axis=0), polygon.max(axis=0)
+    u, v = np.meshgrid(np.linspace(0.0, 1.0, per_side + 2)[1:-1], np.linspace(0.0, 1.0, per_side + 2)[1:-1])
+    grid = low + np.column_stack([u.ravel(), v.ravel()]) * (high - low)
+    return np.concatenate([corners, grid[_in_polygon(polygon, grid, -CONTACT_TOLERANCE)], centroid[None]])
+
+
+def _under_triangles(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """(k,) bool: which world points lie on one of the (t, 3, 3) triangles, within the contact
+    tolerance of its plane and inside it seen from above."""
+    a, b, c = triangles[:, 0], triangles[:, 1], triangles[:, 2]
+    e1, e2 = (b - a)[:, :2], (c - a)[:, :2]
+    det = e1[:, 0] * e2[:, 1] - e1[:, 1] * e2[:, 0]  # (t,) never 0: the triangles face down
+    d = points[:, None, :2] - a[None, :, :2]  # (k, t, 2)
+    s = (d[..., 0] * e2[None, :, 1] - d[..., 1] * e2[None, :, 0]) / det
+    t = (e1[None, :, 0] * d[..., 1] - e1[None, :, 1] * d[..., 0]) / det
+    inside = (s >= 0.0) & (t >= 0.0) & (s + t <= 1.0)
+    height = a[None, :, 2] + s * (b - a)[None, :, 2] + t * (c - a)[None, :, 2]
+    return np.any(inside & (np.abs(points[:, None, 2] - height) <= CONTACT_TOLERANCE), axis=1)
 
 
 def _in_polygon(polygon: np.ndarray, points: np.ndarray, margin: float) -> np.ndarray:

@@ -137,6 +137,9 @@ MINIMUM_PRINT_NODES = 3
 # pressed nodes +0.2 to +10 % off the continuum, 2.5 mm bands +4.9 to +8.6 %): a ball is
 # judged against a continuum estimate, and refused where there is none.
 RESOLVED_BALL_NODES = 9
+# Newton metres a print's centre-of-pressure moment may fall below zero in verify: ten times
+# the solver's tolerance on those rows (its feasibility tolerance 1e-7, the rows' scale 1 N m).
+_MOMENT_TOLERANCE = 1e-6
 # A ball whose sinking a lower bound puts past this many times verify's placement tolerance
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
@@ -1654,7 +1657,10 @@ class DeformableContact:
                 continue
             margin = float(moments[rows].min()) / normal  # metres inside the nearest edge
             margins.append(margin)
-            if margin < -tolerances.deformable_placement:
+            # Past the edge by more than the placement tolerance, and by more than ten times
+            # the solver's own tolerance on the rows' moments (1e-7 N m): a print carrying a
+            # tenth of a newton on its bound is no refusal.
+            if moments[rows].min() < -max(tolerances.deformable_placement * normal, _MOMENT_TOLERANCE):
                 reasons.append(
                     f"the centre of pressure of {self.prints[i].label} lies {-margin:.3g} m past its outline's "
                     "edge: its partly covered nodes' forces, past the edge, carry a moment no pressure under "

@@ -104,9 +104,10 @@ def _unit(label: str) -> str:
         return "m or rad"
     if label.startswith("static equilibrium"):
         return "N or N m"
-    if label.startswith("torque"):
+    if label.startswith(("torque", "centre of pressure")):
         return "N m"
-    if label.startswith("collision") or "indentation" in label or "lifted off" in label:
+    if (label.startswith(("collision", "mesh overlap")) or "indentation" in label or "lifted off" in label
+            or "pivoting on an edge" in label):
         return "m"
     if label.startswith("strain"):
         return "(strain)"

@@ -79,6 +79,11 @@ def test_a_rigid_box_resting_on_a_soft_one_is_refused_unless_declared(tmp_path):
     board = "{name: board, type: box, size: [0.8, 0.8, 0.02], center: [1.0, 0.0, 0.51]}"
     assert "rigid object 'board' rests on soft object 'cube'" in refusal(
         scenario_file(tmp_path, ["{name: floor, type: floor}", cube, board]))
+    # A board far wider than the cube, off its centre: none of the board's sample points
+    # is on the cube's top, the cube's are under the board.
+    wide = "{name: board, type: box, size: [3.0, 3.0, 0.02], center: [2.0, 0.0, 0.51]}"
+    assert "rigid object 'board' rests on soft object 'cube'" in refusal(
+        scenario_file(tmp_path, ["{name: floor, type: floor}", cube, wide]))
     # Beside the cube, on the floor, and a shelf two centimetres above it: no contact.
     beside = "{name: crate, type: box, size: [0.2, 0.2, 0.2], center: [1.5, 0.0, 0.1]}"
     above = "{name: shelf, type: box, size: [0.2, 0.2, 0.02], center: [1.0, 0.0, 0.53]}"
@@ -121,6 +126,17 @@ def test_touching_objects_do_not_overlap_and_meshes_are_tested_inside(tmp_path):
     scene = environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", mesh, inside],
                                             "allowed_overlaps: [[step, crate]]\n")).scene
     assert find_overlaps(scene) == [("step", "crate", 64)]  # all 4 x 4 x 4 grid points of the crate
+
+
+def test_a_rigid_shelf_against_a_soft_wall_does_not_rest_on_it(tmp_path):
+    """Only a soft surface that faces up carries what rests on it: a shelf whose base edge
+    touches a soft mesh's side wall (a contact surface of its own) is not refused."""
+    trimesh.creation.box((0.5, 0.5, 0.5)).export(tmp_path / "pad.stl")
+    pad = ("{name: pad, type: soft_mesh, file: pad.stl, position: [1.0, 0.0, 0.25], fixed: {plane: z = 0}, "
+           "surfaces: auto, auto_surfaces: {sides: true}, material: {E: 1.0e+5, nu: 0.45}, resolution: coarse}")
+    shelf = "{name: shelf, type: box, size: [0.2, 0.2, 0.02], center: [1.35, 0.0, 0.26]}"
+    scenario = environments.load(scenario_file(tmp_path, ["{name: floor, type: floor}", pad, shelf]))
+    assert any("side" in name for name in scenario.scene.surfaces)  # the wall is a soft contact surface
 
 
 def test_a_soft_mesh_fixed_on_a_table_top_rests_on_it(tmp_path):
