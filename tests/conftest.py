@@ -103,6 +103,15 @@ def bench_module(name: str):
     return module
 
 
+def solved_stance(robot, scenario, stance: str, **options):
+    """``stances.solve`` of one of ``scenario``'s stances, asserted feasible (its reason shown if not)."""
+    import stances
+
+    result = stances.solve(robot, scenario.scene, scenario.stance(stance), **options)
+    assert result.feasible, result.reason
+    return result
+
+
 def fingerprint(result) -> tuple:
     """(feasible, iterations, SHA-1 of q and the forces' bits) of a posture result:
     equal fingerprints mean the same answer bit for bit."""

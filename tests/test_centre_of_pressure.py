@@ -15,7 +15,7 @@ import pinocchio as pin
 import pytest
 
 import stances
-from conftest import coarse_scenario
+from conftest import coarse_scenario, solved_stance
 from stances.results import PointForce
 
 MARGIN = "centre of pressure margin on cube"
@@ -28,9 +28,7 @@ def scenario():
 
 @pytest.fixture(scope="module")
 def solved(robot, scenario):
-    result = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
-    assert result.feasible, result.reason
-    return result
+    return solved_stance(robot, scenario, "hand-on-cube")
 
 
 def _palm(robot, result):

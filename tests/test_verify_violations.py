@@ -13,7 +13,7 @@ import pytest
 
 import stances
 from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
-from conftest import coarse_scenario
+from conftest import coarse_scenario, solved_stance
 from stances.problem import build_problem
 from stances.results import PointForce
 
@@ -25,9 +25,7 @@ def scenario():
 
 @pytest.fixture(scope="module")
 def solved(robot, scenario):
-    result = stances.solve(robot, scenario.scene, scenario.stance("step-on-cube"))
-    assert result.feasible, result.reason
-    return result
+    return solved_stance(robot, scenario, "step-on-cube")
 
 
 @pytest.fixture(scope="module")

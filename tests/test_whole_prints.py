@@ -16,7 +16,7 @@ import pytest
 
 import stances
 from cbm.rejections import cause_of, pivoting_print_hint
-from conftest import coarse_scenario
+from conftest import coarse_scenario, solved_stance
 from stances.problem import build_problem
 
 CORNER = "highest print corner on cube"
@@ -31,9 +31,7 @@ def scenario():
 @pytest.fixture(scope="module")
 def pivoting(robot, scenario):
     """hand-on-cube's answer with the palm let pivot: it leans on its edge."""
-    result = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"), max_corner_lift=np.inf)
-    assert result.feasible, result.reason
-    return result
+    return solved_stance(robot, scenario, "hand-on-cube", max_corner_lift=np.inf)
 
 
 def test_a_palm_let_pivot_leans_on_its_edge_and_verify_refuses_it(robot, scenario, pivoting):
