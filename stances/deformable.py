@@ -1522,7 +1522,7 @@ class DeformableContact:
         """
         body = self.deformable_object.body
         if self.method == "traction":
-            return np.asarray(body.displacement_field(self.patch, self._displacements(data)))
+            return np.asarray(body.displacement_field(*self.print_motion(data)))
         return body.displacement_under_loads(*self.field_loads(forces))
 
     def field_loads(self, forces):
@@ -1543,6 +1543,12 @@ class DeformableContact:
         if self.method == "traction":
             return None
         return self.node_ids, -(np.asarray(forces) @ self.rotation_body)
+
+    def print_motion(self, data):
+        """``(patch, displacements)``: what the traction model's field is made of, the print's
+        :class:`fem.ContactPatch` and its link points' displacements (p, 3), metres, body
+        frame, at the kinematics of ``data`` (what a result keeps to draw it later)."""
+        return self.patch, self._displacements(data)
 
     # -- independent check ---------------------------------------------------
     def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:

@@ -916,18 +916,17 @@ def _field_producer(contact, model, q, forces):
     It holds the body and the point loads on it (``contact.field_loads``), not the contact:
     a search keeps every answer, and through them their contacts' patches, factorisations
     and strain sets, 5-10 MB a soft solve (a user's 100-expansion plan held 1.5 GB). The
-    traction model's field is its print's motion, which needs the contact.
+    traction model's field is its print's motion: its patch and link motion, taken now.
     """
     q, forces = np.array(q), np.array(forces)
+    body = contact.deformable_object.body
     loads = contact.field_loads(forces)
     if loads is None:
-        def produce():
-            data = pin.Data(model)
-            pin.framesForwardKinematics(model, data, q)
-            return contact.displacement_field(model, data, forces)
-
-        return produce
-    body = contact.deformable_object.body
+        data = pin.Data(model)
+        pin.framesForwardKinematics(model, data, q)
+        patch, motion = contact.print_motion(data)
+        motion = np.array(motion)
+        return lambda: np.asarray(body.displacement_field(patch, motion))
     node_ids, node_loads = np.array(loads[0]), np.array(loads[1])
 
     def produce():

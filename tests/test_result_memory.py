@@ -18,13 +18,16 @@ from conftest import coarse_scenario
 from stances.deformable import DeformableContact
 from stances.layer_ball import LayerBalls
 from stances.problem import build_problem
+from stances.stages import posture_options
 
 
-@pytest.mark.parametrize("name, stance, kind", [
-    ("cross-soft-block", "both-on-foam", DeformableContact),
-    ("quadruped-foam", "front-feet-on-foam", LayerBalls),
-])
-def test_a_result_outlives_its_contacts_and_still_draws_its_fields(robot, anymal, monkeypatch, name, stance, kind):
+@pytest.mark.parametrize("name, stance, kind, options", [
+    ("cross-soft-block", "both-on-foam", DeformableContact, {}),
+    ("cross-soft-block", "both-on-foam", DeformableContact, {"reaction_model": "traction", "contact_law": "bonded"}),
+    ("quadruped-foam", "front-feet-on-foam", LayerBalls, {}),
+], ids=["coulomb", "traction", "layer balls"])
+def test_a_result_outlives_its_contacts_and_still_draws_its_fields(robot, anymal, monkeypatch, name, stance, kind,
+                                                                   options):
     made = []
     original = kind.__init__
 
@@ -35,7 +38,7 @@ def test_a_result_outlives_its_contacts_and_still_draws_its_fields(robot, anymal
     monkeypatch.setattr(kind, "__init__", recorded)
     scenario = coarse_scenario(name)
     solver_robot = anymal if scenario.robot == "anymal" else robot
-    result = stances.solve(solver_robot, scenario.scene, scenario.stance(stance))
+    result = stances.solve(solver_robot, scenario.scene, scenario.stance(stance), **options)
     assert result.feasible, result.reason
     assert made, f"no {kind.__name__} was built: this stance no longer tests it"
     gc.collect()
@@ -44,7 +47,7 @@ def test_a_result_outlives_its_contacts_and_still_draws_its_fields(robot, anymal
     field = result.deformations[soft.name]
     assert field.shape == (soft.body.mesh.n_nodes, 3) and np.abs(field).max() > 1e-5  # pressed in
     # The contact's own field under the result's forces, from a problem built anew: the same bits.
-    problem = build_problem(solver_robot, scenario.scene, result.stance)
+    problem = build_problem(solver_robot, scenario.scene, result.stance, posture_options(options))
     (contact, loads), = [(c, s) for c, s in zip(problem.contacts, problem.load_slices) if c.deformable_object is soft]
     data = pin.Data(solver_robot.model)
     pin.framesForwardKinematics(solver_robot.model, data, result.q)
