@@ -119,6 +119,8 @@ import fem
 from fem.dense import block_diagonal_product, single_threaded_blas
 from fem.layer_contact import side_contact_limit, widest_contact
 
+from environments.geometry import polygon_area, signed_edge_distances
+
 from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PYRAMID_SIDES, convex_polygon, friction_cone_generators, pyramid_faces
 from .errors import StanceError
@@ -153,12 +155,6 @@ _BALL_ADVICE = ("keep the balls where the layer's law holds (a layer held on its
                 "enough inside its edges), or accept it with the solver option ball_force_error=inf")
 
 logger = logging.getLogger(__name__)
-
-
-def _signed_area(polygon) -> float:
-    """The signed area of a 2D polygon (k, 2), square metres, positive counter-clockwise."""
-    x, y = polygon[:, 0], polygon[:, 1]
-    return 0.5 * float(np.dot(x, np.roll(y, -1)) - np.dot(np.roll(x, -1), y))
 
 # Soft bodies (their fem bodies' ids) whose coarse ball contact this process has logged (once each).
 _COARSE_BALLS_LOGGED: set = set()
@@ -514,15 +510,18 @@ class DeformableContact:
                     f"a neighbouring print go to that print; at least {MINIMUM_PRINT_NODES} are needed: move "
                     f"the prints apart or refine the mesh of {deformable_object.name!r}"
                 )
-        self._corners, self._corner_print = self._corner_weights(corners, node_sets, body, body_placement)
+        # Each print's nodes at rest in its frame, (n, 2): what a polygon print's corner rows
+        # and centre-of-pressure rows are made from.
+        rests = [self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
+                 for ids, placement in zip(node_sets, self.print_placements)]
+        self._corners, self._corner_print = self._corner_weights(corners, rests)
         # (k, p): each corner's row gives its print's corners' mean height; the whole-print
         # rows are the corners' heights less corner_sinking times that.
         self._corner_means = np.zeros_like(self._corners)
         for i in np.unique(self._corner_print):
             self._corner_means[self._corner_print == i] = self._corners[self._corner_print == i].mean(axis=0)
         self._corner_rows = self._corners - self.corner_sinking * self._corner_means
-        self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(
-            corners, node_sets, body, body_placement)
+        self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(corners, rests)
         self.node_ids = np.concatenate(node_sets)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
@@ -624,9 +623,11 @@ class DeformableContact:
         self._cache = None
         self._derivatives = None
 
-    def _corner_weights(self, corners, node_sets, body, body_placement):
+    @staticmethod
+    def _corner_weights(corners, rests):
         """(k, p) weights that give the polygon prints' k corners' heights from the p print
-        nodes' link-point heights, and (k,) the print of each corner (point feet have none).
+        nodes' link-point heights, and (k,) the print of each corner (point feet, whose
+        ``corners`` are None, have none); ``rests``: each print's nodes at rest in its frame, (n, 2).
 
         A rigid motion moves points by ``(R - I) x + t``, affine in the rest position, and
         the print's nodes and corners lie in its plane: any affine combination of the nodes
@@ -634,11 +635,10 @@ class DeformableContact:
         least-norm one here) gives that corner's height, and its derivative, exactly.
         """
         blocks, owners, start = [], [], 0
-        total = sum(len(ids) for ids in node_sets)
-        for index, (ids, polygon, placement) in enumerate(zip(node_sets, corners, self.print_placements)):
-            count = len(ids)
+        total = sum(len(rest) for rest in rests)
+        for index, (rest, polygon) in enumerate(zip(rests, corners)):
+            count = len(rest)
             if polygon is not None:
-                rest = self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
                 affine = np.vstack([rest.T, np.ones(count)])  # (3, n)
                 targets = np.vstack([polygon.T, np.ones(len(polygon))])  # (3, k)
                 block = np.zeros((len(polygon), total))
@@ -648,10 +648,11 @@ class DeformableContact:
             start += count
         return (np.vstack(blocks) if blocks else np.zeros((0, total))), np.array(owners, dtype=np.int64)
 
-    def _centre_of_pressure_rows(self, outlines, node_sets, body, body_placement):
+    def _centre_of_pressure_rows(self, outlines, rests):
         """Rows whose values, times the forces (world frame, stacked), are each polygon print's
         moment of its normal forces about each edge of its outline, positive inside
         (N m): all of them >= 0 puts the print's centre of pressure inside its outline.
+        ``outlines`` and ``rests`` as :meth:`_corner_weights`' ``corners`` and ``rests``.
 
         A partly covered node's link point is its rest position, up to a cell outside the
         outline (its force acts there; fem.ContactPatch): on a new user's and the built-in
@@ -659,25 +660,20 @@ class DeformableContact:
         A foot whose centre of pressure lies past its edge would need a pressure outside
         it, which no converged contact gives. Returns ``((r, 3p) float, (r,) int print)``.
         """
-        p = sum(len(ids) for ids in node_sets)
-        rows, owners, start = [], [], 0
-        for i, (outline, ids) in enumerate(zip(outlines, node_sets)):
+        p = sum(len(rest) for rest in rests)
+        blocks, owners, start = [], [], 0
+        for i, (outline, rest) in enumerate(zip(outlines, rests)):
             if outline is not None:
-                placement = self.print_placements[i]
-                points = self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
                 polygon = np.asarray(outline, dtype=float)
-                if _signed_area(polygon) < 0.0:
+                if polygon_area(polygon) < 0.0:
                     polygon = polygon[::-1]
-                normal = placement.rotation[:, 2]
-                for a, b in zip(polygon, np.roll(polygon, -1, axis=0)):
-                    edge = (b - a) / np.linalg.norm(b - a)
-                    inside = (points - a) @ np.array([-edge[1], edge[0]])  # (k,) metres inside the edge
-                    row = np.zeros((p, 3))
-                    row[start : start + len(ids)] = inside[:, None] * normal[None, :]
-                    rows.append(row.reshape(-1))
-                    owners.append(i)
-            start += len(ids)
-        return np.array(rows).reshape(len(rows), 3 * p), np.array(owners, dtype=int)
+                inside = signed_edge_distances(polygon, rest).T  # (k, n) metres inside each edge
+                block = np.zeros((len(polygon), p, 3))
+                block[:, start : start + len(rest)] = inside[:, :, None] * self.print_placements[i].rotation[:, 2]
+                blocks.append(block.reshape(len(polygon), 3 * p))
+                owners.extend([i] * len(polygon))
+            start += len(rest)
+        return (np.vstack(blocks) if blocks else np.zeros((0, 3 * p))), np.array(owners, dtype=np.int64)
 
     @staticmethod
     def _in_print(nodes, body_placement, placement) -> np.ndarray:

@@ -762,11 +762,7 @@ class LayerBalls:
     def displacement_field(self, model, data, forces) -> np.ndarray:
         """(N, 3) displacement of every node of the body under the balls' pressures, metres,
         body frame (one sparse solve; zero where no ball presses)."""
-        body = self.deformable_object.body
-        node_ids, loads = self.field_loads(forces)
-        if not node_ids.size:
-            return np.zeros((body.mesh.n_nodes, 3))
-        return body.displacement_under_loads(node_ids, loads)
+        return self.deformable_object.body.displacement_under_loads(*self.field_loads(forces))
 
     def field_loads(self, forces):
         """``(node_ids, loads)``, (k,) int and (k, 3) float newtons, body frame: the balls'

@@ -928,13 +928,7 @@ def _field_producer(contact, model, q, forces):
         motion = np.array(motion)
         return lambda: np.asarray(body.displacement_field(patch, motion))
     node_ids, node_loads = np.array(loads[0]), np.array(loads[1])
-
-    def produce():
-        if not node_ids.size:
-            return np.zeros((body.mesh.n_nodes, 3))
-        return body.displacement_under_loads(node_ids, node_loads)
-
-    return produce
+    return lambda: body.displacement_under_loads(node_ids, node_loads)
 
 
 def problem_point_forces(problem, linearization, q) -> tuple:
