@@ -376,6 +376,22 @@ def test_a_steel_stiff_cube_beside_a_foam_mat_is_held_alone(robot, steel_cube_be
     assert sinking["mat"] > 1e-4 > 1e-6 > sinking["cube"]  # metres
 
 
+def test_a_steel_stiff_cube_beside_a_foam_mat_tends_to_the_rigid_support_from_its_posture(robot, steel_cube_beside_a_mat):
+    """Issue 8.5 at the default options: from its own start the stiff answer lies 3.3 % from
+    the rigid support's palm force (``bench/results/stiffness.md``), where the load's split
+    between the palm and the soft soles barely moves the objective and the SQP ends where
+    its path leads; started from the rigid support's posture it lies 0.96 % from it, the
+    model's limit: within issue 8's 2 %."""
+    scene, stance = steel_cube_beside_a_mat
+    rigid = solve(robot, scene, stance, rigid_prints=(PALM,))
+    assert rigid.feasible, rigid.reason
+    result = solve(robot, scene, stance, q_init=rigid.q)
+    assert result.feasible and result.verification.ok, result.reason
+    assert result.statistics["stiff_limit"] is True
+    force, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)
+    assert np.linalg.norm(force - expected) < 0.02 * np.linalg.norm(expected)
+
+
 def test_the_held_solve_starts_from_the_rigid_warm_starts_forces_on_its_held_prints(robot, steel_cube_beside_a_mat):
     scene, stance = steel_cube_beside_a_mat
     problem = build_problem(robot, scene, stance)
