@@ -85,3 +85,22 @@ def test_a_centre_of_pressure_past_the_outline_is_refused(robot, scenario, solve
                         r"its partly covered nodes' forces, past the edge, carry a moment no pressure under right_palm "
                         r"could", reason), reason
     assert verification.measures[MARGIN] < -1e-3
+
+
+def test_a_print_carrying_next_to_nothing_reports_no_margin(robot, scenario, solved):
+    """A palm pressing a micronewton with its centre of pressure past its edge: within the
+    solver's tolerance on the rows' moments (1e-7 N m), so no refusal, and no margin either,
+    whose number would be rounding (an audit saw -3.9 mm reported on a verified answer)."""
+    points, normal, outline = _palm(robot, solved)
+    past = np.array([_margin(p, outline) < -1e-3 for p in points])
+    moved, k = [], 0
+    for force in solved.point_forces:
+        if force.frame == robot.surface("right_palm").frame:
+            scale = 1e-6 / normal[past].sum() if past[k] else 0.0
+            moved.append(PointForce(force.frame, force.point, scale * np.asarray(force.force)))
+            k += 1
+        else:
+            moved.append(force)
+    verification = stances.verify(robot, scenario.scene, solved.stance, dataclasses.replace(solved, point_forces=tuple(moved)))
+    assert not [r for r in verification.reasons if "centre of pressure" in r]
+    assert MARGIN not in verification.measures
