@@ -547,7 +547,11 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
                 return replace(free, iterations=iterations)
             return replace(attempt, iterations=iterations)
         q, given = attempt.q, None
-    free = solve_problem(problem, start, deadline=deadline)
+    # From the start, with the start's contact variables as the first stage had them: W
+    # read off the starting posture leaves every print lifting off with no force, where the
+    # SQP stalls (a palm stance leaning on its centre-of-pressure rows, 100 N short on a
+    # normal-load bound at zero force, where this start converged in 35 iterations).
+    free = solve_problem(problem, start, lam_init=lam_init if from_start else None, deadline=deadline)
     return replace(free, iterations=iterations + free.iterations)
 
 

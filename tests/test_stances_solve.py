@@ -1427,3 +1427,62 @@ def test_a_stance_whose_rows_lie_beyond_the_trust_region_keeps_its_penalty(monke
     assert without.feasible and without.verification.ok, without.reason
     assert result.iterations + 5 <= without.iterations
     assert result.statistics["rigid_warm_start_iterations"] < without.statistics["rigid_warm_start_iterations"]
+
+
+_LEANING_ON_A_PALM = """
+robot: talos
+objects:
+  - {name: floor, type: floor}
+  - name: foam
+    type: soft_box
+    size: [0.8, 1.0, 0.2]
+    center: [0.1, 0.0, 0.1]
+    material: {E: 1.0e+6, nu: 0.4, rho: 100.0}
+    strain_limit: 0.3
+    refine: [[-0.3, -0.3], [0.3, 0.3]]
+  - name: cube
+    type: soft_box
+    size: [0.6, 0.6, 0.9]
+    center: [0.85, -0.3, 0.45]
+    material: {E: 1.0e+6, nu: 0.4, rho: 100.0}
+    strain_limit: 0.3
+    refine: [[-0.3, -0.2], [0.0, 0.2]]
+stances:
+  both-palm:
+    left_sole: {surface: foam_top, x: 0.0, y: 0.09}
+    right_sole: {surface: foam_top, x: 0.0, y: -0.09}
+    right_palm: {surface: cube_top, x: -0.2, y: 0.05}
+"""
+
+
+class _CentreOfMassBehind:
+    """An extra row: the centre of mass's x at most ``bound`` (a user's lean)."""
+
+    def __init__(self, bound):
+        self.bound, self.data = bound, None
+
+    def blocks(self, problem, iterate):
+        from stances.blocks import ConstraintBlock
+        model = problem.robot.model
+        self.data = self.data or model.createData()
+        jacobian = pin.jacobianCenterOfMass(model, self.data, iterate.q)
+        rows = None
+        if iterate.derivatives:
+            rows = np.zeros((1, problem.n_step))
+            rows[0, : model.nv] = jacobian[0]
+        return [ConstraintBlock("lean", np.array([self.data.com[0][0]]), rows, -np.inf, self.bound, 1e-2, ("lean",))]
+
+
+def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_with_its_loads(robot):
+    """A palm pressed 100 N into a soft cube beside soles on foam, the robot held leaning
+    back (a new user's audit): the first Coulomb stage creeps far from feasible, the held-mode
+    attempts converge to contact sets verify refuses, and the last stage starts again from
+    the start. It started with W read off the starting posture, every print lifting off with
+    no force, and stalled 100 N short at zero force; with the start's own loads (the rigid
+    warm start's, as the first stage had them) it converges and verifies."""
+    scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
+    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[_CentreOfMassBehind(0.05)],
+                   min_normal_force=100.0, max_corner_lift=math.inf)
+    assert result.feasible and result.verification.ok, result.reason
+    palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
+    assert palm[2] >= 100.0 - 1e-6
