@@ -15,6 +15,7 @@ from collections.abc import Collection
 import numpy as np
 
 from .errors import SceneError
+from .geometry import points_in_convex_polygon
 from .mesh_surfaces import SurfaceSearch, find_surfaces
 from .scene import Scene
 
@@ -87,7 +88,7 @@ def check_supported(scene: Scene, floating: Collection[str] = ()) -> None:
             frame = transform_object_to_world @ piece.transform_surface_to_object
             local = (points - frame[:3, 3]) @ frame[:3, :3]
             on_plane = np.abs(local[:, 2]) <= CONTACT_TOLERANCE
-            resting |= on_plane & _in_polygon(piece.polygon, local[:, :2], CONTACT_TOLERANCE)
+            resting |= on_plane & points_in_convex_polygon(piece.polygon, local[:, :2], -CONTACT_TOLERANCE)
         if not resting.all():
             loose = points[~resting]
             raise SceneSenseError(
@@ -120,7 +121,7 @@ def _check_rigid_on_soft(scene: Scene, floating: Collection[str]) -> None:
             if np.any(corners.min(axis=0) > high + CONTACT_TOLERANCE) or np.any(corners.max(axis=0) < low - CONTACT_TOLERANCE):
                 continue  # apart
             local = (points - frame[:3, 3]) @ frame[:3, :3]
-            on = (np.abs(local[:, 2]) <= CONTACT_TOLERANCE) & _in_polygon(surface.polygon, local[:, :2], -CONTACT_TOLERANCE)
+            on = (np.abs(local[:, 2]) <= CONTACT_TOLERANCE) & points_in_convex_polygon(surface.polygon, local[:, :2], CONTACT_TOLERANCE)
             mine = _polygon_samples(surface.polygon) @ frame[:3, :2].T + frame[:3, 3]
             if on.any() or _under_triangles(down, mine).any():
                 raise SceneSenseError(
@@ -154,7 +155,7 @@ def _polygon_samples(polygon: np.ndarray, per_side: int = 5) -> np.ndarray:
     low, high = polygon.min(axis=0), polygon.max(axis=0)
     u, v = np.meshgrid(np.linspace(0.0, 1.0, per_side + 2)[1:-1], np.linspace(0.0, 1.0, per_side + 2)[1:-1])
     grid = low + np.column_stack([u.ravel(), v.ravel()]) * (high - low)
-    return np.concatenate([corners, grid[_in_polygon(polygon, grid, -CONTACT_TOLERANCE)], centroid[None]])
+    return np.concatenate([corners, grid[points_in_convex_polygon(polygon, grid, CONTACT_TOLERANCE)], centroid[None]])
 
 
 def _under_triangles(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
@@ -169,16 +170,6 @@ def _under_triangles(triangles: np.ndarray, points: np.ndarray) -> np.ndarray:
     inside = (s >= 0.0) & (t >= 0.0) & (s + t <= 1.0)
     height = a[None, :, 2] + s * (b - a)[None, :, 2] + t * (c - a)[None, :, 2]
     return np.any(inside & (np.abs(points[:, None, 2] - height) <= CONTACT_TOLERANCE), axis=1)
-
-
-def _in_polygon(polygon: np.ndarray, points: np.ndarray, margin: float) -> np.ndarray:
-    """Which points lie in a convex counter-clockwise polygon grown by ``margin`` metres."""
-    edges = np.roll(polygon, -1, axis=0) - polygon
-    lengths = np.linalg.norm(edges, axis=1)
-    relative = points[:, None, :] - polygon[None, :, :]
-    # Distance to the left of each edge (inside is positive).
-    left = (edges[None, :, 0] * relative[:, :, 1] - edges[None, :, 1] * relative[:, :, 0]) / lengths[None, :]
-    return np.all(left >= -margin, axis=1)
 
 
 def _bounds_in_world(obj) -> np.ndarray:
