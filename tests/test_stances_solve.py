@@ -16,6 +16,7 @@ import fem
 from conftest import BENCH, coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
+from stances.blocks import ConstraintBlock
 from stances.results import LazyDeformations
 from stances.contacts import friction_cone_generators
 from stances.problem import PostureOptions, build_problem
@@ -1462,9 +1463,9 @@ class _CentreOfMassBehind:
         self.bound, self.data = bound, None
 
     def blocks(self, problem, iterate):
-        from stances.blocks import ConstraintBlock
         model = problem.robot.model
-        self.data = self.data or model.createData()
+        if self.data is None:
+            self.data = model.createData()
         jacobian = pin.jacobianCenterOfMass(model, self.data, iterate.q)
         rows = None
         if iterate.derivatives:
