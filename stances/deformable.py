@@ -1658,7 +1658,8 @@ class DeformableContact:
             normal = float(self.print_placements[i].rotation[:, 2] @ forces[self.print_of_node == i].sum(axis=0))
             if normal <= 0.0:
                 continue
-            margin = float(moments[rows].min()) / normal  # metres inside the nearest edge
+            least = float(moments[rows].min())  # N m, about the nearest edge
+            margin = least / normal  # metres inside the nearest edge
             if normal * tolerances.deformable_placement > _MOMENT_TOLERANCE:
                 # A print carrying under a tenth of a newton has no centre of pressure worth a
                 # number: its moments are the solver's rounding (-3.9 mm was reported for a palm
@@ -1667,7 +1668,7 @@ class DeformableContact:
             # Past the edge by more than the placement tolerance, and by more than ten times
             # the solver's own tolerance on the rows' moments (1e-7 N m): a print carrying a
             # tenth of a newton on its bound is no refusal.
-            if moments[rows].min() < -max(tolerances.deformable_placement * normal, _MOMENT_TOLERANCE):
+            if least < -max(tolerances.deformable_placement * normal, _MOMENT_TOLERANCE):
                 reasons.append(
                     f"the centre of pressure of {self.prints[i].label} lies {-margin:.3g} m past its outline's "
                     "edge: its partly covered nodes' forces, past the edge, carry a moment no pressure under "
