@@ -87,7 +87,13 @@ How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
   sunk at least ``corner_sinking`` of the corners' mean sinking, less ``max_corner_lift``: a
   print pivoting toward its edge presses a strip narrower than the mesh resolves, and an
   independent audit found such palms 6.7-16.4 % below a converged mesh's force), and keep
-  its resultant inside ``friction_margin`` of its pyramid.
+  its resultant inside ``friction_margin`` of its pyramid. The nodes' cones are about the
+  print's rest normal (the linear model's) while the face that presses is the link's,
+  turned with it (as eq. 63 turns the traction model's normals): each flat print's cones
+  are narrowed by its tilt allowance ``a`` (``mu' = tan(atan(mu) - a)``) and rows keep
+  its face's tilt within ``a``, so each node's force lies in its cone about both normals
+  (``tilt_allowance``; ``a`` no more than the tilt the robot's weight could give it, so
+  the narrowing fades on a stiff body).
 - ``"sticking"``: bonded nodes, each pushing and inside its own friction pyramid.
 - ``"bonded"``: the paper's model; bonded nodes push, each print's resultant is in
   its pyramid.
@@ -601,7 +607,24 @@ class DeformableContact:
         # Per-node frames: normal and tangents of each node's print, world.
         self.normals = np.array([self.print_placements[i].rotation[:, 2] for i in self.print_of_node])
         self.tangents = np.array([self.print_placements[i].rotation[:, :2].T for i in self.print_of_node])
-        self.node_mu = np.array([self.friction[i] for i in self.print_of_node])
+        # Each flat print's tilt allowance (radians): its nodes' cones are narrowed by it
+        # and rows keep its face's tilt within it, so that a node's force lies in its cone
+        # about the turned face too (tilt_allowance; none on a ball, which does not turn,
+        # nor at mu 0 or inf, whose cones no narrowing serves).
+        # No more than the tilt the robot's whole weight could give the print (a stiff
+        # body's is micro-radians: as E grows the narrowing fades and the rigid support's
+        # friction is what the nodes have).
+        under_weight = self._tilts_under(robot.weight)
+        self.tilt_allowances = np.array([
+            0.0 if i in self.point_prints or not 0.0 < mu < np.inf
+            else min(float(options.tilt_allowance), 0.5 * float(np.arctan(mu)), under_weight[i])
+            for i, mu in enumerate(self.friction)
+        ]) if self.law != "bonded" else np.zeros(n_prints)
+        # Each print's friction in its nodes' law, its resultant's rows and its held (stiff) form.
+        self.print_mu = [float(np.tan(np.arctan(mu) - a)) if a > 0.0 else mu
+                         for mu, a in zip(self.friction, self.tilt_allowances)]
+        self.node_mu = np.array([self.print_mu[i] for i in self.print_of_node])
+        self._tilted_prints = np.flatnonzero(self.tilt_allowances > 0.0)
         self.load_normals = self.normals
         normals_in_body = self.normals @ self.rotation_body
         self.normals_in_body = normals_in_body
@@ -745,6 +768,38 @@ class DeformableContact:
         skews = self._lever_skews
         d_theta = skews - turns[owner] @ skews @ right[owner]
         return np.einsum("pij,pjk->pik", d_theta, self._turn_of_w[owner]).reshape(3 * len(owner), -1)
+
+    def _tilts_under(self, load: float) -> np.ndarray:
+        """(L,) float: for each print, the largest tilt of its face, radians, that forces of
+        ``load`` newtons on every print, each acting at its print's farthest node, could
+        give: through ``A^-1`` (a bound, first order in the turn), the turn's part about
+        the print's tangents. Infinite where a print has no turn (a point foot's)."""
+        n_prints = len(self.prints)
+        tilts = np.zeros(n_prints)
+        reach = [float(np.linalg.norm(self.levers[self.print_of_node == j], axis=1).max()) for j in range(n_prints)]
+        for i, rotation in enumerate(self._print_rotations_in_body):
+            tangents = rotation[:, :2].T  # (2, 3) body frame
+            for j in range(n_prints):
+                block = tangents @ self.a_inverse[6 * i + 3 : 6 * i + 6, 6 * j : 6 * j + 6]  # (2, 6)
+                tilts[i] += load * (np.linalg.norm(block[:, :3], 2) + reach[j] * np.linalg.norm(block[:, 3:], 2))
+        tilts[self.point_prints] = np.inf
+        return tilts
+
+    def _tilts(self, data):
+        """How far each print with a tilt allowance has its face turned from the body's rest
+        surface: the angles between the rest normals and the link faces' normals, radians
+        (k,), and the unit axes about which a world angular velocity turns them, ``d angle
+        = axis . omega`` (k, 3), world (zero where a face is not turned at all)."""
+        tilts, axes = np.zeros(len(self._tilted_prints)), np.zeros((len(self._tilted_prints), 3))
+        for row, i in enumerate(self._tilted_prints):
+            rest = self.print_placements[i].rotation[:, 2]
+            face = data.oMf[self.frame_ids[i]].rotation[:, 2]  # the link frame is the print's at rest
+            across = np.cross(rest, face)  # sin(angle) times the axis
+            size = float(np.linalg.norm(across))
+            tilts[row] = np.arctan2(size, float(rest @ face))
+            if size > 0.0:
+                axes[row] = across / size
+        return tilts, axes
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
@@ -1012,7 +1067,7 @@ class DeformableContact:
         carry what a rigid contact carries where they are: a centre of pressure inside
         the convex hull of its link points (not the link's whole polygon, on a mesh
         coarse under it), here moved in by ``_REACH_MARGIN`` of the nodes' spacing, with
-        the friction of the print's resultant (``friction_margin``). For
+        the friction of the print's resultant (``friction_margin`` of its nodes'). For
         :func:`stances.build_problem`'s ``held_prints``.
 
         Returns
@@ -1028,7 +1083,7 @@ class DeformableContact:
                       @ placement.rotation)[:, :2]
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
             out[spec.robot_surface] = HeldPrint(inset_hull(points, _REACH_MARGIN * spacing),
-                                                self.friction_margin * self.friction[i])
+                                                self.friction_margin * self.print_mu[i])
         return out
 
     def carrying_variables(self, wrench):
@@ -1123,6 +1178,18 @@ class DeformableContact:
             d_nodes_full[:, :nv] = d_nodes[:, :nv]
             d_nodes_full[:, w_columns] = d_nodes[:, nv:]
             d_forces_body = self._body_rows(d_forces.reshape(3 * p, columns))
+        if len(self._tilted_prints):
+            # Each flat print's face within its tilt allowance of the rest surface: its
+            # nodes' narrowed cones about the rest normal lie in their cones about the face.
+            tilts, axes = self._tilts(data)
+            jacobian = None
+            if derivatives:
+                jacobian = np.zeros((len(tilts), columns))
+                for row, i in enumerate(self._tilted_prints):
+                    frame_jacobian = pin.getFrameJacobian(model, data, self.frame_ids[i], pin.LOCAL_WORLD_ALIGNED)
+                    jacobian[row, :nv] = axes[row] @ frame_jacobian[3:]
+            blocks.append(ConstraintBlock(
+                "face tilt", tilts, jacobian, -np.inf, self.tilt_allowances[self._tilted_prints], 1e-2, labels["tilt"]))
         if self.law == "coulomb":
             # The contact solve keeps every node admissible; each link must still
             # press its print (on average not above the rest surface; a ball down to
@@ -1310,6 +1377,10 @@ class DeformableContact:
                 for i in np.unique(self._corner_print) for j in range(int(np.sum(self._corner_print == i)))
             ),
             "resultant": resultant,
+            "tilt": tuple(
+                f"tilt of the face of {self.prints[i].label} ({np.degrees(self.tilt_allowances[i]):.3g} degrees at "
+                "most, tilt_allowance)" for i in self._tilted_prints
+            ),
             "pressure": tuple(
                 f"centre of pressure of {self.prints[i].label} (past edge {k} of its outline)"
                 for i in np.unique(self._pressure_print) for k in range(int(np.sum(self._pressure_print == i)))
@@ -1323,14 +1394,15 @@ class DeformableContact:
         }
 
     def _resultant_rows(self, forces, d_forces):
-        """Each print's resultant inside its friction pyramid, mu scaled by ``friction_margin``
+        """Each print's resultant inside its friction pyramid, mu (its nodes', narrowed by the
+        print's tilt allowance) scaled by ``friction_margin``
         (4 rows each, labels ``_labels["resultant"]``); jacobians None when ``d_forces``
         (p, 3, columns) is."""
         values, jacobians = [], []
         for i in range(len(self.prints)):
             rows = self.print_of_node == i
             rotation = self.print_placements[i].rotation
-            mu = self.friction_margin * self.friction[i]
+            mu = self.friction_margin * self.print_mu[i]
             face = pyramid_faces(rotation[:, 2][None], rotation[:, :2].T[None], [mu])[0]  # (4, 3)
             values.append(face @ forces[rows].sum(axis=0))
             if d_forces is not None:
@@ -1621,6 +1693,7 @@ class DeformableContact:
                         f"{mismatch:.3g} m off its link (the nodes are bonded)"
                     )
         reasons.extend(self._check_cones(forces, tolerances, measures))
+        reasons.extend(self._check_face_cones(data, forces, tolerances, measures))
         reasons.extend(self._check_balls(points, phi[:, 2], measures, tolerances))
         depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
         measures[f"indentation of {name}"] = depth
@@ -1910,6 +1983,33 @@ class DeformableContact:
                 f"friction at node {int(self.node_ids[node])} of {name} is not mu f_n against its slip "
                 f"(off by {wrong[node]:.3g} N: {size[node]:.3g} N, bound {bound[node]:.3g} N, slip {slip[node]:.3g} m)"
             )
+        return reasons
+
+    def _check_face_cones(self, data, forces, tolerances, measures) -> list:
+        """Each node of a print with a tilt allowance in its cone about the face that presses
+        it (the link's, turned), with the surface's own friction; measures the largest tilt
+        and the least such margin."""
+        if not len(self._tilted_prints):
+            return []
+        name = self.deformable_object.name
+        tilts, _ = self._tilts(data)
+        measures[f"largest face tilt on {name}"] = float(tilts.max())
+        reasons, margins = [], []
+        for row, i in enumerate(self._tilted_prints):
+            rows = np.flatnonzero(self.print_of_node == i)
+            face = data.oMf[self.frame_ids[i]].rotation[:, 2]
+            normal = forces[rows] @ face
+            tangential = np.linalg.norm(forces[rows] - normal[:, None] * face, axis=1)
+            margin = self.friction[i] * normal - tangential
+            margins.append(margin.min())
+            worst = int(np.argmin(margin))
+            if margin[worst] < -tolerances.cone:
+                reasons.append(
+                    f"node {int(self.node_ids[rows[worst]])} of {name} leaves its friction cone about the face of "
+                    f"{self.prints[i].label}, turned {np.degrees(tilts[row]):.3g} degrees, by {-margin[worst]:.3g} N "
+                    f"(tangential {tangential[worst]:.3g} N, normal {normal[worst]:.3g} N, mu {self.friction[i]:g})"
+                )
+        measures[f"face cone margin on {name}"] = float(min(margins))
         return reasons
 
     def _check_cones(self, forces, tolerances, measures) -> list:

@@ -17,6 +17,7 @@ functions of q (eq. 29, 44).
 
 from __future__ import annotations
 
+import math
 import numbers
 import os
 from collections import defaultdict
@@ -166,6 +167,21 @@ class PostureOptions:
         How far past ``corner_sinking`` a corner may lift, metres (1e-5): a stiff body's
         give (``stiff_limit``), where a pivot's force error is a motion error of a
         micrometre or two. ``inf`` lets prints pivot.
+    tilt_allowance : float
+        Deformable supports with node cones (``contact_law`` ``"coulomb"`` or ``"sticking"``):
+        how far the face of a flat print (a sole, a palm) may turn from the body's rest
+        surface, radians (1 degree). The linear model solves each node's contact in its
+        cone about the rest normal, while the face that presses is the link's, turned with
+        it (eq. 63 turns the traction model's normals so); a slipping node's force then
+        leaves the cone about the turned face by about ``(1 + mu^2) / mu`` times the tilt
+        (4.7 % on hand-on-coarse-cube's palm, tilted 1.25 degrees, until 2026-12-06). So the
+        nodes' cones are narrowed by this angle, ``mu' = tan(atan(mu) - a)`` (mu 0.7: 0.674),
+        and rows keep each print's tilt within it: every node's force then lies in its cone
+        about both normals, and :func:`stances.verify` checks it about the turned face with
+        the surface's own mu. A print of friction mu takes at most ``atan(mu) / 2``; a
+        frictionless or infinitely rough print none (its cones are those of the rest normal).
+        0: the linear model's cones about the rest normal, no bound on the tilt. In
+        ``[0, pi / 2)``.
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a
@@ -284,6 +300,7 @@ class PostureOptions:
     ball_force_error: float = 0.05
     corner_sinking: float = 0.5
     max_corner_lift: float = 1e-5
+    tilt_allowance: float = math.radians(1.0)
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
@@ -312,7 +329,7 @@ class PostureOptions:
             object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
         # Every weight, distance and tolerance is a finite number: a NaN weight made
         # every QP fail and the stance "unreachable", a NaN distance was ignored.
-        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "corner_sinking", "max_corner_lift") + ("max_indentation",) * (self.max_indentation is not None):
+        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "corner_sinking", "max_corner_lift", "tilt_allowance") + ("max_indentation",) * (self.max_indentation is not None):
             value = getattr(self, name)
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise StanceError(f"{name} must be a number, got {value!r}")
@@ -331,6 +348,9 @@ class PostureOptions:
         if not self.max_corner_lift > 0.0:
             raise StanceError(f"max_corner_lift must be > 0 metres (inf lets prints pivot on an edge), "
                               f"got {self.max_corner_lift}")
+        if not 0.0 <= self.tilt_allowance < 0.5 * math.pi:
+            raise StanceError(f"tilt_allowance must be an angle in [0, pi/2) radians (0: cones about the rest "
+                              f"normal, no tilt bound), got {self.tilt_allowance}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
             raise StanceError(
                 "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "

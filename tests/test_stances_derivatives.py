@@ -191,7 +191,7 @@ def test_every_constraint_jacobian_matches_finite_differences(linearised_problem
             tolerance = 2e-5 * size + 1e-10 + 4.0 * noise[key] / EPS
             assert error <= tolerance, f"{label}: {key} off by {error:.3g} (row size {size:.3g}, noise {noise[key]:.2g})"
     assert {"placement", "touch", "whole print", "node contact", "centre of pressure", "indentation", "mesh overlap", "strain",
-            "equilibrium", "torque limit", "normal load"} <= names
+            "equilibrium", "torque limit", "normal load", "face tilt"} <= names
 
 
 def test_objective_gradient_matches_finite_differences(linearised_problems):

@@ -119,7 +119,9 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
     soft = _soft_contact(build_problem(robot, scene, stance))
     (held_print,) = soft.held_prints().values()
     reach, friction = held_print.reach, held_print.resultant_friction
-    assert friction == pytest.approx(PostureOptions().friction_margin * soft.friction[0])
+    assert friction == PostureOptions().friction_margin * soft.print_mu[0]
+    # The tilt a steel-stiff body could give narrows its nodes' friction by about 1e-4 of it.
+    assert 0.0 < soft.friction[0] - soft.print_mu[0] < 2e-4 * soft.friction[0]
     placement = soft.print_placements[0]
     nodes = ((soft.link_points_at_rest - placement.translation) @ placement.rotation)[:, :2]
     assert reach[:, 0].max() < nodes[:, 0].max() and reach[:, 1].max() < nodes[:, 1].max()
@@ -381,11 +383,14 @@ def test_a_steel_stiff_cube_beside_a_foam_mat_tends_to_the_rigid_support_from_it
     the rigid support's palm force (``bench/results/stiffness.md``), where the load's split
     between the palm and the soft soles barely moves the objective and the SQP ends where
     its path leads; started from the rigid support's posture it lies 0.96 % from it, the
-    model's limit: within issue 8's 2 %."""
+    model's limit: within issue 8's 2 %. With the linear model's cones (no tilt allowance):
+    the mat's soles, whose nodes slip, narrowed by the default 1 degree move both answers
+    within the SQP's spread (2.5 % apart, the rigid support restarted from the stiff
+    answer's posture 2.1 % from its own; ``bench/results/stiffness.md``)."""
     scene, stance = steel_cube_beside_a_mat
-    rigid = solve(robot, scene, stance, rigid_prints=(PALM,))
+    rigid = solve(robot, scene, stance, rigid_prints=(PALM,), tilt_allowance=0.0)
     assert rigid.feasible, rigid.reason
-    result = solve(robot, scene, stance, q_init=rigid.q)
+    result = solve(robot, scene, stance, q_init=rigid.q, tilt_allowance=0.0)
     assert result.feasible and result.verification.ok, result.reason
     assert result.statistics["stiff_limit"] is True
     force, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)

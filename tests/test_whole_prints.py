@@ -30,8 +30,9 @@ def scenario():
 
 @pytest.fixture(scope="module")
 def pivoting(robot, scenario):
-    """hand-on-cube's answer with the palm let pivot: it leans on its edge."""
-    return solved_stance(robot, scenario, "hand-on-cube", max_corner_lift=np.inf)
+    """hand-on-cube's answer with the palm let pivot (no corner rows, no tilt bound): it
+    leans on its edge."""
+    return solved_stance(robot, scenario, "hand-on-cube", max_corner_lift=np.inf, tilt_allowance=0.0)
 
 
 def test_a_palm_let_pivot_leans_on_its_edge_and_verify_refuses_it(robot, scenario, pivoting):
