@@ -375,9 +375,14 @@ class PrintContactSystem:
                     "force with no normal force (it slips at any finite friction); give a finite friction coefficient"
                 )
             if result is None:
+                # As mu grows a node's normal force can fall toward zero while its friction
+                # stays (the state tends to the one mu = inf has not): seen on a two-node
+                # print from mu = 10, and on a palm's converged (Q2) compliance at mu = 100.
                 raise FemError(
-                    "the print's contact did not settle, even from a Gauss-Seidel solution; "
-                    "this is a bug worth reporting with the print's compliance and displacements"
+                    "the print's contact did not settle, even from a Gauss-Seidel solution: with friction as "
+                    f"high as mu = {float(np.max(self.mu)):g} a node can need a tangential force with almost no "
+                    "normal force, where the active set finds no state (try a smaller coefficient); with "
+                    "moderate friction this is a bug worth reporting with the print's compliance and displacements"
                 )
         phi, r, modes, directions, system, iterations = result
         return self._state(phi, r, modes, directions, system, iterations, True)

@@ -291,6 +291,28 @@ def test_infinite_friction_without_a_contact_state_is_refused_with_the_reason(pa
         fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
 
 
+def test_a_state_lost_to_high_friction_is_reported_as_such_not_as_a_bug():
+    """Two strongly coupled nodes (a compliance no mesh makes, SPD), the second pressed and
+    slid: as mu grows its normal force falls while its friction stays (mu = inf has no state
+    at all); from mu = 10 the active set finds none, and the error says why and what to try."""
+    a = np.array([[0.1, 0.3, -0.8, 0.7, 1.8, -0.3], [-0.6, -0.2, -0.5, -0.7, 0.1, -0.3],
+                  [1.4, 0.0, 0.3, 1.0, -0.3, 1.4], [-0.6, -0.8, -0.4, -0.1, -1.4, -0.0],
+                  [-1.7, 1.4, -0.1, -0.6, -0.9, -0.4], [-0.2, -1.0, -0.9, -0.2, -0.5, 0.9]])
+    compliance = a @ a.T + 0.1 * np.eye(6)
+    motion = np.array([[1.1, 0.0, -0.5], [-1.3, 0.6, -1.0]])
+    frames = np.tile(np.eye(3), (2, 1, 1))
+    normals = []
+    for mu in (0.3, 1.0, 3.0, 8.0):
+        state = fem.solve_print_contact(compliance, motion, frames, [mu, mu])
+        assert state.modes[1] == fem.SLIP
+        normals.append(state.forces[1, 2])
+    assert np.all(np.diff(normals) < 0.0) and normals[-1] < 0.2 * normals[0]
+    with pytest.raises(fem.FemError, match=r"did not settle, even from a Gauss-Seidel solution: with friction as high "
+                                           r"as mu = 10 a node can need a tangential force with almost no normal force, "
+                                           r"where the active set finds no state \(try a smaller coefficient\)"):
+        fem.solve_print_contact(compliance, motion, frames, [10.0, 10.0])
+
+
 @pytest.mark.parametrize("n_slip, n_lift", [(0, 0), (3, 0), (4, 6), (10, 2), (15, 25), (25, 30)])
 def test_low_rank_factorisation_solves_the_law_as_a_dense_solve(pad, n_slip, n_lift):
     """The linearised law with slipping and lifted nodes (up to 140 of 243 rows replaced,
