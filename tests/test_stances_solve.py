@@ -1477,10 +1477,11 @@ class _CentreOfMassBehind:
 def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_with_its_loads(robot):
     """A palm pressed 100 N into a soft cube beside soles on foam, the robot held leaning
     back (a new user's audit): the first Coulomb stage creeps far from feasible, the held-mode
-    attempts converge to contact sets verify refuses, and the last stage starts again from
-    the start. It started with W read off the starting posture, every print lifting off with
-    no force, and stalled 100 N short at zero force; with the start's own loads (the rigid
-    warm start's, as the first stage had them) it converges and verifies. (Its soles tilt
+    attempts converge to contact sets verify refuses, and the last stage goes on. It started
+    from the start with W read off the starting posture, every print lifting off with no
+    force, and stalled 100 N short at zero force; from the start with the start's own loads
+    (the rigid warm start's, as the first stage had them), and now from where the first stage
+    stopped with its own, it converges and verifies. (Its soles tilt
     1.6 degrees: with the default tilt allowance of 1 degree the stance is infeasible, for
     that reason; the audit's options had none.)"""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
