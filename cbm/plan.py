@@ -1,13 +1,15 @@
 """A plan: the sequence of verified stances, saved to and read from JSON.
 
-The file (``plan.json``, format ``softcbm-plan`` version 2) describes itself: its
+The file (``plan.json``, format ``softcbm-plan`` version 3) describes itself: its
 ``units`` and ``frames`` say what every number is, ``robot`` names each
 coordinate of ``q`` and each torque and gives the locked joints' values (the
 robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
 :meth:`Plan.check` works on the file anywhere. Each value is stored once: a
 stance's posture, forces and displacements are not repeated in its solver
-summary. Version 1 files (before these headers) are read as they are; a file
-with no version or an unknown one is refused with the versions this library reads.
+summary. Version 1 files (before these headers) are read as they are, and version 1
+and 2 results as solved without the tilt allowance (version 3 is version 2's layout,
+its results solved with it); a file with no version or an unknown one is refused with
+the versions this library reads.
 """
 
 from __future__ import annotations
@@ -48,10 +50,12 @@ logger = logging.getLogger(__name__)
 PLAN_FORMAT = "softcbm-plan"
 #: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
 FRONTIER_SIZE = 5
-PLAN_VERSION = 2
+PLAN_VERSION = 3
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
-#: stance's arrays inside its ``result``.
-READABLE_VERSIONS = (1, 2)
+#: stance's arrays inside its ``result``; versions 1 and 2 were solved before the tilt
+#: allowance (``stances.PostureOptions.tilt_allowance``, 2026-12-06): their results read as
+#: solved with none, the linear model's cones, and are checked so.
+READABLE_VERSIONS = (1, 2, 3)
 
 #: Units of every number in a plan file.
 UNITS = {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
@@ -158,7 +162,7 @@ class PlannedStance:
 
     @classmethod
     def from_dict(cls, data, version=PLAN_VERSION):
-        """Inverse of :meth:`to_dict`; ``version=1`` reads a version 1 entry."""
+        """Inverse of :meth:`to_dict`; ``version`` the file's (1 and 2: see :data:`READABLE_VERSIONS`)."""
         if version == 1:
             forces = [as_point_force(f) for f in data["point_forces"]]
             deformations = data.get("deformations", {})
@@ -172,6 +176,10 @@ class PlannedStance:
                 shared = [f.to_dict() for f in forces]
                 result = {**result, "q": data["q"], "point_forces": shared, "deformations": deformations,
                           "stance": data["stance"]}
+        if version < 3 and isinstance(result, dict):
+            statistics = dict(result.get("statistics") or {})
+            statistics["options"] = {"tilt_allowance": 0.0, **(statistics.get("options") or {})}
+            result = {**result, "statistics": statistics}
         return cls(
             stance=Stance.from_dict(data["stance"]),
             q=data["q"],

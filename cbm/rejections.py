@@ -32,7 +32,7 @@ CAUSES = (
     ("torque limit", ("torque limit",)),
     ("collision", ("collision",)),
     ("friction", ("friction cone", "node contact")),
-    ("soft support (indentation, strain, contact)", ("indentation", "strain", "touch", "contact of")),
+    ("soft support (indentation, strain, contact)", ("indentation", "strain", "touch", "contact of", "tilt of the face")),
     ("normal load", ("normal load",)),
 )
 # Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
@@ -265,7 +265,7 @@ def pivoting_print_hint(reasons) -> str:
     --------
     >>> pivoting_print_hint(["contact of right_palm on cube_top (corner 1 lifted: pivoting on an edge) violated by 0.1",
     ...                      "torque limit of j"])
-    "; 1 of the 2 stances rejected could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot"
+    "; 1 of the 2 stances rejected could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot (as far as tilt_allowance lets them turn)"
     >>> pivoting_print_hint(["torque limit of j"])
     ''
     """
@@ -273,5 +273,5 @@ def pivoting_print_hint(reasons) -> str:
         reasons, lambda reason: any(fragment in reason for fragment in _PIVOTING), PIVOTING_SHARE,
         "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is "
         "refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
-        "(solver_options={'max_corner_lift': inf}) to let prints pivot",
+        "(solver_options={'max_corner_lift': inf}) to let prints pivot (as far as tilt_allowance lets them turn)",
     )

@@ -611,13 +611,18 @@ class DeformableContact:
         # and rows keep its face's tilt within it, so that a node's force lies in its cone
         # about the turned face too (tilt_allowance; none on a ball, which does not turn,
         # nor at mu 0 or inf, whose cones no narrowing serves).
-        # No more than the tilt the robot's whole weight could give the print (a stiff
-        # body's is micro-radians: as E grows the narrowing fades and the rigid support's
-        # friction is what the nodes have).
+        # No more than twice what a print could turn on a stiff body: its bonded turn under
+        # the robot's whole weight plus max_corner_lift over its least width (the corner
+        # rows' give), twice as lifted and slipping nodes turn it further than the bonded
+        # estimate (a review: 1.22 times it on a 1e10 Pa cube, the palm's centre of pressure
+        # in a corner of its reach). On a stiff body that is a fraction of a milliradian: as
+        # E grows the narrowing fades (under 1e-3 of mu at 1e10 Pa, what max_corner_lift
+        # leaves) and the rows do not bind where the whole-print rows hold.
         under_weight = self._tilts_under(robot.weight)
         self.tilt_allowances = np.array([
             0.0 if i in self.point_prints or not 0.0 < mu < np.inf
-            else min(float(options.tilt_allowance), 0.5 * float(np.arctan(mu)), under_weight[i])
+            else min(float(options.tilt_allowance), 0.5 * float(np.arctan(mu)),
+                     2.0 * (under_weight[i] + self.max_corner_lift / float(np.ptp(corners[i], axis=0).min())))
             for i, mu in enumerate(self.friction)
         ]) if self.law != "bonded" else np.zeros(n_prints)
         # Each print's friction in its nodes' law, its resultant's rows and its held (stiff) form.
@@ -785,21 +790,34 @@ class DeformableContact:
         tilts[self.point_prints] = np.inf
         return tilts
 
-    def _tilts(self, data):
-        """How far each print with a tilt allowance has its face turned from the body's rest
-        surface: the angles between the rest normals and the link faces' normals, radians
-        (k,), and the unit axes about which a world angular velocity turns them, ``d angle
-        = axis . omega`` (k, 3), world (zero where a face is not turned at all)."""
-        tilts, axes = np.zeros(len(self._tilted_prints)), np.zeros((len(self._tilted_prints), 3))
+    def _tilt_block(self, model, data, columns, derivatives):
+        """The face-tilt rows of the prints with a tilt allowance (see :meth:`blocks`)."""
+        allowances = self.tilt_allowances[self._tilted_prints]
+        half = 2.0 * np.sin(allowances)
+        value, jacobian = np.zeros(len(allowances)), None
+        if derivatives:
+            jacobian = np.zeros((len(allowances), columns))
         for row, i in enumerate(self._tilted_prints):
             rest = self.print_placements[i].rotation[:, 2]
-            face = data.oMf[self.frame_ids[i]].rotation[:, 2]  # the link frame is the print's at rest
-            across = np.cross(rest, face)  # sin(angle) times the axis
-            size = float(np.linalg.norm(across))
-            tilts[row] = np.arctan2(size, float(rest @ face))
-            if size > 0.0:
-                axes[row] = across / size
-        return tilts, axes
+            face = data.oMf[self.frame_ids[i]].rotation[:, 2]
+            across = np.cross(rest, face)  # sin(t) times the axis
+            value[row] = (across @ across - np.sin(allowances[row]) ** 2) / half[row]
+            if derivatives:
+                # d|n0 x n1|^2 = 2 (n0 . n1) (n0 x n1) . omega, omega the world angular velocity.
+                frame_jacobian = pin.getFrameJacobian(model, data, self.frame_ids[i], pin.LOCAL_WORLD_ALIGNED)
+                jacobian[row, :model.nv] = 2.0 * (rest @ face) * (across @ frame_jacobian[3:]) / half[row]
+        return ConstraintBlock("face tilt", value, jacobian, -np.inf, 0.0, 1e-2, self._labels["tilt"])
+
+    def _tilts(self, data) -> np.ndarray:
+        """(k,) float: how far each print with a tilt allowance has its face turned from the
+        body's rest surface, the angle between the rest normal and the link face's, radians
+        (the link frame is the print's at rest)."""
+        tilts = np.zeros(len(self._tilted_prints))
+        for row, i in enumerate(self._tilted_prints):
+            rest = self.print_placements[i].rotation[:, 2]
+            face = data.oMf[self.frame_ids[i]].rotation[:, 2]
+            tilts[row] = np.arctan2(float(np.linalg.norm(np.cross(rest, face))), float(rest @ face))
+        return tilts
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
@@ -1179,17 +1197,11 @@ class DeformableContact:
             d_nodes_full[:, w_columns] = d_nodes[:, nv:]
             d_forces_body = self._body_rows(d_forces.reshape(3 * p, columns))
         if len(self._tilted_prints):
-            # Each flat print's face within its tilt allowance of the rest surface: its
-            # nodes' narrowed cones about the rest normal lie in their cones about the face.
-            tilts, axes = self._tilts(data)
-            jacobian = None
-            if derivatives:
-                jacobian = np.zeros((len(tilts), columns))
-                for row, i in enumerate(self._tilted_prints):
-                    frame_jacobian = pin.getFrameJacobian(model, data, self.frame_ids[i], pin.LOCAL_WORLD_ALIGNED)
-                    jacobian[row, :nv] = axes[row] @ frame_jacobian[3:]
-            blocks.append(ConstraintBlock(
-                "face tilt", tilts, jacobian, -np.inf, self.tilt_allowances[self._tilted_prints], 1e-2, labels["tilt"]))
+            # Each flat print's face within its tilt allowance a of the rest surface, so that
+            # its nodes' narrowed cones about the rest normal lie in their cones about the
+            # face: (sin^2 t - sin^2 a) / (2 sin a) <= 0, t the angle between the normals,
+            # smooth at t = 0 (the angle is not) and t - a to first order at the bound.
+            blocks.append(self._tilt_block(model, data, columns, derivatives))
         if self.law == "coulomb":
             # The contact solve keeps every node admissible; each link must still
             # press its print (on average not above the rest surface; a ball down to
@@ -1992,7 +2004,7 @@ class DeformableContact:
         if not len(self._tilted_prints):
             return []
         name = self.deformable_object.name
-        tilts, _ = self._tilts(data)
+        tilts = self._tilts(data)
         measures[f"largest face tilt on {name}"] = float(tilts.max())
         reasons, margins = [], []
         for row, i in enumerate(self._tilted_prints):

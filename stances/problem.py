@@ -166,7 +166,8 @@ class PostureOptions:
     max_corner_lift : float
         How far past ``corner_sinking`` a corner may lift, metres (1e-5): a stiff body's
         give (``stiff_limit``), where a pivot's force error is a motion error of a
-        micrometre or two. ``inf`` lets prints pivot.
+        micrometre or two. ``inf`` lets prints pivot, as far as ``tilt_allowance`` lets
+        their faces turn (0 for no bound).
     tilt_allowance : float
         Deformable supports with node cones (``contact_law`` ``"coulomb"`` or ``"sticking"``):
         how far the face of a flat print (a sole, a palm) may turn from the body's rest
@@ -178,8 +179,13 @@ class PostureOptions:
         nodes' cones are narrowed by this angle, ``mu' = tan(atan(mu) - a)`` (mu 0.7: 0.674),
         and rows keep each print's tilt within it: every node's force then lies in its cone
         about both normals, and :func:`stances.verify` checks it about the turned face with
-        the surface's own mu. A print of friction mu takes at most ``atan(mu) / 2``; a
+        the surface's own mu. A print takes at most ``atan(mu) / 2``, and at most twice what
+        it could turn on a stiff body (its bonded turn under the robot's weight plus
+        ``max_corner_lift`` over its width: a fraction of a milliradian at 1e10 Pa, so the
+        narrowing fades as E grows; each row's label gives its print's bound); a
         frictionless or infinitely rough print none (its cones are those of the rest normal).
+        Answers obey Coulomb's law with mu': verify a result with the allowance it was solved
+        with (results record it).
         0: the linear model's cones about the rest normal, no bound on the tilt. In
         ``[0, pi / 2)``.
     min_normal_force : float

@@ -188,7 +188,7 @@ def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(
 
 def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
     data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
-    assert (data["format"], data["version"]) == ("softcbm-plan", 2)
+    assert (data["format"], data["version"]) == ("softcbm-plan", 3)
     assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
     assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
     described = data["robot"]
@@ -250,7 +250,30 @@ def test_version_1_plan_files_are_still_read(synthetic_plan):
         loaded.full_configuration(0)
 
 
-@pytest.mark.parametrize("version", [None, 3, "2"], ids=["no-version", "future", "string"])
+def test_a_version_2_plans_results_read_as_solved_without_a_tilt_allowance(robot):
+    """Version 2 files were solved before the tilt allowance: their results' recorded options
+    gain tilt_allowance 0 (the linear model's cones, what they were solved with), so that
+    Plan.check verifies them as solved; a version 3 result keeps what it recorded."""
+    scenario = environments.load("hand-on-coarse-cube")
+    stance = scenario.stance("hand-on-cube")
+    result = stances.solve(robot, scenario.scene, stance, tilt_allowance=0.0)
+    planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
+    plan = Plan(True, "goal reached", [planned], PlanStatistics(), "hand-on-coarse-cube",
+                robot=robot_description(robot), scenario_source=scenario_source(scenario))
+    data = plan.to_dict()
+    assert data["stances"][0]["result"]["statistics"]["options"] == {"tilt_allowance": 0.0}
+    del data["stances"][0]["result"]["statistics"]["options"]  # as a version 2 file has it
+    read = Plan.from_dict({**data, "version": 2})
+    assert read.stances[0].result.statistics["options"] == {"tilt_allowance": 0.0}
+    assert read.check().ok
+    # The same file as version 3: solved with the default allowance, which its slipping
+    # palm nodes (Coulomb with the surface's mu) do not obey.
+    as_version_3 = Plan.from_dict({**data, "version": 3})
+    assert as_version_3.stances[0].result.statistics.get("options") is None
+    assert not as_version_3.check().ok
+
+
+@pytest.mark.parametrize("version", [None, 4, "2"], ids=["no-version", "future", "string"])
 def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
     data = synthetic_plan.to_dict()
     if version is None:
@@ -258,7 +281,7 @@ def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(sy
     else:
         data["version"] = version
     message = (
-        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2; "
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3; "
         "plan the scenario again with this version (cbm plan)"
     )
     with pytest.raises(PlanFileError) as raised:

@@ -12,6 +12,7 @@ import pytest
 
 import environments
 from stances import PostureOptions, solve, verify
+from stances.blocks import ConstraintBlock
 from stances.errors import StanceError
 from stances.problem import build_problem
 
@@ -131,3 +132,73 @@ def test_a_tilt_allowance_that_is_no_angle_below_a_right_angle_is_refused(value)
         PostureOptions(tilt_allowance=value)
     with pytest.raises(StanceError, match=r"tilt_allowance must be a number, got 'one degree'"):
         PostureOptions(tilt_allowance="one degree")
+
+
+_STIFF_SLAB = """
+robot: talos
+objects:
+  - {name: floor, type: floor}
+  - name: slab
+    type: soft_box
+    size: [0.8, 1.0, 0.2]
+    center: [0.0, 0.0, 0.1]
+    material: {E: 1.0e+10, nu: 0.3, rho: 0.0}
+    strain_limit: 0.3
+    refine: [[-0.3, -0.3], [0.3, 0.3]]
+stances:
+  stand:
+    left_sole: {surface: slab_top, x: 0.0, y: 0.09}
+    right_sole: {surface: slab_top, x: 0.0, y: -0.09}
+"""
+
+
+class _CentreOfMassAhead:
+    """The centre of mass at least ``bound`` metres ahead (world x): the soles' centres of
+    pressure toward their toes."""
+
+    def __init__(self, model, bound):
+        self.model, self.bound, self.data = model, bound, model.createData()
+
+    def blocks(self, problem, iterate):
+        jacobian = pin.jacobianCenterOfMass(self.model, self.data, iterate.q)
+        rows = None
+        if iterate.derivatives:
+            rows = np.zeros((1, problem.n_step))
+            rows[0, : self.model.nv] = jacobian[0]
+        return [ConstraintBlock("ahead", np.array([self.data.com[0][0]]), rows, self.bound, np.inf, 1e-2, ("ahead",))]
+
+
+def test_on_a_steel_stiff_slab_the_allowance_is_a_fraction_of_a_milliradian_and_binds_nothing_the_rigid_support_allows(robot):
+    """A review's case: both soles on a 1e10 Pa slab, the robot leaning forward (its centre of
+    mass 0.101 m ahead, the soles' centres of pressure toward their toes). Lifted and slipping
+    nodes turn the soles 2e-5 rad, more than their bonded turn under the robot's weight (1.5e-5):
+    an allowance of that alone refused the stance the rigid support holds. With the corner rows'
+    give in it (max_corner_lift over the sole's width, doubled) it is solved in its stiff limit."""
+    scenario = environments.load_string(_STIFF_SLAB, name="stiff-slab")
+    stance = scenario.stance("stand")
+    ahead = _CentreOfMassAhead(robot.model, 0.101)
+    assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
+    result = solve(robot, scenario.scene, stance, constraints=[ahead])
+    assert result.feasible and result.verification.ok, result.reason
+    assert result.statistics["stiff_limit"] is True
+    (soft,) = [c for c in build_problem(robot, scenario.scene, stance).contacts if c.kind == "deformable"]
+    width = np.ptp(robot.surface("left_sole").vertices_in_frame[:, :2], axis=0).min()  # metres across
+    assert np.allclose(soft.tilt_allowances, 2.0 * (soft._tilts_under(robot.weight) + 1e-5 / width), rtol=1e-3)
+    assert np.all(soft.tilt_allowances < 2e-4)
+    assert 1e-5 < result.verification.measures["largest face tilt on slab"] < soft.tilt_allowances.min()
+
+
+def test_the_tilt_under_the_robots_weight_bounds_the_bonded_turn_of_a_load_on_the_print(robot, coarse_cube):
+    """``_tilts_under``: the robot's weight at the palm's farthest node, along its normal or
+    along a tangent, turns the bonded palm by less than the bound, and by more than a fifth of it."""
+    (soft,) = [c for c in build_problem(robot, coarse_cube.scene, coarse_cube.stance("hand-on-cube")).contacts
+               if c.kind == "deformable"]
+    bound = soft._tilts_under(robot.weight)[0]
+    rotation = soft._print_rotations_in_body[0]
+    farthest = soft.levers[np.argmax(np.linalg.norm(soft.levers, axis=1))]
+    turns = []
+    for direction in rotation.T:  # the print's tangents and normal, body frame
+        force = robot.weight * direction
+        turn = soft.a_inverse[3:6] @ np.concatenate([force, np.cross(farthest, force)])
+        turns.append(np.linalg.norm(rotation[:, :2].T @ turn))  # about the tangents: the tilt
+    assert max(turns) < bound < 5.0 * max(turns)
