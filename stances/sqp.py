@@ -112,7 +112,7 @@ def _unit(label: str) -> str:
     if label.startswith("strain"):
         return "(strain)"
     if label.startswith("tilt of the face"):
-        return "rad"  # (sin^2 t - sin^2 a) / (2 sin a): t - a near the bound
+        return "rad"
     return "N"
 
 

@@ -13,8 +13,10 @@ import pytest
 import environments
 from stances import PostureOptions, solve, verify
 from stances.blocks import ConstraintBlock
+from stances.curvature import ConstraintCurvature
 from stances.errors import StanceError
 from stances.problem import build_problem
+from test_curvature import second_differences
 
 PALM = "right_palm"
 
@@ -202,3 +204,24 @@ def test_the_tilt_under_the_robots_weight_bounds_the_bonded_turn_of_a_load_on_th
         turn = soft.a_inverse[3:6] @ np.concatenate([force, np.cross(farthest, force)])
         turns.append(np.linalg.norm(rotation[:, :2].T @ turn))  # about the tangents: the tilt
     assert max(turns) < bound < 5.0 * max(turns)
+
+
+def test_the_tilt_rows_curvature_matches_second_differences_of_the_tilt(robot, coarse_cube, answers):
+    """The face-tilt row's ``second_order`` (its Jacobian again at moved postures) gives, through
+    :mod:`stances.curvature`, the second derivative of the tilt along the joints, at the
+    default answer's posture (the palm on its 1 degree bound)."""
+    problem = build_problem(robot, coarse_cube.scene, coarse_cube.stance("hand-on-cube"), PostureOptions())
+    q = np.asarray(answers[PostureOptions().tilt_allowance].q)
+    (block,) = [b for b in problem.linearize(q, problem.initial_variables(q)).blocks if b.name == "face tilt"]
+    (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
+    model, data = robot.model, robot.model.createData()
+
+    def tilt(configuration):
+        pin.framesForwardKinematics(model, data, configuration)
+        return soft._tilts(data)[0]
+
+    columns = np.arange(6, model.nv)[-7:]  # the right arm's joints, which turn the palm
+    expected = second_differences(model, q, tilt, 1e-4, columns)
+    hessian = ConstraintCurvature(model).hessian(q, [block], [np.ones(1)])[np.ix_(columns, columns)]
+    np.testing.assert_allclose(hessian, expected, rtol=0, atol=2e-5 + 1e-3 * np.abs(expected).max())
+    assert np.abs(expected).max() > 0.1  # the tilt is curved along the arm: the test can fail
