@@ -7,9 +7,9 @@ robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
 :meth:`Plan.check` works on the file anywhere. Each value is stored once: a
 stance's posture, forces and displacements are not repeated in its solver
 summary. Version 1 files (before these headers) are read as they are, and version 1
-and 2 results as solved without the tilt allowance (version 3 is version 2's layout,
-its results solved with it); a file with no version or an unknown one is refused with
-the versions this library reads.
+and 2 results as solved in the rest frames (version 3 is version 2's layout, its soft
+prints' contact solved against the turned faces); a file with no version or an unknown
+one is refused with the versions this library reads.
 """
 
 from __future__ import annotations
@@ -52,9 +52,9 @@ PLAN_FORMAT = "softcbm-plan"
 FRONTIER_SIZE = 5
 PLAN_VERSION = 3
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
-#: stance's arrays inside its ``result``; versions 1 and 2 were solved before the tilt
-#: allowance (``stances.PostureOptions.tilt_allowance``, 2026-12-06): their results read as
-#: solved with none, the linear model's cones, and are checked so.
+#: stance's arrays inside its ``result``; versions 1 and 2 were solved before the contact
+#: frames turned with the links' faces (``stances.PostureOptions.contact_frames``,
+#: 2026-12-06): their results read as solved in the rest frames, and are checked so.
 READABLE_VERSIONS = (1, 2, 3)
 
 #: Units of every number in a plan file.
@@ -178,7 +178,7 @@ class PlannedStance:
                           "stance": data["stance"]}
         if version < 3 and isinstance(result, dict):
             statistics = dict(result.get("statistics") or {})
-            statistics["options"] = {"tilt_allowance": 0.0, **(statistics.get("options") or {})}
+            statistics["options"] = {"contact_frames": "rest", **(statistics.get("options") or {})}
             result = {**result, "statistics": statistics}
         return cls(
             stance=Stance.from_dict(data["stance"]),

@@ -265,7 +265,7 @@ def pivoting_print_hint(reasons) -> str:
     --------
     >>> pivoting_print_hint(["contact of right_palm on cube_top (corner 1 lifted: pivoting on an edge) violated by 0.1",
     ...                      "torque limit of j"])
-    "; 1 of the 2 stances rejected could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot (as far as tilt_allowance lets them turn)"
+    "; 1 of the 2 stances rejected could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf (solver_options={'max_corner_lift': inf}) to let prints pivot"
     >>> pivoting_print_hint(["torque limit of j"])
     ''
     """
@@ -273,5 +273,5 @@ def pivoting_print_hint(reasons) -> str:
         reasons, lambda reason: any(fragment in reason for fragment in _PIVOTING), PIVOTING_SHARE,
         "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is "
         "refused (its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
-        "(solver_options={'max_corner_lift': inf}) to let prints pivot (as far as tilt_allowance lets them turn)",
+        "(solver_options={'max_corner_lift': inf}) to let prints pivot",
     )

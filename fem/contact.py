@@ -339,10 +339,21 @@ class PrintContactSystem:
         self._factors = OrderedDict()
         self._inverse = None  # C^-1 in node frames, (3p, 3p), computed on the first low-rank factorisation
         self._layout = None  # the _ModeLayout of the modes last linearised
+        self._turns = None  # the current solve's turned frames (solve's ``turns``), or None
         self._infinite_friction = bool(np.isinf(mu).any())
 
-    def solve(self, displacements, initial_modes=None, initial_directions=None) -> PrintContact:
-        """The contact state under indenter motions U, modes found (see :func:`solve_print_contact`)."""
+    def solve(self, displacements, initial_modes=None, initial_directions=None, turns=None) -> PrintContact:
+        """The contact state under indenter motions U, modes found (see :func:`solve_print_contact`).
+
+        ``turns`` : (p, 3, 3) float, optional
+            Per node, the rotation from its frame to the frame its contact is solved in
+            (rows t1, t2, n of the turned frame, in the node frame's coordinates): the
+            indenter's face turned from the node frames (a tilted palm). The gap is then
+            measured along the turned normal, the slip and the cone in the turned plane;
+            forces, motions and the Jacobian stay in the body frame, and ``directions`` are
+            in the turned tangents. None: the node frames themselves.
+        """
+        self._set_turns(turns)
         u_local = self._local_motion(displacements)
         p = self.n_nodes
         modes = np.full(p, STICK) if initial_modes is None else np.array(initial_modes, dtype=int).reshape(p)
@@ -365,7 +376,12 @@ class PrintContactSystem:
             # The active set did not settle from sticking (seen on prints where many nodes
             # sit at the stick/slip boundary): projected Gauss-Seidel finds the contact
             # state, then the semismooth Newton restarts from its modes.
-            modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
+            if self._turns is None:
+                modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
+            else:  # in the turned frames
+                turned_c = _in_frames(self._turns, self.c_local)
+                turned_u = np.einsum("pij,pj->pi", self._turns, u_local)
+                modes, directions = _modes_of(_gauss_seidel(turned_c, turned_u, self.mu), self.mu)
             result = self._newton(u_local, modes, directions)
             if result is None and np.isinf(self.mu).any():
                 # As mu grows, a node can keep a finite tangential force while its
@@ -387,17 +403,19 @@ class PrintContactSystem:
         phi, r, modes, directions, system, iterations = result
         return self._state(phi, r, modes, directions, system, iterations, True)
 
-    def with_modes(self, displacements, modes, directions) -> PrintContact:
-        """The contact state with every node's mode imposed (see :func:`print_contact_with_modes`)."""
+    def with_modes(self, displacements, modes, directions, turns=None) -> PrintContact:
+        """The contact state with every node's mode imposed (see :func:`print_contact_with_modes`;
+        ``turns`` as :meth:`solve`)."""
+        self._set_turns(turns)
         u_local = self._local_motion(displacements)
         modes = np.asarray(modes, dtype=int).reshape(self.n_nodes)
         directions = np.asarray(directions, dtype=float).reshape(self.n_nodes, 2)
         phi, r, directions, system = self._held(u_local, modes, directions)
-        new_modes, new_directions, _ = _update_modes(phi, r, self.scale, self.mu)
+        new_modes, new_directions, _ = _update_modes(*self._seen(phi, r), self.scale, self.mu)
         settled = bool(np.array_equal(new_modes, modes))
         return self._state(phi, r, modes, directions, system, 0, settled)
 
-    def solve_loaded(self, basis, wrench, motion, start, initial_modes=None, initial_directions=None):
+    def solve_loaded(self, basis, wrench, motion, start, initial_modes=None, initial_directions=None, turns=None):
         """The contact state whose forces carry a given wrench, and the indenters' motion.
 
         The inverse of :meth:`solve` at fixed contact geometry: the indenters move with m
@@ -421,6 +439,10 @@ class PrintContactSystem:
             ``xi`` to start from.
         initial_modes, initial_directions
             As :meth:`solve` (an earlier answer's, for a nearby wrench).
+        turns : callable, optional
+            ``xi -> (p, 3, 3)`` turned frames (:meth:`solve`'s ``turns``) of the indenters
+            moved by ``xi``, read at each step (their derivative left out of ``K``: the
+            steps converge as long as the turns are small, as where a stiff body holds).
 
         Returns
         -------
@@ -431,6 +453,7 @@ class PrintContactSystem:
             centre of pressure beyond the nodes, a sideways force at which the contact
             would slide off), or none was found from ``start``.
         """
+        self._set_turns(None)
         basis_local = _to_nodes(self._frames, np.asarray(basis, dtype=float))
         wrench = np.asarray(wrench, dtype=float)
         p = self.n_nodes
@@ -445,6 +468,7 @@ class PrintContactSystem:
             if self._infinite_friction and np.isinf(self.mu[modes == SLIP]).any():
                 return None
             u, du = motion(xi)
+            self._set_turns(None if turns is None else turns(xi))
             u_local = self._local_motion(u).ravel()
             du_local = _to_nodes(self._frames, np.asarray(du, dtype=float))
             factor, blocks = system = self._system(modes, directions, gains)
@@ -461,8 +485,9 @@ class PrintContactSystem:
                 u_local = u_local + du_local @ step
                 xi = xi + step
             phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
-            new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
-            slip_ok = _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions)
+            seen = self._seen(phi, r)
+            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu)
+            slip_ok = _slip_settled(*seen, self.scale, new_modes, self.mu, new_directions)
             if settled and np.array_equal(new_modes, modes) and slip_ok:
                 if not np.linalg.cond(stiffness) < 1e13:
                     return None  # at the point of sliding off: the motion is not fixed by the wrench
@@ -476,16 +501,36 @@ class PrintContactSystem:
             raise FemError(f"displacements must have shape ({self.n_nodes}, 3), got {u.shape}")
         return _to_nodes(self._frames, u.ravel()).reshape(-1, 3)
 
+    def _set_turns(self, turns):
+        """Hold the solve's turned frames (None where every turn is the identity)."""
+        if turns is not None:
+            turns = np.asarray(turns, dtype=float)
+            if turns.shape != (self.n_nodes, 3, 3):
+                raise FemError(f"turns must have shape ({self.n_nodes}, 3, 3), got {turns.shape}")
+            if np.array_equal(turns, np.broadcast_to(np.eye(3), turns.shape)):
+                turns = None
+        self._turns = turns
+
+    def _seen(self, phi, r):
+        """(p, 3) forces and relative motions in the frames the contact is solved in."""
+        if self._turns is None:
+            return phi, r
+        return np.einsum("pij,pj->pi", self._turns, phi), np.einsum("pij,pj->pi", self._turns, r)
+
     def _system(self, modes, directions, gains):
-        """LU factor and right-hand-side blocks of the linearised law (kept when no node slips)."""
-        if self._layout is None or self._layout.key != modes.tobytes():
-            self._layout = _mode_layout(modes)
+        """LU factor and right-hand-side blocks of the linearised law (kept when no node slips:
+        sticking and lifted nodes' rows are those of any frame, so turns leave them as they are)."""
+        turned = self._turns is not None
+        key = modes.tobytes() + (b"t" if turned else b"")
+        if self._layout is None or self._layout.key != key:
+            self._layout = _mode_layout(modes, turned)
         layout = self._layout
-        slipping, key = bool(layout.nodes.size), layout.key
+        slipping = bool(layout.nodes.size)
+        key = modes.tobytes()
         if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
-        law, rhs_blocks = _mode_rows(modes, directions, gains, self.mu, self.scale, layout)
+        law, rhs_blocks = _mode_rows(modes, directions, gains, self.mu, self.scale, layout, self._turns)
         entry = (self._factor(law), rhs_blocks)
         if not slipping:
             self._factors[key] = entry
@@ -544,9 +589,10 @@ class PrintContactSystem:
                 return None
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
-            new_modes, new_directions, new_gains = _update_modes(phi, r, self.scale, self.mu)
+            seen = self._seen(phi, r)
+            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu)
             same = np.array_equal(new_modes, modes)
-            if same and _slip_settled(phi, r, self.scale, new_modes, self.mu, new_directions):
+            if same and _slip_settled(*seen, self.scale, new_modes, self.mu, new_directions):
                 # Linearised at the answer itself: L below is the exact Jacobian.
                 system = self._system(new_modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, new_modes, new_directions, system, phi, r)
@@ -565,8 +611,9 @@ class PrintContactSystem:
         for _ in range(_MAX_ITERATIONS):
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
-            new_directions, new_gains = _slip_directions(phi, r, self.scale, self.mu, modes, directions)
-            if _slip_settled(phi, r, self.scale, modes, self.mu):
+            seen = self._seen(phi, r)
+            new_directions, new_gains = _slip_directions(*seen, self.scale, self.mu, modes, directions)
+            if _slip_settled(*seen, self.scale, modes, self.mu):
                 system = self._system(modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, modes, new_directions, system, phi, r)
                 return phi, r, new_directions, system
@@ -583,7 +630,7 @@ class PrintContactSystem:
         if not np.any(modes == SLIP):
             return phi, r, directions
         new_phi, new_r = self._forces(u_local, system)
-        new_directions, _ = _slip_directions(new_phi, new_r, self.scale, self.mu, modes, directions)
+        new_directions, _ = _slip_directions(*self._seen(new_phi, new_r), self.scale, self.mu, modes, directions)
         return new_phi, new_r, new_directions
 
     def _state(self, phi, r, modes, directions, system, iterations, settled) -> PrintContact:
@@ -737,7 +784,14 @@ def _replace_rows(c_local, law):
     layout = law.layout
     rows = np.zeros((layout.rows.size, c_local.shape[0]))
     rows[layout.lifted, layout.lifted_dofs] = 1.0
-    if layout.normal.size:
+    if layout.normal.size and layout.turned:
+        dofs = np.column_stack([layout.tangential, layout.normal])  # (k, 3)
+        turned = np.einsum("kij,kj...->ki...", law.projected, c_local[dofs])  # (k, 3, 3p)
+        nodes = np.arange(layout.normal.size)
+        for j in range(3):
+            turned[nodes, :, dofs[:, j]] += law.own[:, :, j]
+        rows[layout.at] = turned
+    elif layout.normal.size:
         turned = np.einsum("kij,kj...->ki...", law.projected, c_local[layout.tangential])  # (k, 2, 3p)
         nodes = np.arange(layout.normal.size)
         for j in range(2):
@@ -774,10 +828,13 @@ class _ModeLayout:
         The slipping nodes' tangential dofs.
     normal : (k,) int
         Their normal dofs.
-    at : (k, 2) int
-        Positions in ``rows`` of the tangential dofs.
+    at : (k, 2) int, or (k, 3)
+        Positions in ``rows`` of the tangential dofs (and, turned, the normal one).
     blocks : (p, 3, 3) float, read-only
         The identity at every node that does not lift off, 0 at those that do.
+    turned : bool
+        Whether the slipping nodes' contact is solved in turned frames: all three of
+        their rows are replaced (their normal row too), else the tangential two.
     """
 
     key: bytes
@@ -789,29 +846,32 @@ class _ModeLayout:
     normal: np.ndarray
     at: np.ndarray
     blocks: np.ndarray
+    turned: bool = False
 
 
-def _mode_layout(modes) -> _ModeLayout:
-    """The :class:`_ModeLayout` of (p,) int modes."""
+def _mode_layout(modes, turned=False) -> _ModeLayout:
+    """The :class:`_ModeLayout` of (p,) int modes (``turned``: see its attribute)."""
     p = modes.shape[0]
     lifted, slipping = modes == LIFT, modes == SLIP
-    rows = np.flatnonzero(~_compliance_rows(modes))
+    rows = np.flatnonzero(~_compliance_rows(modes, turned))
     blocks = np.zeros((p, 3, 3))
     blocks[~lifted] = np.diag([1.0, 1.0, 1.0])
     blocks.setflags(write=False)
     nodes = np.flatnonzero(slipping)
     lifted_dofs = np.flatnonzero(np.repeat(lifted, 3))
     tangential = 3 * nodes[:, None] + np.arange(2)  # (k, 2)
+    replaced = 3 * nodes[:, None] + np.arange(3) if turned else tangential
     return _ModeLayout(
-        key=modes.tobytes(),
+        key=modes.tobytes() + (b"t" if turned else b""),
         nodes=nodes,
         rows=rows,
         lifted_dofs=lifted_dofs,
         lifted=np.searchsorted(rows, lifted_dofs),
         tangential=tangential,
         normal=3 * nodes + 2,
-        at=np.searchsorted(rows, tangential.ravel()).reshape(len(nodes), 2),
+        at=np.searchsorted(rows, replaced.ravel()).reshape(replaced.shape),
         blocks=blocks,
+        turned=turned,
     )
 
 
@@ -822,7 +882,11 @@ class _LawRows:
     A lifted node's three rows read ``phi = 0``; a slipping node's two tangential
     rows read ``P C[t] phi + O phi_t - mu d phi_n`` (P, O 2 x 2 blocks, d its slip
     direction): each row is C's row turned by a node's block plus at most three
-    entries, so that products with them cost what the nodes do, not what C does.
+    entries, so that products with them cost what the nodes do, not what C does. In
+    turned frames (a node's contact frame Q times its node frame) a slipping node's three
+    rows are ``[P Q_t; q_n] C[node] phi + [O Q_t - mu d q_n; 0] phi_node`` (Q_t, q_n: Q's
+    tangent rows and normal row): ``projected`` and ``own`` are then (k, 3, 3) and
+    ``friction`` is folded into ``own``.
 
     Attributes
     ----------
@@ -846,7 +910,11 @@ class _LawRows:
         layout = self.layout
         out = np.empty((layout.rows.size,) + x.shape[1:])
         out[layout.lifted] = x[layout.lifted_dofs]
-        if layout.normal.size:
+        if layout.normal.size and layout.turned:
+            dofs = np.column_stack([layout.tangential, layout.normal])
+            out[layout.at] = (np.einsum("kij,kj...->ki...", self.projected, cx[dofs])
+                              + np.einsum("kij,kj...->ki...", self.own, x[dofs]))
+        elif layout.normal.size:
             turned = np.einsum("kij,kj...->ki...", self.projected, cx[layout.tangential])
             turned += np.einsum("kij,kj...->ki...", self.own, x[layout.tangential])
             turned -= self.friction.reshape(self.friction.shape + (1,) * (x.ndim - 1)) * x[layout.normal][:, None]
@@ -854,7 +922,7 @@ class _LawRows:
         return out
 
 
-def _mode_rows(modes, directions, gains, mu, scale, layout=None):
+def _mode_rows(modes, directions, gains, mu, scale, layout=None, turns=None):
     """The law of fixed modes, linearised: ``matrix @ phi = -blocks * U`` (node frames),
     the matrix being C with a few rows replaced (:func:`_replace_rows` forms it).
 
@@ -872,7 +940,7 @@ def _mode_rows(modes, directions, gains, mu, scale, layout=None):
     blocks : (p, 3, 3) float
         The right-hand side's blocks.
     """
-    layout = _mode_layout(modes) if layout is None else layout
+    layout = _mode_layout(modes, turns is not None) if layout is None else layout
     nodes = layout.nodes
     blocks = layout.blocks.copy()
     d = directions[nodes]  # (k, 2)
@@ -880,16 +948,27 @@ def _mode_rows(modes, directions, gains, mu, scale, layout=None):
     weight = gains[nodes] * 0.5 * (scale[nodes, 0] + scale[nodes, 1])  # k s per node
     projected = weight[:, None, None] * (np.eye(2) - outer)  # (k, 2, 2)
     own = (1.0 - gains[nodes])[:, None, None] * np.eye(2) + gains[nodes][:, None, None] * outer
-    blocks[nodes, :2, :2] = projected
-    law = _LawRows(layout=layout, projected=projected, own=own, friction=mu[nodes][:, None] * d)
+    friction = mu[nodes][:, None] * d
+    if turns is not None:
+        # The law in the turned frame, phi' = Q phi and r' = Q r: O phi'_t + P r'_t - mu d phi'_n = 0
+        # and r'_n = 0, rows over the node's three dofs of the node frames.
+        q = turns[nodes]  # (k, 3, 3)
+        tangents, normal = q[:, :2, :], q[:, 2, :]
+        projected = np.concatenate([np.matmul(projected, tangents), normal[:, None, :]], axis=1)  # (k, 3, 3)
+        own = np.concatenate([np.matmul(own, tangents) - np.einsum("ki,kj->kij", friction, normal),
+                              np.zeros((len(nodes), 1, 3))], axis=1)
+        blocks[nodes] = projected
+    else:
+        blocks[nodes, :2, :2] = projected
+    law = _LawRows(layout=layout, projected=projected, own=own, friction=friction)
     return law, blocks
 
 
-def _compliance_rows(modes) -> np.ndarray:
+def _compliance_rows(modes, turned=False) -> np.ndarray:
     """(3p,) bool: the rows of a linearised law that are rows of C, ``r = 0`` on that
-    dof (a sticking node's, a slipping node's normal); the others are replaced."""
+    dof (a sticking node's, a slipping node's normal unless turned); the others are replaced."""
     motion_rows = np.repeat(modes != LIFT, 3)
-    motion_rows.reshape(-1, 3)[modes == SLIP, :2] = False
+    motion_rows.reshape(-1, 3)[modes == SLIP, : 3 if turned else 2] = False
     return motion_rows
 
 

@@ -404,6 +404,7 @@ class DeformableContact:
         self.max_slip = float(options.max_slip)
         self.max_mesh_overlap = float(options.max_mesh_overlap)
         self.ball_force_error = float(options.ball_force_error)
+        self.turned_frames = options.contact_frames == "turned" and self.law == "coulomb"
         self.corner_sinking = float(options.corner_sinking)
         self.max_corner_lift = float(options.max_corner_lift)
         body = deformable_object.body
@@ -831,6 +832,16 @@ class DeformableContact:
         (the link frame is the print's at rest)."""
         return self._tilt_rows(None, data, False)[0] + self.tilt_allowances[self._tilted_prints]
 
+    def _contact_frames(self, data) -> np.ndarray:
+        """(p, 3, 3) rows t1, t2, n of each node's contact frame, body frame: under the Coulomb
+        law its rest frame turned with its link's face (a ball's print does not turn), else
+        its rest frame."""
+        if not self.turned_frames:
+            return self.node_frames
+        turns = np.array(self._link_rotations(data))
+        turns[self.point_prints] = np.eye(3)
+        return np.matmul(self.node_frames, turns[self.print_of_node].transpose(0, 2, 1))
+
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
         return [
@@ -890,8 +901,9 @@ class DeformableContact:
         # nanometres of bending, far more than the nanometres the body gives).
         imposed = self._imposed_motion(w)
         if self.law == "coulomb":
-            # Contact solved at that motion: f = L (U~ + gap), continuous in W when nodes change modes.
-            solved = self._contact(imposed)
+            # Contact solved at that motion, against the faces turned as W turns them: f = L (U~ +
+            # gap), continuous in W when nodes change modes.
+            solved = self._contact(imposed, self._node_turns(w))
             forces_body = solved.forces.reshape(-1)
         else:
             if self.method == "traction":
@@ -911,17 +923,54 @@ class DeformableContact:
         self._derivatives = None
         return self._cache
 
-    def _contact(self, imposed) -> fem.PrintContact:
+    def _contact(self, imposed, turns=None) -> fem.PrintContact:
         """Signorini-Coulomb contact of the nodes under link points moved by ``imposed``
-        (3p,), metres, body frame; warm started from the last solve's modes, or held to
-        :meth:`freeze_modes`'s. A node is pressed once its link point has closed its gap."""
+        (3p,), metres, body frame, against faces turned by ``turns`` (:meth:`_node_turns`);
+        warm started from the last solve's modes, or held to :meth:`freeze_modes`'s. A node
+        is pressed once its link point has closed its gap."""
         corrected = imposed.reshape(-1, 3) + self.gaps
         if self._frozen is not None:
-            return self._system().with_modes(corrected, *self._frozen)
+            return self._system().with_modes(corrected, *self._frozen, turns=turns)
         warm = (None, None) if self._modes is None else self._modes
-        solved = self._system().solve(corrected, initial_modes=warm[0], initial_directions=warm[1])
+        solved = self._system().solve(corrected, initial_modes=warm[0], initial_directions=warm[1], turns=turns)
         self._modes = (solved.modes, solved.directions)
         return solved
+
+    def _node_turns(self, w):
+        """(p, 3, 3) float: each node's turned contact frame in its rest frame's coordinates,
+        ``F R^T F^T`` (F its rest frame's rows, R its print's turn ``exp(A^-1 W)``, body
+        frame): the face that presses is the link's, turned with it, and a node that slips
+        meets it there (``docs/turned-face.md``). None where no print is turned (a ball's
+        print never is)."""
+        if not self.turned_frames:
+            return None
+        theta, turns, _ = self._print_turns(np.asarray(w, dtype=float))
+        if not np.any(theta):
+            return None
+        owner = self.print_of_node
+        return np.matmul(np.matmul(self.node_frames, turns[owner].transpose(0, 2, 1)), self.node_frames.transpose(0, 2, 1))
+
+    def _turning_columns(self, solved, w):
+        """(3p, 6L) the forces' derivative in W through their frames' turn (``docs/turned-face.md``):
+        for a turn dth of print p's frames, ``df = (dth x f)_p + L[-(dth x r)_p + C (dth x f)_p]``
+        (f, r the forces and relative motions, body frame; L the mode-fixed Jacobian), and
+        ``dth = R Jr(theta) T dW`` (T: the turn's rows of A^-1)."""
+        theta, turns, right = self._print_turns(np.asarray(w, dtype=float))
+        p, n_prints = len(self.node_ids), len(self.prints)
+        f, r = solved.forces, solved.relative
+        axes = np.eye(3)
+        own = np.zeros((3 * p, 3 * n_prints))
+        slide = np.zeros((3 * p, 3 * n_prints))
+        for i in range(n_prints):
+            if i in self.point_prints:
+                continue
+            rows = np.flatnonzero(self.print_of_node == i)
+            for k in range(3):
+                own.reshape(p, 3, -1)[rows, :, 3 * i + k] = np.cross(axes[k], f[rows])
+                slide.reshape(p, 3, -1)[rows, :, 3 * i + k] = -np.cross(axes[k], r[rows])
+        d_theta = own + solved.jacobian_dot(slide + self.patch.link_compliance @ own)  # (3p, 3L)
+        turn_rates = np.einsum("lij,ljk,lkv->liv", turns, right, self._turn_of_w).reshape(3 * n_prints, -1)
+        return d_theta @ turn_rates
 
     def _system(self) -> fem.PrintContactSystem:
         """The nodes' contact system, made on first use: it keeps the factorisation of each
@@ -956,6 +1005,8 @@ class DeformableContact:
             d_imposed = self.rigid_motion + self._rotation_residue_derivative(np.asarray(w, dtype=float))
             if self.law == "coulomb":
                 d_w = values.solved.jacobian_dot(d_imposed)  # only L applied to a few directions
+                if self._node_turns(w) is not None:
+                    d_w = d_w + self._turning_columns(values.solved, w)
             else:
                 d_w = self.reaction @ d_imposed
             d_forces_body = np.hstack([np.zeros((3 * p, nv)), d_w])
@@ -1137,7 +1188,8 @@ class DeformableContact:
             slide off).
         """
         answer = self._system().solve_loaded(self.basis, np.asarray(wrench, dtype=float), self._link_motion,
-                                             np.zeros(self.n_variables))
+                                             np.zeros(self.n_variables),
+                                             turns=lambda xi: self._node_turns(self.a @ xi))
         return None if answer is None else (self.a @ answer[1], answer[1])
 
     def link_give(self, xi) -> float:
@@ -1677,14 +1729,16 @@ class DeformableContact:
             if error > tolerances.deformable_force:
                 reasons.append(f"forces on {name} differ from the FEM reaction by {error:.3g} (relative)")
         field = self.displacement_field(model, data, forces) if field is None else field
-        # Node frames: forces and relative motions (link point minus node) as (t1, t2, n).
-        phi = np.einsum("pij,pj->pi", self.node_frames, forces_body)
+        # Contact frames: forces and relative motions (link point minus node) as (t1, t2, n),
+        # the normal the link face's (turned with it) under the Coulomb law.
+        frames = self._contact_frames(data)
+        phi = np.einsum("pij,pj->pi", frames, forces_body)
         # Link point minus the node's coupling end (the node itself when fully covered).
         ends = field[self.node_ids]
         if self._coupling is not None:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         reached = displacements + self.gaps  # where each link point's surface over its node has moved
-        relative = np.einsum("pij,pj->pi", self.node_frames, reached - ends)
+        relative = np.einsum("pij,pj->pi", frames, reached - ends)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
@@ -1717,7 +1771,7 @@ class DeformableContact:
                         f"under the reported forces, the full FEM model of {name} leaves a print node "
                         f"{mismatch:.3g} m off its link (the nodes are bonded)"
                     )
-        reasons.extend(self._check_cones(forces, tolerances, measures))
+        reasons.extend(self._check_cones(forces, frames[:, 2] @ self.rotation_body.T, tolerances, measures))
         reasons.extend(self._check_face_cones(data, forces, tolerances, measures))
         reasons.extend(self._check_balls(points, phi[:, 2], measures, tolerances))
         depth = float((-np.einsum("pj,pj->p", field[self.node_ids], self.normals_in_body)).max())
@@ -2037,8 +2091,9 @@ class DeformableContact:
         measures[f"face cone margin on {name}"] = float(min(margins))
         return reasons
 
-    def _check_cones(self, forces, tolerances, measures) -> list:
-        """Exact Coulomb cones: per node, or (``bonded``) of each print's resultant."""
+    def _check_cones(self, forces, normals, tolerances, measures) -> list:
+        """Exact Coulomb cones: per node about its contact normal (``normals``, (p, 3) world),
+        or (``bonded``) of each print's resultant."""
         name = self.deformable_object.name
         if self.law == "bonded":
             totals = np.array([forces[self.print_of_node == i].sum(axis=0) for i in range(len(self.prints))])
@@ -2047,7 +2102,7 @@ class DeformableContact:
             what = [f"the resultant of {spec.label}" for spec in self.prints]
         else:
             # All nodes at once (a python loop over them cost 0.6 ms a soft check).
-            totals, normals, mu = forces, self.normals, self.node_mu
+            totals, mu = forces, self.node_mu
             what = [f"node {int(n)} of {name}" for n in self.node_ids]
         normal_part = np.einsum("ij,ij->i", totals, normals)
         tangential = np.linalg.norm(totals - normal_part[:, None] * normals, axis=1)

@@ -168,18 +168,25 @@ class PostureOptions:
         give (``stiff_limit``), where a pivot's force error is a motion error of a
         micrometre or two. ``inf`` lets prints pivot, as far as ``tilt_allowance`` lets
         their faces turn (0 for no bound).
+    contact_frames : {"turned", "rest"}
+        Deformable supports with the Coulomb law: the frames each print node's contact is
+        solved in. ``"turned"`` (default, since 2026-12-06): its print's rest frame turned
+        with the link's face, as eq. 63 turns the traction model's normals: the gap along the
+        face's normal, the slip and the cone in its plane, so a node that slips meets the
+        face where it is (``docs/turned-face.md``). ``"rest"``: the print's rest frame, the
+        linear model's, as before: a slipping node's gap misses its slip times the face's
+        tilt (hand-on-soft-cube's palm 6.2 % off the turned-face contact at its posture) and
+        its force leaves the cone about the face by about ``(1 + mu^2) / mu`` times the tilt.
     tilt_allowance : float
         Deformable supports with node cones (``contact_law`` ``"coulomb"`` or ``"sticking"``):
         how far the face of a flat print (a sole, a palm) may turn from the body's rest
-        surface, radians (1 degree). The linear model solves each node's contact in its
-        cone about the rest normal, while the face that presses is the link's, turned with
-        it (eq. 63 turns the traction model's normals so); a slipping node's force then
-        leaves the cone about the turned face by about ``(1 + mu^2) / mu`` times the tilt
-        (4.7 % on hand-on-coarse-cube's palm, tilted 1.25 degrees, until 2026-12-06). So the
-        nodes' cones are narrowed by this angle, ``mu' = tan(atan(mu) - a)`` (mu 0.7: 0.674),
-        and rows keep each print's tilt within it: every node's force then lies in its cone
-        about both normals, and :func:`stances.verify` checks it about the turned face with
-        the surface's own mu. A print takes at most ``atan(mu) / 2``, and at most twice what
+        surface, radians (0: no bound). The nodes' cones are narrowed by this angle,
+        ``mu' = tan(atan(mu) - a)`` (mu 0.7, 1 degree: 0.674), and rows keep each print's tilt
+        within it: every node's force then lies in its cone about both the rest normal and
+        the face's, which the rest frames (``contact_frames="rest"``, or the sticking law's
+        pyramids) need; with turned frames the cones are the face's already, and the
+        allowance is a bound on the tilt only; :func:`stances.verify` checks the turned face
+        with the surface's own mu where it is set. A print takes at most ``atan(mu) / 2``, and at most twice what
         it could turn on a stiff body (its bonded turn under the robot's weight plus
         ``max_corner_lift`` over its width: a fraction of a milliradian at 1e10 Pa, so the
         narrowing fades as E grows; each row's label gives its print's bound); a
@@ -306,7 +313,8 @@ class PostureOptions:
     ball_force_error: float = 0.05
     corner_sinking: float = 0.5
     max_corner_lift: float = 1e-5
-    tilt_allowance: float = math.radians(1.0)
+    contact_frames: str = "turned"
+    tilt_allowance: float = 0.0
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
@@ -354,9 +362,11 @@ class PostureOptions:
         if not self.max_corner_lift > 0.0:
             raise StanceError(f"max_corner_lift must be > 0 metres (inf lets prints pivot on an edge), "
                               f"got {self.max_corner_lift}")
+        if self.contact_frames not in CONTACT_FRAMES:
+            raise StanceError(f"contact_frames must be one of {CONTACT_FRAMES}, got {self.contact_frames!r}")
         if not 0.0 <= self.tilt_allowance < 0.5 * math.pi:
-            raise StanceError(f"tilt_allowance must be an angle in [0, pi/2) radians (0: cones about the rest "
-                              f"normal, no tilt bound), got {self.tilt_allowance}")
+            raise StanceError(f"tilt_allowance must be an angle in [0, pi/2) radians (0: no tilt bound), "
+                              f"got {self.tilt_allowance}")
         if self.contact_law == "coulomb" and self.reaction_model == "traction":
             raise StanceError(
                 "contact_law='coulomb' solves contact on the compliance, which the traction model has not: "
@@ -406,6 +416,7 @@ class PostureOptions:
 
 #: How a ball foot presses a soft body (PostureOptions.ball_contact).
 BALL_CONTACTS = ("layer", "nodes")
+CONTACT_FRAMES = ("turned", "rest")
 
 #: Options that are finite numbers >= 0 (weights, newtons, metres) and > 0 (steps,
 #: tolerances, penalties, metres), checked by :class:`PostureOptions`.

@@ -250,24 +250,25 @@ def test_version_1_plan_files_are_still_read(synthetic_plan):
         loaded.full_configuration(0)
 
 
-def test_a_version_2_plans_results_read_as_solved_without_a_tilt_allowance(robot):
-    """Version 2 files were solved before the tilt allowance: their results' recorded options
-    gain tilt_allowance 0 (the linear model's cones, what they were solved with), so that
-    Plan.check verifies them as solved; a version 3 result keeps what it recorded."""
+def test_a_version_2_plans_results_read_as_solved_in_the_rest_frames(robot):
+    """Version 2 files were solved before the soft prints' contact frames turned with the
+    links' faces: their results' recorded options gain contact_frames "rest" (what they were
+    solved with), so that Plan.check verifies them as solved; a version 3 result keeps what
+    it recorded (the turned frames by default)."""
     scenario = environments.load("hand-on-coarse-cube")
     stance = scenario.stance("hand-on-cube")
-    result = stances.solve(robot, scenario.scene, stance, tilt_allowance=0.0)
+    result = stances.solve(robot, scenario.scene, stance, contact_frames="rest")
     planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
     plan = Plan(True, "goal reached", [planned], PlanStatistics(), "hand-on-coarse-cube",
                 robot=robot_description(robot), scenario_source=scenario_source(scenario))
     data = plan.to_dict()
-    assert data["stances"][0]["result"]["statistics"]["options"] == {"tilt_allowance": 0.0}
+    assert data["stances"][0]["result"]["statistics"]["options"] == {"contact_frames": "rest"}
     del data["stances"][0]["result"]["statistics"]["options"]  # as a version 2 file has it
     read = Plan.from_dict({**data, "version": 2})
-    assert read.stances[0].result.statistics["options"] == {"tilt_allowance": 0.0}
+    assert read.stances[0].result.statistics["options"] == {"contact_frames": "rest"}
     assert read.check().ok
-    # The same file as version 3: solved with the default allowance, which its slipping
-    # palm nodes (Coulomb with the surface's mu) do not obey.
+    # The same file as version 3: solved against the turned face, which its slipping palm
+    # nodes, solved in the rest frames, do not obey.
     as_version_3 = Plan.from_dict({**data, "version": 3})
     assert as_version_3.stances[0].result.statistics.get("options") is None
     assert not as_version_3.check().ok

@@ -200,7 +200,7 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
     (PIVOTING, "soft support (indentation, strain, contact)",
      "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused "
      "(its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
-     "(solver_options={'max_corner_lift': inf}) to let prints pivot (as far as tilt_allowance lets them turn)", "pivot"),
+     "(solver_options={'max_corner_lift': inf}) to let prints pivot", "pivot"),
 ], ids=["strain bound", "pivoting prints"])
 def test_a_search_failing_on_a_soft_support_says_what_to_do(scenario, robot, reason, cause, hint, absent):
     """A search whose stances are rejected on a soft object's strain bound, or on a sole or

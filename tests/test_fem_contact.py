@@ -254,6 +254,36 @@ def test_a_print_turned_as_a_whole_gives_the_turned_forces_and_jacobian(pad):
     assert np.abs(turned.jacobian - jacobian).max() <= 1e-9 * np.abs(jacobian).max()
 
 
+def test_a_contact_solved_in_turned_frames_is_the_contact_of_those_frames(pad):
+    """``turns`` (each node's contact frame in its node frame's coordinates: an indenter face
+    turned from them) give the answer of a system built on the turned frames themselves (the
+    same modes, forces, relative motions and Jacobian, in the body frame), while the system
+    keeps its own frames' factorisations: sticking and lifted nodes are the same in any
+    frame, slipping ones turn. Warm and held solves too; a wrong shape is refused."""
+    _, patch, frames = pad
+    displacements = _rigid_motion(patch.points, [0.002, 0.0015, -0.004], [0.01, -0.02, 0.01], patch.points.mean(axis=0))
+    mu = np.full(patch.n_nodes, MU)
+    face = np.array([[1.0, 0.0, 0.0], [0.0, np.cos(0.03), np.sin(0.03)], [0.0, -np.sin(0.03), np.cos(0.03)]])  # a tilt
+    turns = np.matmul(np.matmul(frames, face.T), frames.transpose(0, 2, 1))
+    system = fem.PrintContactSystem(patch.compliance, frames, mu)
+    reference = fem.PrintContactSystem(patch.compliance, np.matmul(turns, frames), mu)
+    expected = reference.solve(displacements)
+    assert expected.n_slip > 0 and expected.n_stick > 0
+    for state in (system.solve(displacements, turns=turns),
+                  system.solve(displacements, expected.modes, expected.directions, turns=turns),
+                  system.with_modes(displacements, expected.modes, expected.directions, turns=turns)):
+        assert np.array_equal(state.modes, expected.modes) and state.admissible
+        scale = np.abs(expected.forces).max()
+        assert np.abs(state.forces - expected.forces).max() <= 1e-9 * scale
+        assert np.abs(state.relative - expected.relative).max() <= 1e-12
+        # (two factorisations of the law, one through C^-1: 5e-8 apart at most on this pad)
+        assert np.abs(state.jacobian - expected.jacobian).max() <= 1e-6 * np.abs(expected.jacobian).max()
+    # The rest frames' answer is another: the turned face moves the slipping nodes' gap.
+    assert np.abs(system.solve(displacements).forces - expected.forces).max() > 1e-3 * scale
+    with pytest.raises(fem.FemError, match=r"turns must have shape \(\d+, 3, 3\), got \(2, 3, 3\)"):
+        system.solve(displacements, turns=turns[:2])
+
+
 def test_held_modes_forces_have_the_returned_jacobian_with_slip_directions_following(pad):
     """With the modes held, a slipping node's friction turns with its slip: the forces
     are smooth, not linear, and central differences agree with the held Jacobian."""

@@ -86,6 +86,11 @@ def _problems(robot):
         "hand-on-cube",
         {"deformation_cost": "force", "deformation_weight": 1e-3},
     )
+    # A palm whose tilt is bounded (tilt_allowance): the face-tilt rows.
+    yield (
+        "deformable hand-on-cube (tilt allowance)", coarse_scenario("hand-on-cube"), "hand-on-cube",
+        {"tilt_allowance": 0.0175},
+    )
     yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
     # Two soles on one foam block: one coupled contact system.
     yield "coupled both-on-foam (coulomb)", coarse_scenario("cross-soft-block"), "both-on-foam", {}

@@ -119,10 +119,7 @@ def test_a_print_held_in_its_stiff_limit_keeps_its_centre_of_pressure_where_its_
     soft = _soft_contact(build_problem(robot, scene, stance))
     (held_print,) = soft.held_prints().values()
     reach, friction = held_print.reach, held_print.resultant_friction
-    assert friction == PostureOptions().friction_margin * soft.print_mu[0]
-    # The tilt a steel-stiff body could give (the corner rows' 10 um over the palm's width,
-    # doubled, most of it) narrows its nodes' friction by under 1e-3 of it.
-    assert 0.0 < soft.friction[0] - soft.print_mu[0] < 1e-3 * soft.friction[0]
+    assert friction == PostureOptions().friction_margin * soft.friction[0]
     placement = soft.print_placements[0]
     nodes = ((soft.link_points_at_rest - placement.translation) @ placement.rotation)[:, :2]
     assert reach[:, 0].max() < nodes[:, 0].max() and reach[:, 1].max() < nodes[:, 1].max()
