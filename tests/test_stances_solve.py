@@ -1481,12 +1481,10 @@ def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_wi
     from the start with W read off the starting posture, every print lifting off with no
     force, and stalled 100 N short at zero force; from the start with the start's own loads
     (the rigid warm start's, as the first stage had them), and now from where the first stage
-    stopped with its own, it converges and verifies. (Its soles tilt
-    1.6 degrees: with the default tilt allowance of 1 degree the stance is infeasible, for
-    that reason; the audit's options had none.)"""
+    stopped with its own, it converges and verifies."""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
     result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[_CentreOfMassBehind(0.05)],
-                   min_normal_force=100.0, max_corner_lift=math.inf, tilt_allowance=0.0)
+                   min_normal_force=100.0, max_corner_lift=math.inf)
     assert result.feasible and result.verification.ok, result.reason
     palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
     assert palm[2] >= 100.0 - 1e-6
