@@ -1,21 +1,22 @@
 """A plan: the sequence of verified stances, saved to and read from JSON.
 
-The file (``plan.json``, format ``softcbm-plan`` version 3) describes itself: its
+The file (``plan.json``, format ``softcbm-plan`` version 4) describes itself: its
 ``units`` and ``frames`` say what every number is, ``robot`` names each
 coordinate of ``q`` and each torque and gives the locked joints' values (the
 robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
 :meth:`Plan.check` works on the file anywhere. Each value is stored once: a
 stance's posture, forces and displacements are not repeated in its solver
-summary. Version 1 files (before these headers) are read as they are, and version 1
-and 2 results as solved in the rest frames (version 3 is version 2's layout, its soft
-prints' contact solved against the turned faces); a file with no version or an unknown
-one is refused with the versions this library reads.
+summary. Version 1 files (before these headers) are read as they are, and the results of
+versions 1 to 3 as solved with the options then the defaults (:data:`SOLVED_AS`; versions 3
+and 4 have version 2's layout, version 4's soft prints solved against the turned faces); a
+file with no version or an unknown one is refused with the versions this library reads.
 """
 
 from __future__ import annotations
 
 import json
 import logging
+import math
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -43,6 +44,7 @@ __all__ = [
     "scenario_source",
     "PLAN_VERSION",
     "READABLE_VERSIONS",
+    "SOLVED_AS",
 ]
 
 logger = logging.getLogger(__name__)
@@ -50,12 +52,17 @@ logger = logging.getLogger(__name__)
 PLAN_FORMAT = "softcbm-plan"
 #: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
 FRONTIER_SIZE = 5
-PLAN_VERSION = 3
+PLAN_VERSION = 4
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
-#: stance's arrays inside its ``result``; versions 1 and 2 were solved before the contact
+#: stance's arrays inside its ``result``. Versions 1 to 3 were solved before the contact
 #: frames turned with the links' faces (``stances.PostureOptions.contact_frames``,
-#: 2026-12-06): their results read as solved in the rest frames, and are checked so.
-READABLE_VERSIONS = (1, 2, 3)
+#: 2026-12-06), version 3 with a 1 degree tilt allowance by default: their results read as
+#: solved so (:data:`SOLVED_AS`), and are checked so.
+READABLE_VERSIONS = (1, 2, 3, 4)
+#: The posture options a result of an earlier version was solved with where it recorded
+#: none (they were the defaults then).
+SOLVED_AS = {1: {"contact_frames": "rest"}, 2: {"contact_frames": "rest"},
+             3: {"contact_frames": "rest", "tilt_allowance": math.radians(1.0)}}
 
 #: Units of every number in a plan file.
 UNITS = {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
@@ -176,9 +183,9 @@ class PlannedStance:
                 shared = [f.to_dict() for f in forces]
                 result = {**result, "q": data["q"], "point_forces": shared, "deformations": deformations,
                           "stance": data["stance"]}
-        if version < 3 and isinstance(result, dict):
+        if version in SOLVED_AS and isinstance(result, dict):
             statistics = dict(result.get("statistics") or {})
-            statistics["options"] = {"contact_frames": "rest", **(statistics.get("options") or {})}
+            statistics["options"] = {**SOLVED_AS[version], **(statistics.get("options") or {})}
             result = {**result, "statistics": statistics}
         return cls(
             stance=Stance.from_dict(data["stance"]),

@@ -626,8 +626,11 @@ class DeformableContact:
                      2.0 * (under_weight[i] + self.max_corner_lift / float(np.ptp(corners[i], axis=0).min())))
             for i, mu in enumerate(self.friction)
         ]) if self.law != "bonded" else np.zeros(n_prints)
-        # Each print's friction in its nodes' law, its resultant's rows and its held (stiff) form.
-        self.print_mu = [float(np.tan(np.arctan(mu) - a)) if a > 0.0 else mu
+        # Each print's friction in its nodes' law, its resultant's rows and its held (stiff)
+        # form: narrowed by the allowance in the rest frames, whose cones are about the rest
+        # normal; the turned frames' cones are the face's already (the allowance then bounds
+        # the tilt only).
+        self.print_mu = [float(np.tan(np.arctan(mu) - a)) if a > 0.0 and not self.turned_frames else mu
                          for mu, a in zip(self.friction, self.tilt_allowances)]
         self.node_mu = np.array([self.print_mu[i] for i in self.print_of_node])
         self._tilted_prints = np.flatnonzero(self.tilt_allowances > 0.0)

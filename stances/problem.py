@@ -180,21 +180,19 @@ class PostureOptions:
     tilt_allowance : float
         Deformable supports with node cones (``contact_law`` ``"coulomb"`` or ``"sticking"``):
         how far the face of a flat print (a sole, a palm) may turn from the body's rest
-        surface, radians (0: no bound). The nodes' cones are narrowed by this angle,
-        ``mu' = tan(atan(mu) - a)`` (mu 0.7, 1 degree: 0.674), and rows keep each print's tilt
-        within it: every node's force then lies in its cone about both the rest normal and
-        the face's, which the rest frames (``contact_frames="rest"``, or the sticking law's
-        pyramids) need; with turned frames the cones are the face's already, and the
-        allowance is a bound on the tilt only; :func:`stances.verify` checks the turned face
-        with the surface's own mu where it is set. A print takes at most ``atan(mu) / 2``, and at most twice what
+        surface, radians (0: no bound): rows keep each print's tilt within it. In the rest
+        frames (``contact_frames="rest"``, or the sticking law's pyramids) the nodes' cones are
+        narrowed by it too, ``mu' = tan(atan(mu) - a)`` (mu 0.7, 1 degree: 0.674), so that
+        every node's force lies in its cone about both the rest normal and the face's; the
+        turned frames' cones are the face's already, and the allowance bounds the tilt only.
+        :func:`stances.verify` checks the turned face's cones with the surface's own mu where
+        it is set. A print takes at most ``atan(mu) / 2``, and at most twice what
         it could turn on a stiff body (its bonded turn under the robot's weight plus
         ``max_corner_lift`` over its width: a fraction of a milliradian at 1e10 Pa, so the
         narrowing fades as E grows; each row's label gives its print's bound); a
-        frictionless or infinitely rough print none (its cones are those of the rest normal).
-        Answers obey Coulomb's law with mu': verify a result with the allowance it was solved
-        with (results record it).
-        0: the linear model's cones about the rest normal, no bound on the tilt. In
-        ``[0, pi / 2)``.
+        frictionless or infinitely rough print none. In the rest frames answers obey
+        Coulomb's law with mu': verify a result with the options it was solved with (results
+        record them). In ``[0, pi / 2)``.
     min_normal_force : float
         Each print carries at least this force along its normal, N, so that
         a contact is a support, not a touch. With the torque-usage term a

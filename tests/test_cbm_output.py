@@ -14,7 +14,7 @@ from cbm.errors import PlanFileError
 from cbm.cli import DEFAULT_SCENARIO, main
 from cbm.display import robot_segments
 from cbm.output import write_outputs
-from cbm.plan import Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from cbm.plan import SOLVED_AS, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 
 
 def chromium_binary():
@@ -188,7 +188,7 @@ def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(
 
 def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
     data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
-    assert (data["format"], data["version"]) == ("softcbm-plan", 3)
+    assert (data["format"], data["version"]) == ("softcbm-plan", 4)
     assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
     assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
     described = data["robot"]
@@ -250,31 +250,34 @@ def test_version_1_plan_files_are_still_read(synthetic_plan):
         loaded.full_configuration(0)
 
 
-def test_a_version_2_plans_results_read_as_solved_in_the_rest_frames(robot):
-    """Version 2 files were solved before the soft prints' contact frames turned with the
-    links' faces: their results' recorded options gain contact_frames "rest" (what they were
-    solved with), so that Plan.check verifies them as solved; a version 3 result keeps what
-    it recorded (the turned frames by default)."""
+def test_earlier_versions_results_read_as_solved_with_the_defaults_of_their_day(robot):
+    """Versions 1 and 2 were solved in the rest frames, version 3 in the rest frames with a 1
+    degree tilt allowance (the defaults then, so recorded nowhere): their results' options gain
+    those, so that Plan.check verifies them as solved; a version 4 result keeps what it
+    recorded (the turned frames by default), and the same forces checked so are refused."""
     scenario = environments.load("hand-on-coarse-cube")
     stance = scenario.stance("hand-on-cube")
-    result = stances.solve(robot, scenario.scene, stance, contact_frames="rest")
-    planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
-    plan = Plan(True, "goal reached", [planned], PlanStatistics(), "hand-on-coarse-cube",
-                robot=robot_description(robot), scenario_source=scenario_source(scenario))
-    data = plan.to_dict()
-    assert data["stances"][0]["result"]["statistics"]["options"] == {"contact_frames": "rest"}
-    del data["stances"][0]["result"]["statistics"]["options"]  # as a version 2 file has it
-    read = Plan.from_dict({**data, "version": 2})
-    assert read.stances[0].result.statistics["options"] == {"contact_frames": "rest"}
-    assert read.check().ok
-    # The same file as version 3: solved against the turned face, which its slipping palm
-    # nodes, solved in the rest frames, do not obey.
-    as_version_3 = Plan.from_dict({**data, "version": 3})
-    assert as_version_3.stances[0].result.statistics.get("options") is None
-    assert not as_version_3.check().ok
+    assert SOLVED_AS[1] == SOLVED_AS[2]  # (version 1's layout: test_version_1_plan_files_are_still_read)
+    for version in (2, 3):
+        options = SOLVED_AS[version]
+        result = stances.solve(robot, scenario.scene, stance, **options)
+        planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
+        plan = Plan(True, "goal reached", [planned], PlanStatistics(), "hand-on-coarse-cube",
+                    robot=robot_description(robot), scenario_source=scenario_source(scenario))
+        data = plan.to_dict()
+        assert data["stances"][0]["result"]["statistics"]["options"] == options
+        del data["stances"][0]["result"]["statistics"]["options"]  # as the earlier file has it
+        read = Plan.from_dict({**data, "version": version})
+        assert read.stances[0].result.statistics["options"] == options
+        assert read.check().ok, version
+        # The same file as the current version: solved against the turned face, which its
+        # slipping palm nodes, solved in the rest frames, do not obey.
+        current = Plan.from_dict({**data, "version": 4})
+        assert current.stances[0].result.statistics.get("options") is None
+        assert not current.check().ok
 
 
-@pytest.mark.parametrize("version", [None, 4, "2"], ids=["no-version", "future", "string"])
+@pytest.mark.parametrize("version", [None, 5, "2"], ids=["no-version", "future", "string"])
 def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
     data = synthetic_plan.to_dict()
     if version is None:
@@ -282,7 +285,7 @@ def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(sy
     else:
         data["version"] = version
     message = (
-        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3; "
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4; "
         "plan the scenario again with this version (cbm plan)"
     )
     with pytest.raises(PlanFileError) as raised:

@@ -136,12 +136,15 @@ def test_a_prints_friction_is_narrowed_by_its_allowance_and_by_no_more_than_a_st
         (contact,) = [c for c in problem.contacts if c.kind == "deformable"]
         return contact
 
-    allowed = soft(tilt_allowance=ONE_DEGREE)
+    allowed = soft(tilt_allowance=ONE_DEGREE, contact_frames="rest")
     assert allowed.tilt_allowances.tolist() == [ONE_DEGREE]
     assert allowed.print_mu == [math.tan(math.atan(mu) - ONE_DEGREE)]
     assert np.all(allowed.node_mu == allowed.print_mu[0])
+    # The turned frames' cones are the face's: the allowance bounds the tilt, narrows nothing.
+    turned = soft(tilt_allowance=ONE_DEGREE)
+    assert turned.tilt_allowances.tolist() == [ONE_DEGREE] and turned.print_mu == [mu]
     # At most half the cone's angle; none by default, nor with the paper's bonded law.
-    assert soft(tilt_allowance=1.5).tilt_allowances.tolist() == [0.5 * math.atan(mu)]
+    assert soft(tilt_allowance=1.5, contact_frames="rest").tilt_allowances.tolist() == [0.5 * math.atan(mu)]
     for options in ({}, {"contact_law": "bonded", "tilt_allowance": ONE_DEGREE}):
         contact = soft(**options)
         assert contact.tilt_allowances.tolist() == [0.0] and contact.print_mu == [mu]
