@@ -640,7 +640,8 @@ class PrintContactSystem:
         return PrintContact(forces, relative, modes, directions, iterations, (factor, rhs_blocks, self._frames, settled))
 
 
-def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_directions=None) -> PrintContact:
+def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_directions=None,
+                        turns=None) -> PrintContact:
     """Signorini-Coulomb contact of a print under imposed indenter motions.
 
     Parameters
@@ -661,6 +662,9 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
         Modes to start from (e.g. the previous call's): warm start.
     initial_directions : (p, 2) float, optional
         Slip directions going with ``initial_modes``.
+    turns : (p, 3, 3) float, optional
+        Each node's contact frame in its frame's coordinates (an indenter face turned from
+        ``frames``; :meth:`PrintContactSystem.solve`).
 
     Returns
     -------
@@ -697,10 +701,10 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
             f"shapes do not match: compliance {c.shape}, displacements {u.shape}, frames {frames.shape} "
             "(expected (3p, 3p), (p, 3), (p, 3, 3))"
         )
-    return PrintContactSystem(c, frames, friction).solve(u, initial_modes, initial_directions)
+    return PrintContactSystem(c, frames, friction).solve(u, initial_modes, initial_directions, turns)
 
 
-def print_contact_with_modes(compliance, displacements, frames, friction, modes, directions) -> PrintContact:
+def print_contact_with_modes(compliance, displacements, frames, friction, modes, directions, turns=None) -> PrintContact:
     """The contact state with every node's mode imposed: smooth in U, no mode update.
 
     A solver that has found which nodes stick, slip and lift can hold that set while it
@@ -710,7 +714,7 @@ def print_contact_with_modes(compliance, displacements, frames, friction, modes,
 
     Parameters
     ----------
-    compliance, displacements, frames, friction
+    compliance, displacements, frames, friction, turns
         As :func:`solve_print_contact`.
     modes : (p,) int
     directions : (p, 2) float
@@ -721,7 +725,7 @@ def print_contact_with_modes(compliance, displacements, frames, friction, modes,
     -------
     PrintContact
     """
-    return PrintContactSystem(compliance, frames, friction).with_modes(displacements, modes, directions)
+    return PrintContactSystem(compliance, frames, friction).with_modes(displacements, modes, directions, turns)
 
 
 def _gauss_seidel(c_local, u_local, mu, sweeps=500, tolerance=1e-12):

@@ -277,6 +277,12 @@ def test_a_contact_solved_in_turned_frames_is_the_contact_of_those_frames(pad):
         assert np.abs(state.forces - expected.forces).max() <= 1e-9 * scale
         assert np.abs(state.relative - expected.relative).max() <= 1e-12
         assert np.abs(state.jacobian - expected.jacobian).max() <= 1e-9 * np.abs(expected.jacobian).max()
+    # The module's functions pass the turns on.
+    assert np.array_equal(fem.solve_print_contact(patch.compliance, displacements, frames, mu, turns=turns).forces,
+                          system.solve(displacements, turns=turns).forces)
+    held = fem.print_contact_with_modes(patch.compliance, displacements, frames, mu, expected.modes, expected.directions,
+                                        turns=turns)
+    assert np.abs(held.forces - expected.forces).max() <= 1e-9 * scale
     # The rest frames' answer is another: the turned face moves the slipping nodes' gap.
     assert np.abs(system.solve(displacements).forces - expected.forces).max() > 1e-3 * scale
     with pytest.raises(fem.FemError, match=r"turns must have shape \(\d+, 3, 3\), got \(2, 3, 3\)"):
