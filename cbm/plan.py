@@ -169,7 +169,8 @@ class PlannedStance:
 
     @classmethod
     def from_dict(cls, data, version=PLAN_VERSION):
-        """Inverse of :meth:`to_dict`; ``version`` the file's (1 and 2: see :data:`READABLE_VERSIONS`)."""
+        """Inverse of :meth:`to_dict`; ``version`` the file's (version 1's layout, and the options
+        an earlier version's result was solved with: :data:`SOLVED_AS`)."""
         if version == 1:
             forces = [as_point_force(f) for f in data["point_forces"]]
             deformations = data.get("deformations", {})

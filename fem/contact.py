@@ -376,12 +376,10 @@ class PrintContactSystem:
             # The active set did not settle from sticking (seen on prints where many nodes
             # sit at the stick/slip boundary): projected Gauss-Seidel finds the contact
             # state, then the semismooth Newton restarts from its modes.
-            if self._turns is None:
-                modes, directions = _modes_of(_gauss_seidel(self.c_local, u_local, self.mu), self.mu)
-            else:  # in the turned frames
-                turned_c = _in_frames(self._turns, self.c_local)
-                turned_u = np.einsum("pij,pj->pi", self._turns, u_local)
-                modes, directions = _modes_of(_gauss_seidel(turned_c, turned_u, self.mu), self.mu)
+            c_seen, u_seen = self.c_local, u_local  # in the frames the contact is solved in
+            if self._turns is not None:
+                c_seen, u_seen = _in_frames(self._turns, self.c_local), np.einsum("pij,pj->pi", self._turns, u_local)
+            modes, directions = _modes_of(_gauss_seidel(c_seen, u_seen, self.mu), self.mu)
             result = self._newton(u_local, modes, directions)
             if result is None and np.isinf(self.mu).any():
                 # As mu grows, a node can keep a finite tangential force while its
@@ -521,12 +519,11 @@ class PrintContactSystem:
         """LU factor and right-hand-side blocks of the linearised law (kept when no node slips:
         sticking and lifted nodes' rows are those of any frame, so turns leave them as they are)."""
         turned = self._turns is not None
-        key = modes.tobytes() + (b"t" if turned else b"")
-        if self._layout is None or self._layout.key != key:
+        if self._layout is None or self._layout.key != modes.tobytes() + (b"t" if turned else b""):
             self._layout = _mode_layout(modes, turned)
         layout = self._layout
         slipping = bool(layout.nodes.size)
-        key = modes.tobytes()
+        key = modes.tobytes()  # (a set without slip has the same rows turned or not)
         if not slipping and key in self._factors:
             self._factors.move_to_end(key)
             return self._factors[key]
@@ -789,11 +786,10 @@ def _replace_rows(c_local, law):
     rows = np.zeros((layout.rows.size, c_local.shape[0]))
     rows[layout.lifted, layout.lifted_dofs] = 1.0
     if layout.normal.size and layout.turned:
-        dofs = np.column_stack([layout.tangential, layout.normal])  # (k, 3)
-        turned = np.einsum("kij,kj...->ki...", law.projected, c_local[dofs])  # (k, 3, 3p)
+        turned = np.einsum("kij,kj...->ki...", law.projected, c_local[layout.dofs])  # (k, 3, 3p)
         nodes = np.arange(layout.normal.size)
         for j in range(3):
-            turned[nodes, :, dofs[:, j]] += law.own[:, :, j]
+            turned[nodes, :, layout.dofs[:, j]] += law.own[:, :, j]
         rows[layout.at] = turned
     elif layout.normal.size:
         turned = np.einsum("kij,kj...->ki...", law.projected, c_local[layout.tangential])  # (k, 2, 3p)
@@ -832,6 +828,8 @@ class _ModeLayout:
         The slipping nodes' tangential dofs.
     normal : (k,) int
         Their normal dofs.
+    dofs : (k, 3) int
+        Their three dofs (tangential and normal).
     at : (k, 2) int, or (k, 3)
         Positions in ``rows`` of the tangential dofs (and, turned, the normal one).
     blocks : (p, 3, 3) float, read-only
@@ -848,6 +846,7 @@ class _ModeLayout:
     lifted: np.ndarray
     tangential: np.ndarray
     normal: np.ndarray
+    dofs: np.ndarray
     at: np.ndarray
     blocks: np.ndarray
     turned: bool = False
@@ -863,8 +862,9 @@ def _mode_layout(modes, turned=False) -> _ModeLayout:
     blocks.setflags(write=False)
     nodes = np.flatnonzero(slipping)
     lifted_dofs = np.flatnonzero(np.repeat(lifted, 3))
-    tangential = 3 * nodes[:, None] + np.arange(2)  # (k, 2)
-    replaced = 3 * nodes[:, None] + np.arange(3) if turned else tangential
+    dofs = 3 * nodes[:, None] + np.arange(3)  # (k, 3)
+    tangential = dofs[:, :2]
+    replaced = dofs if turned else tangential
     return _ModeLayout(
         key=modes.tobytes() + (b"t" if turned else b""),
         nodes=nodes,
@@ -872,7 +872,8 @@ def _mode_layout(modes, turned=False) -> _ModeLayout:
         lifted_dofs=lifted_dofs,
         lifted=np.searchsorted(rows, lifted_dofs),
         tangential=tangential,
-        normal=3 * nodes + 2,
+        normal=dofs[:, 2],
+        dofs=dofs,
         at=np.searchsorted(rows, replaced.ravel()).reshape(replaced.shape),
         blocks=blocks,
         turned=turned,
@@ -915,9 +916,8 @@ class _LawRows:
         out = np.empty((layout.rows.size,) + x.shape[1:])
         out[layout.lifted] = x[layout.lifted_dofs]
         if layout.normal.size and layout.turned:
-            dofs = np.column_stack([layout.tangential, layout.normal])
-            out[layout.at] = (np.einsum("kij,kj...->ki...", self.projected, cx[dofs])
-                              + np.einsum("kij,kj...->ki...", self.own, x[dofs]))
+            out[layout.at] = (np.einsum("kij,kj...->ki...", self.projected, cx[layout.dofs])
+                              + np.einsum("kij,kj...->ki...", self.own, x[layout.dofs]))
         elif layout.normal.size:
             turned = np.einsum("kij,kj...->ki...", self.projected, cx[layout.tangential])
             turned += np.einsum("kij,kj...->ki...", self.own, x[layout.tangential])

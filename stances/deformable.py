@@ -87,13 +87,13 @@ How nodes meet their link (``contact_law``), beyond the paper's bonded prints:
   sunk at least ``corner_sinking`` of the corners' mean sinking, less ``max_corner_lift``: a
   print pivoting toward its edge presses a strip narrower than the mesh resolves, and an
   independent audit found such palms 6.7-16.4 % below a converged mesh's force), and keep
-  its resultant inside ``friction_margin`` of its pyramid. The nodes' cones are about the
-  print's rest normal (the linear model's) while the face that presses is the link's,
-  turned with it (as eq. 63 turns the traction model's normals): each flat print's cones
-  are narrowed by its tilt allowance ``a`` (``mu' = tan(atan(mu) - a)``) and rows keep
-  its face's tilt within ``a``, so each node's force lies in its cone about both normals
-  (``tilt_allowance``; ``a`` no more than the tilt the robot's weight could give it, so
-  the narrowing fades on a stiff body).
+  its resultant inside ``friction_margin`` of its pyramid. Each node's contact is solved in
+  its print's frame turned with the link's face (``contact_frames="turned"``, as eq. 63
+  turns the traction model's normals; ``docs/turned-face.md``): the gap along the face's
+  normal, the slip and the cone in its plane, the turn the one W stands for. With
+  ``contact_frames="rest"`` (the linear model's frames) a tilt allowance ``a``
+  (``tilt_allowance``) narrows the cones to ``mu' = tan(atan(mu) - a)`` and rows keep the
+  face's tilt within ``a``, so each node's force lies in its cone about both normals.
 - ``"sticking"``: bonded nodes, each pushing and inside its own friction pyramid.
 - ``"bonded"``: the paper's model; bonded nodes push, each print's resultant is in
   its pyramid.
@@ -300,6 +300,14 @@ class _PrintValues:
     forces_body: np.ndarray
     nodes: np.ndarray
     solved: Any
+
+
+def _cone_margins(forces, normals, mu):
+    """Each force's normal part, tangential size and Coulomb margin ``mu f_n - |f_t|`` about its
+    normal: forces (k, 3), normals (k, 3) or (3,) (unit), mu (k,) or scalar; newtons."""
+    normal = np.einsum("...j,...j->...", forces, normals)
+    tangential = np.linalg.norm(forces - normal[:, None] * normals, axis=1)
+    return normal, tangential, mu * normal - tangential
 
 
 def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
@@ -1008,7 +1016,8 @@ class DeformableContact:
             d_imposed = self.rigid_motion + self._rotation_residue_derivative(np.asarray(w, dtype=float))
             if self.law == "coulomb":
                 d_w = values.solved.jacobian_dot(d_imposed)  # only L applied to a few directions
-                if self._node_turns(w) is not None:
+                if self.turned_frames:
+                    # (at a zero turn too: the frames' turn moves the forces there as well)
                     d_w = d_w + self._turning_columns(values.solved, w)
             else:
                 d_w = self.reaction @ d_imposed
@@ -2080,9 +2089,7 @@ class DeformableContact:
         for row, i in enumerate(self._tilted_prints):
             rows = np.flatnonzero(self.print_of_node == i)
             face = data.oMf[self.frame_ids[i]].rotation[:, 2]
-            normal = forces[rows] @ face
-            tangential = np.linalg.norm(forces[rows] - normal[:, None] * face, axis=1)
-            margin = self.friction[i] * normal - tangential
+            normal, tangential, margin = _cone_margins(forces[rows], face, self.friction[i])
             margins.append(margin.min())
             worst = int(np.argmin(margin))
             if margin[worst] < -tolerances.cone:
@@ -2107,9 +2114,7 @@ class DeformableContact:
             # All nodes at once (a python loop over them cost 0.6 ms a soft check).
             totals, mu = forces, self.node_mu
             what = [f"node {int(n)} of {name}" for n in self.node_ids]
-        normal_part = np.einsum("ij,ij->i", totals, normals)
-        tangential = np.linalg.norm(totals - normal_part[:, None] * normals, axis=1)
-        margins = mu * normal_part - tangential
+        normal_part, tangential, margins = _cone_margins(totals, normals, mu)
         # fmin: a node of infinite friction with no normal force (inf * 0) has no margin, as before.
         measures[f"cone margin on {name}"] = float(np.fmin.reduce(margins, initial=np.inf))
         return [
