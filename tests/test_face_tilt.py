@@ -15,10 +15,10 @@ import pytest
 import environments
 import fem
 from stances import PostureOptions, solve, verify
-from stances.blocks import ConstraintBlock
 from stances.curvature import ConstraintCurvature
 from stances.errors import StanceError
 from stances.problem import build_problem
+from conftest import CentreOfMassX
 from test_curvature import second_differences
 
 PALM = "right_palm"
@@ -194,22 +194,6 @@ stances:
 """
 
 
-class _CentreOfMassAhead:
-    """The centre of mass at least ``bound`` metres ahead (world x): the soles' centres of
-    pressure toward their toes."""
-
-    def __init__(self, model, bound):
-        self.model, self.bound, self.data = model, bound, model.createData()
-
-    def blocks(self, problem, iterate):
-        jacobian = pin.jacobianCenterOfMass(self.model, self.data, iterate.q)
-        rows = None
-        if iterate.derivatives:
-            rows = np.zeros((1, problem.n_step))
-            rows[0, : self.model.nv] = jacobian[0]
-        return [ConstraintBlock("ahead", np.array([self.data.com[0][0]]), rows, self.bound, np.inf, 1e-2, ("ahead",))]
-
-
 def test_on_a_steel_stiff_slab_the_allowance_is_a_fraction_of_a_milliradian_and_binds_nothing_the_rigid_support_allows(robot):
     """A review's case: both soles on a 1e10 Pa slab, the robot leaning forward (its centre of
     mass 0.101 m ahead, the soles' centres of pressure toward their toes). Lifted and slipping
@@ -218,7 +202,7 @@ def test_on_a_steel_stiff_slab_the_allowance_is_a_fraction_of_a_milliradian_and_
     give in it (max_corner_lift over the sole's width, doubled) it is solved in its stiff limit."""
     scenario = environments.load_string(_STIFF_SLAB, name="stiff-slab")
     stance = scenario.stance("stand")
-    ahead = _CentreOfMassAhead(robot.model, 0.101)
+    ahead = CentreOfMassX("ahead", lower=0.101)  # the soles' centres of pressure toward their toes
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead], tilt_allowance=ONE_DEGREE)
     assert result.feasible and result.verification.ok, result.reason

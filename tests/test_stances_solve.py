@@ -13,10 +13,9 @@ import pytest
 
 import environments
 import fem
-from conftest import BENCH, coarse_scenario
+from conftest import BENCH, CentreOfMassX, coarse_scenario
 from environments import Contact, ContactPrint, Stance
 from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
-from stances.blocks import ConstraintBlock
 from stances.results import LazyDeformations
 from stances.contacts import friction_cone_generators
 from stances.problem import PostureOptions, build_problem
@@ -1456,24 +1455,6 @@ stances:
 """
 
 
-class _CentreOfMassBehind:
-    """An extra row: the centre of mass's x at most ``bound`` (a user's lean)."""
-
-    def __init__(self, bound):
-        self.bound, self.data = bound, None
-
-    def blocks(self, problem, iterate):
-        model = problem.robot.model
-        if self.data is None:
-            self.data = model.createData()
-        jacobian = pin.jacobianCenterOfMass(model, self.data, iterate.q)
-        rows = None
-        if iterate.derivatives:
-            rows = np.zeros((1, problem.n_step))
-            rows[0, : model.nv] = jacobian[0]
-        return [ConstraintBlock("lean", np.array([self.data.com[0][0]]), rows, -np.inf, self.bound, 1e-2, ("lean",))]
-
-
 def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_with_its_loads(robot):
     """A palm pressed 100 N into a soft cube beside soles on foam, the robot held leaning
     back (a new user's audit): the first Coulomb stage creeps far from feasible, the held-mode
@@ -1483,7 +1464,7 @@ def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_wi
     (the rigid warm start's, as the first stage had them), and now from where the first stage
     stopped with its own, it converges and verifies."""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
-    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[_CentreOfMassBehind(0.05)],
+    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[CentreOfMassX("lean", upper=0.05)],
                    min_normal_force=100.0, max_corner_lift=math.inf)
     assert result.feasible and result.verification.ok, result.reason
     palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
