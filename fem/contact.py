@@ -102,6 +102,7 @@ class PrintContact:
     directions: np.ndarray
     iterations: int
     _system: tuple = field(repr=False, compare=False)
+    _law: tuple = field(default=None, repr=False, compare=False)  # (C, mu, scales, turns), node frames
 
     @property
     def admissible(self) -> bool:
@@ -123,6 +124,124 @@ class PrintContact:
         factor, blocks, frames, _ = self._system
         local = _to_nodes(frames, np.asarray(matrix, dtype=float))
         return _to_body(frames, -factor.solve(block_diagonal_product(blocks, local)))
+
+    def derivatives(self, d_motion, dd_motion, d_turns=None, dd_turns=None):
+        """First and second derivatives of the forces along a parameter's directions, the
+        modes held: the indenters move by ``U(x)`` and the contact frames turn by ``Q(x)``.
+
+        The law of fixed modes ``R(phi, U, Q) = 0`` (stick ``r = 0``, lift ``phi = 0``, slip
+        ``s_n q_n . r = 0`` and ``phi'_t - mu phi'_n d(tau) = 0``, ``phi' = Q phi``,
+        ``tau = phi'_t - s (Q r)_t``, ``d = tau / |tau|``) is differentiated implicitly: its
+        matrix in ``phi`` is the kept factorisation's, so ``phi_a = -M^-1 R_a`` and
+        ``phi_ab = -M^-1 R_ab`` with ``R_a``, ``R_ab`` the law's derivatives at fixed
+        ``phi`` (``phi_a`` inside ``R_ab``). The slip direction's curvature
+        ``d_ab = -[P tau_a (d . tau_b) + P tau_b (d . tau_a) + d (tau_a . P tau_b)] / |tau|^2``
+        (``P = I - d d^T``) is what makes a slipping print's forces curve in the motion.
+
+        Parameters
+        ----------
+        d_motion : (3p, m) float
+            ``dU / dx``, metres per unit of x, body frame.
+        dd_motion : (3p, m, m) float
+            ``d^2 U / dx^2``, symmetric in its last two axes.
+        d_turns : (p, m, 3, 3) float, optional
+            ``dQ / dx`` of each node's turned frame (the solve's ``turns``, in its node frame's
+            coordinates); None where the frames do not turn with x.
+        dd_turns : (p, m, m, 3, 3) float, optional
+            ``d^2 Q / dx^2``.
+
+        Returns
+        -------
+        first : (3p, m) float
+            ``d forces / dx``, body frame (:meth:`jacobian_dot` of ``d_motion`` where the
+            frames do not turn).
+        second : (3p, m, m) float
+            ``d^2 forces / dx^2``, body frame, symmetric in its last two axes.
+        """
+        factor, _, frames, _ = self._system
+        c, mu, scale, turns = self._law
+        p, m = self.modes.size, d_motion.shape[1]
+        phi = _to_nodes(frames, self.forces.ravel()).reshape(p, 3)
+        r = _to_nodes(frames, self.relative.ravel()).reshape(p, 3)
+        du = _to_nodes(frames, np.asarray(d_motion, dtype=float)).reshape(p, 3, m)
+        ddu = _to_nodes(frames, np.asarray(dd_motion, dtype=float)).reshape(p, 3, m, m)
+        q = np.broadcast_to(np.eye(3), (p, 3, 3)) if turns is None else turns
+        dq = np.zeros((p, m, 3, 3)) if d_turns is None else np.asarray(d_turns, dtype=float)
+        ddq = np.zeros((p, m, m, 3, 3)) if dd_turns is None else np.asarray(dd_turns, dtype=float)
+        slip = np.flatnonzero(self.modes == SLIP)
+        moving = self.modes != LIFT
+
+        # The slipping nodes' law at the answer, in their turned frames.
+        qs = q[slip]
+        x = np.einsum("kij,kj->ki", qs, phi[slip])
+        y = np.einsum("kij,kj->ki", qs, r[slip])
+        s_t = 0.5 * (scale[slip, 0] + scale[slip, 1])
+        # (solved in the node frames, a slipping node's normal row is C's, unscaled)
+        s_n = scale[slip, 2] if turns is not None else np.ones(slip.size)
+        tau = x[:, :2] - s_t[:, None] * y[:, :2]
+        size = np.hypot(tau[:, 0], tau[:, 1])
+        d = tau / size[:, None]
+        projector = np.eye(2) - np.einsum("ki,kj->kij", d, d)
+        friction = mu[slip]
+
+        def law_rows(x1, y1):
+            """The slipping nodes' rows at fixed phi, (k, 3, n), from the turned force's and
+            motion's derivatives x1, y1 (k, 3, n), the direction's own curvature left out."""
+            t1 = x1[:, :2] - s_t[:, None, None] * y1[:, :2]
+            rows = np.empty_like(x1)
+            rows[:, :2] = x1[:, :2] - friction[:, None, None] * (
+                d[:, :, None] * x1[:, 2][:, None] + x[:, 2][:, None, None] * np.einsum("kij,kjn->kin", projector, t1)
+                / size[:, None, None])
+            rows[:, 2] = s_n[:, None] * y1[:, 2]
+            return rows
+
+        def solve(motion_rows, slip_rows):
+            """``-M^-1`` of the law's rows at fixed phi: a sticking node's motion, a slipping node's law."""
+            rows = np.zeros(motion_rows.shape)
+            rows[moving] = motion_rows[moving]
+            rows[slip] = slip_rows
+            return -factor.solve(rows.reshape(3 * p, -1)).reshape(rows.shape)
+
+        def turned_pair(turn, vector, rotation=None, moved=None):
+            """``dQ v`` (k, 3, n) for turns (k, n, 3, 3) and v (k, 3), plus ``Q dv`` for dv (k, 3, n)."""
+            out = np.einsum("knij,kj->kin", turn, vector)
+            return out if moved is None else out + np.einsum("kij,kjn->kin", rotation, moved)
+
+        # First derivatives: phi_a = -M^-1 R_a.
+        dqs = dq[slip]
+        dphi = solve(du, law_rows(turned_pair(dqs, phi[slip]), turned_pair(dqs, r[slip], qs, du[slip])))
+        dr = du + (c @ dphi.reshape(3 * p, m)).reshape(p, 3, m)
+
+        # Second derivatives, each pair (a, b) with a <= b once: phi_ab = -M^-1 R_ab.
+        ia, ib = np.triu_indices(m)
+        xa = turned_pair(dqs, phi[slip], qs, dphi[slip])  # (k, 3, m)
+        ya = turned_pair(dqs, r[slip], qs, dr[slip])
+        ta = xa[:, :2] - s_t[:, None, None] * ya[:, :2]
+        pair_turns = ddq[slip][:, ia, ib]  # (k, P, 3, 3)
+        x2 = (turned_pair(pair_turns, phi[slip]) + np.einsum("kPij,kjP->kiP", dqs[:, ia], dphi[slip][:, :, ib])
+              + np.einsum("kPij,kjP->kiP", dqs[:, ib], dphi[slip][:, :, ia]))
+        y2 = (turned_pair(pair_turns, r[slip], qs, ddu[slip][:, :, ia, ib])
+              + np.einsum("kPij,kjP->kiP", dqs[:, ia], dr[slip][:, :, ib])
+              + np.einsum("kPij,kjP->kiP", dqs[:, ib], dr[slip][:, :, ia]))
+        rows = law_rows(x2, y2)
+        # ... and the products of first derivatives: the normal force's times the direction's,
+        # and the direction's own curvature.
+        first, second = ta[:, :, ia], ta[:, :, ib]
+        along_first = np.einsum("kij,kjP->kiP", projector, first)
+        along_second = np.einsum("kij,kjP->kiP", projector, second)
+        d_first, d_second = np.einsum("ki,kiP->kP", d, first), np.einsum("ki,kiP->kP", d, second)
+        curvature = -(along_first * d_second[:, None] + along_second * d_first[:, None]
+                      + d[:, :, None] * np.einsum("kiP,kiP->kP", first, along_second)[:, None]) / size[:, None, None] ** 2
+        rows[:, :2] -= friction[:, None, None] * (
+            xa[:, 2][:, None, ia] * along_second / size[:, None, None]
+            + xa[:, 2][:, None, ib] * along_first / size[:, None, None]
+            + x[:, 2][:, None, None] * curvature)
+        ddphi_pairs = solve(ddu[:, :, ia, ib], rows)  # (p, 3, P)
+        ddphi = np.zeros((p, 3, m, m))
+        ddphi[:, :, ia, ib] = ddphi_pairs
+        ddphi[:, :, ib, ia] = ddphi_pairs
+        return (_to_body(frames, dphi.reshape(3 * p, m)),
+                _to_body(frames, ddphi.reshape(3 * p, m, m)))
 
     @cached_property
     def jacobian(self) -> np.ndarray:
@@ -634,7 +753,8 @@ class PrintContactSystem:
         factor, rhs_blocks = system
         forces = _to_body(self._frames, phi.ravel()).reshape(-1, 3)
         relative = _to_body(self._frames, r.ravel()).reshape(-1, 3)
-        return PrintContact(forces, relative, modes, directions, iterations, (factor, rhs_blocks, self._frames, settled))
+        return PrintContact(forces, relative, modes, directions, iterations, (factor, rhs_blocks, self._frames, settled),
+                            (self.c_local, self.mu, self.scale, self._turns))
 
 
 def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_directions=None,

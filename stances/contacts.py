@@ -259,6 +259,11 @@ class RigidContact:
         """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
         return np.zeros((self.generators.shape[0], model.nv)), self.generators
 
+    def force_curvature(self, model, data, lam):
+        """The forces' curvature in this contact's variables (``weights -> (n, n)``), or None
+        where they are linear in them, as here (``generators @ lambda``)."""
+        return None
+
     def blocks(self, model, data, lam, columns, offset, derivatives=True):
         """Placement equalities (6 rows; a point foot's 3), print frame; a print held in
         its stiff limit (``reach``, ``resultant_friction``) adds its ``held print`` rows.

@@ -983,6 +983,71 @@ class DeformableContact:
         turn_rates = np.einsum("lij,ljk,lkv->liv", turns, right, self._turn_of_w).reshape(3 * n_prints, -1)
         return d_theta @ turn_rates
 
+    def force_curvature(self, model, data, w):
+        """The forces' curvature in W at ``w`` (6L,), for the SQP's Hessian, or None where
+        the forces are (nearly) linear in W: no node slips, or the law is not Coulomb's.
+
+        A slipping node's friction lies along its trial slip, a direction that turns with
+        the links' motion, and (in turned frames) its gap and cone turn with the face: the
+        forces curve in W. At hand-on-cube's answer the static equilibrium's fy curved by
+        -21 N per unit of a step whose linear model it met (0.007 in the rest frames), and
+        each QP asked for a step that the merit then refused: the solve stopped 3 % above
+        the optimum after line searches of 10 trials. The curvature is the contact law's
+        own (:meth:`fem.PrintContact.derivatives`, the modes held), with ``U(W)``'s and the
+        frames' second derivatives through the print turns ``exp(A^-1 W)``. Without slip
+        the forces are linear in U and only the turn's second order (micrometres) curves
+        them: left out.
+
+        Returns
+        -------
+        callable or None
+            ``weights (3p,) -> (6L, 6L)``: ``d^2 / dW^2`` of ``weights . forces`` (world
+            frame, newtons; forces as :meth:`forces` stacks them), symmetric; the second
+            derivatives are computed on the first call.
+        """
+        if self.law != "coulomb" or self.method == "traction":
+            return None
+        w = np.asarray(w, dtype=float).copy()
+        solved = self._values(model, data, w).solved
+        if not solved.n_slip:
+            return None
+        second = []
+
+        def curvature(weights):
+            if not second:
+                second.append(self._force_second_derivative(solved, w))
+            weights_body = (np.asarray(weights, dtype=float).reshape(-1, 3) @ self.rotation_body).ravel()
+            out = np.einsum("i,iab->ab", weights_body, second[0])
+            return 0.5 * (out + out.T)
+
+        return curvature
+
+    def _force_second_derivative(self, solved, w) -> np.ndarray:
+        """(3p, 6L, 6L) ``d^2 forces / dW^2``, body frame, the modes of ``solved`` held
+        (:meth:`force_curvature`)."""
+        theta, _, _ = self._print_turns(w)
+        d_turn, dd_turn = _exp_derivatives(theta)  # (L, 3, 3, 3), (L, 3, 3, 3, 3): d R / d theta_j, ...
+        rates = self._turn_of_w  # (L, 3, 6L): d theta / dW
+        owner, m = self.print_of_node, rates.shape[2]
+        # U = G W + exp(theta) x - x - theta x x: its second derivative is exp's, on the levers.
+        dd_rotation = np.einsum("ljkmn,ljA,lkB->lmnAB", dd_turn, rates, rates, optimize=True)  # (L, 3, 3, 6L, 6L)
+        dd_motion = np.zeros((owner.size, 3, m, m))
+        for i in range(len(self.prints)):
+            rows = owner == i
+            dd_motion[rows] = np.einsum("mnAB,pn->pmAB", dd_rotation[i], self.levers[rows], optimize=True)
+        dd_motion = dd_motion.reshape(3 * owner.size, m, m)
+        d_motion = self.rigid_motion + self._rotation_residue_derivative(w)
+        d_turns = dd_turns = None
+        if self.turned_frames:
+            # Q = F R^T F^T per node (_node_turns); only a slipping node's frame enters its law.
+            slipping = np.flatnonzero(solved.modes == fem.SLIP)
+            frames, print_of = self.node_frames[slipping], owner[slipping]
+            d_rotation = np.einsum("ljmn,ljA->lAmn", d_turn, rates)  # (L, 6L, 3, 3)
+            d_turns, dd_turns = np.zeros((owner.size, m, 3, 3)), np.zeros((owner.size, m, m, 3, 3))
+            d_turns[slipping] = np.einsum("kim,kAnm,kjn->kAij", frames, d_rotation[print_of], frames, optimize=True)
+            dd_turns[slipping] = np.einsum("kim,knmAB,kjn->kABij", frames, dd_rotation[print_of], frames, optimize=True)
+        return solved.derivatives(d_motion, dd_motion, d_turns, dd_turns)[1]
+
     def _system(self) -> fem.PrintContactSystem:
         """The nodes' contact system, made on first use: it keeps the factorisation of each
         contact set it meets (the SQP holds a set or comes back to it at most linearisations)."""
@@ -2122,3 +2187,19 @@ class DeformableContact:
             f"(tangential {tangential[i]:.3g} N, normal {normal_part[i]:.3g} N, mu {mu[i]:g})"
             for i in np.flatnonzero(margins < -tolerances.cone).tolist()
         ]
+
+
+def _exp_derivatives(theta, step=1e-5):
+    """First and second derivatives of ``R = exp(theta)`` in the rotation vector, per row of
+    ``theta`` (L, 3): ``(L, 3, 3, 3)`` with ``[l, j] = dR / dtheta_j = R [Jr e_j]x`` (exact),
+    and ``(L, 3, 3, 3, 3)`` with ``[l, j, k]`` the second derivative, by central
+    differences of the first (step 1e-5 rad: error about 1e-10 of R's scale)."""
+    def first(t):
+        rotation, right = pin.exp3(t), pin.Jexp3(t)
+        return np.array([rotation @ pin.skew(right[:, j]) for j in range(3)])
+
+    d = np.array([first(t) for t in theta])
+    dd = np.array([[(first(t + step * e) - first(t - step * e)) / (2.0 * step) for e in np.eye(3)] for t in theta])
+    # dd[l, k, j] = d/dtheta_k (dR/dtheta_j): symmetric in (j, k) to the differences' error
+    dd = 0.5 * (dd + dd.transpose(0, 2, 1, 3, 4))
+    return d, dd

@@ -513,6 +513,10 @@ class LayerBalls:
         """Derivatives of the stacked forces: zero in q, ``generators`` in lambda."""
         return np.zeros((self.generators.shape[0], model.nv)), self.generators
 
+    def force_curvature(self, model, data, lam):
+        """None: the forces are linear in the variables."""
+        return None
+
     def normal_forces(self, lam) -> np.ndarray:
         """(L,) each ball's normal force, newtons."""
         return np.array([row @ lam[s] for row, s in zip(self._normal_rows, self._pyramid)])

@@ -878,7 +878,7 @@ class PostureProblem:
         pin.computeJointJacobians(model, data, q)
         pin.updateFramePlacements(model, data)
         # Contact forces and their derivatives (deformable ones depend on q).
-        forces, force_dq, force_dlam = [], [], []
+        forces, force_dq, force_dlam, curvatures, row = [], [], [], [], 0
         for contact, s in zip(self.contacts, self.variable_slices):
             forces.append(contact.forces(model, data, lam[s]))
             dq_part, dlam_part = contact.force_jacobians(model, data, lam[s])
@@ -886,6 +886,10 @@ class PostureProblem:
             full = np.zeros((dlam_part.shape[0], self.n_variables))
             full[:, s] = dlam_part
             force_dlam.append(full)
+            curvature = contact.force_curvature(model, data, lam[s])
+            if curvature is not None:
+                curvatures.append((slice(row, row + dlam_part.shape[0]), s, curvature))
+            row += dlam_part.shape[0]
         forces = np.vstack(forces) if forces else np.zeros((0, 3))
         force_dq = np.vstack(force_dq) if force_dq else np.zeros((0, nv))
         force_dlam = np.vstack(force_dlam) if force_dlam else np.zeros((0, self.n_variables))
@@ -893,7 +897,8 @@ class PostureProblem:
         # The static-torque routine reruns kinematics; frames need refreshing.
         pin.updateFramePlacements(model, data)
         tau_jacobian = np.hstack([dtau_dq + dtau_dforces @ force_dq, dtau_dforces @ force_dlam])
-        return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian)
+        return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian, dtau_dforces,
+                       tuple(curvatures))
 
 
 def min_normal_load(robot, robot_surface: str, options: PostureOptions) -> float:

@@ -427,7 +427,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         if last_qp is not None and any(block.variable_curvature is not None for block in linearization.blocks):
             if multipliers is None:
                 multipliers = row_multipliers(*last_qp)
-            curved, model = _with_variable_curvature(curved, model, multipliers)
+            curved, model = _with_variable_curvature(curved, model, multipliers, violation <= _CURVATURE_PHASE)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
@@ -649,40 +649,71 @@ def _with_curvature(curvature, q, linearization, multipliers):
         Hessian ``H_f + C'``: the model whose decrease the line search expects
         (on the QP's active rows the two differ by a constant).
     """
-    weights, active = [], []
-    for block in linearization.blocks:
-        if not len(block):
-            weights.append(None)
-            continue
-        row_weights = np.array([multipliers.get(label, 0.0) for label in block.labels])
-        weights.append(None if block.second_order is None else row_weights)
-        held = (row_weights != 0.0) | (block.lower == block.upper)
-        active.append(block.jacobian[held] / block.scale[held, None])
-    nv, n = curvature.model.nv, len(linearization.gradient)
-    rows = np.vstack(active) if active else np.zeros((0, n))
-    augmentation = _AUGMENTATION * (rows.T @ rows)
+    weights = [None if block.second_order is None or not len(block)
+               else np.array([multipliers.get(label, 0.0) for label in block.labels]) for block in linearization.blocks]
+    nv = curvature.model.nv
+    augmentation = _augmentation(linearization, multipliers)
     # The regularisation elastic_qp adds keeps the reference definite.
-    reference = linearization.hessian + augmentation + 1e-8 * np.eye(n)
+    reference = linearization.hessian + augmentation + 1e-8 * np.eye(len(linearization.gradient))
     model = linearization.hessian.copy()
     model[:nv, :nv] += bounded_below(curvature.hessian(q, linearization.blocks, weights), reference, _FLOOR)
     return replace(linearization, hessian=model + augmentation), replace(linearization, hessian=model)
 
 
-def _with_variable_curvature(for_qp, model, multipliers):
+def _augmentation(linearization, multipliers) -> np.ndarray:
+    """``sigma A^T A`` (n, n): ``A`` the linearisation's equalities and the rows the previous
+    QP held (a nonzero multiplier), scaled (:func:`_with_curvature`)."""
+    active = []
+    for block in linearization.blocks:
+        if not len(block):
+            continue
+        row_weights = np.array([multipliers.get(label, 0.0) for label in block.labels])
+        held = (row_weights != 0.0) | (block.lower == block.upper)
+        active.append(block.jacobian[held] / block.scale[held, None])
+    n = len(linearization.gradient)
+    rows = np.vstack(active) if active else np.zeros((0, n))
+    return _AUGMENTATION * (rows.T @ rows)
+
+
+def _with_variable_curvature(for_qp, model, multipliers, near=True):
     """Both linearisations with their blocks' curvature in the force variables
     (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`) added to their Hessians,
-    weighted by the last QP's multipliers of their rows (those of upper bounds held:
-    ``y >= 0``); unchanged where no block has it."""
+    weighted by the last QP's multipliers of their rows (a bound's on its side: an upper
+    bound's ``y >= 0``, a lower one's ``y <= 0``; an equality's either), and kept convex as
+    :func:`_with_curvature` keeps the configuration's: cut where it would take the Hessian
+    below ``_FLOOR`` of the reference ``H + sigma A^T A``; unchanged where no block has it.
+
+    Rows bounded on one side (a ball's strain) add theirs from the start; rows whose
+    multipliers take either sign (equalities, two-sided bounds: the soft forces' curvature
+    in static equilibrium and the torques, their slip directions', is indefinite) only
+    ``near`` feasibility, as the configuration's (``_CURVATURE_PHASE``): farther out the
+    last QP's multipliers are another point's, and with them the coarse cube of
+    hand-on-soft-cube crept from a violation of 0.69 until it stopped, infeasible.
+    """
     extra = None
     for block in for_qp.blocks:
         if block.variable_curvature is None or not len(block):
             continue
-        weights = np.maximum(np.array([multipliers.get(label, 0.0) for label in block.labels]), 0.0)
+        lower = np.broadcast_to(block.lower, (len(block),))
+        upper = np.broadcast_to(block.upper, (len(block),))
+        if not near and np.any(np.isfinite(lower) & np.isfinite(upper)):
+            continue
+        weights = np.clip(np.array([multipliers.get(label, 0.0) for label in block.labels]),
+                          np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
         if weights.any():
             term = block.variable_curvature(weights)
             extra = term if extra is None else extra + term
     if extra is None:
         return for_qp, model
+    curved = np.flatnonzero(np.any(extra != 0.0, axis=0))
+    if curved.size:
+        n = len(model.gradient)
+        order = np.concatenate([curved, np.setdiff1d(np.arange(n), curved)])
+        reference = model.hessian + _augmentation(model, multipliers) + 1e-8 * np.eye(n)
+        bounded = np.zeros_like(extra)
+        bounded[np.ix_(curved, curved)] = bounded_below(extra[np.ix_(curved, curved)], reference[np.ix_(order, order)],
+                                                        _FLOOR)
+        extra = bounded
     return replace(for_qp, hessian=for_qp.hessian + extra), replace(model, hessian=model.hessian + extra)
 
 

@@ -21,7 +21,7 @@ and costs through the same two calls. Equation numbers are the paper's.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import pinocchio as pin
@@ -68,6 +68,12 @@ class Iterate:
         ``g(q) - sum J^T f``: free-flyer wrench residual, then joint torques, N m.
     tau_jacobian : (nv, n) float or None
         Its derivative in the step (None: values only).
+    tau_force_jacobian : (nv, 3k) float or None
+        ``d tau / d forces`` (``-J^T``) at fixed q (None: values only).
+    force_curvatures : tuple of (slice, slice, callable)
+        The contacts whose forces curve in their variables: each one's rows in the
+        stacked forces (of 3k), its columns in the force variables, and its
+        ``force_curvature`` (:meth:`stances.contacts.RigidContact.force_curvature`).
     """
 
     q: np.ndarray
@@ -76,6 +82,8 @@ class Iterate:
     force_jacobian: np.ndarray | None
     tau: np.ndarray
     tau_jacobian: np.ndarray | None
+    tau_force_jacobian: np.ndarray | None = None
+    force_curvatures: tuple = ()
 
     @property
     def derivatives(self) -> bool:
@@ -177,6 +185,29 @@ class ContactCosts:
         return value, gradient, hessian
 
 
+def tau_curvature(problem, iterate, rows):
+    """The ``variable_curvature`` of the rows ``rows`` of tau (:class:`Iterate`), or None
+    where no contact's forces curve in their variables.
+
+    At fixed q, tau is linear in the forces (``d tau / d f = -J^T``), so its rows' weighted
+    curvature in the force variables is that of the forces weighted by ``-J w``: each
+    curved contact's ``force_curvature`` at those weights, in its own columns.
+    """
+    if not iterate.force_curvatures or iterate.tau_force_jacobian is None:
+        return None
+    n, nv = problem.n_step, problem.robot.model.nv
+
+    def curvature(weights):
+        on_forces = iterate.tau_force_jacobian[rows].T @ np.asarray(weights, dtype=float)
+        out = np.zeros((n, n))
+        for force_rows, variables, of in iterate.force_curvatures:
+            columns = slice(nv + variables.start, nv + variables.stop)
+            out[columns, columns] += of(on_forces[force_rows])
+        return out
+
+    return curvature
+
+
 _EQUILIBRIUM_LABELS = tuple(f"static equilibrium ({a})" for a in ("fx", "fy", "fz", "mx", "my", "mz"))
 
 
@@ -188,7 +219,8 @@ class EquilibriumConstraint:
 
     def blocks(self, problem, iterate):
         jacobian = iterate.tau_jacobian[:6] if iterate.derivatives else None
-        return [equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS)]
+        block = equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS)
+        return [replace(block, variable_curvature=tau_curvature(problem, iterate, slice(0, 6)))]
 
 
 @dataclass(frozen=True)
@@ -213,7 +245,8 @@ class TorqueLimitConstraint:
     def blocks(self, problem, iterate):
         jacobian = iterate.tau_jacobian[6:] if iterate.derivatives else None
         return [
-            ConstraintBlock("torque limit", iterate.tau[6:], jacobian, -problem.effort, problem.effort, 1.0, self.labels)
+            ConstraintBlock("torque limit", iterate.tau[6:], jacobian, -problem.effort, problem.effort, 1.0, self.labels,
+                            variable_curvature=tau_curvature(problem, iterate, slice(6, None)))
         ]
 
 

@@ -9,6 +9,8 @@ bonded answer, zero friction is frictionless.
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -16,6 +18,7 @@ import fem
 from fem.dense import spd_inverse
 
 MU = 0.5
+DATA = Path(__file__).resolve().parent / "data"
 
 
 @pytest.fixture(scope="module")
@@ -534,11 +537,14 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
     Newton, warm started from the last linearisation's modes, on a cycle of two contact
     sets. The cycle is seen on its third entry into a set (not after 60 steps) and the solve
     restarts from every node sticking, which settles; the projected Gauss-Seidel (20 ms a
-    call on this 20-node print) is not needed. The stance the solver returns passes
-    verify, whose per-node Signorini-Coulomb check does not use the Newton's modes."""
+    call on this 20-node print) is not needed. The motion, the warm modes and the turned
+    frames are those of a solve of left-on-platform at 0209338 (``tests/data``), replayed
+    on the same print: since the SQP's Hessian carries the Coulomb forces' curvature
+    (2026-12-06) that solve no longer meets the cycle."""
     import environments
     import stances
     from fem import contact
+    from stances.problem import build_problem
 
     def no_gauss_seidel(*args, **kwargs):
         raise AssertionError("the Gauss-Seidel fallback was called")
@@ -554,13 +560,20 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
             failed_steps.append(len(steps))
         return result
 
+    scenario = environments.load("climb-with-soft-support")
+    problem = build_problem(stances.Robot.load(scenario.robot), scenario.scene, scenario.stance("left-on-platform"))
+    (palm,) = [c for c in problem.contacts if c.kind == "deformable"]
+    recorded = np.load(DATA / "palm-cycle-on-platform.npz")
+    motion, turns = recorded["displacements"], recorded["turns"]
     monkeypatch.setattr(contact, "_gauss_seidel", no_gauss_seidel)
     monkeypatch.setattr(contact.PrintContactSystem, "_newton", counted_newton)
-    scenario = environments.load("climb-with-soft-support")
-    result = stances.solve(stances.Robot.load(scenario.robot), scenario.scene, scenario.stance("left-on-platform"))
-    assert result.feasible, result.reason
-    assert failed_steps, "no warm start cycled: this case no longer exercises the restart"
+    system = fem.PrintContactSystem(palm.patch.link_compliance, palm.node_frames, palm.node_mu)
+    warm = system.solve(motion, recorded["initial_modes"], recorded["initial_directions"], turns=turns)
+    assert failed_steps, "the warm start did not cycle: this case no longer exercises the restart"
     assert max(failed_steps) <= 2 * contact._SET_ENTRIES + 4
+    cold = system.solve(motion, turns=turns)
+    assert np.array_equal(warm.forces, cold.forces) and warm.admissible
+    assert warm.n_slip and warm.n_lift
 
 
 def test_only_a_warm_start_gives_up_on_a_cycle(pad, monkeypatch):
@@ -588,3 +601,70 @@ def test_only_a_warm_start_gives_up_on_a_cycle(pad, monkeypatch):
     assert flags == [False, False, True]
     assert np.array_equal(cold.forces, sticking.forces)
     assert np.allclose(warm.forces, cold.forces, rtol=0.0, atol=1e-9 * np.abs(cold.forces).max())
+
+
+def _exp_turns(n_nodes, theta):
+    """(p, 3, 3) turned frames ``R(theta)^T`` (the pad's node frames are the body's axes)."""
+    angle = np.linalg.norm(theta)
+    k = np.array([[0, -theta[2], theta[1]], [theta[2], 0, -theta[0]], [-theta[1], theta[0], 0]]) / angle
+    rotation = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    return np.broadcast_to(rotation.T, (n_nodes, 3, 3)).copy()
+
+
+@pytest.mark.parametrize("turning", [False, True], ids=["node frames", "turning frames"])
+@pytest.mark.parametrize("curved_motion", [False, True], ids=["straight motion", "curved motion"])
+def test_forces_second_derivatives_match_finite_differences_of_held_solves(pad, turning, curved_motion):
+    """The forces' first and second derivatives along a parameter x that moves the indenter
+    points by U(x) and turns the contact frames by Q(x), the modes held: against central
+    differences of the held solves (``with_modes``: the slip directions follow). With a
+    straight motion and fixed frames the curvature is the slip directions' alone (about 130 N
+    per unit of x squared here, the first derivatives up to 94 N per unit), which no
+    linear model of the forces sees."""
+    _, patch, frames = pad
+    p, m = patch.n_nodes, 3
+    rng = np.random.default_rng(3)
+    start = _rigid_motion(patch.points, [0.002, 0.0015, -0.004], [0.01, -0.02, 0.01], patch.points.mean(axis=0))
+    linear = rng.normal(size=(3 * p, m)) * 3e-4
+    quadratic = rng.normal(size=(3 * p, m, m)) * (1e-3 if curved_motion else 0.0)
+    quadratic = 0.5 * (quadratic + quadratic.transpose(0, 2, 1))
+    rates = rng.normal(size=(3, m)) * (0.02 if turning else 0.0)
+    tilt = np.array([0.0, 0.03, 0.01])
+
+    def motion(x):
+        return (start.ravel() + linear @ x + 0.5 * np.einsum("imn,m,n->i", quadratic, x, x)).reshape(p, 3)
+
+    def turns(x):
+        return _exp_turns(p, tilt + rates @ x)
+
+    def turn_derivatives(x, h=1e-4):
+        steps = h * np.eye(m)
+        first = np.stack([(turns(x + e) - turns(x - e)) / (2 * h) for e in steps], axis=1)
+        second = np.array([[(turns(x + a + b) - turns(x + a - b) - turns(x - a + b) + turns(x - a - b)) / (4 * h * h)
+                            for b in steps] for a in steps]).transpose(2, 0, 1, 3, 4)
+        return first, second
+
+    system = fem.PrintContactSystem(patch.compliance, frames, np.full(p, MU))
+    x0 = np.zeros(m)
+    state = system.solve(motion(x0), turns=turns(x0))
+    assert state.n_slip > 0 and state.n_stick > 0
+
+    def held(x):
+        return system.with_modes(motion(x), state.modes, state.directions, turns=turns(x))
+
+    def derivatives(solved, x):
+        return solved.derivatives(linear + np.einsum("imn,n->im", quadratic, x), quadratic, *turn_derivatives(x))
+
+    first, second = derivatives(state, x0)
+    h = 1e-6
+    numeric = np.stack([(held(x0 + e).forces - held(x0 - e).forces).ravel() / (2 * h) for e in h * np.eye(m)], axis=1)
+    assert np.abs(first - numeric).max() <= 1e-7 * np.abs(numeric).max()
+    if not turning:
+        assert np.abs(first - state.jacobian_dot(linear)).max() <= 1e-10 * np.abs(first).max()
+    h = 1e-5
+    numeric = np.stack([(derivatives(held(x0 + e), x0 + e)[0] - derivatives(held(x0 - e), x0 - e)[0]) / (2 * h)
+                        for e in h * np.eye(m)], axis=2)
+    assert np.abs(second - numeric).max() <= 1e-5 * np.abs(numeric).max()
+    assert np.array_equal(second, second.transpose(0, 2, 1))
+    # The slip directions' curvature is most of it: the motion's own, through L, is not.
+    along_motion = state.jacobian_dot(quadratic.reshape(3 * p, -1)).reshape(3 * p, m, m)
+    assert np.abs(second - along_motion).max() > 0.3 * np.abs(second).max()

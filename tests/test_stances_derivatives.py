@@ -86,6 +86,11 @@ def _problems(robot):
         "hand-on-cube",
         {"deformation_cost": "force", "deformation_weight": 1e-3},
     )
+    # The contact solved in the print's rest frames (the turned frames' derivative terms off).
+    yield (
+        "deformable hand-on-cube (coulomb, rest frames)", coarse_scenario("hand-on-cube"), "hand-on-cube",
+        {"contact_frames": "rest"},
+    )
     # A palm whose tilt is bounded (tilt_allowance): the face-tilt rows.
     yield (
         "deformable hand-on-cube (tilt allowance)", coarse_scenario("hand-on-cube"), "hand-on-cube",
@@ -294,3 +299,32 @@ def test_every_cost_term_gradient_matches_finite_differences(linearised_problems
             error = np.abs(numeric - gradient).max()
             assert error <= 1e-5 * max(size, 1.0), f"{label}: {type(term).__name__} off by {error:.3g}"
     assert {"PostureCost", "TorqueUsageCost", "ForceCost", "ContactCosts"} <= seen
+
+
+def test_every_variable_curvature_matches_finite_differences(linearised_problems):
+    """Each block's curvature in the force variables (``variable_curvature``: the Coulomb
+    forces' through static equilibrium and the torques) against central differences, in the
+    variables, of the weighted rows' Jacobian; the soft Coulomb palm's is no zero one."""
+    curved = []
+    for label, problem, q, lam in linearised_problems:
+        nv = problem.robot.model.nv
+        blocks = {block.name: block for block in problem.linearize(q, lam).blocks}
+        rng = np.random.default_rng(11)
+        for name, block in blocks.items():
+            if block.variable_curvature is None:
+                continue
+            weights = rng.normal(size=len(block))
+            analytic = block.variable_curvature(weights)[nv:, nv:]
+            step = 1e-4
+            columns = []
+            for j in range(problem.n_variables):
+                moved = [lam.copy(), lam.copy()]
+                moved[0][j] += step
+                moved[1][j] -= step
+                gradients = [weights @ {b.name: b for b in problem.linearize(q, x).blocks}[name].jacobian[:, nv:] for x in moved]
+                columns.append((gradients[0] - gradients[1]) / (2 * step))
+            numeric = np.column_stack(columns)
+            scale = max(np.abs(numeric).max(), 1e-9)
+            assert np.abs(analytic - numeric).max() <= 1e-4 * scale, (label, name, np.abs(analytic - numeric).max(), scale)
+            curved.append((label, name, scale))
+    assert any("coulomb" in label and scale > 1e-3 for label, _, scale in curved), curved

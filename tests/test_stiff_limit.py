@@ -184,8 +184,10 @@ def test_carrying_variables_give_forces_that_carry_the_wrench(robot, steel_cube,
 def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_cube, rigid_answer):
     """The palm's centre of pressure goes as far out as the nodes reach (31.5 mm, the rigid
     palm's on its edge at 35 mm): its force within 1.2 % of the rigid support's on the
-    default mesh (1.11 % measured; 1.29 % through the soft variables, farther than the
-    stiff limit: asserted), verified on the full model."""
+    default mesh (1.11 % measured), verified on the full model. Through the soft variables
+    the answer is another optimum of the same model, also within the issue's 2 % (1.29 %
+    before the SQP's Hessian carried the Coulomb forces' curvature, 0.51 % since; 1.86 and
+    2.17 % at 1e9 Pa)."""
     scene, stance = steel_cube
     result = solve(robot, scene, stance)
     assert result.feasible and result.verification.ok, result.reason
@@ -199,7 +201,7 @@ def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_
     assert centre_of_pressure[1] == pytest.approx(reach[:, 1].max(), abs=1e-4)
     off = solve(robot, scene, stance, stiff_limit=False)
     assert off.feasible and "stiff_limit" not in off.statistics
-    assert np.linalg.norm(_palm_wrench(robot, off)[:3] - expected[:3]) > np.linalg.norm(palm[:3] - expected[:3])
+    assert np.linalg.norm(_palm_wrench(robot, off)[:3] - expected[:3]) < 0.02 * np.linalg.norm(expected[:3])
 
 
 def test_a_cube_that_gives_is_not_held_rigid(robot):
