@@ -265,7 +265,10 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     soft prints' own variables W do not lead there: the force term weighs W, the wrench
     the nodes would carry bonded, which moves far from what they carry once some lift off
     (``bench/bench_palm_limit.py``), and the palm of hand-on-cube at E = 1e10 Pa stopped
-    1.3-2.9 % off the rigid support's force. So, in order (None at the first that fails):
+    1.3-2.9 % off the rigid support's force (since the SQP's Hessian carries the Coulomb
+    forces' curvature, 2026-12-06: 2.17 % at 1e9 Pa and 0.51 % at 1e10, other optima of
+    the same model; the stiff limit's answer is 1.11 % off at every E from 1e9).
+    So, in order (None at the first that fails):
 
     1. the stiff bodies: those whose contact is a
        :class:`~stances.deformable.DeformableContact` of flat prints, whose bonded
