@@ -180,7 +180,11 @@ class PrintContact:
         s_n = scale[slip, 2] if turns is not None else np.ones(slip.size)
         tau = x[:, :2] - s_t[:, None] * y[:, :2]
         size = np.hypot(tau[:, 0], tau[:, 1])
-        d = tau / size[:, None]
+        # A node held slipping with no trial friction (tau = 0, seen only with its mode
+        # held) keeps its direction, as the factorisation's law does (gain 0): no curvature.
+        moves = size > 0.0
+        d = np.where(moves[:, None], tau / np.where(moves, size, 1.0)[:, None], self.directions[slip])
+        inverse = np.where(moves, 1.0 / np.where(moves, size, 1.0), 0.0)
         projector = np.eye(2) - np.einsum("ki,kj->kij", d, d)
         friction = mu[slip]
 
@@ -190,8 +194,8 @@ class PrintContact:
             t1 = x1[:, :2] - s_t[:, None, None] * y1[:, :2]
             rows = np.empty_like(x1)
             rows[:, :2] = x1[:, :2] - friction[:, None, None] * (
-                d[:, :, None] * x1[:, 2][:, None] + x[:, 2][:, None, None] * np.einsum("kij,kjn->kin", projector, t1)
-                / size[:, None, None])
+                d[:, :, None] * x1[:, 2][:, None]
+                + (x[:, 2] * inverse)[:, None, None] * np.einsum("kij,kjn->kin", projector, t1))
             rows[:, 2] = s_n[:, None] * y1[:, 2]
             return rows
 
@@ -231,10 +235,9 @@ class PrintContact:
         along_second = np.einsum("kij,kjP->kiP", projector, second)
         d_first, d_second = np.einsum("ki,kiP->kP", d, first), np.einsum("ki,kiP->kP", d, second)
         curvature = -(along_first * d_second[:, None] + along_second * d_first[:, None]
-                      + d[:, :, None] * np.einsum("kiP,kiP->kP", first, along_second)[:, None]) / size[:, None, None] ** 2
+                      + d[:, :, None] * np.einsum("kiP,kiP->kP", first, along_second)[:, None]) * inverse[:, None, None] ** 2
         rows[:, :2] -= friction[:, None, None] * (
-            xa[:, 2][:, None, ia] * along_second / size[:, None, None]
-            + xa[:, 2][:, None, ib] * along_first / size[:, None, None]
+            (xa[:, 2][:, None, ia] * along_second + xa[:, 2][:, None, ib] * along_first) * inverse[:, None, None]
             + x[:, 2][:, None, None] * curvature)
         ddphi_pairs = solve(ddu[:, :, ia, ib], rows)  # (p, 3, P)
         ddphi = np.zeros((p, 3, m, m))

@@ -418,16 +418,15 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         # curvature once the multipliers of a previous QP are known (and
         # Gauss-Newton was seen to crawl).
         curved = model = linearization
-        multipliers = None
+        configuration = None
         if slow and last_qp is not None and violation <= _CURVATURE_PHASE:
             curvature = curvature or ConstraintCurvature(problem.robot.model)
-            multipliers = row_multipliers(*last_qp)
-            curved, model = _with_curvature(curvature, q, linearization, multipliers)
+            configuration = (curvature, q)
             curved_iterations += 1
-        if last_qp is not None and any(block.variable_curvature is not None for block in linearization.blocks):
-            if multipliers is None:
-                multipliers = row_multipliers(*last_qp)
-            curved, model = _with_variable_curvature(curved, model, multipliers, violation <= _CURVATURE_PHASE)
+        if last_qp is not None and (configuration is not None
+                                    or any(block.variable_curvature is not None for block in linearization.blocks)):
+            curved, model = _with_curvature(linearization, row_multipliers(*last_qp), configuration,
+                                            violation <= _CURVATURE_PHASE)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
@@ -607,7 +606,7 @@ def _within(linearization, region, nv):
     return replace(linearization, step_lower=lower, step_upper=upper)
 
 
-def _with_curvature(curvature, q, linearization, multipliers):
+def _with_curvature(linearization, multipliers, configuration=None, near=True):
     """The linearisation with the constraints' curvature in its Hessian, kept convex.
 
     The Lagrangian's Hessian ``H_f + C``, ``C = sum_i y_i d^2 c_i``, is
@@ -630,34 +629,74 @@ def _with_curvature(curvature, q, linearization, multipliers):
     0.15 rad along directions the objective barely sees; the floor keeps each
     step within ``1 / _FLOOR`` of the Gauss-Newton one.
 
+    ``C`` has two parts, bounded together: the configuration's (``configuration``), and
+    the blocks' in the force variables (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`),
+    weighted by the multipliers of their rows on their bound's side (an upper bound's
+    ``y >= 0``, a lower one's ``y <= 0``, an equality's either). Rows bounded on one side
+    (a ball's strain, convex) add theirs from the start; rows whose multipliers take
+    either sign (equalities, two-sided bounds: the soft Coulomb forces' curvature in
+    static equilibrium and the torques, their slip directions', is indefinite) only
+    ``near`` feasibility, as the configuration's (``_CURVATURE_PHASE``): farther out the
+    last QP's multipliers are another point's, and with them the coarse cube of
+    hand-on-soft-cube crept from a violation of 0.69 until it stopped, infeasible.
+
     Parameters
     ----------
-    curvature : ConstraintCurvature
-    q : (nq,) float
-        The linearisation's configuration.
     linearization : Linearization
     multipliers : dict
         Row label -> multiplier (:func:`~stances.qp.row_multipliers`) of the
         previous QP; rows it does not name (a collision pair just come
         within reach) weigh nothing.
+    configuration : (ConstraintCurvature, (nq,) float), optional
+        The configuration's curvature and the linearisation's configuration; None:
+        the force variables' alone.
+    near : bool
+        Whether the iterate is near feasibility (see above).
 
     Returns
     -------
     for_qp : Linearization
-        Hessian ``H_f + C' + sigma A^T A`` with ``C'`` the bounded curvature.
+        Hessian ``H_f + C' + sigma A^T A`` with ``C'`` the bounded curvature (``sigma A^T A``
+        only with the configuration's).
     model : Linearization
         Hessian ``H_f + C'``: the model whose decrease the line search expects
         (on the QP's active rows the two differ by a constant).
     """
-    weights = [None if block.second_order is None or not len(block)
-               else np.array([multipliers.get(label, 0.0) for label in block.labels]) for block in linearization.blocks]
-    nv = curvature.model.nv
+    n = len(linearization.gradient)
+    extra, curved = np.zeros((n, n)), np.zeros(n, dtype=bool)
+    if configuration is not None:
+        curvature, q = configuration
+        nv = curvature.model.nv
+        weights = [None if block.second_order is None or not len(block)
+                   else np.array([multipliers.get(label, 0.0) for label in block.labels])
+                   for block in linearization.blocks]
+        extra[:nv, :nv] = curvature.hessian(q, linearization.blocks, weights)
+        curved[:nv] = True
+    for block in linearization.blocks:
+        if block.variable_curvature is None or not len(block):
+            continue
+        lower, upper = np.broadcast_to(block.lower, (len(block),)), np.broadcast_to(block.upper, (len(block),))
+        if not near and np.any(np.isfinite(lower) & np.isfinite(upper)):
+            continue
+        weights = np.clip(np.array([multipliers.get(label, 0.0) for label in block.labels]),
+                          np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
+        if weights.any():
+            term = block.variable_curvature(weights)
+            extra += term
+            curved |= np.any(term != 0.0, axis=0)
+    if not curved.any():
+        return linearization, linearization
     augmentation = _augmentation(linearization, multipliers)
     # The regularisation elastic_qp adds keeps the reference definite.
-    reference = linearization.hessian + augmentation + 1e-8 * np.eye(len(linearization.gradient))
-    model = linearization.hessian.copy()
-    model[:nv, :nv] += bounded_below(curvature.hessian(q, linearization.blocks, weights), reference, _FLOOR)
-    return replace(linearization, hessian=model + augmentation), replace(linearization, hessian=model)
+    reference = linearization.hessian + augmentation + 1e-8 * np.eye(n)
+    columns = np.flatnonzero(curved)
+    order = np.concatenate([columns, np.flatnonzero(~curved)])
+    bounded = np.zeros((n, n))
+    bounded[np.ix_(columns, columns)] = bounded_below(extra[np.ix_(columns, columns)], reference[np.ix_(order, order)],
+                                                      _FLOOR)
+    model = linearization.hessian + bounded
+    for_qp = model + augmentation if configuration is not None else model
+    return replace(linearization, hessian=for_qp), replace(linearization, hessian=model)
 
 
 def _augmentation(linearization, multipliers) -> np.ndarray:
@@ -670,51 +709,8 @@ def _augmentation(linearization, multipliers) -> np.ndarray:
         row_weights = np.array([multipliers.get(label, 0.0) for label in block.labels])
         held = (row_weights != 0.0) | (block.lower == block.upper)
         active.append(block.jacobian[held] / block.scale[held, None])
-    n = len(linearization.gradient)
-    rows = np.vstack(active) if active else np.zeros((0, n))
+    rows = np.vstack(active) if active else np.zeros((0, len(linearization.gradient)))
     return _AUGMENTATION * (rows.T @ rows)
-
-
-def _with_variable_curvature(for_qp, model, multipliers, near=True):
-    """Both linearisations with their blocks' curvature in the force variables
-    (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`) added to their Hessians,
-    weighted by the last QP's multipliers of their rows (a bound's on its side: an upper
-    bound's ``y >= 0``, a lower one's ``y <= 0``; an equality's either), and kept convex as
-    :func:`_with_curvature` keeps the configuration's: cut where it would take the Hessian
-    below ``_FLOOR`` of the reference ``H + sigma A^T A``; unchanged where no block has it.
-
-    Rows bounded on one side (a ball's strain) add theirs from the start; rows whose
-    multipliers take either sign (equalities, two-sided bounds: the soft forces' curvature
-    in static equilibrium and the torques, their slip directions', is indefinite) only
-    ``near`` feasibility, as the configuration's (``_CURVATURE_PHASE``): farther out the
-    last QP's multipliers are another point's, and with them the coarse cube of
-    hand-on-soft-cube crept from a violation of 0.69 until it stopped, infeasible.
-    """
-    extra = None
-    for block in for_qp.blocks:
-        if block.variable_curvature is None or not len(block):
-            continue
-        lower = np.broadcast_to(block.lower, (len(block),))
-        upper = np.broadcast_to(block.upper, (len(block),))
-        if not near and np.any(np.isfinite(lower) & np.isfinite(upper)):
-            continue
-        weights = np.clip(np.array([multipliers.get(label, 0.0) for label in block.labels]),
-                          np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
-        if weights.any():
-            term = block.variable_curvature(weights)
-            extra = term if extra is None else extra + term
-    if extra is None:
-        return for_qp, model
-    curved = np.flatnonzero(np.any(extra != 0.0, axis=0))
-    if curved.size:
-        n = len(model.gradient)
-        order = np.concatenate([curved, np.setdiff1d(np.arange(n), curved)])
-        reference = model.hessian + _augmentation(model, multipliers) + 1e-8 * np.eye(n)
-        bounded = np.zeros_like(extra)
-        bounded[np.ix_(curved, curved)] = bounded_below(extra[np.ix_(curved, curved)], reference[np.ix_(order, order)],
-                                                        _FLOOR)
-        extra = bounded
-    return replace(for_qp, hessian=for_qp.hessian + extra), replace(model, hessian=model.hessian + extra)
 
 
 def _predicted_decrease(linearization, step, elastic, penalty, violation) -> float:

@@ -668,3 +668,16 @@ def test_forces_second_derivatives_match_finite_differences_of_held_solves(pad, 
     # The slip directions' curvature is most of it: the motion's own, through L, is not.
     along_motion = state.jacobian_dot(quadratic.reshape(3 * p, -1)).reshape(3 * p, m, m)
     assert np.abs(second - along_motion).max() > 0.3 * np.abs(second).max()
+
+
+def test_a_node_held_slipping_without_trial_friction_has_finite_derivatives():
+    """A node held slipping (``with_modes``) under a straight press has no trial friction
+    (tau = 0): it keeps its direction, as the factorisation's law does, and its derivatives
+    are those of that law, finite (a review found NaN there)."""
+    system = fem.PrintContactSystem(np.diag(np.full(6, 1e-4)), np.tile(np.eye(3), (2, 1, 1)), np.full(2, MU))
+    held = system.with_modes(np.array([[0.0, 0.0, -1e-3]] * 2), np.full(2, fem.SLIP), np.array([[1.0, 0.0], [0.0, 1.0]]))
+    first, second = held.derivatives(np.eye(6)[:, :2], np.zeros((6, 2, 2)))
+    assert np.all(np.isfinite(first)) and np.all(np.isfinite(second))
+    assert np.allclose(held.forces, [[MU * 10.0, 0.0, 10.0], [0.0, MU * 10.0, 10.0]])
+    assert np.allclose(first, held.jacobian_dot(np.eye(6)[:, :2]), rtol=0.0, atol=1e-9)
+    assert not second.any()
