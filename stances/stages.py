@@ -214,7 +214,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # load does: the Coulomb solve starts there (14 built-in soft stances, every
             # one solved: 6.65 s in all against 7.78 s from the bonded model's answer).
             lam_init = problem.variables_from_rigid(rigid, warm.statistics["lambda"], warm.point_forces)
-    stiff = None
+    stiff, stiff_note = None, None
     left = None if deadline is None else deadline - time.perf_counter()
     if (options.contact_law == "coulomb" and deformable and lam_init is not None and options.stiff_limit
             and options.deformation_cost == "energy" and (left is None or left >= _STIFF_TIME * warm_time)):
@@ -223,7 +223,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         # tight time budget: the solve through W alone fits where both might not).
         share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * left
         warm_lam = None if rigid is None else (rigid, np.asarray(warm.statistics["lambda"]))
-        stiff = _solve_stiff_limit(problem, build, options, q_init, lam_init, share, warm_lam)
+        stiff, stiff_note = _solve_stiff_limit(problem, build, options, q_init, lam_init, share, warm_lam)
     if stiff is not None:
         result = stiff
     elif options.contact_law == "coulomb" and deformable:
@@ -246,6 +246,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             bonded_warm_start = True
     else:
         result = solve_problem(problem, q_init, lam_init=lam_init, deadline=deadline)
+    if stiff_note is not None and not result.feasible and result.statistics["status"] != OUT_OF_TIME:
+        result = replace(result, reason=f"{result.reason}; {stiff_note}")
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
     if warm_iterations:
         statistics["rigid_warm_start_iterations"] = warm_iterations
@@ -316,9 +318,16 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
 
     Returns
     -------
-    PostureResult or None
+    result : PostureResult or None
         Verified; its iterations the held solve's and the restoration steps, its
         ``qp_time`` the held solve's.
+    note : str or None
+        Where the stance holds with the stiff bodies rigid but their nodes cannot carry
+        that answer within ``_STIFF_GIVE``, why, for the reason of an answer through W
+        that then fails: both soles on a 1e10 Pa slab, the centre of mass 0.11 m ahead of
+        them, the rigid support's centre of pressure 12 mm from the soles' last row of
+        nodes, asked them to pivot 3.5e-4 rad (a 70 um give), and through W the solve
+        did not converge.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
     if any(c.kind == "deformable" and len(c.point_prints) for c, _ in soft):
@@ -326,20 +335,20 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         # their contact system exists before the attempt (the rigid answer's loads are
         # shared among the balls through it) and would keep what the attempt's solves
         # leave in it. Such a stance goes through W.
-        return None
+        return None, None
     stiff = [(c, s) for c, s in soft
              if c.kind == "deformable" and c.stiff_give(lam[s]) <= _STIFF_GIVE and not c.sticks(lam[s])]
     if not stiff:
-        return None
+        return None, None
     mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
     states = [contact.solver_state() for contact, _ in soft]
     start = time.perf_counter()
 
-    def abandon(why, *args):
+    def abandon(why, *args, note=None):
         for (contact, _), state in zip(soft, states):
             contact.restore_solver_state(state)
         logger.debug("stiff limit not taken: " + why, *args)
-        return None
+        return None, note
 
     def out_of_time():
         return deadline is not None and time.perf_counter() >= deadline
@@ -362,8 +371,13 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
             return abandon("out of time")
         carried = contact.carrying_variables(lam[s])
         if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
-            return abandon("the nodes of %s %s", contact.label, "cannot carry the held answer" if carried is None
-                           else f"give {contact.link_give(carried[1]):.3g} m under it")
+            how = ("find no motion that carries its loads" if carried is None
+                   else f"carry its loads only by giving {1e6 * contact.link_give(carried[1]):.3g} um")
+            note = (f"held rigid, the stance holds, but the nodes of {contact.label} {how}, more than the "
+                    f"{1e6 * _STIFF_GIVE:g} um a stiff body's limit takes: on a body this stiff a centre of "
+                    "pressure near a print's last row of nodes is carried only if the print pivots, and the "
+                    "mesh's spacing under the print sets where that row lies")
+            return abandon("the nodes of %s %s", contact.label, how, note=note)
         lam[s] = carried[0]
     if out_of_time():
         return abandon("out of time")
@@ -376,7 +390,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     result = posture_result(problem, outcome, time.perf_counter() - start)
     if not result.feasible:
         return abandon("%s", result.reason)
-    return result
+    return result, None
 
 
 def _balls_refused_anyway(problem, options) -> list:
