@@ -82,6 +82,10 @@ class SolveStatistics(Mapping):
         spent" during a print's setup, "ball refused before solving").
     violation : float
         Largest constraint violation at the answer, in row scales.
+    objective : float
+        The objective at the answer (posture, torque usage, force and soft-print terms, as
+        :class:`~stances.PostureOptions` weighs them): two answers of one stance with the
+        same options compare by it.
     penalty : float
         The elastic penalty at the end.
     qp_time : float
@@ -115,6 +119,7 @@ class SolveStatistics(Mapping):
 
     status: str | None = None
     violation: float | None = None
+    objective: float | None = None
     penalty: float | None = None
     qp_time: float | None = None
     curvature_iterations: int | None = None
@@ -145,7 +150,7 @@ class SolveStatistics(Mapping):
         if unknown:
             raise ValueError(f"unknown solve statistics {unknown}; known: {sorted(set(names) - {'lam'})}")
         fields = {names.get(key, key): value for key, value in values.items()}
-        casts = {"status": str, "violation": float, "penalty": float, "qp_time": float, "sqp_time": float,
+        casts = {"status": str, "violation": float, "objective": float, "penalty": float, "qp_time": float, "sqp_time": float,
                  "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "stiff_limit": bool,
                  "options": dict,
                  "first_start": dict,

@@ -835,7 +835,8 @@ def posture_result(problem, outcome, elapsed, check=True) -> PostureResult:
         limits=problem.limit_usage(q, linearization.torques[6:], linearization.iterate),
         statistics={
             "status": outcome.status, "qp_time": outcome.qp_time, "penalty": outcome.penalty,
-            "lambda": lam.tolist(), "violation": violation, "curvature_iterations": outcome.curved_iterations,
+            "lambda": lam.tolist(), "violation": violation, "objective": float(linearization.objective),
+            "curvature_iterations": outcome.curved_iterations,
             "corrections": outcome.corrections,
         },
     )
