@@ -230,14 +230,14 @@ class PrintContact:
         rows = law_rows(x2, y2)
         # ... and the products of first derivatives: the normal force's times the direction's,
         # and the direction's own curvature.
-        first, second = ta[:, :, ia], ta[:, :, ib]
-        along_first = np.einsum("kij,kjP->kiP", projector, first)
-        along_second = np.einsum("kij,kjP->kiP", projector, second)
-        d_first, d_second = np.einsum("ki,kiP->kP", d, first), np.einsum("ki,kiP->kP", d, second)
-        curvature = -(along_first * d_second[:, None] + along_second * d_first[:, None]
-                      + d[:, :, None] * np.einsum("kiP,kiP->kP", first, along_second)[:, None]) * inverse[:, None, None] ** 2
+        tau_a, tau_b = ta[:, :, ia], ta[:, :, ib]  # tau's derivatives along each pair's two directions
+        across_a = np.einsum("kij,kjP->kiP", projector, tau_a)  # P tau_a
+        across_b = np.einsum("kij,kjP->kiP", projector, tau_b)
+        along_a, along_b = np.einsum("ki,kiP->kP", d, tau_a), np.einsum("ki,kiP->kP", d, tau_b)  # d . tau_a
+        curvature = -(across_a * along_b[:, None] + across_b * along_a[:, None]
+                      + d[:, :, None] * np.einsum("kiP,kiP->kP", tau_a, across_b)[:, None]) * inverse[:, None, None] ** 2
         rows[:, :2] -= friction[:, None, None] * (
-            (xa[:, 2][:, None, ia] * along_second + xa[:, 2][:, None, ib] * along_first) * inverse[:, None, None]
+            (xa[:, 2][:, None, ia] * across_b + xa[:, 2][:, None, ib] * across_a) * inverse[:, None, None]
             + x[:, 2][:, None, None] * curvature)
         ddphi_pairs = solve(ddu[:, :, ia, ib], rows)  # (p, 3, P)
         ddphi = np.zeros((p, 3, m, m))
