@@ -14,7 +14,6 @@ not a tight tolerance. The longer table is in bench/results/fem.md.
 """
 
 import numpy as np
-import pytest
 
 from fem import DeformableBody, LinearElasticMaterial, nodes_in_polygon, tensor_mesh
 

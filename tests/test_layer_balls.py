@@ -577,7 +577,6 @@ def test_the_ball_strain_rows_curvature_along_the_print_matches_finite_differenc
     model, data = anymal.model, problem.data
     pin.computeJointJacobians(model, data, result.q)
     pin.framesForwardKinematics(model, data, result.q)
-    ball = contact.balls[0]
     edges = contact._pyramid[0]
     base = np.asarray(result.statistics["lambda"])[mine].copy()
     base[edges] = 10.0  # equal edges: no sideways force

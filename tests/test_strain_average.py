@@ -12,7 +12,6 @@ import pytest
 import environments
 import fem
 import stances
-from fem.strain_average import BallAverages
 
 from conftest import coarse_scenario
 from test_mesh_convergence import INDENTATION, MAT_PALM
