@@ -991,7 +991,7 @@ class DeformableContact:
         the links' motion, and (in turned frames) its gap and cone turn with the face: the
         forces curve in W. At hand-on-cube's answer the static equilibrium's fy curved by
         -21 N per unit of a step whose linear model it met (0.007 in the rest frames), and
-        each QP asked for a step that the merit then refused: the solve stopped 3 % above
+        each QP asked for a step that the merit then refused: the solve stopped 3.2 % above
         the optimum after line searches of 10 trials. The curvature is the contact law's
         own (:meth:`fem.PrintContact.derivatives`, the modes held), with ``U(W)``'s and the
         frames' second derivatives through the print turns ``exp(A^-1 W)``. Without slip

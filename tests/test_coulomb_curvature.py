@@ -31,7 +31,7 @@ def test_the_forces_curvature_takes_a_palm_past_the_point_where_the_line_search_
     linear = solve(robot, scenario.scene, stance)
     assert curved.feasible and curved.verification.ok and linear.feasible and linear.verification.ok
     with_curvature, without = _objective(robot, scenario, stance, curved), _objective(robot, scenario, stance, linear)
-    assert with_curvature < 0.98 * without  # measured 2.1944 against 2.2653
+    assert with_curvature < 0.98 * without  # measured 2.1960 against 2.2653
     assert curved.statistics["objective"] == pytest.approx(with_curvature, rel=1e-9)
 
 
