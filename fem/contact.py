@@ -37,6 +37,7 @@ from __future__ import annotations
 from collections import OrderedDict
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import NamedTuple
 
 import numpy as np
 import scipy.linalg
@@ -77,6 +78,15 @@ _LOW_RANK_ROWS = 0.6
 _LOW_RANK_RCOND = 1e-7
 
 
+class _LawParameters(NamedTuple):
+    """What a contact state's law was solved with (:meth:`PrintContact.derivatives` reads it)."""
+
+    compliance: np.ndarray  # (3p, 3p) C (the coupling included), node frames, m/N
+    friction: np.ndarray  # (p,) mu
+    scale: np.ndarray  # (p, 3) the complementarity scales, N/m
+    turns: np.ndarray | None  # (p, 3, 3) the turned frames in node-frame coordinates, or None
+
+
 @dataclass(frozen=True)
 class PrintContact:
     """The contact state of a print under imposed indenter motions.
@@ -102,7 +112,7 @@ class PrintContact:
     directions: np.ndarray
     iterations: int
     _system: tuple = field(repr=False, compare=False)
-    _law: tuple = field(default=None, repr=False, compare=False)  # (C, mu, scales, turns), node frames
+    _law: "_LawParameters | None" = field(default=None, repr=False, compare=False)
 
     @property
     def admissible(self) -> bool:
@@ -127,7 +137,7 @@ class PrintContact:
 
     def derivatives(self, d_motion, dd_motion, d_turns=None, dd_turns=None):
         """First and second derivatives of the forces along a parameter's directions, the
-        modes held: the indenters move by ``U(x)`` and the contact frames turn by ``Q(x)``.
+        modes held: the indenters move by ``U(phi_turned)`` and the contact frames turn by ``Q(phi_turned)``.
 
         The law of fixed modes ``R(phi, U, Q) = 0`` (stick ``r = 0``, lift ``phi = 0``, slip
         ``s_n q_n . r = 0`` and ``phi'_t - mu phi'_n d(tau) = 0``, ``phi' = Q phi``,
@@ -141,7 +151,7 @@ class PrintContact:
         Parameters
         ----------
         d_motion : (3p, m) float
-            ``dU / dx``, metres per unit of x, body frame.
+            ``dU / dx``, metres per unit of phi_turned, body frame.
         dd_motion : (3p, m, m) float
             ``d^2 U / dx^2``, symmetric in its last two axes.
         d_turns : (p, m, 3, 3) float, optional
@@ -158,33 +168,44 @@ class PrintContact:
         second : (3p, m, m) float
             ``d^2 forces / dx^2``, body frame, symmetric in its last two axes.
         """
+        if self._law is None:
+            raise FemError("derivatives need a contact state solved by a PrintContactSystem (solve, with_modes, "
+                           "solve_loaded): this one does not carry its law")
         factor, _, frames, _ = self._system
         c, mu, scale, turns = self._law
-        p, m = self.modes.size, d_motion.shape[1]
+        p = self.modes.size
+        d_motion, dd_motion = np.asarray(d_motion, dtype=float), np.asarray(dd_motion, dtype=float)
+        m = d_motion.shape[1] if d_motion.ndim == 2 else -1
+        expected = {"d_motion": (d_motion, (3 * p, m)), "dd_motion": (dd_motion, (3 * p, m, m)),
+                    "d_turns": (d_turns, (p, m, 3, 3)), "dd_turns": (dd_turns, (p, m, m, 3, 3))}
+        for name, (value, shape) in expected.items():
+            if value is not None and (m < 0 or np.shape(value) != shape):
+                raise FemError(f"{name} must have shape {shape} for a print of {p} nodes and m directions "
+                               f"(d_motion (3p, m)), got {np.shape(value)}")
         phi = _to_nodes(frames, self.forces.ravel()).reshape(p, 3)
         r = _to_nodes(frames, self.relative.ravel()).reshape(p, 3)
-        du = _to_nodes(frames, np.asarray(d_motion, dtype=float)).reshape(p, 3, m)
-        ddu = _to_nodes(frames, np.asarray(dd_motion, dtype=float)).reshape(p, 3, m, m)
+        du = _to_nodes(frames, d_motion).reshape(p, 3, m)
+        ddu = _to_nodes(frames, dd_motion).reshape(p, 3, m, m)
         q = np.broadcast_to(np.eye(3), (p, 3, 3)) if turns is None else turns
         dq = np.zeros((p, m, 3, 3)) if d_turns is None else np.asarray(d_turns, dtype=float)
         ddq = np.zeros((p, m, m, 3, 3)) if dd_turns is None else np.asarray(dd_turns, dtype=float)
         slip = np.flatnonzero(self.modes == SLIP)
-        moving = self.modes != LIFT
+        in_contact = self.modes != LIFT
 
         # The slipping nodes' law at the answer, in their turned frames.
         qs = q[slip]
-        x = np.einsum("kij,kj->ki", qs, phi[slip])
-        y = np.einsum("kij,kj->ki", qs, r[slip])
+        phi_turned = np.einsum("kij,kj->ki", qs, phi[slip])
+        r_turned = np.einsum("kij,kj->ki", qs, r[slip])
         s_t = 0.5 * (scale[slip, 0] + scale[slip, 1])
         # (solved in the node frames, a slipping node's normal row is C's, unscaled)
         s_n = scale[slip, 2] if turns is not None else np.ones(slip.size)
-        tau = x[:, :2] - s_t[:, None] * y[:, :2]
+        tau = _trial(phi_turned, r_turned, scale[slip])
         size = np.hypot(tau[:, 0], tau[:, 1])
         # A node held slipping with no trial friction (tau = 0, seen only with its mode
         # held) keeps its direction, as the factorisation's law does (gain 0): no curvature.
-        moves = size > 0.0
-        d = np.where(moves[:, None], tau / np.where(moves, size, 1.0)[:, None], self.directions[slip])
-        inverse = np.where(moves, 1.0 / np.where(moves, size, 1.0), 0.0)
+        has_trial = size > 0.0
+        d = np.where(has_trial[:, None], tau / np.where(has_trial, size, 1.0)[:, None], self.directions[slip])
+        inverse = np.where(has_trial, 1.0 / np.where(has_trial, size, 1.0), 0.0)
         projector = np.eye(2) - np.einsum("ki,kj->kij", d, d)
         friction = mu[slip]
 
@@ -195,36 +216,36 @@ class PrintContact:
             rows = np.empty_like(x1)
             rows[:, :2] = x1[:, :2] - friction[:, None, None] * (
                 d[:, :, None] * x1[:, 2][:, None]
-                + (x[:, 2] * inverse)[:, None, None] * np.einsum("kij,kjn->kin", projector, t1))
+                + (phi_turned[:, 2] * inverse)[:, None, None] * np.einsum("kij,kjn->kin", projector, t1))
             rows[:, 2] = s_n[:, None] * y1[:, 2]
             return rows
 
         def solve(motion_rows, slip_rows):
             """``-M^-1`` of the law's rows at fixed phi: a sticking node's motion, a slipping node's law."""
             rows = np.zeros(motion_rows.shape)
-            rows[moving] = motion_rows[moving]
+            rows[in_contact] = motion_rows[in_contact]
             rows[slip] = slip_rows
             return -factor.solve(rows.reshape(3 * p, -1)).reshape(rows.shape)
 
-        def turned_pair(turn, vector, rotation=None, moved=None):
+        def product_rule(turn, vector, rotation=None, moved=None):
             """``dQ v`` (k, 3, n) for turns (k, n, 3, 3) and v (k, 3), plus ``Q dv`` for dv (k, 3, n)."""
             out = np.einsum("knij,kj->kin", turn, vector)
             return out if moved is None else out + np.einsum("kij,kjn->kin", rotation, moved)
 
         # First derivatives: phi_a = -M^-1 R_a.
         dqs = dq[slip]
-        dphi = solve(du, law_rows(turned_pair(dqs, phi[slip]), turned_pair(dqs, r[slip], qs, du[slip])))
+        dphi = solve(du, law_rows(product_rule(dqs, phi[slip]), product_rule(dqs, r[slip], qs, du[slip])))
         dr = du + (c @ dphi.reshape(3 * p, m)).reshape(p, 3, m)
 
         # Second derivatives, each pair (a, b) with a <= b once: phi_ab = -M^-1 R_ab.
         ia, ib = np.triu_indices(m)
-        xa = turned_pair(dqs, phi[slip], qs, dphi[slip])  # (k, 3, m)
-        ya = turned_pair(dqs, r[slip], qs, dr[slip])
+        xa = product_rule(dqs, phi[slip], qs, dphi[slip])  # (k, 3, m)
+        ya = product_rule(dqs, r[slip], qs, dr[slip])
         ta = xa[:, :2] - s_t[:, None, None] * ya[:, :2]
         pair_turns = ddq[slip][:, ia, ib]  # (k, P, 3, 3)
-        x2 = (turned_pair(pair_turns, phi[slip]) + np.einsum("kPij,kjP->kiP", dqs[:, ia], dphi[slip][:, :, ib])
+        x2 = (product_rule(pair_turns, phi[slip]) + np.einsum("kPij,kjP->kiP", dqs[:, ia], dphi[slip][:, :, ib])
               + np.einsum("kPij,kjP->kiP", dqs[:, ib], dphi[slip][:, :, ia]))
-        y2 = (turned_pair(pair_turns, r[slip], qs, ddu[slip][:, :, ia, ib])
+        y2 = (product_rule(pair_turns, r[slip], qs, ddu[slip][:, :, ia, ib])
               + np.einsum("kPij,kjP->kiP", dqs[:, ia], dr[slip][:, :, ib])
               + np.einsum("kPij,kjP->kiP", dqs[:, ib], dr[slip][:, :, ia]))
         rows = law_rows(x2, y2)
@@ -238,7 +259,7 @@ class PrintContact:
                       + d[:, :, None] * np.einsum("kiP,kiP->kP", tau_a, across_b)[:, None]) * inverse[:, None, None] ** 2
         rows[:, :2] -= friction[:, None, None] * (
             (xa[:, 2][:, None, ia] * across_b + xa[:, 2][:, None, ib] * across_a) * inverse[:, None, None]
-            + x[:, 2][:, None, None] * curvature)
+            + phi_turned[:, 2][:, None, None] * curvature)
         ddphi_pairs = solve(ddu[:, :, ia, ib], rows)  # (p, 3, P)
         ddphi = np.zeros((p, 3, m, m))
         ddphi[:, :, ia, ib] = ddphi_pairs
@@ -757,7 +778,7 @@ class PrintContactSystem:
         forces = _to_body(self._frames, phi.ravel()).reshape(-1, 3)
         relative = _to_body(self._frames, r.ravel()).reshape(-1, 3)
         return PrintContact(forces, relative, modes, directions, iterations, (factor, rhs_blocks, self._frames, settled),
-                            (self.c_local, self.mu, self.scale, self._turns))
+                            _LawParameters(self.c_local, self.mu, self.scale, self._turns))
 
 
 def solve_print_contact(compliance, displacements, frames, friction, initial_modes=None, initial_directions=None,

@@ -23,6 +23,8 @@ small interface to the problem builder:
 - ``n_variables`` and ``variable_lower``: its force variables and their lower bounds;
 - ``forces(model, data, lam)``: (k, 3) world forces at the current iterate;
 - ``force_jacobians(model, data, lam)``: their derivatives in q and its variables;
+- ``force_curvature(model, data, lam)``: their curvature in its variables at fixed q
+  (``weights (3k,) -> (n, n)``), or None where they are linear in them;
 - ``blocks(model, data, lam, columns, offset, derivatives=True)``: its own
   constraint rows (its variables start at column ``offset``; without
   derivatives, values only: ``jacobian`` None);

@@ -999,26 +999,34 @@ class DeformableContact:
         them: left out (a review measured 0.004 on both-on-foam's soles, against 0.02-0.13
         once nodes slip: the QP's model steps by that much when a first node slips).
 
+        Parameters
+        ----------
+        model, data : pinocchio Model and Data
+            The robot, its kinematics at the iterate (the forces are W's alone).
+        w : (6L,) float
+            The print variables W.
+
         Returns
         -------
         callable or None
             ``weights (3p,) -> (6L, 6L)``: ``d^2 / dW^2`` of ``weights . forces`` (world
-            frame, newtons; forces as :meth:`forces` stacks them), symmetric; the second
-            derivatives are computed on the first call.
+            frame, newtons per (unit of W)^2; forces as :meth:`forces` stacks them),
+            symmetric. The second derivatives are computed on the first call, and the
+            contact state they come from is then let go (a linearisation keeps the callable).
         """
-        if self.law != "coulomb" or self.method == "traction":
+        if self.law != "coulomb":  # (the traction method's law is the bonded one)
             return None
         w = np.asarray(w, dtype=float).copy()
         solved = self._values(model, data, w).solved
         if not solved.n_slip:
             return None
-        second = []
+        state = {"solved": solved}
 
         def curvature(weights):
-            if not second:
-                second.append(self._force_second_derivative(solved, w))
+            if "second" not in state:
+                state["second"] = self._force_second_derivative(state.pop("solved"), w)
             weights_body = (np.asarray(weights, dtype=float).reshape(-1, 3) @ self.rotation_body).ravel()
-            out = np.einsum("i,iab->ab", weights_body, second[0])
+            out = np.einsum("i,iab->ab", weights_body, state["second"])
             return 0.5 * (out + out.T)
 
         return curvature

@@ -282,9 +282,12 @@ class PostureOptions:
         stances: 7.0 iterations on average instead of 8.5, hand-on-table 9.5
         instead of 14). False: the objective's Gauss-Newton Hessian only.
         Problems with soft prints leave it out (their rows have no second
-        derivatives); their rigid warm start uses it. A ball's strain row on a
-        layer gives its curvature in its force variables to every QP whatever
-        this says (:attr:`stances.blocks.ConstraintBlock.variable_curvature`).
+        derivatives in q); their rigid warm start uses it. Two curvatures in the
+        force variables enter the QP whatever this says
+        (:attr:`stances.blocks.ConstraintBlock.variable_curvature`): a ball's strain
+        row on a layer, from the start, and near feasibility the soft Coulomb forces'
+        through static equilibrium and the torques
+        (:meth:`stances.deformable.DeformableContact.force_curvature`).
     """
 
     posture_weight: float = 1.0
@@ -897,8 +900,8 @@ class PostureProblem:
         # The static-torque routine reruns kinematics; frames need refreshing.
         pin.updateFramePlacements(model, data)
         tau_jacobian = np.hstack([dtau_dq + dtau_dforces @ force_dq, dtau_dforces @ force_dlam])
-        return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian, dtau_dforces,
-                       tuple(curvatures))
+        return Iterate(q, lam, forces, np.hstack([force_dq, force_dlam]), tau, tau_jacobian,
+                       tau_force_jacobian=dtau_dforces, force_curvatures=tuple(curvatures))
 
 
 def min_normal_load(robot, robot_surface: str, options: PostureOptions) -> float:
@@ -1034,7 +1037,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
         ]
     if any(c.kind == "deformable" for c in contacts):
         # Soft prints' rows (elastic placement, node forces) carry no second
-        # derivatives: with only the collision rows' curvature the Coulomb
+        # derivatives in q: with only the collision rows' curvature the Coulomb
         # stage of foot-and-hand took 19 iterations instead of 11 (measured).
         # Their rigid warm start keeps it.
         options = replace(options, constraint_curvature=False)

@@ -85,13 +85,17 @@ class SolveStatistics(Mapping):
     objective : float
         The objective at the answer (posture, torque usage, force and soft-print terms, as
         :class:`~stances.PostureOptions` weighs them): two answers of one stance with the
-        same options compare by it.
+        same options compare by it. The SQP's last model's: the torque-usage term counts
+        once the iterate came within 0.1 (scaled) of feasibility, so an answer that never
+        did (an infeasible one) has it without that term.
     penalty : float
         The elastic penalty at the end.
     qp_time : float
         Seconds in the QP subproblems.
     curvature_iterations : int
-        Iterations whose QP carried the constraints' curvature.
+        Iterations whose QP carried the configuration's curvature
+        (``PostureOptions.constraint_curvature``; the force variables' curvature of soft
+        Coulomb contacts and balls on layers is not counted).
     corrections : int
         Full steps the line search took with a second-order correction, in the SQP run
         that gave the answer (a soft stance's warm starts not counted).

@@ -426,7 +426,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
         if last_qp is not None and (configuration is not None
                                     or any(block.variable_curvature is not None for block in linearization.blocks)):
             curved, model = _with_curvature(linearization, row_multipliers(*last_qp), configuration,
-                                            violation <= _CURVATURE_PHASE)
+                                            near_feasible=violation <= _CURVATURE_PHASE)
         tic = time.perf_counter()
         # Solve the QP a hundred times more accurately than the current
         # violation (and no looser than 1e-6): loose steps far from the
@@ -606,7 +606,7 @@ def _within(linearization, region, nv):
     return replace(linearization, step_lower=lower, step_upper=upper)
 
 
-def _with_curvature(linearization, multipliers, configuration=None, near=True):
+def _with_curvature(linearization, multipliers, configuration=None, *, near_feasible):
     """The linearisation with the constraints' curvature in its Hessian, kept convex.
 
     The Lagrangian's Hessian ``H_f + C``, ``C = sum_i y_i d^2 c_i``, is
@@ -632,13 +632,14 @@ def _with_curvature(linearization, multipliers, configuration=None, near=True):
     ``C`` has two parts, bounded together: the configuration's (``configuration``), and
     the blocks' in the force variables (:attr:`~stances.blocks.ConstraintBlock.variable_curvature`),
     weighted by the multipliers of their rows on their bound's side (an upper bound's
-    ``y >= 0``, a lower one's ``y <= 0``, an equality's either). Rows bounded on one side
-    (a ball's strain, convex) add theirs from the start; rows whose multipliers take
-    either sign (equalities, two-sided bounds: the soft Coulomb forces' curvature in
-    static equilibrium and the torques, their slip directions', is indefinite) only
-    ``near`` feasibility, as the configuration's (``_CURVATURE_PHASE``): farther out the
-    last QP's multipliers are another point's, and with them the coarse cube of
-    hand-on-soft-cube crept from a violation of 0.69 until it stopped, infeasible.
+    ``y >= 0``, a lower one's ``y <= 0``, an equality's either). Blocks whose rows are all
+    bounded on one side (a ball's strain, convex) add theirs from the start; a block with
+    a row whose multiplier takes either sign (an equality, a two-sided bound: the soft
+    Coulomb forces' curvature in static equilibrium and the torques, their slip
+    directions', is indefinite) only ``near_feasible``, as the configuration's
+    (``_CURVATURE_PHASE``, decided by the caller for both): farther out the last QP's
+    multipliers are another point's, and with them the coarse cube of hand-on-soft-cube
+    crept from a violation of 0.69 until it stopped, infeasible.
 
     Parameters
     ----------
@@ -650,7 +651,7 @@ def _with_curvature(linearization, multipliers, configuration=None, near=True):
     configuration : (ConstraintCurvature, (nq,) float), optional
         The configuration's curvature and the linearisation's configuration; None:
         the force variables' alone.
-    near : bool
+    near_feasible : bool
         Whether the iterate is near feasibility (see above).
 
     Returns
@@ -676,7 +677,7 @@ def _with_curvature(linearization, multipliers, configuration=None, near=True):
         if block.variable_curvature is None or not len(block):
             continue
         lower, upper = np.broadcast_to(block.lower, (len(block),)), np.broadcast_to(block.upper, (len(block),))
-        if not near and np.any(np.isfinite(lower) & np.isfinite(upper)):
+        if not near_feasible and np.any(np.isfinite(lower) & np.isfinite(upper)):
             continue
         weights = np.clip(np.array([multipliers.get(label, 0.0) for label in block.labels]),
                           np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
@@ -690,11 +691,14 @@ def _with_curvature(linearization, multipliers, configuration=None, near=True):
     # The regularisation elastic_qp adds keeps the reference definite.
     reference = linearization.hessian + augmentation + 1e-8 * np.eye(n)
     columns = np.flatnonzero(curved)
+    # bounded_below bounds a leading block against the whole reference: the curved columns first.
     order = np.concatenate([columns, np.flatnonzero(~curved)])
     bounded = np.zeros((n, n))
     bounded[np.ix_(columns, columns)] = bounded_below(extra[np.ix_(columns, columns)], reference[np.ix_(order, order)],
                                                       _FLOOR)
     model = linearization.hessian + bounded
+    # sigma A^T A goes into the QP with the configuration's curvature only, as it always did
+    # (the force variables' alone, a ball's strain, went in without it: the same QPs).
     for_qp = model + augmentation if configuration is not None else model
     return replace(linearization, hessian=for_qp), replace(linearization, hessian=model)
 

@@ -247,7 +247,9 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
     else:
         result = solve_problem(problem, q_init, lam_init=lam_init, deadline=deadline)
     if stiff_note is not None and not result.feasible and result.statistics["status"] != OUT_OF_TIME:
-        result = replace(result, reason=f"{result.reason}; {stiff_note}")
+        # Before the rows the last step could not meet together, which close the reason.
+        head, conflict, rows = result.reason.partition("; no step meets together: ")
+        result = replace(result, reason=f"{head}; {stiff_note}{conflict}{rows}")
     statistics = dict(result.statistics, sqp_time=result.solve_time, options=_changed(options))
     if warm_iterations:
         statistics["rigid_warm_start_iterations"] = warm_iterations
@@ -260,7 +262,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
 
 
 def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None):
-    """The stance on soft bodies too stiff to give, in their stiff limit; None where it is not.
+    """The stance on soft bodies too stiff to give, in their stiff limit, and a note: ``(result,
+    None)``, or ``(None, note)`` where it is not (the note None but where the stance holds rigid).
 
     As E grows a soft print's links move by nanometres: its nodes' Coulomb forces carry
     what a rigid contact would where the nodes are, and the posture is the rigid one. The
@@ -270,7 +273,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     1.3-2.9 % off the rigid support's force (since the SQP's Hessian carries the Coulomb
     forces' curvature, 2026-12-06: 2.17 % at 1e9 Pa and 0.51 % at 1e10, other optima of
     the same model; the stiff limit's answer is 1.11 % off at every E from 1e9).
-    So, in order (None at the first that fails):
+    So, in order (no result at the first that fails):
 
     1. the stiff bodies: those whose contact is a
        :class:`~stances.deformable.DeformableContact` of flat prints, whose bonded
@@ -370,13 +373,16 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         if out_of_time():
             return abandon("out of time")
         carried = contact.carrying_variables(lam[s])
-        if carried is None or contact.link_give(carried[1]) > _STIFF_GIVE:
-            how = ("find no motion that carries its loads" if carried is None
-                   else f"carry its loads only by giving {1e6 * contact.link_give(carried[1]):.3g} um")
-            note = (f"held rigid, the stance holds, but the nodes of {contact.label} {how}, more than the "
-                    f"{1e6 * _STIFF_GIVE:g} um a stiff body's limit takes: on a body this stiff a centre of "
-                    "pressure near a print's last row of nodes is carried only if the print pivots, and the "
-                    "mesh's spacing under the print sets where that row lies")
+        give = None if carried is None else contact.link_give(carried[1])
+        if give is None or give > _STIFF_GIVE:
+            if give is None:
+                how = "find no motion of the links that carries its loads"
+            else:
+                how = (f"carry its loads only by giving {1e6 * give:.3g} um, more than the {1e6 * _STIFF_GIVE:g} um "
+                       "a stiff body's limit takes (on a body this stiff a centre of pressure near a print's last "
+                       "row of nodes is carried only if the print pivots, and the mesh's spacing under the print "
+                       "sets where that row lies)")
+            note = f"held rigid, the stance holds, but the nodes of {contact.label} {how}"
             return abandon("the nodes of %s %s", contact.label, how, note=note)
         lam[s] = carried[0]
     if out_of_time():

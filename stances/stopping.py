@@ -325,9 +325,9 @@ class StoppingTest:
         unique, the same answer). A soft palm on rail-over-gap's rail, feasible, repeated
         a failed line search three times, ten contact solves each (40 % of its solve).
         (Near feasibility the soft Coulomb forces' curvature reads the last QP's
-        multipliers whatever the phase, so the next QP may differ a little: a review let
-        those solves go on, 12 soft stances, and they ended at the same objectives three
-        iterations later.)
+        multipliers whatever the phase, so the next QP may differ a little: a review
+        checked 12 soft stances, the shortcut ended 3 of them, and let go on those 3 ended
+        at the same objectives three iterations later.)
         Far from feasible the repeats are left to :meth:`hopeless`, which ends them with
         its own reason.
         """

@@ -72,8 +72,9 @@ class Iterate:
         ``d tau / d forces`` (``-J^T``) at fixed q (None: values only).
     force_curvatures : tuple of (slice, slice, callable)
         The contacts whose forces curve in their variables: each one's rows in the
-        stacked forces (of 3k), its columns in the force variables, and its
-        ``force_curvature`` (:meth:`stances.contacts.RigidContact.force_curvature`).
+        stacked forces (of 3k), its columns in the force variables, and what its
+        ``force_curvature`` returned there (a soft Coulomb contact's:
+        :meth:`stances.deformable.DeformableContact.force_curvature`).
     """
 
     q: np.ndarray
@@ -192,6 +193,19 @@ def tau_curvature(problem, iterate, rows):
     At fixed q, tau is linear in the forces (``d tau / d f = -J^T``), so its rows' weighted
     curvature in the force variables is that of the forces weighted by ``-J w``: each
     curved contact's ``force_curvature`` at those weights, in its own columns.
+
+    Parameters
+    ----------
+    problem : PostureProblem
+    iterate : Iterate
+        With derivatives (``tau_force_jacobian``, ``force_curvatures``).
+    rows : slice
+        Rows of tau (0-5: the free flyer's wrench, static equilibrium; 6-: joint torques).
+
+    Returns
+    -------
+    callable or None
+        ``weights (r,) -> (n, n)`` in the step's columns (zero outside the force variables).
     """
     if not iterate.force_curvatures or iterate.tau_force_jacobian is None:
         return None

@@ -537,14 +537,11 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
     Newton, warm started from the last linearisation's modes, on a cycle of two contact
     sets. The cycle is seen on its third entry into a set (not after 60 steps) and the solve
     restarts from every node sticking, which settles; the projected Gauss-Seidel (20 ms a
-    call on this 20-node print) is not needed. The motion, the warm modes and the turned
-    frames are those of a solve of left-on-platform at 0209338 (``tests/data``), replayed
-    on the same print: since the SQP's Hessian carries the Coulomb forces' curvature
-    (2026-12-06) that solve no longer meets the cycle."""
-    import environments
-    import stances
+    call on this 20-node print) is not needed. The print, the motion, the warm modes and the
+    turned frames are those of a solve of left-on-platform at 0209338 (``tests/data/README.md``),
+    replayed: since the SQP's Hessian carries the Coulomb forces' curvature (2026-12-06) that
+    solve no longer meets the cycle."""
     from fem import contact
-    from stances.problem import build_problem
 
     def no_gauss_seidel(*args, **kwargs):
         raise AssertionError("the Gauss-Seidel fallback was called")
@@ -560,14 +557,11 @@ def test_a_warm_start_that_cycles_restarts_from_sticking_not_gauss_seidel(monkey
             failed_steps.append(len(steps))
         return result
 
-    scenario = environments.load("climb-with-soft-support")
-    problem = build_problem(stances.Robot.load(scenario.robot), scenario.scene, scenario.stance("left-on-platform"))
-    (palm,) = [c for c in problem.contacts if c.kind == "deformable"]
     recorded = np.load(DATA / "palm-cycle-on-platform.npz")
     motion, turns = recorded["displacements"], recorded["turns"]
     monkeypatch.setattr(contact, "_gauss_seidel", no_gauss_seidel)
     monkeypatch.setattr(contact.PrintContactSystem, "_newton", counted_newton)
-    system = fem.PrintContactSystem(palm.patch.link_compliance, palm.node_frames, palm.node_mu)
+    system = fem.PrintContactSystem(recorded["compliance"], recorded["frames"], recorded["friction"])
     warm = system.solve(motion, recorded["initial_modes"], recorded["initial_directions"], turns=turns)
     assert failed_steps, "the warm start did not cycle: this case no longer exercises the restart"
     assert max(failed_steps) <= 2 * contact._SET_ENTRIES + 4
@@ -681,3 +675,17 @@ def test_a_node_held_slipping_without_trial_friction_has_finite_derivatives():
     assert np.allclose(held.forces, [[MU * 10.0, 0.0, 10.0], [0.0, MU * 10.0, 10.0]])
     assert np.allclose(first, held.jacobian_dot(np.eye(6)[:, :2]), rtol=0.0, atol=1e-9)
     assert not second.any()
+
+
+def test_derivatives_refuse_shapes_that_do_not_match_and_a_state_without_its_law(pad):
+    _, patch, frames = pad
+    p = patch.n_nodes
+    state = fem.PrintContactSystem(patch.compliance, frames, np.full(p, MU)).solve(
+        _rigid_motion(patch.points, [0.002, 0.0, -0.004], [0.0, 0.02, 0.0], patch.points.mean(axis=0)))
+    with pytest.raises(fem.FemError, match=rf"dd_motion must have shape \({3 * p}, 2, 2\) for a print of {p} nodes"):
+        state.derivatives(np.zeros((3 * p, 2)), np.zeros((3 * p, 2)))
+    with pytest.raises(fem.FemError, match=rf"d_turns must have shape \({p}, 2, 3, 3\)"):
+        state.derivatives(np.zeros((3 * p, 2)), np.zeros((3 * p, 2, 2)), np.zeros((p, 3, 3)))
+    bare = fem.PrintContact(state.forces, state.relative, state.modes, state.directions, 0, state._system)
+    with pytest.raises(fem.FemError, match="derivatives need a contact state solved by a PrintContactSystem"):
+        bare.derivatives(np.zeros((3 * p, 2)), np.zeros((3 * p, 2, 2)))
