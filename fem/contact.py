@@ -137,7 +137,7 @@ class PrintContact:
 
     def derivatives(self, d_motion, dd_motion, d_turns=None, dd_turns=None):
         """First and second derivatives of the forces along a parameter's directions, the
-        modes held: the indenters move by ``U(phi_turned)`` and the contact frames turn by ``Q(phi_turned)``.
+        modes held: the indenters move by ``U(x)`` and the contact frames turn by ``Q(x)``.
 
         The law of fixed modes ``R(phi, U, Q) = 0`` (stick ``r = 0``, lift ``phi = 0``, slip
         ``s_n q_n . r = 0`` and ``phi'_t - mu phi'_n d(tau) = 0``, ``phi' = Q phi``,
@@ -151,7 +151,7 @@ class PrintContact:
         Parameters
         ----------
         d_motion : (3p, m) float
-            ``dU / dx``, metres per unit of phi_turned, body frame.
+            ``dU / dx``, metres per unit of x, body frame.
         dd_motion : (3p, m, m) float
             ``d^2 U / dx^2``, symmetric in its last two axes.
         d_turns : (p, m, 3, 3) float, optional

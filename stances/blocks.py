@@ -143,12 +143,13 @@ class ConstraintBlock:
 PLACEMENT_ACCURACY = 1e-7
 
 
-def equality(name, value, jacobian, scale, labels, accuracy=0.0, second_order=None, curvature=None) -> ConstraintBlock:
+def equality(name, value, jacobian, scale, labels, accuracy=0.0, second_order=None, curvature=None,
+             variable_curvature=None) -> ConstraintBlock:
     """Rows ``value + jacobian @ step = 0``, met within ``accuracy`` (rows' units)."""
     zeros = np.zeros(len(value))
     return ConstraintBlock(
         name, np.asarray(value, float), jacobian, zeros, zeros, scale, tuple(labels), accuracy=accuracy,
-        second_order=second_order, curvature=curvature,
+        second_order=second_order, curvature=curvature, variable_curvature=variable_curvature,
     )
 
 

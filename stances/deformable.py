@@ -1034,8 +1034,7 @@ class DeformableContact:
     def _force_second_derivative(self, solved, w) -> np.ndarray:
         """(3p, 6L, 6L) ``d^2 forces / dW^2``, body frame, the modes of ``solved`` held
         (:meth:`force_curvature`)."""
-        theta, _, _ = self._print_turns(w)
-        d_turn, dd_turn = _exp_derivatives(theta)  # (L, 3, 3, 3), (L, 3, 3, 3, 3): d R / d theta_j, ...
+        d_turn, dd_turn = _exp_derivatives(self._turn_of_w @ w)  # (L, 3, 3, 3), (L, 3, 3, 3, 3): d R / d theta_j, ...
         rates = self._turn_of_w  # (L, 3, 6L): d theta / dW
         owner, m = self.print_of_node, rates.shape[2]
         # U = G W + exp(theta) x - x - theta x x: its second derivative is exp's, on the levers.

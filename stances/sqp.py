@@ -668,8 +668,7 @@ def _with_curvature(linearization, multipliers, configuration=None, *, near_feas
     if configuration is not None:
         curvature, q = configuration
         nv = curvature.model.nv
-        weights = [None if block.second_order is None or not len(block)
-                   else np.array([multipliers.get(label, 0.0) for label in block.labels])
+        weights = [None if block.second_order is None or not len(block) else _row_weights(block, multipliers)
                    for block in linearization.blocks]
         extra[:nv, :nv] = curvature.hessian(q, linearization.blocks, weights)
         curved[:nv] = True
@@ -679,7 +678,7 @@ def _with_curvature(linearization, multipliers, configuration=None, *, near_feas
         lower, upper = np.broadcast_to(block.lower, (len(block),)), np.broadcast_to(block.upper, (len(block),))
         if not near_feasible and np.any(np.isfinite(lower) & np.isfinite(upper)):
             continue
-        weights = np.clip(np.array([multipliers.get(label, 0.0) for label in block.labels]),
+        weights = np.clip(_row_weights(block, multipliers),
                           np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
         if weights.any():
             term = block.variable_curvature(weights)
@@ -703,6 +702,11 @@ def _with_curvature(linearization, multipliers, configuration=None, *, near_feas
     return replace(linearization, hessian=for_qp), replace(linearization, hessian=model)
 
 
+def _row_weights(block, multipliers) -> np.ndarray:
+    """(r,) the last QP's multiplier of each of ``block``'s rows (0 for a row it did not have)."""
+    return np.array([multipliers.get(label, 0.0) for label in block.labels])
+
+
 def _augmentation(linearization, multipliers) -> np.ndarray:
     """``sigma A^T A`` (n, n): ``A`` the linearisation's equalities and the rows the previous
     QP held (a nonzero multiplier), scaled (:func:`_with_curvature`)."""
@@ -710,8 +714,7 @@ def _augmentation(linearization, multipliers) -> np.ndarray:
     for block in linearization.blocks:
         if not len(block):
             continue
-        row_weights = np.array([multipliers.get(label, 0.0) for label in block.labels])
-        held = (row_weights != 0.0) | (block.lower == block.upper)
+        held = (_row_weights(block, multipliers) != 0.0) | (block.lower == block.upper)
         active.append(block.jacobian[held] / block.scale[held, None])
     rows = np.vstack(active) if active else np.zeros((0, len(linearization.gradient)))
     return _AUGMENTATION * (rows.T @ rows)

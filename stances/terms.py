@@ -21,7 +21,7 @@ and costs through the same two calls. Equation numbers are the paper's.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import pinocchio as pin
@@ -233,8 +233,8 @@ class EquilibriumConstraint:
 
     def blocks(self, problem, iterate):
         jacobian = iterate.tau_jacobian[:6] if iterate.derivatives else None
-        block = equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS)
-        return [replace(block, variable_curvature=tau_curvature(problem, iterate, slice(0, 6)))]
+        return [equality("equilibrium", iterate.tau[:6], jacobian, 10.0, _EQUILIBRIUM_LABELS,
+                         variable_curvature=tau_curvature(problem, iterate, slice(0, 6)))]
 
 
 @dataclass(frozen=True)
