@@ -12,7 +12,7 @@ import re
 from collections import Counter
 
 from stances.deformable import PIVOTING_REFUSAL, PIVOTING_ROW
-from stances.stages import HELD_RIGID
+from stances.stages import HELD_AT_NODES, HELD_RIGID
 
 __all__ = [
     "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
@@ -23,7 +23,7 @@ __all__ = [
 UNRESOLVED_BALL = "ball foot with no converged force on the soft mesh"
 
 # Constraint families, matched in this order against the text a reason starts
-# with once its qualifiers (HELD_RIGID, "print unreachable: ") are removed.
+# with once its qualifiers (HELD_RIGID, HELD_AT_NODES, "print unreachable: ") are removed.
 CAUSES = (
     ("time", ("time budget", "time limit")),
     ("verification", ("verification failed",)),
@@ -44,7 +44,7 @@ INPUT_CAUSES = (
     ("prints overlap", ("prints of ",)),
     ("print off its surface", ("lies off surface",)),
 )
-_QUALIFIERS = (HELD_RIGID, "print unreachable: ")
+_QUALIFIERS = (HELD_RIGID, HELD_AT_NODES, "print unreachable: ")
 # The solver's list of constraints no step meets together (stances.sqp), after the reason.
 _CONFLICT = "; no step meets together: "
 

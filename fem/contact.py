@@ -51,6 +51,10 @@ __all__ = [
 
 STICK, SLIP, LIFT = 0, 1, 2
 _MAX_ITERATIONS = 60
+_SLIP_SETTLED = 1e-10  # a slipping node's friction off its bound, over the largest force, when settled
+# Newton steps on the slip directions with the modes held (PrintContactSystem._held) after
+# which a residual that no longer halves every two steps ends it unsettled.
+_HELD_STALL = 6
 # Newton steps of a solve for a carried wrench (solve_loaded): the built-in soft stances'
 # 270 solves took 5 (median) to 12; a wrench out of reach makes the modes cycle.
 _LOADED_ITERATIONS = 20
@@ -746,17 +750,29 @@ class PrintContactSystem:
         return None
 
     def _held(self, u_local, modes, directions):
-        """Forces with the modes held: Newton on the slip directions only."""
+        """Forces with the modes held: Newton on the slip directions only.
+
+        It stops unsettled once its slip residual (:func:`_slip_residual`) no longer halves
+        every two steps from the ``_HELD_STALL``-th on: the held modes then admit no Coulomb
+        state (a slipping node pulls, its bound ``mu phi_n`` negative, and its direction
+        flips at every step), where it had run to ``_MAX_ITERATIONS`` (both soles of a 10 mm
+        mesh, 520 nodes: 60 factorisations, 0.7 s, each of 40 line-search trials).
+        """
         gains = np.zeros(self.n_nodes)
-        for _ in range(_MAX_ITERATIONS):
+        residuals = []
+        for step in range(_MAX_ITERATIONS):
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
             seen = self._seen(phi, r)
             new_directions, new_gains = _slip_directions(*seen, self.scale, self.mu, modes, directions)
-            if _slip_settled(*seen, self.scale, modes, self.mu):
+            residual, largest = _slip_residual(*seen, self.scale, modes, self.mu)
+            residuals.append(residual)
+            if residual <= _SLIP_SETTLED * largest:
                 system = self._system(modes, new_directions, new_gains)
                 phi, r, new_directions = self._polished(u_local, modes, new_directions, system, phi, r)
                 return phi, r, new_directions, system
+            if step >= _HELD_STALL and residuals[-1] > 0.5 * residuals[-3]:
+                break
             directions, gains = new_directions, new_gains
         return phi, r, directions, system
 
@@ -1175,9 +1191,17 @@ def _slip_settled(phi, r, scale, modes, mu, directions=None) -> bool:
     ``phi`` and ``r`` with these modes (the same numbers: a node slips there only where
     ``|tau| > 0``), else computed here.
     """
+    residual, largest = _slip_residual(phi, r, scale, modes, mu, directions)
+    return residual <= _SLIP_SETTLED * largest
+
+
+def _slip_residual(phi, r, scale, modes, mu, directions=None) -> tuple[float, float]:
+    """The largest ``|phi_t - mu phi_n d|`` of a slipping node (``d`` its trial direction; 0
+    without slip) and the largest force, whose ``_SLIP_SETTLED`` it is within once settled."""
     slipping = modes == SLIP
+    largest = max(float(np.abs(phi).max()), 1e-300)
     if not slipping.any():
-        return True
+        return 0.0, largest
     if directions is None:
         tau = _trial(phi, r, scale)[slipping]
         size = np.hypot(tau[:, 0], tau[:, 1])
@@ -1185,4 +1209,4 @@ def _slip_settled(phi, r, scale, modes, mu, directions=None) -> bool:
     else:
         direction = directions[slipping]
     residual = phi[slipping, :2] - (mu[slipping] * phi[slipping, 2])[:, None] * direction
-    return bool(np.abs(residual).max() <= 1e-10 * max(float(np.abs(phi).max()), 1e-300))
+    return float(np.abs(residual).max()), largest

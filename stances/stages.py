@@ -32,7 +32,7 @@ from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PostureResult
 from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
-from .stopping import NO_PROGRESS
+from .stopping import NEARLY_FEASIBLE, NO_PROGRESS
 from .verify import VerificationTolerances
 
 logger = logging.getLogger(__name__)
@@ -70,11 +70,22 @@ _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
 _LIFT_STEPS = 4
+# Then at most this many with the stiff bodies' W free as well: with W held the forces
+# are the carried ones, and a row at its bound that they do not quite balance stays off.
+# Both soles on a 1e10 Pa slab, the centre of mass held at 0.101 m ahead by a user's row,
+# on a mesh whose lines lay 17 mm further forward under the soles: held, that row stayed
+# 4.4 nm off its bound and the equilibrium 1e-6 N, through 4 steps and more; one step
+# with W free met both (W moved by picometres), where the solve through W then failed
+# after 8.6 s.
+_FREE_STEPS = 2
 # The status of a solve refused before its SQP (_balls_refused_anyway).
 BALLS_REFUSED = "ball refused before solving"
 # What a stance's reason starts with when it cannot be held even with its soft supports
 # held rigid (the rigid warm start's cheap rejection; cbm.rejections reads past it).
 HELD_RIGID = "even with its soft supports held rigid: "
+# ... and when it cannot be held with its soft bodies, all too stiff to give, held rigid
+# where their prints' nodes reach (_solve_stiff_limit).
+HELD_AT_NODES = "even with its stiff soft supports held rigid where their prints' nodes reach: "
 
 
 def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
@@ -223,7 +234,17 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         # tight time budget: the solve through W alone fits where both might not).
         share = None if deadline is None else time.perf_counter() + _STIFF_SHARE * left
         warm_lam = None if rigid is None else (rigid, np.asarray(warm.statistics["lambda"]))
-        stiff, stiff_note = _solve_stiff_limit(problem, build, options, q_init, lam_init, share, warm_lam)
+        stiff, stiff_note, refusal = _solve_stiff_limit(problem, build, options, q_init, lam_init, share, warm_lam)
+        if refusal is not None:
+            # Its soft bodies all too stiff to give, the stance is not held even with their
+            # prints held rigid where their nodes reach: their Coulomb forces cannot carry it
+            # either (both soles on a 1e10 Pa slab, each centre of pressure on its toe edge,
+            # on a 10 mm mesh: refused through W after 21.6 s, and after 525 s before the
+            # held-mode solves stopped at a stall).
+            statistics = dict(refusal.statistics, rigid_warm_start_iterations=warm_iterations,
+                              options=_changed(options))
+            return _timed_out(replace(refusal, statistics=statistics, solve_time=time.perf_counter() - start,
+                                      stance=stance), time_budget)
     if stiff is not None:
         result = stiff
     elif options.contact_law == "coulomb" and deformable:
@@ -262,8 +283,9 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
 
 
 def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None):
-    """The stance on soft bodies too stiff to give, in their stiff limit, and a note: ``(result,
-    None)``, or ``(None, note)`` where it is not (the note None but where the stance holds rigid).
+    """The stance on soft bodies too stiff to give, in their stiff limit, a note and a refusal:
+    ``(result, None, None)``, or ``(None, note, refusal)`` where it is not (the note None but
+    where the stance holds rigid; the refusal None but where it does not, see 2.).
 
     As E grows a soft print's links move by nanometres: its nodes' Coulomb forces carry
     what a rigid contact would where the nodes are, and the posture is the rigid one. The
@@ -287,13 +309,16 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
        (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
        ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
        beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
-       from ``lam``);
+       from ``lam``); where every soft body is held and this stops farther from feasible
+       than a warm start's tolerance (not for want of time), the stance is refused: the
+       held answer, its reason saying so (``HELD_AT_NODES``);
     3. each stiff body's W whose Coulomb forces carry that answer's wrenches, and the
        links' motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
        less than ``_STIFF_GIVE``;
     4. restoration steps from there, the stiff bodies' W held (their forces are the
        carried ones), onto every row (:func:`_lift`: the links moved by that give, the
-       other contacts' forces balancing the posture so moved), then
+       other contacts' forces balancing the posture so moved; then a step or two with W
+       free too, where a row at its bound stays a few nanometres off), then
        :func:`stances.verify` on the full FEM model.
 
     Where it does not hold, the soft contacts are left as they were (the solve that goes
@@ -328,9 +353,11 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         Where the stance holds with the stiff bodies rigid but their nodes cannot carry
         that answer within ``_STIFF_GIVE``, why, for the reason of an answer through W
         that then fails: both soles on a 1e10 Pa slab, the centre of mass 0.11 m ahead of
-        them, the rigid support's centre of pressure 12 mm from the soles' last row of
-        nodes, asked them to pivot 3.5e-4 rad (a 70 um give), and through W the solve
-        did not converge.
+        them (each sole's centre of pressure on its toe edge, the tipping limit), asked them
+        to pivot 3.5e-4 rad (a 70 um give), and through W the solve did not converge.
+    refusal : PostureResult or None
+        The held answer, infeasible, its reason starting with ``HELD_AT_NODES``, where the
+        stance is refused in 2.
     """
     soft = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.deformable_object is not None]
     if any(c.kind == "deformable" and len(c.point_prints) for c, _ in soft):
@@ -338,20 +365,20 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         # their contact system exists before the attempt (the rigid answer's loads are
         # shared among the balls through it) and would keep what the attempt's solves
         # leave in it. Such a stance goes through W.
-        return None, None
+        return None, None, None
     stiff = [(c, s) for c, s in soft
              if c.kind == "deformable" and c.stiff_give(lam[s]) <= _STIFF_GIVE and not c.sticks(lam[s])]
     if not stiff:
-        return None, None
+        return None, None, None
     mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
     states = [contact.solver_state() for contact, _ in soft]
     start = time.perf_counter()
 
-    def abandon(why, *args, note=None):
+    def abandon(why, *args, note=None, refusal=None):
         for (contact, _), state in zip(soft, states):
             contact.restore_solver_state(state)
         logger.debug("stiff limit not taken: " + why, *args)
-        return None, note
+        return None, note, refusal
 
     def out_of_time():
         return deadline is not None and time.perf_counter() >= deadline
@@ -366,7 +393,10 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     else:  # every body held, or the others balls on layers: no contact sets to settle
         answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
     if not answer.feasible:
-        return abandon("held rigid, %s", answer.reason)
+        refused = (not mixed and answer.statistics["status"] != OUT_OF_TIME and not out_of_time()
+                   and answer.statistics["violation"] > _WARM_START_TOLERANCES["feasibility_tolerance"])
+        refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
+        return abandon("held rigid, %s", answer.reason, refusal=refusal)
     q = np.asarray(answer.q, dtype=float)
     lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
     for contact, s in stiff:
@@ -391,12 +421,13 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     if lifted is None:
         return abandon("the rows not met from the held answer")
     q, lam, linearization, steps = lifted
+    met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
     outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
-                         answer.statistics["qp_time"], True, "")
+                         answer.statistics["qp_time"], met, "" if met else "the rows not met from the held answer")
     result = posture_result(problem, outcome, time.perf_counter() - start)
     if not result.feasible:
         return abandon("%s", result.reason)
-    return result, None
+    return result, None, None
 
 
 def _balls_refused_anyway(problem, options) -> list:
@@ -442,8 +473,9 @@ def _contact_key(contact) -> tuple:
 
 def _lift(problem, q, lam, held):
     """Restoration steps onto the rows of ``problem`` with the variables in the slices
-    ``held`` fixed, at most ``_LIFT_STEPS``: ``(q, lam, Linearization, steps)`` where the rows
-    are met (its feasibility tolerance), else None.
+    ``held`` fixed, at most ``_LIFT_STEPS``, then at most ``_FREE_STEPS`` with them free:
+    ``(q, lam, Linearization, steps)`` where the rows are met (its feasibility tolerance) or
+    nearly (within ``NEARLY_FEASIBLE`` of it: :func:`stances.verify` then decides), else None.
 
     The soft prints' ``touch`` rows are left out (of the steps and of the Linearization
     returned): they ask the mean height of a print's nodes not above the rest surface, a
@@ -451,19 +483,20 @@ def _lift(problem, q, lam, held):
     presses; here each print carries the held answer's load, which says it presses.
     """
     nv, workspace = problem.robot.model.nv, QPWorkspace()
+    tolerance = problem.options.feasibility_tolerance
 
     def rows(q, lam):
         linearization = problem.linearize(q, lam)
         return replace(linearization, blocks=[b for b in linearization.blocks if b.name != "touch"])
 
     linearization = rows(q, lam)
-    for steps in range(_LIFT_STEPS + 1):
-        if linearization.met(problem.options.feasibility_tolerance):
+    for steps in range(_LIFT_STEPS + _FREE_STEPS + 1):
+        if linearization.met(tolerance):
             return q, lam, linearization, steps
-        if steps == _LIFT_STEPS:
-            return None
+        if steps == _LIFT_STEPS + _FREE_STEPS:
+            break
         lower, upper = linearization.step_lower.copy(), linearization.step_upper.copy()
-        for s in held:
+        for s in held if steps < _LIFT_STEPS else ():
             lower[nv + s.start : nv + s.stop] = upper[nv + s.start : nv + s.stop] = 0.0
         restored = restoration_step(problem, replace(linearization, step_lower=lower, step_upper=upper), q, lam,
                                      workspace)
@@ -471,6 +504,9 @@ def _lift(problem, q, lam, held):
             return None
         q, lam = restored
         linearization = rows(q, lam)
+    # Nearly met, where an SQP's answer may end too (NEARLY_FEASIBLE): verification decides.
+    if linearization.max_violation()[0] <= NEARLY_FEASIBLE * tolerance:
+        return q, lam, linearization, _LIFT_STEPS + _FREE_STEPS
     return None
 
 

@@ -184,6 +184,32 @@ def test_held_modes_give_smooth_forces_and_say_when_they_no_longer_hold(pad):
     assert held.forces[:, 2].min() < 0.0  # held in contact, the nodes would pull
 
 
+def test_held_modes_that_admit_no_coulomb_state_stop_at_a_stall_not_the_step_limit(pad, monkeypatch):
+    """A slipping node held in contact while the indenter leaves pulls: its bound mu phi_n is
+    negative and its slip direction flips at every Newton step. The held solve stops once its
+    slip residual no longer halves every two steps (``_HELD_STALL``), unsettled, where it ran
+    all ``_MAX_ITERATIONS`` (60 factorisations; a 520-node pair of soles spent 0.7 s a call so),
+    and a held solve that settles is not cut short."""
+    from fem import contact
+
+    _, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    system = fem.PrintContactSystem(patch.compliance, frames, mu)
+    pressed = _rigid_motion(patch.points, [0.002, 0.0, -0.004], [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    state = system.solve(pressed)
+    assert state.n_slip == 1
+    steps = []
+    forces = contact.PrintContactSystem._forces
+    monkeypatch.setattr(contact.PrintContactSystem, "_forces", lambda self, *a: steps.append(1) or forces(self, *a))
+    pulled = np.tile([0.0, 0.0, 0.001], (patch.n_nodes, 1))
+    held = system.with_modes(pulled, state.modes, state.directions)
+    assert not held.admissible and held.forces[state.modes == contact.SLIP, 2].min() < 0.0
+    assert len(steps) == contact._HELD_STALL + 1 < contact._MAX_ITERATIONS
+    steps.clear()
+    again = system.with_modes(pressed, state.modes, state.directions)
+    assert again.admissible and np.allclose(again.forces, state.forces, atol=1e-9 * np.abs(state.forces).max())
+
+
 def test_a_contact_system_reused_over_motions_gives_the_one_shot_answers(pad):
     """PrintContactSystem keeps each contact set's factorisation: the answers are the
     same bits as a fresh solve, whichever motions it met before."""
