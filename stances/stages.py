@@ -239,8 +239,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # Its soft bodies all too stiff to give, the stance is not held even with their
             # prints held rigid where their nodes reach: their Coulomb forces cannot carry it
             # either (both soles on a 1e10 Pa slab, each centre of pressure on its toe edge,
-            # on a 10 mm mesh: refused through W after 21.6 s, and after 525 s before the
-            # held-mode solves stopped at a stall).
+            # on an 11 mm mesh: refused through W after 40 s, and after 525 s before the
+            # held-mode contact solves stopped on their cycles; at once now, 0.16 s).
             statistics = dict(refusal.statistics, rigid_warm_start_iterations=warm_iterations,
                               options=_changed(options))
             return _timed_out(replace(refusal, statistics=statistics, solve_time=time.perf_counter() - start,

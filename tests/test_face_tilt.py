@@ -256,8 +256,8 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_beyond_the_nodes_reach_is_re
     pressure 5 mm behind its toe edge, which the rigid support holds, and past where the soles'
     nodes reach. The slab gives under 10 um: even held rigid where the nodes reach the stance is
     not held, so their Coulomb forces cannot carry it either, and the stance is refused with the
-    held solve's reason (``HELD_AT_NODES``), not after a solve through W (4.9 s here; 21.6 s on
-    a 10 mm mesh, and 525 s before the held-mode solves stopped at a stall)."""
+    held solve's reason (``HELD_AT_NODES``), not after a solve through W (4.9 s here; 40 s on
+    an 11 mm mesh, and 525 s before the held-mode contact solves stopped on their cycles)."""
     scenario = _shifted_slab(0.25)
     stance = scenario.stance("stand")
     ahead = CentreOfMassX("ahead", lower=0.105)
