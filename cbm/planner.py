@@ -34,8 +34,8 @@ from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
 from .rejections import (
-    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, strain_bound_hint, summarise,
-    unresolved_ball_hint,
+    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, stiff_reach_hint, strain_bound_hint,
+    summarise, unresolved_ball_hint,
 )
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
@@ -595,6 +595,7 @@ def plan(
         reason += strain_bound_hint(rejected)
         reason += unresolved_ball_hint(rejected)
         reason += pivoting_print_hint(rejected)
+        reason += stiff_reach_hint(rejected)
     return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing)
 
 

@@ -16,7 +16,7 @@ from stances.stages import HELD_AT_NODES, HELD_RIGID
 
 __all__ = [
     "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
-    "strain_bound_hint", "summarise", "unresolved_ball_hint",
+    "stiff_reach_hint", "strain_bound_hint", "summarise", "unresolved_ball_hint",
 ]
 
 #: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
@@ -163,6 +163,8 @@ STRAINED_SHARE = 0.5
 UNRESOLVED_SHARE = 0.5
 #: The same share for stances whose sole or palm on a soft body could not keep its whole face down.
 PIVOTING_SHARE = 0.5
+#: The same share for stances refused on a stiff soft body where its prints' nodes reach.
+STIFF_REACH_SHARE = 0.5
 # The solver's whole-print row (stances.deformable, max_corner_lift) and verify's refusal.
 _PIVOTING = (PIVOTING_ROW, PIVOTING_REFUSAL)
 # A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
@@ -253,6 +255,30 @@ def _share_hint(reasons, counts, share: float, what: str) -> str:
     if not reasons or count < share * len(reasons):
         return ""
     return f"; {count} of the {len(reasons)} stances rejected {what}"
+
+
+def stiff_reach_hint(reasons) -> str:
+    """What to add to a failed search's reason when most rejected stances were refused on a
+    steel-stiff soft body because its prints' nodes do not reach where the centre of pressure
+    must be (:data:`stances.stages.HELD_AT_NODES`): on a body too stiff to give, a print carries
+    loads only where its mesh nodes lie, and a coarse mesh stops them short of a print's edge (a
+    leaning stance 5 mm from the soles' toe edge on a 1e10 Pa slab: refused at 22.5 mm, solved
+    at 11 mm, ``bench/bench_stiff_slab.py``). Parameters and return as
+    :func:`unresolved_ball_hint`'s.
+
+    Examples
+    --------
+    >>> stiff_reach_hint([HELD_AT_NODES + "static equilibrium (fx) violated by 0.9 N", "torque limit of j"])
+    "; 1 of the 2 stances rejected could not be held on a stiff soft body where its prints' nodes reach: a finer mesh under the prints (the soft_box's resolution and refine) lets them carry a centre of pressure nearer a print's edge, and a body that stiff can be a rigid one"
+    >>> stiff_reach_hint(["torque limit of j"])
+    ''
+    """
+    return _share_hint(
+        reasons, lambda reason: reason.startswith(HELD_AT_NODES), STIFF_REACH_SHARE,
+        "could not be held on a stiff soft body where its prints' nodes reach: a finer mesh under the prints "
+        "(the soft_box's resolution and refine) lets them carry a centre of pressure nearer a print's edge, and a "
+        "body that stiff can be a rigid one",
+    )
 
 
 def pivoting_print_hint(reasons) -> str:

@@ -7,7 +7,9 @@ only near their prints, so a solve goes by stages:
    rejection of a stance that cannot be held even so);
 2. the stiff limit (:func:`_solve_stiff_limit`): the bodies that give under 10 um held
    rigid where their nodes are, then the links' motion whose Coulomb forces carry that
-   answer, verified; where it does not hold, nothing of it is kept;
+   answer, verified; where it does not hold, nothing of it is kept (and where every soft
+   body is that stiff and the stance is not held even rigid where their nodes reach, it is
+   refused there);
 3. the Coulomb stages (:func:`_solve_coulomb`): the nodes' modes read at every
    linearisation, then held while the SQP converges, then read again; a bonded warm
    start where that stalls near feasibility.
