@@ -124,6 +124,7 @@ import scipy.spatial
 import fem
 from fem.dense import block_diagonal_product, single_threaded_blas
 from fem.layer_contact import side_contact_limit, widest_contact
+from fem.prints import clip_polygon
 
 from environments.geometry import polygon_area, signed_edge_distances
 
@@ -534,6 +535,7 @@ class DeformableContact:
         rests = [self._in_print(body.mesh.nodes[ids], body_placement, placement)[:, :2]
                  for ids, placement in zip(node_sets, self.print_placements)]
         self._corners, self._corner_print = self._corner_weights(corners, rests)
+        self._outlines = corners  # per print, its polygon in its frame (k, 2), None for a point foot
         # (k, p): each corner's row gives its print's corners' mean height; the whole-print
         # rows are the corners' heights less corner_sinking times that.
         self._corner_means = np.zeros_like(self._corners)
@@ -1236,9 +1238,15 @@ class DeformableContact:
         As E grows a print's links move by nanometres and its nodes' Coulomb forces can
         carry what a rigid contact carries where they are: a centre of pressure inside
         the convex hull of its link points (not the link's whole polygon, on a mesh
-        coarse under it), here moved in by ``_REACH_MARGIN`` of the nodes' spacing, with
-        the friction of the print's resultant (``friction_margin`` of its nodes'). For
-        :func:`stances.build_problem`'s ``held_prints``.
+        coarse under it) and inside that polygon, both moved in by ``_REACH_MARGIN`` of the
+        nodes' spacing, with the friction of the print's resultant (``friction_margin`` of
+        its nodes'). For :func:`stances.build_problem`'s ``held_prints``.
+
+        Inside the polygon too: partly covered nodes past its edge are link points, and a
+        hull through them let the stance hold with its centre of pressure on a sole's toe
+        edge, the tipping limit, carried by those nodes' forces past the toes, which no sole
+        exerts (both soles on a 1e10 Pa slab, 71-95 % of their load on that row 6.9 mm
+        past the toe edge: an independent audit, ``bench/results/audit-stiff-slab-2026-12-06.md``).
 
         Returns
         -------
@@ -1252,8 +1260,9 @@ class DeformableContact:
             points = ((self.link_points_at_rest[self.print_of_node == i] - placement.translation)
                       @ placement.rotation)[:, :2]
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
-            out[spec.robot_surface] = HeldPrint(inset_hull(points, _REACH_MARGIN * spacing),
-                                                self.friction_margin * self.print_mu[i])
+            margin = _REACH_MARGIN * spacing
+            reach = clip_polygon(inset_hull(points, margin), inset_hull(self._outlines[i], margin))
+            out[spec.robot_surface] = HeldPrint(np.array(reach), self.friction_margin * self.print_mu[i])
         return out
 
     def carrying_variables(self, wrench):

@@ -267,17 +267,36 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_beyond_the_nodes_reach_is_re
     assert cause_of(result.reason) == "balance (static equilibrium)"
 
 
-def test_on_a_steel_stiff_slab_a_centre_of_pressure_on_the_soles_toe_edge_is_refused_saying_why(robot):
+@pytest.mark.parametrize("cells", [0.0, 0.5])
+def test_on_a_steel_stiff_slab_a_centre_of_pressure_on_the_soles_toe_edge_is_refused_at_once(robot, cells):
     """The same slab, the centre of mass 0.11 m ahead: each sole's centre of pressure on its toe
     edge (x = 0.11 m in the sole's frame), the tipping limit, which the rigid support holds with
-    all the load on the toes' corners. On this mesh the soles' nodes carry it only if the soles
-    pivot (3.5e-4 rad, a 70 um give), over the stiff limit's 10 um, and through W the solve stops
-    short of feasibility: refused, the reason saying why before the rows it could not meet.
-    (Where the grid puts a row of partly covered nodes past the toes, the stiff limit holds it,
-    the centre of pressure on the edge within verify's tolerance: ``bench/bench_stiff_slab.py``.)"""
-    scenario = environments.load_string(_STIFF_SLAB, name="stiff-slab")
+    all the load on the toes' corners and no sole on a body of finite stiffness does. Held rigid,
+    a print's centre of pressure stays inside its outline as well as its nodes' hull: where the
+    grid put a row of partly covered nodes past the toes (half a cell moved), the stiff limit had
+    accepted it, balanced and Coulomb's, with 71-95 % of each sole's load on that row, 6.9 mm past
+    the toe edge, where the model applies those nodes' forces (an independent audit,
+    ``bench/results/audit-stiff-slab-2026-12-06.md``); on the default grid the soles' nodes had
+    carried it only by pivoting (a 70 um give) and the solve through W had then failed after
+    4-6 s. Now refused at once, wherever the grid lies, with the held solve's reason."""
+    scenario = _shifted_slab(cells)
     stance = scenario.stance("stand")
     ahead = CentreOfMassX("ahead", lower=0.11)
+    assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
+    result = solve(robot, scenario.scene, stance, constraints=[ahead])
+    assert not result.feasible and result.reason.startswith(HELD_AT_NODES), result.reason
+
+
+def test_on_a_steel_stiff_slab_a_centre_of_pressure_the_nodes_carry_only_by_pivoting_is_refused_saying_why(robot):
+    """The same slab, the centre of mass 0.105 m ahead: each sole's centre of pressure 5 mm behind
+    its toe edge, inside its nodes' reach, but on this grid the soles' nodes carry it only if the
+    soles pivot (a 33 um give), over the stiff limit's 10 um, and through W the solve stops short
+    of feasibility: refused, where the rigid support holds it (not met: the mesh's last node rows
+    stop short of the toes; half a cell over, or an 11 mm mesh, carries it), the reason saying why
+    before the rows it could not meet."""
+    scenario = _shifted_slab(0.0)
+    stance = scenario.stance("stand")
+    ahead = CentreOfMassX("ahead", lower=0.105)
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead])
     assert not result.feasible and "stiff_limit" not in result.statistics
