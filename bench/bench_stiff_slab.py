@@ -5,7 +5,7 @@ writes it to ``bench/results/stiff_slab.md``.
 
 Talos stands with both soles on a 0.8 x 1.0 x 0.2 m slab of E = 1e10 Pa (weightless, its
 base held), its centre of mass held ahead of the soles' centres by a row of the caller's
-(``stances.solve(constraints=...)``), so that the soles' centres of pressure move toward
+(``stances.CentreOfMassBounds``), so that the soles' centres of pressure move toward
 their toes: at 0.11 m they reach the toe edge (x = 0.11 m in the sole's frame), the tipping
 limit, which the rigid support holds with all the load on the toes' corners and no support of
 finite stiffness holds (the soft answer refuses it: a held print's centre of pressure stays
@@ -33,7 +33,6 @@ for _variable in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_variable, "1")
 
 import numpy as np  # noqa: E402
-import pinocchio as pin  # noqa: E402
 
 sys.path.insert(0, os.path.join(os.path.dirname(__file__), ".."))
 
@@ -41,7 +40,6 @@ from benchmark_info import code_version, machine  # noqa: E402
 
 import environments  # noqa: E402
 import stances  # noqa: E402
-from stances.blocks import ConstraintBlock  # noqa: E402
 
 CELL = 0.0225  # m, the default spacing where prints land
 SHIFTS = (0.0, 0.25, 0.5, 0.75)  # of a cell, the grid moved under the soles
@@ -69,24 +67,6 @@ stances:
 """
 
 
-class CentreOfMassAhead:
-    """The caller's row: the centre of mass's world x at least ``lower`` metres."""
-
-    def __init__(self, lower):
-        self.lower, self.data = lower, None
-
-    def blocks(self, problem, iterate):
-        model = problem.robot.model
-        if self.data is None:
-            self.data = model.createData()
-        jacobian = pin.jacobianCenterOfMass(model, self.data, iterate.q)
-        rows = None
-        if iterate.derivatives:
-            rows = np.zeros((1, problem.n_step))
-            rows[0, : model.nv] = jacobian[0]
-        return [ConstraintBlock("ahead", np.array([self.data.com[0][0]]), rows, self.lower, np.inf, 1e-2, ("ahead",))]
-
-
 def slab(shift, resolution="default", refine="[[-0.3, -0.3], [0.3, 0.3]]"):
     """The scenario with the slab's grid moved by ``shift`` cells (x, and 0.6 of it along y)."""
     dx, dy = shift * CELL, 0.6 * shift * CELL
@@ -106,7 +86,7 @@ def run(robot, scenario, ahead_values, label):
     # Stances the rigid support holds and of those solved soft: inside the toe edge, and on it.
     rows, counts = [], np.zeros(4, dtype=int)
     for ahead in ahead_values:
-        extra = [CentreOfMassAhead(ahead)]
+        extra = [stances.CentreOfMassBounds(lower=(ahead, -np.inf, -np.inf), label="ahead")]
         rigid = stances.solve(robot, scenario.scene, stance, constraints=extra, deformable_as_rigid=True)
         tic = time.process_time()
         soft = stances.solve(robot, scenario.scene, stance, constraints=extra, time_budget=TIME_BUDGET)

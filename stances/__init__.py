@@ -26,9 +26,11 @@ from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
 from .sqp import solve_problem
 from .stages import solve
+from .terms import CentreOfMassBounds
 from .verify import verify, verify_problem
 
 __all__ = [
+    "CentreOfMassBounds",
     "ConfigurationError",
     "FrameNotFound",
     "PointForce",

@@ -27,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from .blocks import ConstraintBlock, equality
+from .errors import StanceError
 
 __all__ = [
     "Iterate",
@@ -42,6 +43,7 @@ __all__ = [
     "CollisionConstraint",
     "COLLISION_SLACK",
     "kept_distance",
+    "CentreOfMassBounds",
 ]
 
 # Torque usage (fraction of the limit) that TorqueUsageCost leaves free.
@@ -404,3 +406,85 @@ def kept_distance(pair, distance: float, touching=frozenset()) -> float:
     ``distance``, or the rows' slack for a pair ``touching`` names (eating it leaves the
     pair touching, not inside). The rows accept down to this less :data:`COLLISION_SLACK`."""
     return COLLISION_SLACK if tuple(pair) in touching else distance
+
+
+class CentreOfMassBounds:
+    """The robot's centre of mass within a box of the world frame: extra rows for
+    :func:`stances.solve`'s ``constraints`` (a robot held leaning, its weight kept over part
+    of its support).
+
+    Its rows are the centre of mass's world coordinates on the bounded axes, scale 1 cm,
+    labelled ``"<label> (x)"`` and so on; their Jacobian is pinocchio's
+    ``jacobianCenterOfMass`` (m per unit of the configuration's tangent). :func:`stances.verify`
+    does not know them: a caller checks them on the answer itself (:meth:`position`).
+
+    Parameters
+    ----------
+    lower, upper : (3,) float, optional
+        World x, y, z bounds, metres; ``-inf`` / ``inf`` (the defaults) where an axis has none.
+    label : str, optional
+        What the rows are called in a solve's reason.
+
+    Raises
+    ------
+    StanceError
+        A bound that is not three numbers, NaN, lower above upper, or no bound at all.
+
+    Examples
+    --------
+    >>> import math
+    >>> CentreOfMassBounds(lower=(0.1, -math.inf, -math.inf), label="ahead").labels
+    ('ahead (x)',)
+    """
+
+    def __init__(self, lower=(-np.inf, -np.inf, -np.inf), upper=(np.inf, np.inf, np.inf), label="centre of mass"):
+        bounds = []
+        for name, given in (("lower", lower), ("upper", upper)):
+            try:
+                value = np.array(given, dtype=float)
+            except (TypeError, ValueError):
+                raise StanceError(f"CentreOfMassBounds {name} must be three numbers (x, y, z, metres), got {given!r}") from None
+            if value.shape != (3,) or np.isnan(value).any():
+                raise StanceError(f"CentreOfMassBounds {name} must be three numbers (x, y, z, metres; -inf / inf "
+                                  f"where an axis has no bound), got {given!r}")
+            bounds.append(value)
+        lower, upper = bounds
+        if np.any(lower > upper):
+            axis = "xyz"[int(np.argmax(lower > upper))]
+            raise StanceError(f"CentreOfMassBounds: the lower bound on {axis} is above the upper one "
+                              f"({lower.tolist()} against {upper.tolist()})")
+        self.axes = np.flatnonzero(np.isfinite(lower) | np.isfinite(upper))
+        if not self.axes.size:
+            raise StanceError("CentreOfMassBounds needs a finite bound on at least one axis (x, y or z)")
+        self.lower, self.upper = lower[self.axes], upper[self.axes]
+        self.labels = tuple(f"{label} ({'xyz'[a]})" for a in self.axes)
+        # id of a pinocchio model -> (that model, its Data): the rows' own Data, not the
+        # problem's (whose kinematics the other pieces read); the model kept so that its id
+        # is not another model's.
+        self._data = {}
+
+    def position(self, model, q) -> np.ndarray:
+        """(3,) float: the centre of mass of ``model`` at ``q``, world frame, metres (the rows' numbers)."""
+        data = self._model_data(model)
+        pin.jacobianCenterOfMass(model, data, np.asarray(q, dtype=float))
+        return np.array(data.com[0])
+
+    def blocks(self, problem, iterate):
+        model = problem.robot.model
+        data = self._model_data(model)
+        # jacobianCenterOfMass whether or not the Jacobian is asked: its centre of mass differs
+        # from centerOfMass's in the last bits, and a line search's trials and linearisations
+        # must read the same numbers.
+        full = pin.jacobianCenterOfMass(model, data, iterate.q)
+        value = np.array(data.com[0])[self.axes]
+        jacobian = None
+        if iterate.derivatives:
+            jacobian = np.zeros((self.axes.size, problem.n_step))
+            jacobian[:, : model.nv] = full[self.axes]
+        return [ConstraintBlock("centre of mass", value, jacobian, self.lower, self.upper, 1e-2, self.labels)]
+
+    def _model_data(self, model):
+        entry = self._data.get(id(model))
+        if entry is None or entry[0] is not model:
+            entry = self._data[id(model)] = (model, model.createData())
+        return entry[1]

@@ -16,7 +16,6 @@ import pytest
 
 import environments
 from stances import Robot
-from stances.blocks import ConstraintBlock
 from stances.narrow_phase import DistanceQuery, scene_shape
 
 
@@ -102,26 +101,6 @@ def bench_module(name: str):
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
     return module
-
-
-class CentreOfMassX:
-    """A user's extra row (``stances.solve(constraints=...)``): the centre of mass's world x
-    within ``[lower, upper]`` metres, labelled ``name`` (a robot held leaning)."""
-
-    def __init__(self, name, lower=-np.inf, upper=np.inf):
-        self.name, self.lower, self.upper, self.data = name, lower, upper, None
-
-    def blocks(self, problem, iterate):
-        model = problem.robot.model
-        if self.data is None:
-            self.data = model.createData()
-        jacobian = pin.jacobianCenterOfMass(model, self.data, iterate.q)
-        rows = None
-        if iterate.derivatives:
-            rows = np.zeros((1, problem.n_step))
-            rows[0, : model.nv] = jacobian[0]
-        return [ConstraintBlock(self.name, np.array([self.data.com[0][0]]), rows, self.lower, self.upper, 1e-2,
-                                (self.name,))]
 
 
 def solved_stance(robot, scenario, stance: str, **options):

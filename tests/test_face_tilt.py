@@ -16,12 +16,11 @@ import pytest
 import environments
 import fem
 from cbm.rejections import cause_of
-from stances import PostureOptions, solve, verify
+from stances import CentreOfMassBounds, PostureOptions, solve, verify
 from stances.curvature import ConstraintCurvature
 from stances.errors import StanceError
 from stances.problem import build_problem
 from stances.stages import HELD_AT_NODES
-from conftest import CentreOfMassX
 from test_curvature import second_differences
 
 PALM = "right_palm"
@@ -205,7 +204,7 @@ def test_on_a_steel_stiff_slab_the_allowance_is_a_fraction_of_a_milliradian_and_
     give in it (max_corner_lift over the sole's width, doubled) it is solved in its stiff limit."""
     scenario = environments.load_string(_STIFF_SLAB, name="stiff-slab")
     stance = scenario.stance("stand")
-    ahead = CentreOfMassX("ahead", lower=0.101)  # the soles' centres of pressure toward their toes
+    ahead = CentreOfMassBounds(lower=(0.101, -math.inf, -math.inf), label="ahead")  # the soles' centres of pressure toward their toes
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead], tilt_allowance=ONE_DEGREE)
     assert result.feasible and result.verification.ok, result.reason
@@ -227,7 +226,7 @@ def test_on_a_steel_stiff_slab_leaning_on_a_grid_moved_under_the_soles_is_solved
     with W free meets both (``_FREE_STEPS``): solved, the soles' loads the rigid support's."""
     scenario = _shifted_slab(0.75)
     stance = scenario.stance("stand")
-    ahead = CentreOfMassX("ahead", lower=0.101)
+    ahead = CentreOfMassBounds(lower=(0.101, -math.inf, -math.inf), label="ahead")
     rigid = solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True)
     result = solve(robot, scenario.scene, stance, constraints=[ahead])
     assert result.feasible and result.verification.ok, result.reason
@@ -260,7 +259,7 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_beyond_the_nodes_reach_is_re
     an 11 mm mesh, and 525 s before the held-mode contact solves stopped on their cycles)."""
     scenario = _shifted_slab(0.25)
     stance = scenario.stance("stand")
-    ahead = CentreOfMassX("ahead", lower=0.105)
+    ahead = CentreOfMassBounds(lower=(0.105, -math.inf, -math.inf), label="ahead")
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead])
     assert not result.feasible and result.reason.startswith(HELD_AT_NODES), result.reason
@@ -281,7 +280,7 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_on_the_soles_toe_edge_is_ref
     4-6 s. Now refused at once, wherever the grid lies, with the held solve's reason."""
     scenario = _shifted_slab(cells)
     stance = scenario.stance("stand")
-    ahead = CentreOfMassX("ahead", lower=0.11)
+    ahead = CentreOfMassBounds(lower=(0.11, -math.inf, -math.inf), label="ahead")
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead])
     assert not result.feasible and result.reason.startswith(HELD_AT_NODES), result.reason
@@ -296,7 +295,7 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_the_nodes_carry_only_by_pivo
     before the rows it could not meet."""
     scenario = _shifted_slab(0.0)
     stance = scenario.stance("stand")
-    ahead = CentreOfMassX("ahead", lower=0.105)
+    ahead = CentreOfMassBounds(lower=(0.105, -math.inf, -math.inf), label="ahead")
     assert solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True).feasible
     result = solve(robot, scenario.scene, stance, constraints=[ahead])
     assert not result.feasible and "stiff_limit" not in result.statistics

@@ -13,9 +13,9 @@ import pytest
 
 import environments
 import fem
-from conftest import BENCH, CentreOfMassX, coarse_scenario
+from conftest import BENCH, coarse_scenario
 from environments import Contact, ContactPrint, Stance
-from stances import ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
+from stances import CentreOfMassBounds, ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.results import LazyDeformations
 from stances.contacts import friction_cone_generators
 from stances.problem import PostureOptions, build_problem
@@ -1464,7 +1464,7 @@ def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_wi
     (the rigid warm start's, as the first stage had them), and now from where the first stage
     stopped with its own, it converges and verifies."""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
-    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[CentreOfMassX("lean", upper=0.05)],
+    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[CentreOfMassBounds(upper=(0.05, math.inf, math.inf), label="lean")],
                    min_normal_force=100.0, max_corner_lift=math.inf)
     assert result.feasible and result.verification.ok, result.reason
     palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
