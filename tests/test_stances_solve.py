@@ -1464,8 +1464,9 @@ def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_wi
     (the rigid warm start's, as the first stage had them), and now from where the first stage
     stopped with its own, it converges and verifies."""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
-    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[CentreOfMassBounds(upper=(0.05, math.inf, math.inf), label="lean")],
-                   min_normal_force=100.0, max_corner_lift=math.inf)
+    lean = CentreOfMassBounds(upper=(0.05, math.inf, math.inf), label="lean")
+    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[lean], min_normal_force=100.0,
+                   max_corner_lift=math.inf)
     assert result.feasible and result.verification.ok, result.reason
     palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
     assert palm[2] >= 100.0 - 1e-6
