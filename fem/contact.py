@@ -756,7 +756,7 @@ class PrintContactSystem:
         two steps before, to 1e-9, and some 1e-3 from where it was one step before): held
         modes can admit no Coulomb state (a slipping node that pulls, its bound ``mu phi_n``
         negative, flips its direction at every step), where it ran all ``_MAX_ITERATIONS``
-        (both soles of a 10 mm mesh, 520 nodes: 60 factorisations, 0.7 s a call). Held
+        (both soles on an 11 mm mesh, 520 nodes: 60 factorisations, 0.7 s a call). Held
         solves that settle can take 40 steps, with no progress for ten of them (climb's
         plans), so no rule on the residual's progress stops them.
         """

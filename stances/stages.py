@@ -354,9 +354,9 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     note : str or None
         Where the stance holds with the stiff bodies rigid but their nodes cannot carry
         that answer within ``_STIFF_GIVE``, why, for the reason of an answer through W
-        that then fails: both soles on a 1e10 Pa slab, the centre of mass 0.11 m ahead of
-        them (each sole's centre of pressure on its toe edge, the tipping limit), asked them
-        to pivot 3.5e-4 rad (a 70 um give), and through W the solve did not converge.
+        that then fails: both soles on a 1e10 Pa slab, the centre of mass 0.105 m ahead of
+        them (each sole's centre of pressure 5 mm behind its toe edge, past its last row of
+        nodes), asked them to pivot (a 33 um give), and through W the solve did not converge.
     refusal : PostureResult or None
         The held answer, infeasible, its reason starting with ``HELD_AT_NODES``, where the
         stance is refused in 2.
