@@ -2217,7 +2217,7 @@ def _exp_derivatives(theta, step=1e-5):
     differences of the first (step 1e-5 rad: error about 1e-10 of R's scale)."""
     def first(t):
         rotation, right = pin.exp3(t), pin.Jexp3(t)
-        return np.array([rotation @ pin.skew(right[:, j]) for j in range(3)])
+        return np.array([rotation @ skew for skew in _skew_rows(right.T)])
 
     d = np.array([first(t) for t in theta])
     dd = np.array([[(first(t + step * e) - first(t - step * e)) / (2.0 * step) for e in np.eye(3)] for t in theta])

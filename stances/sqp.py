@@ -665,28 +665,30 @@ def _with_curvature(linearization, multipliers, configuration=None, *, near_feas
     """
     n = len(linearization.gradient)
     extra, curved = np.zeros((n, n)), np.zeros(n, dtype=bool)
+    # Each block's rows' multipliers, read once (the configuration's curvature, the force
+    # variables' and sigma A^T A all weigh by them).
+    row_weights = [_row_weights(block, multipliers) if len(block) else None for block in linearization.blocks]
     if configuration is not None:
         curvature, q = configuration
         nv = curvature.model.nv
-        weights = [None if block.second_order is None or not len(block) else _row_weights(block, multipliers)
-                   for block in linearization.blocks]
+        weights = [None if block.second_order is None else w for block, w in zip(linearization.blocks, row_weights)]
         extra[:nv, :nv] = curvature.hessian(q, linearization.blocks, weights)
         curved[:nv] = True
-    for block in linearization.blocks:
-        if block.variable_curvature is None or not len(block):
+    for block, block_weights in zip(linearization.blocks, row_weights):
+        if block.variable_curvature is None or block_weights is None:
             continue
-        lower, upper = np.broadcast_to(block.lower, (len(block),)), np.broadcast_to(block.upper, (len(block),))
+        lower, upper = block.lower, block.upper
         if not near_feasible and np.any(np.isfinite(lower) & np.isfinite(upper)):
             continue
-        weights = np.clip(_row_weights(block, multipliers),
-                          np.where(np.isfinite(lower), -np.inf, 0.0), np.where(np.isfinite(upper), np.inf, 0.0))
+        weights = np.clip(block_weights, np.where(np.isfinite(lower), -np.inf, 0.0),
+                          np.where(np.isfinite(upper), np.inf, 0.0))
         if weights.any():
             term = block.variable_curvature(weights)
             extra += term
             curved |= np.any(term != 0.0, axis=0)
     if not curved.any():
         return linearization, linearization
-    augmentation = _augmentation(linearization, multipliers)
+    augmentation = _augmentation(linearization, row_weights)
     # The regularisation elastic_qp adds keeps the reference definite.
     reference = linearization.hessian + augmentation + 1e-8 * np.eye(n)
     columns = np.flatnonzero(curved)
@@ -707,14 +709,15 @@ def _row_weights(block, multipliers) -> np.ndarray:
     return np.array([multipliers.get(label, 0.0) for label in block.labels])
 
 
-def _augmentation(linearization, multipliers) -> np.ndarray:
+def _augmentation(linearization, row_weights) -> np.ndarray:
     """``sigma A^T A`` (n, n): ``A`` the linearisation's equalities and the rows the previous
-    QP held (a nonzero multiplier), scaled (:func:`_with_curvature`)."""
+    QP held (a nonzero multiplier in ``row_weights``, one array a block, None for an empty
+    one), scaled (:func:`_with_curvature`)."""
     active = []
-    for block in linearization.blocks:
-        if not len(block):
+    for block, weights in zip(linearization.blocks, row_weights):
+        if weights is None:
             continue
-        held = (_row_weights(block, multipliers) != 0.0) | (block.lower == block.upper)
+        held = (weights != 0.0) | (block.lower == block.upper)
         active.append(block.jacobian[held] / block.scale[held, None])
     rows = np.vstack(active) if active else np.zeros((0, len(linearization.gradient)))
     return _AUGMENTATION * (rows.T @ rows)

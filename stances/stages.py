@@ -216,10 +216,8 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # Even held rigid the stance cannot be held: a support that gives a few
             # millimetres will not save it. Cheap rejection, with its reason (the
             # soft solve of such a stance was measured at 10-40 s).
-            statistics = dict(warm.statistics, rigid_warm_start_iterations=warm.iterations, options=_changed(options))
             reason = warm.reason if warm.statistics["status"] == OUT_OF_TIME else f"{HELD_RIGID}{warm.reason}"
-            return _timed_out(replace(warm, reason=reason, statistics=statistics,
-                                    solve_time=time.perf_counter() - start, stance=stance), time_budget)
+            return _refused_held(replace(warm, reason=reason), warm_iterations, options, start, stance, time_budget)
         if options.contact_law == "coulomb":
             # From the rigid posture the prints barely touch: W read off it, A xi(q),
             # leaves every node at the point of lifting off, with no force gradient.
@@ -243,10 +241,7 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
             # either (both soles on a 1e10 Pa slab, each centre of pressure on its toe edge,
             # on an 11 mm mesh: refused through W after 40 s, and after 525 s before the
             # held-mode contact solves stopped on their cycles; at once now, 0.16 s).
-            statistics = dict(refusal.statistics, rigid_warm_start_iterations=warm_iterations,
-                              options=_changed(options))
-            return _timed_out(replace(refusal, statistics=statistics, solve_time=time.perf_counter() - start,
-                                      stance=stance), time_budget)
+            return _refused_held(refusal, warm_iterations, options, start, stance, time_budget)
     if stiff is not None:
         result = stiff
     elif options.contact_law == "coulomb" and deformable:
@@ -282,6 +277,15 @@ def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, ref
         statistics["stiff_limit"] = True
     # solve_time covers everything this call did: building, warm start, SQP, verification.
     return _timed_out(replace(result, statistics=statistics, solve_time=time.perf_counter() - start), time_budget)
+
+
+def _refused_held(answer, warm_iterations, options, start, stance, time_budget) -> PostureResult:
+    """A stance refused on a solve with its soft supports held rigid (the rigid warm start's,
+    or the stiff limit's held solve): that ``answer``, its reason as given, with the warm
+    starts' iterations, the options changed, the whole call's time and the caller's stance."""
+    statistics = dict(answer.statistics, rigid_warm_start_iterations=warm_iterations, options=_changed(options))
+    return _timed_out(replace(answer, statistics=statistics, solve_time=time.perf_counter() - start, stance=stance),
+                      time_budget)
 
 
 def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None):
