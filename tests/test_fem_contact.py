@@ -546,6 +546,38 @@ def test_a_loaded_solve_finds_the_motion_whose_forces_carry_a_wrench(pad):
     assert np.allclose(warm[1], cold[1], rtol=0.0, atol=1e-12) and warm[0].iterations < cold[0].iterations
 
 
+def test_a_body_k_times_stiffer_pressed_k_times_less_gives_the_same_forces(pad, monkeypatch):
+    """C / k and U / k are the same contact: the forces must not change. The dense
+    factorisation of a law with lifted and slipping nodes (here in turned frames) mixes C's
+    rows (m/N) with replaced rows of size one. Unscaled it lost 1.7e-10 of these forces at
+    k = 1e5, and 4e-7 of a palm's and a sole's on foot-and-hand-on-foam's foam at 1e11 Pa,
+    where a loaded solve then never reached its 1e-9 tolerance (the stiff limit refused,
+    the answer 12 % off the rigid support's); its replaced rows scaled by their dofs'
+    compliance, 2e-15 here."""
+    import fem.contact as contact
+
+    monkeypatch.setattr(contact, "_LOW_RANK_ROWS", 0.0)  # every law with slip factorised densely
+    _, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    basis = _print_basis(patch)
+    xi = np.array([0.0006, 0.0, -0.002, 0.0, 0.03, 0.0])
+    turns = _exp_turns(patch.n_nodes, xi[3:])
+    soft = fem.PrintContactSystem(patch.compliance, frames, mu).solve((basis @ xi).reshape(-1, 3), turns=turns)
+    assert (soft.modes == fem.LIFT).any() and (soft.modes == fem.SLIP).any()
+    assert isinstance(soft._system[0], contact._DenseFactor)
+    k = 1e5
+    stiff_system = fem.PrintContactSystem(patch.compliance / k, frames, mu)
+    stiff = stiff_system.solve((basis @ xi / k).reshape(-1, 3), turns=turns)
+    assert np.array_equal(stiff.modes, soft.modes)
+    np.testing.assert_allclose(stiff.forces, soft.forces, rtol=0.0, atol=1e-12 * np.abs(soft.forces).max())
+    # The inverse, a wrench carried (its forces in untilted frames): the motion found again.
+    plain = fem.PrintContactSystem(patch.compliance, frames, mu).solve((basis @ xi).reshape(-1, 3))
+    wrench = basis.T @ plain.forces.reshape(-1)
+    loaded = stiff_system.solve_loaded(basis, wrench, lambda x: ((basis @ x).reshape(-1, 3), basis), np.zeros(6))
+    assert loaded is not None
+    np.testing.assert_allclose(loaded[1], xi / k, rtol=0.0, atol=1e-9 * np.abs(xi / k).max())
+
+
 def test_a_loaded_solve_of_a_wrench_beyond_the_print_is_none(pad):
     """A centre of pressure outside the print's nodes: no motion carries it."""
     _, patch, frames = pad
