@@ -72,15 +72,18 @@ def test_a_warm_body_reads_its_columns_instead_of_solving(mesh, cache):
 
 
 def test_the_matrix_of_every_ball_mean_is_kept_and_read_back(mesh, cache):
-    """Built at a body's second strain check and stored; the same body met again (a
-    planner's next plan) reads it at its first check: the same matrix, the same answer."""
+    """Built at a body's second strain check and stored under the mesh's key; the same
+    mesh met again (a planner's next plan, or another material on it: a stiffness sweep)
+    reads it at its first check: the same matrix, the same answer."""
     voigt = np.random.default_rng(2).normal(size=(mesh.n_tets, 6))
     cold = make_body(mesh, cache)
     first = cold.strain_averages.largest_principal(voigt, 0.2)  # screened, nothing stored
-    assert not cache.path(cold.cache_key, "ball_means_0.2").exists()
+    assert not cache.path(cold.mesh_key, "ball_means_0.2").exists()
     assert cold.strain_averages.largest_principal(voigt, 0.2) == first  # builds and stores the matrix
-    assert cache.path(cold.cache_key, "ball_means_0.2").exists()
-    warm = make_body(mesh, cache).strain_averages
+    assert cache.path(cold.mesh_key, "ball_means_0.2").exists()
+    stiffer = make_body(mesh, cache, LinearElasticMaterial(1e9, 0.3))
+    assert stiffer.cache_key != cold.cache_key and stiffer.mesh_key == cold.mesh_key
+    warm = stiffer.strain_averages
     assert warm._all_means(0.2)  # found at the first question
     matrix = warm.mean_matrix(0.2)
     built = cold.strain_averages.mean_matrix(0.2)
