@@ -377,14 +377,14 @@ def test_simple_print_polygons_are_accepted_and_hold_the_nodes_inside(polygon):
     assert found.size > 0 and set(found.tolist()) == set(inside.tolist())
 
 
-@pytest.mark.parametrize("young_modulus", [1e308, 1e14], ids=["1e308", "1e14"])
+@pytest.mark.parametrize("young_modulus", [1e308, 1e13], ids=["1e308", "1e13"])
 def test_enormous_young_modulus_is_a_material_error(young_modulus):
-    with pytest.raises(MaterialError, match="young_modulus must be <= 1e\\+13 Pa"):
+    with pytest.raises(MaterialError, match="young_modulus must be <= 1e\\+12 Pa"):
         fem.LinearElasticMaterial(young_modulus, 0.4)
 
 
 def test_enormous_young_modulus_in_a_scenario_names_the_material_key():
-    with pytest.raises(ScenarioError, match=r"objects\[1\]\.material\.E: must be <= 1e\+13 Pa"):
+    with pytest.raises(ScenarioError, match=r"objects\[1\]\.material\.E: must be <= 1e\+12 Pa"):
         environments.load_string(SCENARIO.replace("E: 1.0e+6", "E: 1.0e+308"), path="case.yaml")
 
 
