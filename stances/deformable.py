@@ -187,6 +187,12 @@ _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
 # fraction of its nodes' spacing inside their hull: on the hull's edge one line of nodes
 # carries the load and the link's turn about that line is not fixed by it.
 _REACH_MARGIN = 0.05
+# ... and this fraction inside the print's own outline: only off the edge itself (the
+# tipping limit, which no body of finite stiffness holds), since partly covered nodes past
+# the edge carry a centre of pressure near it over several rows. Romeo's palm on its cube
+# at 1e10 Pa, which the rigid support tips onto its edge: 2.86 % from the rigid support's
+# force with the hull's 0.05 (1.1 mm), 0.69 % with 0.01 (0.2 mm).
+_OUTLINE_MARGIN = 0.01
 LAWS = ("coulomb", "sticking", "bonded")
 
 
@@ -1238,9 +1244,10 @@ class DeformableContact:
         As E grows a print's links move by nanometres and its nodes' Coulomb forces can
         carry what a rigid contact carries where they are: a centre of pressure inside
         the convex hull of its link points (not the link's whole polygon, on a mesh
-        coarse under it) and inside that polygon, both moved in by ``_REACH_MARGIN`` of the
-        nodes' spacing, with the friction of the print's resultant (``friction_margin`` of
-        its nodes'). For :func:`stances.build_problem`'s ``held_prints``.
+        coarse under it) and inside that polygon, moved in by ``_REACH_MARGIN`` and
+        ``_OUTLINE_MARGIN`` of the nodes' spacing, with the friction of the print's
+        resultant (``friction_margin`` of its nodes'). For :func:`stances.build_problem`'s
+        ``held_prints``.
 
         Inside the polygon too: partly covered nodes past its edge are link points, and a
         hull through them let the stance hold with its centre of pressure on a sole's toe
@@ -1260,8 +1267,8 @@ class DeformableContact:
             points = ((self.link_points_at_rest[self.print_of_node == i] - placement.translation)
                       @ placement.rotation)[:, :2]
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
-            margin = _REACH_MARGIN * spacing
-            reach = clip_polygon(inset_hull(points, margin), inset_hull(self._outlines[i], margin))
+            reach = clip_polygon(inset_hull(points, _REACH_MARGIN * spacing),
+                                 inset_hull(self._outlines[i], _OUTLINE_MARGIN * spacing))
             out[spec.robot_surface] = HeldPrint(np.array(reach), self.friction_margin * self.print_mu[i])
         return out
 

@@ -259,6 +259,23 @@ def test_a_palm_and_a_sole_on_a_steel_stiff_foam_block_take_the_rigid_supports_l
         assert np.linalg.norm(stiff - held) < 0.005 * np.linalg.norm(held), link
 
 
+def test_a_palm_the_rigid_support_tips_onto_its_edge_is_held_near_that_edge_on_a_steel_stiff_cube():
+    """romeo-hand-on-soft-cube at E = 1e10 Pa: the rigid support puts Romeo's palm's centre of
+    pressure on the palm's edge (its tipping limit), and the stiff limit holds it as near as
+    the print allows. Kept 5 % of the nodes' spacing (1.1 mm) inside the outline, the palm's
+    force lay 2.86 % from the rigid support's (the robot leans on the palm over a 4 cm lever);
+    1 % (0.2 mm) gives 0.69 %."""
+    scenario = coarse_scenario("romeo-hand-on-soft-cube", resolution="default", young_modulus=1e10)
+    romeo = Robot.load(scenario.robot)
+    stance = scenario.stance("hand-on-soft-cube")
+    rigid = solve(romeo, scenario.scene, stance, deformable_as_rigid=True)
+    result = solve(romeo, scenario.scene, stance)
+    assert rigid.feasible and result.feasible and result.statistics.get("stiff_limit"), result.reason
+    frame = romeo.surface("right_palm").frame
+    held, stiff = (sum(p.force for p in answer.point_forces if p.frame == frame) for answer in (rigid, result))
+    assert np.linalg.norm(stiff - held) < 0.01 * np.linalg.norm(held)
+
+
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
     scenario = environments.load("stand")
     stance = Stance(
