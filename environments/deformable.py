@@ -65,8 +65,8 @@ The whole mesh scales with h (see :func:`soft_box_coordinates`): halving it halv
 every cell, in plane and in depth. ``default`` is chosen so that a Talos palm print
 (0.10 m x 0.07 m) placed anywhere, at any angle, on the refined region covers at
 least 9 surface nodes (a grid of spacing h, sampled over offsets and angles, leaves
-at least 10 under such a rectangle for h <= 0.0227 m); a sole (0.20 m x 0.11 m)
-covers about 30. At this spacing the force of a print made of the nodes inside it is
+at least 10 under such a rectangle for h <= 0.0227 m); a sole (0.21 m x 0.13 m)
+covers 45-60 (54 at the median placement). At this spacing the force of a print made of the nodes inside it is
 still 6-15 % above that of the mesh refined twice, and 11-49 % above the extrapolated
 converged value (``bench/results/mesh_convergence.md``): linear tets resolve the edge
 of a rigid print slowly. Those figures are for a print whose edges lie on node rows,

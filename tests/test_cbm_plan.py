@@ -213,6 +213,38 @@ def test_a_search_failing_on_a_soft_support_says_what_to_do(scenario, robot, rea
                               oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
 
 
+class SplitRefusingOracle(SyntheticOracle):
+    """Refuses any stance whose floor prints lie more than 0.8 m apart, as a robot's reach would."""
+
+    def __call__(self, stance, parent, parent_check):
+        xs = [c.contact_print.x for c in stance if c.contact_print.surface == "floor"]
+        if xs and max(xs) - min(xs) > 0.8:
+            self.calls.append(stance)
+            return StanceCheck(False, "print unreachable: placement of right_sole on floor (x) violated by 0.7 m", None)
+        return super().__call__(stance, parent, parent_check)
+
+
+def test_a_failed_plan_whose_goal_stance_is_not_held_says_so(scenario, robot):
+    """A goal whose prints stand on every foot but no posture holds (one sole 1.5 m ahead of
+    the other): the search cannot reach it on any grid, and the reason says why, from one
+    solve of the goal's own stance after the search, in place of the grid's hints (a user's
+    such goal was blamed on the obstacles); a goal that holds gets no such words."""
+    split = Goal(contacts=(Contact("left_sole", ContactPrint("floor", 0.0, 0.1)),
+                           Contact("right_sole", ContactPrint("floor", 1.5, -0.1))))
+    oracle = SplitRefusingOracle()
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, goal=split, max_expansions=15)
+    assert not failed.success
+    assert failed.reason.endswith("; the goal's own stance is not held: print unreachable: placement of "
+                                  "right_sole on floor (x) violated by 0.7 m")
+    assert "print grid" not in failed.reason  # no grid reaches it: no grid hint
+    assert oracle.calls[-1] == Stance(split.contacts)
+    beyond = Goal(contacts=(Contact("left_sole", ContactPrint("floor", 1.5, 0.1)),
+                            Contact("right_sole", ContactPrint("floor", 1.5, -0.1))))
+    held = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 1.0)),
+                goal=beyond, max_expansions=15)
+    assert not held.success and "goal's own stance" not in held.reason
+
+
 def test_missing_goal_is_a_clear_error(scenario, robot):
     scenario.goal = None
     with pytest.raises(CbmError, match="has no goal"):
