@@ -587,12 +587,19 @@ def plan(
         # Out of budget or out of stances among colliding ones, a finer grid may offer the
         # prints between the obstacles (a user's own 0.1 m grid on a rubber mat: at 200
         # expansions the hint, at 1000 the graph exhausted and no hint; 9 stances on 0.05 m).
-        # A goal no posture holds is the answer whatever the grid: its reason alone.
-        goal_hint = _goal_stance_hint(goal, feet, oracle)
-        rejected = [] if goal_hint else _rejected(searched)
+        # A goal stance that is its own only way to the goal and is not held: the answer
+        # whatever the grid, its reason in place of the grid's hints (and the ones it implies).
+        refused_goal = _goal_stance_refusal(goal, feet, oracle)
+        only_way = refused_goal is not None and set(usable) <= {c.robot_surface for c in goal.contacts}
+        rejected = [refused_goal] if only_way else _rejected(searched)
         exhausted = searched.reason.startswith("budget exhausted") or searched.reason == NO_FEASIBLE_NEIGHBOUR
-        reason += goal_hint or coarse_grid_hint(sampling.spacing, reach_model.step_length)
-        if exhausted and earlier is None and not goal_hint:
+        if refused_goal is not None:
+            reason += ("; the goal's own stance was not held from the reference posture: " if only_way else
+                       "; the goal's prints alone were not held from the reference posture (with another "
+                       "contact they may be): ") + refused_goal
+        if not only_way:
+            reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
+        if exhausted and earlier is None and not only_way:
             reason += finer_grid_hint(rejected, sampling.spacing)
         reason += strain_bound_hint(rejected)
         reason += unresolved_ball_hint(rejected)
@@ -601,17 +608,18 @@ def plan(
     return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing)
 
 
-def _goal_stance_hint(goal, feet, oracle) -> str:
-    """Why no posture holds the goal's own stance, where its prints alone stand on every foot
-    (and it has no regions): no grid or budget reaches it then (a user's goal with one sole
-    1.5 m ahead of the other: 200 expansions, and a reason that blamed the obstacles). One
-    more solve, on a failed plan only; nothing where it holds or the time is spent."""
+def _goal_stance_refusal(goal, feet, oracle):
+    """The reason a solve of the goal's own stance gives, from the reference posture, where its
+    prints alone stand on every foot (and it has no regions) and it is not held; None where
+    it holds, where the goal is no such stance, or where the time ran out. One more solve, on
+    a failed plan only: a user's goal with one sole 1.5 m ahead of the other took 200
+    expansions and a reason that blamed the obstacles."""
     if goal.regions or not goal.contacts or not set(feet) <= {c.robot_surface for c in goal.contacts}:
-        return ""
+        return None
     check = oracle(environments.Stance(goal.contacts), None, None)
-    if check.feasible or check.reason in ("", _OUT_OF_TIME):
-        return ""
-    return f"; the goal's own stance is not held: {check.reason}"
+    if check.feasible or not check.reason or check.reason == _OUT_OF_TIME or cause_of(check.reason) == "time":
+        return None
+    return check.reason
 
 
 def _progress_text(progress, time_limit):

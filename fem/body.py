@@ -279,11 +279,11 @@ class DeformableBody:
     def _load_entry(self, name: str, key: str | None = None) -> dict[str, np.ndarray] | None:
         if self._disk_cache is None:
             return None
-        return self._disk_cache.load(key or self.cache_key, name)
+        return self._disk_cache.load(self.cache_key if key is None else key, name)
 
     def _store_entry(self, name: str, arrays: dict[str, np.ndarray], key: str | None = None) -> None:
         if self._disk_cache is not None:
-            self._disk_cache.store(key or self.cache_key, name, arrays)
+            self._disk_cache.store(self.cache_key if key is None else key, name, arrays)
 
     @cached_property
     def stiffness(self) -> sp.csr_matrix:

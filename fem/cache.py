@@ -69,8 +69,9 @@ DEFAULT_MAX_MEGABYTES = 2048
 _OFF_VALUES = ("off", "0", "false", "no")
 
 # Modules whose code decides the cached numbers: assembly (stiffness), ordering and
-# solvers (the factor), body (how columns are solved), this one (entry layout).
-_SOURCES = ("mesh.py", "assembly.py", "ordering.py", "solvers.py", "body.py", "cache.py")
+# solvers (the factor), body (how columns are solved), this one (entry layout),
+# strain_average (the ball-mean matrix kept under the mesh's key).
+_SOURCES = ("mesh.py", "assembly.py", "ordering.py", "solvers.py", "body.py", "cache.py", "strain_average.py")
 
 # After eviction the cache holds at most this fraction of its bound, so that a run
 # adding entries one by one does not rescan the directory at each of them.

@@ -34,7 +34,7 @@ from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PostureResult
 from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
-from .stopping import NEARLY_FEASIBLE, NO_PROGRESS
+from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR
 from .verify import VerificationTolerances
 
 logger = logging.getLogger(__name__)
@@ -400,13 +400,15 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
     if not answer.feasible:
         # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
-        # that no step meets together, beyond what verify would take (a centre of pressure the
+        # that no step meets together, beyond what verify would take and the rounding floor at
+        # which a stall is no verdict (stances.stopping; a centre of pressure the
         # prints do not reach by a fraction of a millimetre: the soles' toe edges held by a
         # centre-of-mass row, 0.05 N short, where the solve through W then failed after 5-17 s).
         status, violation = answer.statistics["status"], answer.statistics["violation"]
         refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
                    and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
-                        or (status == "stalled" and violation > NEARLY_FEASIBLE * options.feasibility_tolerance)))
+                        or (status == "stalled"
+                            and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
         refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
         return abandon("held rigid, %s", answer.reason, refusal=refusal)
     q = np.asarray(answer.q, dtype=float)

@@ -224,25 +224,49 @@ class SplitRefusingOracle(SyntheticOracle):
         return super().__call__(stance, parent, parent_check)
 
 
+class GoalOutOfTimeOracle(SplitRefusingOracle):
+    """As SplitRefusingOracle, its solve of the goal's own stance cut by the time left."""
+
+    def __init__(self, goal):
+        super().__init__()
+        self.goal_stance = Stance(goal.contacts)
+
+    def __call__(self, stance, parent, parent_check):
+        if parent is None and stance == self.goal_stance:
+            return StanceCheck(False, "time budget of 0.3 s spent before convergence", None)
+        return super().__call__(stance, parent, parent_check)
+
+
 def test_a_failed_plan_whose_goal_stance_is_not_held_says_so(scenario, robot):
-    """A goal whose prints stand on every foot but no posture holds (one sole 1.5 m ahead of
-    the other): the search cannot reach it on any grid, and the reason says why, from one
-    solve of the goal's own stance after the search, in place of the grid's hints (a user's
-    such goal was blamed on the obstacles); a goal that holds gets no such words."""
+    """A goal whose prints stand on every foot but are not held (one sole 1.5 m ahead of the
+    other): the search cannot reach it on any grid, and the reason says why, from one solve of
+    the goal's own stance after the search (a user's such goal was blamed on the obstacles).
+    With the feet the only surfaces to place, it stands in place of the grid's hints; where a
+    hand may be placed too, a stance adding it may hold, and the grid's hints stay. A goal
+    that holds, or a time-cut solve of it, gets no such words."""
     split = Goal(contacts=(Contact("left_sole", ContactPrint("floor", 0.0, 0.1)),
                            Contact("right_sole", ContactPrint("floor", 1.5, -0.1))))
+    unreached = "print unreachable: placement of right_sole on floor (x) violated by 0.7 m"
+    scenario.options = {"print_spacing": 0.2, "robot_surfaces": ["left_sole", "right_sole"]}  # a coarse grid's hint
     oracle = SplitRefusingOracle()
     failed = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, goal=split, max_expansions=15)
     assert not failed.success
-    assert failed.reason.endswith("; the goal's own stance is not held: print unreachable: placement of "
-                                  "right_sole on floor (x) violated by 0.7 m")
+    assert failed.reason.endswith(f"; the goal's own stance was not held from the reference posture: {unreached}")
     assert "print grid" not in failed.reason  # no grid reaches it: no grid hint
     assert oracle.calls[-1] == Stance(split.contacts)
+    scenario.options = {"print_spacing": 0.2}  # the palms may be placed too
+    with_hands = plan(scenario, robot=robot, reach=robot.reach, oracle=SplitRefusingOracle(), goal=split,
+                      max_expansions=15)
+    assert ("; the goal's prints alone were not held from the reference posture (with another contact they may "
+            f"be): {unreached}; the print grid (0.2 m) is coarser") in with_hands.reason
     beyond = Goal(contacts=(Contact("left_sole", ContactPrint("floor", 1.5, 0.1)),
                             Contact("right_sole", ContactPrint("floor", 1.5, -0.1))))
     held = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 1.0)),
                 goal=beyond, max_expansions=15)
-    assert not held.success and "goal's own stance" not in held.reason
+    assert not held.success and "goal's" not in held.reason
+    cut = plan(scenario, robot=robot, reach=robot.reach, oracle=GoalOutOfTimeOracle(split), goal=split,
+               max_expansions=15)
+    assert not cut.success and "goal's" not in cut.reason
 
 
 def test_missing_goal_is_a_clear_error(scenario, robot):
