@@ -546,13 +546,24 @@ def plan(
                 bar.close()
         return searched, prints, sampling
 
+    refusals = []  # the goal stance's refusal (_goal_stance_refusal), once asked
+
+    def refused_goal():
+        if not refusals:
+            refusals.append(_goal_stance_refusal(goal, feet, oracle))
+        return refusals[0]
+
+    # Whether a goal stance that is not held is the plan's only way to its goal: the feet the
+    # only surfaces it places (a stance adding a hand may hold where the goal's prints do not).
+    goal_only = set(usable) <= {c.robot_surface for c in goal.contacts}
     earlier = None  # (statistics, spacing) of a search on the default grid that found no plan
     try:
         searched, prints, sampling = _out_of_time_said(search(print_spacing, limits))
         finer = sampling.spacing / 2.0
         left = None if time_limit is None else time_limit - (time.perf_counter() - started)
         if (own_grid and not searched.success and finer >= FINEST_GRID and (left is None or left > 0.0)
-                and searched.reason in (budget_exhausted("max_expansions"), NO_FEASIBLE_NEIGHBOUR)):
+                and searched.reason in (budget_exhausted("max_expansions"), NO_FEASIBLE_NEIGHBOUR)
+                and not (goal_only and refused_goal() is not None)):  # no grid reaches a goal not held
             # The default grid can miss every chain of prints clear of the obstacles (a
             # user's two 0.3 m mats end to end: 200 expansions, no plan, on 0.1 m; 11
             # stances in 1.8 s on 0.05 m), and a finer one from the start would slow
@@ -589,14 +600,14 @@ def plan(
         # expansions the hint, at 1000 the graph exhausted and no hint; 9 stances on 0.05 m).
         # A goal stance that is its own only way to the goal and is not held: the answer
         # whatever the grid, its reason in place of the grid's hints (and the ones it implies).
-        refused_goal = _goal_stance_refusal(goal, feet, oracle)
-        only_way = refused_goal is not None and set(usable) <= {c.robot_surface for c in goal.contacts}
-        rejected = [refused_goal] if only_way else _rejected(searched)
+        goal_reason = refused_goal()
+        only_way = goal_reason is not None and goal_only
+        rejected = [goal_reason] if only_way else _rejected(searched)
         exhausted = searched.reason.startswith("budget exhausted") or searched.reason == NO_FEASIBLE_NEIGHBOUR
-        if refused_goal is not None:
+        if goal_reason is not None:
             reason += ("; the goal's own stance was not held from the reference posture: " if only_way else
                        "; the goal's prints alone were not held from the reference posture (with another "
-                       "contact they may be): ") + refused_goal
+                       "contact they may be): ") + goal_reason
         if not only_way:
             reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
         if exhausted and earlier is None and not only_way:

@@ -220,7 +220,8 @@ class SplitRefusingOracle(SyntheticOracle):
         xs = [c.contact_print.x for c in stance if c.contact_print.surface == "floor"]
         if xs and max(xs) - min(xs) > 0.8:
             self.calls.append(stance)
-            return StanceCheck(False, "print unreachable: placement of right_sole on floor (x) violated by 0.7 m", None)
+            return StanceCheck(False, "print unreachable: placement of right_sole on floor (x) violated by 0.7 m",
+                               None)
         return super().__call__(stance, parent, parent_check)
 
 
@@ -241,9 +242,10 @@ def test_a_failed_plan_whose_goal_stance_is_not_held_says_so(scenario, robot):
     """A goal whose prints stand on every foot but are not held (one sole 1.5 m ahead of the
     other): the search cannot reach it on any grid, and the reason says why, from one solve of
     the goal's own stance after the search (a user's such goal was blamed on the obstacles).
-    With the feet the only surfaces to place, it stands in place of the grid's hints; where a
-    hand may be placed too, a stance adding it may hold, and the grid's hints stay. A goal
-    that holds, or a time-cut solve of it, gets no such words."""
+    With the feet the only surfaces to place, it stands in place of the grid's hints (and of a
+    search on a finer grid of the planner's own); where a hand may be placed too, a stance
+    adding it may hold, and the grid's hints stay. A goal that holds, or a time-cut solve of
+    it, gets no such words."""
     split = Goal(contacts=(Contact("left_sole", ContactPrint("floor", 0.0, 0.1)),
                            Contact("right_sole", ContactPrint("floor", 1.5, -0.1))))
     unreached = "print unreachable: placement of right_sole on floor (x) violated by 0.7 m"
@@ -264,6 +266,16 @@ def test_a_failed_plan_whose_goal_stance_is_not_held_says_so(scenario, robot):
     held = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 1.0)),
                 goal=beyond, max_expansions=15)
     assert not held.success and "goal's" not in held.reason
+    # On the planner's own grid, a goal not held is said before a finer grid is searched, and
+    # none is: a goal that holds gets the finer search.
+    scenario.options = {"robot_surfaces": ["left_sole", "right_sole"]}
+    own_grid = plan(scenario, robot=robot, reach=robot.reach, oracle=SplitRefusingOracle(), goal=split,
+                    max_expansions=15)
+    assert own_grid.reason == ("budget exhausted: max_expansions; the goal's own stance was not held from the "
+                               f"reference posture: {unreached}")
+    finer = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(forbidden_x=(0.0, 1.0)),
+                 goal=beyond, max_expansions=15)
+    assert "m print grid, after" in finer.reason and "goal's" not in finer.reason
     cut = plan(scenario, robot=robot, reach=robot.reach, oracle=GoalOutOfTimeOracle(split), goal=split,
                max_expansions=15)
     assert not cut.success and "goal's" not in cut.reason
