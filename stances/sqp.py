@@ -38,7 +38,7 @@ from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multiplier
 from .results import LazyDeformations, PointForce, PostureResult
 from .statics import points_in_world
 from .stopping import (
-    CRAWL_ALPHA, CREEPING, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN,
+    CRAWL_ALPHA, CREEPING, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, STALLED,
     StoppingTest,
     at_rounding_floor, better,
 )
@@ -510,7 +510,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             if raised:
                 penalty *= 10.0
             if stops.stalled(violation, elastic, raised, slow and violation <= _CURVATURE_PHASE):
-                status = "stalled"
+                status = STALLED
                 if linearization.met(tolerance):
                     # A restoration can have landed above the best feasible objective.
                     q, lam, linearization = better(stops.best, (q, lam, linearization))
@@ -572,7 +572,7 @@ def run_sqp(problem, q, lam, limit, deadline=None, creep=False) -> SqpOutcome:
             break
     q, lam, linearization = stops.final((q, lam, linearization))
     feasible = linearization.met(tolerance)
-    if feasible and status in ("stalled", LINGERING):
+    if feasible and status in (STALLED, LINGERING):
         status = "converged"  # feasible, and the merit cannot decrease further
     conflict = () if feasible else _conflict(linearization, penalty)
     reason = "" if feasible else _reason(linearization, iteration, status, conflict) + _conflict_clause(conflict)

@@ -34,7 +34,7 @@ from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PostureResult
 from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
-from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR
+from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR, STALLED
 from .verify import VerificationTolerances
 
 logger = logging.getLogger(__name__)
@@ -407,7 +407,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         status, violation = answer.statistics["status"], answer.statistics["violation"]
         refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
                    and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
-                        or (status == "stalled"
+                        or (status == STALLED
                             and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
         refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
         return abandon("held rigid, %s", answer.reason, refusal=refusal)

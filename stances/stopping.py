@@ -154,6 +154,7 @@ CREEPING = (f"far from feasible and creeping: {CREEP_STEPS} steps in a row cut w
             "by less than half")
 ROUNDING_FLOOR = 3e-7  # scaled violation (three default tolerances) within which a failed line search ends the solve
 NO_PROGRESS = f"no progress toward feasibility: the line search cut {CRAWL_STEPS} steps in a row below 1/16"
+STALLED = "stalled"  # the SQP's status where line searches found no step (StoppingTest.stalled)
 
 
 def at_rounding_floor(violation, elastic, tolerance) -> bool:
