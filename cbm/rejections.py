@@ -22,6 +22,7 @@ __all__ = [
 #: The cause of a ball foot's refusal for a contact the soft body's mesh does not resolve.
 UNRESOLVED_BALL = "ball foot with no converged force on the soft mesh"
 
+_SOFT_SUPPORT = "soft support (indentation, strain, contact)"
 # Constraint families, matched in this order against the text a reason starts
 # with once its qualifiers (HELD_RIGID, HELD_AT_NODES, "print unreachable: ") are removed.
 CAUSES = (
@@ -32,7 +33,7 @@ CAUSES = (
     ("torque limit", ("torque limit",)),
     ("collision", ("collision",)),
     ("friction", ("friction cone", "node contact")),
-    ("soft support (indentation, strain, contact)", ("indentation", "strain", "touch", "contact of", "tilt of the face")),
+    (_SOFT_SUPPORT, ("indentation", "strain", "touch", "contact of", "tilt of the face", "mesh overlap")),
     ("normal load", ("normal load",)),
 )
 # Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
@@ -45,6 +46,10 @@ INPUT_CAUSES = (
     ("print off its surface", ("lies off surface",)),
 )
 _QUALIFIERS = (HELD_RIGID, HELD_AT_NODES, "print unreachable: ")
+# The soft support's rows that can stand between a print and its placement (a sole on a soft
+# block's edge, whose partly covered nodes would bulge past its face: a new user's soft step,
+# 19 of 38 rejections read as reach): where the conflict names one, the soft support is the cause.
+_SOFT_BLOCKS = ("mesh overlap", "indentation")
 # The solver's list of constraints no step meets together (stances.sqp), after the reason.
 _CONFLICT = "; no step meets together: "
 
@@ -72,6 +77,13 @@ def cause_of(reason: str) -> str:
     ...          "or rad; no step meets together: collision between leg_left_6_link_0 and mat_a, placement of "
     ...          "left_sole on mat_b_top (x)")
     'collision'
+
+    So is one whose soft support's own rows stand in the way (a sole on a soft block's edge):
+
+    >>> cause_of("print unreachable: placement of left_sole on block_top (z, elastic) violated by 0.000118 m or rad; "
+    ...          "no step meets together: placement of left_sole on block_top (z, elastic), mesh overlap bound "
+    ...          "(0.002 m, max_mesh_overlap) at node 4353 of block")
+    'soft support (indentation, strain, contact)'
     """
     text = str(reason)
     for cause, fragments in INPUT_CAUSES:
@@ -83,8 +95,13 @@ def cause_of(reason: str) -> str:
             text = text[len(qualifier):]
     for cause, prefixes in CAUSES:
         if text.startswith(prefixes):
-            if cause == "reach (placement)" and any(c.startswith("collision") for c in conflict.split(", ")):
-                return "collision"
+            if cause == "reach (placement)":
+                # A print left unreached because something stands in its way: that thing.
+                blocking = conflict.split(", ")
+                if any(c.startswith("collision") for c in blocking):
+                    return "collision"
+                if any(c.startswith(_SOFT_BLOCKS) for c in blocking):
+                    return _SOFT_SUPPORT
             return cause
     return "other"
 

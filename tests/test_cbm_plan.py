@@ -389,6 +389,11 @@ def test_a_plan_says_why_stances_were_rejected(scenario, robot, tmp_path):
          "balance (static equilibrium)"),
         ("collision between leg_left_6_link_0 and firm_mat violated by 0.002 m", "collision"),
         ("indentation bound at node 375 of cube violated by 0.01 m", "soft support (indentation, strain, contact)"),
+        ("mesh overlap bound (0.002 m, max_mesh_overlap) at node 4453 of block violated by 2.38e-05 m",
+         "soft support (indentation, strain, contact)"),
+        ("print unreachable: placement of left_sole on block_top (z, elastic) violated by 0.000118 m or rad; no step "
+         "meets together: placement of left_sole on block_top (z, elastic), mesh overlap bound (0.002 m, "
+         "max_mesh_overlap) at node 4353 of block", "soft support (indentation, strain, contact)"),
         ("friction cone of the resultant of right_palm on cube_top (-x) violated by 0.9 N", "friction"),
         ("time limit reached before this stance was solved", "time"),
         ("time budget of 2 s spent before convergence; at the last iterate: collision between a and b", "time"),
