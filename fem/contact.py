@@ -491,8 +491,11 @@ class PrintContactSystem:
         self.c_local = (c if owned else c.copy()) if self._frames is None else _in_frames(frames, c)
         self.mu = mu
         # Complementarity scales: the diagonal stiffness of each dof.
-        self._compliance_diagonal = np.diag(self.c_local).copy()
-        self.scale = 1.0 / self._compliance_diagonal.reshape(p, 3)
+        diagonal = np.diag(self.c_local)
+        self.scale = 1.0 / diagonal.reshape(p, 3)
+        # A replaced row's scale in a dense factorisation (_dense_factor): its dof's compliance,
+        # rounded to a power of two so that the scaling is exact.
+        self._row_powers = np.exp2(np.round(np.log2(diagonal)))
         self._kept = kept
         self._factors = OrderedDict()
         self._inverse = None  # C^-1 in node frames, (3p, 3p), computed on the first low-rank factorisation
@@ -723,7 +726,7 @@ class PrintContactSystem:
         if not rows.size:
             return _DenseFactor(self.c_local)
         row_scale = np.ones(self.c_local.shape[0])
-        row_scale[rows] = np.exp2(np.round(np.log2(self._compliance_diagonal[rows])))
+        row_scale[rows] = self._row_powers[rows]
         return _DenseFactor(_replace_rows(self.c_local, law), row_scale)
 
     def _forces(self, u_local, system):
