@@ -12,7 +12,7 @@ from .contact import LIFT, SLIP, STICK, PrintContact, PrintContactSystem, print_
 from .body import DeformableBody, rotate_voigt, voigt_to_tensor_strain, von_mises
 from .cache import DiskCache
 from .deadline import SetupTimeout, check_deadline, deadline
-from .errors import BoundaryError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
+from .errors import BoundaryError, ContactStateError, FemError, FemWarning, MaterialError, MeshError, PrintError, SolverError
 from .io import read_mesh, write_mesh, write_pvd
 from .layer_contact import BallOnLayer, sphere_on_layer_force
 from .layer_strain import LayerBallStrain, axisymmetric_layer_field
@@ -32,6 +32,7 @@ __all__ = [
     "BoundaryError",
     "PrintError",
     "SolverError",
+    "ContactStateError",
     "FemWarning",
     "LOCKING_POISSON_RATIO",
     "TetMesh",

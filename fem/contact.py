@@ -43,7 +43,7 @@ import numpy as np
 import scipy.linalg
 
 from .dense import block_diagonal_product, spd_inverse
-from .errors import FemError
+from .errors import ContactStateError, FemError
 
 __all__ = [
     "PrintContact", "PrintContactSystem", "solve_print_contact", "print_contact_with_modes", "STICK", "SLIP", "LIFT",
@@ -545,7 +545,7 @@ class PrintContactSystem:
             if result is None and np.isinf(self.mu).any():
                 # As mu grows, a node can keep a finite tangential force while its
                 # normal force goes to zero; with mu = inf no contact state exists.
-                raise FemError(
+                raise ContactStateError(
                     "with infinite friction this motion has no contact state: a node would hold a tangential "
                     "force with no normal force (it slips at any finite friction); give a finite friction coefficient"
                 )
@@ -553,7 +553,7 @@ class PrintContactSystem:
                 # As mu grows a node's normal force can fall toward zero while its friction
                 # stays (the state tends to the one mu = inf has not): seen on a two-node
                 # print from mu = 10, and on a palm's converged (Q2) compliance at mu = 100.
-                raise FemError(
+                raise ContactStateError(
                     "the print's contact did not settle, even from a Gauss-Seidel solution: with friction as "
                     f"high as mu = {float(np.max(self.mu)):g} a node can need a tangential force with almost no "
                     "normal force, where the active set finds no state (try a smaller coefficient); with "
@@ -854,8 +854,11 @@ def solve_print_contact(compliance, displacements, frames, friction, initial_mod
     Raises
     ------
     FemError
-        On shapes that do not match, or when the active set cycles (not seen in
-        practice; the message gives the iteration count).
+        On shapes that do not match.
+    ContactStateError
+        When the active set finds no contact state (with very high friction a node can
+        need a tangential force with almost no normal force; with infinite friction a
+        node that would slip has no state at all).
 
     See Also
     --------

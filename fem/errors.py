@@ -56,5 +56,14 @@ class SolverError(FemError):
     """A sparse solver is unavailable or failed (e.g. matrix not positive definite)."""
 
 
+class ContactStateError(FemError):
+    """A print's Signorini-Coulomb contact has no state the active set finds at this motion.
+
+    With very high friction (or infinite) a node can need a tangential force with almost no
+    normal force: the discrete Coulomb problem then has no solution, or none the active set
+    reaches. A posture solver meets it at a trial motion and steps elsewhere.
+    """
+
+
 class FemWarning(UserWarning):
     """Doubtful physics, e.g. strains beyond the small-deformation hypothesis."""

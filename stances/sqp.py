@@ -31,6 +31,7 @@ import numpy as np
 import pinocchio as pin
 
 from fem.dense import single_threaded_blas
+from fem.errors import ContactStateError
 
 from .cold_start import initial_configuration, reaching_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
@@ -793,7 +794,10 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
     while alpha >= shortest:
         q_try = pin.integrate(model, q, alpha * step[:nv])
         lam_try = np.maximum(lam + alpha * step[nv:], problem.variable_lower)
-        trial = (problem.linearize if alpha == 1.0 else problem.evaluate)(q_try, lam_try, torque_weight)
+        trial = _values_or_none(problem.linearize if alpha == 1.0 else problem.evaluate, q_try, lam_try, torque_weight)
+        if trial is None:
+            alpha *= 0.5
+            continue
         trial_violation, _ = trial.max_violation()
         # The second test is a filter-style escape from the Maratos effect: near
         # a solution a full step may raise the merit through curvature while
@@ -813,8 +817,8 @@ def _line_search(problem, q, lam, step, linearization, violation, penalty, predi
                 trial = problem.linearize(q_try, lam_try, torque_weight)
             corrected = restoration_step(problem, trial, q_try, lam_try, correction)
             if corrected is not None:
-                values = problem.evaluate(*corrected, torque_weight)
-                if sufficient(values.objective, values.max_violation()[0], alpha):
+                values = _values_or_none(problem.evaluate, *corrected, torque_weight)
+                if values is not None and sufficient(values.objective, values.max_violation()[0], alpha):
                     return (*corrected, problem.linearize(*corrected, torque_weight)), alpha, True
         alpha *= 0.5
     return None, alpha, False
@@ -872,7 +876,21 @@ def _restoration(problem, linearization, q, lam, workspace, torque_weight):
     (q, lam, Linearization) at the restored point.
     """
     restored = restoration_step(problem, linearization, q, lam, workspace)
-    return None if restored is None else (*restored, problem.linearize(*restored, torque_weight))
+    linearization = None if restored is None else _values_or_none(problem.linearize, *restored, torque_weight)
+    return None if linearization is None else (*restored, linearization)
+
+
+def _values_or_none(evaluate, q, lam, torque_weight):
+    """``evaluate(q, lam, torque_weight)`` (the problem's ``linearize`` or ``evaluate``), or None
+    where a soft print's contact has no state at that posture: no trial there. With very high
+    friction a node can need a tangential force with almost no normal force, where the discrete
+    Coulomb problem has no state (``fem.ContactStateError``): a posture solve on a palm at
+    mu = 50 raised it from a line search's trial, while nearer postures have states and the
+    stance solves at mu = 30."""
+    try:
+        return evaluate(q, lam, torque_weight)
+    except ContactStateError:
+        return None
 
 
 def _solve_step_qp(workspace, linearization, penalty, accuracy, plain_first):

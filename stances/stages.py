@@ -27,6 +27,7 @@ import numpy as np
 import pinocchio as pin
 
 from fem.deadline import SetupTimeout, deadline as setup_deadline
+from fem.errors import ContactStateError
 
 from .cold_start import initial_configuration, starting_configuration
 from .errors import ConfigurationError, StanceError
@@ -82,6 +83,9 @@ _LIFT_STEPS = 4
 _FREE_STEPS = 2
 # The status of a solve refused before its SQP (_balls_refused_anyway).
 BALLS_REFUSED = "ball refused before solving"
+# The status (and the reason's start) of a solve that met a posture where a soft print's
+# contact has no state (fem.ContactStateError) other than as a line search's trial.
+NO_CONTACT_STATE = "contact of a soft print with no Coulomb state at a posture the solve had to start from"
 # What a stance's reason starts with when it cannot be held even with its soft supports
 # held rigid (the rigid warm start's cheap rejection; cbm.rejections reads past it).
 HELD_RIGID = "even with its soft supports held rigid: "
@@ -155,6 +159,10 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         # Out of time while a soft print was set up: an answer, as a spent budget
         # is anywhere else, from the posture the solve would have started at.
         return _unsolved(robot, scene, stance, q_init, start, OUT_OF_TIME, _budget_spent(time_budget, str(stop)))
+    except ContactStateError as error:
+        # A soft print's contact with no state at a posture a stage started from or
+        # restored to (the SQP's trials step around such postures): an answer too.
+        return _unsolved(robot, scene, stance, q_init, start, NO_CONTACT_STATE, f"{NO_CONTACT_STATE}: {error}")
 
 
 def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:

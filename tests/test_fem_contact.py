@@ -351,7 +351,7 @@ def test_infinite_friction_without_a_contact_state_is_refused_with_the_reason(pa
     assert len(slipping) >= 1
     # Their tangential force is what friction allows: 1e6 times a vanishing normal force.
     assert np.abs(slipping[:, 2]).max() < 1e-4 and np.linalg.norm(slipping[:, :2], axis=1).min() > 1.0
-    with pytest.raises(fem.FemError, match="with infinite friction this motion has no contact state"):
+    with pytest.raises(fem.ContactStateError, match="with infinite friction this motion has no contact state"):
         fem.solve_print_contact(patch.compliance, displacements, frames, np.full(patch.n_nodes, np.inf))
 
 
@@ -371,7 +371,7 @@ def test_a_state_lost_to_high_friction_is_reported_as_such_not_as_a_bug():
         assert state.modes[1] == fem.SLIP
         normals.append(state.forces[1, 2])
     assert np.all(np.diff(normals) < 0.0) and normals[-1] < 0.2 * normals[0]
-    with pytest.raises(fem.FemError, match=r"did not settle, even from a Gauss-Seidel solution: with friction as high "
+    with pytest.raises(fem.ContactStateError, match=r"did not settle, even from a Gauss-Seidel solution: with friction as high "
                                            r"as mu = 10 a node can need a tangential force with almost no normal force, "
                                            r"where the active set finds no state \(try a smaller coefficient\)"):
         fem.solve_print_contact(compliance, motion, frames, [10.0, 10.0])
