@@ -43,6 +43,11 @@ logger = logging.getLogger(__name__)
 _FROZEN_ITERATIONS = 30  # per attempt with the prints' contact sets held (it converges in a few)
 _FREE_ITERATIONS = 25  # first Coulomb stage, modes read at every linearisation (isotropic slip: hand-on-soft-cube needs 18; at 15 it fell to held-mode attempts, 69 iterations)
 _CONTACT_SET_VIOLATION = 1e-2  # scaled violation beyond which a Coulomb solve is not retried
+# ... unless its first stage stopped within this many iterations: its start failed it, not
+# the stance (hand-on-coarse-cube's palm at mu = 3-7, modes read at every step from the
+# rigid answer's loads: no progress after 4-5 iterations at a violation of 1; with the
+# modes held from the same start, solved in 16-23).
+_EARLY_STOP = 8
 # Warm starts give starting postures only: feasible within 1e-2 (scaled: 0.1 mm and 0.1 mrad
 # of placement, 0.1 N of equilibrium, where a soft print then sinks millimetres), and done
 # once an iteration gains under 1 % of the objective. At 1e-5 the rigid warm start spent
@@ -577,7 +582,8 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
     free = solve_problem(problem, q, lam_init=lam_init, max_iterations=_FREE_ITERATIONS, deadline=deadline, creep=True)
     iterations = free.iterations
     status, violation = free.statistics["status"], free.statistics["violation"]
-    hopeless = status in ("stagnated", NO_PROGRESS, QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+    hopeless = (status in ("stagnated", NO_PROGRESS, QP_FAILED) and violation > _CONTACT_SET_VIOLATION
+                and free.iterations > _EARLY_STOP)
     if free.feasible or status == OUT_OF_TIME or hopeless:
         return free  # converged, out of time, or stuck far from feasible at a large penalty: cannot be held
     # Cut short or stalled near a solution: go on from there; far from it: from the start.

@@ -74,3 +74,15 @@ def test_a_start_without_a_contact_state_is_an_answer_with_its_reason(robot, mon
     assert result.reason == f"{NO_CONTACT_STATE}: the print's contact did not settle (a test's)"
     assert cause_of(result.reason) == "soft support (indentation, strain, contact)"
     assert np.all(np.isfinite(result.q)) and result.iterations == 0
+
+
+def test_more_friction_never_refuses_a_palm_that_less_friction_holds(robot):
+    """hand-on-coarse-cube's palm from mu = 2 to 10: Coulomb's first stage, modes read at every
+    step from the rigid answer's loads, stalled after 4-5 iterations at mu = 3, 5 and 7 (a
+    violation of 1) and the stance was refused, though held at 2.5, 4 and 10; a first stage
+    stopped that early goes on with the modes held from its start, as one cut short near a
+    solution does."""
+    for friction in (2.0, 3.0, 5.0, 7.0, 10.0):
+        scenario = _with_soft_friction("hand-on-coarse-cube", friction)
+        result = stances.solve(robot, scenario.scene, scenario.stance("hand-on-cube"))
+        assert result.feasible and result.verification.ok, (friction, result.reason)
