@@ -38,7 +38,7 @@ CAUSES = (
 )
 # Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
 INPUT_CAUSES = (
-    ("soft mesh too coarse for the print", (" mesh node(s); at least",)),
+    ("soft mesh too coarse for the print", (" mesh node(s); at least", " cells of the mesh under it; at least")),
     # A ball foot's contact the mesh does not resolve (stances.deformable, ball_force_error):
     # the mesh, not the start, decides it.
     (UNRESOLVED_BALL, ("resolve a ball's contact", "smaller than the mesh resolves")),

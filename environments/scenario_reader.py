@@ -18,7 +18,7 @@ import numpy as np
 import yaml
 
 from .deformable import (
-    DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, _fine_spacing,
+    DEFAULT_MINIMUM_PRINT_CELLS, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, _fine_spacing,
     soft_blocks, soft_box,
 )
 from .errors import ScenarioError, SceneError, known_names
@@ -46,7 +46,7 @@ OBJECT_KEYS = {
     "box": ("name", "type", "size", "center", "yaw_deg", "friction", "side_surfaces", "floating"),
     "soft_box": (
         "name", "type", "size", "center", "yaw_deg", "material", "resolution", "refine", "refine_lines", "grid", "friction",
-        "strain_limit", "strain_radius", "floating",
+        "strain_limit", "strain_radius", "minimum_print_cells", "floating",
     ),
     "soft_blocks": (
         "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius", "floating",
@@ -441,6 +441,7 @@ class _Reader:
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
             strain_radius=self.strain_radius(item, key),
+            minimum_print_cells=self.number(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS),
         )
         return obj, [top]
 
