@@ -151,8 +151,9 @@ class DeformableObject:
         block triangles a few).
     minimum_print_cells : float
         Fewest surface cells a flat print on it must cover (default
-        :data:`DEFAULT_MINIMUM_PRINT_CELLS`); a stance with a print on fewer is
-        refused as a mesh too coarse for it. 0 accepts any print.
+        :data:`DEFAULT_MINIMUM_PRINT_CELLS`); with the consistent reaction model (the
+        default) a stance with a print on fewer is refused as a mesh too coarse for it.
+        0 accepts any print. A scenario sets it for a ``soft_box``.
     """
 
     name: str

@@ -441,7 +441,7 @@ class _Reader:
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
             strain_radius=self.strain_radius(item, key),
-            minimum_print_cells=self.number(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS),
+            minimum_print_cells=self.minimum_print_cells(item, key),
         )
         return obj, [top]
 
@@ -564,6 +564,14 @@ class _Reader:
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
             strain_radius=self.strain_radius(item, key),
         )
+
+    def minimum_print_cells(self, item: Mapping, key: str) -> float:
+        """A soft box's ``minimum_print_cells``: a number of cells >= 0, the default where absent."""
+        value = self.number(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS)
+        if value < 0.0:
+            raise self.error(join_key(key, "minimum_print_cells"),
+                             f"must be a number of mesh cells >= 0 (0: any print), got {item['minimum_print_cells']!r}")
+        return value
 
     def surface_search(self, item: Mapping, key: str) -> SurfaceSearch:
         """The settings of ``surfaces: auto`` (``auto_surfaces``), defaults where absent."""

@@ -165,14 +165,16 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         # is anywhere else, from the posture the solve would have started at.
         return _unsolved(robot, scene, stance, q_init, start, OUT_OF_TIME, _budget_spent(time_budget, str(stop)))
     except ContactStateError as error:
-        # A soft print's contact with no state at a posture a stage started from or
-        # restored to (the SQP's trials step around such postures): an answer too.
+        # A soft print's contact with no state at a posture a stage had to start from (the
+        # SQP's trials step around such postures; the stiff limit and held-mode attempts
+        # give way to what follows them): an answer too, at the solve's starting posture.
         return _unsolved(robot, scene, stance, q_init, start, NO_CONTACT_STATE, f"{NO_CONTACT_STATE}: {error}")
 
 
 def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:
-    """An infeasible answer given before any SQP iteration, at the posture the solve would
-    have started from, its ``statistics`` the ``status`` alone."""
+    """An infeasible answer at the posture the solve started from (its SQP iterations, if any,
+    not counted: a time-out in a print's setup, a contact with no state where a stage had to
+    start), its ``statistics`` the ``status`` alone."""
     q = initial_configuration(robot, scene, stance) if q_init is None else np.asarray(q_init, dtype=float)
     return PostureResult(
         feasible=False, q=q, point_forces=(), torques=np.zeros(robot.model.nv - 6), iterations=0,
@@ -402,59 +404,64 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     def out_of_time():
         return deadline is not None and time.perf_counter() >= deadline
 
-    held_prints = {}
-    for contact, _ in stiff:
-        held_prints.update(contact.held_prints())
-    held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
-    forces = _held_start(held, problem, q, lam, warm)
-    if any(c.kind == "deformable" for c in held.contacts):
-        answer = _solve_coulomb(held, q, deadline, lam_init=forces)
-    else:  # every body held, or the others balls on layers: no contact sets to settle
-        answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
-    if not answer.feasible:
-        # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
-        # that no step meets together, beyond what verify would take and the rounding floor at
-        # which a stall is no verdict (stances.stopping; a centre of pressure the
-        # prints do not reach by a fraction of a millimetre: the soles' toe edges held by a
-        # centre-of-mass row, 0.05 N short, where the solve through W then failed after 5-17 s).
-        status, violation = answer.statistics["status"], answer.statistics["violation"]
-        refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
-                   and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
-                        or (status == STALLED
-                            and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
-        refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
-        return abandon("held rigid, %s", answer.reason, refusal=refusal)
-    q = np.asarray(answer.q, dtype=float)
-    lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
-    for contact, s in stiff:
+    try:
+        held_prints = {}
+        for contact, _ in stiff:
+            held_prints.update(contact.held_prints())
+        held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
+        forces = _held_start(held, problem, q, lam, warm)
+        if any(c.kind == "deformable" for c in held.contacts):
+            answer = _solve_coulomb(held, q, deadline, lam_init=forces)
+        else:  # every body held, or the others balls on layers: no contact sets to settle
+            answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
+        if not answer.feasible:
+            # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
+            # that no step meets together, beyond what verify would take and the rounding floor at
+            # which a stall is no verdict (stances.stopping; a centre of pressure the
+            # prints do not reach by a fraction of a millimetre: the soles' toe edges held by a
+            # centre-of-mass row, 0.05 N short, where the solve through W then failed after 5-17 s).
+            status, violation = answer.statistics["status"], answer.statistics["violation"]
+            refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
+                       and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
+                            or (status == STALLED
+                                and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
+            refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
+            return abandon("held rigid, %s", answer.reason, refusal=refusal)
+        q = np.asarray(answer.q, dtype=float)
+        lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+        for contact, s in stiff:
+            if out_of_time():
+                return abandon("out of time")
+            carried = contact.carrying_variables(lam[s])
+            give = None if carried is None else contact.link_give(carried[1])
+            if give is None or give > _STIFF_GIVE:
+                if give is None:
+                    how = "find no motion of the links that carries its loads"
+                else:
+                    how = (f"carry its loads only by giving {1e6 * give:.3g} um, more than the {1e6 * _STIFF_GIVE:g} um "
+                           "a stiff body's limit takes (on a body this stiff a centre of pressure near a print's last "
+                           "row of nodes is carried only if the print pivots, and the mesh's spacing under the print "
+                           "sets where that row lies)")
+                note = f"held rigid, the stance holds, but the nodes of {contact.label} {how}"
+                return abandon("the nodes of %s %s", contact.label, how, note=note)
+            lam[s] = carried[0]
         if out_of_time():
             return abandon("out of time")
-        carried = contact.carrying_variables(lam[s])
-        give = None if carried is None else contact.link_give(carried[1])
-        if give is None or give > _STIFF_GIVE:
-            if give is None:
-                how = "find no motion of the links that carries its loads"
-            else:
-                how = (f"carry its loads only by giving {1e6 * give:.3g} um, more than the {1e6 * _STIFF_GIVE:g} um "
-                       "a stiff body's limit takes (on a body this stiff a centre of pressure near a print's last "
-                       "row of nodes is carried only if the print pivots, and the mesh's spacing under the print "
-                       "sets where that row lies)")
-            note = f"held rigid, the stance holds, but the nodes of {contact.label} {how}"
-            return abandon("the nodes of %s %s", contact.label, how, note=note)
-        lam[s] = carried[0]
-    if out_of_time():
-        return abandon("out of time")
-    lifted = _lift(problem, q, lam, [s for _, s in stiff])
-    if lifted is None:
-        return abandon("the rows not met from the held answer")
-    q, lam, linearization, steps = lifted
-    met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
-    outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
-                         answer.statistics["qp_time"], met, "" if met else "the rows not met from the held answer")
-    result = posture_result(problem, outcome, time.perf_counter() - start)
-    if not result.feasible:
-        return abandon("%s", result.reason)
-    return result, None, None
+        lifted = _lift(problem, q, lam, [s for _, s in stiff])
+        if lifted is None:
+            return abandon("the rows not met from the held answer")
+        q, lam, linearization, steps = lifted
+        met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
+        outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
+                             answer.statistics["qp_time"], met, "" if met else "the rows not met from the held answer")
+        result = posture_result(problem, outcome, time.perf_counter() - start)
+        if not result.feasible:
+            return abandon("%s", result.reason)
+        return result, None, None
+    except ContactStateError as error:
+        # A print's contact with no state at a posture the held answer led to: the solve
+        # through W goes on, as where the held answer does not hold.
+        return abandon("no contact state: %s", error)
 
 
 def _balls_refused_anyway(problem, options) -> list:
@@ -513,10 +520,15 @@ def _lift(problem, q, lam, held):
     tolerance = problem.options.feasibility_tolerance
 
     def rows(q, lam):
-        linearization = problem.linearize(q, lam)
+        try:
+            linearization = problem.linearize(q, lam)
+        except ContactStateError:
+            return None  # a print's contact with no state there: no lift
         return replace(linearization, blocks=[b for b in linearization.blocks if b.name != "touch"])
 
     linearization = rows(q, lam)
+    if linearization is None:
+        return None
     for steps in range(_LIFT_STEPS + _FREE_STEPS + 1):
         if linearization.met(tolerance):
             return q, lam, linearization, steps
@@ -531,6 +543,8 @@ def _lift(problem, q, lam, held):
             return None
         q, lam = restored
         linearization = rows(q, lam)
+        if linearization is None:
+            return None
     # Nearly met, where an SQP's answer may end too (NEARLY_FEASIBLE): verification decides.
     if linearization.max_violation()[0] <= NEARLY_FEASIBLE * tolerance:
         return q, lam, linearization, _LIFT_STEPS + _FREE_STEPS
@@ -618,6 +632,10 @@ def _solve_coulomb(problem, q_init, deadline=None, attempts=3, lam_init=None) ->
                 break
             held = modes
             attempt = solve_problem(problem, q, lam_init=given, max_iterations=_FROZEN_ITERATIONS, deadline=deadline)
+        except ContactStateError:
+            # A print's contact with no state where an attempt would start: the first stage's
+            # answer stands.
+            return replace(free, iterations=iterations)
         finally:
             for contact, _ in deformable:
                 contact.release_modes()

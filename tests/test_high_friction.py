@@ -76,7 +76,7 @@ def test_a_start_without_a_contact_state_is_an_answer_with_its_reason(robot, mon
     assert np.all(np.isfinite(result.q)) and result.iterations == 0
 
 
-def test_more_friction_never_refuses_a_palm_that_less_friction_holds(robot):
+def test_hand_on_coarse_cubes_palm_holds_from_mu_2_to_10(robot):
     """hand-on-coarse-cube's palm from mu = 2 to 10: Coulomb's first stage, modes read at every
     step from the rigid answer's loads, stalled after 4-5 iterations at mu = 3, 5 and 7 (a
     violation of 1) and the stance was refused, though held at 2.5, 4 and 10; a first stage

@@ -61,3 +61,11 @@ def test_a_minimum_print_cells_that_is_no_count_is_refused(value):
     body = environments.load("hand-on-cube").scene.deformable_objects[0]
     with pytest.raises(SceneError, match=r"object 'cube': minimum_print_cells must be a number of mesh cells >= 0"):
         DeformableObject("cube", body.body, np.eye(4), minimum_print_cells=value)
+
+
+def test_a_scenario_minimum_print_cells_below_zero_is_refused_where_it_is_written():
+    text = environments.builtin_scenario_path("hand-on-cube").read_text().replace(
+        "    refine: [[-0.5, -0.2], [-0.2, 0.3]]", "    refine: [[-0.5, -0.2], [-0.2, 0.3]]\n    minimum_print_cells: -2")
+    with pytest.raises(environments.ScenarioError, match=r"objects\[1\]\.minimum_print_cells: must be a number of mesh "
+                                                         r"cells >= 0 \(0: any print\), got -2"):
+        environments.load_string(text, name="hand-on-cube")

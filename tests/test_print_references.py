@@ -20,8 +20,9 @@ COUPLING = bench_module("bench_print_coupling")
 with open(COUPLING.REFERENCES) as _handle:
     CASES = {case["name"]: case for case in json.load(_handle)["cases"]}
 
-# Cases whose bodies mesh in about a second, and how far their default meshes may lie from the
-# references; None: not refined here (bench_print_coupling.py refines every case).
+# Cases whose bodies mesh in about a second: how far their default meshes may lie from the
+# references, and whether the case is refined twice here too (bench_print_coupling.py refines
+# every case).
 SMALL = {
     "Talos palm on a user's 0.3 m block": (0.06, True),  # -5.3 %: issue 8.2's miss, a palm on a thin small block
     "step-on-cube: right sole": (0.03, True),
@@ -42,7 +43,8 @@ def test_a_print_force_lies_near_its_converged_reference_and_nearer_on_a_finer_m
         assert np.all(error <= tolerance), (factor, error)
         errors.append(error)
     if refine:
-        # Refining moves every print toward its reference: the model converges to the continuum's.
+        # Refining moves each of these prints toward its reference (measured; refinement converges,
+        # but an error near zero could cross over, so this holds for these cases, not as a law).
         assert np.all(errors[1] < errors[0])
 
 
