@@ -153,7 +153,7 @@ class DeformableObject:
         Fewest surface cells a flat print on it must cover (default
         :data:`DEFAULT_MINIMUM_PRINT_CELLS`); with the consistent reaction model (the
         default) a stance with a print on fewer is refused as a mesh too coarse for it.
-        0 accepts any print. A scenario sets it for a ``soft_box``.
+        0 accepts any print (a scenario's soft object's ``minimum_print_cells``).
     """
 
     name: str
@@ -964,6 +964,7 @@ def soft_blocks(
     friction: float = DEFAULT_FRICTION,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
     strain_radius: float = DEFAULT_STRAIN_RADIUS,
+    minimum_print_cells: float = DEFAULT_MINIMUM_PRINT_CELLS,
 ) -> tuple[DeformableObject, list]:
     """One deformable solid made of axis-aligned blocks side by side, its base fixed.
 
@@ -996,6 +997,8 @@ def soft_blocks(
     strain_radius : float
         Metres over which the strain is averaged before its bound applies (see
         :class:`DeformableObject`).
+    minimum_print_cells : float
+        Fewest surface cells a flat print must cover (:data:`DEFAULT_MINIMUM_PRINT_CELLS`).
 
     Returns
     -------
@@ -1058,7 +1061,8 @@ def soft_blocks(
     body = fem.DeformableBody(mesh, material, fixed_nodes)
     transform_body_to_world = transform_from_rotation_translation(np.eye(3), origin)
     obj = DeformableObject(name, body, transform_body_to_world, "base (the lowest face, on the floor) fixed",
-                           float(strain_limit), strain_radius, _box_faces(lows - origin, highs - origin))
+                           float(strain_limit), strain_radius, _box_faces(lows - origin, highs - origin),
+                           minimum_print_cells=minimum_print_cells)
     surfaces = [
         ContactSurface(
             f"{name}_{block_name}",

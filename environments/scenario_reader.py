@@ -49,12 +49,13 @@ OBJECT_KEYS = {
         "strain_limit", "strain_radius", "minimum_print_cells", "floating",
     ),
     "soft_blocks": (
-        "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius", "floating",
+        "name", "type", "blocks", "material", "resolution", "friction", "strain_limit", "strain_radius",
+        "minimum_print_cells", "floating",
     ),
     "mesh": ("name", "type", "file", "center", "yaw_deg", "surfaces", "auto_surfaces", "floating"),
     "soft_mesh": (
         "name", "type", "file", "position", "rpy_deg", "material", "resolution", "fixed", "surfaces", "auto_surfaces",
-        "strain_limit", "strain_radius", "floating",
+        "strain_limit", "strain_radius", "minimum_print_cells", "floating",
     ),
 }
 
@@ -563,10 +564,11 @@ class _Reader:
             friction=self.number(item, "friction", key, DEFAULT_FRICTION, positive=True),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
             strain_radius=self.strain_radius(item, key),
+            minimum_print_cells=self.minimum_print_cells(item, key),
         )
 
     def minimum_print_cells(self, item: Mapping, key: str) -> float:
-        """A soft box's ``minimum_print_cells``: a number of cells >= 0, the default where absent."""
+        """A soft object's ``minimum_print_cells``: a number of cells >= 0, the default where absent."""
         value = self.number(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS)
         if value < 0.0:
             raise self.error(join_key(key, "minimum_print_cells"),
@@ -613,6 +615,7 @@ class _Reader:
             search=self.surface_search(item, key),
             strain_limit=self.number(item, "strain_limit", key, DEFAULT_STRAIN_LIMIT, positive=True),
             strain_radius=self.strain_radius(item, key),
+            minimum_print_cells=self.minimum_print_cells(item, key),
         )
 
     def fixed_plane(self, item: Mapping, key: str) -> FixedPlane:

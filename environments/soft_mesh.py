@@ -14,7 +14,9 @@ from pathlib import Path
 import numpy as np
 import trimesh
 
-from .deformable import DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, DeformableObject, _fem, _fine_spacing
+from .deformable import (
+    DEFAULT_MINIMUM_PRINT_CELLS, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, DeformableObject, _fem, _fine_spacing,
+)
 from .errors import SceneError
 from .geometry import transform_from_rotation_translation
 from .mesh_surfaces import SurfaceSearch, auto_surfaces, find_surfaces
@@ -129,6 +131,7 @@ def soft_mesh(
     search: SurfaceSearch | None = None,
     strain_limit: float = DEFAULT_STRAIN_LIMIT,
     strain_radius: float = DEFAULT_STRAIN_RADIUS,
+    minimum_print_cells: float = DEFAULT_MINIMUM_PRINT_CELLS,
 ) -> tuple[DeformableObject, list[ContactSurface]]:
     """A deformable solid of any shape, fixed where it lies on a plane.
 
@@ -158,6 +161,8 @@ def soft_mesh(
     strain_radius : float
         Metres over which the strain is averaged before its bound applies (see
         :class:`DeformableObject`).
+    minimum_print_cells : float
+        Fewest surface cells a flat print must cover (see :class:`DeformableObject`).
 
     Returns
     -------
@@ -196,5 +201,6 @@ def soft_mesh(
     # Collisions see the user's surface when it is coarser than the tet mesh's boundary.
     coarser = len(surface.faces) < len(mesh.surface_triangles)
     obj = DeformableObject(name, body, transform_body_to_world, description, float(strain_limit), strain_radius,
-                           (np.asarray(surface.vertices), np.asarray(surface.faces)) if coarser else None)
+                           (np.asarray(surface.vertices), np.asarray(surface.faces)) if coarser else None,
+                           minimum_print_cells=minimum_print_cells)
     return obj, auto_surfaces(name, surface, transform_body_to_world, search, deformable=True)

@@ -494,8 +494,7 @@ class DeformableContact:
                     f"the print of {spec.label} covers {cells:.1f} cells of the mesh under it; at least "
                     f"{deformable_object.minimum_print_cells:g} are needed for its force (a palm on 1-3.4 cells lay 4-36 % "
                     f"below its force on the default resolution's): refine the mesh of {deformable_object.name!r} where "
-                    "prints land (a scenario's soft_box takes resolution and refine), or lower a soft box's "
-                    "minimum_print_cells"
+                    "prints land (a scenario's soft_box takes resolution and refine), or lower its minimum_print_cells"
                 )
             for index, (other, other_ids) in enumerate(zip(self.prints, node_sets)):
                 shared = np.intersect1d(inside, insides[index])

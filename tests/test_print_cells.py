@@ -69,3 +69,12 @@ def test_a_scenario_minimum_print_cells_below_zero_is_refused_where_it_is_writte
     with pytest.raises(environments.ScenarioError, match=r"objects\[1\]\.minimum_print_cells: must be a number of mesh "
                                                          r"cells >= 0 \(0: any print\), got -2"):
         environments.load_string(text, name="hand-on-cube")
+
+
+def test_every_soft_object_type_takes_its_minimum_print_cells():
+    """foot-and-hand-on-foam's step is a soft_blocks object: the key reaches it as a soft box's does."""
+    text = environments.builtin_scenario_path("foot-and-hand-on-foam").read_text()
+    assert "    type: soft_blocks\n" in text
+    text = text.replace("    type: soft_blocks\n", "    type: soft_blocks\n    minimum_print_cells: 9.5\n")
+    (step,) = environments.load_string(text, name="foot-and-hand-on-foam").scene.deformable_objects
+    assert step.minimum_print_cells == 9.5
