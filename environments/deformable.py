@@ -180,22 +180,12 @@ class DeformableObject:
                 f"object {self.name!r}: strain_limit must be a fraction in (0, 1) (e.g. 0.05 for 5 %), "
                 f"got {self.strain_limit!r}"
             )
-        if isinstance(self.strain_radius, bool) or not (
-            isinstance(self.strain_radius, (int, float, np.floating)) and 0.0 <= self.strain_radius < np.inf
-        ):
-            raise SceneError(
-                f"object {self.name!r}: strain_radius must be >= 0 metres (0: each tet's own strain), "
-                f"got {self.strain_radius!r}"
-            )
-        object.__setattr__(self, "strain_radius", float(self.strain_radius))
-        if isinstance(self.minimum_print_cells, bool) or not (
-            isinstance(self.minimum_print_cells, (int, float, np.floating)) and 0.0 <= self.minimum_print_cells < np.inf
-        ):
-            raise SceneError(
-                f"object {self.name!r}: minimum_print_cells must be a number of mesh cells >= 0 (0: any print), "
-                f"got {self.minimum_print_cells!r}"
-            )
-        object.__setattr__(self, "minimum_print_cells", float(self.minimum_print_cells))
+        for field, meaning in (("strain_radius", ">= 0 metres (0: each tet's own strain)"),
+                               ("minimum_print_cells", "a number of mesh cells >= 0 (0: any print)")):
+            value = getattr(self, field)
+            if isinstance(value, bool) or not (isinstance(value, (int, float, np.floating)) and 0.0 <= value < np.inf):
+                raise SceneError(f"object {self.name!r}: {field} must be {meaning}, got {value!r}")
+            object.__setattr__(self, field, float(value))
         if self.collision_mesh is not None:
             try:
                 vertices, triangles = self.collision_mesh

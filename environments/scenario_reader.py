@@ -18,8 +18,8 @@ import numpy as np
 import yaml
 
 from .deformable import (
-    DEFAULT_MINIMUM_PRINT_CELLS, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines, _fem, _fine_spacing,
-    soft_blocks, soft_box,
+    DEFAULT_MINIMUM_PRINT_CELLS, DEFAULT_STRAIN_LIMIT, DEFAULT_STRAIN_RADIUS, RESOLUTIONS, DeformableObject, RefineLines,
+    _fem, _fine_spacing, soft_blocks, soft_box,
 )
 from .errors import ScenarioError, SceneError, known_names
 from .goal import Goal, GoalRegion
@@ -489,13 +489,20 @@ class _Reader:
 
     def strain_radius(self, item: Mapping, key: str) -> float:
         """A soft object's ``strain_radius``: metres, >= 0 (default :data:`DEFAULT_STRAIN_RADIUS`)."""
-        radius = self.number(item, "strain_radius", key, DEFAULT_STRAIN_RADIUS)
-        if radius < 0.0:
-            raise self.error(
-                join_key(key, "strain_radius"),
-                f"must be >= 0 metres (0: each tet's own strain), got {radius:g}",
-            )
-        return radius
+        return self.non_negative(item, "strain_radius", key, DEFAULT_STRAIN_RADIUS,
+                                 ">= 0 metres (0: each tet's own strain)")
+
+    def minimum_print_cells(self, item: Mapping, key: str) -> float:
+        """A soft object's ``minimum_print_cells``: cells, >= 0 (default :data:`DEFAULT_MINIMUM_PRINT_CELLS`)."""
+        return self.non_negative(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS,
+                                 "a number of mesh cells >= 0 (0: any print)")
+
+    def non_negative(self, item: Mapping, name: str, key: str, default: float, meaning: str) -> float:
+        """The number ``item[name]`` (``default`` where absent), refused below 0 with ``meaning``."""
+        value = self.number(item, name, key, default)
+        if value < 0.0:
+            raise self.error(join_key(key, name), f"must be {meaning}, got {value:g}")
+        return value
 
     def resolution(self, item: Mapping, key: str):
         resolution = item.get("resolution", "default")
@@ -566,14 +573,6 @@ class _Reader:
             strain_radius=self.strain_radius(item, key),
             minimum_print_cells=self.minimum_print_cells(item, key),
         )
-
-    def minimum_print_cells(self, item: Mapping, key: str) -> float:
-        """A soft object's ``minimum_print_cells``: a number of cells >= 0, the default where absent."""
-        value = self.number(item, "minimum_print_cells", key, DEFAULT_MINIMUM_PRINT_CELLS)
-        if value < 0.0:
-            raise self.error(join_key(key, "minimum_print_cells"),
-                             f"must be a number of mesh cells >= 0 (0: any print), got {item['minimum_print_cells']!r}")
-        return value
 
     def surface_search(self, item: Mapping, key: str) -> SurfaceSearch:
         """The settings of ``surfaces: auto`` (``auto_surfaces``), defaults where absent."""
