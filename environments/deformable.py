@@ -60,7 +60,7 @@ default cell) gives 0.072, 0.069 and 0.072."""
 
 DEFAULT_MINIMUM_PRINT_CELLS = 4.0
 """Fewest surface cells of a soft object's mesh a flat print must cover (the sum of its
-nodes' covered fractions: its area over their cells' area) for its force to be trusted. On
+nodes' covered shares: its area over their cells' area) for its force to be trusted. On
 hand-on-cube's cube a palm moved from the refined region toward the far corner, its cells
 growing to 9 cm, lay within 4.8 % of the same palm's force on the default resolution
 everywhere while it covered 3.9 cells or more (15 in the region), -3.8 to -6.6 % at 3.0-3.4

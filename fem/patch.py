@@ -79,7 +79,7 @@ class ContactPatch:
     Build it with :meth:`DeformableBody.contact_patch`.
 
     Coverage (a print whose edges cross surface cells, :func:`fem.print_coverage`): a
-    node whose cell the robot's polygon covers by a fraction ``w < 1`` is coupled to
+    node whose shape function the robot's polygon covers by a share ``w < 1`` is coupled to
     the robot through a series compliance ``(1 - w) / w`` times its own compliance
     block ``C_ii``: fully covered nodes follow the robot, barely covered ones carry
     almost nothing, and the print's force changes continuously as it moves over the
@@ -157,7 +157,7 @@ class ContactPatch:
 
     @property
     def coverage(self) -> np.ndarray:
-        """(p,) float: the covered fraction of each node's cell (all 1 for the paper's print)."""
+        """(p,) float: the covered share of each node's shape function (all 1 for the paper's print)."""
         return np.ones(self._ids.size) if self._coverage is None else self._coverage
 
     @property

@@ -9,7 +9,7 @@ link, and the node displacements are the motion they impose (eq. 29):
     U_n(q) = R_b^T (y_n(q) - x_n),     y_n(q) = T_link(q) a_n      (body frame)
 
 The print's nodes (``reaction_model="consistent"``) are every surface node whose
-cell the robot's polygon covers, even in part (``fem.print_coverage``); a node
+shape function the robot's polygon covers, even in part (``fem.print_coverage``); a node
 covered by a fraction ``w < 1`` is coupled to its link point through a series
 compliance ``(1 - w) / w C_ii`` (``fem.ContactPatch``), so the link points move by
 ``(C + D) f`` and the print's force does not jump as node rows enter or leave it. Such a
@@ -466,8 +466,8 @@ class DeformableContact:
             polygon_in_body = (polygon_in_world - body_placement.translation) @ body_placement.rotation
             inside = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
             if self.method == "consistent":
-                # Every node whose surface cell the polygon covers, coupled by the
-                # covered fraction (fem.ContactPatch): the print's force then does not
+                # Every node whose shape function the polygon covers, coupled by the
+                # covered share (fem.ContactPatch): the print's force then does not
                 # jump as node rows enter or leave it.
                 ids, covered = fem.print_coverage(body.mesh, polygon_in_body, tolerance=1e-6)
                 ids = np.asarray(ids, dtype=np.int64)

@@ -1,7 +1,7 @@
-"""A print's coverage of the surface cells, and the coupling of partly covered nodes.
+"""A print's coverage of the surface nodes, and the coupling of partly covered nodes.
 
-:func:`fem.print_coverage` gives every surface node whose median-dual cell a
-convex polygon covers, with the covered fraction; :class:`fem.ContactPatch` couples
+:func:`fem.print_coverage` gives every surface node whose shape function a convex
+polygon covers, with the covered share of its integral; :class:`fem.ContactPatch` couples
 a partly covered node through a series compliance ``(1 - w) / w C_ii``. Checked
 here with quantities the library does not compute the same way: the covered areas
 add up to the polygon's area, coverage moves continuously with the polygon, and
@@ -37,8 +37,8 @@ def _rectangle(centre, half, angle_deg):
     return np.column_stack([corners, np.full(4, TOP)])
 
 
-def _top_cell_areas(mesh):
-    """Each node's median-dual cell area on the top face (a third of each top triangle)."""
+def _top_supports(mesh):
+    """Each node's shape function integral on the top face (a third of each top triangle)."""
     top = np.isclose(mesh.nodes[mesh.surface_triangles][:, :, 2], TOP).all(axis=1)
     areas = np.zeros(mesh.n_nodes)
     np.add.at(areas, mesh.surface_triangles[top].ravel(), np.repeat(mesh.surface_areas[top] / 3.0, 3))
@@ -47,11 +47,11 @@ def _top_cell_areas(mesh):
 
 @pytest.mark.parametrize("angle", [0.0, 17.0, 30.0])
 @pytest.mark.parametrize("shift", [0.0, 0.004, 0.0125])
-def test_covered_cell_areas_add_up_to_the_polygon_area(pad, angle, shift):
+def test_covered_shares_add_up_to_the_polygon_area(pad, angle, shift):
     polygon = _rectangle((0.2 + shift, 0.2 + 0.5 * shift), (0.1, 0.06), angle)
     ids, coverage = fem.print_coverage(pad.mesh, polygon)
-    covered = float((coverage * _top_cell_areas(pad.mesh)[ids]).sum())
-    # Left out: nodes whose cell is covered by less than MINIMUM_COVERAGE (a hundredth),
+    covered = float((coverage * _top_supports(pad.mesh)[ids]).sum())
+    # Left out: nodes whose shape function is covered by less than MINIMUM_COVERAGE,
     # a few dozen at most along the perimeter.
     assert covered == pytest.approx(0.2 * 0.12, abs=40 * MINIMUM_COVERAGE * 0.025**2)
     assert covered <= 0.2 * 0.12 + 1e-15
@@ -84,21 +84,21 @@ def test_coverage_moves_continuously_with_the_polygon(pad):
 
 
 def test_the_reach_is_how_far_outside_the_polygon_its_covered_nodes_lie(pad):
-    # Top nodes every 25 mm; every other node is where eight surface triangles meet (the
-    # cells are mirror images of their neighbours), and its cell reaches two thirds of a
-    # pitch, 16.7 mm, along the axes. x from 0.11 to 0.31: the nodes at x = 0.10 cover
-    # part of their cell and lie 10 mm outside; those at 0.325 cover nothing. y from
-    # 0.14 to 0.26: the eight-triangle nodes of the rows at 0.125 and 0.275 reach 1.7 mm
-    # into it and lie 15 mm outside.
+    # Top nodes every 25 mm; a node's shape function reaches a pitch along the axes. x
+    # from 0.11 to 0.31: the nodes at x = 0.10 lie 10 mm outside, those at 0.325 reach
+    # 10 mm into it and lie 15 mm outside; y from 0.14 to 0.26: the rows at 0.125 and
+    # 0.275 reach 10 mm into it, 15 mm outside; the corner nodes (0.325, 0.125) and
+    # (0.325, 0.275) reach the corners (covered by 0.016, over MINIMUM_COVERAGE):
+    # 15 sqrt(2) mm out.
     rectangle = np.array([[0.11, 0.14, TOP], [0.31, 0.14, TOP], [0.31, 0.26, TOP], [0.11, 0.26, TOP]])
-    assert fem.coverage_reach(pad.mesh, rectangle) == pytest.approx(0.015, abs=1e-12)
-    assert fem.coverage_reach(pad.mesh, rectangle[::-1]) == pytest.approx(0.015, abs=1e-12)
+    assert fem.coverage_reach(pad.mesh, rectangle) == pytest.approx(0.015 * math.sqrt(2.0), abs=1e-12)
+    assert fem.coverage_reach(pad.mesh, rectangle[::-1]) == pytest.approx(0.015 * math.sqrt(2.0), abs=1e-12)
     narrower = rectangle + [[0, 0.002, 0], [0, 0.002, 0], [0, -0.002, 0], [0, -0.002, 0]]  # y 0.142 to 0.258
-    assert fem.coverage_reach(pad.mesh, narrower) == pytest.approx(0.01, abs=1e-12)
+    assert fem.coverage_reach(pad.mesh, narrower) == pytest.approx(math.hypot(0.015, 0.017), abs=1e-12)
     on_nodes = np.array([[0.1, 0.15, TOP], [0.3, 0.15, TOP], [0.3, 0.25, TOP], [0.1, 0.25, TOP]])
     assert fem.coverage_reach(pad.mesh, on_nodes) == pytest.approx(0.0, abs=1e-12)  # every covered node on or in it
-    # Turned, the ring lies up to a cell's half-diagonal out.
-    assert 0.0 < fem.coverage_reach(pad.mesh, _rectangle((0.2, 0.2), (0.1, 0.06), 17.0)) < 0.025 * math.sqrt(0.5) + 1e-12
+    # Turned, the ring lies up to a cell's diagonal out.
+    assert 0.0 < fem.coverage_reach(pad.mesh, _rectangle((0.2, 0.2), (0.1, 0.06), 17.0)) < 0.025 * math.sqrt(2.0) + 1e-12
 
 
 def test_a_concave_polygon_is_refused(pad):
@@ -138,7 +138,7 @@ def test_a_fully_covered_print_is_the_papers_print_bit_for_bit(pad):
 
 def test_the_print_force_barely_depends_on_where_the_print_lies_on_the_mesh(pad):
     # The same rectangle anywhere on the lattice: the nodes inside it take whole rows
-    # (aligned: one more row on each side), the covered cells take its area.
+    # (aligned: one more row on each side), the covered shape functions take its area.
     forces_inside, forces_covered = [], []
     press = np.array([0.0, 0.0, -0.002])
     for shift in (0.0, 0.005, 0.0125, 0.02):
@@ -149,10 +149,11 @@ def test_the_print_force_barely_depends_on_where_the_print_lies_on_the_mesh(pad)
         patch = pad.contact_patch(ids, coverage)
         forces_covered.append(patch.reaction_forces(np.tile(press, (len(ids), 1)))[:, 2].sum())
     spread = lambda values: np.ptp(values) / np.mean(values)  # noqa: E731
-    # Measured 4.2 % against 33 % for the nodes inside (a print 8 x 4 cells wide); 5.1 %
-    # over shifts spanning two pitches, the period of the mirrored cells (one diagonal
-    # everywhere, before 2026-12-03: 2.7 % and 4.1 %).
-    assert spread(forces_covered) < 0.06
+    # Measured 2.7 % against 33 % for the nodes inside (a print 8 x 4 cells wide); 3.2 %
+    # over shifts spanning two pitches, the period of the mirrored cells (by median-dual
+    # cells before 2026-12-06: 4.2 and 5.1 %; one diagonal everywhere, before
+    # 2026-12-03: 2.7 and 4.1 %).
+    assert spread(forces_covered) < 0.04
     assert spread(forces_inside) > 5 * spread(forces_covered)
 
 
@@ -173,7 +174,7 @@ def test_convex_polygons_of_any_vertex_count_are_covered_by_their_area(pad, side
     polygon = np.column_stack([0.2 + 0.07 * np.cos(angles), 0.2 + 0.07 * np.sin(angles), np.full(sides, TOP)])
     ids, coverage = fem.print_coverage(pad.mesh, polygon)
     area = 0.5 * sides * 0.07**2 * np.sin(2 * np.pi / sides)
-    covered = float((coverage * _top_cell_areas(pad.mesh)[ids]).sum())
+    covered = float((coverage * _top_supports(pad.mesh)[ids]).sum())
     assert covered == pytest.approx(area, abs=40 * MINIMUM_COVERAGE * 0.025**2)
 
 
@@ -204,11 +205,12 @@ def _inside_convex(points, polygon):
     return (edges[None, :, 0] * rel[..., 1] - edges[None, :, 1] * rel[..., 0] >= 0.0).all(axis=1)
 
 
-def test_each_cells_covered_fraction_is_what_sampling_finds(pad):
-    """Sampling the top face on a fine lattice, no quadrilaterals: a point of a triangle
-    belongs to the median-dual cell of the vertex with its largest barycentric
-    coordinate. The sampled covered fraction of every partly covered cell matches fem's
-    exact clipping, and every cell kept is covered at least MINIMUM_COVERAGE."""
+def test_each_nodes_covered_share_is_what_sampling_finds(pad):
+    """Sampling the top face on a fine lattice, no clipping: a point of a triangle
+    weighs for each vertex by its barycentric coordinate, the vertex's shape function
+    there. The sampled covered share of every partly covered node's shape function
+    matches fem's exact clipping, and every node kept is covered at least
+    MINIMUM_COVERAGE."""
     polygon = _rectangle((0.2 + 0.004, 0.2 + 0.002), (0.1, 0.06), 17.0)
     ids, coverage = fem.print_coverage(pad.mesh, polygon)
     mesh = pad.mesh
@@ -229,18 +231,21 @@ def test_each_cells_covered_fraction_is_what_sampling_finds(pad):
     u, v = np.where(folded, 1.0 - u, u).ravel(), np.where(folded, 1.0 - v, v).ravel()
     barycentric = np.broadcast_to(np.stack([1.0 - u - v, u, v], axis=1), (len(triangles), u.size, 3))
     points = np.einsum("tsk,tkj->tsj", barycentric, mesh.nodes[triangles][:, :, :2]).reshape(-1, 2)
-    owner = np.take_along_axis(triangles, barycentric.argmax(axis=2), axis=1).ravel()
-    inside = _inside_convex(points, _counter_clockwise(polygon[:, :2]))
+    inside = _inside_convex(points, _counter_clockwise(polygon[:, :2])).reshape(len(triangles), -1)
+    # Each node's sampled integral of its shape function, over the polygon and in all.
+    covered, total = np.zeros(mesh.n_nodes), np.zeros(mesh.n_nodes)
+    np.add.at(covered, triangles.ravel(), np.einsum("ts,tsk->tk", inside, barycentric).ravel())
+    np.add.at(total, triangles.ravel(), barycentric.sum(axis=1).ravel())
     checked = 0
     for node, w in zip(ids.tolist(), coverage):
         if not whole[node]:
             continue
-        sampled_w = inside[owner == node].mean()
+        sampled_w = covered[node] / total[node]
         assert sampled_w >= MINIMUM_COVERAGE - 0.002
         if w < 1.0:
             assert sampled_w == pytest.approx(w, abs=0.003)
             checked += 1
     assert checked >= 30  # the partly covered ring of a 0.2 x 0.12 m print on 25 mm cells
-    # Nodes of cells the polygon misses are left out.
+    # Nodes whose shape function the polygon misses are left out.
     for node in np.setdiff1d(np.flatnonzero(whole), ids).tolist():
-        assert inside[owner == node].mean() < MINIMUM_COVERAGE + 0.002
+        assert covered[node] / total[node] < MINIMUM_COVERAGE + 0.002

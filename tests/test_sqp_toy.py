@@ -941,3 +941,40 @@ def test_a_held_mode_attempt_its_cap_ended_goes_on_free(monkeypatch):
     assert calls == [stages._FREE_ITERATIONS, stages._FROZEN_ITERATIONS, None]
     np.testing.assert_allclose(result.q, 0.02)  # the free stage from the first stage's q
     assert result.iterations == 15 and result.reason == "stalled"
+
+
+def test_attempts_from_the_start_that_never_settle_give_way_to_the_first_stage_with_its_own_loads(monkeypatch):
+    """The first Coulomb stage ends early far from feasible (the held-mode attempts begin
+    from the start, with the start's loads), and every attempt stalls near feasibility in
+    modes other than those it held: the last, uncapped free stage goes on from where the
+    first stage stopped, with its contact variables (W read off that posture would leave
+    every print lifting off with no force: a palm leaning on its centre-of-pressure rows
+    stalled 100 N short of a normal-load bound, a new user's audit)."""
+    from stances.results import PostureResult
+
+    problem = _held_modes_problem()
+    contact = problem.contacts[0]
+    modes = iter(range(100))
+    contact.freeze_modes = lambda model, data, w: np.array([next(modes)])  # never the same twice
+    starts, loads = [], np.array([3.0, 4.0])
+
+    def stage(problem, q, lam_init=None, max_iterations=None, deadline=None, check=True, creep=False):
+        starts.append((max_iterations, float(np.asarray(q)[0]), None if lam_init is None else tuple(lam_init)))
+        first, last = max_iterations == stages._FREE_ITERATIONS, max_iterations is None
+        return PostureResult(
+            feasible=last, q=np.asarray(q, dtype=float) + 0.01, point_forces=(), torques=np.zeros(0), iterations=5,
+            solve_time=0.0, stance=None,
+            statistics={"status": "converged" if last else stopping.NO_PROGRESS,
+                        "violation": 0.0 if last else (0.5 if first else 1e-4), "lambda": loads if first else np.zeros(2)},
+            reason="" if last else stopping.NO_PROGRESS,
+        )
+
+    monkeypatch.setattr(stages, "solve_problem", stage)
+    start_loads = np.array([1.0, 2.0])
+    result = stages._solve_coulomb(problem, np.zeros(3), lam_init=start_loads)
+    frozen = stages._FROZEN_ITERATIONS
+    # The attempts: from the start with the start's loads, then each from the last one's end.
+    assert starts == [(stages._FREE_ITERATIONS, 0.0, (1.0, 2.0)), (frozen, 0.0, (1.0, 2.0)), (frozen, 0.01, None),
+                      (frozen, 0.02, None), (None, 0.01, (3.0, 4.0))]
+    assert result.feasible and result.iterations == 25
+    np.testing.assert_allclose(result.q, 0.02)

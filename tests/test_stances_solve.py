@@ -1251,12 +1251,12 @@ def test_depth_below_a_surface_is_read_along_the_normal_on_the_face_over_the_poi
 
 @pytest.mark.parametrize(
     "x_lines, y_lines, held",
-    [([-0.5, -0.3, -0.05, 0.5], [-0.5, -0.1, 0.15, 0.5], 3), ([-0.5, -0.3, 0.5], [-0.5, 0.0, 0.5], 2)],
+    [([-0.5, -0.3, -0.05, 0.5], [-0.5, -0.1, 0.15, 0.5], 3), ([-0.5, -0.2, 0.5], [-0.5, -0.2, 0.5], 2)],
     ids=["3-nodes", "2-nodes"],
 )
 def test_a_soft_print_needs_three_mesh_nodes(robot, x_lines, y_lines, held):
     """hand-on-coarse-cube's palm print (10 x 7 cm) on a cube meshed by hand so coarsely
-    that the print covers the cells of 3, or 2, mesh nodes (found by trying grids):
+    that the print covers the shape functions of 3, or 2, mesh nodes (found by trying grids):
     three are enough for a print; two are refused, saying how to fix it."""
     text = environments.builtin_scenario_path("hand-on-coarse-cube").read_text()
     text = text.replace("x: [-0.5, -0.45, -0.35, -0.05, 0.25, 0.5]", f"x: {x_lines}")
@@ -1447,22 +1447,21 @@ def test_a_rigid_warm_start_ends_at_its_own_cap(anymal, monkeypatch, cap, option
 def test_a_stance_whose_rows_lie_beyond_the_trust_region_keeps_its_penalty(monkeypatch):
     """While the elastic QP's shortfall keeps falling with its step held by the trust region,
     the penalty is not raised. turn's stance turning the right sole 45 degrees on the mat,
-    from the posture on the left sole alone: 9 Coulomb iterations (15 in the rigid warm
-    start); raising the penalty at every cut step, 17 (and 18), to the same verified answer
-    within the tolerances. The sole is let pivot (``max_corner_lift=inf``, its corner 0.14 mm
-    up): held flat it takes 15 iterations, the rule's own rows' work."""
+    the mat taken as a rigid support (what a soft solve's rigid warm start solves), from
+    the posture on the left sole alone: solved in 56 iterations; raising the penalty at
+    every cut step, the SQP stops after 36 with the stance refused. (Until 2026-12-06 the
+    soft solve showed it, 9 Coulomb iterations against 17; since prints cover their nodes'
+    shape functions both take 13.)"""
     scenario = environments.load(BENCH / "scenes" / "turn.yaml")
     robot = Robot.load(scenario.robot)
     on_left = Stance((Contact("left_sole", ContactPrint("mat_top", -0.2, 0.0, 0.0)),))
     turned = Stance(on_left.contacts + (Contact("right_sole", ContactPrint("mat_top", 0.1, -0.1, math.pi / 4)),))
-    start = solve(robot, scenario.scene, on_left).q
-    result = solve(robot, scenario.scene, turned, q_init=start, max_corner_lift=np.inf)
+    start = solve(robot, scenario.scene, on_left, deformable_as_rigid=True).q
+    result = solve(robot, scenario.scene, turned, q_init=start, max_corner_lift=np.inf, deformable_as_rigid=True)
     monkeypatch.setattr(sqp, "_ELASTIC_PROGRESS", 0.0)  # no shortfall counts as falling
-    without = solve(robot, scenario.scene, turned, q_init=start, max_corner_lift=np.inf)
+    without = solve(robot, scenario.scene, turned, q_init=start, max_corner_lift=np.inf, deformable_as_rigid=True)
     assert result.feasible and result.verification.ok, result.reason
-    assert without.feasible and without.verification.ok, without.reason
-    assert result.iterations + 5 <= without.iterations
-    assert result.statistics["rigid_warm_start_iterations"] < without.statistics["rigid_warm_start_iterations"]
+    assert not without.feasible and without.iterations < result.iterations
 
 
 _LEANING_ON_A_PALM = """
@@ -1491,18 +1490,19 @@ stances:
 """
 
 
-def test_a_coulomb_solve_whose_held_modes_never_settle_goes_on_from_its_start_with_its_loads(robot):
-    """A palm pressed 100 N into a soft cube beside soles on foam, the robot held leaning
-    back (a new user's audit): the first Coulomb stage creeps far from feasible, the held-mode
-    attempts converge to contact sets verify refuses, and the last stage goes on. It started
-    from the start with W read off the starting posture, every print lifting off with no
-    force, and stalled 100 N short at zero force; from the start with the start's own loads
-    (the rigid warm start's, as the first stage had them), and now from where the first stage
-    stopped with its own, it converges and verifies."""
+def test_a_palm_pressed_into_a_soft_cube_while_the_robot_leans_back_is_solved(robot):
+    """A palm pressed 90 N into a soft cube beside soles on foam, the robot held leaning
+    back (a new user's audit). At 100 N the first Coulomb stage had crept far from feasible,
+    the held-mode attempts never settled, and the last stage, going on from where the first
+    stopped with its own loads, converged (80 iterations): that path is now
+    ``tests/test_sqp_toy.py``'s. Since prints cover their nodes' shape functions
+    (2026-12-06) the 100 N stance is refused ("no progress" on the palm's pitch) as were
+    most of its neighbours before (110-120 N, other palm places: 15 of 18 refused before,
+    all 23 that took the held-mode path since); at 90 N the solve converges in 25."""
     scenario = environments.load_string(_LEANING_ON_A_PALM, name="leaning-on-a-palm")
     lean = CentreOfMassBounds(upper=(0.05, math.inf, math.inf), label="lean")
-    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[lean], min_normal_force=100.0,
+    result = solve(robot, scenario.scene, scenario.stance("both-palm"), constraints=[lean], min_normal_force=90.0,
                    max_corner_lift=math.inf)
     assert result.feasible and result.verification.ok, result.reason
     palm = sum(np.asarray(f.force) for f in result.point_forces if f.frame == robot.surface("right_palm").frame)
-    assert palm[2] >= 100.0 - 1e-6
+    assert palm[2] >= 90.0 - 1e-6
