@@ -24,8 +24,8 @@ first table's extrapolated limit of the same rectangle. The lattice-aligned prin
 the first table is the worst placement: its edges lie on node rows, which all enter the
 print.
 
-Third table: the covered prints the posture solver uses (every node whose surface cell
-the polygon covers, coupled by the covered fraction), aligned and placed, at h and h / 2.
+Third table: the covered prints the posture solver uses (every node whose shape function
+the polygon covers, coupled by the covered share), aligned and placed, at h and h / 2.
 
 Fourth table: each built-in scenario's soft boxes at their own resolution, with the
 time to factorise K_NN and to build a palm print's condensed stiffness (3 solves per
@@ -279,7 +279,7 @@ lattice-aligned print on the same mesh, the worst placement.
 
 ## Covered prints (the posture solver's consistent model)
 
-Every node whose surface cell the print covers, coupled by the covered fraction w
+Every node whose shape function the print covers, coupled by the covered share w
 through a series compliance `(1 - w) / w C_ii` (`fem.print_coverage`,
 `fem.ContactPatch(coverage=...)`): the aligned rectangle and the same six placements.
 "largest change from previous": max over the seven prints of |F_h/2 / F_h - 1|, the

@@ -9,7 +9,7 @@ independent finite elements (Q2 hexahedra with lines on the print's edges, refin
 150k-300k dofs, Richardson), each for a print's solved motion in a stance: four palms
 (sessions o and p) and eight soles (session t). Here the
 library's own print model answers for the same motions (a body's prints pressed at
-once): the nodes whose surface cell the print's polygon covers (``fem.print_coverage``), coupled by their covered fraction
+once): the nodes whose shape function the print's polygon covers (``fem.print_coverage``), coupled by their covered share
 (``fem.ContactPatch``), Coulomb contact at every node (``fem.solve_print_contact``), on the
 body's default mesh (the scenario's, or ``soft_box_coordinates``'s for a box), and on
 meshes ``factor`` times finer in every direction (``environments.refined``). The baseline

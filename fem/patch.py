@@ -84,8 +84,8 @@ class ContactPatch:
     block ``C_ii``: fully covered nodes follow the robot, barely covered ones carry
     almost nothing, and the print's force changes continuously as it moves over the
     mesh. Measured on soft boxes (bench/results/mesh_convergence.md): a print's force
-    varies by under 1.5 % with its placement on the default mesh, where the nodes
-    inside the polygon alone vary by 14-42 %. The consistent reaction is then
+    varies by under 1 % with its placement on the default mesh, where the nodes
+    inside the polygon alone vary by 3-19 %. The consistent reaction is then
     ``-(C + D)^-1``, D the block-diagonal coupling (:attr:`link_compliance`).
 
     Parameters
