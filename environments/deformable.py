@@ -62,9 +62,11 @@ DEFAULT_MINIMUM_PRINT_CELLS = 4.0
 """Fewest surface cells of a soft object's mesh a flat print must cover (the sum of its
 nodes' covered shares: its area over their cells' area) for its force to be trusted. On
 hand-on-cube's cube a palm moved from the refined region toward the far corner, its cells
-growing to 9 cm, lay within 4.8 % of the same palm's force on the default resolution
-everywhere while it covered 3.9 cells or more (15 in the region), -3.8 to -6.6 % at 3.0-3.4
-cells and -5.5 to -36 % at 2.2 or fewer (still 4 nodes at 1 cell). Every built-in robot's
+growing to 9 cm, lay within 2.6 % of the same palm's force on the default resolution
+everywhere while it covered 4.0 cells or more (15 in the region), -2.8 to -3.8 % at 2.7-3.5
+cells and -8 to -33 % at 2.2 or fewer (measured in session u with prints covering shape
+functions; with median-dual cells before: within 4.8 % from 3.9 cells, -3.8 to -6.6 % at
+3.0-3.4, -5.5 to -36 % at 2.2 or fewer). Every built-in robot's
 print covers more at the default resolution (iCub's palm 6.6 cells, Talos' 13.8, soles
 9.6-54); a mesh meant to be coarse (the paper's) sets its own, 0 to accept any print."""
 
@@ -81,7 +83,8 @@ still 6-15 % above that of the mesh refined twice, and 11-49 % above the extrapo
 converged value (``bench/results/mesh_convergence.md``): linear tets resolve the edge
 of a rigid print slowly. Those figures are for a print whose edges lie on node rows,
 the worst placement; the covered print the posture solver uses changes by at most
-2.4 % from the default mesh to the refined one, wherever it lies.
+2.6 % from the default mesh to the refined one, wherever it lies (2.4 % with median-dual
+cells, before 2026-12-06).
 ``coarse`` is for fast tests: a sole print still covers several nodes, a palm
 print may cover fewer than 9.
 """

@@ -512,7 +512,7 @@ class DeformableBody:
             :func:`fem.nodes_in_polygon`. Their order sets the row order of every
             displacement and force array of the patch.
         coverage : (p,) float, optional
-            Covered fraction of each node's cell (:func:`fem.print_coverage`); see
+            Covered share of each node's shape function (:func:`fem.print_coverage`); see
             :class:`ContactPatch`.
 
         Returns

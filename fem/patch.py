@@ -94,7 +94,7 @@ class ContactPatch:
     node_ids : (p,) int
         Distinct, non-fixed surface nodes, p >= 3.
     coverage : (p,) float, optional
-        Covered fraction of each node's cell, in (0, 1]; all 1 by default (every
+        Covered share of each node's shape function, in (0, 1]; all 1 by default (every
         node follows the robot: the paper's print).
     """
 

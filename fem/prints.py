@@ -90,8 +90,9 @@ def nodes_in_polygon(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) ->
 def coverage_reach(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> float:
     """How far outside a convex polygon the nodes of its :func:`print_coverage` lie.
 
-    A partly covered node may lie up to a cell outside the polygon; its force acts
-    there. This is the largest such distance, in the polygon's plane.
+    A partly covered node may lie up to a cell's diagonal outside the polygon (its
+    shape function reaching in); its force acts there. This is the largest such
+    distance, in the polygon's plane.
 
     Parameters
     ----------

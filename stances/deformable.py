@@ -15,8 +15,10 @@ compliance ``(1 - w) / w C_ii`` (``fem.ContactPatch``), so the link points move 
 ``(C + D) f`` and the print's force does not jump as node rows enter or leave it. Such a
 node lies ``D f`` behind its link point, the deformed mesh reaching into the link at the
 print's edge: rows keep that within ``max_mesh_overlap``.
-A partly covered node's link point is its rest position, at most a cell outside
-the polygon, where it carries a small share of the load. The ``traction`` model
+A partly covered node's link point is its rest position, at most a cell's diagonal
+outside the polygon (its shape function reaching in), where it carries a small share of
+the load: the print's forces are then the consistent loads of a pressure inside it, and
+rows keep its centre of pressure inside the outline. The ``traction`` model
 keeps the nodes inside the polygon.
 
 A point foot (a ball of radius r) may press the nodes under its print octagon,
@@ -191,7 +193,8 @@ _REACH_MARGIN = 0.05
 # tipping limit, which no body of finite stiffness holds), since partly covered nodes past
 # the edge carry a centre of pressure near it over several rows. Romeo's palm on its cube
 # at 1e10 Pa, which the rigid support tips onto its edge: 2.86 % from the rigid support's
-# force with the hull's 0.05 (1.1 mm), 0.69 % with 0.01 (0.2 mm).
+# force with the hull's 0.05 (1.1 mm), 0.69 % with 0.01 (0.2 mm) (session s, median-dual
+# cells; 0.69 % again with shape functions, session u).
 _OUTLINE_MARGIN = 0.01
 LAWS = ("coulomb", "sticking", "bonded")
 
@@ -492,7 +495,7 @@ class DeformableContact:
                 # environments.DEFAULT_MINIMUM_PRINT_CELLS says what fewer cells cost.
                 raise StanceError(
                     f"the print of {spec.label} covers {cells:.1f} cells of the mesh under it; at least "
-                    f"{deformable_object.minimum_print_cells:g} are needed for its force (a palm on 1-3.4 cells lay 4-36 % "
+                    f"{deformable_object.minimum_print_cells:g} are needed for its force (a palm on 1-3.5 cells lay 3-33 % "
                     f"below its force on the default resolution's): refine the mesh of {deformable_object.name!r} where "
                     "prints land (a scenario's soft_box takes resolution and refine), or lower its minimum_print_cells"
                 )
@@ -504,8 +507,9 @@ class DeformableContact:
                         f"node(s) of {deformable_object.name!r}): two links cannot press the same spot; "
                         "move one print"
                     )
-                # Prints closer than a cell share the cells between them: each such node
-                # follows the link covering more of it (the other's coverage is dropped).
+                # Prints closer than a cell share the nodes whose shape functions both
+                # cover: each such node follows the link covering more of it (the other's
+                # coverage is dropped).
                 shared, here, there = np.intersect1d(ids, other_ids, return_indices=True)
                 if shared.size:
                     mine = covered[here] > coverages[index][there]
@@ -715,9 +719,11 @@ class DeformableContact:
         (N m): all of them >= 0 puts the print's centre of pressure inside its outline.
         ``outlines`` and ``rests`` as :meth:`_corner_weights`' ``corners`` and ``rests``.
 
-        A partly covered node's link point is its rest position, up to a cell outside the
-        outline (its force acts there; fem.ContactPatch): on a new user's and the built-in
-        stances up to 25 % of a sole's or palm's load acted up to 13 mm past its edge.
+        A partly covered node's link point is its rest position, up to a cell's diagonal
+        outside the outline (its force acts there; fem.ContactPatch): on a new user's and the
+        built-in stances up to 25 % of a sole's or palm's load acted up to 13 mm past its edge
+        (measured with median-dual cells, before 2026-12-06; an audit since found 5-13 % on
+        three built-in stances, `/work/notes/audit-shape-coverage-2026-12-06/`).
         A foot whose centre of pressure lies past its edge would need a pressure outside
         it, which no converged contact gives. Returns ``((r, 3p) float, (r,) int print)``.
         """
