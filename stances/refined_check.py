@@ -18,6 +18,7 @@ import numpy as np
 import pinocchio as pin
 
 import environments
+from fem.errors import ContactStateError
 
 from .errors import StanceError
 from .problem import build_problem
@@ -25,6 +26,10 @@ from .results import PostureResult
 from .stages import posture_options, solve
 
 __all__ = ["RefinedCheck", "check_refined", "soft_robot_surfaces"]
+
+#: ``RefinedCheck.start_row`` where a soft print's contact has no Coulomb state at the
+#: answer's posture on the refined meshes (its ``start_violation`` is then inf).
+NO_STATE_AT_START = "contact of a soft print with no Coulomb state at the answer's posture"
 
 
 @dataclass(frozen=True)
@@ -41,9 +46,10 @@ class RefinedCheck:
         How far the given answer (posture and contact variables) is from holding
         on the refined meshes: its most violated constraint row's violation, in
         that row's units (metres or radians for a print's placement, newtons...);
-        0 if it holds there as it is.
+        0 if it holds there as it is; inf where a soft print's contact has no Coulomb
+        state there (very high friction).
     start_row : str
-        The label of that row.
+        The label of that row, or ``NO_STATE_AT_START``.
     result : PostureResult
         The stance solved on the refined meshes, started from the answer.
     joint_change : float
@@ -80,9 +86,14 @@ class RefinedCheck:
     def lines(self) -> list[str]:
         """A few lines for a person: meshes, the answer's violation there, the re-solve."""
         meshes = ", ".join(f"{name} {coarse:,} -> {fine:,} nodes" for name, coarse, fine in self.nodes)
-        out = [f"meshes refined {self.factor}x: {meshes}",
-               f"  the answer there as it is: {self.start_row} off by {self.start_violation:.3g} (m, rad or N, "
-               "as the row)" if self.start_violation > 0 else "  the answer holds there as it is"]
+        if self.start_row == NO_STATE_AT_START:
+            start = f"  the answer there as it is: {NO_STATE_AT_START}"
+        elif self.start_violation > 0:
+            start = (f"  the answer there as it is: {self.start_row} off by {self.start_violation:.3g} (m, rad or N, "
+                     "as the row)")
+        else:
+            start = "  the answer holds there as it is"
+        out = [f"meshes refined {self.factor}x: {meshes}", start]
         result = self.result
         if not self.ok:
             out.append(f"  re-solved there: infeasible: {result.reason}")
@@ -143,7 +154,13 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refin
             f"the answer has {lam.size} contact variables, the refined problem {problem.n_variables}: "
             "was it solved with other options?"
         )
-    _, start_row, start_violation = problem.evaluate(result.q, lam).worst_row()
+    try:
+        _, start_row, start_violation = problem.evaluate(result.q, lam).worst_row()
+    except ContactStateError:
+        # At very high friction a refined print's contact may have no Coulomb state at the
+        # answer's posture (fem.contact.HIGH_FRICTION): the answer does not hold there as
+        # it is; the solve below starts from it all the same and answers for itself.
+        start_row, start_violation = NO_STATE_AT_START, float("inf")
     answer = solve(robot, fine.scene, stance, q_init=result.q, lam_init=lam, **options)
     joint_change = (float(np.abs(pin.difference(robot.model, result.q, answer.q)).max())
                     if answer.feasible else float("nan"))

@@ -236,3 +236,29 @@ def test_a_plan_checked_on_refined_meshes_ends_with_its_verdict(robot, both_on_f
     assert out.rstrip().endswith(
         "meshes refined 2x: 1 of the 1 stances with a soft print do not hold (stance 0): the plan's soft meshes "
         "are too coarse for them; plan again with a finer resolution of those objects")
+
+
+def test_an_answer_whose_refined_contact_has_no_coulomb_state_is_checked_all_the_same(robot, both_on_foam, monkeypatch):
+    """At very high friction a refined print's contact may have no Coulomb state at the answer's
+    posture (``fem.ContactStateError``): the check says so instead of raising, and the re-solve
+    from the answer answers for itself (here, its evaluation at the start made to fail)."""
+    import stances.refined_check as refined_check
+
+    scenario, result, _ = both_on_foam
+    build = refined_check.build_problem
+
+    def without_state_at_the_start(*args, **kwargs):
+        problem = build(*args, **kwargs)
+
+        def evaluate(q, lam):
+            raise fem.ContactStateError("no Coulomb state (made up)")
+
+        problem.evaluate = evaluate
+        return problem
+
+    monkeypatch.setattr(refined_check, "build_problem", without_state_at_the_start)
+    check = stances.check_refined(robot, scenario, result)
+    assert check.start_row == refined_check.NO_STATE_AT_START and check.start_violation == np.inf
+    assert check.ok and check.result.verification.ok
+    assert ("  the answer there as it is: contact of a soft print with no Coulomb state at the answer's posture"
+            in check.lines())
