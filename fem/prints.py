@@ -224,20 +224,11 @@ def _print_coverage(mesh, polygon_in_body, tolerance):
     np.add.at(covered, triangles[inside].ravel(), np.repeat(_polygon_area(flat[inside]) / 3.0, 3))
     corners = [(float(x), float(y)) for x, y in v]
     for t in np.flatnonzero(~inside & ~outside):
-        area, centroid = _clipped_moments(flat[t].tolist(), corners)
-        if area > 0.0:
-            covered[triangles[t]] += area * _barycentric(flat[t], centroid)
+        covered[triangles[t]] += _covered_shares(flat[t].tolist(), corners)
     with np.errstate(invalid="ignore", divide="ignore"):
         coverage = np.where(support > 0.0, covered / support, 0.0)
     ids = np.flatnonzero(coverage >= MINIMUM_COVERAGE)
     return ids, np.minimum(coverage[ids], 1.0)
-
-
-def _barycentric(triangle: np.ndarray, point: np.ndarray) -> np.ndarray:
-    """(3,) barycentric coordinates of a 2-D point in a (3, 2) triangle."""
-    a, b, c = triangle
-    l1, l2 = np.linalg.solve(np.column_stack([b - a, c - a]), point - a)
-    return np.array([1.0 - l1 - l2, l1, l2])
 
 
 def _polygon_frame(polygon_in_body, tolerance):
@@ -272,19 +263,37 @@ def _polygon_area(polygons: np.ndarray) -> np.ndarray:
     return 0.5 * _cross(polygons, np.roll(polygons, -1, axis=1)).sum(axis=1)
 
 
-def _clipped_moments(subject: list, corners: list) -> tuple[float, np.ndarray]:
-    """Area and (2,) centroid of the part of a convex polygon (m points) inside a convex
-    counter-clockwise polygon (k points): :func:`clip_polygon`, then the shoelace formulas
-    (area 0 and centroid NaN when they do not overlap with an area)."""
-    points = np.array(clip_polygon(subject, corners)).reshape(-1, 2)
+def _covered_shares(triangle: list, corners: list) -> tuple[float, float, float]:
+    """The integrals of a triangle's three shape functions (barycentric coordinates) over
+    its part inside a convex counter-clockwise polygon: :func:`clip_polygon`, then the
+    shoelace formulas for that part's area A and centroid c, each integral being
+    ``A N_i(c)`` since ``N_i`` is linear. On Python floats, as :func:`clip_polygon`.
+
+    Parameters
+    ----------
+    triangle : (3, 2) float
+        Counter-clockwise.
+    corners : (k, 2) float
+        The polygon, convex and counter-clockwise, same frame.
+    """
+    points = clip_polygon(triangle, corners)
     if len(points) < 3:
-        return 0.0, np.full(2, np.nan)
-    ahead = np.roll(points, -1, axis=0)
-    cross = _cross(points, ahead)
-    area = 0.5 * float(cross.sum())
-    if area <= 0.0:
-        return 0.0, np.full(2, np.nan)
-    return area, ((points + ahead) * cross[:, None]).sum(axis=0) / (6.0 * area)
+        return 0.0, 0.0, 0.0
+    twice_area = cx = cy = 0.0
+    for (x0, y0), (x1, y1) in zip(points, points[1:] + points[:1]):
+        cross = x0 * y1 - x1 * y0
+        twice_area += cross
+        cx += (x0 + x1) * cross
+        cy += (y0 + y1) * cross
+    if twice_area <= 0.0:
+        return 0.0, 0.0, 0.0
+    cx, cy = cx / (3.0 * twice_area), cy / (3.0 * twice_area)
+    (ax, ay), (bx, by), (qx, qy) = triangle
+    determinant = (bx - ax) * (qy - ay) - (qx - ax) * (by - ay)
+    l1 = ((cx - ax) * (qy - ay) - (qx - ax) * (cy - ay)) / determinant
+    l2 = ((bx - ax) * (cy - ay) - (cx - ax) * (by - ay)) / determinant
+    area = 0.5 * twice_area
+    return area * (1.0 - l1 - l2), area * l1, area * l2
 
 
 def clip_polygon(subject, corners) -> list:
