@@ -71,9 +71,11 @@ def print_forces(body, prints, friction: float) -> tuple:
     and each print's number of nodes."""
     covered = [fem.print_coverage(body.mesh, np.c_[np.asarray(p["polygon"]), np.full(len(p["polygon"]), p["top"])])
                for p in prints]
+    for k in range(len(covered)):  # nodes two prints share go to one, as in stances.DeformableContact
+        for j in range(k):
+            keep, other_keep = fem.split_shared_nodes(*covered[k], *covered[j])
+            covered[k], covered[j] = tuple(a[keep] for a in covered[k]), tuple(a[other_keep] for a in covered[j])
     ids = np.concatenate([i for i, _ in covered])
-    if len(np.unique(ids)) != len(ids):
-        raise RuntimeError("the case's prints share mesh nodes; give them apart")
     patch = body.contact_patch(ids, np.concatenate([c for _, c in covered]))
     owner = np.repeat(np.arange(len(prints)), [len(i) for i, _ in covered])
     points = np.asarray(body.mesh.nodes)[ids]

@@ -21,7 +21,7 @@ from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
 from .pressure_loads import hertz_load_shares
-from .prints import coverage_reach, nodes_in_polygon, print_coverage
+from .prints import MINIMUM_COVERAGE, coverage_reach, nodes_in_polygon, print_coverage, split_shared_nodes
 from .solvers import available_solvers
 from .strain_average import frobenius_norms
 
@@ -44,6 +44,7 @@ __all__ = [
     "write_mesh",
     "write_pvd",
     "LinearElasticMaterial",
+    "MINIMUM_COVERAGE",
     "element_strain_matrices",
     "element_stiffness_matrices",
     "assemble_stiffness",
@@ -64,6 +65,7 @@ __all__ = [
     "rotate_voigt",
     "nodes_in_polygon",
     "print_coverage",
+    "split_shared_nodes",
     "coverage_reach",
     "available_solvers",
     "PrintContact",

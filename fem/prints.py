@@ -16,16 +16,16 @@ import numpy as np
 from .errors import PrintError
 from .mesh import TetMesh
 
-__all__ = ["clip_polygon", "coverage_reach", "nodes_in_polygon", "print_coverage"]
+__all__ = ["clip_polygon", "coverage_reach", "nodes_in_polygon", "print_coverage", "split_shared_nodes"]
 
 # The prints met most recently on each mesh, by polygon: a planner asks for the same
 # print in every stance that keeps it, and a solve in each of its stages.
 _COVERAGE_CACHE: "weakref.WeakKeyDictionary[TetMesh, dict]" = weakref.WeakKeyDictionary()
 _COVERAGE_CACHE_SIZE = 256
 
-#: Nodes whose shape function the polygon covers less than this are left out of a print: they
-#: would carry about a hundredth of a full node's share, and their large coupling
-#: compliance only adds rounding to the contact solve.
+#: Nodes whose shape function the polygon covers less than this are left out of a print
+#: (:func:`print_coverage`'s default): they would carry about a hundredth of a full node's
+#: share, and their large coupling compliance only adds rounding to the contact solve.
 MINIMUM_COVERAGE = 0.01
 
 
@@ -125,7 +125,8 @@ def _edge_distances(points: np.ndarray, v: np.ndarray) -> np.ndarray:
     return np.linalg.norm(points[:, None, :] - nearest, axis=2)
 
 
-def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> tuple[np.ndarray, np.ndarray]:
+def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6,
+                   minimum: float = MINIMUM_COVERAGE) -> tuple[np.ndarray, np.ndarray]:
     """Surface nodes whose shape function a convex planar polygon covers, and the share covered.
 
     A surface node's coverage is the part of its linear shape function's integral over
@@ -153,11 +154,13 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     tolerance : float, optional
         Metres: largest distance of a surface triangle's vertices to the polygon's
         plane for the triangle to count.
+    minimum : float, optional
+        The least coverage of a node kept, in (0, 1]: ``MINIMUM_COVERAGE`` by default.
 
     Returns
     -------
     node_ids : (p,) int
-        Sorted ids of the nodes whose coverage is at least ``MINIMUM_COVERAGE``.
+        Sorted ids of the nodes whose coverage is at least ``minimum``.
     coverage : (p,) float
         Covered share of each node's shape function, in (0, 1]; 1 for a node well
         inside. Both read-only: the answers for the 256 polygons last asked on a mesh
@@ -166,7 +169,7 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     Raises
     ------
     PrintError
-        As :func:`nodes_in_polygon`, or a polygon that is not convex.
+        As :func:`nodes_in_polygon`, a polygon that is not convex, or ``minimum`` out of (0, 1].
 
     Examples
     --------
@@ -176,11 +179,13 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     >>> ids.size, round(float(coverage.max()), 3)   # the centre node's whole support lies inside
     (9, 1.0)
     """
-    key = (np.asarray(polygon_in_body, dtype=float).tobytes(), float(tolerance))
+    if not 0.0 < minimum <= 1.0:
+        raise PrintError(f"a print's least coverage must be in (0, 1], got {minimum}")
+    key = (np.asarray(polygon_in_body, dtype=float).tobytes(), float(tolerance), float(minimum))
     cached = _COVERAGE_CACHE.setdefault(mesh, {})
     if key in cached:
         return cached[key]
-    ids, coverage = _print_coverage(mesh, polygon_in_body, tolerance)
+    ids, coverage = _print_coverage(mesh, polygon_in_body, tolerance, minimum)
     ids.setflags(write=False)
     coverage.setflags(write=False)
     if len(cached) >= _COVERAGE_CACHE_SIZE:
@@ -189,7 +194,41 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6) -> t
     return ids, coverage
 
 
-def _print_coverage(mesh, polygon_in_body, tolerance):
+def split_shared_nodes(ids, coverage, other_ids, other_coverage) -> tuple[np.ndarray, np.ndarray]:
+    """Which nodes two prints keep where their coverages share nodes.
+
+    Prints closer than a cell cover some nodes' shape functions both; a node belongs to
+    one print (one link's motion imposed on it), so each such node follows the print
+    covering more of it and the other's share of it is dropped (ties to ``other``).
+
+    Parameters
+    ----------
+    ids, other_ids : (p,) int, (q,) int
+        Sorted node ids of two prints (:func:`print_coverage`).
+    coverage, other_coverage : (p,) float, (q,) float
+        Their coverages.
+
+    Returns
+    -------
+    keep, other_keep : (p,) bool, (q,) bool
+        The nodes each print keeps.
+
+    Examples
+    --------
+    >>> keep, other_keep = split_shared_nodes([1, 2, 3], [1.0, 0.4, 0.01], [3, 4], [0.2, 1.0])
+    >>> keep.tolist(), other_keep.tolist()
+    ([True, True, False], [True, True])
+    """
+    ids, other_ids = np.asarray(ids), np.asarray(other_ids)
+    _, here, there = np.intersect1d(ids, other_ids, return_indices=True)
+    mine = np.asarray(coverage)[here] > np.asarray(other_coverage)[there]
+    keep, other_keep = np.ones(len(ids), dtype=bool), np.ones(len(other_ids), dtype=bool)
+    keep[here[~mine]] = False
+    other_keep[there[mine]] = False
+    return keep, other_keep
+
+
+def _print_coverage(mesh, polygon_in_body, tolerance, minimum):
     """:func:`print_coverage`, computed."""
     centre, normal, basis, v = _polygon_frame(polygon_in_body, tolerance)
     twice_area = float(_cross(v, np.roll(v, -1, axis=0)).sum())
@@ -227,7 +266,7 @@ def _print_coverage(mesh, polygon_in_body, tolerance):
         covered[triangles[t]] += _covered_shares(flat[t].tolist(), corners)
     with np.errstate(invalid="ignore", divide="ignore"):
         coverage = np.where(support > 0.0, covered / support, 0.0)
-    ids = np.flatnonzero(coverage >= MINIMUM_COVERAGE)
+    ids = np.flatnonzero(coverage >= minimum)
     return ids, np.minimum(coverage[ids], 1.0)
 
 

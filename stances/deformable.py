@@ -185,6 +185,24 @@ _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
 # A ball's start depth (DeformableContact.variables_from_forces): up to 2^12 times the flat
 # print's, then the scale's bracket halved (in log) to 2^(1/2^5) = 1.022.
 _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
+#: A soft body that gives less than this under a stance's loads, metres, is solved in its
+#: stiff limit (``stances.stages``): held rigid, then at most a few restoration steps onto
+#: every row (hand-on-cube's palm at 1e10 Pa: 1 on meshes of 22.5, 15 and 10 mm). At
+#: verify's placement tolerance, 1 um, the palm on the 10 mm mesh at 1e10 Pa was refused: on
+#: its edge it gives 6 um. The posture moves by the give, which no other row resolves.
+STIFF_GIVE = 1e-5
+# A print's nodes covered less than fem.MINIMUM_COVERAGE carry under a hundredth of a node's
+# share and are left out; on a body so stiff under it that the robot's weight would sink it
+# less than STIFF_GIVE (stiff_under), nodes down to this coverage stay: there the partly
+# covered row past a print's edge carries a centre of pressure near that edge as the print
+# pivots by micrometres, and without it a print held in its stiff limit stops where the
+# rows covered a hundredth end. A palm on a 1e10 Pa cube beside a 1e6 Pa mat, which the
+# rigid support tips onto its edge (35 mm out): 31.3 mm and 2.8 % from the rigid support's
+# force with those rows, 34.8 mm and 0.20 % with these (2026-12-06). On soft bodies they
+# would move a print's force by 0.2 % at most (the twelve references of
+# bench/bench_print_coupling.py), add a fifth more nodes to a palm and a tenth to a sole,
+# and moved hand-on-cube's answer to another optimum, 3 % above.
+_STIFF_COVERAGE = 1e-3
 # A print held rigid in its stiff limit (DeformableContact.held_prints) has its forces this
 # fraction of its nodes' spacing inside their hull: on the hull's edge one line of nodes
 # carries the load and the link's turn about that line is not fixed by it.
@@ -264,6 +282,38 @@ def rigid_force_metric(surface, friction: float) -> np.ndarray:
     return np.linalg.inv(wrenches.T @ wrenches)
 
 
+def stiff_under(weight, polygon, material) -> bool:
+    """Whether a body is so stiff under a print that the robot's whole weight would sink
+    it less than ``STIFF_GIVE``: a rigid flat circular punch of the print's area on an
+    elastic half-space sinks ``W (1 - nu^2) / (2 a E)`` (Boussinesq; ``a`` its radius).
+
+    Parameters
+    ----------
+    weight : float
+        Newtons.
+    polygon : (k, 2) float
+        The print's outline, metres, any frame in its plane; a point foot's is no polygon:
+        False.
+    material : fem.LinearElasticMaterial
+
+    Examples
+    --------
+    >>> from fem import LinearElasticMaterial
+    >>> palm = [[-0.05, -0.035], [0.05, -0.035], [0.05, 0.035], [-0.05, 0.035]]
+    >>> steel, foam = LinearElasticMaterial(1e10, 0.4, 0.0), LinearElasticMaterial(1e8, 0.4, 0.0)
+    >>> stiff_under(930.0, palm, steel), stiff_under(930.0, palm, foam)   # a 95 kg robot
+    (True, False)
+    """
+    polygon = np.asarray(polygon, dtype=float)
+    if len(polygon) < 3:
+        return False
+    x, y = polygon[:, 0], polygon[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    radius = np.sqrt(area / np.pi)
+    sinking = weight * (1.0 - material.poisson_ratio**2) / (2.0 * radius * material.young_modulus)
+    return bool(sinking < STIFF_GIVE)
+
+
 @dataclass(frozen=True)
 class HeldPrint:
     """A soft print held rigid in its body's stiff limit (:meth:`DeformableContact.held_prints`).
@@ -272,17 +322,13 @@ class HeldPrint:
     ----------
     reach : (m, 2) float
         Counter-clockwise convex polygon, print frame, metres, that its forces' centre of
-        pressure must lie in: where its nodes can carry them.
-    resultant_friction : float
-        Its resultant's friction coefficient (``friction_margin`` included).
+        pressure must lie in: where its nodes can carry them. Its friction is the rigid
+        contact's it stands for (no ``friction_margin``).
     """
 
     reach: np.ndarray
-    resultant_friction: float
 
     def __post_init__(self) -> None:
-        if not self.resultant_friction >= 0.0:
-            raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
         object.__setattr__(self, "reach", convex_polygon(self.reach, "a held print's reach"))
 
 
@@ -472,7 +518,9 @@ class DeformableContact:
                 # Every node whose shape function the polygon covers, coupled by the
                 # covered share (fem.ContactPatch): the print's force then does not
                 # jump as node rows enter or leave it.
-                ids, covered = fem.print_coverage(body.mesh, polygon_in_body, tolerance=1e-6)
+                stiff = stiff_under(robot.weight, surface_model.vertices_in_frame[:, :2], body.material)
+                ids, covered = fem.print_coverage(body.mesh, polygon_in_body, tolerance=1e-6,
+                                                  minimum=_STIFF_COVERAGE if stiff else fem.MINIMUM_COVERAGE)
                 ids = np.asarray(ids, dtype=np.int64)
             else:
                 ids, covered = inside, np.ones(len(inside))
@@ -507,20 +555,13 @@ class DeformableContact:
                         f"node(s) of {deformable_object.name!r}): two links cannot press the same spot; "
                         "move one print"
                     )
-                # Prints closer than a cell share the nodes whose shape functions both
-                # cover: each such node follows the link covering more of it (the other's
-                # coverage is dropped).
-                shared, here, there = np.intersect1d(ids, other_ids, return_indices=True)
-                if shared.size:
-                    mine = covered[here] > coverages[index][there]
-                    keep_there = np.ones(len(other_ids), dtype=bool)
-                    keep_there[there[mine]] = False
+                # Prints closer than a cell share the nodes whose shape functions both cover.
+                keep_here, keep_there = fem.split_shared_nodes(ids, covered, other_ids, coverages[index])
+                if not keep_there.all():
                     node_sets[index], coverages[index] = other_ids[keep_there], coverages[index][keep_there]
                     joints[index], points_in_joint[index] = joints[index][keep_there], points_in_joint[index][keep_there]
                     gaps[index] = gaps[index][keep_there]
-                    keep_here = np.ones(len(ids), dtype=bool)
-                    keep_here[here[~mine]] = False
-                    ids, covered = ids[keep_here], covered[keep_here]
+                ids, covered = ids[keep_here], covered[keep_here]
             nodes_in_print = self._in_print(body.mesh.nodes[ids], body_placement, placement)
             node_sets.append(ids)
             coverages.append(covered)
@@ -1253,22 +1294,34 @@ class DeformableContact:
         inside = np.isinf(self.node_mu) | (self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
         return bool(np.all(inside) and np.all(local[:, 2] >= 0.0))
 
-    def held_prints(self) -> dict:
+    def held_prints(self, coverage: float = 0.0) -> dict:
         """Each print held rigid in the body's stiff limit.
 
         As E grows a print's links move by nanometres and its nodes' Coulomb forces can
         carry what a rigid contact carries where they are: a centre of pressure inside
         the convex hull of its link points (not the link's whole polygon, on a mesh
         coarse under it) and inside that polygon, moved in by ``_REACH_MARGIN`` and
-        ``_OUTLINE_MARGIN`` of the nodes' spacing, with the friction of the print's
-        resultant (``friction_margin`` of its nodes'). For :func:`stances.build_problem`'s
-        ``held_prints``.
+        ``_OUTLINE_MARGIN`` of the nodes' spacing, with the rigid contact's friction
+        (not ``friction_margin``'s: beside a 1e6 Pa mat a palm on a 1e10 Pa cube, which the
+        rigid support tips onto its edge with its resultant near the pyramid's face, held
+        to 0.99 mu stopped 4.5 % from the rigid support's force, held to mu 0.4 %, its
+        centre of pressure 34.6 and 34.8 mm out of 35, 2026-12-06). For
+        :func:`stances.build_problem`'s ``held_prints``.
 
         Inside the polygon too: partly covered nodes past its edge are link points, and a
         hull through them let the stance hold with its centre of pressure on a sole's toe
         edge, the tipping limit, carried by those nodes' forces past the toes, which no sole
         exerts (both soles on a 1e10 Pa slab, 71-95 % of their load on that row 6.9 mm
         past the toe edge: an independent audit, ``bench/results/audit-stiff-slab-2026-12-06.md``).
+
+        Parameters
+        ----------
+        coverage : float, optional
+            The hull's nodes are those covered at least this much (``fem.print_coverage``):
+            0 takes every node of the print; a centre of pressure carried by the partly
+            covered rows past an edge asks the print to pivot on them, by more than the
+            stiff limit takes on a softer body (hand-on-cube's palm on its edge at 1e9 Pa:
+            57 um), where the nodes covered a hundredth or more reach less far.
 
         Returns
         -------
@@ -1279,12 +1332,14 @@ class DeformableContact:
             return {}
         out = {}
         for i, (spec, placement) in enumerate(zip(self.prints, self.print_placements)):
-            points = ((self.link_points_at_rest[self.print_of_node == i] - placement.translation)
-                      @ placement.rotation)[:, :2]
+            rows = self.print_of_node == i
+            if np.count_nonzero(rows & (self.coverage >= coverage)) >= 3:
+                rows &= self.coverage >= coverage
+            points = ((self.link_points_at_rest[rows] - placement.translation) @ placement.rotation)[:, :2]
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
             reach = clip_polygon(inset_hull(points, _REACH_MARGIN * spacing),
                                  inset_hull(self._outlines[i], _OUTLINE_MARGIN * spacing))
-            out[spec.robot_surface] = HeldPrint(np.array(reach), self.friction_margin * self.print_mu[i])
+            out[spec.robot_surface] = HeldPrint(np.array(reach))
         return out
 
     def carrying_variables(self, wrench):

@@ -30,6 +30,7 @@ from fem.deadline import SetupTimeout, deadline as setup_deadline
 from fem.errors import ContactStateError
 
 from .cold_start import initial_configuration, starting_configuration
+from .deformable import STIFF_GIVE
 from .errors import ConfigurationError, StanceError
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
@@ -67,13 +68,16 @@ _WARM_START_TOLERANCES = {"feasibility_tolerance": 1e-2, "optimality_tolerance":
 # start (after a Coulomb solve that failed near feasibility) has the same cap: none ran in
 # those plans, so it is not measured.
 _WARM_START_ITERATIONS = 60
-# A soft body that gives less than this under a stance's loads (metres) is solved in its
-# stiff limit (_solve_stiff_limit): held rigid, then at most _LIFT_STEPS restoration steps
-# onto every row (hand-on-cube's palm at 1e10 Pa: 1 on meshes of 22.5, 15 and 10 mm). At
-# verify's placement tolerance, 1 um, the palm on the 10 mm mesh at 1e10 Pa was refused: on
-# its edge it gives 6 um. The posture moves by the give, which no other row resolves.
-_STIFF_GIVE = 1e-5
+# A soft body that gives less than STIFF_GIVE under a stance's loads is solved in its stiff
+# limit (_solve_stiff_limit; stances.deformable says why that give).
 _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
+# The held prints' reaches tried in turn: the hull of all of a print's nodes, then of those
+# its polygon covers a hundredth or more (DeformableContact.held_prints). hand-on-cube's
+# palm, which the rigid support tips onto its edge: at 1e10 Pa the partly covered row past
+# that edge carries its centre of pressure there as the palm pivots by 5.7 um, 0.69 % from
+# the rigid support's force (1.11 % within the rows covered a hundredth); at 1e9 Pa the
+# pivot would give 57 um, and within those rows it holds, 1.11 % (2.6 % through W).
+_HELD_COVERAGES = (0.0, 0.01)
 # Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
@@ -320,22 +324,23 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
 
     1. the stiff bodies: those whose contact is a
        :class:`~stances.deformable.DeformableContact` of flat prints, whose bonded
-       nodes the loads ``lam`` move less than ``_STIFF_GIVE``
+       nodes the loads ``lam`` move less than ``STIFF_GIVE``
        (:meth:`~stances.deformable.DeformableContact.stiff_give`), and some of whose
        nodes would pull or slip under them (not
        :meth:`~stances.deformable.DeformableContact.sticks`: where all stick, W carries
        what they carry and the solve through W tends to the rigid support's); at least one;
     2. the stance with the stiff bodies held rigid, each of their prints' centre of
        pressure where its nodes are, its resultant in the friction margin's pyramid
-       (:meth:`~stances.deformable.DeformableContact.held_prints`), solved to
-       ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
+       (:meth:`~stances.deformable.DeformableContact.held_prints`: first the hull of all
+       their nodes, then, where 3. fails, of the nodes their polygons cover a hundredth or
+       more, ``_HELD_COVERAGES``), solved to ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
        beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
        from ``lam``); where every soft body is held and this stops farther from feasible
        than a warm start's tolerance, or stalls farther than verify takes (not for want of
        time), the stance is refused: the held answer, its reason saying so (``HELD_AT_NODES``);
     3. each stiff body's W whose Coulomb forces carry that answer's wrenches, and the
        links' motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
-       less than ``_STIFF_GIVE``;
+       less than ``STIFF_GIVE``;
     4. restoration steps from there, the stiff bodies' W held (their forces are the
        carried ones), onto every row (:func:`_lift`: the links moved by that give, the
        other contacts' forces balancing the posture so moved; then a step or two with W
@@ -372,7 +377,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         ``qp_time`` the held solve's.
     note : str or None
         Where the stance holds with the stiff bodies rigid but their nodes cannot carry
-        that answer within ``_STIFF_GIVE``, why, for the reason of an answer through W
+        that answer within ``STIFF_GIVE``, why, for the reason of an answer through W
         that then fails: both soles on a 1e10 Pa slab, the centre of mass 0.105 m ahead of
         them (each sole's centre of pressure 5 mm behind its toe edge, past its last row of
         nodes), asked them to pivot (a 33 um give), and through W the solve did not converge.
@@ -388,7 +393,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         # leave in it. Such a stance goes through W.
         return None, None, None
     stiff = [(c, s) for c, s in soft
-             if c.kind == "deformable" and c.stiff_give(lam[s]) <= _STIFF_GIVE and not c.sticks(lam[s])]
+             if c.kind == "deformable" and c.stiff_give(lam[s]) <= STIFF_GIVE and not c.sticks(lam[s])]
     if not stiff:
         return None, None, None
     mixed = len(stiff) < len(soft)  # other soft bodies stay soft in the held solve
@@ -405,15 +410,21 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         return deadline is not None and time.perf_counter() >= deadline
 
     try:
-        held_prints = {}
-        for contact, _ in stiff:
-            held_prints.update(contact.held_prints())
-        held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
-        forces = _held_start(held, problem, q, lam, warm)
-        if any(c.kind == "deformable" for c in held.contacts):
-            answer = _solve_coulomb(held, q, deadline, lam_init=forces)
-        else:  # every body held, or the others balls on layers: no contact sets to settle
-            answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
+        for coverage in _HELD_COVERAGES:
+            held_prints = {}
+            for contact, _ in stiff:
+                held_prints.update(contact.held_prints(coverage))
+            held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
+            forces = _held_start(held, problem, q, lam, warm)
+            if any(c.kind == "deformable" for c in held.contacts):
+                answer = _solve_coulomb(held, q, deadline, lam_init=forces)
+            else:  # every body held, or the others balls on layers: no contact sets to settle
+                answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
+            if not answer.feasible:
+                break  # a narrower reach holds no more
+            carried, note = _carried(problem, held, stiff, answer, out_of_time)
+            if carried is not None or out_of_time():
+                break
         if not answer.feasible:
             # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
             # that no step meets together, beyond what verify would take and the rounding floor at
@@ -427,26 +438,11 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
                                 and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
             refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
             return abandon("held rigid, %s", answer.reason, refusal=refusal)
-        q = np.asarray(answer.q, dtype=float)
-        lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
-        for contact, s in stiff:
-            if out_of_time():
-                return abandon("out of time")
-            carried = contact.carrying_variables(lam[s])
-            give = None if carried is None else contact.link_give(carried[1])
-            if give is None or give > _STIFF_GIVE:
-                if give is None:
-                    how = "find no motion of the links that carries its loads"
-                else:
-                    how = (f"carry its loads only by giving {1e6 * give:.3g} um, more than the {1e6 * _STIFF_GIVE:g} um "
-                           "a stiff body's limit takes (on a body this stiff a centre of pressure near a print's last "
-                           "row of nodes is carried only if the print pivots, and the mesh's spacing under the print "
-                           "sets where that row lies)")
-                note = f"held rigid, the stance holds, but the nodes of {contact.label} {how}"
-                return abandon("the nodes of %s %s", contact.label, how, note=note)
-            lam[s] = carried[0]
         if out_of_time():
             return abandon("out of time")
+        if carried is None:
+            return abandon("%s", note, note=note)
+        q, lam = carried
         lifted = _lift(problem, q, lam, [s for _, s in stiff])
         if lifted is None:
             return abandon("the rows not met from the held answer")
@@ -462,6 +458,31 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         # A print's contact with no state at a posture the held answer led to: the solve
         # through W goes on, as where the held answer does not hold.
         return abandon("no contact state: %s", error)
+
+
+def _carried(problem, held, stiff, answer, out_of_time):
+    """The held answer's posture and ``problem``'s variables whose stiff bodies' Coulomb
+    forces carry its loads (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
+    each body giving at most ``STIFF_GIVE``: ``((q, lam), None)``, else ``(None, why)``
+    (why None where the time ran out)."""
+    q = np.asarray(answer.q, dtype=float)
+    lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+    for contact, s in stiff:
+        if out_of_time():
+            return None, None
+        carried = contact.carrying_variables(lam[s])
+        give = None if carried is None else contact.link_give(carried[1])
+        if give is None or give > STIFF_GIVE:
+            if give is None:
+                how = "find no motion of the links that carries its loads"
+            else:
+                how = (f"carry its loads only by giving {1e6 * give:.3g} um, more than the {1e6 * STIFF_GIVE:g} um "
+                       "a stiff body's limit takes (on a body this stiff a centre of pressure near a print's last "
+                       "row of nodes is carried only if the print pivots, and the mesh's spacing under the print "
+                       "sets where that row lies)")
+            return None, f"held rigid, the stance holds, but the nodes of {contact.label} {how}"
+        lam[s] = carried[0]
+    return (q, lam), None
 
 
 def _balls_refused_anyway(problem, options) -> list:

@@ -57,6 +57,24 @@ def test_covered_shares_add_up_to_the_polygon_area(pad, angle, shift):
     assert covered <= 0.2 * 0.12 + 1e-15
 
 
+def test_a_lower_least_coverage_keeps_the_same_nodes_and_the_barely_covered_ones(pad):
+    # Its right edge 3 mm past a row of nodes: the next row's shape functions covered by
+    # 0.0055 (0.0019 at the ends), under MINIMUM_COVERAGE.
+    polygon = _rectangle((0.2 + 0.003, 0.2), (0.1, 0.06), 0.0)
+    ids, coverage = fem.print_coverage(pad.mesh, polygon)
+    more, more_coverage = fem.print_coverage(pad.mesh, polygon, minimum=1e-3)
+    kept = np.isin(more, ids)
+    np.testing.assert_array_equal(more[kept], ids)
+    np.testing.assert_array_equal(more_coverage[kept], coverage)
+    assert kept.sum() < len(more) and (more_coverage[~kept] < MINIMUM_COVERAGE).all()
+    assert (more_coverage[~kept] >= 1e-3).all()
+    covered = lambda i, w: float((w * _top_supports(pad.mesh)[i]).sum())
+    assert covered(ids, coverage) < covered(more, more_coverage) <= 0.2 * 0.12 + 1e-15
+    for minimum in (0.0, -0.1, 1.5, float("nan")):
+        with pytest.raises(fem.PrintError, match=r"a print's least coverage must be in \(0, 1\], got"):
+            fem.print_coverage(pad.mesh, polygon, minimum=minimum)
+
+
 def test_nodes_inside_are_fully_covered_and_the_ring_partly(pad):
     polygon = _rectangle((0.2, 0.2), (0.1, 0.06), 17.0)
     ids, coverage = fem.print_coverage(pad.mesh, polygon)
