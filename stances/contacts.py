@@ -173,16 +173,20 @@ class RigidContact:
         rigid in its body's stiff limit
         (:meth:`stances.deformable.DeformableContact.held_prints`). The forces still act
         at the polygon's vertices, so that the force term weighs them as on a rigid
-        support; their cones keep ``friction``, so the resultant keeps the rigid
-        contact's pyramid, which the print's nodes carry, each in its cone, wherever
-        the resultant lies off the pyramid's edges.
+        support.
+    resultant_friction : float, optional
+        A friction coefficient the forces' resultant must keep to (the pyramid
+        ``|f . t1| + |f . t2| <= mu f . n``): a soft print's, its ``friction_margin``
+        included. The vertices' own cones keep ``friction`` (their unit edges, and so the
+        force term's weights, as on a rigid support).
     """
 
     kind = "rigid"
     application = "its surface's vertices"  # where its forces act, for messages
     deformable_object = None  # the soft body it presses: none (stances.deformable, stances.layer_ball have one)
 
-    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None, reach=None):
+    def __init__(self, robot, robot_surface, transform_print_to_world, friction, label, surface=None, reach=None,
+                 resultant_friction=None):
         self.support_surface = surface
         surface = robot.surface(robot_surface)
         self.robot_surface = robot_surface
@@ -213,8 +217,12 @@ class RigidContact:
         self.print_surfaces = (robot_surface,)  # the robot surface of each print
         self.load_prints = np.zeros(n_vertices, dtype=int)
         self.load_normals = np.tile(self.print_placement.rotation[:, 2], (n_vertices, 1))
-        # Rows R lambda >= 0 of a soft print held rigid (its reach), and their labels.
-        held = self._reach_rows(vertices, np.asarray(reach, dtype=float)) if reach is not None else []
+        # Rows R lambda >= 0 of a soft print held rigid (reach, resultant_friction), and their labels.
+        held = []
+        if reach is not None:
+            held += self._reach_rows(vertices, np.asarray(reach, dtype=float))
+        if resultant_friction is not None:
+            held += self._resultant_rows(float(resultant_friction))
         self.held_rows = np.array([row for row, _ in held]) if held else None
         self._held_labels = tuple(label for _, label in held)
 
@@ -233,6 +241,12 @@ class RigidContact:
         levers = signed_edge_distances(reach, vertices[:, :2]).T  # (e, k): o - n . v_i
         rows = levers @ self._print_forces()[:, 2, :]
         return [(row, f"centre of pressure of {self.label} in its nodes' reach ({k})") for k, row in enumerate(rows)]
+
+    def _resultant_rows(self, friction) -> list:
+        """``(row, label)`` pairs, ``row @ lambda >= 0`` iff the resultant keeps ``|f . t1| + |f . t2| <= friction f . n``."""
+        faces = pyramid_faces(np.array([[0.0, 0.0, 1.0]]), np.eye(3)[None, :2], [friction])[0]  # print frame
+        rows = np.einsum("sj,jn->sn", faces, self._print_forces().sum(axis=0))
+        return [(row, f"friction pyramid of the resultant of {self.label} ({side})") for row, side in zip(rows, PYRAMID_SIDES)]
 
     @staticmethod
     def _points_in_frame(surface) -> np.ndarray:
@@ -254,7 +268,7 @@ class RigidContact:
 
     def blocks(self, model, data, lam, columns, offset, derivatives=True):
         """Placement equalities (6 rows; a point foot's 3), print frame; a print held in
-        its stiff limit (``reach``) adds its ``held print`` rows.
+        its stiff limit (``reach``, ``resultant_friction``) adds its ``held print`` rows.
 
         Parameters
         ----------

@@ -322,13 +322,17 @@ class HeldPrint:
     ----------
     reach : (m, 2) float
         Counter-clockwise convex polygon, print frame, metres, that its forces' centre of
-        pressure must lie in: where its nodes can carry them. Its friction is the rigid
-        contact's it stands for (no ``friction_margin``).
+        pressure must lie in: where its nodes can carry them.
+    resultant_friction : float
+        Its resultant's friction coefficient (``friction_margin`` included).
     """
 
     reach: np.ndarray
+    resultant_friction: float
 
     def __post_init__(self) -> None:
+        if not self.resultant_friction >= 0.0:
+            raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
         object.__setattr__(self, "reach", convex_polygon(self.reach, "a held print's reach"))
 
 
@@ -1294,18 +1298,15 @@ class DeformableContact:
         inside = np.isinf(self.node_mu) | (self.node_mu * local[:, 2] >= np.linalg.norm(local[:, :2], axis=1))
         return bool(np.all(inside) and np.all(local[:, 2] >= 0.0))
 
-    def held_prints(self, coverage: float = 0.0) -> dict:
+    def held_prints(self, coverage: float = 0.0, friction: float = 1.0) -> dict:
         """Each print held rigid in the body's stiff limit.
 
         As E grows a print's links move by nanometres and its nodes' Coulomb forces can
         carry what a rigid contact carries where they are: a centre of pressure inside
         the convex hull of its link points (not the link's whole polygon, on a mesh
         coarse under it) and inside that polygon, moved in by ``_REACH_MARGIN`` and
-        ``_OUTLINE_MARGIN`` of the nodes' spacing, with the rigid contact's friction
-        (not ``friction_margin``'s: beside a 1e6 Pa mat a palm on a 1e10 Pa cube, which the
-        rigid support tips onto its edge with its resultant near the pyramid's face, held
-        to 0.99 mu stopped 4.5 % from the rigid support's force, held to mu 0.4 %, its
-        centre of pressure 34.6 and 34.8 mm out of 35, 2026-12-06). For
+        ``_OUTLINE_MARGIN`` of the nodes' spacing, with its resultant in the friction
+        pyramid of its nodes' coefficient scaled by ``friction``. For
         :func:`stances.build_problem`'s ``held_prints``.
 
         Inside the polygon too: partly covered nodes past its edge are link points, and a
@@ -1321,7 +1322,12 @@ class DeformableContact:
             0 takes every node of the print; a centre of pressure carried by the partly
             covered rows past an edge asks the print to pivot on them, by more than the
             stiff limit takes on a softer body (hand-on-cube's palm on its edge at 1e9 Pa:
-            57 um), where the nodes covered a hundredth or more reach less far.
+            52 um), where the nodes covered a hundredth or more reach less far.
+        friction : float, optional
+            The share of its nodes' friction coefficient the resultant keeps to: 1, the
+            rigid contact's; ``friction_margin`` keeps the nodes from all sliding at once,
+            where a resultant on the rigid pyramid may be carried only so (climb's palm at
+            1e12 Pa: no restoration step met the rows from such an answer).
 
         Returns
         -------
@@ -1339,7 +1345,7 @@ class DeformableContact:
             spacing = float(np.median(scipy.spatial.cKDTree(points).query(points, k=2)[0][:, 1]))
             reach = clip_polygon(inset_hull(points, _REACH_MARGIN * spacing),
                                  inset_hull(self._outlines[i], _OUTLINE_MARGIN * spacing))
-            out[spec.robot_surface] = HeldPrint(np.array(reach))
+            out[spec.robot_surface] = HeldPrint(np.array(reach), friction * self.print_mu[i])
         return out
 
     def carrying_variables(self, wrench):

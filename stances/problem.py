@@ -1018,7 +1018,7 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
             if surface.deformable:
                 held_bodies[scene.deformable_of_surface(surface.name).name].append(contact.robot_surface)
             contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label,
-                                         surface=surface, reach=held.reach))
+                                         surface=surface, reach=held.reach, resultant_friction=held.resultant_friction))
         else:
             contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))
     split = sorted(set(held_bodies) & set(deformable_prints))

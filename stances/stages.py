@@ -71,13 +71,16 @@ _WARM_START_ITERATIONS = 60
 # A soft body that gives less than STIFF_GIVE under a stance's loads is solved in its stiff
 # limit (_solve_stiff_limit; stances.deformable says why that give).
 _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
-# The held prints' reaches tried in turn: the hull of all of a print's nodes, then of those
-# its polygon covers a hundredth or more (DeformableContact.held_prints). hand-on-cube's
-# palm, which the rigid support tips onto its edge: at 1e10 Pa the partly covered row past
-# that edge carries its centre of pressure there as the palm pivots by 5.7 um, 0.69 % from
-# the rigid support's force (1.11 % within the rows covered a hundredth); at 1e9 Pa the
-# pivot would give 57 um, and within those rows it holds, 1.11 % (2.6 % through W).
-_HELD_COVERAGES = (0.0, 0.01)
+# The held prints tried in turn, loosest first (DeformableContact.held_prints): the reach of
+# all of a print's nodes and which share of their friction its resultant keeps to (None:
+# options.friction_margin), until the nodes carry one's answer and a restoration step meets
+# the rows. A palm on a 1e10 Pa cube beside a 1e6 Pa mat, which the rigid support tips onto
+# its edge with its resultant near the pyramid's face: 0.20 % from the rigid support's force
+# at the first, 2.74 % at the second (2026-12-06). climb-with-soft-support's palm at 1e12 Pa:
+# from the first no restoration step met the rows (its nodes all but sliding), the second
+# holds. hand-on-cube's palm at 1e9 Pa: on its edge its nodes carry either only by a 52 um
+# pivot; within the rows its polygon covers a hundredth or more, 2.6 um (1.1 %).
+_HELD_LEVELS = ((0.0, 1.0), (0.0, None), (0.01, None))
 # Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
@@ -330,14 +333,17 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
        :meth:`~stances.deformable.DeformableContact.sticks`: where all stick, W carries
        what they carry and the solve through W tends to the rigid support's); at least one;
     2. the stance with the stiff bodies held rigid, each of their prints' centre of
-       pressure where its nodes are, its resultant in the friction margin's pyramid
-       (:meth:`~stances.deformable.DeformableContact.held_prints`: first the hull of all
-       their nodes, then, where 3. fails, of the nodes their polygons cover a hundredth or
-       more, ``_HELD_COVERAGES``), solved to ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
+       pressure where its nodes are, its resultant in a friction pyramid
+       (:meth:`~stances.deformable.DeformableContact.held_prints`): at the loosest of
+       ``_HELD_LEVELS`` first (the reach of all their nodes, the rigid contact's friction),
+       then, where 3. or 4. fails, at the next ones (``friction_margin``'s friction; the
+       reach of the nodes their polygons cover a hundredth or more); each solved to
+       ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
        beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
-       from ``lam``); where every soft body is held and this stops farther from feasible
-       than a warm start's tolerance, or stalls farther than verify takes (not for want of
-       time), the stance is refused: the held answer, its reason saying so (``HELD_AT_NODES``);
+       from ``lam``); where every soft body is held and the first stops farther from
+       feasible than a warm start's tolerance, or stalls farther than verify takes (not for
+       want of time), the stance is refused: the held answer, its reason saying so
+       (``HELD_AT_NODES``);
     3. each stiff body's W whose Coulomb forces carry that answer's wrenches, and the
        links' motion it asks (:meth:`~stances.deformable.DeformableContact.carrying_variables`),
        less than ``STIFF_GIVE``;
@@ -373,8 +379,8 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
     Returns
     -------
     result : PostureResult or None
-        Verified; its iterations the held solve's and the restoration steps, its
-        ``qp_time`` the held solve's.
+        Verified; its iterations the held solves' and the restoration steps, its
+        ``qp_time`` the held solves'.
     note : str or None
         Where the stance holds with the stiff bodies rigid but their nodes cannot carry
         that answer within ``STIFF_GIVE``, why, for the reason of an answer through W
@@ -410,50 +416,62 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
         return deadline is not None and time.perf_counter() >= deadline
 
     try:
-        for coverage in _HELD_COVERAGES:
+        iterations, qp_time = 0, 0.0  # of the held solves
+        note, why = None, ""  # the nodes' failure to carry a held answer, for the reason; the last failure
+        levels = [(c, options.friction_margin if f is None else f) for c, f in _HELD_LEVELS]
+        levels = [level for k, level in enumerate(levels) if level not in levels[:k]]
+        for k, (coverage, friction) in enumerate(levels):
+            if k:  # each level from the same start
+                for (contact, _), state in zip(soft, states):
+                    contact.restore_solver_state(state)
             held_prints = {}
             for contact, _ in stiff:
-                held_prints.update(contact.held_prints(coverage))
+                held_prints.update(contact.held_prints(coverage, friction))
             held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
             forces = _held_start(held, problem, q, lam, warm)
             if any(c.kind == "deformable" for c in held.contacts):
                 answer = _solve_coulomb(held, q, deadline, lam_init=forces)
             else:  # every body held, or the others balls on layers: no contact sets to settle
                 answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
+            iterations, qp_time = iterations + answer.iterations, qp_time + answer.statistics["qp_time"]
+            if not answer.feasible and k:
+                why = f"held rigid at a tighter level, {answer.reason}"
+                break  # the looser levels' failures stand
             if not answer.feasible:
-                break  # a narrower reach holds no more
-            carried, note = _carried(problem, held, stiff, answer, out_of_time)
-            if carried is not None or out_of_time():
-                break
-        if not answer.feasible:
-            # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
-            # that no step meets together, beyond what verify would take and the rounding floor at
-            # which a stall is no verdict (stances.stopping; a centre of pressure the
-            # prints do not reach by a fraction of a millimetre: the soles' toe edges held by a
-            # centre-of-mass row, 0.05 N short, where the solve through W then failed after 5-17 s).
-            status, violation = answer.statistics["status"], answer.statistics["violation"]
-            refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
-                       and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
-                            or (status == STALLED
-                                and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
-            refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
-            return abandon("held rigid, %s", answer.reason, refusal=refusal)
-        if out_of_time():
-            return abandon("out of time")
-        if carried is None:
-            return abandon("%s", note, note=note)
-        q, lam = carried
-        lifted = _lift(problem, q, lam, [s for _, s in stiff])
-        if lifted is None:
-            return abandon("the rows not met from the held answer")
-        q, lam, linearization, steps = lifted
-        met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
-        outcome = SqpOutcome(q, lam, linearization, answer.iterations + steps, "converged", 0.0,
-                             answer.statistics["qp_time"], met, "" if met else "the rows not met from the held answer")
-        result = posture_result(problem, outcome, time.perf_counter() - start)
-        if not result.feasible:
-            return abandon("%s", result.reason)
-        return result, None, None
+                # Refused beyond a warm start's tolerance; and, where the held solve stalled with rows
+                # that no step meets together, beyond what verify would take and the rounding floor at
+                # which a stall is no verdict (stances.stopping; a centre of pressure the
+                # prints do not reach by a fraction of a millimetre: the soles' toe edges held by a
+                # centre-of-mass row, 0.05 N short, where the solve through W then failed after 5-17 s).
+                # No tighter level holds more.
+                status, violation = answer.statistics["status"], answer.statistics["violation"]
+                refused = (not mixed and status != OUT_OF_TIME and not out_of_time()
+                           and (violation > _WARM_START_TOLERANCES["feasibility_tolerance"]
+                                or (status == STALLED
+                                    and violation > max(NEARLY_FEASIBLE * options.feasibility_tolerance, ROUNDING_FLOOR))))
+                refusal = replace(answer, reason=f"{HELD_AT_NODES}{answer.reason}") if refused else None
+                return abandon("held rigid, %s", answer.reason, refusal=refusal)
+            if out_of_time():
+                return abandon("out of time")
+            carried, carry_note = _carried(problem, held, stiff, answer, out_of_time)
+            if carried is None:
+                if carry_note is None:
+                    return abandon("out of time")
+                note = why = carry_note
+                continue
+            lifted = _lift(problem, *carried, [s for _, s in stiff])
+            if lifted is None:
+                why = "the rows not met from the held answer"
+                continue
+            q_lifted, lam_lifted, linearization, steps = lifted
+            met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
+            outcome = SqpOutcome(q_lifted, lam_lifted, linearization, iterations + steps, "converged", 0.0, qp_time,
+                                 met, "" if met else "the rows not met from the held answer")
+            result = posture_result(problem, outcome, time.perf_counter() - start)
+            if result.feasible:
+                return result, None, None
+            why = result.reason
+        return abandon("%s", why, note=note)
     except ContactStateError as error:
         # A print's contact with no state at a posture the held answer led to: the solve
         # through W goes on, as where the held answer does not hold.
