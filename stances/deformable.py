@@ -198,7 +198,7 @@ STIFF_GIVE = 1e-5
 # pivots by micrometres, and without it a print held in its stiff limit stops where the
 # rows covered a hundredth end. A palm on a 1e10 Pa cube beside a 1e6 Pa mat, which the
 # rigid support tips onto its edge (35 mm out): 31.3 mm and 2.8 % from the rigid support's
-# force with those rows, 34.8 mm and 0.20 % with these (2026-12-06). On soft bodies they
+# force with those rows, 34.8 mm and 0.19 % with these (2026-12-06). On soft bodies they
 # would move a print's force by 0.2 % at most (the twelve references of
 # bench/bench_print_coupling.py), add a fifth more nodes to a palm and a tenth to a sole,
 # and moved hand-on-cube's answer to another optimum, 3 % above.

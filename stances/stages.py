@@ -75,7 +75,7 @@ _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 # all of a print's nodes and which share of their friction its resultant keeps to (None:
 # options.friction_margin), until the nodes carry one's answer and a restoration step meets
 # the rows. A palm on a 1e10 Pa cube beside a 1e6 Pa mat, which the rigid support tips onto
-# its edge with its resultant near the pyramid's face: 0.20 % from the rigid support's force
+# its edge with its resultant near the pyramid's face: 0.19 % from the rigid support's force
 # at the first, 2.74 % at the second (2026-12-06). climb-with-soft-support's palm at 1e12 Pa:
 # from the first no restoration step met the rows (its nodes all but sliding), the second
 # holds. hand-on-cube's palm at 1e9 Pa: on its edge its nodes carry either only by a 52 um

@@ -488,7 +488,7 @@ def test_a_steel_stiff_cube_beside_a_foam_mat_tends_to_the_rigid_support_from_it
     mat, started from the rigid support's posture: the rigid support tips the palm onto its
     edge, and the held palm's centre of pressure reaches it (34.8 mm of 35) on the partly
     covered row past it, which a print on a body this stiff keeps (``stiff_under``): 0.19 %
-    from the rigid support's palm force, 0.20 % from its own start (2026-12-06). Held within
+    from the rigid support's palm force, 0.19 % from its own start (2026-12-06). Held within
     the rows covered a hundredth it stopped at 31.3 mm, 2.84-2.92 %, over the issue's 2 %;
     its resultant held to ``friction_margin`` of the rigid contact's friction, 4.5 %."""
     scene, stance = steel_cube_beside_a_mat
