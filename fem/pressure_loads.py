@@ -1,4 +1,7 @@
-"""A ball's Hertzian pressure on a mesh's surface as consistent nodal loads.
+"""Pressures on a mesh's surface as consistent nodal loads.
+
+:func:`hertz_load_shares`: a ball's Hertzian pressure. :func:`pressure_fit`: how far given
+nodal loads are from those of any non-negative pressure inside a polygon.
 
 A ball foot whose contact is smaller than the mesh's cells (:class:`fem.layer_contact.BallOnLayer`
 gives its force) still loads the body: to draw its field, bound its strain and check its
@@ -14,12 +17,14 @@ from __future__ import annotations
 import functools
 
 import numpy as np
+import scipy.optimize
 import scipy.spatial
 
 from .errors import FemError
 from .mesh import TetMesh
+from .prints import clip_polygon
 
-__all__ = ["hertz_load_shares"]
+__all__ = ["hertz_load_shares", "pressure_fit"]
 
 # Polar rule on the contact disc: rho = a sin(phi) takes the pressure's square root at the
 # edge into a smooth integrand (p rho drho = p0 a^2 cos^2 phi sin phi dphi), Gauss-Legendre in
@@ -128,6 +133,85 @@ def hertz_load_shares(mesh: TetMesh, centre, normal, contact_radius: float) -> t
     node_ids, where = np.unique(nodes, return_inverse=True)
     shares = np.bincount(where, weights=loads, minlength=len(node_ids))
     return node_ids, shares / shares.sum()
+
+
+def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
+    """How far nodal loads are from the consistent loads of a non-negative pressure
+    inside a polygon: ``min |A p - f| / |f|`` over ``p >= 0``.
+
+    A pressure's consistent loads are ``f_i = int N_i p dA``; N_i is linear on each part
+    of a surface triangle inside the polygon, so a point load anywhere in such a part is a
+    non-negative combination of point loads at the part's corners, and those corners'
+    loads (their shape functions' values) span every such pressure's: the fit is exact,
+    not sampled. A node outside ``node_ids`` that the pressure would load counts with a
+    load of 0. A print's node forces that no pressure under the link gives (a link
+    pivoting onto partly covered nodes past its edge while the nodes inside lift) read
+    some percent; those of a link's face, rounding.
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    polygon_in_body : (k, 3) float
+        A convex planar polygon on the mesh's surface, in order, metres, body frame.
+    node_ids : (p,) int
+        Surface nodes.
+    loads : (p,) float
+        Their loads along the polygon's inward normal, newtons (pressing: positive).
+
+    Returns
+    -------
+    float
+        The least residual's norm over the loads' norm (0 for no load).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fem import box_mesh, print_coverage
+    >>> mesh = box_mesh((0.4, 0.4, 0.1), (8, 8, 2))    # top nodes every 50 mm
+    >>> square = [[0.11, 0.11, 0.1], [0.31, 0.11, 0.1], [0.31, 0.31, 0.1], [0.11, 0.31, 0.1]]
+    >>> ids, _ = print_coverage(mesh, square)
+    >>> past = np.isclose(mesh.nodes[ids, 0], 0.35)     # the row 40 mm past the right edge
+    >>> round(pressure_fit(mesh, square, ids, np.where(past, 1.0, 0.0)), 2)   # loaded alone
+    0.93
+    """
+    loads = np.asarray(loads, dtype=float)
+    node_ids = np.asarray(node_ids)
+    size = float(np.linalg.norm(loads))
+    if size == 0.0:
+        return 0.0
+    poly = np.asarray(polygon_in_body, dtype=float)
+    centre = poly.mean(axis=0)
+    first, second, normal = np.linalg.svd(poly - centre)[2]
+    axes = np.stack([first, second], axis=1)
+    flat = (poly - centre) @ axes  # (k, 2)
+    if np.sum(flat[:, 0] * np.roll(flat[:, 1], -1) - flat[:, 1] * np.roll(flat[:, 0], -1)) < 0.0:
+        flat = flat[::-1]  # counter-clockwise, as clip_polygon takes it
+    # Facing surface triangles in the polygon's plane, near it.
+    tree, longest = mesh.surface_search
+    candidates = np.array(sorted(tree.query_ball_point(centre, float(np.linalg.norm(flat, axis=1).max()) + longest)),
+                          dtype=int)
+    candidates = candidates[np.abs(mesh.surface_normals[candidates] @ normal) > _FACING]
+    corners = mesh.nodes[mesh.surface_triangles[candidates]] - centre  # (t, 3, 3)
+    in_plane = np.abs(corners @ normal).max(axis=1) <= 1e-6
+    triangles, planar = mesh.surface_triangles[candidates[in_plane]], corners[in_plane] @ axes  # (t, 3), (t, 3, 2)
+    # Each part's corners, as loads on its triangle's nodes (barycentric coordinates).
+    columns, owners = [], []
+    for triangle, points in zip(triangles, planar):
+        part = clip_polygon(points, flat)
+        if len(part) < 3:
+            continue
+        inverse = np.linalg.inv(np.stack([points[1] - points[0], points[2] - points[0]], axis=1))
+        local = (np.asarray(part) - points[0]) @ inverse.T  # (m, 2)
+        columns.append(np.clip(np.column_stack([1.0 - local.sum(axis=1), local]), 0.0, None))
+        owners.append(np.broadcast_to(triangle, (len(part), 3)))
+    shares, owners = np.concatenate(columns), np.concatenate(owners)  # (n, 3) each
+    rows = np.union1d(owners.ravel(), node_ids)
+    matrix = np.zeros((len(rows), len(shares)))
+    np.add.at(matrix, (np.searchsorted(rows, owners.ravel()), np.repeat(np.arange(len(shares)), 3)), shares.ravel())
+    target = np.zeros(len(rows))
+    target[np.searchsorted(rows, node_ids)] = loads
+    _, residual = scipy.optimize.nnls(matrix, target, maxiter=50 * matrix.shape[1])
+    return float(residual) / size
 
 
 def _locate(points, candidates, origin, inverse):

@@ -499,6 +499,7 @@ class DeformableContact:
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         corners = []  # per print, (k, 2) its polygon's corners in its frame, or None for a point foot
         self.frame_ids, self.print_placements, self.friction = [], [], []
+        self._polygons_in_body = []  # per print, (k, 3) its polygon on the body, body frame (None: a ball)
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
             if surface_model.is_point and self.method == "traction":
@@ -517,6 +518,7 @@ class DeformableContact:
             placement = pin.SE3(spec.transform_print_to_world)
             polygon_in_world = surface_model.vertices_in_frame @ placement.rotation.T + placement.translation
             polygon_in_body = (polygon_in_world - body_placement.translation) @ body_placement.rotation
+            self._polygons_in_body.append(None if surface_model.is_point else polygon_in_body)
             inside = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
             if self.method == "consistent":
                 # Every node whose shape function the polygon covers, coupled by the
@@ -1347,6 +1349,22 @@ class DeformableContact:
                                  inset_hull(self._outlines[i], _OUTLINE_MARGIN * spacing))
             out[spec.robot_surface] = HeldPrint(np.array(reach), friction * self.print_mu[i])
         return out
+
+    def pressure_fits(self, model, data, w) -> list:
+        """Per flat print, how far its nodes' normal forces under W (6L,) are from those of
+        any non-negative pressure inside its polygon (:func:`fem.pressure_fit`; None for a
+        ball): a link pivoting onto partly covered nodes past its edge while the nodes
+        inside lift gives loads no pressure under the link gives."""
+        forces = self.forces(model, data, w)  # (p, 3) world, on the robot
+        fits = []
+        for i, polygon in enumerate(self._polygons_in_body):
+            if polygon is None:
+                fits.append(None)
+                continue
+            rows = self.print_of_node == i
+            loads = forces[rows] @ self.print_placements[i].rotation[:, 2]
+            fits.append(fem.pressure_fit(self.deformable_object.body.mesh, polygon, self.node_ids[rows], loads))
+        return fits
 
     def carrying_variables(self, wrench):
         """W whose Coulomb forces carry given wrenches, and the links' motion it asks.

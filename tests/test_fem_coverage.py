@@ -274,3 +274,40 @@ def test_each_nodes_covered_share_is_what_sampling_finds(pad, centre, half, turn
     # Nodes whose shape function the polygon misses are left out.
     for node in np.setdiff1d(np.flatnonzero(whole), ids).tolist():
         assert covered[node] / total[node] < MINIMUM_COVERAGE + 0.002
+
+
+def _consistent_loads(mesh, polygon, pressure, samples=400, seed=0):
+    """Monte Carlo consistent loads ``int N_i p dA`` of a pressure ``p(x, y)`` over a
+    rectangle (its corners 0 and 2), by sampling points and their triangles' shape
+    functions with scipy's Delaunay of the top nodes (not the library's code)."""
+    import scipy.spatial
+
+    top = np.flatnonzero(np.isclose(mesh.nodes[:, 2], TOP))
+    delaunay = scipy.spatial.Delaunay(mesh.nodes[top, :2])
+    rng = np.random.default_rng(seed)
+    low, high = np.asarray(polygon)[0, :2], np.asarray(polygon)[2, :2]
+    points = low + rng.random((samples * samples // 10, 2)) * (high - low)
+    simplex = delaunay.find_simplex(points)
+    transform = delaunay.transform[simplex]
+    local = np.einsum("nij,nj->ni", transform[:, :2], points - transform[:, 2])
+    shares = np.column_stack([local, 1.0 - local.sum(axis=1)])
+    loads = np.zeros(mesh.n_nodes)
+    np.add.at(loads, top[delaunay.simplices[simplex]].ravel(), (shares * pressure(points)[:, None]).ravel())
+    return loads
+
+
+def test_a_pressure_fit_is_zero_for_a_pressures_loads_and_not_for_a_pivot_past_the_edge(pad):
+    """fem.pressure_fit on the pad (top nodes every 25 mm), a 0.2 x 0.12 m print whose right edge
+    lies 5 mm past a row of nodes: the consistent loads of a non-negative pressure inside it (a
+    uniform one, one rising toward the right edge; Monte Carlo over the top's own Delaunay
+    triangulation, which may split cells the other way, so to 2 %) fit; loads on the row past the
+    edge with the row inside it unloaded, as a link pivoting onto that row gives, do not."""
+    polygon = _rectangle((0.2, 0.2), (0.1, 0.06), 0.0) + np.array([0.005, 0.0, 0.0])
+    ids, _ = fem.print_coverage(pad.mesh, polygon, minimum=1e-3)
+    for pressure in (lambda p: np.ones(len(p)), lambda p: np.clip(p[:, 0] - 0.25, 0.0, None)):
+        loads = _consistent_loads(pad.mesh, polygon, pressure)[ids]
+        assert fem.pressure_fit(pad.mesh, polygon, ids, loads) < 0.02
+    x = pad.mesh.nodes[ids, 0]
+    pivot = np.where(np.isclose(x, 0.325), 1.0, 0.0) + np.where(x < 0.29, 0.5, 0.0)  # the row at 0.3 lifted
+    assert fem.pressure_fit(pad.mesh, polygon, ids, pivot) > 0.05
+    assert fem.pressure_fit(pad.mesh, polygon, ids, np.zeros(len(ids))) == 0.0

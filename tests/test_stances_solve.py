@@ -259,21 +259,29 @@ def test_a_palm_and_a_sole_on_a_steel_stiff_foam_block_take_the_rigid_supports_l
         assert np.linalg.norm(stiff - held) < 0.005 * np.linalg.norm(held), link
 
 
-def test_a_palm_the_rigid_support_tips_onto_its_edge_is_held_near_that_edge_on_a_steel_stiff_cube():
+def test_a_palm_the_rigid_support_tips_onto_its_edge_is_not_held_on_nodes_past_it_on_a_steel_stiff_cube():
     """romeo-hand-on-soft-cube at E = 1e10 Pa: the rigid support puts Romeo's palm's centre of
-    pressure on the palm's edge (its tipping limit), and the stiff limit holds it as near as
-    the print allows. Kept 5 % of the nodes' spacing (1.1 mm) inside the outline, the palm's
-    force lay 2.86 % from the rigid support's (the robot leans on the palm over a 4 cm lever);
-    1 % (0.2 mm) gives 0.69 %."""
+    pressure on the palm's edge (its tipping limit). Held in the stiff limit, its nodes carry
+    that only pivoting onto the partly covered nodes past the edge while nodes inside lift
+    (7.6-7.7 % off any pressure under the palm at each held level): not taken since
+    2026-12-06 (session v; it had been accepted, 0.69 % from the rigid support's force). Through
+    W the answer's node forces are a pressure under the palm, but 13 % from the rigid
+    support's force: issue 8.5's 2 % missed on this stance."""
     scenario = coarse_scenario("romeo-hand-on-soft-cube", resolution="default", young_modulus=1e10)
     romeo = Robot.load(scenario.robot)
     stance = scenario.stance("hand-on-soft-cube")
     rigid = solve(romeo, scenario.scene, stance, deformable_as_rigid=True)
     result = solve(romeo, scenario.scene, stance)
-    assert rigid.feasible and result.feasible and result.statistics.get("stiff_limit"), result.reason
+    assert rigid.feasible and result.feasible and result.verification.ok, result.reason
+    assert "stiff_limit" not in result.statistics
+    problem = build_problem(romeo, scenario.scene, stance)
+    (palm, s), = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
+    data = romeo.model.createData()
+    pin.framesForwardKinematics(romeo.model, data, np.asarray(result.q))
+    assert palm.pressure_fits(romeo.model, data, np.asarray(result.statistics["lambda"])[s])[0] < 1e-6
     frame = romeo.surface("right_palm").frame
-    held, stiff = (sum(p.force for p in answer.point_forces if p.frame == frame) for answer in (rigid, result))
-    assert np.linalg.norm(stiff - held) < 0.01 * np.linalg.norm(held)
+    held, soft = (sum(p.force for p in answer.point_forces if p.frame == frame) for answer in (rigid, result))
+    assert 0.10 < np.linalg.norm(soft - held) / np.linalg.norm(held) < 0.15  # 13.1 % measured
 
 
 def test_print_out_of_reach_is_infeasible_with_a_reason(robot):
