@@ -74,20 +74,16 @@ _STIFF_SHARE = 0.5  # of a solve's time left (its time budget's), at most
 # The held prints tried in turn, loosest first (DeformableContact.held_prints): the reach of
 # all of a print's nodes and which share of their friction its resultant keeps to (None:
 # options.friction_margin), until the nodes carry one's answer and a restoration step meets
-# the rows. A palm on a 1e10 Pa cube beside a 1e6 Pa mat, which the rigid support tips onto
-# its edge with its resultant near the pyramid's face: 0.19 % from the rigid support's force
-# at the first, 2.74 % at the second (2026-12-06). climb-with-soft-support's palm at 1e12 Pa:
-# from the first no restoration step met the rows (its nodes all but sliding), the second
-# holds. hand-on-cube's palm at 1e9 Pa: on its edge its nodes carry either only by a 52 um
-# pivot; within the rows its polygon covers a hundredth or more, 2.6 um (1.1 %).
+# the rows and stances.verify takes the answer (among its checks, a stiff print's node forces
+# a pressure under its face: DeformableContact.pressure_fits). A palm on a 1e10 Pa cube
+# beside a 1e6 Pa mat, which the rigid support tips onto its edge with its resultant near
+# the pyramid's face: 0.19 % from the rigid support's force at the first, 2.74 % at the
+# second (2026-12-06). climb-with-soft-support's palm at 1e12 Pa: from the first no
+# restoration step met the rows (its nodes all but sliding); the second and third pivot onto
+# nodes past its edge, which verify refuses, and it goes on through W. hand-on-cube's palm
+# at 1e9 Pa: on its edge its nodes carry either only by a 52 um pivot; within the rows its
+# polygon covers a hundredth or more, 2.6 um (1.1 %).
 _HELD_LEVELS = ((0.0, 1.0), (0.0, None), (0.01, None))
-# A level's answer is taken where each stiff print's node forces lie within this share of
-# the loads of a non-negative pressure under its face (DeformableContact.pressure_fits):
-# an independent audit found climb-with-soft-support's palm at 1e12 Pa held on nodes 13.6 mm
-# and more past its long edge while the well covered nodes inside lifted (7.5 % off; its
-# carrying motion pivots by nanometres, which no whole-print row sees); the built-in soft
-# stances and the other stiff answers read under 1e-6.
-_PRESSURE_FIT = 0.01
 # Tried only with this many rigid warm starts' time left: hand-on-cube at 1e10 Pa, its warm
 # start 0.03-0.06 s, took 0.13 s in the stiff limit and 0.13-0.17 s through W (2026-12-05).
 _STIFF_TIME = 8.0
@@ -475,32 +471,14 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
             outcome = SqpOutcome(q_lifted, lam_lifted, linearization, iterations + steps, "converged", 0.0, qp_time,
                                  met, "" if met else "the rows not met from the held answer")
             result = posture_result(problem, outcome, time.perf_counter() - start)
-            if not result.feasible:
-                why = result.reason
-                continue
-            why = _not_pressed(problem, stiff, q_lifted, lam_lifted)
-            if not why:
+            if result.feasible:
                 return result, None, None
+            why = result.reason
         return abandon("%s", why, note=note)
     except ContactStateError as error:
         # A print's contact with no state at a posture the held answer led to: the solve
         # through W goes on, as where the held answer does not hold.
         return abandon("no contact state: %s", error)
-
-
-def _not_pressed(problem, stiff, q, lam) -> str:
-    """Why the stiff bodies' node forces at ``(q, lam)`` are not those of a link's face
-    pressing them (:meth:`~stances.deformable.DeformableContact.pressure_fits` over
-    ``_PRESSURE_FIT``), or ``""``."""
-    model = problem.robot.model
-    data = model.createData()
-    pin.framesForwardKinematics(model, data, q)
-    for contact, s in stiff:
-        for label, fit in zip((spec.label for spec in contact.prints), contact.pressure_fits(model, data, lam[s])):
-            if fit is not None and fit > _PRESSURE_FIT:
-                return (f"the node forces of {label} are no pressure under its face ({100 * fit:.2g} % of them off: "
-                        "it pivots onto the partly covered nodes past its edge)")
-    return ""
 
 
 def _carried(problem, held, stiff, answer, out_of_time):

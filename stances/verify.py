@@ -35,6 +35,10 @@ class VerificationTolerances:
     penetration: float = 1e-4  # m of collision depth tolerated
     deformable_force: float = 1e-6  # relative error of recomputed FEM forces (traction)
     deformable_placement: float = 1e-6  # m between print nodes under the reported forces and their link
+    # Share of a stiff print's node forces off those of any pressure under its face (fem.pressure_fit):
+    # the 15 built-in soft stances' and the stiff answers' read under 1e-6, a palm pivoting onto the
+    # nodes past its edge 7.5 %.
+    pressure_fit: float = 0.01
 
 
 def _external_forces(model, data, point_forces, forces=None, points=None):

@@ -303,23 +303,27 @@ def test_a_held_palm_pivoting_onto_nodes_past_its_edge_is_not_taken(robot, monke
     held in ``friction_margin``'s pyramid (and within the rows covered a hundredth) the palm's
     nodes carry it pivoting onto nodes 13.6 mm and more past its long edge while the well
     covered nodes inside lift, loads 7.5 % off any pressure under the palm (an independent
-    audit's finding, ``_PRESSURE_FIT``): not taken, the solve goes on through W, whose node
-    forces are a pressure under the palm, 2.0 % from the rigid support's force."""
+    audit's finding): verify refuses them (``VerificationTolerances.pressure_fit``), and the
+    solve goes on through W, whose node forces are a pressure under the palm, 2.0 % from the
+    rigid support's force."""
     scenario = _climb_at(1e12)
     stance = scenario.stance("left-on-platform")
     lift, lifted = stances.stages._lift, []
     monkeypatch.setattr(stances.stages, "_lift", lambda *args: lifted.append(lift(*args)) or lifted[-1])
-    unpressed, reasons = stances.stages._not_pressed, []
-    monkeypatch.setattr(stances.stages, "_not_pressed", lambda *args: reasons.append(unpressed(*args)) or reasons[-1])
+    answer, answers = stances.stages.posture_result, []
+    monkeypatch.setattr(stances.stages, "posture_result", lambda *args: answers.append(answer(*args)) or answers[-1])
     result = solve(robot, scenario.scene, stance)
     assert result.feasible and result.verification.ok and "stiff_limit" not in result.statistics, result.reason
     assert [step is not None for step in lifted] == [False, True, True]
-    assert len(reasons) == 2 and all("are no pressure under its face (7.5 % of them off" in r for r in reasons)
+    held = answers[-3:-1]  # the second and third levels' lifted answers, before the solve through W
+    assert all("right_palm on cube_top are no pressure under its face (7.5 % of them off" in a.reason for a in held)
+    assert all(a.verification.measures["pressure fit of right_palm on cube_top"] > 0.07 for a in held)
     problem = build_problem(robot, scenario.scene, stance)
     (palm, s), = [(c, s) for c, s in zip(problem.contacts, problem.variable_slices) if c.kind == "deformable"]
     data = robot.model.createData()
     pin.framesForwardKinematics(robot.model, data, np.asarray(result.q))
-    assert palm.pressure_fits(robot.model, data, np.asarray(result.statistics["lambda"])[s])[0] < 1e-6
+    assert palm.pressure_fits(palm.forces(robot.model, data, np.asarray(result.statistics["lambda"])[s]))[0] < 1e-6
+    assert result.verification.measures["pressure fit of right_palm on cube_top"] < 1e-6
     rigid = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
     force, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)
     assert np.linalg.norm(force - expected) < 0.021 * np.linalg.norm(expected)  # 1.99 % measured
