@@ -764,8 +764,9 @@ class PrintContactSystem:
 
         Each step solves the law linearised at the current iterate, with the modes
         read from it; it stops when the modes repeat and every slipping node's
-        friction has reached its bound against its slip (to 1e-10 of the largest
-        force), then polishes the answer with one more step.
+        friction has reached its bound against its slip (to ``_SLIP_SETTLED`` of the
+        largest force, or ``_SLIP_FLOOR`` once a step no longer halves it), then
+        polishes the answer with one more step.
         """
         gains = np.zeros(self.n_nodes)
         entries = {}  # how many times the iteration has come into each set of modes
@@ -825,7 +826,7 @@ class PrintContactSystem:
     def _polished(self, u_local, modes, directions, system, phi, r):
         """One more Newton step from a settled answer with slipping nodes.
 
-        Settling stops at 1e-10 of the largest force; the Newton step from there
+        Settling stops at _SLIP_SETTLED (or _SLIP_FLOOR) of the largest force; the Newton step from there
         (quadratic) leaves round-off, so that finite differences of the forces
         through solves at nearby motions see their derivative, not the tolerance.
         """

@@ -163,6 +163,12 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     float
         The least residual's norm over the loads' norm (0 for no load).
 
+    Raises
+    ------
+    FemError
+        Shapes that do not match, a polygon of fewer than three finite vertices, one that
+        covers no surface of the mesh, or a fit that does not converge.
+
     Examples
     --------
     >>> import numpy as np
@@ -176,10 +182,14 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     """
     loads = np.asarray(loads, dtype=float)
     node_ids = np.asarray(node_ids)
+    if node_ids.shape != loads.shape or loads.ndim != 1:
+        raise FemError(f"node_ids and loads must be (p,) alike, got {node_ids.shape} and {loads.shape}")
+    poly = np.asarray(polygon_in_body, dtype=float)
+    if poly.ndim != 2 or poly.shape[1] != 3 or len(poly) < 3 or not np.isfinite(poly).all():
+        raise FemError(f"polygon_in_body must be (k >= 3, 3) finite metres, got shape {poly.shape}")
     size = float(np.linalg.norm(loads))
     if size == 0.0:
         return 0.0
-    poly = np.asarray(polygon_in_body, dtype=float)
     centre = poly.mean(axis=0)
     first, second, normal = np.linalg.svd(poly - centre)[2]
     axes = np.stack([first, second], axis=1)
@@ -204,13 +214,19 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
         local = (np.asarray(part) - points[0]) @ inverse.T  # (m, 2)
         columns.append(np.clip(np.column_stack([1.0 - local.sum(axis=1), local]), 0.0, None))
         owners.append(np.broadcast_to(triangle, (len(part), 3)))
+    if not columns:
+        raise FemError("the polygon covers no surface triangle of the mesh facing its normal in its plane: "
+                       "it lies off the mesh, or off its surface")
     shares, owners = np.concatenate(columns), np.concatenate(owners)  # (n, 3) each
     rows = np.union1d(owners.ravel(), node_ids)
     matrix = np.zeros((len(rows), len(shares)))
     np.add.at(matrix, (np.searchsorted(rows, owners.ravel()), np.repeat(np.arange(len(shares)), 3)), shares.ravel())
     target = np.zeros(len(rows))
     target[np.searchsorted(rows, node_ids)] = loads
-    _, residual = scipy.optimize.nnls(matrix, target, maxiter=50 * matrix.shape[1])
+    try:
+        _, residual = scipy.optimize.nnls(matrix, target, maxiter=50 * matrix.shape[1])
+    except RuntimeError as error:  # its iteration limit: not seen on prints (it takes a few dozen)
+        raise FemError(f"the pressure fit did not converge ({error})") from error
     return float(residual) / size
 
 

@@ -179,8 +179,8 @@ def print_coverage(mesh: TetMesh, polygon_in_body, tolerance: float = 1e-6,
     >>> ids.size, round(float(coverage.max()), 3)   # the centre node's whole support lies inside
     (9, 1.0)
     """
-    if not 0.0 < minimum <= 1.0:
-        raise PrintError(f"a print's least coverage must be in (0, 1], got {minimum}")
+    if not (isinstance(minimum, (int, float, np.floating)) and 0.0 < minimum <= 1.0):
+        raise PrintError(f"a print's least coverage must be in (0, 1], got {minimum!r}")
     key = (np.asarray(polygon_in_body, dtype=float).tobytes(), float(tolerance), float(minimum))
     cached = _COVERAGE_CACHE.setdefault(mesh, {})
     if key in cached:

@@ -151,6 +151,11 @@ RESOLVED_BALL_NODES = 9
 # Newton metres a print's centre-of-pressure moment may fall below zero in verify: ten times
 # the solver's tolerance on those rows (its feasibility tolerance 1e-7, the rows' scale 1 N m).
 _MOMENT_TOLERANCE = 1e-6
+# Newtons a print must press with for its node forces to be fitted by a pressure under it
+# (DeformableContact.pressure_fits): the fit is relative, and forces at the solver's rounding
+# (1e-12 N of mixed signs) read 0.78 (a review, 2026-12-06); the centre of pressure's check
+# leaves a tenth of a newton alone likewise.
+_FIT_LEAST_LOAD = 0.1
 # A ball whose sinking a lower bound puts past this many times verify's placement tolerance
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
@@ -499,7 +504,8 @@ class DeformableContact:
         gaps = []  # per print, (nodes,) distance from each node up to its link's surface at rest
         corners = []  # per print, (k, 2) its polygon's corners in its frame, or None for a point foot
         self.frame_ids, self.print_placements, self.friction = [], [], []
-        self._polygons_in_body = []  # per print on a body too stiff to give (stiff_under), its polygon (k, 3), body frame; else None
+        self._polygons_in_body = []  # per print, its polygon (k, 3) on the body, body frame (None: a ball)
+        self._stiff_prints = []  # per print, whether its body is too stiff to give under it (stiff_under)
         for spec in self.prints:
             surface_model = robot.surface(spec.robot_surface)
             if surface_model.is_point and self.method == "traction":
@@ -520,8 +526,8 @@ class DeformableContact:
             polygon_in_body = (polygon_in_world - body_placement.translation) @ body_placement.rotation
             stiff = (not surface_model.is_point) and stiff_under(robot.weight, surface_model.vertices_in_frame[:, :2],
                                                                  body.material)
-            # A stiff print's polygon: verify fits its node forces by a pressure under it.
-            self._polygons_in_body.append(polygon_in_body if stiff else None)
+            self._polygons_in_body.append(None if surface_model.is_point else polygon_in_body)
+            self._stiff_prints.append(stiff)
             inside = np.asarray(fem.nodes_in_polygon(body.mesh, polygon_in_body, tolerance=1e-6), dtype=np.int64)
             if self.method == "consistent":
                 # Every node whose shape function the polygon covers, coupled by the
@@ -1352,12 +1358,13 @@ class DeformableContact:
             out[spec.robot_surface] = HeldPrint(np.array(reach), friction * self.print_mu[i])
         return out
 
-    def pressure_fits(self, forces) -> list:
-        """Per print on a body too stiff to give (:func:`stiff_under`; None for the others),
-        how far its nodes' normal forces are from those of any non-negative pressure inside
-        its polygon (:func:`fem.pressure_fit`).
+    def pressure_fits(self, forces, every: bool = False) -> list:
+        """Per print on a body too stiff to give (:func:`stiff_under`; with ``every``, per
+        flat print), how far its nodes' normal forces are from those of any non-negative
+        pressure inside its polygon (:func:`fem.pressure_fit`); None for the others and for
+        a print pressing under ``_FIT_LEAST_LOAD`` (its forces are the solver's rounding).
 
-        On such a body a link pivoting by nanometres onto the partly covered nodes past its
+        On a stiff body a link pivoting by nanometres onto the partly covered nodes past its
         edge, while the nodes inside lift, is no row's concern (the whole-print rows bound
         millimetres), and the forces it gives no pressure under the link gives (an
         independent audit: climb-with-soft-support's palm at 1e12 Pa, 7.5 % off).
@@ -1366,15 +1373,19 @@ class DeformableContact:
         ----------
         forces : (p, 3) float
             The print nodes' forces on the robot, world frame, newtons.
+        every : bool, optional
+            Fit every flat print, not only the stiff ones (the stiff limit's answers: a body
+            can be solved there under a load that gives under ``STIFF_GIVE`` though the
+            robot's whole weight would sink it more).
         """
         forces = np.asarray(forces, dtype=float)
         fits = []
-        for i, polygon in enumerate(self._polygons_in_body):
-            if polygon is None:
-                fits.append(None)
-                continue
+        for i, (polygon, stiff) in enumerate(zip(self._polygons_in_body, self._stiff_prints)):
             rows = self.print_of_node == i
             loads = forces[rows] @ self.print_placements[i].rotation[:, 2]
+            if polygon is None or not (stiff or every) or loads.sum() < _FIT_LEAST_LOAD:
+                fits.append(None)
+                continue
             fits.append(fem.pressure_fit(self.deformable_object.body.mesh, polygon, self.node_ids[rows], loads))
         return fits
 
@@ -1972,8 +1983,8 @@ class DeformableContact:
                 continue
             measures[f"pressure fit of {spec.label}"] = fit
             if fit > tolerances.pressure_fit:
-                reasons.append(f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.2g} % of "
-                               "them off: it pivots onto the partly covered nodes past its edge)")
+                reasons.append(f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of "
+                               "them off: a link pivoting onto the partly covered nodes past its edge gives such forces)")
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])

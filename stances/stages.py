@@ -471,14 +471,29 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
             outcome = SqpOutcome(q_lifted, lam_lifted, linearization, iterations + steps, "converged", 0.0, qp_time,
                                  met, "" if met else "the rows not met from the held answer")
             result = posture_result(problem, outcome, time.perf_counter() - start)
-            if result.feasible:
+            why = result.reason if not result.feasible else _not_pressed(problem, stiff, result)
+            if not why:
                 return result, None, None
-            why = result.reason
         return abandon("%s", why, note=note)
     except ContactStateError as error:
         # A print's contact with no state at a posture the held answer led to: the solve
         # through W goes on, as where the held answer does not hold.
         return abandon("no contact state: %s", error)
+
+
+def _not_pressed(problem, stiff, result) -> str:
+    """Why a stiff limit's answer is not a pressure under each stiff body's prints
+    (:meth:`~stances.deformable.DeformableContact.pressure_fits` with ``every``: verify fits
+    only the prints of bodies too stiff to give under the robot's whole weight, and the
+    stiff limit also holds bodies the stance's own loads sink less than ``STIFF_GIVE``),
+    or ``""``."""
+    tolerance = VerificationTolerances().pressure_fit
+    forces = np.array([p.force for p in result.point_forces], dtype=float).reshape(-1, 3)
+    for (contact, _), loads in zip(stiff, [problem.load_slices[problem.contacts.index(c)] for c, _ in stiff]):
+        for spec, fit in zip(contact.prints, contact.pressure_fits(forces[loads], every=True)):
+            if fit is not None and fit > tolerance:
+                return f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of them off)"
+    return ""
 
 
 def _carried(problem, held, stiff, answer, out_of_time):

@@ -311,3 +311,23 @@ def test_a_pressure_fit_is_zero_for_a_pressures_loads_and_not_for_a_pivot_past_t
     pivot = np.where(np.isclose(x, 0.325), 1.0, 0.0) + np.where(x < 0.29, 0.5, 0.0)  # the row at 0.3 lifted
     assert fem.pressure_fit(pad.mesh, polygon, ids, pivot) > 0.05
     assert fem.pressure_fit(pad.mesh, polygon, ids, np.zeros(len(ids))) == 0.0
+
+
+def test_a_pressure_fit_refuses_shapes_that_do_not_match_and_a_polygon_off_the_mesh(pad):
+    polygon = _rectangle((0.2, 0.2), (0.1, 0.06), 0.0)
+    ids, _ = fem.print_coverage(pad.mesh, polygon)
+    with pytest.raises(fem.FemError, match=r"node_ids and loads must be \(p,\) alike, got \(\d+,\) and \(3,\)"):
+        fem.pressure_fit(pad.mesh, polygon, ids, np.ones(3))
+    with pytest.raises(fem.FemError, match=r"polygon_in_body must be \(k >= 3, 3\) finite metres, got shape \(2, 3\)"):
+        fem.pressure_fit(pad.mesh, polygon[:2], ids, np.ones(len(ids)))
+    with pytest.raises(fem.FemError, match="the polygon covers no surface triangle of the mesh facing its normal"):
+        fem.pressure_fit(pad.mesh, polygon + np.array([0.0, 0.0, 0.01]), ids, np.ones(len(ids)))  # 1 cm above the top
+    with pytest.raises(fem.PrintError, match=r"a print's least coverage must be in \(0, 1\], got None"):
+        fem.print_coverage(pad.mesh, polygon, minimum=None)
+
+
+def test_shared_nodes_follow_the_print_covering_more_of_them_and_ties_the_other():
+    keep, other_keep = fem.split_shared_nodes([4, 5, 6], [0.3, 0.5, 0.2], [5, 6, 7], [0.5, 0.1, 1.0])
+    assert keep.tolist() == [True, False, True] and other_keep.tolist() == [True, False, True]
+    keep, other_keep = fem.split_shared_nodes([1], [0.5], [2], [0.5])  # nothing shared
+    assert keep.tolist() == [True] and other_keep.tolist() == [True]
