@@ -22,7 +22,7 @@ import scipy.spatial
 
 from .errors import FemError
 from .mesh import TetMesh
-from .prints import clip_polygon
+from .prints import clip_polygon, convex_polygon_frame, meeting_bounds, plane_triangles
 
 __all__ = ["hertz_load_shares", "pressure_fit"]
 
@@ -166,8 +166,9 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     Raises
     ------
     FemError
-        Shapes that do not match, a polygon of fewer than three finite vertices, one that
-        covers no surface of the mesh, or a fit that does not converge.
+        Shapes that do not match, a polygon that covers no surface of the mesh, or a fit
+        that does not converge; :class:`PrintError` (one) as :func:`fem.print_coverage` for
+        a polygon that is not a convex planar one.
 
     Examples
     --------
@@ -184,26 +185,13 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     node_ids = np.asarray(node_ids)
     if node_ids.shape != loads.shape or loads.ndim != 1:
         raise FemError(f"node_ids and loads must be (p,) alike, got {node_ids.shape} and {loads.shape}")
-    poly = np.asarray(polygon_in_body, dtype=float)
-    if poly.ndim != 2 or poly.shape[1] != 3 or len(poly) < 3 or not np.isfinite(poly).all():
-        raise FemError(f"polygon_in_body must be (k >= 3, 3) finite metres, got shape {poly.shape}")
+    centre, normal, basis, flat = convex_polygon_frame(polygon_in_body)  # flat: counter-clockwise
     size = float(np.linalg.norm(loads))
     if size == 0.0:
         return 0.0
-    centre = poly.mean(axis=0)
-    first, second, normal = np.linalg.svd(poly - centre)[2]
-    axes = np.stack([first, second], axis=1)
-    flat = (poly - centre) @ axes  # (k, 2)
-    if np.sum(flat[:, 0] * np.roll(flat[:, 1], -1) - flat[:, 1] * np.roll(flat[:, 0], -1)) < 0.0:
-        flat = flat[::-1]  # counter-clockwise, as clip_polygon takes it
-    # Facing surface triangles in the polygon's plane, near it.
-    tree, longest = mesh.surface_search
-    candidates = np.array(sorted(tree.query_ball_point(centre, float(np.linalg.norm(flat, axis=1).max()) + longest)),
-                          dtype=int)
-    candidates = candidates[np.abs(mesh.surface_normals[candidates] @ normal) > _FACING]
-    corners = mesh.nodes[mesh.surface_triangles[candidates]] - centre  # (t, 3, 3)
-    in_plane = np.abs(corners @ normal).max(axis=1) <= 1e-6
-    triangles, planar = mesh.surface_triangles[candidates[in_plane]], corners[in_plane] @ axes  # (t, 3), (t, 3, 2)
+    keep, planar = plane_triangles(mesh, centre, normal, basis)
+    near = meeting_bounds(planar, flat)
+    triangles, planar = mesh.surface_triangles[keep[near]], planar[near]
     # Each part's corners, as loads on its triangle's nodes (barycentric coordinates).
     columns, owners = [], []
     for triangle, points in zip(triangles, planar):

@@ -230,23 +230,14 @@ def split_shared_nodes(ids, coverage, other_ids, other_coverage) -> tuple[np.nda
 
 def _print_coverage(mesh, polygon_in_body, tolerance, minimum):
     """:func:`print_coverage`, computed."""
-    centre, normal, basis, v = _polygon_frame(polygon_in_body, tolerance)
+    centre, normal, basis, v = convex_polygon_frame(polygon_in_body, tolerance)
     twice_area = float(_cross(v, np.roll(v, -1, axis=0)).sum())
-    if twice_area < 0.0:
-        v = v[::-1]  # counter-clockwise in the plane's axes
-    turns = _cross(np.roll(v, -1, axis=0) - v, np.roll(v, -2, axis=0) - np.roll(v, -1, axis=0))
-    if (turns < -1e-12 * abs(twice_area)).any():
-        raise PrintError("polygon is not convex; a print's coverage needs a convex contact polygon")
-    triangles = mesh.surface_triangles
-    rel = mesh.nodes[triangles] - centre  # (T, 3, 3)
-    facing = np.abs(mesh.surface_normals @ normal) >= 1.0 - 1e-6
-    keep = facing & (np.abs(rel @ normal) <= tolerance).all(axis=1)
-    triangles, flat = triangles[keep], rel[keep] @ basis  # (T', 3), (T', 3, 2)
+    keep, flat = plane_triangles(mesh, centre, normal, basis, tolerance)
+    triangles = mesh.surface_triangles[keep]  # (T', 3), flat (T', 3, 2)
     # int_S N_i dA: a third of each triangle around the node.
     support = np.zeros(mesh.n_nodes)
     np.add.at(support, triangles.ravel(), np.repeat(mesh.surface_areas[keep] / 3.0, 3))
-    # Only the triangles whose bounds meet the polygon's can be covered.
-    near = np.all((flat.max(axis=1) >= v.min(axis=0)) & (flat.min(axis=1) <= v.max(axis=0)), axis=1)
+    near = meeting_bounds(flat, v)
     triangles, flat = triangles[near], flat[near]
     clockwise = _cross(flat[:, 1] - flat[:, 0], flat[:, 2] - flat[:, 0]) < 0.0
     flat[clockwise] = flat[clockwise][:, ::-1]  # counter-clockwise, like the polygon
@@ -268,6 +259,41 @@ def _print_coverage(mesh, polygon_in_body, tolerance, minimum):
         coverage = np.where(support > 0.0, covered / support, 0.0)
     ids = np.flatnonzero(coverage >= minimum)
     return ids, np.minimum(coverage[ids], 1.0)
+
+
+def convex_polygon_frame(polygon_in_body, tolerance: float = 1e-6):
+    """Centre (3,), unit normal (3,), in-plane axes (3, 2) and counter-clockwise in-plane
+    vertices (k, 2) of a checked convex planar polygon (body frame, metres).
+
+    Raises
+    ------
+    PrintError
+        As :func:`nodes_in_polygon`, or a polygon that is not convex.
+    """
+    centre, normal, basis, v = _polygon_frame(polygon_in_body, tolerance)
+    twice_area = float(_cross(v, np.roll(v, -1, axis=0)).sum())
+    if twice_area < 0.0:
+        v = v[::-1]  # counter-clockwise in the plane's axes
+    turns = _cross(np.roll(v, -1, axis=0) - v, np.roll(v, -2, axis=0) - np.roll(v, -1, axis=0))
+    if (turns < -1e-12 * abs(twice_area)).any():
+        raise PrintError("polygon is not convex; a print's coverage needs a convex contact polygon")
+    return centre, normal, basis, v
+
+
+def plane_triangles(mesh: TetMesh, centre, normal, basis, tolerance: float = 1e-6):
+    """The surface triangles facing along ``normal`` whose corners lie within ``tolerance``
+    of the plane through ``centre``: their (T',) indices into ``mesh.surface_triangles`` and
+    their corners in the plane's axes ``basis`` (T', 3, 2), metres from ``centre``."""
+    rel = mesh.nodes[mesh.surface_triangles] - centre  # (T, 3, 3)
+    facing = np.abs(mesh.surface_normals @ normal) >= 1.0 - 1e-6
+    keep = np.flatnonzero(facing & (np.abs(rel @ normal) <= tolerance).all(axis=1))
+    return keep, rel[keep] @ basis
+
+
+def meeting_bounds(flat, v) -> np.ndarray:
+    """(T,) bool: the triangles (T, 3, 2) whose bounding boxes meet the polygon's (k, 2),
+    the only ones it can cover."""
+    return np.all((flat.max(axis=1) >= v.min(axis=0)) & (flat.min(axis=1) <= v.max(axis=0)), axis=1)
 
 
 def _polygon_frame(polygon_in_body, tolerance):

@@ -1389,6 +1389,21 @@ class DeformableContact:
             fits.append(fem.pressure_fit(self.deformable_object.body.mesh, polygon, self.node_ids[rows], loads))
         return fits
 
+    def unpressed(self, forces, tolerance: float, every: bool = False, measures: dict | None = None) -> list:
+        """Why the prints' node forces are no pressure under their faces: each fit of
+        :meth:`pressure_fits` (``forces``, ``every`` as there) over ``tolerance``, its value
+        put in ``measures`` (``pressure fit of <print>``) where given."""
+        reasons = []
+        for spec, fit in zip(self.prints, self.pressure_fits(forces, every)):
+            if fit is None:
+                continue
+            if measures is not None:
+                measures[f"pressure fit of {spec.label}"] = fit
+            if fit > tolerance:
+                reasons.append(f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of "
+                               "them off: a link pivoting onto the partly covered nodes past its edge gives such forces)")
+        return reasons
+
     def carrying_variables(self, wrench):
         """W whose Coulomb forces carry given wrenches, and the links' motion it asks.
 
@@ -1978,13 +1993,7 @@ class DeformableContact:
         if self.law == "coulomb":
             reasons.extend(self._check_corners(reached, tolerances, measures))
         reasons.extend(self._check_centres_of_pressure(forces, tolerances, measures))
-        for spec, fit in zip(self.prints, self.pressure_fits(forces)):
-            if fit is None:
-                continue
-            measures[f"pressure fit of {spec.label}"] = fit
-            if fit > tolerances.pressure_fit:
-                reasons.append(f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of "
-                               "them off: a link pivoting onto the partly covered nodes past its edge gives such forces)")
+        reasons.extend(self.unpressed(forces, tolerances.pressure_fit, measures=measures))
         measures[f"smallest node normal force on {name}"] = float(phi[:, 2].min())
         if phi[:, 2].min() < -tolerances.cone:
             node = int(self.node_ids[int(np.argmin(phi[:, 2]))])

@@ -483,16 +483,16 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
 
 def _not_pressed(problem, stiff, result) -> str:
     """Why a stiff limit's answer is not a pressure under each stiff body's prints
-    (:meth:`~stances.deformable.DeformableContact.pressure_fits` with ``every``: verify fits
+    (:meth:`~stances.deformable.DeformableContact.unpressed` with ``every``: verify fits
     only the prints of bodies too stiff to give under the robot's whole weight, and the
     stiff limit also holds bodies the stance's own loads sink less than ``STIFF_GIVE``),
     or ``""``."""
-    tolerance = VerificationTolerances().pressure_fit
     forces = np.array([p.force for p in result.point_forces], dtype=float).reshape(-1, 3)
-    for (contact, _), loads in zip(stiff, [problem.load_slices[problem.contacts.index(c)] for c, _ in stiff]):
-        for spec, fit in zip(contact.prints, contact.pressure_fits(forces[loads], every=True)):
-            if fit is not None and fit > tolerance:
-                return f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of them off)"
+    for contact, _ in stiff:
+        loads = problem.load_slices[problem.contacts.index(contact)]
+        reasons = contact.unpressed(forces[loads], VerificationTolerances().pressure_fit, every=True)
+        if reasons:
+            return reasons[0]
     return ""
 
 
