@@ -20,7 +20,7 @@ from .material import LOCKING_POISSON_RATIO, LinearElasticMaterial
 from .mesh import TetMesh
 from .meshing import box_mesh, graded_coordinates, mesh_from_surface, tensor_mesh
 from .patch import ContactPatch
-from .pressure_loads import hertz_load_shares, pressure_fit
+from .pressure_loads import hertz_load_shares, pressure_corners, pressure_fit
 from .prints import MINIMUM_COVERAGE, coverage_reach, nodes_in_polygon, print_coverage, split_shared_nodes
 from .solvers import available_solvers
 from .strain_average import frobenius_norms
@@ -59,6 +59,7 @@ __all__ = [
     "LayerBallStrain",
     "axisymmetric_layer_field",
     "hertz_load_shares",
+    "pressure_corners",
     "pressure_fit",
     "von_mises",
     "voigt_to_tensor_strain",

@@ -1,7 +1,8 @@
 """Pressures on a mesh's surface as consistent nodal loads.
 
-:func:`hertz_load_shares`: a ball's Hertzian pressure. :func:`pressure_fit`: how far given
-nodal loads are from those of any non-negative pressure inside a polygon.
+:func:`hertz_load_shares`: a ball's Hertzian pressure. :func:`pressure_corners`: the points
+whose point loads span every non-negative pressure inside a polygon; :func:`pressure_fit`: how
+far given nodal loads are from those of any such pressure.
 
 A ball foot whose contact is smaller than the mesh's cells (:class:`fem.layer_contact.BallOnLayer`
 gives its force) still loads the body: to draw its field, bound its strain and check its
@@ -24,7 +25,7 @@ from .errors import FemError
 from .mesh import TetMesh
 from .prints import clip_polygon, convex_polygon_frame, meeting_bounds, plane_triangles
 
-__all__ = ["hertz_load_shares", "pressure_fit"]
+__all__ = ["hertz_load_shares", "pressure_corners", "pressure_fit"]
 
 # Polar rule on the contact disc: rho = a sin(phi) takes the pressure's square root at the
 # edge into a smooth integrand (p rho drho = p0 a^2 cos^2 phi sin phi dphi), Gauss-Legendre in
@@ -135,6 +136,68 @@ def hertz_load_shares(mesh: TetMesh, centre, normal, contact_radius: float) -> t
     return node_ids, shares / shares.sum()
 
 
+def pressure_corners(mesh: TetMesh, polygon_in_body) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The corners of each surface triangle's part inside a polygon, with the loads a unit
+    point load there puts on the triangle's nodes (their shape functions' values).
+
+    A pressure's consistent loads are ``f_i = int N_i p dA``; N_i is linear on each part, so
+    a point load anywhere in a part is a non-negative combination of point loads at its
+    corners: these points' loads span every non-negative pressure's inside the polygon
+    (point loads being the limit of a pressure gathered at a point). Each point's shares
+    are non-negative, add up to 1 and reproduce its position (``sum_i N_i(x) x_i = x``).
+
+    Parameters
+    ----------
+    mesh : TetMesh
+    polygon_in_body : (k, 3) float
+        A convex planar polygon on the mesh's surface, in order, metres, body frame.
+
+    Returns
+    -------
+    points : (n, 3) float
+        The parts' corners, metres, body frame (a corner shared by parts once per part).
+    node_ids : (n, 3) int
+        Each point's triangle's nodes.
+    shares : (n, 3) float
+        Their shape functions' values at the point.
+
+    Raises
+    ------
+    FemError
+        A polygon that covers no surface triangle facing its normal in its plane;
+        :class:`PrintError` (one) as :func:`fem.print_coverage` for a polygon that is not a
+        convex planar one.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from fem import box_mesh
+    >>> mesh = box_mesh((0.4, 0.4, 0.1), (8, 8, 2))    # top nodes every 50 mm
+    >>> square = [[0.11, 0.11, 0.1], [0.31, 0.11, 0.1], [0.31, 0.31, 0.1], [0.11, 0.31, 0.1]]
+    >>> points, ids, shares = pressure_corners(mesh, square)
+    >>> bool(np.allclose(np.einsum("nj,njk->nk", shares, mesh.nodes[ids]), points))
+    True
+    """
+    centre, normal, basis, flat = convex_polygon_frame(polygon_in_body)  # flat: counter-clockwise
+    keep, planar = plane_triangles(mesh, centre, normal, basis)
+    near = meeting_bounds(planar, flat)
+    triangles, planar = mesh.surface_triangles[keep[near]], planar[near]
+    columns, owners, corners = [], [], []
+    for triangle, points in zip(triangles, planar):
+        part = clip_polygon(points, flat)
+        if len(part) < 3:
+            continue
+        inverse = np.linalg.inv(np.stack([points[1] - points[0], points[2] - points[0]], axis=1))
+        local = (np.asarray(part) - points[0]) @ inverse.T  # (m, 2)
+        columns.append(np.clip(np.column_stack([1.0 - local.sum(axis=1), local]), 0.0, None))
+        owners.append(np.broadcast_to(triangle, (len(part), 3)))
+        corners.append(np.asarray(part))
+    if not columns:
+        raise FemError("the polygon covers no surface triangle of the mesh facing its normal in its plane: "
+                       "it lies off the mesh, or off its surface")
+    return centre + np.concatenate(corners) @ basis.T, np.concatenate(owners), np.concatenate(columns)
+
+
 def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     """How far nodal loads are from the consistent loads of a non-negative pressure
     inside a polygon: ``min |A p - f| / |f|`` over ``p >= 0``.
@@ -185,27 +248,11 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     node_ids = np.asarray(node_ids)
     if node_ids.shape != loads.shape or loads.ndim != 1:
         raise FemError(f"node_ids and loads must be (p,) alike, got {node_ids.shape} and {loads.shape}")
-    centre, normal, basis, flat = convex_polygon_frame(polygon_in_body)  # flat: counter-clockwise
     size = float(np.linalg.norm(loads))
     if size == 0.0:
+        convex_polygon_frame(polygon_in_body)  # a bad polygon is refused all the same
         return 0.0
-    keep, planar = plane_triangles(mesh, centre, normal, basis)
-    near = meeting_bounds(planar, flat)
-    triangles, planar = mesh.surface_triangles[keep[near]], planar[near]
-    # Each part's corners, as loads on its triangle's nodes (barycentric coordinates).
-    columns, owners = [], []
-    for triangle, points in zip(triangles, planar):
-        part = clip_polygon(points, flat)
-        if len(part) < 3:
-            continue
-        inverse = np.linalg.inv(np.stack([points[1] - points[0], points[2] - points[0]], axis=1))
-        local = (np.asarray(part) - points[0]) @ inverse.T  # (m, 2)
-        columns.append(np.clip(np.column_stack([1.0 - local.sum(axis=1), local]), 0.0, None))
-        owners.append(np.broadcast_to(triangle, (len(part), 3)))
-    if not columns:
-        raise FemError("the polygon covers no surface triangle of the mesh facing its normal in its plane: "
-                       "it lies off the mesh, or off its surface")
-    shares, owners = np.concatenate(columns), np.concatenate(owners)  # (n, 3) each
+    _, owners, shares = pressure_corners(mesh, polygon_in_body)
     rows = np.union1d(owners.ravel(), node_ids)
     matrix = np.zeros((len(rows), len(shares)))
     np.add.at(matrix, (np.searchsorted(rows, owners.ravel()), np.repeat(np.arange(len(shares)), 3)), shares.ravel())

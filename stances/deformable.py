@@ -134,6 +134,7 @@ from .blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from .contacts import PYRAMID_SIDES, convex_polygon, friction_cone_generators, pyramid_faces
 from .errors import StanceError
 from .layer_ball import layer_under
+from .qp_backend import proxsuite
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "HeldPrint", "PrintSpec", "MINIMUM_PRINT_NODES", "PIVOTING_ROW", "PIVOTING_REFUSAL"]
@@ -156,6 +157,10 @@ _MOMENT_TOLERANCE = 1e-6
 # (1e-12 N of mixed signs) read 0.78 (a review, 2026-12-06); the centre of pressure's check
 # leaves a tenth of a newton alone likewise.
 _FIT_LEAST_LOAD = 0.1
+# The whisker of |c|^2 in spread_forces' least-energy QP (its energy scaled to a unit diagonal),
+# and the QP's iteration limit.
+_SPREAD_REGULARISATION = 1e-9
+_SPREAD_QP_ITERATIONS = 10_000
 # A ball whose sinking a lower bound puts past this many times verify's placement tolerance
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
@@ -330,15 +335,25 @@ class HeldPrint:
         pressure must lie in: where its nodes can carry them.
     resultant_friction : float
         Its resultant's friction coefficient (``friction_margin`` included).
+    motion : (6,) float, optional
+        Where the link's face is held: the print moved by this rigid motion, translation
+        (metres) then rotation vector (radians), print frame (the body's give under the
+        held loads, :meth:`DeformableContact.spread_motions`); at rest by default.
     """
 
     reach: np.ndarray
     resultant_friction: float
+    motion: tuple = (0.0,) * 6
 
     def __post_init__(self) -> None:
         if not self.resultant_friction >= 0.0:
             raise StanceError(f"a held print's resultant friction must be >= 0, got {self.resultant_friction}")
         object.__setattr__(self, "reach", convex_polygon(self.reach, "a held print's reach"))
+        motion = np.array(self.motion, dtype=float)
+        if motion.shape != (6,) or not np.isfinite(motion).all():
+            raise StanceError(f"a held print's motion must be 6 finite numbers, got {self.motion!r}")
+        motion.setflags(write=False)
+        object.__setattr__(self, "motion", motion)
 
 
 @dataclass(frozen=True)
@@ -625,6 +640,9 @@ class DeformableContact:
         self.print_surfaces = tuple(spec.robot_surface for spec in self.prints)
         self.load_prints = self.print_of_node
         self.load_frames = tuple(frames[i] for i in self.print_of_node)
+        self._print_frames = tuple(frames)
+        self._body_placement = body_placement
+        self._corners_memo = {}  # print index -> _pressure_corners' answer
         self.patch = body.contact_patch(self.node_ids, self.coverage if self.method == "consistent" else None)
         # Partly covered nodes' series compliance D (fem.ContactPatch), its (p, 3, 3)
         # diagonal blocks: a link point moves by its node's motion plus D times the
@@ -1403,6 +1421,154 @@ class DeformableContact:
                 reasons.append(f"the node forces of {spec.label} are no pressure under its face ({100 * fit:.3g} % of "
                                "them off: a link pivoting onto the partly covered nodes past its edge gives such forces)")
         return reasons
+
+    def spread_forces(self, model, data, point_forces):
+        """Node forces of a pressure under each print's face carrying its wrench in
+        ``point_forces``: of every such pressure whose tractions lie in its nodes' friction
+        pyramid, the one of least elastic energy (:meth:`_least_energy_pressure`).
+
+        For a stiff body whose nodes' own contact would carry a held answer only by
+        pivoting onto the partly covered nodes past an edge (:mod:`stances.stages`): the
+        node forces of a link's face, as a converged mesh would give them, where this mesh
+        gives none. Where the body gives nanometres under them its nodes lie against their
+        links to that, which :func:`stances.verify` checks.
+
+        Parameters
+        ----------
+        model, data : pinocchio Model and Data
+            Frame placements computed at the answer's posture.
+        point_forces : sequence of PointForce
+            Forces on the robot, world frame; those on each print's link frame count.
+
+        Returns
+        -------
+        (p, 3) float or None
+            The print nodes' forces on the robot, world frame; None where no such pressure
+            carries a print's wrench.
+        """
+        out = np.zeros((len(self.node_ids), 3))
+        for i, (frame, frame_id, placement) in enumerate(zip(self._print_frames, self.frame_ids, self.print_placements)):
+            on_link = [f for f in point_forces if f.frame == frame]
+            if not on_link or self._polygons_in_body[i] is None:
+                continue
+            link = data.oMf[frame_id]
+            # The wrench on the link about its frame, in its axes (its print's at rest).
+            local = np.array([link.actInv(np.asarray(f.point, dtype=float)) for f in on_link])
+            local_forces = np.array([f.force for f in on_link], dtype=float) @ link.rotation
+            wrench = np.concatenate([local_forces.sum(axis=0), np.cross(local, local_forces).sum(axis=0)])
+            forces = self._least_energy_pressure(i, wrench)
+            if forces is None:
+                return None
+            # Into the link's axes (the print's at rest; the face turned by micro-radians where
+            # its give holds it, HeldPrint.motion), then the world's.
+            in_print = self.rotation_body.T @ placement.rotation
+            out += forces @ in_print @ link.rotation.T
+        return out
+
+    def spread_motions(self, model, data, forces) -> list:
+        """Each print's rigid motion (6,) (translation, metres, then rotation vector, radians;
+        its frame) that puts its link points where its pressed nodes are under ``forces``
+        (least squares over them): the body's field, the partly covered nodes' couplings'
+        stretch added (``ends`` as :meth:`verify` reads them). A link whose forces
+        :meth:`spread_forces` gave is held there (:attr:`HeldPrint.motion`), not at rest:
+        on a steel-stiff cube a palm's nodes slide a micrometre under its friction.
+
+        Parameters
+        ----------
+        model, data : pinocchio Model and Data
+        forces : (p, 3) float
+            The print nodes' forces on the robot, world frame.
+        """
+        forces = np.asarray(forces, dtype=float)
+        forces_body = forces @ self.rotation_body
+        ends = self.displacement_field(model, data, forces)[self.node_ids]
+        if self._coupling is not None:
+            ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
+        motions = []
+        for i, placement in enumerate(self.print_placements):
+            rows = self.print_of_node == i
+            in_print = self.rotation_body.T @ placement.rotation  # print axes in the body's
+            pressed = rows & (forces @ placement.rotation[:, 2] > _FIT_LEAST_LOAD * 1e-3)
+            if self._polygons_in_body[i] is None or np.count_nonzero(pressed) < 3:
+                motions.append(np.zeros(6))
+                continue
+            levers = self._in_print(self.deformable_object.body.mesh.nodes[self.node_ids[pressed]], self._body_placement,
+                                    placement)
+            basis = np.zeros((len(levers), 3, 6))
+            basis[:, :, :3] = np.eye(3)
+            basis[:, :, 3:] = -_skew_rows(levers)
+            target = ends[pressed] @ in_print  # (n, 3) print frame
+            motions.append(np.linalg.lstsq(basis.reshape(-1, 6), target.reshape(-1), rcond=None)[0])
+        return motions
+
+    def _least_energy_pressure(self, i, wrench):
+        """Node forces (p, 3), body frame, on the robot, of the pressure under print ``i``'s
+        face with ``wrench`` (force, moment about its origin; its frame), its tractions in
+        the pyramid of its nodes' friction, of least elastic energy ``1/2 f^T (C + D) f``
+        (the body's and its partly covered nodes' couplings': of the loads a rigid link's
+        face could put there, those the body's elasticity selects), or None.
+
+        The pressure is spanned by point loads at the corners of the surface triangles'
+        parts under the face (:func:`fem.pressure_corners`), each a combination of its
+        pyramid's edges: a QP over those coefficients (proxsuite), its equality then made
+        exact on their support.
+        """
+        corners = self._pressure_corners(i)
+        if corners is None:
+            return None
+        levers, spread = corners  # (m, 3) print frame; (3p, 4m) body frame: each edge's node loads
+        edges = friction_cone_generators(self.print_mu[i])  # (4, 3), print frame
+        columns = np.concatenate([np.hstack([edges, np.cross(point, edges)]) for point in levers]).T  # (6, 4m)
+        hessian = spread.T @ self.patch.link_compliance @ spread
+        n = hessian.shape[0]
+        # Scaled to a unit diagonal; a whisker of |c|^2 makes it definite (corners of one triangle
+        # load the same nodes).
+        hessian = hessian / max(float(np.diag(hessian).max()), 1e-300) + _SPREAD_REGULARISATION * np.eye(n)
+        qp = proxsuite.proxqp.dense.QP(n, 6, n)
+        size = max(float(np.linalg.norm(wrench)), 1.0)
+        qp.settings.eps_abs, qp.settings.eps_rel = 1e-10 * size, 0.0
+        qp.settings.max_iter, qp.settings.verbose = _SPREAD_QP_ITERATIONS, False
+        qp.init(hessian, np.zeros(n), columns, wrench, np.eye(n), np.zeros(n), np.full(n, 1e20))
+        qp.solve()
+        weights = np.maximum(np.asarray(qp.results.x), 0.0)
+        if np.linalg.norm(columns @ weights - wrench) > 1e-9 * size:
+            # The equality to rounding on the coefficients the QP uses.
+            support = weights > 1e-6 * max(float(weights.max(initial=0.0)), 1e-300)
+            weights[support] += np.linalg.lstsq(columns[:, support], wrench - columns @ weights, rcond=None)[0]
+        if (weights < 0.0).any() or np.linalg.norm(columns @ weights - wrench) > 1e-9 * size:
+            return None
+        return (spread @ weights).reshape(-1, 3)
+
+    def _pressure_corners(self, i):
+        """Print ``i``'s :func:`fem.pressure_corners` that its nodes keep, memoised: their
+        positions in its frame (m, 3), and each of its pyramid's edges' loads on the body's
+        print nodes (3p, 4m), body frame; None where it keeps none. A corner whose triangle
+        has a node the print does not keep (covered less than it keeps, or gone to a
+        neighbouring print) is left out: its load would go to no node."""
+        if i not in self._corners_memo:
+            mesh, body, placement = self.deformable_object.body.mesh, self._body_placement, self.print_placements[i]
+            points, triangles, shares = fem.pressure_corners(mesh, self._polygons_in_body[i])
+            # A corner shared by parts (a node inside the polygon, a crossing of a mesh edge)
+            # once: the same point loads the same nodes alike from either triangle.
+            _, first = np.unique(np.round(points / 1e-9), axis=0, return_index=True)
+            first = np.sort(first)
+            points, triangles, shares = points[first], triangles[first], shares[first]
+            rows = np.flatnonzero(self.print_of_node == i)
+            order = np.argsort(self.node_ids[rows])
+            ids = self.node_ids[rows][order]
+            where = np.clip(np.searchsorted(ids, triangles), 0, len(ids) - 1)
+            mine = ids[where] == triangles
+            kept = (mine | (shares <= 0.0)).all(axis=1)
+            memo = None
+            if kept.any():
+                edges_in_body = self.rotation_body.T @ placement.rotation @ friction_cone_generators(self.print_mu[i]).T
+                spread = np.zeros((len(self.node_ids), 3, int(kept.sum()), 4))
+                for k, (node_rows, node_shares, own) in enumerate(zip(rows[order][where[kept]], shares[kept], mine[kept])):
+                    for row, share in zip(node_rows[own], node_shares[own]):
+                        spread[row, :, k, :] += share * edges_in_body
+                memo = (self._in_print(points[kept], body, placement), spread.reshape(3 * len(self.node_ids), -1))
+            self._corners_memo[i] = memo
+        return self._corners_memo[i]
 
     def carrying_variables(self, wrench):
         """W whose Coulomb forces carry given wrenches, and the links' motion it asks.

@@ -1017,7 +1017,9 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
         elif held is not None:
             if surface.deformable:
                 held_bodies[scene.deformable_of_surface(surface.name).name].append(contact.robot_surface)
-            contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label,
+            # The face held where the body's give puts it (HeldPrint.motion; at rest by default).
+            moved = transform @ pin.exp6(pin.Motion(held.motion[:3], held.motion[3:])).homogeneous
+            contacts.append(RigidContact(robot, contact.robot_surface, moved, surface.friction, label,
                                          surface=surface, reach=held.reach, resultant_friction=held.resultant_friction))
         else:
             contacts.append(RigidContact(robot, contact.robot_surface, transform, surface.friction, label, surface=surface))

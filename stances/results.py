@@ -91,7 +91,9 @@ class SolveStatistics(Mapping):
         (``stiff_limit``) has its stiff prints' force term on W, the wrench their nodes would
         carry bonded under the motion found, which exceeds the wrench carried where the
         print pivots: a palm on a 1e10 Pa cube held on its edge read 6.30 where its held
-        solve's objective was 2.04; compare such answers by their postures and forces.
+        solve's objective was 2.04; compare such answers by their postures and forces. An
+        answer with ``pressure_spread`` has its held solve's objective (the stiff prints' force
+        term the rigid contact's).
     penalty : float
         The elastic penalty at the end.
     qp_time : float
@@ -119,6 +121,12 @@ class SolveStatistics(Mapping):
         A soft stance solved in its bodies' stiff limit (``PostureOptions.stiff_limit``):
         its soft prints held rigid where their nodes are, then the links' motion found
         whose Coulomb forces carry that answer.
+    pressure_spread : bool
+        An answer in the stiff limit whose stiff prints' node forces are, each print, the
+        least-energy pressure under its face carrying the held answer's wrench, the face held
+        where the body gives under it (:meth:`stances.deformable.DeformableContact.spread_forces`),
+        not the forces of its link's own Coulomb contact, which carried that answer only
+        pivoting onto the partly covered nodes past an edge.
     first_start : dict
         A solve given no posture that failed from the reaching start
         (:func:`stances.reaching_configuration`) and was solved again from the reference
@@ -138,6 +146,7 @@ class SolveStatistics(Mapping):
     rigid_warm_start_iterations: int | None = None
     bonded_warm_start: bool | None = None
     stiff_limit: bool | None = None
+    pressure_spread: bool | None = None
     first_start: dict | None = None
 
     _KEYS = {"lambda": "lam"}  # mapping key -> field, where they differ
@@ -160,6 +169,7 @@ class SolveStatistics(Mapping):
         fields = {names.get(key, key): value for key, value in values.items()}
         casts = {"status": str, "violation": float, "objective": float, "penalty": float, "qp_time": float, "sqp_time": float,
                  "curvature_iterations": int, "corrections": int, "rigid_warm_start_iterations": int, "bonded_warm_start": bool, "stiff_limit": bool,
+                 "pressure_spread": bool,
                  "options": dict,
                  "first_start": dict,
                  "lam": lambda v: tuple(float(x) for x in v)}

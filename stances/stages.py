@@ -7,7 +7,8 @@ only near their prints, so a solve goes by stages:
    rejection of a stance that cannot be held even so);
 2. the stiff limit (:func:`_solve_stiff_limit`): the bodies that give under 10 um held
    rigid where their nodes are, then the links' motion whose Coulomb forces carry that
-   answer, verified; where it does not hold, nothing of it is kept (and where every soft
+   answer, or else the least-energy pressure under each face, verified; where it does not
+   hold, nothing of it is kept (and where every soft
    body is that stiff and the stance is not held even rigid where their nodes reach, it is
    refused there);
 3. the Coulomb stages (:func:`_solve_coulomb`): the nodes' modes read at every
@@ -34,10 +35,12 @@ from .deformable import STIFF_GIVE
 from .errors import ConfigurationError, StanceError
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
-from .results import PostureResult
-from .sqp import OUT_OF_TIME, QP_FAILED, SqpOutcome, posture_result, restoration_step, solve_problem
+from .results import PointForce, PostureResult
+from .sqp import (OUT_OF_TIME, QP_FAILED, SqpOutcome, deformation_fields, posture_result, restoration_step,
+                  solve_problem)
+from .statics import points_in_world
 from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR, STALLED
-from .verify import VerificationTolerances
+from .verify import VerificationTolerances, verify_problem
 
 logger = logging.getLogger(__name__)
 
@@ -339,7 +342,7 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
        pressure where its nodes are, its resultant in a friction pyramid
        (:meth:`~stances.deformable.DeformableContact.held_prints`): at the loosest of
        ``_HELD_LEVELS`` first (the reach of all their nodes, the rigid contact's friction),
-       then, where 3. or 4. fails, at the next ones (``friction_margin``'s friction; the
+       then, where 3. to 5. fail, at the next ones (``friction_margin``'s friction; the
        reach of the nodes their polygons cover a hundredth or more); each solved to
        ``options``' tolerances from ``q``; the other soft bodies stay soft (a foam mat
        beside a steel-stiff block: through W as any Coulomb stance, :func:`_solve_coulomb`,
@@ -354,7 +357,14 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
        carried ones), onto every row (:func:`_lift`: the links moved by that give, the
        other contacts' forces balancing the posture so moved; then a step or two with W
        free too, where a row at its bound stays a few nanometres off), then
-       :func:`stances.verify` on the full FEM model.
+       :func:`stances.verify` on the full FEM model, and each stiff print's node forces a
+       pressure under its face (:meth:`~stances.deformable.DeformableContact.pressure_fits`);
+    5. where 3. or 4. fails, the held answer itself, each stiff print's wrench carried by the
+       least-energy pressure under its face, the face held where the body gives under it
+       (:func:`_spread_answer`), verified: a link's own contact carries a held answer whose
+       centre of pressure nears an edge only pivoting onto the partly covered nodes past it
+       (Romeo's and iCub's palms at 1e10 Pa, both soles 2 mm behind their toe edges on a
+       steel-stiff slab), where a converged mesh would carry it by a pressure under the link.
 
     Where it does not hold, the soft contacts are left as they were (the solve that goes
     on through W starts as it would have without this), and so where ``deadline`` passes
@@ -430,12 +440,9 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
             held_prints = {}
             for contact, _ in stiff:
                 held_prints.update(contact.held_prints(coverage, friction))
-            held = build(options if mixed else replace(options, deformable_as_rigid=True), held_prints)
-            forces = _held_start(held, problem, q, lam, warm)
-            if any(c.kind == "deformable" for c in held.contacts):
-                answer = _solve_coulomb(held, q, deadline, lam_init=forces)
-            else:  # every body held, or the others balls on layers: no contact sets to settle
-                answer = solve_problem(held, q, lam_init=forces, deadline=deadline, check=False)
+            held_options = options if mixed else replace(options, deformable_as_rigid=True)
+            held = build(held_options, held_prints)
+            answer = _held_solve(held, q, _held_start(held, problem, q, lam, warm), deadline)
             iterations, qp_time = iterations + answer.iterations, qp_time + answer.statistics["qp_time"]
             if not answer.feasible and k:
                 why = f"held rigid at a tighter level, {answer.reason}"
@@ -456,29 +463,126 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
                 return abandon("held rigid, %s", answer.reason, refusal=refusal)
             if out_of_time():
                 return abandon("out of time")
-            carried, carry_note = _carried(problem, held, stiff, answer, out_of_time)
-            if carried is None:
-                if carry_note is None:
-                    return abandon("out of time")
-                note = why = carry_note
-                continue
-            lifted = _lift(problem, *carried, [s for _, s in stiff])
-            if lifted is None:
-                why = "the rows not met from the held answer"
-                continue
-            q_lifted, lam_lifted, linearization, steps = lifted
-            met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
-            outcome = SqpOutcome(q_lifted, lam_lifted, linearization, iterations + steps, "converged", 0.0, qp_time,
-                                 met, "" if met else "the rows not met from the held answer")
-            result = posture_result(problem, outcome, time.perf_counter() - start)
-            why = result.reason if not result.feasible else _not_pressed(problem, stiff, result)
-            if not why:
+            result, why, carry_note = _carried_answer(problem, held, stiff, answer, out_of_time, iterations, qp_time,
+                                                      start)
+            if result is None and carry_note is None and why is None:
+                return abandon("out of time")
+            note = carry_note or note
+            if result is not None:
                 return result, None, None
+            # The nodes' own contact does not carry it: the least-energy pressure under each face.
+            spread, spread_why = _spread_answer(problem, stiff, held, answer, iterations, qp_time, start,
+                                                held_prints, lambda prints: build(held_options, prints), deadline)
+            if spread is not None:
+                return spread, None, None
+            why = f"{why}; carried by a pressure under the prints, {spread_why}"
         return abandon("%s", why, note=note)
     except ContactStateError as error:
         # A print's contact with no state at a posture the held answer led to: the solve
         # through W goes on, as where the held answer does not hold.
         return abandon("no contact state: %s", error)
+
+
+def _carried_answer(problem, held, stiff, answer, out_of_time, iterations, qp_time, start):
+    """The held ``answer`` carried by the stiff bodies' own Coulomb contact (steps 3 and 4
+    of :func:`_solve_stiff_limit`): ``(result, None, None)``, verified and a pressure under
+    each stiff print; else ``(None, why, note)``, ``note`` the carry's own failure where it
+    failed (for the reason of an answer through W), and all None where the time ran out."""
+    carried, carry_note = _carried(problem, held, stiff, answer, out_of_time)
+    if carried is None:
+        return None, carry_note, carry_note
+    lifted = _lift(problem, *carried, [s for _, s in stiff])
+    if lifted is None:
+        return None, "the rows not met from the held answer", None
+    q_lifted, lam_lifted, linearization, steps = lifted
+    met = linearization.met(problem.options.feasibility_tolerance)  # else nearly: verify decides
+    outcome = SqpOutcome(q_lifted, lam_lifted, linearization, iterations + steps, "converged", 0.0, qp_time,
+                         met, "" if met else "the rows not met from the held answer")
+    result = posture_result(problem, outcome, time.perf_counter() - start)
+    why = result.reason if not result.feasible else _not_pressed(problem, stiff, result)
+    return (None, why, None) if why else (result, None, None)
+
+
+def _held_solve(held, q, lam, deadline):
+    """The stance with some soft bodies held (``held``), solved from ``q`` and ``lam``."""
+    if any(c.kind == "deformable" for c in held.contacts):
+        return _solve_coulomb(held, q, deadline, lam_init=lam)
+    # Every body held, or the others balls on layers: no contact sets to settle.
+    return solve_problem(held, q, lam_init=lam, deadline=deadline, check=False)
+
+
+def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, held_prints, rebuild, deadline):
+    """The held ``answer`` with each stiff print's forces those of the least-energy pressure
+    under its face with its wrench there
+    (:meth:`~stances.deformable.DeformableContact.spread_forces`), its face held where the
+    body gives under them (``rebuild(held_prints)``: the held problem with each
+    :class:`~stances.deformable.HeldPrint` of ``held_prints`` moved so, solved again from
+    ``answer``; where that solve fails, the answer at rest), checked by :func:`stances.verify`
+    on ``problem``: ``(result, None)``, else ``(None, why)``.
+
+    Where the nodes' own contact carries a held answer only by pivoting onto the partly
+    covered nodes past an edge (node forces that no pressure under the link gives), a
+    pressure under the link carries it as on a converged mesh, and a body this stiff
+    gives micrometres under it: verify then finds each node against its link within its
+    tolerance, pushing, in its cone (climb-with-soft-support's palm at 1e10 Pa, held at
+    rest, had a node slip 1.03 um under its friction).
+    """
+    model, data = problem.robot.model, problem.data
+    point_forces = _spread_forces(problem, stiff, held, answer)
+    if isinstance(point_forces, str):
+        return None, point_forces
+    forces = np.array([p.force for p in point_forces], dtype=float)
+    moved = {}
+    for contact, _ in stiff:
+        on_body = forces[problem.load_slices[problem.contacts.index(contact)]]
+        for spec, motion in zip(contact.prints, contact.spread_motions(model, data, on_body)):
+            moved[spec.robot_surface] = motion
+    held_again = rebuild({surface: replace(print_held, motion=moved.get(surface, print_held.motion))
+                          for surface, print_held in held_prints.items()})
+    again = _held_solve(held_again, np.asarray(answer.q, dtype=float), np.asarray(answer.statistics["lambda"]),
+                        deadline)
+    if again.feasible:
+        iterations, qp_time = iterations + again.iterations, qp_time + again.statistics["qp_time"]
+        held, answer = held_again, again
+        point_forces = _spread_forces(problem, stiff, held, answer)
+        if isinstance(point_forces, str):
+            return None, point_forces
+    q = np.asarray(answer.q, dtype=float)
+    lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
+    deformations = deformation_fields(problem, q, point_forces)
+    statistics = {k: v for k, v in dict(answer.statistics, **{"lambda": lam.tolist()}).items() if v is not None}
+    statistics["pressure_spread"] = True
+    result = PostureResult(
+        feasible=False, q=q, point_forces=point_forces, torques=answer.torques, iterations=iterations,
+        solve_time=time.perf_counter() - start, reason="", stance=problem.stance, deformations=deformations,
+        limits=answer.limits, statistics=statistics,
+    )
+    fields_made = {}
+    verification = verify_problem(problem, result, fields=fields_made)
+    deformations.provide(fields_made)
+    if not verification.ok:
+        return None, "; ".join(verification.reasons)
+    return replace(result, feasible=True, verification=verification), None
+
+
+def _spread_forces(problem, stiff, held, answer):
+    """``problem``'s point forces at the held ``answer``'s posture: each stiff body's
+    spread onto its print nodes (:meth:`~stances.deformable.DeformableContact.spread_forces`),
+    every other contact's the held answer's; or why not (a str)."""
+    model, data = problem.robot.model, problem.data
+    pin.framesForwardKinematics(model, data, np.asarray(answer.q, dtype=float))
+    given = {_contact_key(c): answer.point_forces[loads] for c, loads in zip(held.contacts, held.load_slices)}
+    point_forces = []
+    for contact in problem.contacts:
+        if any(contact is other for other, _ in stiff):
+            forces = contact.spread_forces(model, data, answer.point_forces)
+            if forces is None:
+                return f"no pressure under the prints on {contact.deformable_object.name} carries their loads"
+            points = points_in_world(data, contact.loads)
+            point_forces.extend(PointForce(f, p, v) for f, p, v in zip(contact.load_frames, points, forces))
+        else:
+            point_forces.extend(given[_contact_key(contact)])
+    return tuple(point_forces)
 
 
 def _not_pressed(problem, stiff, result) -> str:

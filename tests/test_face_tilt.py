@@ -20,6 +20,7 @@ from stances import CentreOfMassBounds, PostureOptions, solve, verify
 from stances.curvature import ConstraintCurvature
 from stances.errors import StanceError
 from stances.problem import build_problem
+import stances.stages
 from stances.stages import HELD_AT_NODES
 from test_curvature import second_differences
 
@@ -291,15 +292,35 @@ def test_on_a_steel_stiff_slab_a_centre_of_pressure_on_the_soles_toe_edge_is_ref
     assert cause_of(result.reason) == "balance (static equilibrium)"
 
 
-def test_on_a_steel_stiff_slab_a_centre_of_pressure_the_nodes_carry_only_by_pivoting_is_refused_saying_why(robot):
+def test_on_a_steel_stiff_slab_a_centre_of_pressure_the_nodes_carry_only_by_pivoting_is_a_pressure_under_the_soles(robot):
     """The same slab, the grid moved a quarter cell, the centre of mass 0.108 m ahead: each
     sole's centre of pressure 2 mm behind its toe edge, inside its nodes' reach, but the
-    soles' nodes carry it only if the soles pivot (an 18 um give), over the stiff limit's
-    10 um, and through W the solve stops short of feasibility: refused, where the rigid
-    support holds it (not met: the row past the toes is barely covered there; at the other
-    three placements it is solved), the reason saying why before the rows it could not
-    meet. (Until 2026-12-06 this was the stance 5 mm behind the toe edge on the unmoved
-    grid, a 33 um give; see the test above.)"""
+    soles' nodes carry it only if the soles pivot (an 18 um give, over the stiff limit's
+    10 um: see the next test). The least-energy pressure under each sole carries the held
+    answer's wrench, the soles held where the slab gives under it: verified, a pressure under
+    each sole to rounding, the rigid support's sole forces to 1e-4 (refused before
+    2026-12-06 w)."""
+    scenario = _shifted_slab(0.25)
+    stance = scenario.stance("stand")
+    ahead = CentreOfMassBounds(lower=(0.108, -math.inf, -math.inf), label="ahead")
+    rigid = solve(robot, scenario.scene, stance, constraints=[ahead], deformable_as_rigid=True)
+    result = solve(robot, scenario.scene, stance, constraints=[ahead])
+    assert rigid.feasible and result.feasible and result.statistics["stiff_limit"] is True, result.reason
+    for sole in ("left_sole", "right_sole"):
+        assert result.verification.measures[f"pressure fit of {sole} on slab_top"] < 1e-9
+        frame = robot.surface(sole).frame
+        force, expected = (sum(np.array(p.force) for p in a.point_forces if p.frame == frame) for a in (result, rigid))
+        assert np.linalg.norm(force - expected) < 1e-4 * np.linalg.norm(expected)
+
+
+def test_on_a_steel_stiff_slab_a_centre_of_pressure_the_nodes_carry_only_by_pivoting_is_refused_saying_why(
+        robot, monkeypatch):
+    """The same stance without the stiff limit's spread answers: the soles' nodes carry it only
+    if the soles pivot (an 18 um give), over the stiff limit's 10 um, and through W the solve
+    stops short of feasibility: refused, where the rigid support holds it, the reason saying
+    why before the rows it could not meet. (Until 2026-12-06 this was the stance 5 mm behind
+    the toe edge on the unmoved grid, a 33 um give; see the test above.)"""
+    monkeypatch.setattr(stances.stages, "_spread_answer", lambda *args: (None, "spread turned off by the test"))
     scenario = _shifted_slab(0.25)
     stance = scenario.stance("stand")
     ahead = CentreOfMassBounds(lower=(0.108, -math.inf, -math.inf), label="ahead")

@@ -326,6 +326,33 @@ def test_a_pressure_fit_refuses_shapes_that_do_not_match_and_a_polygon_off_the_m
         fem.print_coverage(pad.mesh, polygon, minimum=None)
 
 
+def test_pressure_corners_are_points_of_the_polygon_whose_loads_span_a_pressures(pad):
+    """fem.pressure_corners on a turned print on the pad: each point lies in the polygon, its
+    shares are non-negative, add up to 1 and give back its position from its triangle's
+    nodes, and its loads go to nodes the polygon covers; any non-negative combination of the
+    points' loads fits a pressure to rounding (fem.pressure_fit, whose own test checks it
+    against Monte Carlo consistent loads); a bad polygon is refused as for print_coverage."""
+    polygon = _rectangle((0.2, 0.21), (0.1, 0.06), 17.0)
+    points, ids, shares = fem.pressure_corners(pad.mesh, polygon)
+    assert points.shape == (len(ids), 3) and ids.shape == shares.shape == (len(points), 3)
+    assert np.allclose(points[:, 2], TOP) and (shares >= 0.0).all() and np.allclose(shares.sum(axis=1), 1.0)
+    assert np.allclose(np.einsum("nj,njk->nk", shares, pad.mesh.nodes[ids]), points, atol=1e-12)
+    edges = polygon[[1, 2, 3, 0], :2] - polygon[:, :2]
+    outward = np.column_stack([edges[:, 1], -edges[:, 0]]) / np.linalg.norm(edges, axis=1)[:, None]
+    past = np.einsum("ek,nek->ne", outward, points[:, None, :2] - polygon[None, :, :2])
+    assert past.max() < 1e-12  # inside every edge (counter-clockwise corners)
+    covered, _ = fem.print_coverage(pad.mesh, polygon, minimum=1e-6)
+    rng = np.random.default_rng(3)
+    loads = np.zeros(pad.mesh.n_nodes)
+    np.add.at(loads, ids.ravel(), (shares * rng.random(len(points))[:, None]).ravel())
+    assert set(np.flatnonzero(loads)) <= set(covered.tolist())
+    assert fem.pressure_fit(pad.mesh, polygon, covered, loads[covered]) < 1e-12
+    with pytest.raises(fem.PrintError, match="polygon is self-intersecting: edge 0-1 meets edge 2-3"):
+        fem.pressure_corners(pad.mesh, polygon[[0, 2, 1, 3]])
+    with pytest.raises(fem.FemError, match="the polygon covers no surface triangle of the mesh facing its normal"):
+        fem.pressure_corners(pad.mesh, polygon + np.array([0.0, 0.0, 0.01]))
+
+
 def test_shared_nodes_follow_the_print_covering_more_of_them_and_ties_the_other():
     keep, other_keep = fem.split_shared_nodes([4, 5, 6], [0.3, 0.5, 0.2], [5, 6, 7], [0.5, 0.1, 1.0])
     assert keep.tolist() == [True, False, True] and other_keep.tolist() == [True, False, True]

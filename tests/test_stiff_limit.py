@@ -15,6 +15,7 @@ import re
 import numpy as np
 import pinocchio as pin
 import pytest
+import scipy.optimize
 import scipy.spatial
 
 import cbm.planner
@@ -194,6 +195,83 @@ def test_carrying_variables_give_forces_that_carry_the_wrench(robot, steel_cube,
     assert soft.stiff_give(inward) == pytest.approx(float(np.abs(soft.rigid_motion @ inward).max()))
 
 
+def _energy(soft, forces):
+    """The elastic energy 1/2 f^T (C + D) f of node forces (p, 3), world frame, joules."""
+    stacked = (np.asarray(forces) @ soft.rotation_body).reshape(-1)
+    return 0.5 * float(stacked @ soft.patch.link_compliance @ stacked)
+
+
+def test_spread_forces_carry_the_wrench_by_the_least_energy_pressure_in_the_nodes_cones(robot, steel_cube,
+                                                                                      rigid_answer):
+    """DeformableContact.spread_forces with the rigid support's palm forces (their centre of
+    pressure on the palm's long edge, the edge the mesh's nodes straddle): the node forces at
+    the link points give the same force and moment on the palm (to 1e-9), push, each lies in
+    the pyramid of its node's friction, and they fit a pressure under the palm to rounding;
+    no other such pressure (an NNLS over the same point loads: another one) stores less
+    elastic energy; a wrench whose centre of pressure lies past the palm has none."""
+    scene, stance = steel_cube
+    soft = _soft_contact(build_problem(robot, scene, stance))
+    data = robot.model.createData()
+    pin.framesForwardKinematics(robot.model, data, np.asarray(rigid_answer.q))
+    forces = soft.spread_forces(robot.model, data, rigid_answer.point_forces)
+    frame = robot.surface(PALM).frame
+    spread = stances.PostureResult(
+        feasible=True, q=rigid_answer.q, torques=rigid_answer.torques, iterations=0, solve_time=0.0, reason="",
+        stance=stance, point_forces=tuple(stances.PointForce(frame, p, f) for p, f in
+                                          zip(stances.statics.points_in_world(data, soft.loads), forces)))
+    expected = _palm_wrench(robot, rigid_answer)
+    assert np.abs(_palm_wrench(robot, spread) - expected).max() < 1e-9 * np.abs(expected).max()
+    in_print = forces @ soft.print_placements[0].rotation  # (t1, t2, n) of each node
+    assert in_print[:, 2].min() >= 0.0
+    assert (np.abs(in_print[:, :2]).sum(axis=1) <= soft.print_mu[0] * in_print[:, 2] + 1e-9).all()
+    assert soft.pressure_fits(forces, every=True)[0] < 1e-9
+    # Another pressure with that wrench: an NNLS over the same point loads' pyramid edges.
+    levers, loads = soft._pressure_corners(0)
+    edges = stances.contacts.friction_cone_generators(soft.print_mu[0])
+    columns = np.concatenate([np.hstack([edges, np.cross(point, edges)]) for point in levers]).T
+    weights, residual = scipy.optimize.nnls(columns, expected)
+    assert residual < 1e-9 * np.abs(expected).max()
+    other = (loads @ weights).reshape(-1, 3) @ soft.rotation_body.T
+    assert _energy(soft, forces) <= _energy(soft, other) * (1.0 + 1e-6)
+    assert _energy(soft, forces) < 0.9 * _energy(soft, other)  # NNLS gathers it on a few points
+    far = [stances.PointForce(p.frame, np.asarray(p.point) + 0.2 * data.oMf[robot.model.getFrameId(frame)].rotation[:, 0],
+                              p.force) for p in rigid_answer.point_forces]
+    assert soft.spread_forces(robot.model, data, far) is None  # 20 cm along the palm: off it
+
+
+def test_spread_motions_give_back_the_motion_of_a_palm_whose_nodes_all_stick(robot, steel_cube):
+    """A palm pressed down 2 um and turned by 2 urad on the steel-stiff cube: every node
+    pushes and sticks, its link point where its node (its coupling's end) is, so the least
+    squares rigid motion of those ends is the palm's own motion."""
+    scene, stance = steel_cube
+    soft = _soft_contact(build_problem(robot, scene, stance))
+    in_body = soft.rotation_body.T @ soft.print_placements[0].rotation
+    motion = np.r_[in_body @ np.array([0.0, 0.0, -2e-6]), in_body @ np.array([2e-6, -1e-6, 0.0])]  # body frame
+    w = soft.a @ motion
+    assert soft.sticks(w)
+    data = robot.model.createData()
+    forces = soft.forces(robot.model, data, w)
+    (found,) = soft.spread_motions(robot.model, data, forces)
+    expected = np.r_[in_body.T @ motion[:3], in_body.T @ motion[3:]]  # print frame
+    assert np.abs(found - expected).max() < 1e-7 * np.abs(expected).max()
+
+
+def test_a_held_prints_motion_moves_its_rigid_contact_and_must_be_six_numbers(robot, steel_cube):
+    scene, stance = steel_cube
+    (held,) = _soft_contact(build_problem(robot, scene, stance)).held_prints().values()
+    motion = np.array([1e-6, -2e-6, -3e-6, 1e-5, 2e-5, -1e-5])
+    moved = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True),
+                          held_prints={PALM: HeldPrint(held.reach, held.resultant_friction, motion)})
+    at_rest = build_problem(robot, scene, stance, PostureOptions(deformable_as_rigid=True), held_prints={PALM: held})
+    (palm,), (rest,) = ([c for c in p.contacts if c.robot_surface == PALM] for p in (moved, at_rest))
+    expected = rest.print_placement * pin.exp6(pin.Motion(motion[:3], motion[3:]))
+    assert np.allclose(palm.print_placement.homogeneous, expected.homogeneous, rtol=0.0, atol=1e-15)
+    with pytest.raises(StanceError, match=r"a held print's motion must be 6 finite numbers, got \(0.0, 0.0\)"):
+        HeldPrint(held.reach, held.resultant_friction, (0.0, 0.0))
+    with pytest.raises(StanceError, match="a held print's motion must be 6 finite numbers"):
+        HeldPrint(held.reach, held.resultant_friction, (0.0,) * 5 + (np.nan,))
+
+
 def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_cube, rigid_answer):
     """The rigid support tips the palm onto its long edge (35 mm out); held in the stiff
     limit its centre of pressure goes as far as its reach, carried by the partly covered row
@@ -313,15 +391,39 @@ def _climb_at(young_modulus):
     return scenario
 
 
+def _no_spread(monkeypatch):
+    """Turn the stiff limit's spread answers off (each refused as if verify had)."""
+    monkeypatch.setattr(stances.stages, "_spread_answer", lambda *args: (None, "spread turned off by the test"))
+
+
+@pytest.mark.parametrize("young_modulus", [1e10, 1e12])
+def test_a_held_palm_its_nodes_carry_only_pivoting_past_its_edge_is_spread_as_a_pressure_under_it(robot, young_modulus):
+    """climb-with-soft-support's left-on-platform with its cube at 1e10 and 1e12 Pa: the palm's
+    own contact does not carry the first held answer (the rigid contact's friction, the reach
+    of all nodes; see the next test); its palm wrench is then carried by the least-energy
+    pressure under the palm, the palm held where the cube gives under it (micrometres):
+    verified, a pressure under the palm to rounding, and the rigid support's force to 1e-4
+    (0.00 % measured; 1.99 % through W)."""
+    scenario = _climb_at(young_modulus)
+    stance = scenario.stance("left-on-platform")
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible and result.verification.ok and result.statistics["stiff_limit"] is True, result.reason
+    assert result.verification.measures["pressure fit of right_palm on cube_top"] < 1e-9
+    rigid = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
+    force, expected = _force(robot, result, PALM), _force(robot, rigid, PALM)
+    assert np.linalg.norm(force - expected) < 1e-4 * np.linalg.norm(expected)
+
+
 def test_a_held_palm_pivoting_onto_nodes_past_its_edge_is_not_taken(robot, monkeypatch):
-    """climb-with-soft-support's left-on-platform with its cube at 1e12 Pa: held with its
-    resultant in the rigid contact's friction pyramid no restoration step meets the rows;
-    held in ``friction_margin``'s pyramid (and within the rows covered a hundredth) the palm's
-    nodes carry it pivoting onto nodes 13.6 mm and more past its long edge while the well
-    covered nodes inside lift, loads 7.5 % off any pressure under the palm (an independent
-    audit's finding): verify refuses them (``VerificationTolerances.pressure_fit``), and the
-    solve goes on through W, whose node forces are a pressure under the palm, 2.0 % from the
-    rigid support's force."""
+    """The same stance at 1e12 Pa without the spread answers: held with its resultant in the
+    rigid contact's friction pyramid no restoration step meets the rows; held in
+    ``friction_margin``'s pyramid (and within the rows covered a hundredth) the palm's nodes
+    carry it pivoting onto nodes 13.6 mm and more past its long edge while the well covered
+    nodes inside lift, loads 7.5 % off any pressure under the palm (an independent audit's
+    finding): verify refuses them (``VerificationTolerances.pressure_fit``), and the solve
+    goes on through W, whose node forces are a pressure under the palm, 2.0 % from the rigid
+    support's force."""
+    _no_spread(monkeypatch)
     scenario = _climb_at(1e12)
     stance = scenario.stance("left-on-platform")
     lift, lifted = stances.stages._lift, []
@@ -396,6 +498,7 @@ def test_a_stiff_limit_abandoned_after_its_lift_leaves_the_solve_as_without_it(r
         return None
 
     monkeypatch.setattr(stances.stages, "_lift", failing)
+    _no_spread(monkeypatch)
     result = solve(robot, scene, stance)
     assert lifted == [True] * len(stances.stages._HELD_LEVELS) and "stiff_limit" not in result.statistics
     assert np.array_equal(result.q, plain.q) and result.statistics["lambda"] == plain.statistics["lambda"]
