@@ -1532,11 +1532,11 @@ class DeformableContact:
         # Scaled to a unit diagonal; a whisker of |c|^2 makes it definite (corners of one triangle
         # load the same nodes).
         hessian = hessian / max(float(np.diag(hessian).max()), 1e-300) + _SPREAD_REGULARISATION * np.eye(n)
-        qp = proxsuite.proxqp.dense.QP(n, 6, n)
+        qp = proxsuite.proxqp.dense.QP(n, 6, 0, True)  # c >= 0 as box constraints
         size = max(float(np.linalg.norm(wrench)), 1.0)  # newtons
         qp.settings.eps_abs, qp.settings.eps_rel = 1e-10 * size, 0.0
         qp.settings.max_iter, qp.settings.verbose = _SPREAD_QP_ITERATIONS, False
-        qp.init(hessian, np.zeros(n), columns, wrench, np.eye(n), np.zeros(n), np.full(n, 1e20))
+        qp.init(hessian, np.zeros(n), columns, wrench, None, None, None, np.zeros(n), np.full(n, 1e20))
         qp.solve()
         weights = np.maximum(np.asarray(qp.results.x), 0.0)
         if np.linalg.norm(columns @ weights - wrench) > 1e-9 * size:
