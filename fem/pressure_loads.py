@@ -165,7 +165,7 @@ def pressure_corners(mesh: TetMesh, polygon_in_body) -> tuple[np.ndarray, np.nda
     ------
     FemError
         A polygon that covers no surface triangle facing its normal in its plane;
-        :class:`PrintError` (one) as :func:`fem.print_coverage` for a polygon that is not a
+        :class:`PrintError` (a FemError) as :func:`fem.print_coverage` for a polygon that is not a
         convex planar one.
 
     Examples
@@ -230,7 +230,7 @@ def pressure_fit(mesh: TetMesh, polygon_in_body, node_ids, loads) -> float:
     ------
     FemError
         Shapes that do not match, a polygon that covers no surface of the mesh, or a fit
-        that does not converge; :class:`PrintError` (one) as :func:`fem.print_coverage` for
+        that does not converge; :class:`PrintError` (a FemError) as :func:`fem.print_coverage` for
         a polygon that is not a convex planar one.
 
     Examples

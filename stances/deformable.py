@@ -114,7 +114,7 @@ body at rest under gravity), but its strain is there before any robot comes.
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
@@ -161,6 +161,11 @@ _FIT_LEAST_LOAD = 0.1
 # and the QP's iteration limit.
 _SPREAD_REGULARISATION = 1e-9
 _SPREAD_QP_ITERATIONS = 10_000
+# Newtons a node presses with for spread_motions to fit its link's motion to it.
+_PRESSED_LOAD = 1e-4
+# Shape-function shares under this are rounding (a corner on a mesh edge): _pressure_corners
+# drops them, so that such a corner is not left out for a node of no print.
+_SHARE_ROUNDING = 1e-12
 # A ball whose sinking a lower bound puts past this many times verify's placement tolerance
 # is refused before the solve (DeformableContact.balls_refused_anyway): the margin covers
 # what the bound leaves out (friction, other prints lifting the surface under it).
@@ -343,7 +348,7 @@ class HeldPrint:
 
     reach: np.ndarray
     resultant_friction: float
-    motion: tuple = (0.0,) * 6
+    motion: np.ndarray = field(default_factory=lambda: np.zeros(6))
 
     def __post_init__(self) -> None:
         if not self.resultant_friction >= 0.0:
@@ -1422,7 +1427,7 @@ class DeformableContact:
                                "them off: a link pivoting onto the partly covered nodes past its edge gives such forces)")
         return reasons
 
-    def spread_forces(self, model, data, point_forces):
+    def spread_forces(self, data, point_forces):
         """Node forces of a pressure under each print's face carrying its wrench in
         ``point_forces``: of every such pressure whose tractions lie in its nodes' friction
         pyramid, the one of least elastic energy (:meth:`_least_energy_pressure`).
@@ -1435,10 +1440,11 @@ class DeformableContact:
 
         Parameters
         ----------
-        model, data : pinocchio Model and Data
+        data : pinocchio.Data
             Frame placements computed at the answer's posture.
         point_forces : sequence of PointForce
-            Forces on the robot, world frame; those on each print's link frame count.
+            Forces on the robot, world frame; those on each print's link frame count (a
+            frame with two prints would give each their sum: no built-in robot has one).
 
         Returns
         -------
@@ -1478,6 +1484,11 @@ class DeformableContact:
         model, data : pinocchio Model and Data
         forces : (p, 3) float
             The print nodes' forces on the robot, world frame.
+
+        Returns
+        -------
+        list of (6,) float
+            Per print; zeros for a ball and for a print pressing fewer than three nodes.
         """
         forces = np.asarray(forces, dtype=float)
         forces_body = forces @ self.rotation_body
@@ -1488,7 +1499,9 @@ class DeformableContact:
         for i, placement in enumerate(self.print_placements):
             rows = self.print_of_node == i
             in_print = self.rotation_body.T @ placement.rotation  # print axes in the body's
-            pressed = rows & (forces @ placement.rotation[:, 2] > _FIT_LEAST_LOAD * 1e-3)
+            # Nodes pressing a ten-thousandth of a newton or more: the others' ends are free to
+            # lie anywhere below their links.
+            pressed = rows & (forces @ placement.rotation[:, 2] > _PRESSED_LOAD)
             if self._polygons_in_body[i] is None or np.count_nonzero(pressed) < 3:
                 motions.append(np.zeros(6))
                 continue
@@ -1502,19 +1515,39 @@ class DeformableContact:
         return motions
 
     def _least_energy_pressure(self, i, wrench):
-        """Node forces (p, 3), body frame, on the robot, of the pressure under print ``i``'s
-        face with ``wrench`` (force, moment about its origin; its frame), its tractions in
-        the pyramid of its nodes' friction, of least elastic energy ``1/2 f^T (C + D) f``
-        (the body's and its partly covered nodes' couplings': of the loads a rigid link's
-        face could put there, those the model's elasticity selects), or None. (With the
-        body's energy alone, ``C``, the loads gathered on the barely covered nodes past an
-        edge, whose couplings then stretched micrometres: iCub's and climb's palms at 1e10 Pa
-        were refused, a node 2.5 um from its link.)
+        """Node forces of print ``i``'s least-energy pressure with ``wrench``
+        (:meth:`_least_energy_weights`): (p, 3) float, body frame, on the robot, or None."""
+        weights = self._least_energy_weights(i, wrench)
+        return None if weights is None else (self._pressure_corners(i)[1] @ weights).reshape(-1, 3)
+
+    def _least_energy_weights(self, i, wrench):
+        """The pressure under print ``i``'s face with ``wrench``, its tractions in the pyramid
+        of its nodes' friction, of least elastic energy ``1/2 f^T (C + D) f`` (the body's and
+        its partly covered nodes' couplings': of the loads a rigid link's face could put
+        there, those the model's elasticity selects). (With the body's energy alone, ``C``,
+        the loads gathered on the barely covered nodes past an edge, whose couplings then
+        stretched micrometres: iCub's and climb's palms at 1e10 Pa were refused, a node
+        2.5 um from its link.)
 
         The pressure is spanned by point loads at the corners of the surface triangles'
         parts under the face (:func:`fem.pressure_corners`), each a combination of its
         pyramid's edges: a QP over those coefficients (proxsuite), its equality then made
         exact on their support.
+
+        Parameters
+        ----------
+        i : int
+            The print.
+        wrench : (6,) float
+            Force (N) and moment about the print's origin (N m), its frame.
+
+        Returns
+        -------
+        (4m,) float or None
+            Each corner's pyramid-edge coefficients, newtons (:meth:`_pressure_corners`'
+            columns), non-negative, carrying ``wrench`` to 1e-9 of it; None where the
+            corners cannot (a centre of pressure off the face, a load past the pyramid) or the
+            QP fails.
         """
         corners = self._pressure_corners(i)
         if corners is None:
@@ -1538,14 +1571,18 @@ class DeformableContact:
         qp.settings.max_iter, qp.settings.verbose = _SPREAD_QP_ITERATIONS, False
         qp.init(hessian, np.zeros(n), columns, wrench, None, None, None, np.zeros(n), np.full(n, 1e20))
         qp.solve()
-        weights = np.maximum(np.asarray(qp.results.x), 0.0)
-        if np.linalg.norm(columns @ weights - wrench) > 1e-9 * size:
-            # The equality to rounding on the coefficients the QP uses.
-            support = weights > 1e-6 * max(float(weights.max(initial=0.0)), 1e-300)
-            weights[support] += np.linalg.lstsq(columns[:, support], wrench - columns @ weights, rcond=None)[0]
-        if (weights < 0.0).any() or np.linalg.norm(columns @ weights - wrench) > 1e-9 * size:
+        if qp.results.info.status != proxsuite.proxqp.QPSolverOutput.PROXQP_SOLVED:
             return None
-        return (spread @ weights).reshape(-1, 3)
+        weights = np.maximum(np.asarray(qp.results.x), 0.0)
+        for _ in range(3):
+            # The equality to rounding on the coefficients in use, kept non-negative.
+            residual = wrench - columns @ weights
+            if np.linalg.norm(residual) <= 1e-9 * size:
+                return weights
+            support = weights > 0.0
+            weights[support] += np.linalg.lstsq(columns[:, support], residual, rcond=None)[0]
+            weights = np.maximum(weights, 0.0)
+        return weights if np.linalg.norm(wrench - columns @ weights) <= 1e-9 * size else None
 
     def _pressure_corners(self, i):
         """Print ``i``'s :func:`fem.pressure_corners` that its nodes keep, memoised: their
@@ -1566,7 +1603,8 @@ class DeformableContact:
             ids = self.node_ids[rows][order]
             where = np.clip(np.searchsorted(ids, triangles), 0, len(ids) - 1)
             mine = ids[where] == triangles
-            kept = (mine | (shares <= 0.0)).all(axis=1)
+            shares = np.where(shares > _SHARE_ROUNDING, shares, 0.0)
+            kept = (mine | (shares == 0.0)).all(axis=1)
             memo = None
             if kept.any():
                 edges_in_body = self.rotation_body.T @ placement.rotation @ friction_cone_generators(self.print_mu[i]).T

@@ -475,11 +475,16 @@ def _solve_stiff_limit(problem, build, options, q, lam, deadline=None, warm=None
                 return result, None, None
             if k:
                 continue  # the tighter levels serve the nodes' own contact; the spread carries the loosest
+            if out_of_time():
+                return abandon("out of time")
             # The nodes' own contact does not carry it: the least-energy pressure under each face.
             spread, spread_why = _spread_answer(problem, stiff, held, answer, iterations, qp_time, start,
-                                                held_prints, lambda prints: build(held_options, prints), deadline)
+                                                held_prints, lambda prints: build(held_options, prints), deadline,
+                                                out_of_time)
             if spread is not None:
                 return spread, None, None
+            if spread_why is None:
+                return abandon("out of time")
             why = f"{why}; carried by a pressure under the prints, {spread_why}"
         return abandon("%s", why, note=note)
     except ContactStateError as error:
@@ -516,21 +521,25 @@ def _held_solve(held, q, lam, deadline):
     return solve_problem(held, q, lam_init=lam, deadline=deadline, check=False)
 
 
-def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, held_prints, rebuild, deadline):
+def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, held_prints, rebuild, deadline,
+                   out_of_time):
     """The held ``answer`` with each stiff print's forces those of the least-energy pressure
     under its face with its wrench there
     (:meth:`~stances.deformable.DeformableContact.spread_forces`), its face held where the
     body gives under them (``rebuild(held_prints)``: the held problem with each
     :class:`~stances.deformable.HeldPrint` of ``held_prints`` moved so, solved again from
-    ``answer``; where that solve fails, the answer at rest), checked by :func:`stances.verify`
-    on ``problem``: ``(result, None)``, else ``(None, why)``.
+    ``answer``; where that solve or its spread fails, the answer at rest), checked by
+    :func:`stances.verify` on ``problem``: ``(result, None)``, else ``(None, why)``, and
+    ``(None, None)`` where ``out_of_time()`` says the time ran out.
 
     Where the nodes' own contact carries a held answer only by pivoting onto the partly
     covered nodes past an edge (node forces that no pressure under the link gives), a
     pressure under the link carries it as on a converged mesh, and a body this stiff
     gives micrometres under it: verify then finds each node against its link within its
     tolerance, pushing, in its cone (climb-with-soft-support's palm at 1e10 Pa, held at
-    rest, had a node slip 1.03 um under its friction).
+    rest, had a node slip 1.03 um under its friction). The answer's ``lambda`` is ``problem``'s
+    variables with each stiff print's W its held wrench (a start for a later solve; their
+    Coulomb forces are not the reported ones).
     """
     model, data = problem.robot.model, problem.data
     point_forces = _spread_forces(problem, stiff, held, answer)
@@ -546,17 +555,18 @@ def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, hel
                           for surface, print_held in held_prints.items()})
     again = _held_solve(held_again, np.asarray(answer.q, dtype=float), np.asarray(answer.statistics["lambda"]),
                         deadline)
+    iterations, qp_time = iterations + again.iterations, qp_time + again.statistics["qp_time"]
+    if again.statistics["status"] == OUT_OF_TIME or out_of_time():
+        return None, None
     if again.feasible:
-        iterations, qp_time = iterations + again.iterations, qp_time + again.statistics["qp_time"]
-        held, answer = held_again, again
-        point_forces = _spread_forces(problem, stiff, held, answer)
-        if isinstance(point_forces, str):
-            return None, point_forces
+        moved_forces = _spread_forces(problem, stiff, held_again, again)
+        if not isinstance(moved_forces, str):
+            held, answer, point_forces = held_again, again, moved_forces
     q = np.asarray(answer.q, dtype=float)
     lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
     deformations = deformation_fields(problem, q, point_forces)
     statistics = {k: v for k, v in dict(answer.statistics, **{"lambda": lam.tolist()}).items() if v is not None}
-    statistics["pressure_spread"] = True
+    statistics.update(pressure_spread=True, qp_time=qp_time)
     result = PostureResult(
         feasible=False, q=q, point_forces=point_forces, torques=answer.torques, iterations=iterations,
         solve_time=time.perf_counter() - start, reason="", stance=problem.stance, deformations=deformations,
@@ -580,7 +590,7 @@ def _spread_forces(problem, stiff, held, answer):
     point_forces = []
     for contact in problem.contacts:
         if any(contact is other for other, _ in stiff):
-            forces = contact.spread_forces(model, data, answer.point_forces)
+            forces = contact.spread_forces(data, answer.point_forces)
             if forces is None:
                 return f"no pressure under the prints on {contact.deformable_object.name} carries their loads"
             points = points_in_world(data, contact.loads)
