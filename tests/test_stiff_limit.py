@@ -11,6 +11,7 @@ rigid support, and the fallback where a step of it fails.
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 
 import numpy as np
 import pinocchio as pin
@@ -494,6 +495,46 @@ def test_where_the_nodes_cannot_carry_the_held_answer_the_solve_goes_on_as_on_a_
     assert carried == [None] * len(stances.stages._HELD_LEVELS)  # each reach tried in turn
     assert result.feasible and "stiff_limit" not in result.statistics, result.reason
     assert np.array_equal(result.q, plain.q)
+
+
+def test_each_held_level_starts_from_the_contacts_state_of_the_first(robot, steel_cube_beside_a_mat, monkeypatch):
+    """The palm on a 1e10 Pa cube beside a soft mat, its first held level carried and lifted
+    (the contact solves of both bodies warm-started on the way) and then refused by the test:
+    the second level's answer is the one of a solve that starts at the second level, bit for
+    bit (each level starts from the contacts' state before the first)."""
+    scene, stance = steel_cube_beside_a_mat
+    _no_spread(monkeypatch)
+    carried, calls = stances.stages._carried_answer, []
+
+    def first_refused(*args):
+        calls.append(carried(*args))
+        return (None, "refused by the test", None) if len(calls) == 1 else calls[-1]
+
+    monkeypatch.setattr(stances.stages, "_carried_answer", first_refused)
+    second = solve(robot, scene, stance)
+    assert calls[0][0] is not None and len(calls) == 2 and second.statistics["stiff_limit"] is True, second.reason
+    monkeypatch.setattr(stances.stages, "_carried_answer", carried)
+    monkeypatch.setattr(stances.stages, "_HELD_LEVELS", stances.stages._HELD_LEVELS[1:])
+    alone = solve(robot, scene, stance)
+    assert np.array_equal(second.q, alone.q) and second.statistics["lambda"] == alone.statistics["lambda"]
+
+
+def test_a_tighter_level_the_stance_does_not_hold_ends_the_levels(robot, steel_cube, monkeypatch):
+    """The first held level's carry refused by the test, the second level's held solve made
+    infeasible: the third, tighter still (its reach inside the second's), is not solved, and
+    the solve goes on through W."""
+    scene, stance = steel_cube
+    _no_spread(monkeypatch)
+    monkeypatch.setattr(stances.stages, "_carried_answer", lambda *args: (None, "refused by the test", None))
+    held_solve, answers = stances.stages._held_solve, []
+
+    def second_infeasible(*args):
+        answers.append(held_solve(*args))
+        return replace(answers[-1], feasible=False, reason="infeasible by the test") if len(answers) == 2 else answers[-1]
+
+    monkeypatch.setattr(stances.stages, "_held_solve", second_infeasible)
+    result = solve(robot, scene, stance)
+    assert len(answers) == 2 and "stiff_limit" not in result.statistics
 
 
 @pytest.mark.parametrize("scene_and_stance", ["steel_cube", "steel_cube_beside_a_mat"])
