@@ -293,8 +293,22 @@ def rigid_force_metric(surface, friction: float) -> np.ndarray:
         metric[:3, :3] = np.linalg.inv(edges.T @ edges)
         metric[3:, 3:] = _POINT_MOMENT_WEIGHT * np.eye(3)
         return metric
-    wrenches = np.vstack([np.hstack([edges, np.cross(vertex, edges)]) for vertex in surface.vertices_in_frame])  # (4k, 6)
+    wrenches = _edge_wrenches(surface.vertices_in_frame, edges)  # (4k, 6)
     return np.linalg.inv(wrenches.T @ wrenches)
+
+
+def _edge_wrenches(points, edges) -> np.ndarray:
+    """The wrench of a unit force along each friction-cone edge at each point: ``(k e, 6)``,
+    force then moment about the frame's origin, the points' and edges' frame.
+
+    Parameters
+    ----------
+    points : (k, 3) float
+        Metres.
+    edges : (e, 3) float
+        Unit edge directions (:func:`~stances.contacts.friction_cone_generators`).
+    """
+    return np.vstack([np.hstack([edges, np.cross(point, edges)]) for point in points])
 
 
 def stiff_under(weight, polygon, material) -> bool:
@@ -322,9 +336,7 @@ def stiff_under(weight, polygon, material) -> bool:
     polygon = np.asarray(polygon, dtype=float)
     if len(polygon) < 3:
         return False
-    x, y = polygon[:, 0], polygon[:, 1]
-    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
-    radius = np.sqrt(area / np.pi)
+    radius = np.sqrt(abs(polygon_area(polygon)) / np.pi)
     sinking = weight * (1.0 - material.poisson_ratio**2) / (2.0 * radius * material.young_modulus)
     return bool(sinking < STIFF_GIVE)
 
@@ -1497,21 +1509,17 @@ class DeformableContact:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         motions = []
         for i, placement in enumerate(self.print_placements):
-            rows = self.print_of_node == i
-            in_print = self.rotation_body.T @ placement.rotation  # print axes in the body's
             # Nodes pressing a ten-thousandth of a newton or more: the others' ends are free to
             # lie anywhere below their links.
-            pressed = rows & (forces @ placement.rotation[:, 2] > _PRESSED_LOAD)
+            pressed = (self.print_of_node == i) & (forces @ placement.rotation[:, 2] > _PRESSED_LOAD)
             if self._polygons_in_body[i] is None or np.count_nonzero(pressed) < 3:
                 motions.append(np.zeros(6))
                 continue
-            levers = self._in_print(self.deformable_object.body.mesh.nodes[self.node_ids[pressed]], self._body_placement,
-                                    placement)
-            basis = np.zeros((len(levers), 3, 6))
-            basis[:, :, :3] = np.eye(3)
-            basis[:, :, 3:] = -_skew_rows(levers)
-            target = ends[pressed] @ in_print  # (n, 3) print frame
-            motions.append(np.linalg.lstsq(basis.reshape(-1, 6), target.reshape(-1), rcond=None)[0])
+            # The print's rigid motions G (body frame, about its origin) on those nodes.
+            basis = self.basis.reshape(-1, 3, self.n_variables)[pressed][:, :, 6 * i : 6 * i + 6].reshape(-1, 6)
+            motion = np.linalg.lstsq(basis, ends[pressed].reshape(-1), rcond=None)[0]
+            in_print = self.rotation_body.T @ placement.rotation  # print axes in the body's
+            motions.append(np.concatenate([motion[:3] @ in_print, motion[3:] @ in_print]))
         return motions
 
     def _least_energy_pressure(self, i, wrench):
@@ -1554,7 +1562,7 @@ class DeformableContact:
             return None
         levers, spread = corners  # (m, 3) print frame; (3p, 4m) body frame: each edge's node loads
         edges = friction_cone_generators(self.print_mu[i])  # (4, 3), print frame
-        columns = np.concatenate([np.hstack([edges, np.cross(point, edges)]) for point in levers]).T  # (6, 4m)
+        columns = _edge_wrenches(levers, edges).T  # (6, 4m)
         # The moment rows in newtons (over the print's reach): equilibrated rows took climb's
         # palm's QP from 1,755 iterations to 263 (its spread 0.48 -> 0.15 s).
         reach = float(np.abs(levers[:, :2]).max())

@@ -36,7 +36,7 @@ from fem.errors import ContactStateError
 from .cold_start import initial_configuration, reaching_configuration, starting_configuration
 from .curvature import ConstraintCurvature, bounded_below
 from .qp import QPWorkspace, elastic_qp, elastic_start, plain_qp, row_multipliers, stacked_row_multipliers
-from .results import LazyDeformations, PointForce, PostureResult
+from .results import LazyDeformations, PointForce, PostureResult, Verification
 from .statics import points_in_world
 from .stopping import (
     CRAWL_ALPHA, CREEPING, LINGERING, MINOR_GAIN, NEARLY_FEASIBLE, NO_PROGRESS, PREDICTED_GAIN, STALLED,
@@ -855,17 +855,24 @@ def posture_result(problem, outcome, elapsed, check=True) -> PostureResult:
         },
     )
     if check and (feasible or nearly):
-        # The check solves each soft body under the answer's forces: the fields the
-        # result shows are those (the same function of the same q and forces).
-        fields = {}
-        verification = verify_problem(problem, result, fields=fields)
-        deformations.provide(fields)
+        verification = verify_shown(problem, result)
         if verification.ok:
             result = replace(result, verification=verification, feasible=True, reason="")
         elif feasible:
             result = replace(result, verification=verification, feasible=False,
                            reason="verification failed: " + "; ".join(verification.reasons))
     return result
+
+
+def verify_shown(problem, result) -> Verification:
+    """:func:`stances.verify` of ``result`` on ``problem``, the soft bodies' fields it solves
+    handed to ``result.deformations`` (a :class:`LazyDeformations`): the check solves each
+    soft body under the answer's forces, and the fields the result shows are those (the same
+    function of the same q and forces)."""
+    fields = {}
+    verification = verify_problem(problem, result, fields=fields)
+    result.deformations.provide(fields)
+    return verification
 
 
 def _restoration(problem, linearization, q, lam, workspace, torque_weight):

@@ -37,10 +37,10 @@ from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PointForce, PostureResult
 from .sqp import (OUT_OF_TIME, QP_FAILED, SqpOutcome, deformation_fields, posture_result, restoration_step,
-                  solve_problem)
+                  solve_problem, verify_shown)
 from .statics import points_in_world
 from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR, STALLED
-from .verify import VerificationTolerances, verify_problem
+from .verify import VerificationTolerances
 
 logger = logging.getLogger(__name__)
 
@@ -564,17 +564,14 @@ def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, hel
             held, answer, point_forces = held_again, again, moved_forces
     q = np.asarray(answer.q, dtype=float)
     lam = problem.variables_from_rigid(held, answer.statistics["lambda"], answer.point_forces)
-    deformations = deformation_fields(problem, q, point_forces)
     statistics = {k: v for k, v in dict(answer.statistics, **{"lambda": lam.tolist()}).items() if v is not None}
     statistics.update(pressure_spread=True, qp_time=qp_time)
     result = PostureResult(
         feasible=False, q=q, point_forces=point_forces, torques=answer.torques, iterations=iterations,
-        solve_time=time.perf_counter() - start, reason="", stance=problem.stance, deformations=deformations,
-        limits=answer.limits, statistics=statistics,
+        solve_time=time.perf_counter() - start, reason="", stance=problem.stance,
+        deformations=deformation_fields(problem, q, point_forces), limits=answer.limits, statistics=statistics,
     )
-    fields_made = {}
-    verification = verify_problem(problem, result, fields=fields_made)
-    deformations.provide(fields_made)
+    verification = verify_shown(problem, result)
     if not verification.ok:
         return None, "; ".join(verification.reasons)
     return replace(result, feasible=True, verification=verification), None
