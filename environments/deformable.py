@@ -109,6 +109,9 @@ MAX_SOFT_BOX_NODES = 1_000_000
 the compliance columns need tens of gigabytes, so a smaller ``resolution`` is taken
 for a mistake and refused, with the smallest spacing that fits, before any array is
 allocated."""
+# Metres: a soft body taller than this that its own weight strains past its bound is
+# asked whether its sizes were typed in metres (millimetres make it hundreds of metres tall).
+_TALL = 10.0
 
 
 def _fem():
@@ -248,15 +251,15 @@ class DeformableObject:
                 # A fixed base is clamped: at its edges the strain is singular and grows as
                 # the mesh is refined, which the user should know when it decides.
                 at_base = bool(self.body.fixed_mask[self.mesh.tets[tet]].any())
-                # Its height in the message: a size typed in millimetres makes a body
-                # hundreds of metres tall, which its weight then strains (rho g h / E).
+                # A size typed in millimetres makes a body hundreds of metres tall, which its
+                # weight then strains (rho g h / E): its height is named where it is that tall.
                 height = float(np.ptp(self.points_in_world(self.mesh.nodes)[:, 2]))
+                units = f" (it stands {height:.3g} m tall: are its sizes in metres?)" if height > _TALL else ""
                 raise SceneError(
                     f"object {self.name!r}: its own weight strains it {strain:.3g} at ({centre[0]:.3f}, "
                     f"{centre[1]:.3f}, {centre[2]:.3f}) m{' (a tet on its fixed base, clamped there)' if at_base else ''}, "
                     f"beyond its strain bound {self.strain_limit:g}: linear elasticity cannot describe it even at "
-                    "rest; raise its Young's modulus E, lower its density rho or raise its strain_limit "
-                    f"(it stands {height:.3g} m tall: are its sizes in metres?)"
+                    f"rest; raise its Young's modulus E, lower its density rho or raise its strain_limit{units}"
                 )
         return field
 

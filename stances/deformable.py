@@ -1455,8 +1455,9 @@ class DeformableContact:
         data : pinocchio.Data
             Frame placements computed at the answer's posture.
         point_forces : sequence of PointForce
-            Forces on the robot, world frame; those on each print's link frame count (a
-            frame with two prints would give each their sum: no built-in robot has one).
+            Forces on the robot, world frame; those on each print's contact frame count
+            (one print a frame: each robot surface has its own, ``<surface>_contact``, and
+            a stance presses each surface once).
 
         Returns
         -------

@@ -420,6 +420,14 @@ class Robot:
                     model, collision_model, parent.parentJoint, placement, declaration.polygon, declaration.plate
                 )
             frame_names[declaration.name] = f"{declaration.name}_contact"
+            if model.existFrame(frame_names[declaration.name]):
+                # pinocchio would add a second frame of that name, and every later lookup
+                # by name would fail with "Several frames match the filter".
+                raise StanceError(
+                    f"robot surface {declaration.name!r}: its contact frame would be named "
+                    f"{frame_names[declaration.name]!r}, which the robot's model already has; "
+                    "give the surface another name"
+                )
             if declaration.radius is not None:
                 feet.append(declaration.geometries)
             frame_id = model.addFrame(

@@ -166,6 +166,9 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     StanceError
         For bad input (unknown surfaces, a print off its surface, a malformed
         q); an infeasible stance is an answer, not an exception.
+    environments.SceneError
+        Before any solve, for a soft body pressed by the stance whose own weight
+        strains it beyond its strain bound: linear elasticity cannot describe it.
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)

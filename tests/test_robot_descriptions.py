@@ -13,7 +13,7 @@ import stances
 from environments.errors import ScenarioError
 from stances import Robot, RobotDescriptionError, RobotNotFound, StanceError
 from stances.collision import _robot_geometry
-from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, read_description
+from stances.description import BUILTIN_DIRECTORY, builtin_robot_names, example_robot_data_share, read_description
 from stances.problem import PostureOptions, build_problem
 
 from cbm.cli import EXIT_BAD_INPUT, main
@@ -350,6 +350,25 @@ def test_a_surface_given_twice_in_a_description_file_is_refused(tmp_path):
     with pytest.raises(RobotDescriptionError, match="'left_sole' is given twice") as caught:
         Robot.load(path)
     assert str(caught.value).startswith(str(path))
+
+
+def test_a_surface_whose_contact_frame_name_the_model_already_has_is_refused(tmp_path):
+    """Each robot surface gets a contact frame ``<surface>_contact``; a model with a frame
+    of that name (here Talos with its left sole link renamed so) would get two, and every
+    lookup by name would fail inside pinocchio ("Several frames match the filter"): the
+    description is refused, naming the surface and the frame."""
+    share = example_robot_data_share()
+    talos = share / "example-robot-data" / "robots" / "talos_data"
+    for source, target in (("robots/talos_reduced.urdf", "talos.urdf"), ("srdf/talos.srdf", "talos.srdf")):
+        (tmp_path / target).write_text((talos / source).read_text().replace("left_sole_link", "left_sole_contact"))
+    data = _talos_data()
+    data["model"] = {"urdf": "talos.urdf", "srdf": "talos.srdf", "package_dirs": [str(share)]}
+    data["surfaces"]["left_sole"]["link"] = "left_sole_contact"
+    path = _write(tmp_path / "clash.yaml", data)
+    with pytest.raises(RobotDescriptionError, match=re.escape(
+            "robot surface 'left_sole': its contact frame would be named 'left_sole_contact', which the robot's "
+            "model already has; give the surface another name")):
+        Robot.load(path)
 
 
 def test_an_unknown_robot_name_lists_the_builtin_robots():
