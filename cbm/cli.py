@@ -87,12 +87,6 @@ class _HelpFormatter(argparse.RawDescriptionHelpFormatter):
         return text
 
 
-def _shortened(text, limit=240):
-    """One line of at most ``limit`` characters."""
-    text = " ".join(str(text).split())
-    return text if len(text) <= limit else text[: limit - 3] + "..."
-
-
 def _version():
     from importlib.metadata import PackageNotFoundError, version
 
@@ -448,6 +442,8 @@ def _load_robot(args, scenario):
 
 
 def _plan(args):
+    from stances.results import one_line
+
     from .output import StagedOutput, write_outputs
     from .planner import PlanInterrupted, load_scenario, plan
     from .replan import plan_with_motions
@@ -509,7 +505,7 @@ def _plan(args):
         print(f"  {total} stances rejected: {causes}")
         if not result.success or args.verbose:
             for cause, entry in result.rejections.items():
-                example = entry["example"] if args.verbose else _shortened(entry["example"])
+                example = entry["example"] if args.verbose else one_line(entry["example"])
                 print(f"    {cause}, e.g. {example}")
     if result.frontier and args.verbose:
         print(f"  the search would have gone on with ({len(result.frontier)} open stances nearest the goal):")
@@ -523,7 +519,7 @@ def _plan(args):
         print(f"  searched {moving.plans} times for a plan whose every step has a motion; kept {kept}"
               + ("" if moving.missing == 0 else f", {moving.missing} motion(s) still missing") + ":")
         for step in moving.avoided:
-            print(f"    avoided {step.move}: {_shortened(step.reason)}")
+            print(f"    avoided {step.move}: {one_line(step.reason)}")
     for index, planned in enumerate(result.stances):
         print(f"  {index}: {planned.move or 'start'}")
     if motions:

@@ -27,7 +27,7 @@ import environments
 import stances
 from environments.scenario import SCENARIO_DIRECTORY
 from environments.stance import Stance
-from stances.results import PointForce, PostureResult
+from stances.results import PointForce, PostureResult, one_line
 from stances.stages import posture_options
 
 from .errors import PlanFileError
@@ -241,9 +241,12 @@ class PlanCheck:
     problems: tuple = ()
 
 
-@dataclass(frozen=True, eq=False)
+@dataclass(frozen=True, eq=False, repr=False)
 class Plan:
     """A sequence of stances from the start towards the goal.
+
+    Its ``repr`` is one line (scenario, verdict, stances, effort); the stances, with their
+    postures and forces, are in :attr:`stances`.
 
     Parameters
     ----------
@@ -291,6 +294,11 @@ class Plan:
 
     def __len__(self):
         return len(self.stances)
+
+    def __repr__(self) -> str:
+        s = self.statistics
+        return (f"Plan({self.scenario_name!r}, success={self.success}, reason={one_line(self.reason, 160)!r}, "
+                f"{len(self.stances)} stances, {s.expanded} expanded, {s.solver_calls} solver calls, {s.time:.3g} s)")
 
     def to_dict(self):
         """Plain JSON-ready data, with the headers that describe it (units, frames, robot, scenario)."""

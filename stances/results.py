@@ -248,9 +248,28 @@ class Verification:
     measures: dict = field(default_factory=dict)
 
 
-@dataclass(frozen=True)
+CONTACT_FRAME_SUFFIX = "_contact"
+"""Each robot surface's contact frame is named ``<surface>_contact`` (:class:`stances.Robot`)."""
+
+
+def contact_frame_name(robot_surface: str) -> str:
+    """The name of ``robot_surface``'s contact frame, the frame its point forces name."""
+    return f"{robot_surface}{CONTACT_FRAME_SUFFIX}"
+
+
+def one_line(text, limit: int = 240) -> str:
+    """``text`` on one line (runs of white space made one space), cut to at most ``limit``
+    characters with ``...`` where longer."""
+    text = " ".join(str(text).split())
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+@dataclass(frozen=True, repr=False)
 class PostureResult:
     """A posture solve's answer.
+
+    Its ``repr`` is one line (the verdict, each contact's load, the effort); the arrays
+    are in its attributes.
 
     Attributes
     ----------
@@ -298,6 +317,30 @@ class PostureResult:
         object.__setattr__(self, "q", _readonly(self.q))
         object.__setattr__(self, "torques", _readonly(self.torques))
         object.__setattr__(self, "statistics", SolveStatistics.of(self.statistics))
+
+    def __repr__(self) -> str:
+        verdict = f"feasible={self.feasible}" + ("" if self.feasible else f", reason={one_line(self.reason, 160)!r}")
+        loads = ", ".join(f"{label} {np.linalg.norm(total):.1f} N" for label, total in self.contact_loads())
+        return (f"PostureResult({verdict}{', ' + loads if loads else ''}, {self.iterations} iterations, "
+                f"{self.solve_time:.3g} s)")
+
+    def contact_loads(self) -> list:
+        """Each contact's total force on the robot, newtons, world frame, in stance order.
+
+        Returns
+        -------
+        list of (str, (3,) float)
+            ``("<robot surface> on <surface>", total)``; without a stance, by contact frame.
+        """
+        contacts = getattr(self.stance, "contacts", None)
+        if contacts is None:
+            frames = dict.fromkeys(p.frame for p in self.point_forces)
+            return [(frame, self._sum_on(frame)) for frame in frames]
+        return [(f"{c.robot_surface} on {c.contact_print.surface}", self._sum_on(contact_frame_name(c.robot_surface)))
+                for c in contacts]
+
+    def _sum_on(self, frame: str) -> np.ndarray:
+        return np.sum([p.force for p in self.point_forces if p.frame == frame], axis=0) + np.zeros(3)
 
     def total_force(self) -> np.ndarray:
         """(3,) float: sum of the contact forces, newtons, world frame."""

@@ -43,6 +43,7 @@ from .description import (
 from .errors import FrameNotFound, StanceError
 from .mesh_rotations import MeshRotation, turn_meshes
 from .plates import PlateDeclaration, mount_plate, plate_geometry
+from .results import contact_frame_name
 
 logger = logging.getLogger(__name__)
 
@@ -419,7 +420,7 @@ class Robot:
                 placement = mount_plate(
                     model, collision_model, parent.parentJoint, placement, declaration.polygon, declaration.plate
                 )
-            frame_names[declaration.name] = f"{declaration.name}_contact"
+            frame_names[declaration.name] = contact_frame_name(declaration.name)
             if model.existFrame(frame_names[declaration.name]):
                 # pinocchio would add a second frame of that name, and every later lookup
                 # by name would fail with "Several frames match the filter".

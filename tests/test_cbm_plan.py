@@ -123,6 +123,15 @@ def test_same_seed_gives_the_same_plan(scenario, robot):
     assert first.statistics.solver_calls == again.statistics.solver_calls
 
 
+def test_a_plan_shows_itself_on_one_line(scenario, robot):
+    """A plan's repr is its verdict and effort, not its stances' arrays (their postures and
+    point forces made the dataclass's own repr thousands of characters long)."""
+    result = plan(scenario, robot=robot, reach=robot.reach, oracle=SyntheticOracle(), seed=3)
+    s = result.statistics
+    assert repr(result) == (f"Plan('walk', success=True, reason='goal reached', {len(result.stances)} stances, "
+                            f"{s.expanded} expanded, {s.solver_calls} solver calls, {s.time:.3g} s)")
+
+
 def test_unreachable_goal_fails_within_budget_with_a_partial_plan(scenario, robot):
     oracle = SyntheticOracle(forbidden_x=(0.0, 10.0))  # nothing past x = 0 is feasible
     result = plan(scenario, robot=robot, reach=robot.reach, oracle=oracle, max_expansions=15)

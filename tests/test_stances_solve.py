@@ -1377,6 +1377,29 @@ def test_a_stance_the_strain_bound_rules_out_is_not_solved_again_from_the_bonded
     assert "bonded_warm_start" not in result.statistics
 
 
+def test_a_result_shows_itself_on_one_line_with_each_contacts_load(robot):
+    """A result's repr is its verdict, each contact's load and the effort (the dataclass's own
+    was every point force's arrays: 20,000 characters for a sole on each of two mats); an
+    infeasible one's starts with its reason, on one line and cut at 160 characters."""
+    scenario = coarse_scenario("cross-two-mats")
+    stance = scenario.stance("one-on-each")
+    result = solve(robot, scenario.scene, stance)
+    assert result.feasible
+    loads = result.contact_loads()
+    assert [label for label, _ in loads] == ["left_sole on soft_mat_top", "right_sole on firm_mat_top"]
+    for (_, total), contact in zip(loads, stance):
+        expected = np.sum([p.force for p in result.forces_on(robot.surface(contact.robot_surface).frame)], axis=0)
+        np.testing.assert_array_equal(total, expected)
+    np.testing.assert_allclose(loads[0][1] + loads[1][1], [0.0, 0.0, robot.weight], atol=1e-6)
+    assert repr(result) == (f"PostureResult(feasible=True, left_sole on soft_mat_top {np.linalg.norm(loads[0][1]):.1f} N, "
+                            f"right_sole on firm_mat_top {np.linalg.norm(loads[1][1]):.1f} N, {result.iterations} "
+                            f"iterations, {result.solve_time:.3g} s)")
+    refused = dataclasses.replace(result, feasible=False, reason="a reason\nover two lines " + "x" * 300)
+    shown = repr(refused)
+    assert shown.startswith("PostureResult(feasible=False, reason='a reason over two lines xxx")
+    assert "\n" not in shown and "...'" in shown and len(shown) < 300
+
+
 def test_a_body_too_soft_for_its_own_weight_is_refused_before_any_solve(robot, monkeypatch):
     """At 1e4 Pa, 1,000 kg/m^3 strains step-on-cube's cube 18 % under its own weight:
     linear elasticity cannot describe it at rest, and the solve says so before any SQP
