@@ -12,6 +12,7 @@ import re
 from collections import Counter
 
 from stances.deformable import PIVOTING_REFUSAL, PIVOTING_ROW
+from stances.sqp import SOFT_SUPPORT_GIVES, SOFT_SUPPORT_ROWS
 from stances.stages import HELD_AT_NODES, HELD_RIGID
 
 __all__ = [
@@ -33,7 +34,8 @@ CAUSES = (
     ("torque limit", ("torque limit",)),
     ("collision", ("collision",)),
     ("friction", ("friction cone", "node contact")),
-    (_SOFT_SUPPORT, ("indentation", "strain", "touch", "contact of", "tilt of the face", "mesh overlap")),
+    (_SOFT_SUPPORT, ("indentation", "strain", "touch", "contact of", "tilt of the face", "mesh overlap",
+                     SOFT_SUPPORT_GIVES)),
     ("normal load", ("normal load",)),
 )
 # Input the scene and robot do not fit (a StanceError's text), matched anywhere in it.
@@ -48,8 +50,9 @@ INPUT_CAUSES = (
 _QUALIFIERS = (HELD_RIGID, HELD_AT_NODES, "print unreachable: ")
 # The soft support's rows that can stand between a print and its placement (a sole on a soft
 # block's edge, whose partly covered nodes would bulge past its face: a new user's soft step,
-# 19 of 38 rejections read as reach): where the conflict names one, the soft support is the cause.
-_SOFT_BLOCKS = ("mesh overlap", "indentation")
+# 19 of 38 rejections read as reach): where the conflict names one, the soft support is the cause
+# (stances.sqp names those reasons so, SOFT_SUPPORT_GIVES, where the placement is a soft print's).
+_SOFT_BLOCKS = SOFT_SUPPORT_ROWS
 # The solver's list of constraints no step meets together (stances.sqp), after the reason.
 _CONFLICT = "; no step meets together: "
 
@@ -83,6 +86,9 @@ def cause_of(reason: str) -> str:
     >>> cause_of("print unreachable: placement of left_sole on block_top (z, elastic) violated by 0.000118 m or rad; "
     ...          "no step meets together: placement of left_sole on block_top (z, elastic), mesh overlap bound "
     ...          "(0.002 m, max_mesh_overlap) at node 4353 of block")
+    'soft support (indentation, strain, contact)'
+    >>> cause_of("soft support cannot hold the print: placement of left_sole on mat_top (z, elastic) violated by "
+    ...          "0.000567 m or rad; no step meets together: strain bound (compression) of tet 10968 of mat")
     'soft support (indentation, strain, contact)'
     """
     text = str(reason)

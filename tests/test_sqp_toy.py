@@ -331,6 +331,27 @@ def test_contradicting_rows_are_named_together():
     assert sorted(clause.split(", ")) == ["q_x at 0", "q_x at 1"]
 
 
+@pytest.mark.parametrize("placement, other, prefix", [
+    ("placement of a on mat_top (z, elastic)", "strain bound (compression) of tet 7 of mat", sqp.SOFT_SUPPORT_GIVES),
+    ("placement of a on mat_top (z, elastic)", "mesh overlap bound (0.002 m, max_mesh_overlap) at node 3 of mat",
+     sqp.SOFT_SUPPORT_GIVES),
+    ("placement of a on floor (z)", "strain bound (compression) of tet 7 of mat", "print unreachable: "),
+    ("placement of a on mat_top (z, elastic)", "collision between a and b", "print unreachable: "),
+], ids=["soft print held back by its strain", "by its mesh overlap", "rigid print", "soft print held by a collision"])
+def test_a_soft_print_held_back_by_its_body_is_not_called_unreachable(placement, other, prefix):
+    """A soft print's elastic placement at the worst, with its body's strain or mesh
+    overlap among the rows no step meets together: the body cannot carry the print there
+    (an audit's fuzz: a sole on a 1.2e4 Pa mat read "print unreachable"). A rigid print,
+    or one held back by a collision, is unreached."""
+    row = np.array([[1.0, 0.0, 0.0]])
+    blocks = [equality("placement", np.array([0.3]), row, 1.0, [placement]),
+              equality("other", np.array([0.1]), row, 1.0, [other])]
+    linearization = Linearization(0.0, np.zeros(3), np.eye(3), blocks, -np.ones(3), np.ones(3), np.zeros((0, 3)),
+                                  np.zeros(0))
+    reason = sqp._reason(linearization, 7, "stalled", (placement, other))
+    assert reason == f"{prefix}{placement} violated by 0.3 m or rad (stalled after 7 iterations)"
+
+
 def below_a_kink(q, lam):
     """``|q_x| + 1/2 <= 0``: no point meets it, and its linearisation, exact on either
     side of ``q_x = 0``, is wrong across it, so every full step overshoots the kink."""
