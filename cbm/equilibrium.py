@@ -50,7 +50,7 @@ import pinocchio as pin
 from scipy.optimize import linprog
 
 import fem
-from stances.deformable import PrintSpec
+from stances.deformable import SLIP_SHARE, PrintSpec
 from stances.layer_ball import largest_ball_load, layer_sites
 from stances.problem import PostureOptions, min_normal_load
 
@@ -118,7 +118,8 @@ def soft_print_margin(deformable_object, normal_in_world, options) -> float:
 
     The sum of the indentation bound (``max_indentation``, else
     ``indentation_limit`` times the body's thickness along the print normal),
-    the slip bound of the ``coulomb`` law (``max_slip``) and ``2 strain_limit
+    the slip bound of the ``coulomb`` law (``max_slip``, by default at most
+    :data:`stances.deformable.SLIP_SHARE` of the longest surface edge) and ``2 strain_limit
     H``: the tangential displacement of a surface node of a body of thickness
     ``H`` held at its far side whose shear strains stay within the strain
     bound that :func:`stances.verify` checks. An estimate, not a theorem (a
@@ -134,7 +135,12 @@ def soft_print_margin(deformable_object, normal_in_world, options) -> float:
     rotation = np.asarray(deformable_object.transform_body_to_world, dtype=float)[:3, :3]
     thickness = float(np.ptp(deformable_object.body.mesh.nodes @ (rotation.T @ normal_in_world)))
     indentation = options.max_indentation if options.max_indentation is not None else options.indentation_limit * thickness
-    slip = options.max_slip if options.contact_law == "coulomb" else 0.0
+    slip = 0.0
+    if options.contact_law == "coulomb":
+        # By default a share of the spacing under the body's prints: at most that of its
+        # longest surface edge (this only widens the LP).
+        slip = options.max_slip if options.max_slip is not None else (
+            SLIP_SHARE * deformable_object.body.mesh.surface_search[1])
     return float(indentation + slip + 2.0 * deformable_object.strain_limit * thickness)
 
 

@@ -34,8 +34,8 @@ from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 from .parallel import PosturePool, check_workers
 from .rejections import (
-    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, stiff_reach_hint, strain_bound_hint,
-    summarise, unresolved_ball_hint,
+    FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, soft_support_hint, stiff_reach_hint,
+    strain_bound_hint, summarise, unresolved_ball_hint,
 )
 from .prefilter import Prefilter
 from .reach import ReachLimits, ReachModel
@@ -613,6 +613,7 @@ def plan(
         if exhausted and earlier is None and not only_way:
             reason += finer_grid_hint(rejected, sampling.spacing)
         reason += strain_bound_hint(rejected)
+        reason += soft_support_hint(rejected)
         reason += unresolved_ball_hint(rejected)
         reason += pivoting_print_hint(rejected)
         reason += stiff_reach_hint(rejected)

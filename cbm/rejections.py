@@ -16,7 +16,7 @@ from stances.sqp import SOFT_SUPPORT_GIVES, SOFT_SUPPORT_ROWS
 from stances.stages import HELD_AT_NODES, HELD_RIGID
 
 __all__ = [
-    "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint",
+    "CAUSES", "INPUT_CAUSES", "UNRESOLVED_BALL", "cause_of", "finer_grid_hint", "pivoting_print_hint", "soft_support_hint",
     "stiff_reach_hint", "strain_bound_hint", "summarise", "unresolved_ball_hint",
 ]
 
@@ -188,6 +188,8 @@ UNRESOLVED_SHARE = 0.5
 PIVOTING_SHARE = 0.5
 #: The same share for stances refused on a stiff soft body where its prints' nodes reach.
 STIFF_REACH_SHARE = 0.5
+#: The same share for stances whose soft print sank deeper than its body's own rows allow.
+SOFT_SUPPORT_SHARE = 0.5
 # The solver's whole-print row (stances.deformable, max_corner_lift) and verify's refusal.
 _PIVOTING = (PIVOTING_ROW, PIVOTING_REFUSAL)
 # A soft print's strain row, a layer ball's converged one, and the equilibrium filter's ball
@@ -278,6 +280,28 @@ def _share_hint(reasons, counts, share: float, what: str) -> str:
     if not reasons or count < share * len(reasons):
         return ""
     return f"; {count} of the {len(reasons)} stances rejected {what}"
+
+
+def soft_support_hint(reasons) -> str:
+    """What to add to a failed search's reason when most rejected stances had a soft print's
+    sinking held back by its body's own rows (:data:`stances.sqp.SOFT_SUPPORT_GIVES`: its
+    strain, or its mesh reaching into the link past ``max_mesh_overlap``): an audit's plan on
+    cross-two-mats at half its stiffness ended "budget exhausted" after 73 s, all 60 of its
+    rejections such. Parameters and return as :func:`unresolved_ball_hint`'s.
+
+    Examples
+    --------
+    >>> soft_support_hint([SOFT_SUPPORT_GIVES + "placement of a on mat_top (z, elastic) violated by 0.0007 m",
+    ...                    "torque limit of j"])
+    '; 1 of the 2 stances rejected sank a print deeper than its soft support holds it (its strain bound, or its mesh reaching into the link): a stiffer material carries more, and a finer mesh under the prints reaches less far into the links'
+    >>> soft_support_hint(["torque limit of j"])
+    ''
+    """
+    return _share_hint(
+        reasons, lambda reason: SOFT_SUPPORT_GIVES in reason, SOFT_SUPPORT_SHARE,
+        "sank a print deeper than its soft support holds it (its strain bound, or its mesh reaching into the link): "
+        "a stiffer material carries more, and a finer mesh under the prints reaches less far into the links",
+    )
 
 
 def stiff_reach_hint(reasons) -> str:

@@ -197,6 +197,13 @@ _OVERLAP_ACTIVATION = 0.5
 # centres wherever they lie, not only near the prints.
 _REST_STRAIN = 0.25
 _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
+# The small-slip bound (options.max_slip None), a share of the mesh's spacing under the prints:
+# contact is solved on the nodes under the declared print, and a link sliding a whole spacing
+# over them presses others. At 0.02 m (the bound before, 0.9 of the default mesh's spacing) an
+# audit's fuzz of 71 plans found soft palms slid 5-18 mm and turned up to 14 degrees, loaded
+# nodes 25 mm outside the palm (bench/results/audit-fuzz-plans-2026-12-06.md). At a quarter the
+# 15 built-in soft stances all solve, two palms sliding 4 mm instead of 9 (objectives +1 %).
+SLIP_SHARE = 0.25
 # A ball's start depth (DeformableContact.variables_from_forces): up to 2^12 times the flat
 # print's, then the scale's bracket halved (in log) to 2^(1/2^5) = 1.022.
 _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
@@ -407,6 +414,16 @@ def _cone_margins(forces, normals, mu):
     return normal, tangential, mu * normal - tangential
 
 
+def surface_spacing(mesh, nodes) -> float:
+    """Metres: the mesh's spacing on its surface at ``nodes`` (node ids), the median length
+    of the edges of the surface triangles that have one of them as a corner (a cell's side
+    and diagonals alike: on a regular grid, about its side)."""
+    triangles = mesh.surface_triangles[np.isin(mesh.surface_triangles, nodes).any(axis=1)]
+    corners = mesh.nodes[triangles]  # (t, 3, 3)
+    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
+    return float(np.median(edges))
+
+
 def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
     """How far a ball resting on a print is above each node: its profile's height there.
 
@@ -510,7 +527,7 @@ class DeformableContact:
         self.friction_margin = float(options.friction_margin)
         self.strain_limit = float(deformable_object.strain_limit)
         self.strain_radius = float(deformable_object.strain_radius)
-        self.max_slip = float(options.max_slip)
+        self.max_slip = None if options.max_slip is None else float(options.max_slip)  # per the mesh: below
         self.max_mesh_overlap = float(options.max_mesh_overlap)
         self.ball_force_error = float(options.ball_force_error)
         self.turned_frames = options.contact_frames == "turned" and self.law == "coulomb"
@@ -650,6 +667,8 @@ class DeformableContact:
         self._corner_rows = self._corners - self.corner_sinking * self._corner_means
         self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(corners, rests)
         self.node_ids = np.concatenate(node_sets)
+        if self.max_slip is None:
+            self.max_slip = SLIP_SHARE * surface_spacing(body.mesh, self.node_ids)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))

@@ -212,12 +212,13 @@ class PostureOptions:
         contact does. Default 0.99: a print's nodes are never all at the point of
         sliding at once (at 1, hand-on-cube's palm on a 1e4 Pa cube, every node
         sliding, took 119 iterations); 1 gives the paper's bonded model exactly.
-    max_slip : float
+    max_slip : float or None
         Deformable supports with Coulomb contact: how far a link point may
-        slide over its print node, metres (0.02: less than the default mesh's
-        node spacing of 22.5 mm). Contact is solved on the nodes under the
-        declared print (small slip, as small strain); a link sliding farther
-        would touch other nodes.
+        slide over its print node, metres. Contact is solved on the nodes under
+        the declared print (small slip, as small strain); a link sliding a
+        spacing would touch other nodes. None (default): a quarter of the mesh's
+        spacing under the body's prints (:data:`stances.deformable.SLIP_SHARE`;
+        5.6 mm on the default 22.5 mm mesh).
     max_mesh_overlap : float
         Deformable supports: how far the deformed body may reach into a link's
         contact face, metres, along the print normal (2 mm). A node the print's
@@ -319,7 +320,7 @@ class PostureOptions:
     min_normal_force: float = 0.0
     support_load: float | None = None
     friction_margin: float = 0.99
-    max_slip: float = 0.02
+    max_slip: float | None = None
     max_mesh_overlap: float = 2e-3
     max_strain_rows: int = 12
     elastic_penalty: float = 1e2
@@ -344,8 +345,10 @@ class PostureOptions:
             object.__setattr__(self, "deformation_weight", DEFORMATION_WEIGHTS[self.deformation_cost])
         # Every weight, distance and tolerance is a finite number: a NaN weight made
         # every QP fail and the stance "unreachable", a NaN distance was ignored.
-        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "corner_sinking", "max_corner_lift", "tilt_allowance") + ("max_indentation",) * (self.max_indentation is not None):
+        for name in _NON_NEGATIVE + _POSITIVE + ("ball_force_error", "corner_sinking", "max_corner_lift", "tilt_allowance", "max_indentation"):
             value = getattr(self, name)
+            if value is None and name in _BY_DEFAULT:
+                continue
             if isinstance(value, bool) or not isinstance(value, numbers.Real):
                 raise StanceError(f"{name} must be a number, got {value!r}")
         for name in _NON_NEGATIVE:
@@ -378,6 +381,8 @@ class PostureOptions:
             if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 0:
                 raise StanceError(f"{name} must be a whole number >= 0, got {value!r}")
         for name in _POSITIVE:
+            if getattr(self, name) is None and name in _BY_DEFAULT:
+                continue
             if not 0.0 < getattr(self, name) < np.inf:
                 raise StanceError(f"{name} must be > 0 and finite, got {getattr(self, name)}")
         for name in ("effort_margin", "joint_margin"):
@@ -429,6 +434,9 @@ _POSITIVE = (
     "trust_region", "feasibility_tolerance", "optimality_tolerance", "indentation_limit", "elastic_penalty", "max_slip",
     "max_mesh_overlap",
 )
+
+#: Options whose None means "from the scene" (the body's thickness, the mesh's spacing).
+_BY_DEFAULT = ("max_indentation", "max_slip")
 
 _ON_BOUND = 1e-5  # a usage this close to its bound (fraction of the limit) is on it
 

@@ -178,6 +178,9 @@ COLLIDING = "collision between leg_left_5_link_0 and step (depth 0.01 m)"
 STRAINED = ("static equilibrium (fx) violated by 2.3 N; no step meets together: strain bound (compression) of tet "
             "7509 of step, placement of right_sole (z)")
 PIVOTING = "contact of right_sole on step_top (corner 2 lifted: pivoting on an edge) violated by 0.0003"
+HELD_BACK = ("soft support cannot hold the print: placement of right_sole on step_top (z, elastic) violated by 0.0007 "
+             "m or rad; no step meets together: placement of right_sole on step_top (z, elastic), mesh overlap bound "
+             "(0.002 m, max_mesh_overlap) at node 3016 of step")
 
 
 def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(scenario, robot):
@@ -210,7 +213,10 @@ def test_a_search_out_of_budget_among_colliding_stances_suggests_a_finer_grid(sc
      "could not press a sole or palm on a soft body with its whole face: one that must lean on its edge is refused "
      "(its force on the mesh is no converged one); plan with --solver-option max_corner_lift=inf "
      "(solver_options={'max_corner_lift': inf}) to let prints pivot", "pivot"),
-], ids=["strain bound", "pivoting prints"])
+    (HELD_BACK, "soft support (indentation, strain, contact)",
+     "sank a print deeper than its soft support holds it (its strain bound, or its mesh reaching into the link): a "
+     "stiffer material carries more, and a finer mesh under the prints reaches less far into the links", "sank"),
+], ids=["strain bound", "pivoting prints", "held back by the soft support"])
 def test_a_search_failing_on_a_soft_support_says_what_to_do(scenario, robot, reason, cause, hint, absent):
     """A search whose stances are rejected on a soft object's strain bound, or on a sole or
     palm that cannot press with its whole face, says so and what to change."""
