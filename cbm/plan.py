@@ -1,14 +1,15 @@
 """A plan: the sequence of verified stances, saved to and read from JSON.
 
-The file (``plan.json``, format ``softcbm-plan`` version 4) describes itself: its
+The file (``plan.json``, format ``softcbm-plan`` version 5) describes itself: its
 ``units`` and ``frames`` say what every number is, ``robot`` names each
 coordinate of ``q`` and each torque and gives the locked joints' values (the
 robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
 :meth:`Plan.check` works on the file anywhere. Each value is stored once: a
 stance's posture, forces and displacements are not repeated in its solver
 summary. Version 1 files (before these headers) are read as they are, and the results of
-versions 1 to 3 as solved with the options then the defaults (:data:`SOLVED_AS`; versions 3
-and 4 have version 2's layout, version 4's soft prints solved against the turned faces); a
+versions 1 to 4 as solved with the options then the defaults (:data:`SOLVED_AS`; versions 3
+to 5 have version 2's layout, version 4's soft prints solved against the turned faces, version
+5's with a small-slip bound of a quarter of the mesh's spacing); a
 file with no version or an unknown one is refused with the versions this library reads.
 """
 
@@ -52,17 +53,19 @@ logger = logging.getLogger(__name__)
 PLAN_FORMAT = "softcbm-plan"
 #: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
 FRONTIER_SIZE = 5
-PLAN_VERSION = 4
+PLAN_VERSION = 5
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
 #: stance's arrays inside its ``result``. Versions 1 to 3 were solved before the contact
 #: frames turned with the links' faces (``stances.PostureOptions.contact_frames``,
-#: 2026-12-06), version 3 with a 1 degree tilt allowance by default: their results read as
-#: solved so (:data:`SOLVED_AS`), and are checked so.
-READABLE_VERSIONS = (1, 2, 3, 4)
+#: 2026-12-06), version 3 with a 1 degree tilt allowance by default, versions 1 to 4 with a
+#: 2 cm small-slip bound (``max_slip``; a quarter of the mesh's spacing since version 5):
+#: their results read as solved so (:data:`SOLVED_AS`), and are checked so.
+READABLE_VERSIONS = (1, 2, 3, 4, 5)
 #: The posture options a result of an earlier version was solved with where it recorded
 #: none (they were the defaults then).
-SOLVED_AS = {1: {"contact_frames": "rest"}, 2: {"contact_frames": "rest"},
-             3: {"contact_frames": "rest", "tilt_allowance": math.radians(1.0)}}
+SOLVED_AS = {1: {"contact_frames": "rest", "max_slip": 0.02}, 2: {"contact_frames": "rest", "max_slip": 0.02},
+             3: {"contact_frames": "rest", "tilt_allowance": math.radians(1.0), "max_slip": 0.02},
+             4: {"max_slip": 0.02}}
 
 #: Units of every number in a plan file.
 UNITS = {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}

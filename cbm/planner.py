@@ -612,8 +612,8 @@ def plan(
             reason += coarse_grid_hint(sampling.spacing, reach_model.step_length)
         if exhausted and earlier is None and not only_way:
             reason += finer_grid_hint(rejected, sampling.spacing)
-        reason += strain_bound_hint(rejected)
-        reason += soft_support_hint(rejected)
+        # The strain bound named, or else the soft support that held the prints back: one hint.
+        reason += strain_bound_hint(rejected) or soft_support_hint(rejected)
         reason += unresolved_ball_hint(rejected)
         reason += pivoting_print_hint(rejected)
         reason += stiff_reach_hint(rejected)

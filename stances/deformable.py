@@ -204,6 +204,9 @@ _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
 # nodes 25 mm outside the palm (bench/results/audit-fuzz-plans-2026-12-06.md). At a quarter the
 # 15 built-in soft stances all solve, two palms sliding 4 mm instead of 9 (objectives +1 %).
 SLIP_SHARE = 0.25
+# ... and at most this, metres (the bound before): the paper's coarse cube, a palm on 4 nodes of
+# 100 mm cells, would otherwise let it slide 25 mm, a third of its width.
+SLIP_CAP = 0.02
 # A ball's start depth (DeformableContact.variables_from_forces): up to 2^12 times the flat
 # print's, then the scale's bracket halved (in log) to 2^(1/2^5) = 1.022.
 _BALL_DOUBLINGS, _BALL_HALVINGS = 12, 5
@@ -416,9 +419,14 @@ def _cone_margins(forces, normals, mu):
 
 def surface_spacing(mesh, nodes) -> float:
     """Metres: the mesh's spacing on its surface at ``nodes`` (node ids), the median length
-    of the edges of the surface triangles that have one of them as a corner (a cell's side
-    and diagonals alike: on a regular grid, about its side)."""
-    triangles = mesh.surface_triangles[np.isin(mesh.surface_triangles, nodes).any(axis=1)]
+    of the edges of the surface triangles whose corners are all among them (a cell's sides
+    and diagonal: on a regular grid, about its side), or where none is, of those that have
+    one of them as a corner (a ball pressing a node or two). Under the prints only: on a
+    graded mesh the cells around a print grow (on hand-on-coarse-cube's cube the triangles
+    touching the palm's nodes gave 215 mm, its own 38 mm)."""
+    touching = np.isin(mesh.surface_triangles, nodes)
+    own = touching.all(axis=1)
+    triangles = mesh.surface_triangles[own if own.any() else touching.any(axis=1)]
     corners = mesh.nodes[triangles]  # (t, 3, 3)
     edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
     return float(np.median(edges))
@@ -668,7 +676,7 @@ class DeformableContact:
         self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(corners, rests)
         self.node_ids = np.concatenate(node_sets)
         if self.max_slip is None:
-            self.max_slip = SLIP_SHARE * surface_spacing(body.mesh, self.node_ids)
+            self.max_slip = min(SLIP_SHARE * surface_spacing(body.mesh, self.node_ids), SLIP_CAP)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))

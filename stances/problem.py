@@ -218,7 +218,7 @@ class PostureOptions:
         the declared print (small slip, as small strain); a link sliding a
         spacing would touch other nodes. None (default): a quarter of the mesh's
         spacing under the body's prints (:data:`stances.deformable.SLIP_SHARE`;
-        5.6 mm on the default 22.5 mm mesh).
+        5.4-5.6 mm on the default 22.5 mm mesh), at most 2 cm (``SLIP_CAP``).
     max_mesh_overlap : float
         Deformable supports: how far the deformed body may reach into a link's
         contact face, metres, along the print normal (2 mm). A node the print's

@@ -100,8 +100,9 @@ _FLOOR = 0.25  # fraction of the Gauss-Newton curvature the Lagrangian's may not
 _AUGMENTATION = 1e-2  # sigma, objective units per squared scaled row
 
 
-# An infeasible answer whose worst row is a soft print's elastic placement, held back by its
-# body's own rows (these, among the rows no step meets together), starts with this.
+# An infeasible answer whose worst row is a soft print's elastic placement, held back by a
+# soft body's own rows (these, among the rows no step meets together, and no collision), starts
+# with this.
 SOFT_SUPPORT_GIVES = "soft support cannot hold the print: "
 SOFT_SUPPORT_ROWS = ("strain bound", "mesh overlap", "indentation")
 
@@ -143,10 +144,12 @@ def _reason(linearization, iterations, why, conflict=()) -> str:
     amount = worst * scale
     prefix = ""
     if label.startswith("placement"):
-        # A soft print's sinking held back by its body's own rows (its strain, its mesh
-        # reaching into the link) is no matter of reach: the body cannot carry it there (a
-        # sole on a 1.2e4 Pa mat beside a firmer one, an audit's fuzz: it read "unreachable").
-        held_back = label.endswith(", elastic)") and any(row.startswith(SOFT_SUPPORT_ROWS) for row in conflict)
+        # A soft print's sinking held back by a soft body's own rows (its strain, its mesh
+        # reaching into the link) is no matter of reach: the soft support cannot carry it
+        # there (a sole on a 1.2e4 Pa mat beside a firmer one, an audit's fuzz: it read
+        # "unreachable"). A collision among them stands in the way first (cbm.rejections).
+        held_back = (label.endswith(", elastic)") and any(row.startswith(SOFT_SUPPORT_ROWS) for row in conflict)
+                     and not any(row.startswith("collision") for row in conflict))
         prefix = SOFT_SUPPORT_GIVES if held_back else "print unreachable: "
     return f"{prefix}{label} violated by {amount:.3g} {_unit(label)} ({why} after {iterations} iterations)"
 

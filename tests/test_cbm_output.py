@@ -9,12 +9,13 @@ import pytest
 
 import environments
 import stances
+from conftest import coarse_scenario
 
 from cbm.errors import PlanFileError
 from cbm.cli import DEFAULT_SCENARIO, main
 from cbm.display import robot_segments
 from cbm.output import write_outputs
-from cbm.plan import SOLVED_AS, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from cbm.plan import PLAN_VERSION, SOLVED_AS, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
 
 
 def chromium_binary():
@@ -188,7 +189,7 @@ def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(
 
 def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
     data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
-    assert (data["format"], data["version"]) == ("softcbm-plan", 4)
+    assert (data["format"], data["version"]) == ("softcbm-plan", 5)
     assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
     assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
     described = data["robot"]
@@ -252,9 +253,10 @@ def test_version_1_plan_files_are_still_read(synthetic_plan):
 
 def test_earlier_versions_results_read_as_solved_with_the_defaults_of_their_day(robot):
     """Versions 1 and 2 were solved in the rest frames, version 3 in the rest frames with a 1
-    degree tilt allowance (the defaults then, so recorded nowhere): their results' options gain
-    those, so that Plan.check verifies them as solved; a version 4 result keeps what it
-    recorded (the turned frames by default), and the same forces checked so are refused."""
+    degree tilt allowance, all with a 2 cm slip bound (the defaults then, so recorded nowhere):
+    their results' options gain those, so that Plan.check verifies them as solved; a current
+    result keeps what it recorded (the turned frames by default), and the same forces checked
+    so are refused."""
     scenario = environments.load("hand-on-coarse-cube")
     stance = scenario.stance("hand-on-cube")
     assert SOLVED_AS[1] == SOLVED_AS[2]  # (version 1's layout: test_version_1_plan_files_are_still_read)
@@ -272,12 +274,32 @@ def test_earlier_versions_results_read_as_solved_with_the_defaults_of_their_day(
         assert read.check().ok, version
         # The same file as the current version: solved against the turned face, which its
         # slipping palm nodes, solved in the rest frames, do not obey.
-        current = Plan.from_dict({**data, "version": 4})
+        current = Plan.from_dict({**data, "version": PLAN_VERSION})
         assert current.stances[0].result.statistics.get("options") is None
         assert not current.check().ok
 
 
-@pytest.mark.parametrize("version", [None, 5, "2"], ids=["no-version", "future", "string"])
+def test_a_version_4_result_reads_as_solved_with_the_2_cm_slip_bound(robot):
+    """Version 4 was solved with a 2 cm small-slip bound (the default then, recorded nowhere):
+    hand-on-soft-cube's palm, solved so, slides 11 mm on the coarse cube, past the quarter of
+    its 38 mm spacing that bounds it since version 5. Read as version 4 it is checked as solved
+    and passes; read as the current version it is refused for that slip."""
+    scenario = coarse_scenario("hand-on-soft-cube")
+    stance = scenario.stance("hand-on-soft-cube")
+    result = stances.solve(robot, scenario.scene, stance, **SOLVED_AS[4])
+    assert result.feasible, result.reason
+    planned = PlannedStance(stance, result.q, result.point_forces, result.deformations, result)
+    plan = Plan(True, "goal reached", [planned], PlanStatistics(), "hand-on-soft-cube",
+                robot=robot_description(robot), scenario_source=scenario_source(scenario))
+    data = plan.to_dict()
+    del data["stances"][0]["result"]["statistics"]["options"]  # as a version 4 file has it
+    assert Plan.from_dict({**data, "version": 4}).check().ok
+    current = Plan.from_dict({**data, "version": PLAN_VERSION}).check()
+    assert not current.ok
+    assert any("beyond the small-slip bound" in problem for problem in current.problems), current.problems
+
+
+@pytest.mark.parametrize("version", [None, 6, "2"], ids=["no-version", "future", "string"])
 def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
     data = synthetic_plan.to_dict()
     if version is None:
@@ -285,7 +307,7 @@ def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(sy
     else:
         data["version"] = version
     message = (
-        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4; "
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4, 5; "
         "plan the scenario again with this version (cbm plan)"
     )
     with pytest.raises(PlanFileError) as raised:

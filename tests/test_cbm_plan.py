@@ -228,6 +228,17 @@ def test_a_search_failing_on_a_soft_support_says_what_to_do(scenario, robot, rea
                               oracle=SyntheticOracle(forbidden_x=(0.0, 10.0)), max_expansions=15).reason
 
 
+def test_a_search_failing_on_the_strain_of_soft_prints_held_back_gives_one_hint(scenario, robot):
+    """Soft prints held back by their body's strain bound: the strain bound's hint, not the
+    soft support's as well (the same advice twice, a review found)."""
+    reason = HELD_BACK.replace("mesh overlap bound (0.002 m, max_mesh_overlap) at node 3016 of step",
+                               "strain bound (compression) of tet 7509 of step")
+    failed = plan(scenario, robot=robot, reach=robot.reach, oracle=RejectingOracle(reason, (0.0, 10.0)),
+                  max_expansions=15)
+    assert "meet the strain bound of step" in failed.reason
+    assert "sank a print deeper" not in failed.reason
+
+
 class SplitRefusingOracle(SyntheticOracle):
     """Refuses any stance whose floor prints lie more than 0.8 m apart, as a robot's reach would."""
 

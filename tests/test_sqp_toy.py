@@ -352,6 +352,19 @@ def test_a_soft_print_held_back_by_its_body_is_not_called_unreachable(placement,
     assert reason == f"{prefix}{placement} violated by 0.3 m or rad (stalled after 7 iterations)"
 
 
+def test_a_soft_print_held_back_with_a_collision_in_the_way_is_unreached():
+    """A collision among the rows no step meets together stands in the way first: the print
+    is unreached (cbm.rejections then files it as a collision and suggests a finer grid)."""
+    placement, strain = "placement of a on mat_b_top (z, elastic)", "strain bound (compression) of tet 7 of mat_b"
+    row = np.array([[1.0, 0.0, 0.0]])
+    blocks = [equality("placement", np.array([0.3]), row, 1.0, [placement]),
+              equality("other", np.array([0.1]), row, 1.0, [strain])]
+    linearization = Linearization(0.0, np.zeros(3), np.eye(3), blocks, -np.ones(3), np.ones(3), np.zeros((0, 3)),
+                                  np.zeros(0))
+    reason = sqp._reason(linearization, 7, "stalled", (placement, "collision between leg and mat_a", strain))
+    assert reason.startswith("print unreachable: " + placement)
+
+
 def below_a_kink(q, lam):
     """``|q_x| + 1/2 <= 0``: no point meets it, and its linearisation, exact on either
     side of ``q_x = 0``, is wrong across it, so every full step overshoots the kink."""
