@@ -112,7 +112,7 @@ def run(scene_file: str, robot_name_or_file) -> list:
         f"- plan: {'found' if result.success else 'not found (' + result.reason + ')'}, {len(result.stances)} stances "
         f"({soft} with a print on the soft pad), {wall:.1f} s wall in `cbm.plan` ({s.expanded} expanded, "
         f"{s.solver_calls} solver calls)",
-        f"- saved plan read back and checked (`Plan.load(...).check()`): "
+        "- saved plan read back and checked (`Plan.load(...).check()`): "
         + ("every stance verifies" if check.ok else "; ".join(check.problems)),
     ]
     if result.stances:

@@ -182,7 +182,7 @@ def instruction_rows(sides) -> list:
     with concurrent.futures.ThreadPoolExecutor(max_workers=2) as pool:  # one process a core
         counts = dict(zip(jobs, pool.map(lambda job: instructions(*job), jobs.values())))
     solves = {side: counts[side, True] - counts[side, False] for side in sides}
-    return [f"Instructions of the 60 rigid solves (callgrind, `stances.solve` with build and final check; "
+    return ["Instructions of the 60 rigid solves (callgrind, `stances.solve` with build and final check; "
             "a run with them less a run with the setup alone):", "",
             "| side | setup alone (G) | with the solves (G) | the solves (G) |", "|---|---|---|---|",
             *(f"| {side} | {counts[side, False] / 1e9:.3f} | {counts[side, True] / 1e9:.3f} | {solves[side] / 1e9:.3f} |"
