@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import logging
 import os
 import subprocess
 import sys
@@ -180,12 +181,16 @@ def test_the_key_names_mesh_material_and_fixed_set(mesh):
     assert make_body(moved, False).cache_key != key
 
 
-def test_the_cache_stays_under_its_size_bound(mesh, tmp_path):
+def test_the_cache_stays_under_its_size_bound_and_says_when_it_evicts(mesh, tmp_path, caplog):
     column_bytes = 3 * mesh.n_dofs * 8
     small = DiskCache(tmp_path / "small", max_bytes=10 * column_bytes)
     top = np.flatnonzero((mesh.nodes[:, 2] == 1.0))
-    make_body(mesh, small).compliance_columns(top[:30])
+    with caplog.at_level(logging.WARNING, logger="fem.cache"):
+        make_body(mesh, small).compliance_columns(top[:30])
     assert small.size() <= 10 * column_bytes
+    # A sweep that fills the bound rebuilds what it evicts inside later solves: said, with the fix.
+    said = [r.getMessage() for r in caplog.records if "reached its bound" in r.getMessage()]
+    assert said and all("raise SOFTCBM_CACHE_MAX_MB to keep more" in m for m in said)
     # The newest entries are the ones kept.
     assert small.load(make_body(mesh, False).cache_key, f"columns-{top[29]}") is not None
 
