@@ -185,6 +185,19 @@ class ContactPatch:
         """(T,) float areas alpha_e, square metres."""
         return self._body.mesh.surface_areas[self._tri_global]
 
+    @cached_property
+    def spacing(self) -> float:
+        """Metres: the mesh's spacing under the print, the median edge of its triangles
+        (eqs. 38-39: a cell's sides and diagonal, on a regular grid about its side), or, where
+        its nodes make none (a ball pressing a few), of the surface triangles touching them.
+        Under the print only: on a graded mesh the cells around it grow."""
+        mesh = self._body.mesh
+        triangles = mesh.surface_triangles[self._tri_global]
+        if not len(triangles):
+            triangles = mesh.surface_triangles[np.isin(mesh.surface_triangles, self._ids).any(axis=1)]
+        corners = mesh.nodes[triangles]  # (t, 3, 3)
+        return float(np.median(np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)))
+
     # ------------------------------------------------------------ matrices
     @cached_property
     def neighbour_tets(self) -> np.ndarray:

@@ -417,21 +417,6 @@ def _cone_margins(forces, normals, mu):
     return normal, tangential, mu * normal - tangential
 
 
-def surface_spacing(mesh, nodes) -> float:
-    """Metres: the mesh's spacing on its surface at ``nodes`` (node ids), the median length
-    of the edges of the surface triangles whose corners are all among them (a cell's sides
-    and diagonal: on a regular grid, about its side), or where none is, of those that have
-    one of them as a corner (a ball pressing a node or two). Under the prints only: on a
-    graded mesh the cells around a print grow (on hand-on-coarse-cube's cube the triangles
-    touching the palm's nodes gave 215 mm, its own 38 mm)."""
-    touching = np.isin(mesh.surface_triangles, nodes)
-    own = touching.all(axis=1)
-    triangles = mesh.surface_triangles[own if own.any() else touching.any(axis=1)]
-    corners = mesh.nodes[triangles]  # (t, 3, 3)
-    edges = np.linalg.norm(corners - np.roll(corners, 1, axis=1), axis=2)
-    return float(np.median(edges))
-
-
 def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
     """How far a ball resting on a print is above each node: its profile's height there.
 
@@ -675,8 +660,6 @@ class DeformableContact:
         self._corner_rows = self._corners - self.corner_sinking * self._corner_means
         self._pressure_rows, self._pressure_print = self._centre_of_pressure_rows(corners, rests)
         self.node_ids = np.concatenate(node_sets)
-        if self.max_slip is None:
-            self.max_slip = min(SLIP_SHARE * surface_spacing(body.mesh, self.node_ids), SLIP_CAP)
         self.coverage = np.concatenate(coverages)
         self.print_of_node = np.concatenate([np.full(len(s), i) for i, s in enumerate(node_sets)])
         self.loads = PointLoads(np.concatenate(joints), np.concatenate(points_in_joint))
@@ -688,6 +671,8 @@ class DeformableContact:
         self._body_placement = body_placement
         self._corners_memo = {}  # print index -> _pressure_corners' answer
         self.patch = body.contact_patch(self.node_ids, self.coverage if self.method == "consistent" else None)
+        if self.max_slip is None:
+            self.max_slip = min(SLIP_SHARE * self.patch.spacing, SLIP_CAP)
         # Partly covered nodes' series compliance D (fem.ContactPatch), its (p, 3, 3)
         # diagonal blocks: a link point moves by its node's motion plus D times the
         # force; None when every node is covered.

@@ -340,7 +340,7 @@ class PostureResult:
                 for c in contacts]
 
     def _sum_on(self, frame: str) -> np.ndarray:
-        return np.sum([p.force for p in self.point_forces if p.frame == frame], axis=0) + np.zeros(3)
+        return np.sum([p.force for p in self.forces_on(frame)], axis=0) + np.zeros(3)
 
     def total_force(self) -> np.ndarray:
         """(3,) float: sum of the contact forces, newtons, world frame."""

@@ -18,7 +18,7 @@ from environments import Contact, ContactPrint, Stance
 from stances import CentreOfMassBounds, ConfigurationError, FrameNotFound, PostureResult, Robot, StanceError
 from stances.results import LazyDeformations
 from stances.contacts import friction_cone_generators
-from stances.deformable import SLIP_CAP, SLIP_SHARE, surface_spacing
+from stances.deformable import SLIP_CAP, SLIP_SHARE
 from stances.problem import PostureOptions, build_problem
 from stances import sqp, stages, stopping
 from stances import solve, solve_problem
@@ -144,8 +144,7 @@ def test_deformable_scenario_solves_and_verifies(deformable_robots, deformable_r
     # turned 76 degrees; at a 2 cm bound an audit found palms 18 mm off on a 21 mm mesh).
     problem = build_problem(robot, scenario.scene, scenario.stance(stance_name))
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
-    spacing = surface_spacing(scenario.scene.deformable(name).mesh, soft.node_ids)
-    assert check.measures[f"largest slip on {name}"] <= min(0.25 * spacing, 0.02) + 1e-6
+    assert check.measures[f"largest slip on {name}"] <= min(0.25 * soft.patch.spacing, 0.02) + 1e-6
     # The deformed mesh reaches at most 2 mm into the links (a partly covered node lies
     # D f behind its link point): unbounded, hand-on-soft-cube's palm let it in by 3.6 mm.
     assert check.measures[f"mesh overlap into the links on {name}"] <= PostureOptions().max_mesh_overlap + 1e-6
@@ -889,12 +888,17 @@ def test_a_robot_surface_with_a_bad_polygon_is_a_stance_error():
 @pytest.mark.parametrize("divisions, spacing", [((10, 10, 4), 0.1), ((20, 20, 4), 0.05)])
 def test_the_surface_spacing_is_a_grids_cell(divisions, spacing):
     """On a regular grid a surface triangle has two sides of the cell and a diagonal: the
-    median edge is the cell's side, under the top's nodes and its corners' alike."""
+    median edge is the cell's side, under a print of the top's nodes and under three nodes in
+    a row at its corner alike (no print triangle there: the surface triangles touching them)."""
     mesh = fem.box_mesh(size=(1.0, 1.0, 0.2), divisions=divisions)
+    body = fem.DeformableBody(mesh, fem.LinearElasticMaterial(1e6, 0.4), mesh.nodes[:, 2] == 0.0, cache=False)
     top = np.flatnonzero(np.isclose(mesh.nodes[:, 2], 0.2))
-    assert surface_spacing(mesh, top) == pytest.approx(spacing, rel=1e-12)
-    corner = np.flatnonzero(np.all(np.isclose(mesh.nodes, [1.0, 1.0, 0.2]), axis=1))
-    assert surface_spacing(mesh, corner) <= np.sqrt(2.0) * spacing + 1e-12
+    assert body.contact_patch(top).spacing == pytest.approx(spacing, rel=1e-12)
+    row = np.flatnonzero(np.isclose(mesh.nodes[:, 1], 1.0) & np.isclose(mesh.nodes[:, 2], 0.2)
+                         & (mesh.nodes[:, 0] > 1.0 - 2.5 * spacing))
+    corner = body.contact_patch(row)
+    assert len(row) == 3 and len(corner.triangles) == 0
+    assert corner.spacing <= np.sqrt(2.0) * spacing + 1e-12
 
 
 def test_the_default_slip_bound_is_at_most_2_cm(robot):
@@ -903,7 +907,7 @@ def test_the_default_slip_bound_is_at_most_2_cm(robot):
     scenario = environments.load("hand-on-coarse-cube")
     problem = build_problem(robot, scenario.scene, scenario.stance("hand-on-cube"))
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
-    assert SLIP_SHARE * surface_spacing(scenario.scene.deformable("cube").mesh, soft.node_ids) > 0.02
+    assert SLIP_SHARE * soft.patch.spacing > 0.02
     assert soft.max_slip == SLIP_CAP == 0.02
 
 
@@ -919,7 +923,7 @@ def test_the_default_slip_bound_is_a_quarter_of_the_spacing_and_verify_keeps_it(
     (name,) = result.deformations
     problem = build_problem(robot, scenario.scene, result.stance)
     (soft,) = [c for c in problem.contacts if c.kind == "deformable"]
-    assert soft.max_slip == pytest.approx(0.25 * surface_spacing(scenario.scene.deformable(name).mesh, soft.node_ids))
+    assert soft.max_slip == pytest.approx(0.25 * soft.patch.spacing)
     slip = verify_problem(problem, result).measures[f"largest slip on {name}"]
     assert 1e-4 < slip <= soft.max_slip + 1e-6
     under = build_problem(robot, scenario.scene, result.stance, PostureOptions(max_slip=0.9 * slip))
