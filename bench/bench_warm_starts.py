@@ -50,9 +50,9 @@ class RecordingOracle(PostureOracle):
             self.calls.append((parent_check is not None and parent_check.result is not None, self._attempts))
         return check
 
-    def _solve(self, stance, q_init):
+    def _solve(self, stance, q_init, history=None):
         start = time.process_time()
-        check = super()._solve(stance, q_init)
+        check = super()._solve(stance, q_init, history)
         iterations = check.result.iterations if check.result is not None else 0
         self._attempts.append((check.feasible, time.process_time() - start, iterations))
         return check

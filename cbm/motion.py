@@ -67,6 +67,7 @@ from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.contacts import placement_residual, point_placement_residual
 from stances.errors import StanceError
 from stances.problem import stance_collision_checker
+from stances.stages import kept_slips
 from stances.terms import print_normal_loads
 
 from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
@@ -916,7 +917,10 @@ def plan_motions_reposing(plan, scenario, robot, **options):
     planned again to the new posture; if that fails too, or the motion out of
     the stance fails from the new posture where it is found from the planned one,
     the stance keeps its posture. The motion out of a reposed stance starts from
-    its new posture.
+    its new posture. A reposed stance starts the soft prints it keeps where the
+    stance before leaves them, and each stance after it that keeps a soft print of
+    the one before is solved again from where that one now leaves it (from its own
+    posture); where one of them then has no posture, the stance is not reposed.
 
     Parameters
     ----------
@@ -942,8 +946,11 @@ def plan_motions_reposing(plan, scenario, robot, **options):
         ahead = None
         if not motion.feasible:
             reposed = _reposed_stance(current, index, motion, scenario, robot, options.get("solver_options"))
-            if reposed is not None:
-                trial = planned[:index + 1] + [reposed] + planned[index + 2:]
+            # The stances after it that keep its soft prints start where it now leaves them.
+            trial = None if reposed is None else _rechained(
+                planned[:index + 1] + [reposed] + planned[index + 2:], index + 1, scenario, robot,
+                options.get("solver_options"))
+            if trial is not None:
                 retried = plan_motion(replace(plan, stances=trial), index, scenario, robot, **options)
                 kept = retried.feasible
                 if kept and index + 2 < len(planned):
@@ -975,7 +982,8 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
     start = (touch[0] if touch else held[-1][1]).q
     options = _options_of(after) if solver_options is None else dict(solver_options)
     try:
-        result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start, **options)
+        result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start,
+                               history=_history(plan.stances[index]), **options)
     except (StanceError, SceneError, FemError) as error:
         # A repose is a second chance, not a requirement: the plan keeps its posture.
         logger.info("stance %d not reposed: %s", index + 1, error)
@@ -984,6 +992,37 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
         return None
     return replace(after, q=result.q, point_forces=tuple(result.point_forces),
                    deformations=dict(result.deformations or {}), result=result)
+
+
+def _history(planned):
+    """A planned stance's answer as the ``history`` of the stance after it (None where the
+    plan holds no answer to start from)."""
+    return planned.result if isinstance(planned.result, stances.PostureResult) else None
+
+
+def _rechained(planned, index, scenario, robot, solver_options):
+    """``planned`` (a list of PlannedStance) whose stance ``index`` was solved again, with
+    each stance after it that keeps a soft print of the one before solved again from where
+    that one now leaves the print (``history``), from its own posture; None if one of them
+    then has none (the plan keeps its stances)."""
+    planned = list(planned)
+    for later in range(index + 1, len(planned)):
+        before, after = planned[later - 1], planned[later]
+        history = _history(before)
+        if history is None or not kept_slips(history, after.stance):
+            break
+        options = _options_of(after) if solver_options is None else dict(solver_options)
+        try:
+            result = stances.solve(robot, scenario.scene, after.stance, q_init=after.q, history=history, **options)
+        except (StanceError, SceneError, FemError) as error:
+            logger.info("stance %d not solved again after stance %d's repose: %s", later, index, error)
+            return None
+        if not result.feasible:
+            logger.info("stance %d has no posture once stance %d is reposed: %s", later, index, result.reason)
+            return None
+        planned[later] = replace(after, q=result.q, point_forces=tuple(result.point_forces),
+                                 deformations=dict(result.deformations or {}), result=result)
+    return planned
 
 
 def motions_summary(motions) -> str:

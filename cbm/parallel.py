@@ -110,11 +110,11 @@ class WorldRecipe:
 
 
 class _WarmStart:
-    """The part of a parent's answer a posture oracle reads: its result's ``q``."""
+    """The part of a parent's check a posture oracle reads: its result (its posture, the
+    warm start, and its prints' slips, the history), without displacement fields."""
 
-    def __init__(self, q):
-        self.result = self
-        self.q = q
+    def __init__(self, result):
+        self.result = result
 
 
 def _start_worker(recipe, solver_options, retry_cold, deadline, prefilter=True):
@@ -153,7 +153,7 @@ def _settle_collision_queries(robot, scene):
     CollisionChecker(robot, scene.collision_objects()).pairs(robot.model, data)
 
 
-def _check(stance, parent_q):
+def _check(stance, parent_result):
     """Run in a worker: the oracle's answer, made picklable."""
     from stances.portable import portable
 
@@ -163,7 +163,7 @@ def _check(stance, parent_q):
     if isinstance(_ORACLE, Exception):
         raise CbmError(f"a worker process could not build the robot and scene: {_ORACLE}") from _ORACLE
     started = time.process_time()
-    check = _ORACLE(stance, None, None if parent_q is None else _WarmStart(parent_q))
+    check = _ORACLE(stance, None, None if parent_result is None else _WarmStart(parent_result))
     result = None if check.result is None else portable(check.result)
     answer = StanceCheck(check.feasible, check.reason, result, check.rejected_by, check.bad_input)
     spent, _UNREPORTED_CPU = time.process_time() - started + _UNREPORTED_CPU, 0.0
@@ -236,7 +236,8 @@ class PosturePool:
         )
 
     def submit(self, stance, parent=None, parent_check=None):
-        """Start checking ``stance``, warm-started from ``parent_check``'s posture.
+        """Start checking ``stance``, warm-started from ``parent_check``'s posture, its kept
+        prints from where that answer left them.
 
         Returns
         -------
@@ -244,10 +245,12 @@ class PosturePool:
             ``result()`` gives the :class:`~cbm.planner.StanceCheck`, ``done()``
             whether it is ready.
         """
-        parent_q = None
+        from stances.portable import portable
+
+        parent_result = None
         if parent_check is not None and parent_check.result is not None:
-            parent_q = parent_check.result.q
-        return _Answer(self, self._pool.apply_async(_check, (stance, parent_q), callback=self._count))
+            parent_result = portable(parent_check.result)
+        return _Answer(self, self._pool.apply_async(_check, (stance, parent_result), callback=self._count))
 
     def _count(self, answer):
         """Add a finished check's CPU seconds (run in the pool's result thread)."""

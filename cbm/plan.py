@@ -1,6 +1,6 @@
 """A plan: the sequence of verified stances, saved to and read from JSON.
 
-The file (``plan.json``, format ``softcbm-plan`` version 5) describes itself: its
+The file (``plan.json``, format ``softcbm-plan`` version 6) describes itself: its
 ``units`` and ``frames`` say what every number is, ``robot`` names each
 coordinate of ``q`` and each torque and gives the locked joints' values (the
 robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
@@ -8,8 +8,9 @@ robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
 stance's posture, forces and displacements are not repeated in its solver
 summary. Version 1 files (before these headers) are read as they are, and the results of
 versions 1 to 4 as solved with the options then the defaults (:data:`SOLVED_AS`; versions 3
-to 5 have version 2's layout, version 4's soft prints solved against the turned faces, version
-5's with a small-slip bound of a quarter of the mesh's spacing); a
+to 6 have version 2's layout, version 4's soft prints solved against the turned faces, version
+5's with a small-slip bound of a quarter of the mesh's spacing, version 6's kept soft prints
+from where the stance before left them: each result's ``slips`` and ``held_slips``); a
 file with no version or an unknown one is refused with the versions this library reads.
 """
 
@@ -53,14 +54,14 @@ logger = logging.getLogger(__name__)
 PLAN_FORMAT = "softcbm-plan"
 #: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
 FRONTIER_SIZE = 5
-PLAN_VERSION = 5
+PLAN_VERSION = 6
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
 #: stance's arrays inside its ``result``. Versions 1 to 3 were solved before the contact
 #: frames turned with the links' faces (``stances.PostureOptions.contact_frames``,
 #: 2026-12-06), version 3 with a 1 degree tilt allowance by default, versions 1 to 4 with a
 #: 2 cm small-slip bound (``max_slip``; a quarter of the mesh's spacing since version 5):
 #: their results read as solved so (:data:`SOLVED_AS`), and are checked so.
-READABLE_VERSIONS = (1, 2, 3, 4, 5)
+READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
 #: The posture options a result of an earlier version was solved with where it recorded
 #: none (they were the defaults then).
 SOLVED_AS = {1: {"contact_frames": "rest", "max_slip": 0.02}, 2: {"contact_frames": "rest", "max_slip": 0.02},
@@ -442,6 +443,7 @@ class Plan:
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):
             if not differ_by_one_contact(before.stance, after.stance):
                 problems.append(f"stances {index} -> {index + 1} do not differ by exactly one contact")
+            problems.extend(f"stances {index} -> {index + 1}: {problem}" for problem in _unkept_slips(before, after))
         goal = getattr(scenario, "goal", None)
         if self.success and goal is not None:
             if not self.stances or not goal.is_satisfied(self.stances[-1].stance, scenario.scene):
@@ -653,3 +655,26 @@ def _rebuild_result(data):
     except (KeyError, TypeError, ValueError) as error:
         logger.debug("solver result kept as a dict (%s)", error)
         return data
+
+
+def _unkept_slips(before, after) -> list:
+    """Each soft print ``after`` keeps from ``before`` whose solve did not start where
+    ``before``'s answer left its link points (``held_slips`` against ``slips``): under
+    Coulomb friction the print would have slid between the two stances. Results of files
+    before version 6 record no slips and pass."""
+    left = getattr(before.result, "slips", None) or {}
+    held = getattr(after.result, "held_slips", None) or {}
+    kept = set(getattr(before.stance, "contacts", ()))
+    problems = []
+    for contact in after.stance:
+        surface = contact.robot_surface
+        if contact not in kept or surface not in left:
+            continue
+        start = held.get(surface)
+        if start is None:
+            problems.append(f"{surface}'s print starts from rest, not where the stance before left it "
+                            f"(slips up to {left[surface].largest():.3g} m)")
+        elif not (np.array_equal(start.nodes, left[surface].nodes)
+                  and np.allclose(start.slips, left[surface].slips, rtol=0.0, atol=1e-12)):
+            problems.append(f"{surface}'s print starts from other slips than the stance before left it")
+    return problems

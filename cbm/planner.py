@@ -204,13 +204,16 @@ class PostureOracle:
         if rejection is not None:
             return StanceCheck(False, rejection.reason, None, rejected_by=rejection.rejected_by)
         starts = []
-        if parent_check is not None and parent_check.result is not None:
-            starts.append(parent_check.result.q)
+        parent = None if parent_check is None else parent_check.result
+        if parent is not None:
+            starts.append(parent.q)
+        history = parent if isinstance(parent, stances.PostureResult) else None
         if self.retry_cold or not starts:
             starts.append(initial_configuration(self.robot, self.scene, stance))
         check = None
         for q_init in starts:
-            check = self._solve(stance, q_init)
+            # The prints kept from the parent start where its answer left them (history).
+            check = self._solve(stance, q_init, history)
             # (a ball the mesh does not resolve is refused from any start: the HyQ mesh scene's
             # 29 such refusals were each solved twice)
             if check.feasible or cause_of(check.reason) == UNRESOLVED_BALL:
@@ -234,7 +237,7 @@ class PostureOracle:
             return None
         return max(self.deadline - time.perf_counter(), 0.0)
 
-    def _solve(self, stance, q_init):
+    def _solve(self, stance, q_init, history=None):
         solve, verify = posture_api()
         options = dict(self.solver_options)
         left = self._time_left()
@@ -245,7 +248,7 @@ class PostureOracle:
         self.solves += 1
         logger.debug("solving %s", stance.to_dict())
         try:
-            result = solve(self.robot, self.scene, stance, q_init=q_init, **options)
+            result = solve(self.robot, self.scene, stance, q_init=q_init, history=history, **options)
         except (StanceError, SceneError, FemError) as error:
             # Bad stance for this scene (e.g. a print covering too few FEM
             # nodes): an infeasible stance for the search, not a crash. Only the

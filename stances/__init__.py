@@ -21,7 +21,7 @@ from .description import (
 )
 from .errors import ConfigurationError, FrameNotFound, RobotNotFound, StanceError
 from .problem import PostureOptions, PostureProblem, build_problem
-from .results import PointForce, PostureResult, SolveStatistics, Verification
+from .results import NodeSlips, PointForce, PostureResult, SolveStatistics, Verification
 from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
 from .sqp import solve_problem
@@ -33,6 +33,7 @@ __all__ = [
     "CentreOfMassBounds",
     "ConfigurationError",
     "FrameNotFound",
+    "NodeSlips",
     "PointForce",
     "PostureOptions",
     "PostureProblem",

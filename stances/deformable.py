@@ -135,6 +135,7 @@ from .contacts import PYRAMID_SIDES, convex_polygon, friction_cone_generators, p
 from .errors import StanceError
 from .layer_ball import layer_under
 from .qp_backend import proxsuite
+from .results import NodeSlips
 from .statics import PointLoads, point_jacobians, points_in_world
 
 __all__ = ["DeformableContact", "HeldPrint", "PrintSpec", "MINIMUM_PRINT_NODES", "PIVOTING_ROW", "PIVOTING_REFUSAL"]
@@ -256,12 +257,17 @@ class PrintSpec:
         Nominal print frame (z: outward normal of the surface).
     label : str
         Readable name, e.g. ``"right_sole on foam_top"``.
+    held_slips : stances.NodeSlips, optional
+        Where the print's link points lie over its nodes at the start (the stance
+        before, keeping this print, left them there): under the ``coulomb`` law a node
+        that sticks keeps this slip. None: at rest.
     """
 
     robot_surface: str
     surface: Any
     transform_print_to_world: np.ndarray
     label: str
+    held_slips: Any = None
 
     def __post_init__(self) -> None:
         transform = np.array(self.transform_print_to_world, dtype=float)
@@ -776,6 +782,11 @@ class DeformableContact:
         # print normal, nonzero under a ball (its profile, ball_gaps); the link points
         # then press a node once they have moved that far: U + gap is the node's motion.
         self.gaps = np.concatenate(gaps)[:, None] * normals_in_body
+        # (p, 3) body frame: each node's held slip (PrintSpec.held_slips, tangential at rest),
+        # where its link point sits over it when it sticks; zero from rest and off the
+        # coulomb law. The link points then press a node's coupling end at U + gap - held.
+        self.held = self._held_slips(normals_in_body)
+        self._reference = self.gaps - self.held
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
         self._modes = None  # (modes, slip directions) of the last contact solve: its warm start
@@ -789,6 +800,42 @@ class DeformableContact:
         self._cache_key = None
         self._cache = None
         self._derivatives = None
+
+    def _held_slips(self, normals_in_body) -> np.ndarray:
+        """(p, 3) body frame: the held slips of the prints' nodes (``PrintSpec.held_slips``),
+        their part along each node's rest normal taken out; zero for nodes without one."""
+        held = np.zeros((len(self.node_ids), 3))
+        if self.law != "coulomb":
+            return held
+        for index, spec in enumerate(self.prints):
+            given = spec.held_slips
+            if given is None:
+                continue
+            if index in self.ball_radii:
+                raise StanceError(f"held_slips given for {spec.label}, a ball's print: its slips are not kept")
+            if given.body != self.deformable_object.name:
+                raise StanceError(f"held_slips of {spec.label} are on {given.body!r}, its print on "
+                                  f"{self.deformable_object.name!r}: give the slips of the same print")
+            rows = np.flatnonzero(self.print_of_node == index)
+            where = {int(node): row for row, node in enumerate(given.nodes)}
+            for row in rows:
+                known = where.get(int(self.node_ids[row]))
+                if known is not None:
+                    held[row] = given.slips[known]
+        return held - np.einsum("pj,pj->p", held, normals_in_body)[:, None] * normals_in_body
+
+    def print_slips(self, model, data, w) -> dict:
+        """Where each flat print's link points lie over its nodes at the iterate, under the
+        ``coulomb`` law: robot surface -> :class:`~stances.results.NodeSlips` (the contact
+        solve's relative motion, tangential at rest, plus the held slip). Empty off it."""
+        if self.law != "coulomb" or self.method == "traction":
+            return {}
+        solved = self._values(model, data, w).solved
+        total = solved.relative + self.held
+        total = total - np.einsum("pj,pj->p", total, self.normals_in_body)[:, None] * self.normals_in_body
+        return {spec.robot_surface: NodeSlips(self.deformable_object.name, self.node_ids[rows], total[rows])
+                for index, spec in enumerate(self.prints) if index not in self.ball_radii
+                for rows in [np.flatnonzero(self.print_of_node == index)]}
 
     @staticmethod
     def _corner_weights(corners, rests):
@@ -1068,7 +1115,7 @@ class DeformableContact:
         (3p,), metres, body frame, against faces turned by ``turns`` (:meth:`_node_turns`);
         warm started from the last solve's modes, or held to :meth:`freeze_modes`'s. A node
         is pressed once its link point has closed its gap."""
-        corrected = imposed.reshape(-1, 3) + self.gaps
+        corrected = imposed.reshape(-1, 3) + self._reference
         if self._frozen is not None:
             return self._system().with_modes(corrected, *self._frozen, turns=turns)
         warm = (None, None) if self._modes is None else self._modes
@@ -1665,15 +1712,16 @@ class DeformableContact:
     def link_give(self, xi) -> float:
         """The links' give, metres: the largest component of the link points' motion under
         the links' motion ``xi`` (6L,)."""
-        return float(np.abs(self._link_motion(xi)[0] - self.gaps).max())
+        return float(np.abs(self._link_motion(xi)[0] - self._reference).max())
 
     def _link_motion(self, xi):
-        """The link points' motion, the nodes' gaps added, under links moved by ``xi``
-        (6L,), and its derivative: ``G xi + r(xi) + gap`` (p, 3), ``G + dr/dxi`` (3p, 6L);
-        body frame, metres (r: :meth:`_rotation_residue`, read at ``W = A xi``)."""
+        """The link points' motion, the nodes' gaps added and held slips taken off, under
+        links moved by ``xi`` (6L,), and its derivative: ``G xi + r(xi) + gap - held``
+        (p, 3), ``G + dr/dxi`` (3p, 6L); body frame, metres (r: :meth:`_rotation_residue`,
+        read at ``W = A xi``)."""
         w = self.a @ xi
         moved = self.basis @ xi + self._rotation_residue(w)
-        return moved.reshape(-1, 3) + self.gaps, self.basis + self._rotation_residue_derivative(w) @ self.a
+        return moved.reshape(-1, 3) + self._reference, self.basis + self._rotation_residue_derivative(w) @ self.a
 
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
@@ -2208,7 +2256,10 @@ class DeformableContact:
         if self._coupling is not None:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         reached = displacements + self.gaps  # where each link point's surface over its node has moved
-        relative = np.einsum("pij,pj->pi", frames, reached - ends)
+        # The law reads each node's motion from where its link point was held (its held
+        # slip; none from rest), the small-slip bound the whole slip.
+        relative = np.einsum("pij,pj->pi", frames, reached - ends - self.held)
+        slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, reached - ends)[:, :2], axis=1)
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
@@ -2233,7 +2284,7 @@ class DeformableContact:
             reasons.append(f"node {node} of {name} pulls on the robot ({phi[:, 2].min():.3g} N): adhesion")
         if self.method != "traction":
             if self.law == "coulomb":
-                reasons.extend(self._check_coulomb(phi, relative, tolerances, measures))
+                reasons.extend(self._check_coulomb(phi, relative, slide, tolerances, measures))
             else:
                 mismatch = float(np.abs(relative).max())
                 measures[f"print mismatch on {name}"] = mismatch
@@ -2483,8 +2534,9 @@ class DeformableContact:
                                               self.ball_radii[index])
         return self._layers[index]
 
-    def _check_coulomb(self, phi, relative, tolerances, measures) -> list:
-        """Signorini and Coulomb at every node, from forces and relative motions in node frames."""
+    def _check_coulomb(self, phi, relative, slide, tolerances, measures) -> list:
+        """Signorini and Coulomb at every node, from forces and relative motions in node frames
+        (from the held slips), and the small-slip bound on the whole slips ``slide`` (p,)."""
         name = self.deformable_object.name
         gap_tolerance, force_tolerance = tolerances.deformable_placement, tolerances.cone
         reasons = []
@@ -2493,7 +2545,6 @@ class DeformableContact:
         if penetration.max() > gap_tolerance:
             node = int(self.node_ids[int(np.argmax(penetration))])
             reasons.append(f"a link point sinks {penetration.max():.3g} m into {name} at node {node}")
-        slide = np.linalg.norm(relative[:, :2], axis=1)
         measures[f"largest slip on {name}"] = float(slide.max())
         if slide.max() > self.max_slip + gap_tolerance:
             node = int(self.node_ids[int(np.argmax(slide))])

@@ -945,7 +945,8 @@ def check_posture_arguments(robot, scene, stance) -> None:
                         "reads one ({robot surface: {surface, x, y, theta}})")
 
 
-def build_problem(robot, scene, stance, options: PostureOptions | None = None, held_prints=None) -> PostureProblem:
+def build_problem(robot, scene, stance, options: PostureOptions | None = None, held_prints=None,
+                  held_slips=None) -> PostureProblem:
     """Turn a stance into a posture problem.
 
     Parameters
@@ -962,6 +963,10 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
         its friction pyramid (:meth:`stances.deformable.DeformableContact.held_prints`);
         the other soft prints stay soft unless ``options.deformable_as_rigid``. Every
         print of a body or none: a body is one contact system.
+    held_slips : dict, optional
+        Robot surface -> :class:`~stances.results.NodeSlips`: where its soft print's link
+        points start over the print's nodes (the stance before left them there; see
+        ``history`` of :func:`stances.solve`). Read under the ``coulomb`` law only.
 
     Returns
     -------
@@ -992,6 +997,10 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
     if unheld:
         raise StanceError(f"held_prints names {unheld}, not in the stance; its robot surfaces: "
                           f"{sorted(c.robot_surface for c in stance)}")
+    unknown = sorted(set(held_slips or {}) - {c.robot_surface for c in stance})
+    if unknown:
+        raise StanceError(f"held_slips names {unknown}, not in the stance; its robot surfaces: "
+                          f"{sorted(c.robot_surface for c in stance)}")
     contacts = []
     # All prints on one deformable object form one contact system (they are
     # coupled through the body); it takes the place of the object's first print.
@@ -1019,7 +1028,8 @@ def build_problem(robot, scene, stance, options: PostureOptions | None = None, h
             if deformable_object.name not in deformable_prints:
                 deformable_prints[deformable_object.name] = []
                 contacts.append(deformable_object)  # placeholder, replaced below
-            deformable_prints[deformable_object.name].append(PrintSpec(contact.robot_surface, surface, transform, label))
+            deformable_prints[deformable_object.name].append(
+                PrintSpec(contact.robot_surface, surface, transform, label, (held_slips or {}).get(contact.robot_surface)))
         elif robot.surface(contact.robot_surface).is_point:
             if held is not None:
                 raise StanceError(f"held_prints names {contact.robot_surface}, a point foot: only prints with a "

@@ -9,6 +9,8 @@ import numpy as np
 
 from environments import Stance
 
+from .errors import StanceError
+
 
 def _readonly(array) -> np.ndarray:
     array = np.array(array, dtype=float)
@@ -248,6 +250,57 @@ class Verification:
     measures: dict = field(default_factory=dict)
 
 
+@dataclass(frozen=True, eq=False)
+class NodeSlips:
+    """Where the link points of one soft print lie over its nodes: their slips.
+
+    Under Coulomb friction a print node that slipped stays where it slipped to; the
+    next stance of a sequence that keeps the print starts from there (a node that
+    sticks keeps its slip). A posture answer gives these for each soft print it
+    solved under the ``coulomb`` law (:attr:`PostureResult.slips`), and records
+    those it started from (:attr:`PostureResult.held_slips`).
+
+    Parameters
+    ----------
+    body : str
+        The deformable object the print presses.
+    nodes : (k,) int
+        Mesh node ids of the print, in the body's mesh.
+    slips : (k, 3) float
+        Each node's link point minus the node's coupling end, tangential to the
+        print's surface at rest (no normal part), metres, body frame.
+    """
+
+    body: str
+    nodes: np.ndarray
+    slips: np.ndarray
+
+    def __post_init__(self) -> None:
+        nodes = np.array(self.nodes, dtype=np.int64).reshape(-1)
+        slips = np.array(self.slips, dtype=float)
+        if slips.shape != (len(nodes), 3):
+            raise StanceError(f"NodeSlips: slips must be ({len(nodes)}, 3) metres, one row a node; "
+                              f"got shape {slips.shape}")
+        nodes.setflags(write=False)
+        slips.setflags(write=False)
+        object.__setattr__(self, "body", str(self.body))
+        object.__setattr__(self, "nodes", nodes)
+        object.__setattr__(self, "slips", slips)
+
+    def largest(self) -> float:
+        """The largest slip, metres."""
+        return float(np.linalg.norm(self.slips, axis=1).max(initial=0.0))
+
+    def to_dict(self) -> dict:
+        """JSON-ready representation."""
+        return {"body": self.body, "nodes": self.nodes.tolist(), "slips": self.slips.tolist()}
+
+    @classmethod
+    def from_dict(cls, data) -> "NodeSlips":
+        """Inverse of :meth:`to_dict`."""
+        return cls(data["body"], data["nodes"], data["slips"])
+
+
 CONTACT_FRAME_SUFFIX = "_contact"
 """Each robot surface's contact frame is named ``<surface>_contact`` (:class:`stances.Robot`)."""
 
@@ -298,6 +351,14 @@ class PostureResult:
         usage and its joint, smallest joint clearance and its joint, and the
         joints on the bound their margin sets (see
         :meth:`stances.problem.PostureProblem.limit_usage`).
+    slips : dict of str to NodeSlips
+        Robot surface -> where the link points of its soft print lie over the print's
+        nodes at this answer (prints solved under the ``coulomb`` law; none for a ball).
+    held_slips : dict of str to NodeSlips
+        Robot surface -> the slips this answer started from (``history`` of
+        :func:`stances.solve`: the answer before it in a sequence, for each soft print
+        both keep); a node that sticks keeps its held slip, one that slips moves on from
+        it. Empty: every print from rest.
     """
 
     feasible: bool
@@ -312,6 +373,8 @@ class PostureResult:
     verification: Verification | None = None
     statistics: SolveStatistics = field(default_factory=SolveStatistics)
     limits: dict = field(default_factory=dict)
+    slips: dict = field(default_factory=dict)
+    held_slips: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "q", _readonly(self.q))
@@ -373,6 +436,8 @@ class PostureResult:
             deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
             statistics=dict(data.get("statistics", {})),
             limits=dict(data.get("limits", {})),
+            slips={k: NodeSlips.from_dict(v) for k, v in data.get("slips", {}).items()},
+            held_slips={k: NodeSlips.from_dict(v) for k, v in data.get("held_slips", {}).items()},
         )
 
     def to_dict(self) -> dict:
@@ -389,4 +454,6 @@ class PostureResult:
             "deformations": {k: np.asarray(v).tolist() for k, v in self.deformations.items()},
             "statistics": self.statistics.to_dict(),
             "limits": dict(self.limits),
+            "slips": {k: v.to_dict() for k, v in self.slips.items()},
+            "held_slips": {k: v.to_dict() for k, v in self.held_slips.items()},
         }

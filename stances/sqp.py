@@ -868,6 +868,7 @@ def posture_result(problem, outcome, elapsed, check=True) -> PostureResult:
             "curvature_iterations": outcome.curved_iterations,
             "corrections": outcome.corrections,
         },
+        slips=problem_slips(problem, q, lam),
     )
     if check and (feasible or nearly):
         verification = verify_shown(problem, result)
@@ -1009,6 +1010,18 @@ def _field_producer(contact, model, q, forces):
         return lambda: np.asarray(body.displacement_field(patch, motion))
     node_ids, node_loads = np.array(loads[0]), np.array(loads[1])
     return lambda: body.displacement_under_loads(node_ids, node_loads)
+
+
+def problem_slips(problem, q, lam) -> dict:
+    """Robot surface -> :class:`~stances.results.NodeSlips` of each soft print of ``problem``
+    solved under the ``coulomb`` law, at ``q`` and the contact variables ``lam``."""
+    model, data = problem.robot.model, problem.data
+    pin.framesForwardKinematics(model, data, q)
+    slips = {}
+    for contact, variables in zip(problem.contacts, problem.variable_slices):
+        if hasattr(contact, "print_slips"):
+            slips.update(contact.print_slips(model, data, lam[variables]))
+    return slips
 
 
 def problem_point_forces(problem, linearization, q) -> tuple:

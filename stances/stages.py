@@ -113,7 +113,7 @@ HELD_AT_NODES = "even with its stiff soft supports held rigid where their prints
 
 
 def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), lam_init=None, reference=None,
-          **options) -> PostureResult:
+          history=None, **options) -> PostureResult:
     """Find a statically feasible posture holding a stance.
 
     Parameters
@@ -137,6 +137,14 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         The posture the joint-distance cost pulls toward (``posture_weight``);
         the robot's reference posture by default. A motion's samples use a
         blend of the two stances they join.
+    history : PostureResult, optional
+        The answer before this one in a sequence (a plan's previous stance). Each soft
+        print this stance keeps from it (the same robot surface on the same print)
+        starts where that answer left its link points over its nodes
+        (``history.slips``): under Coulomb friction a node that sticks keeps its slip,
+        one that slips moves on from it, so a print held down between two stances does
+        not slide back. By default every print starts from rest. The slips started
+        from are the answer's ``held_slips``, which :func:`stances.verify` reads.
     time_budget : float, optional
         Wall-clock seconds this call may take. No SQP iteration starts after
         it is spent, nor a soft print's compliance column (the long part of a
@@ -172,10 +180,12 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
+    held = kept_slips(history, stance)
     try:
         with setup_deadline(deadline):
-            return _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
-                          start, deadline)
+            result = _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
+                            start, deadline, held)
+            return replace(result, held_slips=held) if held else result
     except SetupTimeout as stop:
         # Out of time while a soft print was set up: an answer, as a spent budget
         # is anywhere else, from the posture the solve would have started at.
@@ -185,6 +195,26 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
         # SQP's trials step around such postures; the stiff limit and held-mode attempts
         # give way to what follows them): an answer too, at the solve's starting posture.
         return _unsolved(robot, scene, stance, q_init, start, NO_CONTACT_STATE, f"{NO_CONTACT_STATE}: {error}")
+
+
+def kept_slips(history, stance) -> dict:
+    """Robot surface -> :class:`~stances.results.NodeSlips` of each soft print ``stance``
+    keeps from the answer ``history`` (the same robot surface on the same print), where
+    ``history`` left its link points; empty for None.
+
+    Raises
+    ------
+    StanceError
+        If ``history`` is no posture answer.
+    """
+    if history is None:
+        return {}
+    if not isinstance(history, PostureResult):
+        raise StanceError(f"history must be a PostureResult (the answer of the stance before), "
+                          f"got {type(history).__name__}")
+    before = set(getattr(history.stance, "contacts", ()) or ())
+    return {contact.robot_surface: history.slips[contact.robot_surface] for contact in stance
+            if contact in before and contact.robot_surface in history.slips}
 
 
 def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:
@@ -198,14 +228,16 @@ def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureRes
     )
 
 
-def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline):
+def _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options, start, deadline,
+           held_slips):
     """:func:`solve`'s work, from its arguments (``options`` the keyword ones), its start
-    time and deadline (``time.perf_counter()`` values)."""
+    time and deadline (``time.perf_counter()`` values) and the slips its kept prints hold
+    (:func:`kept_slips`)."""
     options = posture_options(options)
     constraints = tuple(constraints)
 
     def build(options, held_prints=None):
-        built = build_problem(robot, scene, stance, options, held_prints)
+        built = build_problem(robot, scene, stance, options, held_prints, held_slips)
         built.constraints.extend(constraints)
         if reference is not None:
             try:

@@ -195,7 +195,8 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     result : stances.PostureResult
         Its ``q``, ``point_forces`` (one per application point of the stance's
         contacts, on its contact's frame) and ``deformations`` are checked;
-        nothing else is trusted.
+        nothing else is trusted but its ``held_slips`` (an input: where the stance
+        before left each kept soft print's link points, which its law starts from).
     **options
         Posture options to check with, over those the result records it was solved
         with (``result.statistics.options``, the ones off their defaults: e.g. a
@@ -211,7 +212,9 @@ def verify(robot, scene, stance, result, **options) -> Verification:
     # A result checked against another contact model than its own fails for that alone
     # (a ball's node forces are not its layer law's): the recorded options come first.
     recorded = (getattr(result, "statistics", None) or {}).get("options") or {}
-    problem = build_problem(robot, scene, stance, PostureOptions(**{**recorded, **options}))
+    # Each kept print's law is read from where the stance before left it (its held slips).
+    problem = build_problem(robot, scene, stance, PostureOptions(**{**recorded, **options}),
+                            held_slips=getattr(result, "held_slips", None) or None)
     return verify_problem(problem, result, deformed_surfaces=True)
 
 

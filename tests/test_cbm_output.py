@@ -189,7 +189,7 @@ def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(
 
 def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
     data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
-    assert (data["format"], data["version"]) == ("softcbm-plan", 5)
+    assert (data["format"], data["version"]) == ("softcbm-plan", 6)
     assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
     assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
     described = data["robot"]
@@ -299,7 +299,7 @@ def test_a_version_4_result_reads_as_solved_with_the_2_cm_slip_bound(robot):
     assert any("beyond the small-slip bound" in problem for problem in current.problems), current.problems
 
 
-@pytest.mark.parametrize("version", [None, 6, "2"], ids=["no-version", "future", "string"])
+@pytest.mark.parametrize("version", [None, 7, "2"], ids=["no-version", "future", "string"])
 def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
     data = synthetic_plan.to_dict()
     if version is None:
@@ -307,7 +307,7 @@ def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(sy
     else:
         data["version"] = version
     message = (
-        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4, 5; "
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4, 5, 6; "
         "plan the scenario again with this version (cbm plan)"
     )
     with pytest.raises(PlanFileError) as raised:

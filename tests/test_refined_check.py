@@ -180,13 +180,14 @@ def test_each_soft_stance_of_a_saved_plan_is_checked_on_finer_meshes(robot, both
     scenario, result, _ = both_on_foam
     # Consecutive stances differ by one contact: right sole on the foam, then off the floor, then both on the foam.
     right = scenario.stance("right-on-foam")
-    sequence = [right, environments.Stance(tuple(c for c in right.contacts if c.robot_surface == "right_sole"))]
-    planned = []
+    # Each from where the one before left the sole it keeps on the foam (history).
+    sequence = [right, environments.Stance(tuple(c for c in right.contacts if c.robot_surface == "right_sole")),
+                result.stance]
+    planned, answer = [], None
     for stance in sequence:
-        answer = stances.solve(robot, scenario.scene, stance)
+        answer = stances.solve(robot, scenario.scene, stance, history=answer)
         assert answer.feasible, answer.reason
         planned.append(PlannedStance(stance, answer.q, answer.point_forces, answer.deformations, answer))
-    planned.append(PlannedStance(result.stance, result.q, result.point_forces, result.deformations, result))
     path = tmp_path / "plan.json"
     Plan(False, "partial", tuple(planned), PlanStatistics(), scenario.name, robot=robot_description(robot),
          scenario_source=scenario_source(scenario)).save(path)

@@ -14,7 +14,7 @@ import pytest
 
 from conftest import coarse_scenario
 from stances.problem import PostureOptions, build_problem
-from stances import solve
+from stances import NodeSlips, solve
 from stances.statics import PointLoads, point_jacobians, static_torque_derivatives, static_torques
 
 EPS = 1e-6
@@ -96,6 +96,11 @@ def _problems(robot):
         "deformable hand-on-cube (tilt allowance)", coarse_scenario("hand-on-cube"), "hand-on-cube",
         {"tilt_allowance": 0.0175},
     )
+    # A palm whose nodes start slipped (held_slips, the stance before's): the law from there.
+    yield (
+        "deformable hand-on-cube (coulomb, held slips)", coarse_scenario("hand-on-cube"), "hand-on-cube",
+        {"held_slips": "random"},
+    )
     yield "deformable step-on-cube", coarse_scenario("step-on-cube"), "step-on-cube", {}
     # Two soles on one foam block: one coupled contact system.
     yield "coupled both-on-foam (coulomb)", coarse_scenario("cross-soft-block"), "both-on-foam", {}
@@ -114,7 +119,10 @@ def linearised_problems(robot):
     for label, scenario, stance_name, options in _problems(robot):
         stance = scenario.stance(stance_name)
         warm = solve(robot, scenario.scene, stance, deformable_as_rigid=True)
-        problem = build_problem(robot, scenario.scene, stance, PostureOptions(min_normal_force=5.0, **options))
+        options = dict(options)
+        held = _random_held_slips(robot, scenario, stance, options) if options.pop("held_slips", None) else None
+        problem = build_problem(robot, scenario.scene, stance, PostureOptions(min_normal_force=5.0, **options),
+                                held_slips=held)
         for contact in problem.contacts:
             if contact.kind == "deformable":
                 # Tiny bounds activate the strain, indentation and mesh overlap rows, so
@@ -127,6 +135,22 @@ def linearised_problems(robot):
         lam = problem.initial_variables(q) + rng.uniform(1.0, 50.0, size=problem.n_variables)
         cases.append((label, problem, q, lam))
     return cases
+
+
+def _random_held_slips(robot, scenario, stance, options):
+    """Each soft print's nodes slipped by up to 2 mm, seeded, tangential and normal parts
+    both (the normal part is taken out where the slips are read)."""
+    plain = build_problem(robot, scenario.scene, stance, PostureOptions(**options))
+    rng = np.random.default_rng(11)
+    held = {}
+    for contact in plain.contacts:
+        if contact.kind != "deformable":
+            continue
+        for index, spec in enumerate(contact.prints):
+            nodes = contact.node_ids[contact.print_of_node == index]
+            held[spec.robot_surface] = NodeSlips(contact.deformable_object.name, nodes,
+                                                 rng.uniform(-2e-3, 2e-3, size=(len(nodes), 3)))
+    return held
 
 
 def _rows(problem, q, lam, derivatives=True):

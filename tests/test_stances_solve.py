@@ -998,7 +998,8 @@ def test_verify_coulomb_check_wants_slip_friction_on_the_bound_against_the_slip(
 
     def reasons(friction):
         phi[0, :2] = friction
-        return contact._check_coulomb(phi, relative, VerificationTolerances(), {})
+        return contact._check_coulomb(phi, relative, np.linalg.norm(relative[:, :2], axis=1),
+                                      VerificationTolerances(), {})
 
     assert reasons(mu * 10.0 * against) == []
     turn = np.array([[np.cos(np.pi / 4), -np.sin(np.pi / 4)], [np.sin(np.pi / 4), np.cos(np.pi / 4)]])

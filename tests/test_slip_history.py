@@ -1,0 +1,192 @@
+"""A soft print kept between two stances starts where the stance before left it.
+
+Under Coulomb friction a print node that slipped stays where it slipped to: a palm
+held down while a foot moves does not slide back to its print at rest. A posture
+answer gives each soft print's slips (``PostureResult.slips``); ``stances.solve``'s
+``history`` starts the kept prints from them (``held_slips``), which verify reads and
+``Plan.check`` holds a plan's consecutive stances to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import cbm
+import environments
+import stances
+from cbm import parallel
+from cbm.planner import PostureOracle, StanceCheck
+from conftest import coarse_scenario
+from environments import Contact, ContactPrint, Stance
+from stances import NodeSlips, StanceError
+from stances.portable import portable
+from stances.problem import PostureOptions, build_problem
+
+SCENARIO = "foot-and-hand-on-foam"
+
+
+@pytest.fixture(scope="module")
+def plan():
+    """The scenario's plan: its palm is placed on the foam (slipping some 5 mm at its edge
+    nodes) and kept there while the feet move."""
+    found = cbm.plan(SCENARIO)
+    assert found.success, found.reason
+    return found
+
+
+@pytest.fixture(scope="module")
+def scene():
+    return environments.load(SCENARIO).scene
+
+
+def _kept(plan):
+    """(index, robot surface) of each soft print kept from stance index to index + 1 whose
+    answer left it slipped."""
+    pairs = []
+    for index, (before, after) in enumerate(zip(plan.stances, plan.stances[1:])):
+        for contact in after.stance:
+            if contact in before.stance.contacts and contact.robot_surface in before.result.slips:
+                pairs.append((index, contact.robot_surface))
+    return pairs
+
+
+def _change(slips, held) -> np.ndarray:
+    """(k,) how far each node's slip moved from the held one, metres (the same nodes)."""
+    assert np.array_equal(slips.nodes, held.nodes)
+    return np.linalg.norm(slips.slips - held.slips, axis=1)
+
+
+def _first_slipped(plan):
+    """(index, surface) of the first kept print whose held slips reach 2 mm."""
+    for index, surface in _kept(plan):
+        if plan.stances[index].result.slips[surface].largest() > 2e-3:
+            return index, surface
+    raise AssertionError("no kept print of the plan slipped 2 mm")
+
+
+def test_each_kept_print_starts_where_the_stance_before_left_it(plan):
+    pairs = _kept(plan)
+    assert len(pairs) >= 2, pairs
+    for index, surface in pairs:
+        left = plan.stances[index].result.slips[surface]
+        held = plan.stances[index + 1].result.held_slips[surface]
+        assert held.body == left.body
+        assert np.array_equal(held.nodes, left.nodes) and np.array_equal(held.slips, left.slips)
+    assert plan.check().ok, plan.check().problems
+
+
+def test_a_palm_held_down_does_not_slide_back(plan, robot, scene):
+    """The kept palm's nodes move 0.3 mm at most from where the stance before left them
+    (half of them not at all: they stick); solved from rest, the same stance's palm
+    moves 4.8 mm back (measured, 2026-12-06)."""
+    index, surface = _first_slipped(plan)
+    before, after = plan.stances[index], plan.stances[index + 1]
+    left = before.result.slips[surface]
+    kept = _change(after.result.slips[surface], left)
+    assert kept.max() < 1e-3, kept.max()
+    assert np.mean(kept < 1e-9) > 0.5, np.sort(kept)
+    from_rest = stances.solve(robot, scene, after.stance, q_init=after.q)
+    assert from_rest.feasible and not from_rest.held_slips
+    assert _change(from_rest.slips[surface], left).max() > 3e-3
+
+
+def test_slips_are_tangential_and_within_the_small_slip_bound(plan, robot, scene):
+    index, surface = _first_slipped(plan)
+    result = plan.stances[index].result
+    slips = result.slips[surface]
+    problem = build_problem(robot, scene, result.stance)
+    contact = next(c for c in problem.contacts if c.kind == "deformable")
+    rows = np.flatnonzero(np.isin(contact.node_ids, slips.nodes))
+    assert np.abs(np.einsum("pj,pj->p", slips.slips, contact.normals_in_body[rows])).max() < 1e-15
+    bound = result.verification.measures[f"largest slip on {slips.body}"]
+    assert slips.largest() <= contact.max_slip + 1e-6 and slips.largest() <= bound + 1e-6
+
+
+def test_verify_reads_each_kept_print_law_from_its_held_slips(plan, robot, scene):
+    """The kept answer passes; the same answer checked as if from rest, or with one sticking
+    node's held slip moved 1 mm, fails: its node slips while inside its cone."""
+    index, surface = _first_slipped(plan)
+    result = plan.stances[index + 1].result
+    assert stances.verify(robot, scene, result.stance, result).ok
+    from_rest = stances.verify(robot, scene, result.stance, replace(result, held_slips={}))
+    assert any("while its force is inside the cone" in reason for reason in from_rest.reasons), from_rest.reasons
+    held = result.held_slips[surface]
+    stuck = int(np.argmin(_change(result.slips[surface], held)))
+    moved = held.slips.copy()
+    moved[stuck, 0] += 1e-3  # along the foam's top face (its body frame's x)
+    shifted = replace(result, held_slips={**result.held_slips, surface: replace(held, slips=moved)})
+    check = stances.verify(robot, scene, result.stance, shifted)
+    assert not check.ok
+    assert any(f"node {int(held.nodes[stuck])} of {held.body}" in reason for reason in check.reasons), check.reasons
+
+
+def test_plan_check_refuses_a_kept_print_started_from_rest(plan):
+    index, surface = _first_slipped(plan)
+    after = plan.stances[index + 1]
+    unkept = replace(after, result=replace(after.result, held_slips={}))
+    broken = replace(plan, stances=plan.stances[: index + 1] + (unkept,) + plan.stances[index + 2:])
+    check = broken.check()
+    assert not check.ok
+    assert any(problem.startswith(f"stances {index} -> {index + 1}: {surface}'s print starts from rest")
+               for problem in check.problems), check.problems
+
+
+def test_slips_survive_the_plan_file(plan, tmp_path):
+    path = tmp_path / "plan.json"
+    plan.save(path)
+    loaded = cbm.Plan.load(path)
+    for saved, read in zip(plan.stances, loaded.stances):
+        for name in ("slips", "held_slips"):
+            mine, theirs = getattr(saved.result, name), getattr(read.result, name)
+            assert mine.keys() == theirs.keys()
+            for surface in mine:
+                assert mine[surface].body == theirs[surface].body
+                assert np.array_equal(mine[surface].nodes, theirs[surface].nodes)
+                assert np.array_equal(mine[surface].slips, theirs[surface].slips)
+    assert loaded.check().ok
+
+
+def test_a_history_that_keeps_no_soft_print_changes_nothing(robot):
+    """The palm's print moved 5 cm is another print: solved from rest, bit for bit."""
+    scenario = coarse_scenario("hand-on-cube")
+    stance = scenario.stance("hand-on-cube")
+    first = stances.solve(robot, scenario.scene, stance)
+    assert first.feasible and first.slips
+    palm = stance.contact("right_palm").contact_print
+    moved = Stance([c for c in stance if c.robot_surface != "right_palm"]
+                   + [Contact("right_palm", ContactPrint(palm.surface, palm.x + 0.05, palm.y, palm.theta))])
+    plain = stances.solve(robot, scenario.scene, moved, q_init=first.q)
+    with_history = stances.solve(robot, scenario.scene, moved, q_init=first.q, history=first)
+    assert not with_history.held_slips
+    assert np.array_equal(plain.q, with_history.q)
+    assert np.array_equal(np.array([p.force for p in plain.point_forces]),
+                          np.array([p.force for p in with_history.point_forces]))
+
+
+def test_a_worker_starts_kept_prints_where_the_parent_left_them(plan, robot, scene, monkeypatch):
+    """The posture pool sends the parent's answer (its posture and slips) to its workers."""
+    index, surface = _first_slipped(plan)
+    before, after = plan.stances[index], plan.stances[index + 1]
+    monkeypatch.setattr(parallel, "_ORACLE", PostureOracle(robot, scene, retry_cold=False))
+    answer, _ = parallel._check(after.stance, portable(before.result))
+    assert answer.feasible
+    held = answer.result.held_slips[surface]
+    assert np.array_equal(held.slips, before.result.slips[surface].slips)
+
+
+def test_bad_histories_are_refused_by_name(plan, robot, scene):
+    index, surface = _first_slipped(plan)
+    after = plan.stances[index + 1]
+    with pytest.raises(StanceError, match="history must be a PostureResult .* got StanceCheck"):
+        stances.solve(robot, scene, after.stance, history=StanceCheck(True, "", after.result))
+    held = after.result.held_slips[surface]
+    with pytest.raises(StanceError, match=r"held_slips names \['left_palm'\], not in the stance"):
+        build_problem(robot, scene, after.stance, held_slips={"left_palm": held})
+    elsewhere = replace(held, body="floor")
+    with pytest.raises(StanceError, match=f"held_slips of {surface} on .* are on 'floor'"):
+        build_problem(robot, scene, after.stance, PostureOptions(), held_slips={surface: elsewhere})
+    with pytest.raises(StanceError, match=r"NodeSlips: slips must be \(3, 3\) metres, one row a node; got shape \(2, 3\)"):
+        NodeSlips("foam", [1, 2, 3], np.zeros((2, 3)))
