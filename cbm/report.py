@@ -31,7 +31,8 @@ def stance_report(result, robot, stance):
     list of str
         Indented lines: ``forces`` (resultant on each robot surface, newtons,
         world frame), ``depths`` (indentation and largest strain of each soft
-        body touched) and ``margins`` (torque usage, joint clearance, closest
+        body touched), ``slips`` (how far each soft print's link points lie off
+        their nodes, and where they started) and ``margins`` (torque usage, joint clearance, closest
         distance, friction-cone margins, joints held on their margin).
     """
     lines = ["  forces on the robot (N, world frame):"]
@@ -66,6 +67,14 @@ def stance_report(result, robot, stance):
                 strained = "" if strain is None else f", strains it {100 * strain:.2f} % (its converged field)"
                 lines.append(f"    {label}: sinks {1e3 * measures[f'sinking of {label}']:.2f} mm, "
                              f"{measures[key]:.1f} N by its layer's law{strained}")
+    slips = getattr(result, "slips", None) or {}
+    held = getattr(result, "held_slips", None) or {}
+    if slips:
+        lines.append("  slips of the soft prints (link points over their nodes):")
+        for surface, slip in slips.items():
+            start = "from rest" if surface not in held else (
+                f"from {1e3 * held[surface].largest():.2f} mm where the stance before left it")
+            lines.append(f"    {surface} on {slip.body}: up to {1e3 * slip.largest():.2f} mm, {start}")
     lines.append("  margins:")
     limits = result.limits or {}
     if "torque_usage" in limits:

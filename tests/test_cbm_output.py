@@ -519,7 +519,7 @@ def test_check_report_gives_forces_depths_and_margins():
     from types import SimpleNamespace
 
     from environments import Contact, ContactPrint, Stance
-    from stances.results import PointForce
+    from stances.results import NodeSlips, PointForce
 
     from cbm.report import stance_report
 
@@ -533,13 +533,18 @@ def test_check_report_gives_forces_depths_and_margins():
                 "cone margin on cube": 3.06, "cone margin of left_sole on floor": 120.0, "torque_margin": 5.0}
     limits = {"torque_usage": 0.222, "torque_joint": "arm_left_4_joint", "joint_clearance": 0.06,
               "clearance_joint": "arm_right_2_joint", "at_margin": ["torque of leg_left_4_joint at 90.0 % of its limit"]}
-    result = SimpleNamespace(point_forces=forces, limits=limits, verification=SimpleNamespace(measures=measures))
+    slips = {"right_palm": NodeSlips("cube", [4, 5], [[0.003, 0.004, 0.0], [0.0, 0.001, 0.0]])}
+    held = {"right_palm": NodeSlips("cube", [4, 5], [[0.0015, 0.002, 0.0], [0.0, 0.0, 0.0]])}
+    result = SimpleNamespace(point_forces=forces, limits=limits, verification=SimpleNamespace(measures=measures),
+                             slips=slips, held_slips=held)
     assert stance_report(result, robot, stance) == [
         "  forces on the robot (N, world frame):",
         "    left_sole on floor: 300.0 N (x 3.0, y -4.0, z 300.0)",
         "    right_palm on cube_top: 30.0 N (x 0.0, y 0.0, z 30.0)",
         "  depths in the soft bodies:",
         "    cube: indented 1.25 mm, largest strain 1.23 %",
+        "  slips of the soft prints (link points over their nodes):",
+        "    right_palm on cube: up to 5.00 mm, from 2.50 mm where the stance before left it",
         "  margins:",
         "    largest torque: 22.2 % of the limit of arm_left_4_joint",
         "    closest joint limit: 6.0 % of the range of arm_right_2_joint",

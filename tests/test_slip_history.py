@@ -190,3 +190,24 @@ def test_bad_histories_are_refused_by_name(plan, robot, scene):
         build_problem(robot, scene, after.stance, PostureOptions(), held_slips={surface: elsewhere})
     with pytest.raises(StanceError, match=r"NodeSlips: slips must be \(3, 3\) metres, one row a node; got shape \(2, 3\)"):
         NodeSlips("foam", [1, 2, 3], np.zeros((2, 3)))
+
+
+def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot, scene):
+    """Stance 1 solved again from another posture leaves its palm elsewhere: the stances
+    after it start from there once re-chained (cbm.motion._rechained), and the plan checks."""
+    from cbm.motion import _rechained
+
+    index, surface = _first_slipped(plan)
+    before = plan.stances[index]
+    again = stances.solve(robot, scene, before.stance, history=plan.stances[index - 1].result if index else None)
+    assert again.feasible
+    assert not np.array_equal(again.slips[surface].slips, before.result.slips[surface].slips)
+    reposed = replace(before, q=again.q, point_forces=tuple(again.point_forces),
+                      deformations=dict(again.deformations), result=again)
+    spliced = list(plan.stances[:index]) + [reposed] + list(plan.stances[index + 1:])
+    assert not replace(plan, stances=tuple(spliced)).check().ok
+    rechained = _rechained(spliced, index, environments.load(SCENARIO), robot, None)
+    assert rechained is not None
+    after = rechained[index + 1].result
+    assert np.array_equal(after.held_slips[surface].slips, again.slips[surface].slips)
+    assert replace(plan, stances=tuple(rechained)).check().ok
