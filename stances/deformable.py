@@ -198,6 +198,9 @@ _OVERLAP_ACTIVATION = 0.5
 # centres wherever they lie, not only near the prints.
 _REST_STRAIN = 0.25
 _SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
+# How far past max_slip a held slip may start (metres): the answer that left it kept the
+# bound to its verify's placement tolerance.
+_HELD_SLIP_SLACK = 1e-6
 # The small-slip bound (options.max_slip None), a share of the mesh's spacing under the prints:
 # contact is solved on the nodes under the declared print, and a link sliding a whole spacing
 # over them presses others. At 0.02 m (the bound before, 0.9 of the default mesh's spacing) an
@@ -807,6 +810,8 @@ class DeformableContact:
         held = np.zeros((len(self.node_ids), 3))
         if self.law != "coulomb":
             return held
+        # A held node the print no longer has (a neighbouring print now shares it) is
+        # dropped, a node it gains starts from rest: node sets change only by such shares.
         for index, spec in enumerate(self.prints):
             given = spec.held_slips
             if given is None:
@@ -822,7 +827,15 @@ class DeformableContact:
                 known = where.get(int(self.node_ids[row]))
                 if known is not None:
                     held[row] = given.slips[known]
-        return held - np.einsum("pj,pj->p", held, normals_in_body)[:, None] * normals_in_body
+        held = held - np.einsum("pj,pj->p", held, normals_in_body)[:, None] * normals_in_body
+        slide = np.linalg.norm(held, axis=1)
+        if slide.max(initial=0.0) > self.max_slip + _HELD_SLIP_SLACK:
+            label = self.prints[int(self.print_of_node[int(np.argmax(slide))])].label
+            raise StanceError(
+                f"held_slips of {label} reach {slide.max():.3g} m, beyond the small-slip bound {self.max_slip:g} m: "
+                "a print cannot start slid further than it may slide; give the max_slip the stance before was "
+                "solved with")
+        return held
 
     def print_slips(self, model, data, w) -> dict:
         """Where each flat print's link points lie over its nodes at the iterate, under the
@@ -2214,7 +2227,7 @@ class DeformableContact:
         return self.patch, self._displacements(data)
 
     # -- independent check ---------------------------------------------------
-    def verify(self, model, data, points, forces, tolerances, measures, field=None) -> list:
+    def verify(self, model, data, points, forces, tolerances, measures, field=None, shown_slips=None) -> list:
         """Check the reported forces against a full FEM solve, node by node.
 
         ``consistent``: the whole body is loaded by the reported forces (one sparse
@@ -2228,7 +2241,8 @@ class DeformableContact:
         forces is measured too (``deformation energy of <name>``, joules). ``forces`` are finite
         (:func:`stances.verify.verify_problem` refuses any other first).
         ``field``: :meth:`displacement_field` of these forces, if the caller has it
-        already (computed here otherwise).
+        already (computed here otherwise). ``shown_slips``: the answer's ``slips`` (robot
+        surface -> NodeSlips), checked against the link points' own slips over the nodes.
         """
         name = self.deformable_object.name
         body = self.deformable_object.body
@@ -2260,6 +2274,8 @@ class DeformableContact:
         # slip; none from rest), the small-slip bound the whole slip.
         relative = np.einsum("pij,pj->pi", frames, reached - ends - self.held)
         slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, reached - ends)[:, :2], axis=1)
+        if self.law == "coulomb" and shown_slips:
+            reasons.extend(self._check_shown_slips(reached - ends, shown_slips, tolerances, measures))
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
@@ -2533,6 +2549,27 @@ class DeformableContact:
             self._layers[index] = layer_under(self.deformable_object, self.print_placements[index].homogeneous,
                                               self.ball_radii[index])
         return self._layers[index]
+
+    def _check_shown_slips(self, whole, shown, tolerances, measures) -> list:
+        """The slips an answer shows (``shown``: robot surface -> NodeSlips) against its link
+        points' own over its nodes (``whole``, (p, 3) body frame), tangential at rest: the
+        next stance of a sequence starts from them."""
+        whole = whole - np.einsum("pj,pj->p", whole, self.normals_in_body)[:, None] * self.normals_in_body
+        reasons, worst = [], 0.0
+        for index, spec in enumerate(self.prints):
+            given = shown.get(spec.robot_surface)
+            if given is None or index in self.ball_radii:
+                continue
+            rows = np.flatnonzero(self.print_of_node == index)
+            if given.body != self.deformable_object.name or not np.array_equal(given.nodes, self.node_ids[rows]):
+                reasons.append(f"the slips shown for {spec.label} are not over its print's nodes")
+                continue
+            error = float(np.abs(given.slips - whole[rows]).max(initial=0.0))
+            worst = max(worst, error)
+            if error > tolerances.deformable_placement:
+                reasons.append(f"the slips shown for {spec.label} are off its link points' by {error:.3g} m")
+        measures[f"slip error on {self.deformable_object.name}"] = worst
+        return reasons
 
     def _check_coulomb(self, phi, relative, slide, tolerances, measures) -> list:
         """Signorini and Coulomb at every node, from forces and relative motions in node frames

@@ -163,7 +163,9 @@ def verify_problem(
         forces, points = all_forces[loads].copy(), all_points[loads].copy()
         if contact.deformable_object is not None:
             made[contact.deformable_object.name] = field = np.asarray(contact.displacement_field(model, data, forces))
-            reasons.extend(contact.verify(model, data, points, forces, tolerances, measures, field=field))
+            # The slips a soft print's answer shows, where its contact gives them (flat prints).
+            shown = {"shown_slips": getattr(result, "slips", None)} if hasattr(contact, "print_slips") else {}
+            reasons.extend(contact.verify(model, data, points, forces, tolerances, measures, field=field, **shown))
         else:
             reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))
 

@@ -228,3 +228,34 @@ def test_a_motion_starts_its_samples_kept_prints_where_the_leaving_stance_left_t
         held = result.held_slips[surface]
         assert np.array_equal(held.nodes, left.nodes) and np.array_equal(held.slips, left.slips)
     assert verify_motion(motion, plan, scenario, robot) == []
+
+
+def test_verify_refuses_slips_shown_off_the_link_points(plan, robot, scene):
+    """The slips an answer shows are those of its link points over its nodes: the next
+    stance starts from them. One node's moved 0.1 mm is refused, by how much."""
+    index, surface = _first_slipped(plan)
+    result = plan.stances[index].result
+    shown = result.slips[surface]
+    check = stances.verify(robot, scene, result.stance, result)
+    assert check.ok and check.measures[f"slip error on {shown.body}"] < 1e-8
+    moved = shown.slips.copy()
+    moved[3, 1] += 1e-4
+    tampered = replace(result, slips={**result.slips, surface: replace(shown, slips=moved)})
+    check = stances.verify(robot, scene, result.stance, tampered)
+    label = f"{surface} on {result.stance.contact(surface).contact_print.surface}"
+    assert any(reason.startswith(f"the slips shown for {label} are off its link points' by 0.0001")
+               for reason in check.reasons), check.reasons
+    elsewhere = replace(result, slips={**result.slips, surface: replace(shown, nodes=shown.nodes + 1)})
+    assert f"the slips shown for {label} are not over its print's nodes" in stances.verify(
+        robot, scene, result.stance, elsewhere).reasons
+
+
+def test_a_print_cannot_start_slid_past_the_small_slip_bound(plan, robot, scene):
+    index, surface = _first_slipped(plan)
+    after = plan.stances[index + 1]
+    held = after.result.held_slips[surface]
+    far = replace(held, slips=held.slips * (8e-3 / held.largest()))
+    label = f"{surface} on {after.stance.contact(surface).contact_print.surface}"
+    with pytest.raises(StanceError, match=f"held_slips of {label} reach 0.008 m, beyond the small-slip bound "
+                                          r"0.00\d+ m: a print cannot start slid further than it may slide"):
+        build_problem(robot, scene, after.stance, held_slips={surface: far})
