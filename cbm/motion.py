@@ -67,10 +67,10 @@ from stances.blocks import PLACEMENT_ACCURACY, ConstraintBlock, equality
 from stances.contacts import placement_residual, point_placement_residual
 from stances.errors import StanceError
 from stances.problem import stance_collision_checker
-from stances.stages import kept_slips
 from stances.terms import print_normal_loads
 
 from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
+from .slip_chain import chained, history_of
 from .errors import MotionError
 from .step_path import RAMP, halfway, lifted_path
 
@@ -617,7 +617,7 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     scene = scenario.scene
     # Every sample, as the arriving stance itself, starts the soft prints it keeps where the
     # leaving stance's answer left them (stances.solve's history), not from rest.
-    history = _history(before)
+    history = history_of(before)
     forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, history)
     backward, reason = None, ""
     if forward.pending:
@@ -956,9 +956,9 @@ def plan_motions_reposing(plan, scenario, robot, **options):
         if not motion.feasible:
             reposed = _reposed_stance(current, index, motion, scenario, robot, options.get("solver_options"))
             # The stances after it that keep its soft prints start where it now leaves them.
-            trial = None if reposed is None else _rechained(
-                planned[:index + 1] + [reposed] + planned[index + 2:], index + 1, scenario, robot,
-                options.get("solver_options"))
+            trial = None if reposed is None else chained(
+                planned[:index + 1] + [reposed] + planned[index + 2:], scenario.scene, robot,
+                options.get("solver_options"), start=index + 2)
             if trial is not None:
                 retried = plan_motion(replace(plan, stances=trial), index, scenario, robot, **options)
                 kept = retried.feasible
@@ -992,7 +992,7 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
     options = _options_of(after) if solver_options is None else dict(solver_options)
     try:
         result = stances.solve(robot, scenario.scene, after.stance, q_init=start, reference=start,
-                               history=_history(plan.stances[index]), **options)
+                               history=history_of(plan.stances[index]), **options)
     except (StanceError, SceneError, FemError) as error:
         # A repose is a second chance, not a requirement: the plan keeps its posture.
         logger.info("stance %d not reposed: %s", index + 1, error)
@@ -1001,37 +1001,6 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
         return None
     return replace(after, q=result.q, point_forces=tuple(result.point_forces),
                    deformations=dict(result.deformations or {}), result=result)
-
-
-def _history(planned):
-    """A planned stance's answer as the ``history`` of the stance after it (None where the
-    plan holds no answer to start from)."""
-    return planned.result if isinstance(planned.result, stances.PostureResult) else None
-
-
-def _rechained(planned, index, scenario, robot, solver_options):
-    """``planned`` (a list of PlannedStance) whose stance ``index`` was solved again, with
-    each stance after it that keeps a soft print of the one before solved again from where
-    that one now leaves the print (``history``), from its own posture; None if one of them
-    then has none (the plan keeps its stances)."""
-    planned = list(planned)
-    for later in range(index + 1, len(planned)):
-        before, after = planned[later - 1], planned[later]
-        history = _history(before)
-        if history is None or not kept_slips(history, after.stance):
-            break
-        options = _options_of(after) if solver_options is None else dict(solver_options)
-        try:
-            result = stances.solve(robot, scenario.scene, after.stance, q_init=after.q, history=history, **options)
-        except (StanceError, SceneError, FemError) as error:
-            logger.info("stance %d not solved again after stance %d's repose: %s", later, index, error)
-            return None
-        if not result.feasible:
-            logger.info("stance %d has no posture once stance %d is reposed: %s", later, index, result.reason)
-            return None
-        planned[later] = replace(after, q=result.q, point_forces=tuple(result.point_forces),
-                                 deformations=dict(result.deformations or {}), result=result)
-    return planned
 
 
 def motions_summary(motions) -> str:

@@ -32,6 +32,7 @@ from stances.errors import StanceError
 
 from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
+from .slip_chain import chained
 from .parallel import PosturePool, check_workers
 from .rejections import (
     FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, soft_support_hint, stiff_reach_hint,
@@ -197,7 +198,8 @@ class PostureOracle:
         self._filter = None  # built on first use: its setup reads the robot's mass and tree
 
     def __call__(self, stance, parent=None, parent_check=None):
-        """Check one stance; ``parent_check`` gives the warm start."""
+        """Check one stance; ``parent_check`` gives the warm start and, where its answer is a
+        PostureResult, the history: the soft prints the stance keeps start where it left them."""
         if self._time_left() == 0.0:
             return StanceCheck(False, _OUT_OF_TIME)
         rejection = self._prefiltered(stance)
@@ -584,7 +586,7 @@ def plan(
             f"{searched.reason} after {s.expanded} stances expanded and {s.solver_calls} solver calls; "
             "the stances are the best partial sequence found so far"
         )
-        raise PlanInterrupted(_plan_of(searched, scenario, robot, sampled[-1], reason)) from None
+        raise PlanInterrupted(_plan_of(searched, scenario, robot, sampled[-1], reason, chain=False)) from None
     finally:
         if pool is not None:
             pool.close()
@@ -620,7 +622,8 @@ def plan(
         reason += unresolved_ball_hint(rejected)
         reason += pivoting_print_hint(rejected)
         reason += stiff_reach_hint(rejected)
-    return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing)
+    return _plan_of(searched, scenario, robot, prints, reason, print_spacing=sampling.spacing,
+                    solver_options=solver_options)
 
 
 def _goal_stance_refusal(goal, feet, oracle):
@@ -678,8 +681,11 @@ def _with_earlier(searched, earlier):
     return dataclasses.replace(searched, statistics=summed)
 
 
-def _plan_of(searched, scenario, robot, prints, reason, print_spacing=None):
-    """The Plan of a search result: its path's stances with their postures and the statistics."""
+def _plan_of(searched, scenario, robot, prints, reason, print_spacing=None, solver_options=None, chain=True):
+    """The Plan of a search result: its path's stances with their postures and the statistics;
+    with ``chain``, a stance its path reaches through another parent than the one its answer
+    was asked from solved again from where its predecessor leaves the soft prints they keep
+    (:mod:`cbm.slip_chain`; an interrupted plan is given as found)."""
     planned = []
     for index, (stance, check) in enumerate(zip(searched.path, searched.results)):
         move = ""
@@ -696,6 +702,12 @@ def _plan_of(searched, scenario, robot, prints, reason, print_spacing=None):
                 move=move,
             )
         )
+    rechained = chained(planned, scenario.scene, robot, solver_options) if chain else planned
+    if rechained is None:
+        logger.warning("a stance of the plan has no posture from where the one before it leaves its soft "
+                       "prints: its answer is the search's (Plan.check says which)")
+    else:
+        planned = rechained
     s = searched.statistics
     answers = [attributes["result"] for _, attributes in searched.graph.nodes(data=True)]
     prefiltered = Counter(getattr(a, "rejected_by", "") for a in answers if a is not None)

@@ -336,7 +336,6 @@ def best_first_search(
     heap: list = []
     cache: dict = {}
     came_from: dict = {}
-    answered_from: dict = {}  # node -> the parent its oracle answer was warm-started from
     closed: set = set()
     h_of: dict = {}
     own_cost_of: dict = {}
@@ -402,7 +401,6 @@ def best_first_search(
             answer = ahead.take(node, parent)
         counts["solver_calls"] += 1
         cache[node] = answer
-        answered_from[node] = parent
         feasible = bool(answer.feasible)
         graph.add_node(node, status="feasible" if feasible else "infeasible", result=answer)
         logger.debug("oracle: %s -> %s", node, "feasible" if feasible else "infeasible")
@@ -455,10 +453,7 @@ def best_first_search(
                 counts["requeued"] += 1
                 push(node, parent, cost, node_costs)
                 continue
-            # A node's answer depends on the parent it was asked from (the warm start,
-            # the slips of the prints it keeps): the path goes through that parent, which
-            # is closed (eager mode asks while expanding it) or the one popped here.
-            came_from.setdefault(node, answered_from.get(node, parent))
+            came_from.setdefault(node, parent)
             h = heuristic_of(node)
             if best is None or (h, order) < best[:2]:
                 best = (h, order, node)

@@ -25,7 +25,7 @@ from .results import NodeSlips, PointForce, PostureResult, SolveStatistics, Veri
 from .refined_check import RefinedCheck, check_refined
 from .robot import Robot, RobotSurface, SurfaceDeclaration
 from .sqp import solve_problem
-from .stages import solve
+from .stages import kept_slips, solve
 from .terms import CentreOfMassBounds
 from .verify import verify, verify_problem
 
@@ -53,6 +53,7 @@ __all__ = [
     "builtin_robot_names",
     "check_refined",
     "initial_configuration",
+    "kept_slips",
     "reaching_configuration",
     "read_description",
     "read_description_text",

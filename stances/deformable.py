@@ -184,8 +184,6 @@ logger = logging.getLogger(__name__)
 # Soft bodies (their fem bodies' ids) whose coarse ball contact this process has logged (once each).
 _COARSE_BALLS_LOGGED: set = set()
 
-# The inner square of a disc: |s . t_i| <= r / sqrt(2) on both axes implies |s| <= r.
-_INNER_SQUARE = 1.0 / np.sqrt(2.0)
 # Tets whose largest principal strain is above this fraction of the bound enter the QP.
 _STRAIN_ACTIVATION = 0.5
 # Nodes indented beyond this fraction of the bound enter the QP (one row each): the
@@ -197,7 +195,7 @@ _OVERLAP_ACTIVATION = 0.5
 # Tets the body's own weight alone strains to this fraction of the bound are strain-row
 # centres wherever they lie, not only near the prints.
 _REST_STRAIN = 0.25
-_SLIP_ROWS = 6  # largest node slips bounded in each QP (2 rows each)
+_SLIP_ROWS = 6  # largest node slips bounded in each QP (one row each)
 # How far past max_slip a held slip may start (metres): the answer that left it kept the
 # bound to its verify's placement tolerance.
 _HELD_SLIP_SLACK = 1e-6
@@ -451,6 +449,11 @@ def ball_gaps(nodes_in_print: np.ndarray, radius: float) -> np.ndarray:
     rho_squared = np.minimum(np.einsum("pi,pi->p", nodes_in_print[:, :2], nodes_in_print[:, :2]), radius * radius)
     profile = radius - np.sqrt(radius * radius - rho_squared)
     return np.maximum(profile - nodes_in_print[:, 2], 0.0)
+
+
+def _tangential(vectors: np.ndarray, normals: np.ndarray) -> np.ndarray:
+    """(p, 3) ``vectors`` less their parts along the unit ``normals`` (p, 3)."""
+    return vectors - np.einsum("pj,pj->p", vectors, normals)[:, None] * normals
 
 
 def _skew_rows(points: np.ndarray) -> np.ndarray:
@@ -785,11 +788,12 @@ class DeformableContact:
         # print normal, nonzero under a ball (its profile, ball_gaps); the link points
         # then press a node once they have moved that far: U + gap is the node's motion.
         self.gaps = np.concatenate(gaps)[:, None] * normals_in_body
-        # (p, 3) body frame: each node's held slip (PrintSpec.held_slips, tangential at rest),
-        # where its link point sits over it when it sticks; zero from rest and off the
-        # coulomb law. The link points then press a node's coupling end at U + gap - held.
+        # (p, 3) body frame: each node's held slip (PrintSpec.held_slips), in its print's
+        # frame at rest: fixed in the link, it turns with the print (exp(theta) held). A node
+        # that sticks meets the link's face there: its coupling end at U + gap - exp(theta) held
+        # (:meth:`_held_motion`); zero from rest and off the coulomb law.
         self.held = self._held_slips(normals_in_body)
-        self._reference = self.gaps - self.held
+        self._holding = bool(np.any(self.held))
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
         self.node_frames = np.array([print_rotations_in_body[i].T for i in self.print_of_node])
         self._modes = None  # (modes, slip directions) of the last contact solve: its warm start
@@ -827,7 +831,7 @@ class DeformableContact:
                 known = where.get(int(self.node_ids[row]))
                 if known is not None:
                     held[row] = given.slips[known]
-        held = held - np.einsum("pj,pj->p", held, normals_in_body)[:, None] * normals_in_body
+        held = _tangential(held, normals_in_body)
         slide = np.linalg.norm(held, axis=1)
         if slide.max(initial=0.0) > self.max_slip + _HELD_SLIP_SLACK:
             label = self.prints[int(self.print_of_node[int(np.argmax(slide))])].label
@@ -840,13 +844,22 @@ class DeformableContact:
     def print_slips(self, model, data, w) -> dict:
         """Where each flat print's link points lie over its nodes at the iterate, under the
         ``coulomb`` law: robot surface -> :class:`~stances.results.NodeSlips` (the contact
-        solve's relative motion, tangential at rest, plus the held slip). Empty off it."""
-        if self.law != "coulomb" or self.method == "traction":
+        solve's relative motion plus the held slip, turned back by the print's turn A^-1 W
+        and tangential at rest: fixed in the link). Empty off it."""
+        if self.law != "coulomb":
             return {}
+        w = np.asarray(w, dtype=float)
         solved = self._values(model, data, w).solved
-        total = solved.relative + self.held
-        total = total - np.einsum("pj,pj->p", total, self.normals_in_body)[:, None] * self.normals_in_body
-        return {spec.robot_surface: NodeSlips(self.deformable_object.name, self.node_ids[rows], total[rows])
+        _, turns, _ = self._print_turns(w)
+        return self._as_slips(solved.relative - self._held_motion(w).reshape(-1, 3), turns)
+
+    def _as_slips(self, whole, turns) -> dict:
+        """Robot surface -> NodeSlips of each flat print from the link points' whole slips
+        ``whole`` (p, 3) body frame, under the prints' turns (L, 3, 3): turned back into the
+        print's frame at rest, tangential there."""
+        back = np.einsum("pji,pj->pi", turns[self.print_of_node], whole)
+        back = _tangential(back, self.normals_in_body)
+        return {spec.robot_surface: NodeSlips(self.deformable_object.name, self.node_ids[rows], back[rows])
                 for index, spec in enumerate(self.prints) if index not in self.ball_radii
                 for rows in [np.flatnonzero(self.print_of_node == index)]}
 
@@ -963,8 +976,30 @@ class DeformableContact:
 
     def _imposed_motion(self, w) -> np.ndarray:
         """(3p,) U the link points move by where the placement rows hold under W:
-        ``G A^-1 W + r(A^-1 W)``, metres, body frame (:meth:`_rotation_residue`)."""
-        return self.rigid_motion @ w + self._rotation_residue(w)
+        ``G A^-1 W + r(A^-1 W)``, metres, body frame (:meth:`_rotation_residue`), less
+        each node's held slip turned with its print (:meth:`_held_motion`)."""
+        motion = self.rigid_motion @ w + self._rotation_residue(w)
+        return motion + self._held_motion(w) if self._holding else motion
+
+    def _held_motion(self, w) -> np.ndarray:
+        """(3p,) ``-exp(theta) held``: where a sticking node meets its link, from its link
+        point, the held slip being fixed in the link (theta = A^-1 W); zero from rest."""
+        if not self._holding:
+            return np.zeros(self.held.size)
+        _, turns, _ = self._print_turns(w)
+        return -np.einsum("pij,pj->pi", turns[self.print_of_node], self.held).reshape(-1)
+
+    def _held_motion_derivative(self, w) -> np.ndarray:
+        """(3p, 6L) d :meth:`_held_motion` / dW: ``exp(theta) [held]x Jr(theta) d theta``."""
+        _, turns, right = self._print_turns(w)
+        owner = self.print_of_node
+        d_theta = turns[owner] @ _skew_rows(self.held) @ right[owner]
+        return np.einsum("pij,pjk->pik", d_theta, self._turn_of_w[owner]).reshape(3 * len(owner), -1)
+
+    def _motion_derivative(self, w) -> np.ndarray:
+        """(3p, 6L) d :meth:`_imposed_motion` / dW."""
+        derivative = self.rigid_motion + self._rotation_residue_derivative(w)
+        return derivative + self._held_motion_derivative(w) if self._holding else derivative
 
     def _rotation_residue_derivative(self, w) -> np.ndarray:
         """(3p, 6L) d :meth:`_rotation_residue` / dW."""
@@ -1128,7 +1163,7 @@ class DeformableContact:
         (3p,), metres, body frame, against faces turned by ``turns`` (:meth:`_node_turns`);
         warm started from the last solve's modes, or held to :meth:`freeze_modes`'s. A node
         is pressed once its link point has closed its gap."""
-        corrected = imposed.reshape(-1, 3) + self._reference
+        corrected = imposed.reshape(-1, 3) + self.gaps
         if self._frozen is not None:
             return self._system().with_modes(corrected, *self._frozen, turns=turns)
         warm = (None, None) if self._modes is None else self._modes
@@ -1226,14 +1261,16 @@ class DeformableContact:
         d_turn, dd_turn = _exp_derivatives(self._turn_of_w @ w)  # (L, 3, 3, 3), (L, 3, 3, 3, 3): d R / d theta_j, ...
         rates = self._turn_of_w  # (L, 3, 6L): d theta / dW
         owner, m = self.print_of_node, rates.shape[2]
-        # U = G W + exp(theta) x - x - theta x x: its second derivative is exp's, on the levers.
+        # U = G W + exp(theta) x - x - theta x x - exp(theta) held: its second derivative is
+        # exp's, on the levers less the held slips.
         dd_rotation = np.einsum("ljkmn,ljA,lkB->lmnAB", dd_turn, rates, rates, optimize=True)  # (L, 3, 3, 6L, 6L)
         dd_motion = np.zeros((owner.size, 3, m, m))
+        levers = self.levers - self.held
         for i in range(len(self.prints)):
             rows = owner == i
-            dd_motion[rows] = np.einsum("mnAB,pn->pmAB", dd_rotation[i], self.levers[rows], optimize=True)
+            dd_motion[rows] = np.einsum("mnAB,pn->pmAB", dd_rotation[i], levers[rows], optimize=True)
         dd_motion = dd_motion.reshape(3 * owner.size, m, m)
-        d_motion = self.rigid_motion + self._rotation_residue_derivative(w)
+        d_motion = self._motion_derivative(w)
         d_turns = dd_turns = None
         if self.turned_frames:
             # Q = F R^T F^T per node (_node_turns); only a slipping node's frame enters its law.
@@ -1275,7 +1312,7 @@ class DeformableContact:
             d_forces_body = np.hstack([d_q, self.distribution])  # (3p, nv + 6L)
         else:
             # The imposed motion depends on W alone: the forces have no q-derivative.
-            d_imposed = self.rigid_motion + self._rotation_residue_derivative(np.asarray(w, dtype=float))
+            d_imposed = self._motion_derivative(np.asarray(w, dtype=float))
             if self.law == "coulomb":
                 d_w = values.solved.jacobian_dot(d_imposed)  # only L applied to a few directions
                 if self.turned_frames:
@@ -1725,16 +1762,20 @@ class DeformableContact:
     def link_give(self, xi) -> float:
         """The links' give, metres: the largest component of the link points' motion under
         the links' motion ``xi`` (6L,)."""
-        return float(np.abs(self._link_motion(xi)[0] - self._reference).max())
+        w = self.a @ np.asarray(xi, dtype=float)
+        return float(np.abs(self.basis @ xi + self._rotation_residue(w)).max())
 
     def _link_motion(self, xi):
         """The link points' motion, the nodes' gaps added and held slips taken off, under
-        links moved by ``xi`` (6L,), and its derivative: ``G xi + r(xi) + gap - held``
-        (p, 3), ``G + dr/dxi`` (3p, 6L); body frame, metres (r: :meth:`_rotation_residue`,
-        read at ``W = A xi``)."""
+        links moved by ``xi`` (6L,), and its derivative: ``G xi + r(xi) + gap - exp(theta)
+        held`` (p, 3), ``G + d(r - exp(theta) held)/dxi`` (3p, 6L); body frame, metres (r:
+        :meth:`_rotation_residue`, read at ``W = A xi``; :meth:`_held_motion`)."""
         w = self.a @ xi
         moved = self.basis @ xi + self._rotation_residue(w)
-        return moved.reshape(-1, 3) + self._reference, self.basis + self._rotation_residue_derivative(w) @ self.a
+        derivative = self.basis + self._rotation_residue_derivative(w) @ self.a
+        if self._holding:
+            moved, derivative = moved + self._held_motion(w), derivative + self._held_motion_derivative(w) @ self.a
+        return moved.reshape(-1, 3) + self.gaps, derivative
 
     def displacements(self, model, data) -> np.ndarray:
         """(p, 3) float: print-node displacements U, metres, body frame (eq. 29)."""
@@ -1921,31 +1962,30 @@ class DeformableContact:
         Coulomb contact is solved on the nodes under the declared print; a link
         that slides far over them would touch others (measured: hand-on-soft-cube
         was accepted with its palm turned 76 degrees, loaded nodes up to 70 mm
-        from their link points). Each tangential component of the
-        ``_SLIP_ROWS`` largest slips is kept within ``max_slip / sqrt(2)``, so
-        that the slip itself (what verify checks) is within ``max_slip``; the
-        row count is fixed. ``d_displacements`` (3p, nv) and
+        from their link points). The length of each of the ``_SLIP_ROWS``
+        largest slips is kept within ``max_slip`` (what verify checks), linearised
+        along the slip itself; the row count is fixed. (Each component within
+        ``max_slip / sqrt(2)``, the disc's inner square, refused a print kept from the
+        stance before with 4.8 mm of its 5.5 mm held, one component past 3.9 mm: its
+        rows started violated and the solve stalled.) ``d_displacements`` (3p, nv) and
         ``d_nodes`` (3p, columns), in the full step, are None for values only.
         """
         p = len(self.node_ids)
         relative = displacements.reshape(-1) - nodes  # link point minus node, body frame
         tangential = np.einsum("pij,pj->pi", self.node_frames[:, :2], relative.reshape(p, 3))
-        chosen = np.argsort(-np.linalg.norm(tangential, axis=1), kind="stable")[: min(_SLIP_ROWS, p)]
-        rows = len(chosen)
+        lengths = np.linalg.norm(tangential, axis=1)
+        chosen = np.argsort(-lengths, kind="stable")[: min(_SLIP_ROWS, p)]
         jacobian = None
         if d_displacements is not None:
-            d_relative = -d_nodes
-            d_relative[:, : d_displacements.shape[1]] += d_displacements
-            d_tangential = np.einsum("pij,pjc->pic", self.node_frames[:, :2], d_relative.reshape(p, 3, columns))
-            jacobian = d_tangential[chosen].reshape(2 * rows, columns)
-        labels = tuple(
-            f"slip at node {int(self.node_ids[i])} of {self.deformable_object.name} ({axis})"
-            for i in chosen for axis in ("t1", "t2")
-        )
-        return ConstraintBlock(
-            "slip", tangential[chosen].reshape(-1), jacobian,
-            -_INNER_SQUARE * self.max_slip, _INNER_SQUARE * self.max_slip, 1e-2, labels,
-        )
+            entries = (3 * chosen[:, None] + np.arange(3)).reshape(-1)  # the chosen nodes' rows
+            d_relative = -d_nodes[entries]
+            d_relative[:, : d_displacements.shape[1]] += d_displacements[entries]
+            d_tangential = np.einsum("pij,pjc->pic", self.node_frames[chosen, :2], d_relative.reshape(len(chosen), 3, columns))
+            # d|s| = (s / |s|) . ds; a slip of zero is far from its bound (no direction to give).
+            along = tangential[chosen] / np.where(lengths[chosen] > 0.0, lengths[chosen], 1.0)[:, None]
+            jacobian = np.einsum("pi,pic->pc", along, d_tangential)
+        labels = tuple(f"slip at node {int(self.node_ids[i])} of {self.deformable_object.name}" for i in chosen)
+        return ConstraintBlock("slip", lengths[chosen], jacobian, -np.inf, self.max_slip, 1e-2, labels)
 
     @cached_property
     def reaction(self) -> np.ndarray:
@@ -2270,12 +2310,15 @@ class DeformableContact:
         if self._coupling is not None:
             ends = ends - block_diagonal_product(self._coupling, forces_body.reshape(-1)).reshape(-1, 3)
         reached = displacements + self.gaps  # where each link point's surface over its node has moved
-        # The law reads each node's motion from where its link point was held (its held
-        # slip; none from rest), the small-slip bound the whole slip.
-        relative = np.einsum("pij,pj->pi", frames, reached - ends - self.held)
-        slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, reached - ends)[:, :2], axis=1)
-        if self.law == "coulomb" and shown_slips:
-            reasons.extend(self._check_shown_slips(reached - ends, shown_slips, tolerances, measures))
+        # The law reads each node's motion from where its link held it (its held slip, fixed
+        # in the link and turned with it; none from rest), the small-slip bound the whole slip.
+        whole = reached - ends
+        turns = np.array(self._link_rotations(data))
+        turns[self.point_prints] = np.eye(3)
+        relative = np.einsum("pij,pj->pi", frames, whole - np.einsum("pij,pj->pi", turns[self.print_of_node], self.held))
+        slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, whole)[:, :2], axis=1)
+        if self.law == "coulomb" and shown_slips is not None:
+            reasons.extend(self._check_shown_slips(self._as_slips(whole, turns), shown_slips, tolerances, measures))
         # How far the mesh itself reaches past the links' faces, along the print normal: a
         # partly covered node lies its cell's series compliance times its force (D f)
         # behind its link point, at the print's edge on a coarse mesh (the contact law holds
@@ -2550,21 +2593,22 @@ class DeformableContact:
                                               self.ball_radii[index])
         return self._layers[index]
 
-    def _check_shown_slips(self, whole, shown, tolerances, measures) -> list:
+    def _check_shown_slips(self, made, shown, tolerances, measures) -> list:
         """The slips an answer shows (``shown``: robot surface -> NodeSlips) against its link
-        points' own over its nodes (``whole``, (p, 3) body frame), tangential at rest: the
-        next stance of a sequence starts from them."""
-        whole = whole - np.einsum("pj,pj->p", whole, self.normals_in_body)[:, None] * self.normals_in_body
+        points' own over its nodes (``made``, :meth:`_as_slips` of the checked field): the
+        next stance of a sequence starts from them. Every flat print's are shown."""
         reasons, worst = [], 0.0
         for index, spec in enumerate(self.prints):
-            given = shown.get(spec.robot_surface)
-            if given is None or index in self.ball_radii:
+            if index in self.ball_radii:
                 continue
-            rows = np.flatnonzero(self.print_of_node == index)
-            if given.body != self.deformable_object.name or not np.array_equal(given.nodes, self.node_ids[rows]):
+            given, own = shown.get(spec.robot_surface), made[spec.robot_surface]
+            if given is None:
+                reasons.append(f"the answer shows no slips for {spec.label}, which the next stance would start from")
+                continue
+            if given.body != own.body or not np.array_equal(given.nodes, own.nodes):
                 reasons.append(f"the slips shown for {spec.label} are not over its print's nodes")
                 continue
-            error = float(np.abs(given.slips - whole[rows]).max(initial=0.0))
+            error = float(np.abs(given.slips - own.slips).max(initial=0.0))
             worst = max(worst, error)
             if error > tolerances.deformable_placement:
                 reasons.append(f"the slips shown for {spec.label} are off its link points' by {error:.3g} m")

@@ -58,6 +58,9 @@ class RefinedCheck:
     print_forces : tuple of (str, (3,) float, (3,) float)
         Each soft print's robot surface and the total force on the robot
         through it, world frame, newtons: on the default and the refined meshes.
+    held : tuple of str
+        The robot surfaces whose prints the answer started from held slips (the stance
+        before's): over the default meshes' nodes, they start from rest on the refined ones.
     """
 
     factor: int
@@ -67,6 +70,7 @@ class RefinedCheck:
     result: PostureResult
     joint_change: float
     print_forces: tuple
+    held: tuple = ()
 
     @property
     def ok(self) -> bool:
@@ -94,6 +98,9 @@ class RefinedCheck:
         else:
             start = "  the answer holds there as it is"
         out = [f"meshes refined {self.factor}x: {meshes}", start]
+        if self.held:
+            out.append(f"  (its kept prints {', '.join(sorted(self.held))} from rest there: their held slips are "
+                       "over the coarse mesh's nodes)")
         result = self.result
         if not self.ok:
             out.append(f"  re-solved there: infeasible: {result.reason}")
@@ -174,6 +181,7 @@ def check_refined(robot, scenario, result: PostureResult, factor: int = 2, refin
         result=answer,
         joint_change=joint_change,
         print_forces=tuple((s, coarse[s], refined_forces[s]) for s in soft) if answer.feasible else (),
+        held=tuple(sorted(getattr(result, "held_slips", None) or {})),
     )
 
 

@@ -267,8 +267,9 @@ class NodeSlips:
     nodes : (k,) int
         Mesh node ids of the print, in the body's mesh.
     slips : (k, 3) float
-        Each node's link point minus the node's coupling end, tangential to the
-        print's surface at rest (no normal part), metres, body frame.
+        Each node's link point minus the node's coupling end, turned back by the print's
+        turn (so fixed in the link: the next stance turns it with its own), tangential to
+        the print's surface at rest, metres, body frame.
     """
 
     body: str
@@ -281,11 +282,20 @@ class NodeSlips:
         if slips.shape != (len(nodes), 3):
             raise StanceError(f"NodeSlips: slips must be ({len(nodes)}, 3) metres, one row a node; "
                               f"got shape {slips.shape}")
+        if not np.isfinite(slips).all():
+            raise StanceError(f"NodeSlips: slips of nodes {nodes[~np.isfinite(slips).all(axis=1)].tolist()} "
+                              "are not finite")
+        if len(np.unique(nodes)) != len(nodes):
+            raise StanceError("NodeSlips: a node appears more than once; give each node's slip once")
         nodes.setflags(write=False)
         slips.setflags(write=False)
         object.__setattr__(self, "body", str(self.body))
         object.__setattr__(self, "nodes", nodes)
         object.__setattr__(self, "slips", slips)
+
+    def __reduce__(self):
+        # Through __init__, so that a copy from another process is read-only too.
+        return (NodeSlips, (self.body, self.nodes, self.slips))
 
     def largest(self) -> float:
         """The largest slip, metres."""
@@ -351,9 +361,12 @@ class PostureResult:
         usage and its joint, smallest joint clearance and its joint, and the
         joints on the bound their margin sets (see
         :meth:`stances.problem.PostureProblem.limit_usage`).
-    slips : dict of str to NodeSlips
+    slips : dict of str to NodeSlips, or None
         Robot surface -> where the link points of its soft print lie over the print's
-        nodes at this answer (prints solved under the ``coulomb`` law; none for a ball).
+        nodes at this answer: every flat print solved under the ``coulomb`` law (none for
+        a ball, nor under the other laws). None: not recorded (the stiff limit's spread
+        answers, answers read from files before plan version 6); the next stance then
+        starts from rest.
     held_slips : dict of str to NodeSlips
         Robot surface -> the slips this answer started from (``history`` of
         :func:`stances.solve`: the answer before it in a sequence, for each soft print
@@ -373,7 +386,7 @@ class PostureResult:
     verification: Verification | None = None
     statistics: SolveStatistics = field(default_factory=SolveStatistics)
     limits: dict = field(default_factory=dict)
-    slips: dict = field(default_factory=dict)
+    slips: dict | None = None
     held_slips: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
@@ -436,7 +449,7 @@ class PostureResult:
             deformations={k: np.asarray(v, dtype=float) for k, v in data.get("deformations", {}).items()},
             statistics=dict(data.get("statistics", {})),
             limits=dict(data.get("limits", {})),
-            slips={k: NodeSlips.from_dict(v) for k, v in data.get("slips", {}).items()},
+            slips=None if data.get("slips") is None else {k: NodeSlips.from_dict(v) for k, v in data["slips"].items()},
             held_slips={k: NodeSlips.from_dict(v) for k, v in data.get("held_slips", {}).items()},
         )
 
@@ -454,6 +467,6 @@ class PostureResult:
             "deformations": {k: np.asarray(v).tolist() for k, v in self.deformations.items()},
             "statistics": self.statistics.to_dict(),
             "limits": dict(self.limits),
-            "slips": {k: v.to_dict() for k, v in self.slips.items()},
+            "slips": None if self.slips is None else {k: v.to_dict() for k, v in self.slips.items()},
             "held_slips": {k: v.to_dict() for k, v in self.held_slips.items()},
         }

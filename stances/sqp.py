@@ -1019,7 +1019,7 @@ def problem_slips(problem, q, lam) -> dict:
     pin.framesForwardKinematics(model, data, q)
     slips = {}
     for contact, variables in zip(problem.contacts, problem.variable_slices):
-        if hasattr(contact, "print_slips"):
+        if contact.kind == "deformable":
             slips.update(contact.print_slips(model, data, lam[variables]))
     return slips
 

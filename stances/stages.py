@@ -180,7 +180,7 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
-    held = kept_slips(history, stance)
+    held = _used_slips(kept_slips(history, stance), options)
     try:
         with setup_deadline(deadline):
             result = _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
@@ -210,11 +210,22 @@ def kept_slips(history, stance) -> dict:
     if history is None:
         return {}
     if not isinstance(history, PostureResult):
+        hint = " (a check's answer is its .result)" if hasattr(history, "result") else ""
         raise StanceError(f"history must be a PostureResult (the answer of the stance before), "
-                          f"got {type(history).__name__}")
-    before = set(getattr(history.stance, "contacts", ()) or ())
-    return {contact.robot_surface: history.slips[contact.robot_surface] for contact in stance
-            if contact in before and contact.robot_surface in history.slips}
+                          f"got {type(history).__name__}{hint}")
+    before, left = set(getattr(history.stance, "contacts", ()) or ()), history.slips or {}
+    return {contact.robot_surface: left[contact.robot_surface] for contact in stance
+            if contact in before and contact.robot_surface in left}
+
+
+def _used_slips(held, options) -> dict:
+    """Those of ``held`` the solve reads: a soft print's, under the ``coulomb`` law (not one
+    held rigid, nor any when every soft print is)."""
+    if not held or options.get("contact_law", PostureOptions.contact_law) != "coulomb" or options.get(
+            "deformable_as_rigid", PostureOptions.deformable_as_rigid):
+        return {}
+    rigid = set(options.get("rigid_prints", ()))
+    return {surface: slips for surface, slips in held.items() if surface not in rigid}
 
 
 def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:

@@ -163,8 +163,8 @@ def verify_problem(
         forces, points = all_forces[loads].copy(), all_points[loads].copy()
         if contact.deformable_object is not None:
             made[contact.deformable_object.name] = field = np.asarray(contact.displacement_field(model, data, forces))
-            # The slips a soft print's answer shows, where its contact gives them (flat prints).
-            shown = {"shown_slips": getattr(result, "slips", None)} if hasattr(contact, "print_slips") else {}
+            # The slips a soft print's answer shows (None: not recorded, as before plan version 6).
+            shown = {"shown_slips": getattr(result, "slips", None)} if contact.kind == "deformable" else {}
             reasons.extend(contact.verify(model, data, points, forces, tolerances, measures, field=field, **shown))
         else:
             reasons.extend(contact.verify(model, data, points, forces, tolerances, measures))

@@ -93,16 +93,20 @@ def test_a_palm_held_down_does_not_slide_back(plan, robot, scene):
     assert _change(from_rest.slips[surface], left).max() > 3e-3
 
 
-def test_slips_are_tangential_and_within_the_small_slip_bound(plan, robot, scene):
+def test_an_answer_started_from_its_own_slips_holds_as_it_is(plan, robot, scene):
+    """Where a print was left, it is: an answer checked as if it had started from its own
+    slips passes, every node's increment zero, the tilted palm's nodes on the face that
+    presses (the held slips are fixed in the link and turn with it: taken in the print's
+    frame at rest, a palm tilted 1.5 degrees put 15-41 um of its 4.8 mm slips across the
+    face, and this check failed; a review, 2026-12-06)."""
     index, surface = _first_slipped(plan)
     result = plan.stances[index].result
-    slips = result.slips[surface]
+    check = stances.verify(robot, scene, result.stance, replace(result, held_slips=dict(result.slips)))
+    assert check.ok, check.reasons
+    assert check.measures[f"deepest penetration into {result.slips[surface].body}"] < 1e-9
     problem = build_problem(robot, scene, result.stance)
     contact = next(c for c in problem.contacts if c.kind == "deformable")
-    rows = np.flatnonzero(np.isin(contact.node_ids, slips.nodes))
-    assert np.abs(np.einsum("pj,pj->p", slips.slips, contact.normals_in_body[rows])).max() < 1e-15
-    bound = result.verification.measures[f"largest slip on {slips.body}"]
-    assert slips.largest() <= contact.max_slip + 1e-6 and slips.largest() <= bound + 1e-6
+    assert result.slips[surface].largest() <= contact.max_slip + 1e-6
 
 
 def test_verify_reads_each_kept_print_law_from_its_held_slips(plan, robot, scene):
@@ -190,12 +194,16 @@ def test_bad_histories_are_refused_by_name(plan, robot, scene):
         build_problem(robot, scene, after.stance, PostureOptions(), held_slips={surface: elsewhere})
     with pytest.raises(StanceError, match=r"NodeSlips: slips must be \(3, 3\) metres, one row a node; got shape \(2, 3\)"):
         NodeSlips("foam", [1, 2, 3], np.zeros((2, 3)))
+    with pytest.raises(StanceError, match=r"NodeSlips: slips of nodes \[2\] are not finite"):
+        NodeSlips("foam", [1, 2, 3], [[0.0, 0.0, 0.0], [np.nan, 0.0, 0.0], [0.0, 0.0, 0.0]])
+    with pytest.raises(StanceError, match="NodeSlips: a node appears more than once"):
+        NodeSlips("foam", [1, 1], np.zeros((2, 3)))
 
 
 def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot, scene):
     """Stance 1 solved again from another posture leaves its palm elsewhere: the stances
-    after it start from there once re-chained (cbm.motion._rechained), and the plan checks."""
-    from cbm.motion import _rechained
+    after it start from there once re-chained (cbm.slip_chain.chained), and the plan checks."""
+    from cbm.slip_chain import chained
 
     index, surface = _first_slipped(plan)
     before = plan.stances[index]
@@ -206,7 +214,7 @@ def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot,
                       deformations=dict(again.deformations), result=again)
     spliced = list(plan.stances[:index]) + [reposed] + list(plan.stances[index + 1:])
     assert not replace(plan, stances=tuple(spliced)).check().ok
-    rechained = _rechained(spliced, index, environments.load(SCENARIO), robot, None)
+    rechained = chained(spliced, scene, robot, start=index + 1)
     assert rechained is not None
     after = rechained[index + 1].result
     assert np.array_equal(after.held_slips[surface].slips, again.slips[surface].slips)
@@ -259,3 +267,27 @@ def test_a_print_cannot_start_slid_past_the_small_slip_bound(plan, robot, scene)
     with pytest.raises(StanceError, match=f"held_slips of {label} reach 0.008 m, beyond the small-slip bound "
                                           r"0.00\d+ m: a print cannot start slid further than it may slide"):
         build_problem(robot, scene, after.stance, held_slips={surface: far})
+
+
+def test_a_path_through_another_parent_is_solved_again_from_its_predecessor(plan, robot, scene):
+    """A stance whose answer was asked from another parent (eager search, a requeued node)
+    starts from rest here: the plan refuses it, cbm.slip_chain solves it again from where its
+    predecessor left the palm, and the plan checks."""
+    from cbm.slip_chain import chained, starts_where_left
+
+    index, surface = _first_slipped(plan)
+    after = plan.stances[index + 1]
+    other = stances.solve(robot, scene, after.stance, q_init=after.q)
+    elsewhere = replace(after, q=other.q, point_forces=tuple(other.point_forces),
+                        deformations=dict(other.deformations), result=other)
+    spliced = plan.stances[: index + 1] + (elsewhere,) + plan.stances[index + 2:]
+    assert not starts_where_left(spliced[index], spliced[index + 1])
+    assert not replace(plan, stances=spliced).check().ok
+    fixed = chained(spliced, scene, robot)
+    assert starts_where_left(fixed[index], fixed[index + 1])
+    assert replace(plan, stances=tuple(fixed)).check().ok
+
+
+def test_an_eager_search_plan_checks(robot):
+    found = cbm.plan(SCENARIO, eager=True)
+    assert found.success and found.check().ok, found.check().problems
