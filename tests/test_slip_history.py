@@ -301,3 +301,15 @@ def test_a_path_through_another_parent_is_solved_again_from_its_predecessor(plan
 def test_an_eager_search_plan_checks(robot):
     found = cbm.plan(SCENARIO, eager=True)
     assert found.success and found.check().ok, found.check().problems
+
+
+def test_an_answer_that_records_no_slips_reads_and_checks_as_before(plan, robot, scene):
+    """slips None (a file before version 6, the stiff limit's spread answers): read back as
+    None, verified without the slips check, and the next stance starts from rest."""
+    index, surface = _first_slipped(plan)
+    result = replace(plan.stances[index].result, slips=None)
+    read = stances.PostureResult.from_dict(result.to_dict())
+    assert read.slips is None and read.held_slips == result.held_slips
+    check = stances.verify(robot, scene, result.stance, result)
+    assert check.ok and not any(key.startswith("slip error") for key in check.measures)
+    assert stances.kept_slips(result, plan.stances[index + 1].stance) == {}
