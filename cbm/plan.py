@@ -34,6 +34,7 @@ from stances.stages import posture_options
 
 from .errors import PlanFileError
 from .search import SearchStatistics
+from .slip_chain import unkept_slips
 from .stance_graph import differ_by_one_contact
 
 __all__ = [
@@ -443,7 +444,7 @@ class Plan:
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):
             if not differ_by_one_contact(before.stance, after.stance):
                 problems.append(f"stances {index} -> {index + 1} do not differ by exactly one contact")
-            problems.extend(f"stances {index} -> {index + 1}: {problem}" for problem in _unkept_slips(before, after))
+            problems.extend(f"stances {index} -> {index + 1}: {problem}" for problem in unkept_slips(before, after))
         goal = getattr(scenario, "goal", None)
         if self.success and goal is not None:
             if not self.stances or not goal.is_satisfied(self.stances[-1].stance, scenario.scene):
@@ -655,32 +656,3 @@ def _rebuild_result(data):
     except (KeyError, TypeError, ValueError) as error:
         logger.debug("solver result kept as a dict (%s)", error)
         return data
-
-
-def _unkept_slips(before, after) -> list:
-    """Each soft print ``after`` keeps from ``before`` whose solve did not start where
-    ``before``'s answer left its link points (``held_slips`` against ``slips``): under
-    Coulomb friction the print would have slid between the two stances; and held slips of a
-    print ``after`` did not keep. An answer that records no slips (None: a file before
-    version 6, the stiff limit's spread answers) leaves the next stance's prints at rest."""
-    left = getattr(before.result, "slips", None)
-    held = getattr(after.result, "held_slips", None) or {}
-    kept = set(getattr(before.stance, "contacts", ())) & set(getattr(after.stance, "contacts", ()))
-    kept_surfaces = {contact.robot_surface for contact in kept}
-    problems = [f"{surface}'s print starts from held slips although the stance before "
-                + ("records none" if left is None or surface not in left else "did not keep it")
-                for surface in sorted(held) if surface not in kept_surfaces or left is None or surface not in left]
-    for surface in sorted(kept_surfaces & set(left or {}) & set(held)):
-        start, end = held[surface], left[surface]
-        if not np.array_equal(start.nodes, end.nodes):
-            problems.append(f"{surface}'s print starts from slips over other nodes than the stance before left")
-            continue
-        off = np.linalg.norm(start.slips - end.slips, axis=1)
-        if off.max(initial=0.0) > 1e-12:
-            worst = int(np.argmax(off))
-            problems.append(f"{surface}'s print starts {off[worst]:.3g} m off where the stance before left it "
-                            f"(node {int(start.nodes[worst])} of {start.body})")
-    problems.extend(f"{surface}'s print starts from rest, not where the stance before left it "
-                    f"(slips up to {left[surface].largest():.3g} m)"
-                    for surface in sorted(kept_surfaces & set(left or {}) - set(held)))
-    return problems

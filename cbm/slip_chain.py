@@ -20,7 +20,7 @@ from environments.errors import SceneError
 from fem.errors import FemError
 from stances.errors import StanceError
 
-__all__ = ["chained", "history_of", "starts_where_left"]
+__all__ = ["chained", "history_of", "starts_where_left", "unkept_slips"]
 
 logger = logging.getLogger(__name__)
 
@@ -33,14 +33,37 @@ def history_of(planned):
 
 def starts_where_left(before, after) -> bool:
     """Whether planned stance ``after`` was solved from where ``before``'s answer left the soft
-    prints they both keep (its ``held_slips`` exactly those :func:`stances.kept_slips` gives)."""
-    history = history_of(before)
-    wanted = {} if history is None else stances.kept_slips(history, after.stance)
+    prints they both keep (:func:`unkept_slips` finds nothing)."""
+    return not unkept_slips(before, after)
+
+
+def unkept_slips(before, after) -> list:
+    """Each soft print ``after`` keeps from ``before`` whose solve did not start where
+    ``before``'s answer left its link points (``held_slips`` against ``slips``): under
+    Coulomb friction the print would have slid between the two stances; and held slips of a
+    print ``after`` did not keep. An answer that records no slips (None: a file before
+    version 6, the stiff limit's spread answers) leaves the next stance's prints at rest."""
+    left = getattr(before.result, "slips", None)
     held = getattr(after.result, "held_slips", None) or {}
-    if set(held) != set(wanted):
-        return False
-    return all(np.array_equal(held[s].nodes, wanted[s].nodes) and np.array_equal(held[s].slips, wanted[s].slips)
-               for s in held)
+    kept = set(getattr(before.stance, "contacts", ())) & set(getattr(after.stance, "contacts", ()))
+    kept_surfaces = {contact.robot_surface for contact in kept}
+    problems = [f"{surface}'s print starts from held slips although the stance before "
+                + ("records none" if left is None or surface not in left else "did not keep it")
+                for surface in sorted(held) if surface not in kept_surfaces or left is None or surface not in left]
+    for surface in sorted(kept_surfaces & set(left or {}) & set(held)):
+        start, end = held[surface], left[surface]
+        if not np.array_equal(start.nodes, end.nodes):
+            problems.append(f"{surface}'s print starts from slips over other nodes than the stance before left")
+            continue
+        off = np.linalg.norm(start.slips - end.slips, axis=1)
+        if off.max(initial=0.0) > 1e-12:
+            worst = int(np.argmax(off))
+            problems.append(f"{surface}'s print starts {off[worst]:.3g} m off where the stance before left it "
+                            f"(node {int(start.nodes[worst])} of {start.body})")
+    problems.extend(f"{surface}'s print starts from rest, not where the stance before left it "
+                    f"(slips up to {left[surface].largest():.3g} m)"
+                    for surface in sorted(kept_surfaces & set(left or {}) - set(held)))
+    return problems
 
 
 def chained(planned, scene, robot, solver_options=None, start=1):

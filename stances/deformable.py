@@ -795,6 +795,7 @@ class DeformableContact:
         # frame at rest: fixed in the link, it turns with the print (exp(theta) held). A node
         # that sticks meets the link's face there: its coupling end at U + gap - exp(theta) held
         # (:meth:`_held_motion`); zero from rest and off the coulomb law.
+        self.held_slips = {}  # robot surface -> NodeSlips of the prints that start from them (_held_slips)
         self.held = self._held_slips(normals_in_body)
         self._holding = bool(np.any(self.held))
         # Rows t1, t2, n of each node's print frame, body frame (for the contact solve).
@@ -813,7 +814,8 @@ class DeformableContact:
 
     def _held_slips(self, normals_in_body) -> np.ndarray:
         """(p, 3) body frame: the held slips of the prints' nodes (``PrintSpec.held_slips``),
-        their part along each node's rest normal taken out; zero for nodes without one."""
+        their part along each node's rest normal taken out; zero for nodes without one. Those
+        read are kept in :attr:`held_slips` (none off the coulomb law)."""
         held = np.zeros((len(self.node_ids), 3))
         if self.law != "coulomb":
             return held
@@ -828,6 +830,7 @@ class DeformableContact:
             if given.body != self.deformable_object.name:
                 raise StanceError(f"held_slips of {spec.label} are on {given.body!r}, its print on "
                                   f"{self.deformable_object.name!r}: give the slips of the same print")
+            self.held_slips[spec.robot_surface] = given
             rows = np.flatnonzero(self.print_of_node == index)
             where = {int(node): row for row, node in enumerate(given.nodes)}
             for row in rows:
@@ -1076,9 +1079,14 @@ class DeformableContact:
         its rest frame."""
         if not self.turned_frames:
             return self.node_frames
+        return np.matmul(self.node_frames, self._face_turns(data)[self.print_of_node].transpose(0, 2, 1))
+
+    def _face_turns(self, data) -> np.ndarray:
+        """(L, 3, 3) each print's face turned with its link, relative to its nominal, body
+        frame (:meth:`_link_rotations`); the identity for a ball's print, which does not turn."""
         turns = np.array(self._link_rotations(data))
         turns[self.point_prints] = np.eye(3)
-        return np.matmul(self.node_frames, turns[self.print_of_node].transpose(0, 2, 1))
+        return turns
 
     def _link_rotations(self, data) -> list:
         """Each print's link rotation relative to its nominal, body frame."""
@@ -2316,8 +2324,7 @@ class DeformableContact:
         # The law reads each node's motion from where its link held it (its held slip, fixed
         # in the link and turned with it; none from rest), the small-slip bound the whole slip.
         whole = reached - ends
-        turns = np.array(self._link_rotations(data))
-        turns[self.point_prints] = np.eye(3)
+        turns = self._face_turns(data)
         relative = np.einsum("pij,pj->pi", frames, whole - np.einsum("pij,pj->pi", turns[self.print_of_node], self.held))
         slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, whole)[:, :2], axis=1)
         if self.law == "coulomb" and shown_slips is not None:

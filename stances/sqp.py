@@ -869,6 +869,7 @@ def posture_result(problem, outcome, elapsed, check=True) -> PostureResult:
             "corrections": outcome.corrections,
         },
         slips=problem_slips(problem, q, lam),
+        held_slips=problem_held_slips(problem),
     )
     if check and (feasible or nearly):
         verification = verify_shown(problem, result)
@@ -1022,6 +1023,13 @@ def problem_slips(problem, q, lam) -> dict:
         if contact.kind == "deformable":
             slips.update(contact.print_slips(model, data, lam[variables]))
     return slips
+
+
+def problem_held_slips(problem) -> dict:
+    """Robot surface -> :class:`~stances.results.NodeSlips` each soft print of ``problem``
+    starts from (the coulomb law's held slips; see :func:`stances.solve`'s ``history``)."""
+    return {surface: slips for contact in problem.contacts if contact.kind == "deformable"
+            for surface, slips in contact.held_slips.items()}
 
 
 def problem_point_forces(problem, linearization, q) -> tuple:

@@ -36,8 +36,8 @@ from .errors import ConfigurationError, StanceError
 from .problem import PostureOptions, build_problem
 from .qp import QPWorkspace
 from .results import PointForce, PostureResult
-from .sqp import (OUT_OF_TIME, QP_FAILED, SqpOutcome, deformation_fields, posture_result, restoration_step,
-                  solve_problem, verify_shown)
+from .sqp import (OUT_OF_TIME, QP_FAILED, SqpOutcome, deformation_fields, posture_result, problem_held_slips,
+                  restoration_step, solve_problem, verify_shown)
 from .statics import points_in_world
 from .stopping import NEARLY_FEASIBLE, NO_PROGRESS, ROUNDING_FLOOR, STALLED
 from .verify import VerificationTolerances
@@ -180,12 +180,11 @@ def solve(robot, scene, stance, q_init=None, time_budget=None, constraints=(), l
     """
     start = time.perf_counter()
     deadline = None if time_budget is None else start + _time_budget(time_budget)
-    held = _used_slips(kept_slips(history, stance), options)
+    held = kept_slips(history, stance)
     try:
         with setup_deadline(deadline):
-            result = _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
-                            start, deadline, held)
-            return replace(result, held_slips=held) if held else result
+            return _solve(robot, scene, stance, q_init, time_budget, constraints, lam_init, reference, options,
+                          start, deadline, held)
     except SetupTimeout as stop:
         # Out of time while a soft print was set up: an answer, as a spent budget
         # is anywhere else, from the posture the solve would have started at.
@@ -216,16 +215,6 @@ def kept_slips(history, stance) -> dict:
     before, left = set(getattr(history.stance, "contacts", ()) or ()), history.slips or {}
     return {contact.robot_surface: left[contact.robot_surface] for contact in stance
             if contact in before and contact.robot_surface in left}
-
-
-def _used_slips(held, options) -> dict:
-    """Those of ``held`` the solve reads: a soft print's, under the ``coulomb`` law (not one
-    held rigid, nor any when every soft print is)."""
-    if not held or options.get("contact_law", PostureOptions.contact_law) != "coulomb" or options.get(
-            "deformable_as_rigid", PostureOptions.deformable_as_rigid):
-        return {}
-    rigid = set(options.get("rigid_prints", ()))
-    return {surface: slips for surface, slips in held.items() if surface not in rigid}
 
 
 def _unsolved(robot, scene, stance, q_init, start, status, reason) -> PostureResult:
@@ -616,6 +605,7 @@ def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, hel
         feasible=False, q=q, point_forces=point_forces, torques=answer.torques, iterations=iterations,
         solve_time=time.perf_counter() - start, reason="", stance=problem.stance,
         deformations=deformation_fields(problem, q, point_forces), limits=answer.limits, statistics=statistics,
+        held_slips=problem_held_slips(problem),
     )
     verification = verify_shown(problem, result)
     if not verification.ok:
