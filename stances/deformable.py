@@ -1374,7 +1374,9 @@ class DeformableContact:
 
         The consistent reaction gives ``G^T f = G^T R G A^-1 W = W``: a print's W is the
         wrench its nodes put on the link, body frame, moments about the print's origin
-        (second order in the turn aside). From the forces of the same stance held rigid,
+        (second order in the turn aside). Held slips (a print kept from the stance before)
+        add ``G^T R h``, h their motion (:meth:`_held_motion`): W is that much less than
+        the wrench (exact where every node sticks). From the forces of the same stance held rigid,
         a solve starts with the prints pressed as deep as that load presses them, where
         W read off a posture whose links barely touch (:meth:`initial_variables`) leaves
         every node at the point of lifting off, with no force gradient.
@@ -1398,6 +1400,10 @@ class DeformableContact:
             moment = sum((np.cross(point - placement.translation, f) for point, f in on_link), np.zeros(3))
             w[6 * i : 6 * i + 3] = self.rotation_body.T @ force
             w[6 * i + 3 : 6 * i + 6] = self.rotation_body.T @ moment
+        if self._holding:
+            # G^T f = G^T R (G A^-1 W + h) = W + G^T R h, R = -(C + D)^-1: from rest, W
+            # read as the wrench started a kept palm pushed 40 N along its held slips.
+            w = w + self.basis.T @ self.patch.link_solve(self._held_motion(w))
         if self.law == "coulomb":
             for i in self.point_prints:
                 w[6 * i : 6 * i + 3] *= self._ball_load_scale(w, int(i))

@@ -127,6 +127,22 @@ def test_verify_reads_each_kept_print_law_from_its_held_slips(plan, robot, scene
     assert any(f"node {int(held.nodes[stuck])} of {held.body}" in reason for reason in check.reasons), check.reasons
 
 
+def test_the_variables_carrying_a_kept_prints_forces_account_for_its_held_slips(plan, robot, scene):
+    """The warm start's W, read off forces (``variables_from_forces``), is the W whose
+    contact solve gives them: from the kept answer's own forces, its own W within the share
+    of its few slipping nodes (1.3-1.9 % measured). Read as if from rest (``G^T f = W``),
+    it was 22-37 % off, some 40 N sideways on the palm (2026-12-06, session z): the solve
+    started from a print pushed along its held slips."""
+    index, _ = _first_slipped(plan)
+    result = plan.stances[index + 1].result
+    problem = build_problem(robot, scene, result.stance, held_slips=result.held_slips)
+    lam = np.asarray(result.statistics["lambda"])
+    for contact, columns in zip(problem.contacts, problem.variable_slices):
+        if contact.kind == "deformable":
+            w = contact.variables_from_forces(robot.model, result.point_forces)
+            assert np.linalg.norm(w - lam[columns]) < 0.03 * np.linalg.norm(lam[columns])
+
+
 def test_plan_check_refuses_a_kept_print_started_from_rest(plan):
     index, surface = _first_slipped(plan)
     after = plan.stances[index + 1]
