@@ -667,8 +667,9 @@ class PostureProblem:
         -------
         (m,) float
             Rigid contacts' cone coefficients as ``rigid``'s; a body soft in both its
-            variables in ``rigid``; each other soft print's W its resultant wrench there
-            (:meth:`DeformableContact.variables_from_forces`).
+            variables in ``rigid``; each other soft print's W the one that carries its
+            resultant wrench there (:meth:`DeformableContact.variables_from_forces`: the
+            wrench itself, less what held slips carry).
         """
         out = np.zeros(self.n_variables)
         slices, soft = {}, {}

@@ -573,8 +573,9 @@ def _spread_answer(problem, stiff, held, answer, iterations, qp_time, start, hel
     gives micrometres under it: verify then finds each node against its link within its
     tolerance, pushing, in its cone (climb-with-soft-support's palm at 1e10 Pa, held at
     rest, had a node slip 1.03 um under its friction). The answer's ``lambda`` is ``problem``'s
-    variables with each stiff print's W its held wrench (a start for a later solve; their
-    Coulomb forces are not the reported ones).
+    variables with each stiff print's W the one that carries its held wrench
+    (:meth:`~stances.deformable.DeformableContact.variables_from_forces`: a start for a later
+    solve; their Coulomb forces are not the reported ones).
     """
     model, data = problem.robot.model, problem.data
     point_forces = _spread_forces(problem, stiff, held, answer)
@@ -658,7 +659,8 @@ def _carried(problem, held, stiff, answer, out_of_time):
     for contact, s in stiff:
         if out_of_time():
             return None, None
-        carried = contact.carrying_variables(lam[s])
+        # The wrenches themselves, not the W that carries them from held slips (lam's).
+        carried = contact.carrying_variables(contact.print_wrenches(problem.robot.model, answer.point_forces))
         give = None if carried is None else contact.link_give(carried[1])
         if give is None or give > STIFF_GIVE:
             if give is None:

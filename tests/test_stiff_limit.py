@@ -312,6 +312,23 @@ def test_a_palm_on_a_steel_stiff_cube_is_solved_in_its_stiff_limit(robot, steel_
     assert np.linalg.norm(_palm_wrench(robot, off)[:3] - expected[:3]) < 0.03 * np.linalg.norm(expected[:3])
 
 
+def test_a_stiff_palm_started_from_its_own_slips_is_carried_again(robot, steel_cube):
+    """Solved again from where its own answer left it (``history``), the palm on the
+    steel-stiff cube is carried in its stiff limit again, its slips recorded and its load
+    the same to 0.5 N: the links' motion is found for the palm's wrench, not for the W that
+    carries it from its held slips (they differ by ``G^T R h``, tens of newtons at 1e10 Pa
+    for a tenth of a micrometre of slip; asked to carry that W, the solve fell back to the
+    pressure spread, whose answers record no slips: 2026-12-07, session z)."""
+    scene, stance = steel_cube
+    first = solve(robot, scene, stance)
+    assert first.feasible and first.slips is not None
+    again = solve(robot, scene, stance, q_init=first.q, history=first)
+    assert again.feasible and again.statistics["stiff_limit"] is True, again.reason
+    assert "pressure_spread" not in again.statistics and again.slips is not None
+    assert np.array_equal(again.held_slips[PALM].slips, first.slips[PALM].slips)
+    assert np.linalg.norm(_palm_wrench(robot, again)[:3] - _palm_wrench(robot, first)[:3]) < 0.5
+
+
 def test_a_cube_that_gives_is_not_held_rigid(robot):
     """At 1e8 Pa the rigid answer's loads would sink the palm's bonded nodes by 15 um, over
     the 10 um the stiff limit takes: solved through W."""
