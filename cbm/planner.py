@@ -32,7 +32,7 @@ from stances.errors import StanceError
 
 from .errors import CbmError, UnknownScenario
 from .plan import FRONTIER_SIZE, Plan, PlannedStance, PlanStatistics, robot_description, scenario_source
-from .slip_chain import chained
+from .slip_chain import chained, history_of
 from .parallel import PosturePool, check_workers
 from .rejections import (
     FINEST_GRID, UNRESOLVED_BALL, cause_of, finer_grid_hint, pivoting_print_hint, soft_support_hint, stiff_reach_hint,
@@ -206,10 +206,9 @@ class PostureOracle:
         if rejection is not None:
             return StanceCheck(False, rejection.reason, None, rejected_by=rejection.rejected_by)
         starts = []
-        parent = None if parent_check is None else parent_check.result
-        if parent is not None:
-            starts.append(parent.q)
-        history = parent if isinstance(parent, stances.PostureResult) else None
+        if parent_check is not None and parent_check.result is not None:
+            starts.append(parent_check.result.q)
+        history = None if parent_check is None else history_of(parent_check)
         if self.retry_cold or not starts:
             starts.append(initial_configuration(self.robot, self.scene, stance))
         check = None

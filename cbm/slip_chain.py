@@ -26,8 +26,8 @@ logger = logging.getLogger(__name__)
 
 
 def history_of(planned):
-    """A planned stance's answer as the ``history`` of the stance after it (None where the
-    plan holds no answer to start from)."""
+    """A planned stance's (or a stance check's) answer as the ``history`` of the stance after
+    it (None where it holds no posture answer to start from)."""
     return planned.result if isinstance(planned.result, stances.PostureResult) else None
 
 

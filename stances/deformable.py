@@ -993,8 +993,11 @@ class DeformableContact:
         point, the held slip being fixed in the link (theta = A^-1 W); zero from rest."""
         if not self._holding:
             return np.zeros(self.held.size)
-        _, turns, _ = self._print_turns(w)
-        return -np.einsum("pij,pj->pi", turns[self.print_of_node], self.held).reshape(-1)
+        return -self._turned_held(self._print_turns(w)[1]).reshape(-1)
+
+    def _turned_held(self, turns) -> np.ndarray:
+        """(p, 3) each node's held slip turned by its print's turn ``turns`` (L, 3, 3)."""
+        return np.einsum("pij,pj->pi", turns[self.print_of_node], self.held)
 
     def _held_motion_derivative(self, w) -> np.ndarray:
         """(3p, 6L) d :meth:`_held_motion` / dW: ``exp(theta) [held]x Jr(theta) d theta``."""
@@ -2352,7 +2355,7 @@ class DeformableContact:
         # in the link and turned with it; none from rest), the small-slip bound the whole slip.
         whole = reached - ends
         turns = self._face_turns(data)
-        relative = np.einsum("pij,pj->pi", frames, whole - np.einsum("pij,pj->pi", turns[self.print_of_node], self.held))
+        relative = np.einsum("pij,pj->pi", frames, whole - self._turned_held(turns))
         slide = np.linalg.norm(np.einsum("pij,pj->pi", frames, whole)[:, :2], axis=1)
         if self.law == "coulomb" and shown_slips is not None:
             reasons.extend(self._check_shown_slips(self._as_slips(whole, turns), shown_slips, tolerances, measures))
