@@ -13,7 +13,15 @@ from .distributed import solve_many, write_dataset
 from .errors import CbmError, MotionError, PlanFileError, UnknownScenario
 from .output import OutputFiles, write_outputs
 from .plan import Plan, PlanCheck, PlannedStance, PlanStatistics
-from .planner import LookaheadHeuristic, PostureOracle, StanceCheck, initial_configuration, load_scenario, plan
+from .planner import (
+    LookaheadHeuristic,
+    PostureOracle,
+    StanceCheck,
+    initial_configuration,
+    load_robot,
+    load_scenario,
+    plan,
+)
 from .reach import ReachLimits, ReachModel
 from .replan import AvoidedStep, MovingPlan, plan_with_motions
 from .sampling import PrintSet, SamplingOptions, sample_prints
@@ -50,6 +58,7 @@ __all__ = [
     "best_first_search",
     "differ_by_one_contact",
     "initial_configuration",
+    "load_robot",
     "load_scenario",
     "plan",
     "plan_with_motions",

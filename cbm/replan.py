@@ -15,11 +15,10 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
-import stances
 
 from .errors import CbmError
 from .motion import plan_motions_reposing
-from .planner import PlanInterrupted, load_scenario, plan
+from .planner import PlanInterrupted, load_robot, load_scenario, plan
 
 __all__ = ["AvoidedStep", "MovingPlan", "plan_with_motions"]
 
@@ -83,7 +82,7 @@ def plan_with_motions(scenario, *, robot=None, attempts=3, motion_options=None, 
     scenario : environments Scenario, str or path
         As :func:`cbm.plan`.
     robot : stances Robot, optional
-        Default: ``stances.Robot.load(scenario.robot)``.
+        Default: :func:`load_robot` of ``scenario.robot`` (loaded once, shared by plans).
     attempts : int
         Searches at most (>= 1); each has the budgets of ``plan_options``.
     motion_options : dict, optional
@@ -114,7 +113,7 @@ def plan_with_motions(scenario, *, robot=None, attempts=3, motion_options=None, 
     if "forbidden" in plan_options:
         raise CbmError("plan_with_motions sets forbidden itself (the steps without a motion); do not pass it")
     scenario = load_scenario(scenario)
-    robot = robot if robot is not None else stances.Robot.load(scenario.robot)
+    robot = robot if robot is not None else load_robot(scenario.robot)
     motion_options = dict(motion_options or {})
     best, avoided = None, []
     for attempt in range(1, attempts + 1):
