@@ -82,8 +82,8 @@ def run(name):
     if not plan.success:
         return name, None, None
     tic = time.process_time()
-    baseline = plan_motions(plan, scenario, robot, held_drift=UNBOUNDED)
-    baseline_row = measure(plan, baseline, scenario, robot, time.process_time() - tic)
+    baseline_plan, baseline = plan_motions(plan, scenario, robot, held_drift=UNBOUNDED)
+    baseline_row = measure(baseline_plan, baseline, scenario, robot, time.process_time() - tic)
     tic = time.process_time()
     reposed_plan, motions = plan_motions_reposing(plan, scenario, robot)
     library_row = measure(reposed_plan, motions, scenario, robot, time.process_time() - tic)

@@ -49,6 +49,12 @@ posture carries exactly that; between two unloaded samples, another unloaded one
 is checked at the samples, not between them: a robot moving slowly enough
 between two balanced postures close together stays balanced, and the checks
 between samples bound how far apart they are.
+
+Under Coulomb friction a soft print node that slipped stays where it slipped to: each
+posture of a motion starts the soft prints it keeps where the posture before it left them,
+from the leaving stance's answer on, and the arriving stance is solved again from where the
+last sample leaves them (:attr:`Motion.arrival`), which :func:`plan_motions` puts in the
+plan, so that the next motion starts there.
 """
 
 from __future__ import annotations
@@ -70,7 +76,7 @@ from stances.problem import stance_collision_checker
 from stances.terms import print_normal_loads
 
 from .between_samples import BETWEEN, HELD_DRIFT, BetweenSamples, checked_drift
-from .slip_chain import chained, history_of
+from .slip_chain import chained, history_of, slips_not_carried
 from .errors import MotionError
 from .step_path import RAMP, halfway, lifted_path
 
@@ -333,8 +339,9 @@ class Motion:
         The contacts held throughout (those both stances share).
     configurations : (k, nq) float
         Postures, the first stance's ``q`` first and, when feasible, the
-        second's last; between them, one per waypoint, and one per sample
-        inserted where a step collided or strayed (fewer if the motion failed).
+        second's last (its ``arrival``'s where it has one); between them, one per
+        waypoint, and one per sample inserted where a step collided or strayed
+        (fewer if the motion failed).
     paths : tuple of FramePlacementConstraint or ContactSample
         How the moving surface is held at each interior sample: its frame on
         the path's waypoints (and any halfway waypoints the solves or the
@@ -359,6 +366,14 @@ class Motion:
     reposed : bool
         Whether the arriving stance's posture was solved again for this motion
         (:func:`plan_motions_reposing`): the plan's own lay out of its reach.
+    arrival : stances PostureResult or None
+        The arriving stance's answer solved again from where the last sample leaves the
+        soft prints it keeps (its posture the last of ``configurations``): the plan's own
+        answer starts them where the leaving stance left them, and under Coulomb friction
+        the motion between moves them on. None where the plan's answer starts there
+        already (no soft print kept, nothing slipped), or the motion is not feasible.
+        :func:`plan_motions` and :func:`plan_motions_reposing` put it in the plan they
+        return, so that the next motion starts from it.
 
     Raises
     ------
@@ -378,6 +393,7 @@ class Motion:
     reason: str = ""
     seam: int | None = None
     reposed: bool = False
+    arrival: object = None
 
     def __post_init__(self):
         array = np.array(self.configurations, dtype=float)
@@ -393,6 +409,8 @@ class Motion:
             )
         if self.seam is not None and not 1 <= self.seam <= interior:
             raise MotionError(f"seam {self.seam} is not an interior sample (1..{interior})")
+        if self.arrival is not None and not (self.feasible and np.array_equal(self.arrival.q, array[-1])):
+            raise MotionError("a motion's arrival is the posture it ends on, and only a feasible motion has one")
 
     @property
     def targets(self) -> np.ndarray:
@@ -615,10 +633,12 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     ]
     options = _options_of(after) if solver_options is None else dict(solver_options)
     scene = scenario.scene
-    # Every sample, as the arriving stance itself, starts the soft prints it keeps where the
-    # leaving stance's answer left them (stances.solve's history), not from rest.
+    # The first sample starts the soft prints it keeps where the leaving stance's answer left
+    # them (stances.solve's history), not from rest, and each after it where the one before
+    # left them: the forward samples as they are solved, the others in _clear_steps' walk.
     history = history_of(before)
-    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, history)
+    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, history,
+                            chain=True)
     backward, reason = None, ""
     if forward.pending:
         # From the arriving stance back to where the forward solves stopped: a posture
@@ -654,7 +674,10 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
         nearest = samples[-1] if touch_down else samples[0]
         for trust in (_SWITCH_TRUST, None):  # short steps first; where they stall, the solver's own
             tried = options if trust is None else {**options, "trust_region": trust}
-            result = _solve_sample(robot, scene, support, holding, switch, nearest.q, nearest.q, None, tried, history)
+            # From where the forward samples leave the kept prints (a touch-down follows them;
+            # a lift-off, and a touch-down after a backward half, are chained by the walk).
+            left = nearest.result if touch_down and backward is None else history
+            result = _solve_sample(robot, scene, support, holding, switch, nearest.q, nearest.q, None, tried, left)
             if result.feasible:
                 break
         if not result.feasible:
@@ -665,14 +688,16 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
             samples = samples + [touch] if touch_down else [touch] + samples
             if seam is not None and not touch_down:
                 seam += 1
+    arrival = None
     if not reason:
         between = BetweenSamples(robot, scene, support, moving, options, held_drift)
-        samples, seam, reason = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
-                                             options, surface, normal, index, history)
-    configurations = [before.q] + [sample.q for sample in samples] + ([] if reason else [after.q])
+        samples, seam, reason, arrival = _clear_steps(robot, scene, support, holding, between, ends, samples, seam,
+                                                      options, surface, normal, index, history, after.result)
+    configurations = [before.q] + [sample.q for sample in samples] + (
+        [] if reason else [after.q if arrival is None else arrival.q])
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
-                  not reason, reason, seam)
+                  not reason, reason, seam, arrival=None if reason else arrival)
 
 
 @dataclass(frozen=True)
@@ -705,35 +730,67 @@ def _step_text(k, problem, last):
 
 
 def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, options, surface, normal, index,
-                 history=None):
-    """Check each step between consecutive postures for collisions and held contacts'
-    strays (``between``, a :class:`cbm.between_samples.BetweenSamples`); where one fails, solve a sample halfway
-    along the path and check both halves, at most :data:`MAX_INSERTED` samples for
-    collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the motion
-    (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the
-    moving contact; ``normal``: its print's normal (world); ``history``: the answer the samples'
-    kept soft prints start from (:func:`_solve_sample`). Returns the samples, the seam moved past any inserted before it, and
-    a reason (empty when every step is clear)."""
+                 history=None, arriving=None):
+    """Walk the steps between consecutive postures, each posture starting where the one before
+    it left the soft prints both keep, and check each step for collisions and held contacts'
+    strays (``between``, a :class:`cbm.between_samples.BetweenSamples`); where one fails, solve
+    a sample halfway along the path and check both halves, at most :data:`MAX_INSERTED`
+    samples for collisions and :data:`MAX_STRAY_INSERTED` for strays in each step of the
+    motion (which sample: :func:`_halfway_sample`). ``holding``: the stance holding the moving
+    contact; ``normal``: its print's normal (world); ``history``: the leaving stance's answer,
+    where the first posture starts; ``arriving``: the arriving stance's.
+
+    Under Coulomb friction a print node that slipped stays where it slipped to: as an
+    incremental quasi-static solve along the motion would, each posture starts where the
+    posture before it left the kept prints, not where the leaving stance did. A posture the
+    walk reaches that did not start there (a sample of the backward half, one after a sample
+    inserted before it, the arriving stance's answer) is solved again from there
+    (:func:`_chained`) before its step is checked. With every sample from the leaving stance,
+    foot-and-hand-on-foam's palm, held down while a sole moved, came 3.8 mm off where the
+    motion leaves it at the arriving stance (climb-with-soft-support's soles 0.1-0.9 mm; the
+    slip bound 5.6 mm), and on the coarse soft cube a palm's load transfer slid it 5.5 mm
+    between its last sample and the stance: the walk now inserts samples there.
+
+    Returns
+    -------
+    samples, seam, reason, arrival
+        The samples, the seam moved past any inserted before it, a reason (empty when every
+        step is clear), and the arriving stance's answer solved again from where the last
+        sample leaves its kept prints (None where ``arriving`` starts there, or a reason).
+    """
     nodes = [ends[0], *samples, ends[1]]
     origin = list(range(len(nodes) - 1))  # the step of the motion each step comes from
     budget = {"collision": MAX_INSERTED, "drift": MAX_STRAY_INSERTED}
     inserted = {kind: [0] * len(origin) for kind in budget}  # samples inserted into each step of the motion
+    arrival = None
     k = 0
     while k < len(nodes) - 1:
-        a, b = nodes[k], nodes[k + 1]
+        a = nodes[k]
+        left = history if k == 0 else a.result  # where a leaves the kept soft prints
+        last = k == len(nodes) - 2
+        b, answer, why_not = _chained(robot, scene, support, holding, left, nodes[k + 1],
+                                      (arrival or arriving) if last else None, options)
+        if why_not:
+            what = "the next stance" if last else f"sample {k + 1}"
+            before_it = "the last sample" if last else "the posture before it"
+            return nodes[1:-1], seam, (f"{what}, solved again from where {before_it} leaves its soft prints: "
+                                       f"{why_not}"), None
+        nodes[k + 1] = b
+        if last and answer is not arriving:
+            arrival = answer
         problem = between.first_problem(a.q, b.q, held=a.holds and b.holds)
         if problem is None:
             k += 1
             continue
         kind, words = problem
-        where = _step_text(k, words, last=k == len(nodes) - 2)
+        where = _step_text(k, words, last)
         if inserted[kind][origin[k]] >= budget[kind]:
             logger.info("motion %d -> %d: %s", index, index + 1, where)
             count = sum(counts[origin[k]] for counts in inserted.values())
-            return nodes[1:-1], seam, f"{where}, after {count} samples inserted in that step"
-        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, history)
+            return nodes[1:-1], seam, f"{where}, after {count} samples inserted in that step", None
+        result, path, reference = _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, left)
         if not result.feasible:
-            return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}"
+            return nodes[1:-1], seam, f"{where}; no posture halfway: {result.reason}", None
         if isinstance(path, ContactSample):
             path = _placed(robot, path, result.q)
         held = isinstance(path, ContactSample)
@@ -744,7 +801,34 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
         inserted[kind][origin[k]] += 1
         if seam is not None and k + 1 <= seam:
             seam += 1
-    return nodes[1:-1], seam, ""
+    return nodes[1:-1], seam, "", arrival
+
+
+def _chained(robot, scene, support, holding, left, node, arriving, options):
+    """``node`` (a :class:`_Sample`) solved again where its answer did not start where answer
+    ``left`` leaves the soft prints both keep (:func:`cbm.slip_chain.slips_not_carried`), from
+    its own posture and forces (most take a step or two): ``(node, answer, "")``, or ``(node,
+    answer, the solver's reason)`` where no posture is found so. The motion's last node, the
+    arriving stance's posture, has answer ``arriving`` (None: a plan read from a file without
+    its answers), and keeps no result of its own (the walk's halfway samples do not start
+    from a stance's answer): its answer is that stance solved again. A ``left`` that is no
+    posture answer chains nothing."""
+    end = node.path is None
+    answer = arriving if end else node.result
+    if (not isinstance(left, stances.PostureResult) or not isinstance(answer, stances.PostureResult)
+            or not slips_not_carried(left, answer)):
+        return node, answer, ""
+    lam = np.asarray(answer.statistics["lambda"])
+    if end:
+        result = stances.solve(robot, scene, answer.stance, q_init=answer.q, lam_init=lam, history=left, **options)
+        # (feasible: stances.verify passed inside the solve)
+        return (replace(node, q=result.q), result, "") if result.feasible else (node, answer, result.reason)
+    result = _solve_sample(robot, scene, support, holding, node.path, node.reference, node.q, node.result, options,
+                           left)
+    if not result.feasible:
+        return node, answer, result.reason
+    path = _placed(robot, node.path, result.q) if isinstance(node.path, ContactSample) else node.path
+    return replace(node, q=result.q, path=path, result=result), result, ""
 
 
 def _halfway_sample(robot, scene, support, holding, a, b, k, options, surface, history=None):
@@ -839,19 +923,20 @@ class _Continuation:
         return _Continuation(self.results[::-1], self.reached[::-1], self.references[::-1], self.pending)
 
 
-def _continuation(robot, scene, support, paths, q, placement, options, max_splits, history=None):
+def _continuation(robot, scene, support, paths, q, placement, options, max_splits, history=None, chain=False):
     """Solve the postures holding each of ``paths`` ((name, FramePlacementConstraint,
     reference posture) triples) in turn, from posture ``q`` whose frame is at
     ``placement`` ((4, 4), world); a waypoint not reached is retried from a waypoint
     halfway toward it from the last one reached (a shorter continuation step, its
     reference posture halfway too), at most ``max_splits`` times in all; ``history``: as
-    :func:`_solve_sample`'s."""
+    :func:`_solve_sample`'s, for the first, and with ``chain`` each after it from where the
+    one before leaves the kept prints (the order of the motion: not so backward)."""
     results, reached, references, splits, last_reference = [], [], [], 0, q
     pending = [(name, path, reference, False) for name, path, reference in paths]
     while pending:
         name, path, reference, halfway_waypoint = pending[0]
         result = _solve_sample(robot, scene, support, None, path, reference, q, results[-1] if results else None,
-                               options, history)
+                               options, results[-1] if chain and results else history)
         if result.feasible:
             q, placement, last_reference = result.q, path.transform_frame_to_world, reference
             pending.pop(0)
@@ -906,10 +991,41 @@ def plan_motions(plan, scenario, robot, **options):
 
     Returns
     -------
-    tuple of Motion
+    plan : cbm.Plan
+        The plan with each stance a motion arrives at with its :attr:`Motion.arrival`
+        (``PlannedStance.arrived_by_motion``): each motion starts where the one before
+        it left the robot and its soft prints.
+    motions : tuple of Motion
         ``len(plan.stances) - 1`` motions, in order.
     """
-    return tuple(plan_motion(plan, i, scenario, robot, **options) for i in range(len(plan.stances) - 1))
+    planned, motions = list(plan.stances), []
+    for index in range(len(planned) - 1):
+        motion = plan_motion(replace(plan, stances=planned), index, scenario, robot, **options)
+        planned = _arrived(planned, index, motion, scenario.scene, robot, options.get("solver_options"))
+        motions.append(motion)
+    return replace(plan, stances=tuple(planned)), tuple(motions)
+
+
+def _arrived(planned, index, motion, scene, robot, solver_options=None):
+    """``planned`` (PlannedStance, in order) after ``motion`` from stance ``index``: stance
+    ``index + 1`` the motion's :attr:`Motion.arrival` where it has one; where the motion is not
+    found, the stances from ``index + 1`` on solved again from where the stance before leaves
+    their kept soft prints wherever they do not start there (a stance the motion before
+    arrived at with its own answer: :func:`cbm.slip_chain.chained`; where one of them has no
+    posture so, the stances as they were, which :meth:`cbm.Plan.check` then reports)."""
+    planned = list(planned)
+    if motion.arrival is not None:
+        result = motion.arrival
+        planned[index + 1] = replace(planned[index + 1], q=result.q, point_forces=tuple(result.point_forces),
+                                     deformations=dict(result.deformations or {}), result=result,
+                                     arrived_by_motion=True)
+    elif not motion.feasible:
+        again = chained(planned, scene, robot, solver_options, start=index + 1)
+        if again is None:
+            logger.info("stance %d keeps its answer from the stance before's earlier one", index + 1)
+        else:
+            planned = again
+    return planned
 
 
 def plan_motions_reposing(plan, scenario, robot, **options):
@@ -942,7 +1058,8 @@ def plan_motions_reposing(plan, scenario, robot, **options):
     Returns
     -------
     plan : cbm.Plan
-        The plan with the reposed stances' postures, forces and fields.
+        The plan with the reposed stances' postures, forces and fields, and each stance a
+        motion arrives at with its :attr:`Motion.arrival` (as :func:`plan_motions`).
     motions : tuple of Motion
         ``len(plan.stances) - 1`` motions, in order; ``Motion.reposed`` marks
         those that needed their arriving stance reposed.
@@ -973,6 +1090,9 @@ def plan_motions_reposing(plan, scenario, robot, **options):
                 if kept:
                     logger.info("motion %d -> %d found with stance %d reposed", index, index + 1, index + 1)
                     planned, motion = trial, replace(retried, reposed=True)
+        if motion.arrival is not None:
+            ahead = None  # planned from the stance's answer before the motion arrived with its own
+        planned = _arrived(planned, index, motion, scenario.scene, robot, options.get("solver_options"))
         motions.append(motion)
     return replace(plan, stances=tuple(planned)), tuple(motions)
 
@@ -1081,7 +1201,9 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
     -------
     list of str
         Problems, one line each; empty if the motion starts and ends on its
-        stances' postures, every interior sample verifies (:func:`stances.verify`)
+        stances' postures, each of its postures (of a feasible motion) starts where the
+        one before it left the soft prints both keep, from the leaving stance's answer to
+        the arriving one's (:attr:`Motion.arrival`), every interior sample verifies (:func:`stances.verify`)
         as a stance of the support holding its frame on its waypoint, or (a
         :class:`ContactSample`) as the stance holding the moving contact, with no
         load on it at touch-down and lift-off and a load-transfer sample's pinned
@@ -1117,6 +1239,13 @@ def verify_motion(motion, plan, scenario, robot, solver_options=None, held_drift
     switches = [path for path in motion.paths if isinstance(path, ContactSample) and path.unloaded]
     if motion.feasible and not switches:
         problems.append("no touch-down or lift-off sample: a motion has one at least")
+    if motion.feasible and isinstance(before.result, stances.PostureResult):
+        # Each posture starts where the one before it left the soft prints both keep.
+        chain = [("the stance it leaves", before.result)] + [
+            (f"sample {k}", result) for k, result in enumerate(motion.results, start=1)]
+        chain.append(("the next stance", after.result))
+        for (what, left), (name, result) in zip(chain, chain[1:]):
+            problems.extend(f"{name}: {problem}" for problem in slips_not_carried(left, result, what=what))
     for k, (result, path) in enumerate(zip(motion.results, motion.paths)):
         if not np.array_equal(result.q, motion.configurations[k + 1]):
             problems.append(f"sample {k + 1}: its result is not its posture")

@@ -1,6 +1,6 @@
 """A plan: the sequence of verified stances, saved to and read from JSON.
 
-The file (``plan.json``, format ``softcbm-plan`` version 6) describes itself: its
+The file (``plan.json``, format ``softcbm-plan`` version 7) describes itself: its
 ``units`` and ``frames`` say what every number is, ``robot`` names each
 coordinate of ``q`` and each torque and gives the locked joints' values (the
 robot's full configuration), and ``scenario`` embeds the scenario's YAML so that
@@ -10,8 +10,10 @@ summary. Version 1 files (before these headers) are read as they are, and the re
 versions 1 to 4 as solved with the options then the defaults (:data:`SOLVED_AS`; versions 3
 to 6 have version 2's layout, version 4's soft prints solved against the turned faces, version
 5's with a small-slip bound of a quarter of the mesh's spacing, version 6's kept soft prints
-from where the stance before left them: each result's ``slips`` and ``held_slips``); a
-file with no version or an unknown one is refused with the versions this library reads.
+from where the stance before left them: each result's ``slips`` and ``held_slips``; version 7
+marks the stances whose answer starts where the motion into them left them,
+``arrived_by_motion``, false in earlier files); a file with no version or an unknown one is
+refused with the versions this library reads.
 """
 
 from __future__ import annotations
@@ -55,14 +57,14 @@ logger = logging.getLogger(__name__)
 PLAN_FORMAT = "softcbm-plan"
 #: Open stances a plan keeps of where its search would have gone on (:attr:`Plan.frontier`).
 FRONTIER_SIZE = 5
-PLAN_VERSION = 6
+PLAN_VERSION = 7
 #: Versions :meth:`Plan.load` reads; version 1 has no headers and repeats each
 #: stance's arrays inside its ``result``. Versions 1 to 3 were solved before the contact
 #: frames turned with the links' faces (``stances.PostureOptions.contact_frames``,
 #: 2026-12-06), version 3 with a 1 degree tilt allowance by default, versions 1 to 4 with a
 #: 2 cm small-slip bound (``max_slip``; a quarter of the mesh's spacing since version 5):
 #: their results read as solved so (:data:`SOLVED_AS`), and are checked so.
-READABLE_VERSIONS = (1, 2, 3, 4, 5, 6)
+READABLE_VERSIONS = (1, 2, 3, 4, 5, 6, 7)
 #: The posture options a result of an earlier version was solved with where it recorded
 #: none (they were the defaults then).
 SOLVED_AS = {1: {"contact_frames": "rest", "max_slip": 0.02}, 2: {"contact_frames": "rest", "max_slip": 0.02},
@@ -84,6 +86,8 @@ FRAMES = {
     "transform_body_to_world maps it to the world), nodes in the order of the body's mesh",
     "stance": "each print's x, y (m) and theta (rad) in its surface's frame",
     "move": "how the stance was reached from the previous one, in words",
+    "arrived_by_motion": "true where the answer starts its kept soft prints where the motion into it (cbm plan "
+    "--motion) left them, not where the stance before did",
     "result.torques": "actuated joint torques, N m, in robot.joint_names order",
 }
 
@@ -128,6 +132,11 @@ class PlannedStance:
         unless stances can rebuild it.
     move : str
         How this stance was reached from the previous one ("" for the start).
+    arrived_by_motion : bool
+        Whether its answer starts the soft prints it keeps where the motion into it left
+        them (:attr:`cbm.motion.Motion.arrival`), which under Coulomb friction moved them
+        on from where the stance before left them: :func:`cbm.motion.verify_motion` checks
+        that chain, the plan alone does not hold the motion's samples.
     """
 
     stance: Any
@@ -136,6 +145,7 @@ class PlannedStance:
     deformations: dict = field(default_factory=dict)
     result: Any = None
     move: str = ""
+    arrived_by_motion: bool = False
 
     def __post_init__(self):
         object.__setattr__(self, "q", _readonly(self.q))
@@ -170,6 +180,7 @@ class PlannedStance:
             ],
             "displacements_in_body": {k: v.tolist() for k, v in self.deformations.items()},
             "result": _jsonable(result),
+            "arrived_by_motion": bool(self.arrived_by_motion),
         }
 
     @classmethod
@@ -200,6 +211,7 @@ class PlannedStance:
             deformations=deformations,
             result=_rebuild_result(result),
             move=data.get("move", ""),
+            arrived_by_motion=bool(data.get("arrived_by_motion", False)),
         )
 
 
@@ -396,8 +408,10 @@ class Plan:
         (``q``, ``point_forces`` and ``deformations`` of each stance, not a copy
         inside its result), with
         the posture options its result was solved with. Consecutive stances
-        must differ by exactly one contact, and a plan that says it succeeded
-        must end on a stance that reaches the scenario's goal.
+        must differ by exactly one contact, each must start the soft prints it keeps
+        where the stance before left them (one that ``arrived_by_motion`` where its
+        motion left them: :func:`cbm.motion.verify_motion` checks that), and a plan
+        that says it succeeded must end on a stance that reaches the scenario's goal.
 
         Parameters
         ----------
@@ -444,7 +458,8 @@ class Plan:
         for index, (before, after) in enumerate(zip(self.stances, self.stances[1:])):
             if not differ_by_one_contact(before.stance, after.stance):
                 problems.append(f"stances {index} -> {index + 1} do not differ by exactly one contact")
-            problems.extend(f"stances {index} -> {index + 1}: {problem}" for problem in unkept_slips(before, after))
+            if not after.arrived_by_motion:  # (else the motion's chain: cbm.motion.verify_motion)
+                problems.extend(f"stances {index} -> {index + 1}: {problem}" for problem in unkept_slips(before, after))
         goal = getattr(scenario, "goal", None)
         if self.success and goal is not None:
             if not self.stances or not goal.is_satisfied(self.stances[-1].stance, scenario.scene):

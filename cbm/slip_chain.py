@@ -20,7 +20,7 @@ from environments.errors import SceneError
 from fem.errors import FemError
 from stances.errors import StanceError
 
-__all__ = ["chained", "history_of", "starts_where_left", "unkept_slips"]
+__all__ = ["chained", "history_of", "slips_not_carried", "starts_where_left", "unkept_slips"]
 
 logger = logging.getLogger(__name__)
 
@@ -38,31 +38,57 @@ def starts_where_left(before, after) -> bool:
 
 
 def unkept_slips(before, after) -> list:
-    """Each soft print ``after`` keeps from ``before`` whose solve did not start where
-    ``before``'s answer left its link points (``held_slips`` against ``slips``): under
-    Coulomb friction the print would have slid between the two stances; and held slips of a
-    print ``after`` did not keep. An answer that records no slips (None: a file before
-    version 6, the stiff limit's spread answers) leaves the next stance's prints at rest."""
-    left = getattr(before.result, "slips", None)
-    held = getattr(after.result, "held_slips", None) or {}
-    kept = set(getattr(before.stance, "contacts", ())) & set(getattr(after.stance, "contacts", ()))
+    """Each soft print planned stance ``after`` keeps from ``before`` whose solve did not start
+    where ``before``'s answer left its link points (:func:`slips_not_carried` of their answers)."""
+    return slips_not_carried(before.result, after.result, before.stance, after.stance)
+
+
+def slips_not_carried(before, after, before_stance=None, after_stance=None, what="the stance before") -> list:
+    """Each soft print posture answer ``after`` keeps from answer ``before`` whose solve did not
+    start where ``before`` left its link points (``held_slips`` against ``slips``): under
+    Coulomb friction the print would have slid between the two; and held slips of a print
+    ``after`` did not keep. An answer that records no slips (None: a file before version 6,
+    the stiff limit's spread answers) leaves the next one's prints at rest; a print ``after``
+    records no slips of (held rigid, off the coulomb law) starts from none.
+
+    Parameters
+    ----------
+    before, after : stances.PostureResult (or anything else: no slips)
+    before_stance, after_stance : environments Stance, optional
+        The stances they hold; by default the answers' own.
+    what : str
+        How the problems name ``before``.
+
+    Returns
+    -------
+    list of str
+        One line a print.
+    """
+    left = getattr(before, "slips", None)
+    held = getattr(after, "held_slips", None) or {}
+    read = getattr(after, "slips", None)
+    kept = (set(getattr(before_stance or getattr(before, "stance", None), "contacts", ()))
+            & set(getattr(after_stance or getattr(after, "stance", None), "contacts", ())))
     kept_surfaces = {contact.robot_surface for contact in kept}
-    problems = [f"{surface}'s print starts from held slips although the stance before "
+    problems = [f"{surface}'s print starts from held slips although {what} "
                 + ("records none" if left is None or surface not in left else "did not keep it")
                 for surface in sorted(held) if surface not in kept_surfaces or left is None or surface not in left]
     for surface in sorted(kept_surfaces & set(left or {}) & set(held)):
         start, end = held[surface], left[surface]
         if not np.array_equal(start.nodes, end.nodes):
-            problems.append(f"{surface}'s print starts from slips over other nodes than the stance before left")
+            problems.append(f"{surface}'s print starts from slips over other nodes than {what} left")
             continue
         off = np.linalg.norm(start.slips - end.slips, axis=1)
         if off.max(initial=0.0) > 1e-12:
             worst = int(np.argmax(off))
-            problems.append(f"{surface}'s print starts {off[worst]:.3g} m off where the stance before left it "
+            problems.append(f"{surface}'s print starts {off[worst]:.3g} m off where {what} left it "
                             f"(node {int(start.nodes[worst])} of {start.body})")
-    problems.extend(f"{surface}'s print starts from rest, not where the stance before left it "
+    at_rest = kept_surfaces & set(left or {}) - set(held)
+    if read is not None:
+        at_rest &= set(read)  # the prints whose slips it keeps: those a solve starts from held ones
+    problems.extend(f"{surface}'s print starts from rest, not where {what} left it "
                     f"(slips up to {left[surface].largest():.3g} m)"
-                    for surface in sorted(kept_surfaces & set(left or {}) - set(held)))
+                    for surface in sorted(at_rest))
     return problems
 
 

@@ -81,6 +81,14 @@ _GS_STALLED_WINDOWS = 2
 # 3e-3, 1e-5, 9e-10 and then wandered at 4e-10 to 1.6e-9 (climb-with-soft-support's
 # left-on-platform through W: FemError after 60 steps in one set of modes).
 _SLIP_SETTLED, _SLIP_FLOOR = 1e-10, 1e-8
+# A node whose trial force lies on its cone's edge to this share of the bound sticks (its
+# force then on the cone to that share): a node that slipped to where it now just holds, as
+# the next small step of an incremental load meets it (a motion's samples, each from where the
+# one before left the prints), sits there to rounding, and read as slipping wherever its trial
+# was 1e-16 to 1e-12 over the bound, the active set cycled among such nodes (a palm's 13 nodes
+# on the coarse foam, two of them on their cones' edges: 60 steps, then Gauss-Seidel's modes
+# cycling too, a FemError; sticking, the first step settles).
+_CONE_EDGE = 1e-10
 # Its wrench's relative accuracy: on a body of E = 1e11 Pa the residual sits at 1e-11 to
 # 1e-10 of the wrench once the modes have settled (the forces are the compliance's solve
 # of nanometres), so 1e-11 never came (hand-on-cube's palm); 1e-9 of 80 N is 8e-8 N.
@@ -1243,8 +1251,8 @@ def _update_modes(phi, r, scale, mu):
     bound = _friction_bound(phi[:, 2], mu)
     tau = _trial(phi, r, scale)
     size = np.hypot(tau[:, 0], tau[:, 1])
-    # mu = inf means stick (a bound of inf is never exceeded).
-    slipping = contact & (size > bound)
+    # mu = inf means stick (a bound of inf is never exceeded); on the cone's edge too (_CONE_EDGE).
+    slipping = contact & (size > bound * (1.0 + _CONE_EDGE))
     modes = np.where(contact, np.where(slipping, SLIP, STICK), LIFT)
     directions = np.where(slipping[:, None], tau / np.where(slipping, size, 1.0)[:, None], 0.0)
     gains = np.where(slipping, bound / np.where(slipping, size, 1.0), 0.0)

@@ -3,6 +3,7 @@
 import json
 import shutil
 import subprocess
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -189,7 +190,7 @@ def test_vtu_read_back_gives_world_points_at_rest_and_the_displacement_in_world(
 
 def test_plan_file_names_units_frames_robot_and_embeds_its_scenario(synthetic_plan, robot, tmp_path):
     data = json.loads(synthetic_plan.save(tmp_path / "plan.json").read_text())
-    assert (data["format"], data["version"]) == ("softcbm-plan", 6)
+    assert (data["format"], data["version"]) == ("softcbm-plan", 7)
     assert data["units"] == {"length": "m", "angle": "rad", "force": "N", "torque": "N m", "time": "s", "mass": "kg"}
     assert set(data["frames"]) >= {"world", "q", "point_forces", "displacements_in_body", "stance", "move"}
     described = data["robot"]
@@ -299,7 +300,20 @@ def test_a_version_4_result_reads_as_solved_with_the_2_cm_slip_bound(robot):
     assert any("beyond the small-slip bound" in problem for problem in current.problems), current.problems
 
 
-@pytest.mark.parametrize("version", [None, 7, "2"], ids=["no-version", "future", "string"])
+def test_a_stance_that_arrived_by_its_motion_says_so_in_the_file(synthetic_plan, tmp_path):
+    """Version 7 marks the stances whose answer starts where the motion into them left them;
+    a version 6 file has no such stance."""
+    marked = replace(synthetic_plan, stances=synthetic_plan.stances[:2] + (
+        replace(synthetic_plan.stances[2], arrived_by_motion=True),) + synthetic_plan.stances[3:])
+    read = Plan.load(marked.save(tmp_path / "plan.json"))
+    assert [s.arrived_by_motion for s in read.stances] == [False, False, True, False]
+    data = marked.to_dict()
+    for entry in data["stances"]:
+        del entry["arrived_by_motion"]
+    assert not any(s.arrived_by_motion for s in Plan.from_dict({**data, "version": 6}).stances)
+
+
+@pytest.mark.parametrize("version", [None, 8, "2"], ids=["no-version", "future", "string"])
 def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(synthetic_plan, version):
     data = synthetic_plan.to_dict()
     if version is None:
@@ -307,7 +321,7 @@ def test_plan_file_of_no_or_unknown_version_is_refused_with_the_versions_read(sy
     else:
         data["version"] = version
     message = (
-        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4, 5, 6; "
+        f"plan version {version!r} is not supported: this softcbm reads versions 1, 2, 3, 4, 5, 6, 7; "
         "plan the scenario again with this version (cbm plan)"
     )
     with pytest.raises(PlanFileError) as raised:

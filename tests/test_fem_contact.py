@@ -773,3 +773,25 @@ def test_derivatives_refuse_shapes_that_do_not_match_and_a_state_without_its_law
     bare = fem.PrintContact(state.forces, state.relative, state.modes, state.directions, 0, state._system)
     with pytest.raises(fem.FemError, match="derivatives need a contact state solved by a PrintContactSystem"):
         bare.derivatives(np.zeros((3 * p, 2)), np.zeros((3 * p, 2, 2)))
+
+
+@pytest.mark.parametrize("shear", [[0.002, -0.001, -0.004], [0.003, 0.0, -0.004]])
+def test_a_print_held_where_it_slipped_to_sticks_with_the_same_forces(pad, shear):
+    """The next small step of an incremental load: the indenter's motion less each slipping
+    node's slip (held where it slipped to) carries the same forces with every node sticking,
+    the slipped ones on their cones' edges. Read as slipping there (a trial 1e-16 over the
+    bound), such nodes cycled the active set on a motion's chained samples."""
+    body, patch, frames = pad
+    mu = np.full(patch.n_nodes, MU)
+    displacements = _rigid_motion(patch.points, shear, [0.0, 0.0, 0.0], patch.points.mean(axis=0))
+    first = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements)
+    assert first.n_slip > 0
+    relative = displacements - (patch.compliance @ (-first.forces.ravel())).reshape(-1, 3)
+    slipped = np.where((first.modes == fem.SLIP)[:, None], relative * [1.0, 1.0, 0.0], 0.0)
+    held = fem.PrintContactSystem(patch.compliance, frames, mu).solve(displacements - slipped)
+    assert held.n_slip == 0 and held.n_lift == first.n_lift
+    np.testing.assert_allclose(held.forces, first.forces, rtol=0, atol=1e-12 * np.abs(first.forces).max())
+    on_edge = first.modes == fem.SLIP
+    size = np.linalg.norm(held.forces[on_edge, :2], axis=1)
+    np.testing.assert_allclose(size, MU * held.forces[on_edge, 2], rtol=1e-9)
+    _check_signorini_coulomb(body, patch, displacements - slipped, held, MU)

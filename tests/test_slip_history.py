@@ -244,21 +244,62 @@ def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot,
     assert replace(plan, stances=tuple(rechained)).check().ok
 
 
-def test_a_motion_starts_its_samples_kept_prints_where_the_leaving_stance_left_them(plan, robot):
-    """Every sample of the motion out of a stance that keeps the slipped palm starts it where
-    that stance left it, as the arriving stance does, and the motion verifies (a sample
-    whose palm carries more may slide it further: 3 mm in one sample here, measured)."""
+def test_a_motions_samples_start_each_kept_print_where_the_posture_before_left_it(plan, robot):
+    """Along the motion out of a stance that keeps the slipped palm, each sample starts it
+    where the posture before left it (the first where the stance did), and the arriving
+    stance is solved again from where the last sample leaves it (Motion.arrival): the plan
+    with that answer verifies, the plan without it does not join the motion."""
     from cbm.motion import plan_motion, verify_motion
 
     index, surface = _first_slipped(plan)
     scenario = environments.load(SCENARIO)
     motion = plan_motion(plan, index, scenario, robot)
     assert motion.feasible, motion.reason
-    left = plan.stances[index].result.slips[surface]
+    left = plan.stances[index].result
+    moved = 0.0
     for result in motion.results:
-        held = result.held_slips[surface]
-        assert np.array_equal(held.nodes, left.nodes) and np.array_equal(held.slips, left.slips)
-    assert verify_motion(motion, plan, scenario, robot) == []
+        if surface in result.held_slips:
+            held = result.held_slips[surface]
+            assert np.array_equal(held.nodes, left.slips[surface].nodes)
+            assert np.array_equal(held.slips, left.slips[surface].slips)
+            moved = max(moved, float(_change(result.slips[surface], held).max()))
+        left = result
+    assert moved > 1e-5  # the palm did slip along the motion: the chain carries something
+    arrival = motion.arrival
+    assert arrival is not None and arrival.feasible
+    np.testing.assert_array_equal(motion.configurations[-1], arrival.q)
+    assert np.array_equal(arrival.held_slips[surface].slips, left.slips[surface].slips)
+    after = plan.stances[index + 1]
+    assert not np.array_equal(arrival.held_slips[surface].slips, after.result.held_slips[surface].slips)
+    arrived = replace(after, q=arrival.q, point_forces=tuple(arrival.point_forces),
+                      deformations=dict(arrival.deformations), result=arrival, arrived_by_motion=True)
+    joined = replace(plan, stances=plan.stances[:index + 1] + (arrived,) + plan.stances[index + 2:])
+    assert verify_motion(motion, joined, scenario, robot) == []
+    problems = verify_motion(motion, plan, scenario, robot)
+    assert "sample -1 is not the posture of its stance" in problems
+    assert any(p.startswith(f"the next stance: {surface}'s print starts ") and "where sample" in p for p in problems)
+
+
+def test_a_plans_motions_carry_each_arrival_on_to_the_next_motion(plan, robot):
+    """plan_motions puts each motion's arrival in the plan it returns: every motion then starts
+    where the one before ended, every motion verifies against that plan, and the plan checks
+    (a stance that arrived by its motion is held to the motion's chain, not the stance before)."""
+    from cbm.motion import plan_motions, verify_motion
+
+    scenario = environments.load(SCENARIO)
+    joined, motions = plan_motions(plan, scenario, robot)
+    assert all(m.feasible for m in motions), [m.reason for m in motions]
+    assert any(m.arrival is not None for m in motions)
+    for motion, after in zip(motions, joined.stances[1:]):
+        assert after.arrived_by_motion == (motion.arrival is not None)
+        np.testing.assert_array_equal(motion.configurations[-1], after.q)
+        assert verify_motion(motion, joined, scenario, robot) == []
+    for motion, following in zip(motions, motions[1:]):
+        np.testing.assert_array_equal(motion.configurations[-1], following.configurations[0])
+    assert joined.check().ok, joined.check().problems
+    # The same stances read as arrived from the stance before are refused by the plan's check.
+    unmarked = replace(joined, stances=tuple(replace(s, arrived_by_motion=False) for s in joined.stances))
+    assert any("off where the stance before left it" in p for p in unmarked.check().problems)
 
 
 def test_verify_refuses_slips_shown_off_the_link_points(plan, robot, scene):
