@@ -672,6 +672,11 @@ def _check_plan(path, refine=None, view=False, options=None):
     print(f"{path}: plan of {plan.scenario_name!r}, {len(plan.stances)} stances: {verdict}{over}")
     for problem in report.problems:
         print(f"  {problem}")
+    arrived = [str(index) for index, planned in enumerate(plan.stances) if planned.arrived_by_motion]
+    if arrived:
+        print(f"  stance{'s' if len(arrived) > 1 else ''} {', '.join(arrived)} start their kept soft prints where "
+              "their motions left them; the motions' samples are not in the file (cbm.motion.verify_motion checks "
+              "them as they are planned)")
     code = EXIT_OK if report.ok else EXIT_FAILED
     if report.ok and refine is not None:
         code = _check_plan_refined(plan, refine, options)

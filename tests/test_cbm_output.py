@@ -576,6 +576,12 @@ def test_cli_check_of_a_plan_file_reports_what_fails(synthetic_plan, tmp_path, c
     assert f"{path}: plan of 'cross-soft-block', 4 stances: 7 problems" in out
     assert "  stances 0 -> 1 do not differ by exactly one contact" in out
     assert "  stance 0: no solver result to verify" in out
+    assert "where their motions left them" not in out
+    marked = replace(synthetic_plan, stances=synthetic_plan.stances[:1] + tuple(
+        replace(s, arrived_by_motion=True) for s in synthetic_plan.stances[1:3]) + synthetic_plan.stances[3:])
+    main(["check", str(marked.save(tmp_path / "arrived.json"))])
+    assert ("  stances 1, 2 start their kept soft prints where their motions left them; the motions' samples are "
+            "not in the file (cbm.motion.verify_motion checks them as they are planned)") in capsys.readouterr().out
 
 
 def test_cli_check_of_a_scenario_needs_a_stance(capsys):
