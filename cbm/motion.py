@@ -637,8 +637,21 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     # them (stances.solve's history), not from rest, and each after it where the one before
     # left them: the forward samples as they are solved, the others in _clear_steps' walk.
     history = history_of(before)
-    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, history,
-                            chain=True)
+    name = "touch-down" if touch_down else "lift-off"
+    switch = ContactSample(surface.frame, moving.robot_surface, moving.contact_print.surface,
+                           f"{name} of {moving.robot_surface}")
+    lift, lifted = None, None  # a lift-off solved before the samples above it, and the posture it is pulled to
+    if not touch_down and history is not None:
+        # A lift-off comes first: solved before the samples above its print, from the first of
+        # them (a probe of the first waypoint), so that they start from where it leaves the
+        # kept prints as they are solved (solved after them, it left every one of them to be
+        # solved again: climb-with-soft-support's lift-offs, 14 samples each).
+        probe = _continuation(robot, scene, support, paths[:1], before.q, start, options, max_splits, history)
+        if not probe.pending:
+            lifted = probe.results[-1].q
+            lift = _switch_sample(robot, scene, support, holding, switch, lifted, options, history)
+    first = lift if lift is not None and lift.feasible else history
+    forward = _continuation(robot, scene, support, paths, before.q, start, options, max_splits, first, chain=True)
     backward, reason = None, ""
     if forward.pending:
         # From the arriving stance back to where the forward solves stopped: a posture
@@ -663,28 +676,21 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
                     load=_normal_load(after.point_forces, surface.frame, normal) if touch_down else 0.0))
     if not reason:
         # The limb meets (leaves) its print unloaded, next to the lifted sample above it.
-        name = "touch-down" if touch_down else "lift-off"
-        switch = ContactSample(surface.frame, moving.robot_surface, moving.contact_print.surface,
-                               f"{name} of {moving.robot_surface}")
-        # Pulled toward the lifted sample's posture: the limb only comes down (goes up) by
-        # the approach height; the stance's own posture, which may lean on the contact,
-        # is reached by the load transfer after it (quadruped-walk 7 -> 8: pulled toward
-        # the arriving stance's posture, the touch-down sample lay 1.06 rad from the
-        # lifted one and the foot swept 2.8 mm into the step between them).
         nearest = samples[-1] if touch_down else samples[0]
-        for trust in (_SWITCH_TRUST, None):  # short steps first; where they stall, the solver's own
-            tried = options if trust is None else {**options, "trust_region": trust}
+        if lift is not None and lift.feasible:
+            result, reference = lift, lifted
+        else:
             # From where the forward samples leave the kept prints (a touch-down follows them;
-            # a lift-off, and a touch-down after a backward half, are chained by the walk).
+            # after a backward half, and a lift-off not solved before them, the walk solves
+            # the postures after it again).
             left = nearest.result if touch_down and backward is None else history
-            result = _solve_sample(robot, scene, support, holding, switch, nearest.q, nearest.q, None, tried, left)
-            if result.feasible:
-                break
+            result = _switch_sample(robot, scene, support, holding, switch, nearest.q, options, left)
+            reference = nearest.q
         if not result.feasible:
             reason = f"{name}: {result.reason}"
             logger.info("motion %d -> %d stops: %s", index, index + 1, reason)
         else:
-            touch = _Sample(result.q, _placed(robot, switch, result.q), result, nearest.q, holds=True)
+            touch = _Sample(result.q, _placed(robot, switch, result.q), result, reference, holds=True)
             samples = samples + [touch] if touch_down else [touch] + samples
             if seam is not None and not touch_down:
                 seam += 1
@@ -698,6 +704,22 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     return Motion(index, moving.robot_surface, support, np.array(configurations),
                   tuple(sample.path for sample in samples), tuple(sample.result for sample in samples),
                   not reason, reason, seam, arrival=None if reason else arrival)
+
+
+def _switch_sample(robot, scene, support, holding, switch, q, options, history):
+    """The touch-down or lift-off sample ``switch`` (a :class:`ContactSample`) solved from
+    posture ``q``, the lifted sample's beside it, and pulled toward it: the limb only comes
+    down (goes up) by the approach height; the stance's own posture, which may lean on the
+    contact, is reached by the load transfer after it (quadruped-walk 7 -> 8: pulled toward
+    the arriving stance's posture, the touch-down sample lay 1.06 rad from the lifted one and
+    the foot swept 2.8 mm into the step between them). Short steps first; where they stall,
+    the solver's own. ``history``: as :func:`_solve_sample`'s."""
+    for trust in (_SWITCH_TRUST, None):
+        tried = options if trust is None else {**options, "trust_region": trust}
+        result = _solve_sample(robot, scene, support, holding, switch, q, q, None, tried, history)
+        if result.feasible:
+            break
+    return result
 
 
 @dataclass(frozen=True)
@@ -775,9 +797,11 @@ def _clear_steps(robot, scene, support, holding, between, ends, samples, seam, o
             before_it = "the last sample" if last else "the posture before it"
             return nodes[1:-1], seam, (f"{what}, solved again from where {before_it} leaves its soft prints: "
                                        f"{why_not}"), None
-        nodes[k + 1] = b
         if last and answer is not arriving:
             arrival = answer
+            if b.holds:  # the load a halfway sample of the last step carries the mean of
+                b = replace(b, load=_normal_load(answer.point_forces, surface.frame, normal))
+        nodes[k + 1] = b
         problem = between.first_problem(a.q, b.q, held=a.holds and b.holds)
         if problem is None:
             k += 1
@@ -819,12 +843,20 @@ def _chained(robot, scene, support, holding, left, node, arriving, options):
             or not slips_not_carried(left, answer)):
         return node, answer, ""
     lam = np.asarray(answer.statistics["lambda"])
-    if end:
-        result = stances.solve(robot, scene, answer.stance, q_init=answer.q, lam_init=lam, history=left, **options)
-        # (feasible: stances.verify passed inside the solve)
+    try:
+        if end:
+            # From the stance's own posture and forces (options other than those it recorded,
+            # with other contact variables, are a StanceError below: no start, no posture).
+            result = stances.solve(robot, scene, answer.stance, q_init=answer.q, lam_init=lam, history=left,
+                                   **options)
+        else:
+            result = _solve_sample(robot, scene, support, holding, node.path, node.reference, node.q, node.result,
+                                   options, left)
+    except (StanceError, SceneError, FemError) as error:
+        # One posture not found so ends this motion, not the plan's others.
+        return node, answer, f"{type(error).__name__}: {error}"
+    if end:  # (feasible: stances.verify passed inside the solve)
         return (replace(node, q=result.q), result, "") if result.feasible else (node, answer, result.reason)
-    result = _solve_sample(robot, scene, support, holding, node.path, node.reference, node.q, node.result, options,
-                           left)
     if not result.feasible:
         return node, answer, result.reason
     path = _placed(robot, node.path, result.q) if isinstance(node.path, ContactSample) else node.path
@@ -1020,6 +1052,9 @@ def _arrived(planned, index, motion, scene, robot, solver_options=None):
                                      deformations=dict(result.deformations or {}), result=result,
                                      arrived_by_motion=True)
     elif not motion.feasible:
+        if planned[index + 1].arrived_by_motion:
+            # Not arrived by this motion (an earlier run's mark on a plan given again is no longer true).
+            planned[index + 1] = replace(planned[index + 1], arrived_by_motion=False)
         again = chained(planned, scene, robot, solver_options, start=index + 1)
         if again is None:
             logger.info("stance %d keeps its answer from the stance before's earlier one", index + 1)
@@ -1066,6 +1101,7 @@ def plan_motions_reposing(plan, scenario, robot, **options):
     """
     planned = list(plan.stances)
     motions, ahead = [], None  # ahead: the next motion, when a repose needed it planned already
+    ahead_from = None  # the planned stance ahead leaves from
     for index in range(len(planned) - 1):
         current = replace(plan, stances=planned)
         motion = ahead if ahead is not None else plan_motion(current, index, scenario, robot, **options)
@@ -1082,17 +1118,20 @@ def plan_motions_reposing(plan, scenario, robot, **options):
                 if kept and index + 2 < len(planned):
                     # The motion out of the reposed stance starts from its new posture: kept
                     # unless it fails there where it is found from the planned posture.
-                    ahead = plan_motion(replace(plan, stances=trial), index + 1, scenario, robot, **options)
+                    ahead, ahead_from = plan_motion(replace(plan, stances=trial), index + 1, scenario, robot,
+                                                    **options), trial[index + 1]
                     if not ahead.feasible:
                         planned_next = plan_motion(current, index + 1, scenario, robot, **options)
                         if planned_next.feasible:
-                            kept, ahead = False, planned_next
+                            kept, ahead, ahead_from = False, planned_next, planned[index + 1]
                 if kept:
                     logger.info("motion %d -> %d found with stance %d reposed", index, index + 1, index + 1)
                     planned, motion = trial, replace(retried, reposed=True)
-        if motion.arrival is not None:
-            ahead = None  # planned from the stance's answer before the motion arrived with its own
         planned = _arrived(planned, index, motion, scenario.scene, robot, options.get("solver_options"))
+        if ahead is not None and planned[index + 1] is not ahead_from:
+            # Planned from the stance's answer before its motion arrived with its own, or before
+            # it was solved again from the stance before (the repose not kept): planned again.
+            ahead = None
         motions.append(motion)
     return replace(plan, stances=tuple(planned)), tuple(motions)
 
@@ -1120,7 +1159,7 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
     if not result.feasible:  # feasible: stances.verify passed inside the solve
         return None
     return replace(after, q=result.q, point_forces=tuple(result.point_forces),
-                   deformations=dict(result.deformations or {}), result=result)
+                   deformations=dict(result.deformations or {}), result=result, arrived_by_motion=False)
 
 
 def motions_summary(motions) -> str:

@@ -119,5 +119,5 @@ def chained(planned, scene, robot, solver_options=None, start=1):
                         result.reason)
             return None
         planned[index] = replace(after, q=result.q, point_forces=tuple(result.point_forces),
-                                 deformations=dict(result.deformations or {}), result=result)
+                                 deformations=dict(result.deformations or {}), result=result, arrived_by_motion=False)
     return planned

@@ -81,8 +81,9 @@ _GS_STALLED_WINDOWS = 2
 # 3e-3, 1e-5, 9e-10 and then wandered at 4e-10 to 1.6e-9 (climb-with-soft-support's
 # left-on-platform through W: FemError after 60 steps in one set of modes).
 _SLIP_SETTLED, _SLIP_FLOOR = 1e-10, 1e-8
-# A node whose trial force lies on its cone's edge to this share of the bound sticks (its
-# force then on the cone to that share): a node that slipped to where it now just holds, as
+# A sticking node whose trial force lies on its cone's edge to this share of the bound goes on
+# sticking (its force then on the cone to that share; a slipping node slips while its trial is
+# over the bound at all: _update_modes): a node that slipped to where it now just holds, as
 # the next small step of an incremental load meets it (a motion's samples, each from where the
 # one before left the prints), sits there to rounding, and read as slipping wherever its trial
 # was 1e-16 to 1e-12 over the bound, the active set cycled among such nodes (a palm's 13 nodes
@@ -598,7 +599,7 @@ class PrintContactSystem:
         modes = np.asarray(modes, dtype=int).reshape(self.n_nodes)
         directions = np.asarray(directions, dtype=float).reshape(self.n_nodes, 2)
         phi, r, directions, system = self._held(u_local, modes, directions)
-        new_modes, new_directions, _ = _update_modes(*self._seen(phi, r), self.scale, self.mu)
+        new_modes, new_directions, _ = _update_modes(*self._seen(phi, r), self.scale, self.mu, modes)
         settled = bool(np.array_equal(new_modes, modes))
         return self._state(phi, r, modes, directions, system, 0, settled)
 
@@ -673,7 +674,7 @@ class PrintContactSystem:
                 xi = xi + step
             phi, r = phi.reshape(-1, 3), (u_local + self.c_local @ phi).reshape(-1, 3)
             seen = self._seen(phi, r)
-            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu)
+            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu, modes)
             slip_ok = _slip_settled(*seen, self.scale, new_modes, self.mu, new_directions)
             if settled and np.array_equal(new_modes, modes) and slip_ok:
                 if not np.linalg.cond(stiffness) < 1e13:
@@ -787,7 +788,7 @@ class PrintContactSystem:
             system = self._system(modes, directions, gains)
             phi, r = self._forces(u_local, system)
             seen = self._seen(phi, r)
-            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu)
+            new_modes, new_directions, new_gains = _update_modes(*seen, self.scale, self.mu, modes)
             same = np.array_equal(new_modes, modes)
             residual = _slip_residual(*seen, self.scale, new_modes, self.mu, new_directions) if same else np.inf
             if residual <= _SLIP_SETTLED or _SLIP_FLOOR >= residual > 0.5 * before:
@@ -1242,8 +1243,11 @@ def _slip_directions(phi, r, scale, mu, modes, directions):
     return new, gains
 
 
-def _update_modes(phi, r, scale, mu):
-    """Modes, slip directions and Newton gains from the complementarity functions of Signorini and Coulomb."""
+def _update_modes(phi, r, scale, mu, current=None):
+    """Modes, slip directions and Newton gains from the complementarity functions of Signorini and
+    Coulomb; ``current``: the modes ``phi`` and ``r`` were solved with (a node slipping there
+    goes on slipping while its trial is over the bound, one sticking starts to slip only past
+    ``_CONE_EDGE`` over it)."""
     # Contact where the normal force minus the scaled gap is not negative (a
     # node exactly at the surface touches: its bonded Jacobian tells a solver
     # that pressing makes force).
@@ -1251,8 +1255,14 @@ def _update_modes(phi, r, scale, mu):
     bound = _friction_bound(phi[:, 2], mu)
     tau = _trial(phi, r, scale)
     size = np.hypot(tau[:, 0], tau[:, 1])
-    # mu = inf means stick (a bound of inf is never exceeded); on the cone's edge too (_CONE_EDGE).
-    slipping = contact & (size > bound * (1.0 + _CONE_EDGE))
+    # mu = inf means stick (a bound of inf is never exceeded); a sticking node on the cone's
+    # edge too (_CONE_EDGE). The edge is one-sided: a band read as slipping from sticking and
+    # as sticking from slipping would cycle (a sticking node over the bound by d slips, and
+    # slipping it is over by d s / K, K its stiffness with the others stuck, K >= s).
+    edge = bound * (1.0 + _CONE_EDGE)
+    if current is not None:
+        edge = np.where(np.asarray(current) == SLIP, bound, edge)
+    slipping = contact & (size > edge)
     modes = np.where(contact, np.where(slipping, SLIP, STICK), LIFT)
     directions = np.where(slipping[:, None], tau / np.where(slipping, size, 1.0)[:, None], 0.0)
     gains = np.where(slipping, bound / np.where(slipping, size, 1.0), 0.0)

@@ -795,3 +795,27 @@ def test_a_print_held_where_it_slipped_to_sticks_with_the_same_forces(pad, shear
     size = np.linalg.norm(held.forces[on_edge, :2], axis=1)
     np.testing.assert_allclose(size, MU * held.forces[on_edge, 2], rtol=1e-9)
     _check_signorini_coulomb(body, patch, displacements - slipped, held, MU)
+
+
+@pytest.mark.parametrize("over", [0.0, 5e-11, 2e-10, 4e-10, 1e-9])
+def test_a_node_just_over_its_cone_settles_whichever_mode_it_starts_in(over):
+    """Two nodes with coupled tangential compliance, the first pushed sideways so that sticking
+    it would need friction ``over`` its bound (relative): the first node sticks on its cone's
+    edge within the edge's share of the bound, slips past it, and the solve settles either
+    way. (An edge read the same from both modes, a band where sticking says slip and slipping
+    says stick, cycled into a FemError at 2e-10 to 4e-10 here.)"""
+    from fem.contact import _CONE_EDGE
+
+    compliance = 1e-5 * np.eye(6)
+    compliance[0, 3] = compliance[3, 0] = 0.9e-5  # the nodes' t1 strongly coupled
+    frames, mu = np.tile(np.eye(3), (2, 1, 1)), np.array([0.5, 0.5])
+    stiffness = np.linalg.inv(compliance[np.ix_([0, 3], [0, 3])])
+    normal = 100.0  # N on each node: the motion presses 1 mm at 1e-5 m/N, uncoupled
+    motion = np.array([[-mu[0] * normal * (1 + over) / stiffness[0, 0], 0.0, -1e-3], [0.0, 0.0, -1e-3]])
+    state = fem.solve_print_contact(compliance, motion, frames, mu)
+    forces = state.forces
+    np.testing.assert_allclose(forces[:, 2], normal, rtol=1e-12)
+    assert state.modes[1] == fem.STICK
+    assert state.modes[0] == (fem.STICK if over <= _CONE_EDGE else fem.SLIP)
+    ratio = np.hypot(*forces[0, :2]) / (mu[0] * forces[0, 2])
+    assert 1 - 1e-12 <= ratio <= 1 + _CONE_EDGE

@@ -280,14 +280,39 @@ def test_a_motions_samples_start_each_kept_print_where_the_posture_before_left_i
     assert any(p.startswith(f"the next stance: {surface}'s print starts ") and "where sample" in p for p in problems)
 
 
-def test_a_plans_motions_carry_each_arrival_on_to_the_next_motion(plan, robot):
-    """plan_motions puts each motion's arrival in the plan it returns: every motion then starts
-    where the one before ended, every motion verifies against that plan, and the plan checks
-    (a stance that arrived by its motion is held to the motion's chain, not the stance before)."""
-    from cbm.motion import plan_motions, verify_motion
+def test_a_chained_posture_whose_solve_raises_fails_its_motion_with_the_reason(plan, robot, monkeypatch):
+    """The arriving stance solved again from the motion's last sample raising a FemError (a
+    contact with no state found) ends that motion with the error as its reason, not the plan."""
+    from fem import FemError
+    from cbm.motion import plan_motion
+
+    index, _ = _first_slipped(plan)
+    real = stances.solve
+
+    def failing(robot, scene, stance, *args, constraints=(), history=None, lam_init=None, **kwargs):
+        if history is not None and lam_init is not None and not constraints:  # the arrival's solve
+            raise FemError("no contact state (planted)")
+        return real(robot, scene, stance, *args, constraints=constraints, history=history, lam_init=lam_init,
+                    **kwargs)
+
+    monkeypatch.setattr(stances, "solve", failing)
+    motion = plan_motion(plan, index, environments.load(SCENARIO), robot)
+    assert not motion.feasible and motion.arrival is None
+    assert motion.reason == ("the next stance, solved again from where the last sample leaves its soft prints: "
+                             "FemError: no contact state (planted)")
+
+
+@pytest.mark.parametrize("planner", ["plan_motions", "plan_motions_reposing"])
+def test_a_plans_motions_carry_each_arrival_on_to_the_next_motion(plan, robot, planner):
+    """plan_motions (and plan_motions_reposing, what cbm plan --motion runs) put each motion's
+    arrival in the plan they return: every motion then starts where the one before ended,
+    every motion verifies against that plan, and the plan checks (a stance that arrived by its
+    motion is held to the motion's chain, not the stance before)."""
+    import cbm.motion
+    from cbm.motion import verify_motion
 
     scenario = environments.load(SCENARIO)
-    joined, motions = plan_motions(plan, scenario, robot)
+    joined, motions = getattr(cbm.motion, planner)(plan, scenario, robot)
     assert all(m.feasible for m in motions), [m.reason for m in motions]
     assert any(m.arrival is not None for m in motions)
     for motion, after in zip(motions, joined.stances[1:]):
