@@ -641,11 +641,12 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
     switch = ContactSample(surface.frame, moving.robot_surface, moving.contact_print.surface,
                            f"{name} of {moving.robot_surface}")
     lift, lifted = None, None  # a lift-off solved before the samples above it, and the posture it is pulled to
-    if not touch_down and history is not None:
+    if not touch_down and history is not None and history.slips:
         # A lift-off comes first: solved before the samples above its print, from the first of
         # them (a probe of the first waypoint), so that they start from where it leaves the
         # kept prints as they are solved (solved after them, it left every one of them to be
-        # solved again: climb-with-soft-support's lift-offs, 14 samples each).
+        # solved again: climb-with-soft-support's lift-offs, 14 samples each). Only where the
+        # leaving stance has soft prints: elsewhere nothing chains, and the probe is a solve more.
         probe = _continuation(robot, scene, support, paths[:1], before.q, start, options, max_splits, history)
         if not probe.pending:
             lifted = probe.results[-1].q
