@@ -9,10 +9,12 @@ import pinocchio as pin
 import pytest
 import trimesh
 
+import environments
 from environments.errors import SceneError
 from environments.geometry import CollisionShape
 from stances.collision import CollisionChecker
-from stances.narrow_phase import CollisionSetupError, DistanceQuery, box_shape, coal, robot_shape, scene_shape
+from stances.narrow_phase import (CollisionSetupError, DistanceQuery, box_shape, coal, robot_shape, scene_shape,
+                                  world_boxes)
 
 # Meshes of several sizes (small wrist link to large torso) and mirrored limbs.
 MESHES = ["torso_2_link_0", "arm_left_4_link_0", "arm_right_5_link_0", "leg_left_1_link_0", "head_2_link_0"]
@@ -197,3 +199,17 @@ def test_a_scene_box_measures_like_the_same_coal_box(robot):
     for one, other in zip(pairs, from_coal.pairs(robot.model, data)):
         assert (one.name_a, one.name_b) == (other.name_a, other.name_b)
         assert one.distance == other.distance
+
+
+def test_a_meshs_world_boxes_from_its_triangles_as_given_are_those_read_back_from_its_bvh():
+    """scene_geometry hands world_boxes the triangles a BVH was built from instead of reading
+    them back one call a triangle: the same boxes, bit for bit (a dented foam's surface)."""
+    foam = environments.load("cross-soft-block").scene.deformable_objects[0]
+    dent = np.zeros((foam.mesh.nodes.shape[0], 3))
+    dent[:, 2] = -0.01 * np.exp(-np.sum((foam.mesh.nodes[:, :2] - foam.mesh.nodes[:, :2].mean(axis=0)) ** 2, axis=1) / 0.01)
+    surface = foam.deformed_collision_object(dent)
+    shape, rotation, translation = scene_shape("foam (deformed)", surface)
+    assert isinstance(shape, coal.BVHModelBase)  # dented: no convex hull
+    given = world_boxes(shape, rotation, translation, triangles=surface.triangles)
+    np.testing.assert_array_equal(given, world_boxes(shape, rotation, translation))
+    assert len(given) == 32
