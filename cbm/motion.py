@@ -677,10 +677,10 @@ def _motion_on_path(plan, index, scenario, robot, offset, *, samples, clearance,
                     load=_normal_load(after.point_forces, surface.frame, normal) if touch_down else 0.0))
     if not reason:
         # The limb meets (leaves) its print unloaded, next to the lifted sample above it.
-        nearest = samples[-1] if touch_down else samples[0]
         if lift is not None and lift.feasible:
             result, reference = lift, lifted
         else:
+            nearest = samples[-1] if touch_down else samples[0]
             # From where the forward samples leave the kept prints (a touch-down follows them;
             # after a backward half, and a lift-off not solved before them, the walk solves
             # the postures after it again).
@@ -856,10 +856,10 @@ def _chained(robot, scene, support, holding, left, node, arriving, options):
     except (StanceError, SceneError, FemError) as error:
         # One posture not found so ends this motion, not the plan's others.
         return node, answer, f"{type(error).__name__}: {error}"
-    if end:  # (feasible: stances.verify passed inside the solve)
-        return (replace(node, q=result.q), result, "") if result.feasible else (node, answer, result.reason)
-    if not result.feasible:
+    if not result.feasible:  # (feasible: stances.verify passed, inside the solve and in _solve_sample)
         return node, answer, result.reason
+    if end:
+        return replace(node, q=result.q), result, ""
     path = _placed(robot, node.path, result.q) if isinstance(node.path, ContactSample) else node.path
     return replace(node, q=result.q, path=path, result=result), result, ""
 
@@ -1048,10 +1048,7 @@ def _arrived(planned, index, motion, scene, robot, solver_options=None):
     posture so, the stances as they were, which :meth:`cbm.Plan.check` then reports)."""
     planned = list(planned)
     if motion.arrival is not None:
-        result = motion.arrival
-        planned[index + 1] = replace(planned[index + 1], q=result.q, point_forces=tuple(result.point_forces),
-                                     deformations=dict(result.deformations or {}), result=result,
-                                     arrived_by_motion=True)
+        planned[index + 1] = planned[index + 1].answered(motion.arrival, arrived_by_motion=True)
     elif not motion.feasible:
         if planned[index + 1].arrived_by_motion:
             # Not arrived by this motion (an earlier run's mark on a plan given again is no longer true).
@@ -1159,8 +1156,7 @@ def _reposed_stance(plan, index, motion, scenario, robot, solver_options):
         return None
     if not result.feasible:  # feasible: stances.verify passed inside the solve
         return None
-    return replace(after, q=result.q, point_forces=tuple(result.point_forces),
-                   deformations=dict(result.deformations or {}), result=result, arrived_by_motion=False)
+    return after.answered(result)
 
 
 def motions_summary(motions) -> str:

@@ -158,6 +158,13 @@ class PlannedStance:
             {str(k): _readonly(v, (3,)) for k, v in dict(self.deformations or {}).items()},
         )
 
+    def answered(self, result, arrived_by_motion=False) -> "PlannedStance":
+        """This stance with another answer of its solver (a posture solved again): its
+        posture, forces and fields those of ``result``, a ``stances.PostureResult``."""
+        return replace(self, q=result.q, point_forces=tuple(result.point_forces),
+                       deformations=dict(result.deformations or {}), result=result,
+                       arrived_by_motion=arrived_by_motion)
+
     @property
     def contact_forces(self):
         """(n, 3) float: every point force, newtons, world frame."""

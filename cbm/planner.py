@@ -148,6 +148,7 @@ def _stamps(files) -> tuple:
 # Description file -> (its files, their stamps, the robot): load_robot's robots.
 _LOADED_ROBOTS: dict = {}
 _LOADED_ROBOTS_KEPT = 8
+
 _OUT_OF_TIME = "time limit reached before this stance was solved"
 
 

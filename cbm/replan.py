@@ -15,7 +15,6 @@ from __future__ import annotations
 import logging
 from dataclasses import dataclass, replace
 
-
 from .errors import CbmError
 from .motion import plan_motions_reposing
 from .planner import PlanInterrupted, load_robot, load_scenario, plan

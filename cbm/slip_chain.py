@@ -11,7 +11,6 @@ on are solved again from their predecessors here.
 from __future__ import annotations
 
 import logging
-from dataclasses import replace
 
 import numpy as np
 
@@ -118,6 +117,5 @@ def chained(planned, scene, robot, solver_options=None, start=1):
             logger.info("stance %d has no posture from where the one before left its prints: %s", index,
                         result.reason)
             return None
-        planned[index] = replace(after, q=result.q, point_forces=tuple(result.point_forces),
-                                 deformations=dict(result.deformations or {}), result=result, arrived_by_motion=False)
+        planned[index] = after.answered(result)
     return planned

@@ -1243,7 +1243,7 @@ def _slip_directions(phi, r, scale, mu, modes, directions):
     return new, gains
 
 
-def _update_modes(phi, r, scale, mu, current=None):
+def _update_modes(phi, r, scale, mu, current):
     """Modes, slip directions and Newton gains from the complementarity functions of Signorini and
     Coulomb; ``current``: the modes ``phi`` and ``r`` were solved with (a node slipping there
     goes on slipping while its trial is over the bound, one sticking starts to slip only past
@@ -1259,9 +1259,7 @@ def _update_modes(phi, r, scale, mu, current=None):
     # edge too (_CONE_EDGE). The edge is one-sided: a band read as slipping from sticking and
     # as sticking from slipping would cycle (a sticking node over the bound by d slips, and
     # slipping it is over by d s / K, K its stiffness with the others stuck, K >= s).
-    edge = bound * (1.0 + _CONE_EDGE)
-    if current is not None:
-        edge = np.where(np.asarray(current) == SLIP, bound, edge)
+    edge = np.where(np.asarray(current) == SLIP, bound, bound * (1.0 + _CONE_EDGE))
     slipping = contact & (size > edge)
     modes = np.where(contact, np.where(slipping, SLIP, STICK), LIFT)
     directions = np.where(slipping[:, None], tau / np.where(slipping, size, 1.0)[:, None], 0.0)

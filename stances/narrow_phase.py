@@ -278,7 +278,8 @@ def scene_geometry(name: str, scene_object):
         return known
     shape, rotation, translation = scene_shape(name, scene_object)
     # A mesh's triangles as given: the BVH holds them as they are (read back from it one call a
-    # triangle, they took 11 ms of a deformed foam's 95 ms check in stances.verify).
+    # triangle, world_boxes took 29 ms a call on foot-and-hand-on-foam's deformed surface of
+    # 7,048 triangles, which stances.verify converts at every call; 8.5 ms so).
     triangles = scene_object.triangles if isinstance(scene_object, CollisionShape) else None
     known = (shape, rotation, translation, world_bounds(shape, rotation, translation),
              world_boxes(shape, rotation, translation, triangles=triangles))

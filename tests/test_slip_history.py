@@ -233,8 +233,7 @@ def test_a_reposed_stance_resolves_the_stances_that_keep_its_prints(plan, robot,
     again = stances.solve(robot, scene, before.stance, history=plan.stances[index - 1].result if index else None)
     assert again.feasible
     assert not np.array_equal(again.slips[surface].slips, before.result.slips[surface].slips)
-    reposed = replace(before, q=again.q, point_forces=tuple(again.point_forces),
-                      deformations=dict(again.deformations), result=again)
+    reposed = before.answered(again)
     spliced = list(plan.stances[:index]) + [reposed] + list(plan.stances[index + 1:])
     assert not replace(plan, stances=tuple(spliced)).check().ok
     rechained = chained(spliced, scene, robot, start=index + 1)
@@ -271,8 +270,7 @@ def test_a_motions_samples_start_each_kept_print_where_the_posture_before_left_i
     assert np.array_equal(arrival.held_slips[surface].slips, left.slips[surface].slips)
     after = plan.stances[index + 1]
     assert not np.array_equal(arrival.held_slips[surface].slips, after.result.held_slips[surface].slips)
-    arrived = replace(after, q=arrival.q, point_forces=tuple(arrival.point_forces),
-                      deformations=dict(arrival.deformations), result=arrival, arrived_by_motion=True)
+    arrived = after.answered(arrival, arrived_by_motion=True)
     joined = replace(plan, stances=plan.stances[:index + 1] + (arrived,) + plan.stances[index + 2:])
     assert verify_motion(motion, joined, scenario, robot) == []
     problems = verify_motion(motion, plan, scenario, robot)
@@ -377,8 +375,7 @@ def test_a_path_through_another_parent_is_solved_again_from_its_predecessor(plan
     index, surface = _first_slipped(plan)
     after = plan.stances[index + 1]
     other = stances.solve(robot, scene, after.stance, q_init=after.q)
-    elsewhere = replace(after, q=other.q, point_forces=tuple(other.point_forces),
-                        deformations=dict(other.deformations), result=other)
+    elsewhere = after.answered(other)
     spliced = plan.stances[: index + 1] + (elsewhere,) + plan.stances[index + 2:]
     assert not starts_where_left(spliced[index], spliced[index + 1])
     assert not replace(plan, stances=spliced).check().ok
